@@ -1,0 +1,37 @@
+# grasplan: two commands set everything up on a fresh machine.
+#   make demo   - create .venv, install, run the main job on examples/parts/bracket.stl
+#   make test   - create .venv, install, run the whole test suite
+PYTHON ?= python3
+VENV   := .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.installed
+OUT    ?= out
+
+.PHONY: install demo test bench parts clean
+
+install: $(STAMP)
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+parts: install
+	$(PY) examples/make_parts.py
+
+demo: install
+	@mkdir -p $(OUT)
+	$(VENV)/bin/grasplan plan examples/parts/bracket.stl --robot ur5 --units mm -o $(OUT)/bracket_plan.json
+	$(VENV)/bin/grasplan export $(OUT)/bracket_plan.json --format urscript -o $(OUT)/bracket_grasp.script
+	$(VENV)/bin/grasplan view $(OUT)/bracket_plan.json -o $(OUT)/bracket_view.html
+	@echo "Viewer: $(abspath $(OUT)/bracket_view.html)"
+
+test: install
+	$(PY) -m pytest -n 2 -q
+
+bench: install
+	$(PY) benchmarks/run_all.py
+
+clean:
+	rm -rf $(VENV) $(OUT) .pytest_cache .hypothesis

@@ -1,0 +1,107 @@
+"""Stages 1-4 composed: part -> (BLM) -> convexity -> antipodal candidates, and their JSON.
+
+``compute_candidates(part, params)`` is the pure function behind ``grasplan candidates``; the
+grasps and plan pipelines start from its result.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+import trimesh
+
+from .antipodal import Candidates, find_candidates
+from .blm import BLMResult, boundary_layer
+from .convexity import classify_convexity
+from .mesh import Part
+
+SCHEMA = "grasplan.candidates/1"
+
+
+@dataclass(frozen=True, kw_only=True)
+class CandidateParams:
+    """Parameters of stages 2-4. Lengths in metres, angles in degrees (as the user gives them)."""
+
+    blm: bool = True
+    alpha: float = 1e-4          #: BLM boundary-layer width, m (paper default 0.1 mm)
+    gamma_deg: float = 135.0     #: BLM surface angle: facets join when normals differ <= 180 - gamma
+    d_shift: float = 1e-5        #: convexity: centroid shift along the normal, m (0.01 mm)
+    epsilon: float = 5e-3        #: antipodal overlap threshold, m (5 mm)
+    max_opening: float = 0.05    #: gripper's maximum opening, m (Schunk EGP-C 40: 50 mm)
+    beta_deg: float = 2.0        #: normals anti-parallel within this, degrees
+    mu: float = 0.3              #: friction coefficient (cone half-angle atan(mu))
+
+    def __post_init__(self):
+        for name in ("alpha", "d_shift", "epsilon", "max_opening"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be a positive length in metres, got {v!r}")
+        if not 90.0 < self.gamma_deg <= 180.0:
+            raise ValueError(f"gamma_deg must be in (90, 180], got {self.gamma_deg!r}")
+        if not 0.0 <= self.beta_deg < 90.0:
+            raise ValueError(f"beta_deg must be in [0, 90), got {self.beta_deg!r}")
+        if not (np.isfinite(self.mu) and self.mu >= 0):
+            raise ValueError(f"mu must be >= 0, got {self.mu!r}")
+
+    def to_json(self) -> dict:
+        """Every parameter, lengths in m, angles in deg (names say so)."""
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class CandidateResult:
+    part: Part
+    params: CandidateParams
+    mesh: trimesh.Trimesh              #: the mesh the candidates index into (BLM output or the part's)
+    blm: BLMResult | None
+    convex: np.ndarray                 #: (m,) bool, per face of ``mesh``
+    candidates: Candidates
+    timing_s: dict = field(default_factory=dict)
+
+    def counts(self) -> dict:
+        return {
+            "triangles_in": self.part.triangles,
+            "triangles_blm": int(len(self.blm.mesh.faces)) if self.blm is not None else None,
+            "convex_faces": int(np.count_nonzero(self.convex)),
+            "candidates": len(self.candidates),
+        }
+
+    def to_json(self) -> dict:
+        return {
+            "schema": SCHEMA,
+            "part": self.part.to_json(),
+            "params": self.params.to_json(),
+            "counts": self.counts(),
+            "timing_s": dict(self.timing_s),
+            "candidates": self.candidates.to_json(),
+        }
+
+
+def compute_candidates(part: Part, params: CandidateParams = CandidateParams(), *, load_s: float = 0.0) -> CandidateResult:
+    """Run BLM (unless ``params.blm`` is False), convexity and the antipodal search on ``part``."""
+    timing = {"load": float(load_s)}
+    t = time.perf_counter()
+    blm_result = None
+    mesh = part.mesh
+    if params.blm:
+        blm_result = boundary_layer(part.mesh, alpha=params.alpha, gamma_deg=params.gamma_deg, tol=part.tol)
+        mesh = blm_result.mesh
+    timing["blm"] = time.perf_counter() - t if params.blm else 0.0
+
+    t = time.perf_counter()
+    convex = classify_convexity(mesh, d_shift=params.d_shift, tol=part.tol)
+    timing["convexity"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    cands = find_candidates(
+        mesh,
+        convex,
+        max_opening=params.max_opening,
+        beta_deg=params.beta_deg,
+        epsilon=params.epsilon,
+        mu=params.mu,
+        tol=part.tol,
+    )
+    timing["antipodal"] = time.perf_counter() - t
+    return CandidateResult(part=part, params=params, mesh=mesh, blm=blm_result, convex=convex, candidates=cands, timing_s=timing)

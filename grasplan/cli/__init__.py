@@ -1,0 +1,54 @@
+"""The ``grasplan`` command line. Each command lives in its own module (``grasplan/cli/<name>.py``,
+exposing a click command called ``command``) and is imported only when it runs, so ``--help`` is
+fast and a heavy dependency (Pinocchio, OMPL) is loaded only by the commands that need it."""
+from __future__ import annotations
+
+import importlib
+import sys
+
+import click
+
+from ..errors import GrasplanError
+
+#: command name -> (module, one-line help shown by ``grasplan --help``)
+COMMANDS: dict[str, tuple[str, str]] = {
+    "blm": ("blm", "Insert the boundary layer into a part's mesh and write the remeshed part."),
+    "candidates": ("candidates", "Convex antipodal contact pairs for a part (BLM, convexity, antipodal)."),
+    "grasps": ("grasps", "Gripper poses from candidates, filtered by full-jaw collision checks."),
+    "plan": ("plan", "Grasps a robot can reach: IK and collision-free approach paths."),
+    "export": ("export", "Write a planned grasp as URScript, a timed joint trajectory or CSV."),
+    "view": ("view", "Write a self-contained HTML viewer for a grasps or plan file."),
+}
+
+
+class LazyGroup(click.Group):
+    def list_commands(self, ctx):
+        return list(COMMANDS)
+
+    def get_command(self, ctx, name):
+        if name not in COMMANDS:
+            return None
+        module = importlib.import_module(f"grasplan.cli.{COMMANDS[name][0]}")
+        return module.command
+
+    def format_commands(self, ctx, formatter):
+        rows = [(name, help_) for name, (_, help_) in COMMANDS.items()]
+        with formatter.section("Commands"):
+            formatter.write_dl(rows)
+
+    def invoke(self, ctx):
+        try:
+            return super().invoke(ctx)
+        except GrasplanError as exc:
+            click.echo(f"grasplan: error: {exc}", err=True)
+            sys.exit(exc.exit_code)
+
+
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+@click.version_option(package_name="grasplan")
+def main():
+    """grasplan: verified parallel-jaw grasps from a part's CAD mesh.
+
+    Lengths accept unit suffixes (0.1mm, 5cm); a bare number is metres. Angles are degrees.
+    Exit codes: 0 ok, 2 usage error, 3 bad input (nothing written), 4 nothing usable found.
+    """
