@@ -48,9 +48,8 @@ def parse_length(text: str | float | int, *, name: str = "length", allow_negativ
         value = float(m.group(1)) * LENGTH_UNITS[unit]
     if not math.isfinite(value):
         raise InputError(f"{name}: {text!r} is not a finite length")
-    if value < 0 or (value == 0 and not allow_negative):
-        if not allow_negative:
-            raise InputError(f"{name}: must be positive, got {text!r}")
+    if value <= 0 and not allow_negative:
+        raise InputError(f"{name}: must be a positive length, got {text!r}")
     return value
 
 
