@@ -1,0 +1,106 @@
+"""OMPL joint paths against toy validity functions (2-6 DoF), and the straight TCP approach on the UR5.
+
+The toy obstacles are analytic, so every returned path is re-checked here independently at
+0.01 rad per joint (our own interpolation, not the module's)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from grasplan.paths import interpolate_path, path_free_fn, plan_joint_path
+
+
+def dense(path, step=0.01):
+    """Independent densification: each segment in ceil(max|dq|/step) equal steps."""
+    pts = [path[0]]
+    for a, b in zip(path[:-1], path[1:]):
+        k = int(np.ceil(np.max(np.abs(b - a)) / step)) or 1
+        for i in range(1, k + 1):
+            pts.append(a + (b - a) * i / k)
+    return np.array(pts)
+
+
+def wall_2d(q):
+    """A thin wall x in [-0.05, 0.05] with a narrow gap at y in [0.9, 1.0]."""
+    x, y = q[0], q[1]
+    return not (-0.05 <= x <= 0.05 and not (0.9 <= y <= 1.0))
+
+
+def thin_wall_2d(q):
+    """A wall thinner than 2 OMPL check steps: only fine checking sees it (gap at y in [1.5, 1.6])."""
+    x, y = q[0], q[1]
+    return not (0.0 <= x <= 0.012 and not (1.5 <= y <= 1.6))
+
+
+def balls_6d(q):
+    centres = np.array([[0.0] * 6, [0.6, -0.6, 0.0, 0.6, 0.0, 0.0]])
+    return bool(np.all(np.linalg.norm(q[None] - centres, axis=1) > 0.7))
+
+
+LO2, HI2 = np.array([-2.0, -2.0]), np.array([2.0, 2.0])
+
+
+def check_path(path, validity, q0, q1, lo, hi):
+    assert path is not None
+    assert path.ndim == 2 and path.shape[1] == len(q0) and len(path) >= 2
+    np.testing.assert_array_equal(path[0], q0)
+    np.testing.assert_array_equal(path[-1], q1)
+    d = dense(path)
+    assert np.all(d >= lo - 1e-12) and np.all(d <= hi + 1e-12)
+    bad = [q for q in d if not validity(q)]
+    assert not bad, f"{len(bad)} interpolated states collide, e.g. {bad[0]}"
+
+
+@pytest.mark.parametrize("validity", [wall_2d, thin_wall_2d])
+def test_2d_wall_with_gap(validity):
+    q0, q1 = np.array([-1.0, -1.5]), np.array([1.0, -1.5])
+    assert not path_free_fn(validity, np.stack([q0, q1]))  # the straight line is blocked
+    path = plan_joint_path(validity, q0, q1, lower=LO2, upper=HI2, seed=1, time_limit=2.0)
+    check_path(path, validity, q0, q1, LO2, HI2)
+    # the path must go through the gap
+    d = dense(path)
+    crossing = d[np.argmin(np.abs(d[:, 0] - 0.006))]
+    assert 0.85 <= crossing[1] <= 1.65
+
+
+def test_6d_balls_and_determinism():
+    lo, hi = -np.pi * np.ones(6), np.pi * np.ones(6)
+    q0 = np.array([-1.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    q1 = np.array([1.0, 0.0, 0.0, 0.2, 0.0, 0.0])
+    p1 = plan_joint_path(balls_6d, q0, q1, lower=lo, upper=hi, seed=5, time_limit=2.0)
+    check_path(p1, balls_6d, q0, q1, lo, hi)
+    p2 = plan_joint_path(balls_6d, q0, q1, lower=lo, upper=hi, seed=5, time_limit=2.0)
+    np.testing.assert_array_equal(p1, p2)
+
+
+def test_direct_segment_when_free():
+    q0, q1 = np.array([-1.0, -1.5]), np.array([-0.5, 1.5])
+    path = plan_joint_path(wall_2d, q0, q1, lower=LO2, upper=HI2)
+    np.testing.assert_array_equal(path, np.stack([q0, q1]))
+
+
+def test_invalid_or_unreachable_goal_gives_none():
+    enclosed = lambda q: not (0.5 < np.max(np.abs(q - 1.0)) < 0.6)  # noqa: E731  (a box shell around (1, 1))
+    q0 = np.array([-1.0, -1.0])
+    assert plan_joint_path(wall_2d, q0, np.array([0.0, 0.0]), lower=LO2, upper=HI2) is None  # goal in the wall
+    assert plan_joint_path(wall_2d, q0, np.array([3.0, 0.0]), lower=LO2, upper=HI2) is None  # outside limits
+    assert plan_joint_path(enclosed, q0, np.array([1.0, 1.0]), lower=LO2, upper=HI2, time_limit=0.2, attempts=1) is None
+
+
+def test_plain_callable_needs_limits():
+    with pytest.raises(ValueError):
+        plan_joint_path(wall_2d, np.zeros(2), np.ones(2))
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.integers(2, 7), st.integers(1, 6), st.floats(0.002, 0.05), st.integers(0, 2**31 - 1))
+def test_interpolate_path_properties(k, n, step, seed):
+    rng = np.random.default_rng(seed)
+    path = rng.uniform(-1, 1, size=(k, n))
+    d = interpolate_path(path, step=step)
+    assert np.max(np.abs(np.diff(d, axis=0))) <= step + 1e-12
+    np.testing.assert_array_equal(d[0], path[0])
+    np.testing.assert_array_equal(d[-1], path[-1])
+    for w in path:  # every waypoint is in the densified path
+        assert np.min(np.max(np.abs(d - w), axis=1)) < 1e-12
