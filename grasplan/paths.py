@@ -288,7 +288,20 @@ def _dist_to_segment(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.linalg.norm(p - (a + t[:, None] * ab), axis=1)
 
 
-def approach_path(
+def approach_path(robot, scene, T_world_tcp_pre, T_world_tcp_grasp, q_pre, *, opening: float, max_dev: float = 0.002,
+                  T_flange_tcp=None, sample: float = 0.001, max_joint_step: float = 0.1,
+                  step: float = STEP) -> np.ndarray | None:
+    """Joint waypoints moving the TCP on the straight line ``T_world_tcp_pre -> T_world_tcp_grasp``.
+
+    See :func:`approach_path_reason` (same arguments) for the details; this returns only the path
+    (``None`` when it fails).
+    """
+    return approach_path_reason(robot, scene, T_world_tcp_pre, T_world_tcp_grasp, q_pre, opening=opening,
+                                max_dev=max_dev, T_flange_tcp=T_flange_tcp, sample=sample,
+                                max_joint_step=max_joint_step, step=step)[0]
+
+
+def approach_path_reason(
     robot,
     scene,
     T_world_tcp_pre: np.ndarray,
@@ -301,7 +314,7 @@ def approach_path(
     sample: float = 0.001,
     max_joint_step: float = 0.1,
     step: float = STEP,
-) -> np.ndarray | None:
+) -> tuple[np.ndarray | None, str]:
     """Joint waypoints moving the TCP on the straight line ``T_world_tcp_pre -> T_world_tcp_grasp``.
 
     The two TCP poses must share their orientation (the pre-grasp is the grasp backed off along its
@@ -332,8 +345,10 @@ def approach_path(
 
     Returns
     -------
-    (k, n) float64, first row ``q_pre``, last row a joint vector reaching ``T_world_tcp_grasp``; or
-    ``None`` (IK lost on the line, a joint jump, a limit, a deviation or a collision).
+    (path, reason): path (k, n) float64, first row ``q_pre``, last row a joint vector reaching
+    ``T_world_tcp_grasp``, reason ``"ok"``; or ``None`` and the reason: ``"start"`` (q_pre does not
+    reach the first pose), ``"ik"`` (IK lost on the line), ``"limits"``, ``"jump"``, ``"deviation"``
+    (kinematic failures) or ``"collision"``.
     """
     T_pre = np.asarray(T_world_tcp_pre, dtype=np.float64)
     T_gr = np.asarray(T_world_tcp_grasp, dtype=np.float64)
@@ -355,7 +370,7 @@ def approach_path(
     # start pose must match q_pre
     tcp0 = solver.fk(q) @ T_flange_tcp
     if np.linalg.norm(tcp0[:3, 3] - a) > max_dev * 0.5:
-        return None
+        return None, "start"
 
     qs = [q]
     for i in range(1, m + 1):
@@ -364,11 +379,11 @@ def approach_path(
         T[:3, 3] = a + (b - a) * (i / m)
         q_new = solver.solve(T @ T_tcp_flange, q)
         if q_new is None:
-            return None
+            return None, "ik"
         if np.any(q_new < lower) or np.any(q_new > upper):
-            return None
+            return None, "limits"
         if np.max(np.abs(q_new - q)) > max_joint_step:
-            return None
+            return None, "jump"
         qs.append(q_new)
         q = q_new
     path = np.array(qs)
@@ -376,7 +391,7 @@ def approach_path(
     probes = np.concatenate([path, 0.5 * (path[:-1] + path[1:])], axis=0)
     tcp = np.array([(solver.fk(p) @ T_flange_tcp)[:3, 3] for p in probes])
     if np.max(_dist_to_segment(tcp, a, b)) > max_dev:
-        return None
+        return None, "deviation"
     if scene is not None and not scene.path_free(path, opening, step=step):
-        return None
-    return path
+        return None, "collision"
+    return path, "ok"

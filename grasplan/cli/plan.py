@@ -1,0 +1,148 @@
+"""``grasplan plan PART --robot NAME -o OUT.json``: grasps a robot can reach, with verified paths."""
+from __future__ import annotations
+
+import time
+
+import click
+
+from ..candidates import CandidateParams
+from ..errors import InputError, PlanningError
+from .common import ANGLE, LENGTH, info, progress, table, units_option, warn_all
+
+
+def parse_part_pose(text: str | None):
+    """``--part-pose``: ``x,y,z`` (m) or ``x,y,z,roll,pitch,yaw`` (m, deg; extrinsic x-y-z), or a
+    JSON/YAML file holding a 4x4 ``T_world_part`` (a matrix or ``{"T_world_part": matrix}``)."""
+    import numpy as np
+
+    if text is None:
+        return None
+    from pathlib import Path
+
+    p = Path(text)
+    if p.suffix.lower() in (".json", ".yaml", ".yml") or p.exists():
+        if not p.exists():
+            raise InputError(f"--part-pose: file {text} not found (give x,y,z[,roll,pitch,yaw] or a JSON/YAML 4x4 matrix)")
+        import yaml
+
+        data = yaml.safe_load(p.read_text())
+        if isinstance(data, dict):
+            data = data.get("T_world_part")
+        T = np.asarray(data, dtype=np.float64) if data is not None else np.zeros(0)
+        if T.shape != (4, 4):
+            raise InputError(f"--part-pose: {text} must hold a 4x4 matrix (or T_world_part: 4x4)")
+    else:
+        try:
+            v = [float(x) for x in text.replace(" ", "").split(",")]
+        except ValueError:
+            raise InputError(f"--part-pose: cannot read {text!r}; give x,y,z (m) or x,y,z,roll,pitch,yaw (m, deg)") from None
+        if len(v) not in (3, 6):
+            raise InputError(f"--part-pose: expected 3 or 6 numbers, got {len(v)}")
+        from scipy.spatial.transform import Rotation
+
+        T = np.eye(4)
+        T[:3, 3] = v[:3]
+        if len(v) == 6:
+            T[:3, :3] = Rotation.from_euler("xyz", v[3:], degrees=True).as_matrix()
+    if not np.all(np.isfinite(T)) or not np.allclose(T[3], [0, 0, 0, 1]):
+        raise InputError("--part-pose: not a homogeneous transform")
+    R = T[:3, :3]
+    if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
+        raise InputError("--part-pose: the rotation part is not a proper rotation matrix")
+    return T
+
+
+@click.command(name="plan")
+@click.argument("part", type=click.Path(dir_okay=False))
+@click.option("--robot", "robot_name", default="ur5", show_default=True,
+              help="Robot name (robots/*.yaml) or path to a robot YAML; an unknown name lists the available ones.")
+@click.option("-o", "--output", "output", required=True, type=click.Path(dir_okay=False),
+              help="Output JSON (grasplan.plan/1).")
+@click.option("--gripper", default="schunk_egp_c_40", show_default=True, help="Gripper name or YAML path.")
+@click.option("--cell", default="table", show_default=True, help="Cell name or YAML path.")
+@click.option("--part-pose", default=None,
+              help="Override the part's pose on the table: x,y,z (m) or x,y,z,roll,pitch,yaw (m, deg), "
+                   "or a JSON/YAML file with a 4x4 T_world_part. Default: the most probable stable pose.")
+@click.option("--top", type=click.IntRange(min=1), default=20, show_default=True,
+              help="Plan at most K grasps, best score first; the other ok grasps are not_tried.")
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed of IK and OMPL (deterministic results).")
+@click.option("--roll-step", "roll_step_deg", type=ANGLE, default=15.0, show_default=True,
+              help="Roll step of the TCP about the closing axis, degrees.")
+@click.option("--time-limit", "time_limit", type=click.FloatRange(min=0.0, min_open=True), default=1.0,
+              show_default=True, help="RRTConnect time per attempt (seconds).")
+@click.option("--budget", "budget_s", type=click.FloatRange(min=0.0, min_open=True), default=100.0,
+              show_default=True, help="Wall-clock budget of the planning loop (seconds); later grasps are not_tried.")
+@click.option("--no-blm", is_flag=True, help="Skip the boundary layer mesher.")
+@click.option("--alpha", type=LENGTH, default=1e-4, show_default="0.1mm", help="BLM boundary-layer width.")
+@click.option("--gamma", "gamma_deg", type=ANGLE, default=135.0, show_default=True,
+              help="BLM surface angle (degrees): facets join a surface when normals differ <= 180 - gamma.")
+@click.option("--d-shift", type=LENGTH, default=1e-5, show_default="0.01mm", help="Convexity test shift.")
+@click.option("--epsilon", type=LENGTH, default=5e-3, show_default="5mm", help="Antipodal overlap threshold.")
+@click.option("--max-opening", type=LENGTH, default=0.05, show_default="50mm", help="Largest contact distance.")
+@click.option("--beta", "beta_deg", type=ANGLE, default=2.0, show_default=True,
+              help="Normals anti-parallel within this (degrees).")
+@click.option("--mu", type=click.FloatRange(min=0.0), default=0.3, show_default=True, help="Friction coefficient.")
+@units_option
+def command(part, robot_name, output, gripper, cell, part_pose, top, seed, roll_step_deg, time_limit, budget_s,
+            no_blm, alpha, gamma_deg, d_shift, epsilon, max_opening, beta_deg, mu, units):
+    """Plan grasps of PART that ROBOT can reach: IK, straight approach, OMPL path from home.
+
+    Writes grasplan.plan/1 JSON (the grasps file plus robot, per-grasp status, score, rank and,
+    when planned, q_grasp, q_pregrasp, path, pregrasp_index). Exit code 4 (file still written)
+    when no grasp could be planned: the per-grasp statuses say why.
+    """
+    from ..mesh import load_part
+    from ..plan import STATUSES, plan
+    from ..robot import load_robot
+
+    t0 = time.perf_counter()
+    # validate cheap inputs first: nothing is written on bad input
+    try:
+        cand_params = CandidateParams(blm=not no_blm, alpha=alpha, gamma_deg=gamma_deg, d_shift=d_shift,
+                                      epsilon=epsilon, max_opening=max_opening, beta_deg=beta_deg, mu=mu)
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+    T_world_part = parse_part_pose(part_pose)
+    load_robot(robot_name)  # unknown robot -> ConfigError listing the available ones
+    t = time.perf_counter()
+    p = load_part(part, units=units)
+    load_s = time.perf_counter() - t
+    info(f"part {part}: {p.triangles} triangles ({p.units_note})")
+    warn_all(p.warnings)
+    info("computing grasps (candidates, frames, collision) ...")
+
+    bar_state = {"bar": None, "done": 0}
+
+    def on_progress(ev: dict) -> None:
+        if ev.get("stage") == "grasps":
+            c = ev["counts"]
+            info(f"grasps: {c}")
+            return
+        if bar_state["bar"] is None:
+            n = max(1, min(ev["top"], ev["candidates"]))
+            bar_state["ctx"] = progress(range(n), length=n, label=f"planning grasps ({ev['candidates']} ok, top {ev['top']})")
+            bar_state["bar"] = bar_state["ctx"].__enter__()
+        if ev["planned"] > bar_state["done"]:
+            bar_state["bar"].update(ev["planned"] - bar_state["done"])
+            bar_state["done"] = ev["planned"]
+
+    try:
+        result = plan(p, robot=robot_name, gripper=gripper, cell=cell, top=top, seed=seed, cand_params=cand_params,
+                      roll_step_deg=roll_step_deg, T_world_part=T_world_part, time_limit_per_query=time_limit,
+                      budget_s=budget_s, progress=on_progress)
+    finally:
+        if bar_state["bar"] is not None:
+            bar_state["ctx"].__exit__(None, None, None)
+    result.timing_s["load"] = result.timing_s.get("load", 0.0) or load_s
+    result.write(output)
+
+    counts = result.counts()
+    click.echo(f"{p.path}: {counts['grasps']} grasp poses, robot {result.robot.name}, wrote {output}")
+    click.echo(table([(s, counts[s]) for s in STATUSES], header=("status", "grasps")))
+    click.echo("")
+    timing = {**result.grasps.timing_s, **result.timing_s}
+    click.echo(table([(k, float(v)) for k, v in timing.items()] + [("total", time.perf_counter() - t0)],
+                     header=("stage", "seconds")))
+    if counts["planned"] == 0:
+        raise PlanningError(f"no grasp could be planned for {part} with {robot_name}; "
+                            f"{output} lists every grasp's status and reason")
