@@ -1,0 +1,464 @@
+"""Robot models: a YAML description (``robots/<name>.yaml``) around a URDF/SRDF pair.
+
+A :class:`Robot` is loaded ONCE per name (:func:`load_robot` caches it) and is immutable and
+shared: it holds the Pinocchio ``Model`` and collision/visual ``GeometryModel`` but no ``Data``.
+Solvers (IK, collision scenes) own their scratch ``pin.Data``. :meth:`Robot.fk` and
+:meth:`Robot.link_poses` use a private per-thread ``Data`` for convenience.
+
+Frames
+------
+* The Pinocchio model's universe is the robot's URDF root link (``base_link`` for the UR5,
+  ``panda_link0`` for the Panda). ``T_world_base`` places that root link in the world
+  (identity for both shipped robots), so ``fk(q) = T_world_base @ T_base_tool(q)``.
+* Extra fixed frames listed in the YAML's ``frames`` are added to the model at load time. The
+  UR5 URDF of example-robot-data already defines ``tool0`` and ``base`` as ``ur_description`` does
+  for the UR controller: ``tool0`` = ``wrist_3_link``
+  translated (0, 0.0823, 0) and rotated -90 deg about x (z along the flange normal), ``base`` =
+  ``base_link`` rotated 180 deg about z (the controller's base frame, used for URScript poses).
+
+YAML schema (all lengths m, angles rad; angles may be written as expressions such as ``-pi/2``)::
+
+    name: ur5                       # str, required
+    description: "..."              # str, optional
+    package: example-robot-data     # optional: urdf/srdf are relative to the installed package's
+                                    #   robots/ folder; without it, relative to the YAML file
+    urdf: ur_description/urdf/ur5_robot.urdf    # required
+    srdf: ur_description/srdf/ur5.srdf          # optional: disabled collision pairs
+    kind: ur                        # "ur" (closed-form IK fast path) or "generic" (CLIK only)
+    tool_frame: tool0               # frame the gripper flange is mounted on (required)
+    frames:                         # optional extra fixed frames added to the model
+      - {name: tool0, parent: wrist_3_link, xyz: [0, 0.0823, 0], rpy: [-pi/2, 0, 0]}
+    lock_joints: {}                 # optional {joint: value}: joints removed from the model
+    remove_links: []                # optional links whose collision/visual geometry is dropped
+    mounted_links: [base_link, shoulder_link]   # links on the table: exempt from table checks
+    T_world_base: identity          # "identity" or a 4x4 nested list
+    q_home: [0, -pi/2, pi/2, -pi/2, -pi/2, 0]   # required, within the URDF limits
+"""
+from __future__ import annotations
+
+import ast
+import importlib.metadata
+import math
+import sys
+import threading
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+import yaml
+
+from .errors import ConfigError, InputError, unknown_name
+
+ROBOTS_DIR = Path(__file__).resolve().parents[1] / "robots"
+_PKG_SHARE = "cmeel.prefix/share"
+
+
+# --------------------------------------------------------------------------------------------
+# Finding the installed example-robot-data
+# --------------------------------------------------------------------------------------------
+@lru_cache(maxsize=None)
+def package_share_dir(package: str = "example-robot-data") -> Path:
+    """The ``share`` directory holding ``<package>/robots/...`` (the ``package://`` root).
+
+    Looks the package up in its installed-files record (cmeel wheels install under
+    ``site-packages/cmeel.prefix/share``), then in every ``sys.path`` entry.
+    """
+    try:
+        for f in importlib.metadata.files(package) or []:
+            parts = Path(str(f)).parts
+            if package in parts and "robots" in parts:
+                full = Path(f.locate()).resolve()
+                idx = len(full.parts) - len(parts) + parts.index(package)
+                share = Path(*full.parts[:idx])
+                if (share / package / "robots").is_dir():
+                    return share
+    except importlib.metadata.PackageNotFoundError:
+        pass
+    for entry in sys.path:
+        cand = Path(entry) / _PKG_SHARE
+        if (cand / package / "robots").is_dir():
+            return cand
+    raise ConfigError(f"package {package!r} with robot descriptions is not installed "
+                      f"(pip install {package}); looked in its installed files and in sys.path")
+
+
+# --------------------------------------------------------------------------------------------
+# Small YAML helpers
+# --------------------------------------------------------------------------------------------
+_ALLOWED = (ast.Expression, ast.BinOp, ast.UnaryOp, ast.Constant, ast.Name, ast.Add, ast.Sub,
+            ast.Mult, ast.Div, ast.USub, ast.UAdd, ast.Load)
+
+
+def _num(value: Any, where: str) -> float:
+    """A float from a YAML scalar: a number or an expression of numbers and ``pi``."""
+    if isinstance(value, bool):
+        raise ConfigError(f"{where}: expected a number, got {value!r}")
+    if isinstance(value, (int, float)):
+        out = float(value)
+    elif isinstance(value, str):
+        try:
+            tree = ast.parse(value.strip(), mode="eval")
+            if not all(isinstance(n, _ALLOWED) for n in ast.walk(tree)) or any(
+                    isinstance(n, ast.Name) and n.id != "pi" for n in ast.walk(tree)):
+                raise ValueError
+            out = float(eval(compile(tree, "<yaml>", "eval"), {"__builtins__": {}}, {"pi": math.pi}))
+        except Exception:
+            raise ConfigError(f"{where}: cannot read {value!r} as a number (use e.g. 1.57 or -pi/2)") from None
+    else:
+        raise ConfigError(f"{where}: expected a number, got {value!r}")
+    if not math.isfinite(out):
+        raise ConfigError(f"{where}: {value!r} is not finite")
+    return out
+
+
+def _vec(value: Any, n: int | None, where: str) -> np.ndarray:
+    if not isinstance(value, (list, tuple)):
+        raise ConfigError(f"{where}: expected a list of numbers, got {value!r}")
+    if n is not None and len(value) != n:
+        raise ConfigError(f"{where}: expected {n} numbers, got {len(value)}")
+    return np.array([_num(v, f"{where}[{i}]") for i, v in enumerate(value)], dtype=float)
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a = np.array(a, dtype=float)
+    a.setflags(write=False)
+    return a
+
+
+def se3_from_xyz_rpy(xyz, rpy) -> pin.SE3:
+    return pin.SE3(pin.rpy.rpyToMatrix(*np.asarray(rpy, float)), np.asarray(xyz, float))
+
+
+def parse_srdf_disabled_pairs(srdf_path: Path) -> tuple[tuple[str, str], ...]:
+    """``<disable_collisions link1 link2>`` entries of an SRDF, each pair sorted."""
+    try:
+        root = ET.parse(srdf_path).getroot()
+    except (OSError, ET.ParseError) as exc:
+        raise ConfigError(f"cannot read SRDF {srdf_path}: {exc}") from None
+    pairs = set()
+    for el in root.iter("disable_collisions"):
+        a, b = el.get("link1"), el.get("link2")
+        if a and b:
+            pairs.add(tuple(sorted((a, b))))
+    return tuple(sorted(pairs))
+
+
+# --------------------------------------------------------------------------------------------
+# Robot
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class Robot:
+    """An immutable, shared robot model (load with :func:`load_robot`).
+
+    Arrays are read-only float64: ``q_home``, ``lower``, ``upper``, ``velocity_limit`` (n,),
+    ``T_world_base`` (4, 4). ``disabled_pairs`` holds sorted (link, link) name pairs from the
+    SRDF. ``mounted_links`` are exempt from table checks; ``kind`` is ``"ur"`` or ``"generic"``.
+    """
+
+    name: str
+    model: pin.Model
+    collision_model: pin.GeometryModel
+    visual_model: pin.GeometryModel
+    joint_names: tuple[str, ...]
+    q_home: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    velocity_limit: np.ndarray
+    tool_frame: str
+    tool_frame_id: int
+    T_world_base: np.ndarray
+    disabled_pairs: tuple[tuple[str, str], ...]
+    urdf_path: Path
+    srdf_path: Path | None
+    package_dirs: tuple[str, ...]
+    mounted_links: tuple[str, ...] = ()
+    kind: str = "generic"
+    config_path: Path | None = None
+    _tls: threading.local = field(default_factory=threading.local, repr=False, compare=False)
+
+    # ---- basic properties -------------------------------------------------------------------
+    @property
+    def nq(self) -> int:
+        return int(self.model.nq)
+
+    @property
+    def tool_joint_id(self) -> int:
+        """Index of the joint the tool frame (and the gripper) moves with."""
+        return int(self.model.frames[self.tool_frame_id].parentJoint)
+
+    @property
+    def T_joint_tool(self) -> np.ndarray:
+        """(4, 4) placement of the tool frame in its parent joint's frame."""
+        return self.model.frames[self.tool_frame_id].placement.homogeneous.copy()
+
+    def new_data(self) -> pin.Data:
+        """A fresh scratch ``pin.Data`` for a solver to own."""
+        return self.model.createData()
+
+    def _data(self) -> pin.Data:
+        d = getattr(self._tls, "data", None)
+        if d is None:
+            d = self._tls.data = self.model.createData()
+        return d
+
+    def check_q(self, q, *, where: str = "q") -> np.ndarray:
+        """``q`` as a float (n,) array; raises InputError on a wrong shape or non-finite values."""
+        q = np.asarray(q, dtype=float)
+        if q.shape != (self.nq,):
+            raise InputError(f"{where}: expected shape ({self.nq},) for robot {self.name!r}, got {q.shape}")
+        if not np.all(np.isfinite(q)):
+            raise InputError(f"{where}: contains NaN/inf")
+        return q
+
+    def within_limits(self, q, *, tol: float = 1e-9) -> bool | np.ndarray:
+        """True where q (n,) or (k, n) lies within [lower - tol, upper + tol]."""
+        q = np.asarray(q, dtype=float)
+        ok = np.all((q >= self.lower - tol) & (q <= self.upper + tol), axis=-1)
+        return bool(ok) if ok.ndim == 0 else ok
+
+    # ---- kinematics ---------------------------------------------------------------------------
+    def fk(self, q) -> np.ndarray:
+        """T_world_tool (4, 4) for joint vector q (n,)."""
+        q = self.check_q(q)
+        d = self._data()
+        pin.forwardKinematics(self.model, d, q)
+        M = pin.updateFramePlacement(self.model, d, self.tool_frame_id)
+        return self.T_world_base @ M.homogeneous
+
+    def fk_batch(self, qs) -> np.ndarray:
+        """T_world_tool (k, 4, 4) for qs (k, n)."""
+        qs = np.asarray(qs, dtype=float)
+        if qs.ndim != 2 or qs.shape[1] != self.nq:
+            raise InputError(f"qs: expected shape (k, {self.nq}), got {qs.shape}")
+        return np.stack([self.fk(q) for q in qs]) if len(qs) else np.zeros((0, 4, 4))
+
+    def frame_pose(self, q, frame: str) -> np.ndarray:
+        """T_world_frame (4, 4) of any model frame (e.g. ``"base"`` or ``"wrist_3_link"``)."""
+        q = self.check_q(q)
+        if not self.model.existFrame(frame):
+            raise unknown_name("frame", frame, [f.name for f in self.model.frames])
+        d = self._data()
+        pin.forwardKinematics(self.model, d, q)
+        M = pin.updateFramePlacement(self.model, d, self.model.getFrameId(frame))
+        return self.T_world_base @ M.homogeneous
+
+    def link_poses(self, q, *, which: str = "collision") -> list[tuple[str, np.ndarray, str, np.ndarray]]:
+        """For the viewer: ``[(geometry_name, T_world_geom (4,4), mesh_path, mesh_scale (3,))]``.
+
+        ``which`` = ``"collision"`` (STL meshes, default) or ``"visual"``. ``mesh_path`` is ""
+        for primitive shapes (e.g. the UR5's tiny ``ee_link`` box).
+        """
+        q = self.check_q(q)
+        gm = {"collision": self.collision_model, "visual": self.visual_model}.get(which)
+        if gm is None:
+            raise InputError(f"which: expected 'collision' or 'visual', got {which!r}")
+        d = self._data()
+        pin.forwardKinematics(self.model, d, q)
+        out = []
+        for g in gm.geometryObjects:
+            T = self.T_world_base @ (d.oMi[g.parentJoint] * g.placement).homogeneous
+            out.append((g.name, T, str(g.meshPath or ""), np.array(g.meshScale, dtype=float)))
+        return out
+
+    def link_name(self, geom: pin.GeometryObject) -> str:
+        """The URDF link a geometry object belongs to."""
+        return self.model.frames[geom.parentFrame].name
+
+    def to_json(self) -> dict:
+        return {"name": self.name, "joint_names": list(self.joint_names),
+                "T_world_base": self.T_world_base.tolist(), "q_home": self.q_home.tolist()}
+
+
+# --------------------------------------------------------------------------------------------
+# Loading
+# --------------------------------------------------------------------------------------------
+def available_robots() -> list[str]:
+    """Names of the robot descriptions shipped in ``robots/``."""
+    return sorted(p.stem for p in ROBOTS_DIR.glob("*.yaml"))
+
+
+def _resolve(name_or_path: str | Path) -> tuple[str, Path]:
+    s = str(name_or_path)
+    p = Path(s)
+    if s.endswith((".yaml", ".yml")) or p.is_file():
+        if not p.is_file():
+            raise ConfigError(f"robot file {p} does not exist")
+        return str(p.resolve()), p.resolve()
+    cand = ROBOTS_DIR / f"{s}.yaml"
+    if not cand.is_file():
+        raise unknown_name("robot", s, available_robots(), hint="or give a path to a robot YAML file")
+    return s, cand
+
+
+def load_robot(name_or_path: str | Path = "ur5") -> Robot:
+    """The robot named ``name_or_path`` (``robots/<name>.yaml``) or described by a YAML file.
+
+    Cached: the URDF/SRDF are parsed once per name/path; the same :class:`Robot` is returned on
+    every later call. Raises ConfigError for an unknown name (listing the available ones) or a
+    malformed file (naming the field).
+    """
+    key, path = _resolve(name_or_path)
+    return _load_cached(key, str(path))
+
+
+@lru_cache(maxsize=None)
+def _load_cached(key: str, path: str) -> Robot:
+    return _build_robot(Path(path))
+
+
+def _field(cfg: dict, name: str, where: Path, *, required: bool = True, default: Any = None):
+    if name not in cfg:
+        if required:
+            raise ConfigError(f"{where}: missing required field {name!r}")
+        return default
+    return cfg[name]
+
+
+def _build_robot(path: Path) -> Robot:
+    try:
+        cfg = yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError) as exc:
+        raise ConfigError(f"cannot read robot file {path}: {exc}") from None
+    if not isinstance(cfg, dict):
+        raise ConfigError(f"{path}: expected a mapping of fields, got {type(cfg).__name__}")
+    known = {"name", "description", "package", "urdf", "srdf", "kind", "tool_frame", "frames",
+             "lock_joints", "remove_links", "mounted_links", "T_world_base", "q_home"}
+    extra = sorted(set(cfg) - known)
+    if extra:
+        raise ConfigError(f"{path}: unknown field(s) {extra}; known fields: {sorted(known)}")
+
+    name = _field(cfg, "name", path)
+    if not isinstance(name, str) or not name:
+        raise ConfigError(f"{path}: field 'name' must be a non-empty string")
+    kind = _field(cfg, "kind", path, required=False, default="generic")
+    if kind not in ("ur", "generic"):
+        raise ConfigError(f"{path}: field 'kind' must be 'ur' or 'generic', got {kind!r}")
+
+    package = _field(cfg, "package", path, required=False)
+    if package is not None:
+        share = package_share_dir(str(package))
+        root = share / str(package) / "robots"
+        package_dirs = (str(share),)
+    else:
+        root = path.parent
+        package_dirs = (str(path.parent),)
+
+    def _file(fname: str, required: bool) -> Path | None:
+        v = _field(cfg, fname, path, required=required)
+        if v is None:
+            return None
+        if not isinstance(v, str):
+            raise ConfigError(f"{path}: field {fname!r} must be a path string")
+        p = Path(v) if Path(v).is_absolute() else root / v
+        if not p.is_file():
+            raise ConfigError(f"{path}: field {fname!r}: file {p} not found")
+        return p
+
+    urdf_path = _file("urdf", True)
+    srdf_path = _file("srdf", False)
+
+    try:
+        model, cmodel, vmodel = pin.buildModelsFromUrdf(str(urdf_path), list(package_dirs))
+    except Exception as exc:  # pinocchio raises ValueError/RuntimeError with its own message
+        raise ConfigError(f"{path}: field 'urdf': cannot load {urdf_path}: {exc}") from None
+
+    # lock joints (e.g. the Panda's finger joints)
+    lock = _field(cfg, "lock_joints", path, required=False, default={}) or {}
+    if not isinstance(lock, dict):
+        raise ConfigError(f"{path}: field 'lock_joints' must be a mapping joint -> value")
+    if lock:
+        q0 = pin.neutral(model)
+        ids = []
+        for jn, val in lock.items():
+            if not model.existJointName(jn):
+                raise ConfigError(f"{path}: field 'lock_joints': unknown joint {jn!r}; joints: "
+                                  f"{', '.join(list(model.names)[1:])}")
+            jid = model.getJointId(jn)
+            q0[model.idx_qs[jid]] = _num(val, f"{path}: lock_joints.{jn}")
+            ids.append(jid)
+        model, (cmodel, vmodel) = pin.buildReducedModel(model, [cmodel, vmodel], ids, q0)
+
+    # drop geometry of removed links (e.g. the Panda's hand)
+    remove = _field(cfg, "remove_links", path, required=False, default=[]) or []
+    if not isinstance(remove, list):
+        raise ConfigError(f"{path}: field 'remove_links' must be a list of link names")
+    for ln in remove:
+        if not model.existFrame(ln):
+            raise ConfigError(f"{path}: field 'remove_links': unknown link {ln!r}")
+        for gm in (cmodel, vmodel):
+            names = [str(g.name) for g in gm.geometryObjects if model.frames[g.parentFrame].name == ln]
+            for gname in names:
+                gm.removeGeometryObject(gname)
+
+    # extra frames
+    frames = _field(cfg, "frames", path, required=False, default=[]) or []
+    if not isinstance(frames, list):
+        raise ConfigError(f"{path}: field 'frames' must be a list")
+    for i, fr in enumerate(frames):
+        w = f"{path}: frames[{i}]"
+        if not isinstance(fr, dict) or "name" not in fr or "parent" not in fr:
+            raise ConfigError(f"{w}: needs 'name' and 'parent' (and optional 'xyz', 'rpy')")
+        if model.existFrame(fr["parent"]) is False:
+            raise ConfigError(f"{w}.parent: unknown frame {fr['parent']!r}")
+        if model.existFrame(fr["name"]):
+            raise ConfigError(f"{w}.name: frame {fr['name']!r} already exists in the URDF")
+        pid = model.getFrameId(fr["parent"])
+        parent = model.frames[pid]
+        local = se3_from_xyz_rpy(_vec(fr.get("xyz", [0, 0, 0]), 3, f"{w}.xyz"),
+                                 _vec(fr.get("rpy", [0, 0, 0]), 3, f"{w}.rpy"))
+        model.addFrame(pin.Frame(fr["name"], parent.parentJoint, pid, parent.placement * local,
+                                 pin.FrameType.OP_FRAME))
+
+    tool_frame = _field(cfg, "tool_frame", path)
+    if not isinstance(tool_frame, str) or not model.existFrame(tool_frame):
+        raise unknown_name("tool_frame", str(tool_frame), [f.name for f in model.frames],
+                           hint=f"field 'tool_frame' in {path}")
+    tool_frame_id = int(model.getFrameId(tool_frame))
+
+    # a robot made only of revolute/prismatic 1-DoF joints (nq == nv) is what we support
+    if model.nq != model.nv:
+        raise ConfigError(f"{path}: field 'urdf': continuous/free joints are not supported (nq != nv)")
+    joint_names = tuple(model.names[1:])
+    lower = np.array(model.lowerPositionLimit, dtype=float)
+    upper = np.array(model.upperPositionLimit, dtype=float)
+    vel = np.array(model.velocityLimit, dtype=float)
+    if not (np.all(np.isfinite(lower)) and np.all(np.isfinite(upper))):
+        raise ConfigError(f"{path}: field 'urdf': every joint needs finite position limits")
+
+    q_home = _vec(_field(cfg, "q_home", path), model.nq, f"{path}: field 'q_home'")
+    if np.any(q_home < lower - 1e-9) or np.any(q_home > upper + 1e-9):
+        raise ConfigError(f"{path}: field 'q_home' {q_home.tolist()} is outside the joint limits "
+                          f"[{lower.tolist()}, {upper.tolist()}]")
+
+    Twb = _field(cfg, "T_world_base", path, required=False, default="identity")
+    if Twb == "identity" or Twb is None:
+        T_world_base = np.eye(4)
+    else:
+        if not isinstance(Twb, list) or len(Twb) != 4:
+            raise ConfigError(f"{path}: field 'T_world_base' must be 'identity' or a 4x4 list")
+        T_world_base = np.stack([_vec(r, 4, f"{path}: field 'T_world_base'[{i}]") for i, r in enumerate(Twb)])
+        R = T_world_base[:3, :3]
+        if not (np.allclose(R @ R.T, np.eye(3), atol=1e-6) and np.isclose(np.linalg.det(R), 1.0, atol=1e-6)
+                and np.allclose(T_world_base[3], [0, 0, 0, 1])):
+            raise ConfigError(f"{path}: field 'T_world_base' is not a rigid transform")
+
+    mounted = _field(cfg, "mounted_links", path, required=False, default=[]) or []
+    if not isinstance(mounted, list):
+        raise ConfigError(f"{path}: field 'mounted_links' must be a list of link names")
+    for ln in mounted:
+        if not model.existFrame(ln):
+            raise ConfigError(f"{path}: field 'mounted_links': unknown link {ln!r}")
+
+    disabled = parse_srdf_disabled_pairs(srdf_path) if srdf_path else ()
+
+    return Robot(name=name, model=model, collision_model=cmodel, visual_model=vmodel,
+                 joint_names=joint_names, q_home=_frozen(q_home), lower=_frozen(lower),
+                 upper=_frozen(upper), velocity_limit=_frozen(vel), tool_frame=tool_frame,
+                 tool_frame_id=tool_frame_id, T_world_base=_frozen(T_world_base),
+                 disabled_pairs=disabled, urdf_path=urdf_path, srdf_path=srdf_path,
+                 package_dirs=package_dirs, mounted_links=tuple(mounted), kind=kind,
+                 config_path=path)
