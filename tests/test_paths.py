@@ -104,3 +104,61 @@ def test_interpolate_path_properties(k, n, step, seed):
     np.testing.assert_array_equal(d[-1], path[-1])
     for w in path:  # every waypoint is in the densified path
         assert np.min(np.max(np.abs(d - w), axis=1)) < 1e-12
+
+
+# --------------------------------------------------------------------------------------------------
+# straight approach on the UR5 (kinematics only: scene=None)
+# --------------------------------------------------------------------------------------------------
+def _pin_fk(robot):
+    """Independent FK: Pinocchio on a fresh Data, T_world_tool = T_world_base @ oMf."""
+    import pinocchio as pin
+
+    data = robot.model.createData()
+
+    def fk(q):
+        pin.framesForwardKinematics(robot.model, data, np.asarray(q, dtype=np.float64))
+        return np.asarray(robot.T_world_base) @ data.oMf[robot.tool_frame_id].homogeneous
+
+    return fk
+
+
+def test_approach_path_ur5_straight_line():
+    from grasplan.paths import approach_path, approach_path_reason
+    from grasplan.robot import load_robot
+
+    robot = load_robot("ur5")
+    fk = _pin_fk(robot)
+    T_flange_tcp = np.eye(4)
+    T_flange_tcp[2, 3] = 0.127
+    rng = np.random.default_rng(7)
+    n_ok = 0
+    for _ in range(20):
+        q0 = np.clip(robot.q_home + rng.uniform(-0.6, 0.6, 6), robot.lower, robot.upper)
+        T_pre = fk(q0) @ T_flange_tcp
+        T_grasp = T_pre.copy()
+        T_grasp[:3, 3] += T_pre[:3, 2] * 0.05  # 5 cm along the TCP's +z
+        path = approach_path(robot, None, T_pre, T_grasp, q0, opening=0.03, T_flange_tcp=T_flange_tcp)
+        if path is None:
+            continue
+        n_ok += 1
+        np.testing.assert_array_equal(path[0], q0)
+        assert np.all(path >= robot.lower) and np.all(path <= robot.upper)
+        # the executed motion: 5 samples inside every segment, independently of the module
+        a, b = T_pre[:3, 3], T_grasp[:3, 3]
+        u = (b - a) / np.linalg.norm(b - a)
+        for qa, qb in zip(path[:-1], path[1:]):
+            assert np.max(np.abs(qb - qa)) < 0.1
+            for s in np.linspace(0, 1, 5):
+                T = fk(qa + s * (qb - qa)) @ T_flange_tcp
+                p = T[:3, 3] - a
+                t = np.clip(p @ u, 0, np.linalg.norm(b - a))
+                assert np.linalg.norm(p - t * u) <= 0.002
+                # orientation held (tiny drift only)
+                assert np.linalg.norm(T[:3, :3] - T_pre[:3, :3]) < 1e-2
+        T_end = fk(path[-1]) @ T_flange_tcp
+        np.testing.assert_allclose(T_end, T_grasp, atol=1e-5)
+    assert n_ok >= 15
+    # a start configuration that does not reach the start pose is refused
+    q_bad = robot.q_home + 0.3
+    T_pre = fk(robot.q_home) @ T_flange_tcp
+    assert approach_path_reason(robot, None, T_pre, T_pre, q_bad, opening=0.03, T_flange_tcp=T_flange_tcp)[1] == "start"
