@@ -1,0 +1,258 @@
+"""The robot cell around the part: a table top and where the part rests on it.
+
+World frame: z up. The table top is the plane ``z = table_z`` (default 0) and the table fills
+``z < table_z`` (a half-space: it is infinite in x and y). The part rests on the table in a
+stable pose (:func:`stable_pose`: the most probable one unless ``pose_index`` says otherwise),
+its lowest point on the table top and its centre of mass above ``part_xy`` (default (0.45, 0) m).
+
+YAML schema (``configs/cells/<name>.yaml``; metres)::
+
+    name: table
+    table_z: 0.0
+    part_xy: [0.45, 0.0]
+    pose_index: 0          # which stable pose, 0 = most probable
+
+``--part-pose`` overrides the resting pose: :func:`parse_part_pose`.
+"""
+from __future__ import annotations
+
+import math
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import trimesh
+import yaml
+
+from .errors import ConfigError, InputError, unknown_name
+from .gripper import CONFIG_DIR, _num, check_rigid, rpy_matrix
+from .units import parse_angle_deg, parse_length
+
+CELL_DIR = CONFIG_DIR / "cells"
+
+
+@dataclass(frozen=True)
+class Cell:
+    """A table cell. ``table_z``: height of the table top (m); ``part_xy``: where the part's centre
+    of mass rests (m); ``pose_index``: which stable pose (0 = most probable)."""
+
+    name: str
+    table_z: float = 0.0
+    part_xy: tuple[float, float] = (0.45, 0.0)
+    pose_index: int = 0
+    source: str = ""
+
+    def to_json(self) -> dict:
+        """The ``cell`` block of the grasps output: the name and what defines the cell."""
+        return {
+            "name": self.name,
+            "up": [0.0, 0.0, 1.0],
+            "table": {"type": "half_space", "normal": [0.0, 0.0, 1.0], "z": float(self.table_z),
+                      "fills": "z < table_z"},
+            "part_xy": [float(self.part_xy[0]), float(self.part_xy[1])],
+            "pose_index": int(self.pose_index),
+        }
+
+
+def available_cells() -> list[str]:
+    return sorted(p.stem for p in CELL_DIR.glob("*.yaml"))
+
+
+def cell_from_dict(data, *, name: str, source: str = "") -> Cell:
+    if not isinstance(data, dict):
+        raise ConfigError(f"{source}: a cell file must be a YAML mapping")
+    allowed = {"name", "table_z", "part_xy", "pose_index", "description"}
+    unknown = set(data) - allowed
+    if unknown:
+        raise ConfigError(f"{source}: unknown cell fields {sorted(unknown)}; allowed: {sorted(allowed)}")
+    cname = data.get("name", name)
+    if not isinstance(cname, str) or not cname:
+        raise ConfigError(f"{source}: name: expected a non-empty string")
+    table_z = _num(data.get("table_z", 0.0), "table_z")
+    xy = data.get("part_xy", [0.45, 0.0])
+    if not isinstance(xy, (list, tuple)) or len(xy) != 2:
+        raise ConfigError(f"{source}: part_xy: expected [x, y] in metres, got {xy!r}")
+    part_xy = (_num(xy[0], "part_xy[0]"), _num(xy[1], "part_xy[1]"))
+    pi = data.get("pose_index", 0)
+    if isinstance(pi, bool) or not isinstance(pi, int) or pi < 0:
+        raise ConfigError(f"{source}: pose_index: expected an integer >= 0, got {pi!r}")
+    return Cell(name=cname, table_z=table_z, part_xy=part_xy, pose_index=pi, source=source)
+
+
+def load_cell(name_or_path: str | os.PathLike = "table") -> Cell:
+    """A cell by name (``configs/cells/<name>.yaml``) or path to a YAML file."""
+    if isinstance(name_or_path, Cell):
+        return name_or_path
+    s = str(name_or_path)
+    p = Path(s)
+    if p.suffix.lower() in (".yaml", ".yml") or "/" in s or os.sep in s:
+        if not p.is_file():
+            raise ConfigError(f"cell file {p} not found; available cells: {', '.join(available_cells())}")
+    else:
+        p = CELL_DIR / f"{s}.yaml"
+        if not p.is_file():
+            raise unknown_name("cell", s, available_cells(), hint="or give a path to a cell YAML")
+    try:
+        data = yaml.safe_load(p.read_text())
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{p}: not valid YAML: {exc}") from exc
+    try:
+        return cell_from_dict(data, name=p.stem, source=str(p))
+    except ConfigError as exc:
+        msg = str(exc)
+        raise ConfigError(msg if msg.startswith(str(p)) else f"{p}: {msg}") from None
+
+
+# -- stable poses ----------------------------------------------------------------------------
+
+def _solid_angles(tri: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Solid angle (sr) of triangles ``(n, 3, 3)`` seen from ``p`` (Van Oosterom & Strackee)."""
+    a, b, c = (tri[:, i] - p for i in range(3))
+    la, lb, lc = (np.linalg.norm(v, axis=1) for v in (a, b, c))
+    num = np.abs(np.einsum("ij,ij->i", a, np.cross(b, c)))
+    den = la * lb * lc + np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", a, c) * lb + np.einsum("ij,ij->i", b, c) * la
+    return 2.0 * np.arctan2(num, den)
+
+
+def stable_poses(mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray]:
+    """Quasi-static resting poses of ``mesh`` on a plane (Goldberg et al.'s toppling model, as in
+    ``trimesh.poses.compute_stable_poses`` with sigma = 0, reimplemented without networkx).
+
+    Returns ``(R (k, 3, 3), prob (k,))``, most probable first (ties: by the resting normal, so the
+    result is deterministic). ``R`` rotates the part so that the resting face's outward normal
+    points down (-z); the translation is left to :func:`stable_pose`.
+    """
+    hull = mesh.convex_hull
+    com = mesh.center_mass if mesh.is_watertight and mesh.volume > 0 else hull.center_mass
+    tri = hull.triangles
+    n = hull.face_normals
+    nf = len(tri)
+    prob = _solid_angles(tri, com) / (4.0 * np.pi)
+    # centre of mass projected onto each face's plane, barycentric inside test
+    d = np.einsum("ij,ij->i", n, com - tri[:, 0])
+    proj = com - d[:, None] * n
+    bary = trimesh.triangles.points_to_barycentric(tri, proj)
+    stable = np.all(bary >= -1e-12, axis=1)
+    # unstable faces topple across the edge whose wedge (centroid, edge) holds the projection
+    succ = np.arange(nf)
+    adj = hull.face_adjacency
+    edges = hull.face_adjacency_edges
+    src = np.concatenate([adj[:, 0], adj[:, 1]])
+    dst = np.concatenate([adj[:, 1], adj[:, 0]])
+    e = np.concatenate([edges, edges])
+    cen = hull.triangles_center[src]
+    v1 = hull.vertices[e[:, 0]]
+    v2 = hull.vertices[e[:, 1]]
+    nn = n[src]
+    flip = np.einsum("ij,ij->i", np.cross(v1 - cen, v2 - cen), nn) < 0
+    v1, v2 = np.where(flip[:, None], v2, v1), np.where(flip[:, None], v1, v2)
+    pc = proj[src]
+    # inside the wedge: on the left of centroid->v1 ... and right of centroid->v2, in the face plane
+    s1 = np.einsum("ij,ij->i", np.cross(v1 - cen, pc - cen), nn)
+    s2 = np.einsum("ij,ij->i", np.cross(pc - cen, v2 - cen), nn)
+    ok = (s1 <= 0) & (s2 <= 0) & ~stable[src]
+    # first matching neighbour per source face (deterministic: order of face_adjacency)
+    order = np.flatnonzero(ok)
+    _, first = np.unique(src[order], return_index=True)
+    succ[src[order[first]]] = dst[order[first]]
+    # follow the topple chain to its sink (pointer doubling); faces in cycles are dropped
+    root = succ.copy()
+    for _ in range(int(np.ceil(np.log2(nf + 1))) + 2):
+        root = root[root]
+    sink = stable[root] & (succ[root] == root)
+    acc = np.zeros(nf)
+    np.add.at(acc, root[sink], prob[sink])
+    faces = np.flatnonzero(acc > 0)
+    # merge coplanar sinks (same resting normal)
+    keys = np.round(n[faces], 3) + 0.0
+    uk, inv = np.unique(keys, axis=0, return_inverse=True)
+    inv = inv.reshape(-1)
+    p = np.zeros(len(uk))
+    np.add.at(p, inv, acc[faces])
+    normals = np.zeros((len(uk), 3))
+    for k in range(len(uk)):  # one per resting plane (a handful)
+        normals[k] = n[faces[inv == k][0]]
+    order = np.lexsort((uk[:, 2], uk[:, 1], uk[:, 0], -np.round(p, 12)))  # by probability, then normal
+    R = np.stack([_rest_rotation(normals[k]) for k in order]) if len(order) else np.zeros((0, 3, 3))
+    return R, p[order] / max(p.sum(), 1e-300)
+
+
+def _rest_rotation(normal: np.ndarray) -> np.ndarray:
+    """Rotation taking the outward ``normal`` to -z (the same construction as trimesh)."""
+    z = -np.asarray(normal, dtype=np.float64)
+    x = np.array([-z[1], z[0], 0.0])
+    x = np.array([1.0, 0.0, 0.0]) if np.linalg.norm(x) < 1e-12 else x / np.linalg.norm(x)
+    y = np.cross(z, x)
+    y /= np.linalg.norm(y)
+    return np.array([x, y, z])
+
+
+def stable_pose(part_mesh: trimesh.Trimesh, cell: Cell | None = None) -> np.ndarray:
+    """``T_world_part`` (4, 4): the part resting on the table in stable pose ``cell.pose_index``
+    (0 = most probable), lowest point on ``z = table_z``, centre of mass above ``cell.part_xy``."""
+    cell = cell or Cell("table")
+    R, prob = stable_poses(part_mesh)
+    if len(R) == 0:
+        raise InputError("the part has no stable resting pose on a plane (is the mesh degenerate?)")
+    if cell.pose_index >= len(R):
+        raise ConfigError(f"pose_index {cell.pose_index}: the part has only {len(R)} stable poses (0..{len(R) - 1})")
+    return place_on_table(part_mesh, R[cell.pose_index], cell)
+
+
+def place_on_table(part_mesh: trimesh.Trimesh, R_world_part: np.ndarray, cell: Cell) -> np.ndarray:
+    """``T_world_part`` with rotation ``R_world_part``, lowest point at ``table_z``, centre of mass
+    above ``part_xy``."""
+    hull = part_mesh.convex_hull
+    com = part_mesh.center_mass if part_mesh.is_watertight and part_mesh.volume > 0 else hull.center_mass
+    T = np.eye(4)
+    T[:3, :3] = R_world_part
+    v = hull.vertices @ R_world_part.T
+    c = R_world_part @ com
+    T[:3, 3] = [cell.part_xy[0] - c[0], cell.part_xy[1] - c[1], cell.table_z - v[:, 2].min()]
+    return T
+
+
+_POSE_SPLIT = re.compile(r"\s*,\s*")
+
+
+def parse_part_pose(text: str | os.PathLike) -> np.ndarray:
+    """``T_world_part`` from ``--part-pose``.
+
+    Either ``"x,y,z,roll,pitch,yaw"`` (lengths with optional units, bare = metres; angles in
+    degrees; R = R_z(yaw) R_y(pitch) R_x(roll)) or a JSON/YAML file holding a 4x4 row-major
+    matrix (top level, or under the key ``T_world_part``). The pose is used as given: the part
+    may float above or sink into the table (the collision check does not move it)."""
+    s = str(text)
+    p = Path(s)
+    if p.suffix.lower() in (".json", ".yaml", ".yml") or p.is_file():
+        if not p.is_file():
+            raise InputError(f"--part-pose: file {p} not found")
+        try:
+            data = yaml.safe_load(p.read_text())  # YAML is a superset of JSON
+        except yaml.YAMLError as exc:
+            raise InputError(f"--part-pose: {p} is not valid JSON/YAML: {exc}") from exc
+        if isinstance(data, dict):
+            if "T_world_part" not in data:
+                raise InputError(f"--part-pose: {p} has no key 'T_world_part' (a 4x4 row-major matrix)")
+            data = data["T_world_part"]
+        try:
+            T = np.asarray(data, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise InputError(f"--part-pose: {p}: expected a 4x4 matrix of numbers") from None
+        if T.shape != (4, 4):
+            raise InputError(f"--part-pose: {p}: expected a 4x4 matrix, got shape {T.shape}")
+        try:
+            return check_rigid(T, f"--part-pose {p}")
+        except ConfigError as exc:
+            raise InputError(str(exc)) from None
+    parts = _POSE_SPLIT.split(s.strip())
+    if len(parts) != 6:
+        raise InputError(f"--part-pose: expected 'x,y,z,roll,pitch,yaw' (m or with units; degrees) or a JSON/YAML file, got {s!r}")
+    xyz = [parse_length(v, name=f"--part-pose {n}", allow_negative=True) for v, n in zip(parts[:3], "xyz")]
+    rpy = [math.radians(parse_angle_deg(v, name=f"--part-pose {n}")) for v, n in zip(parts[3:], ("roll", "pitch", "yaw"))]
+    T = np.eye(4)
+    T[:3, :3] = rpy_matrix(*rpy)
+    T[:3, 3] = xyz
+    return T

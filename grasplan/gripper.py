@@ -1,0 +1,354 @@
+"""Parallel-jaw gripper model: body and finger shapes in the TCP frame, loaded from YAML.
+
+TCP frame (issue 3): origin at the midpoint of the two contacts; x = closing axis (contact 0 ->
+contact 1); z = approach direction, from the gripper towards the part (the fingers point along
++z); y = z cross x.
+
+YAML schema (``configs/grippers/<name>.yaml``; lengths in metres, angles in degrees)::
+
+    name: schunk_egp_c_40            # optional, defaults to the file stem
+    max_opening: 0.050               # > 0
+    T_flange_tcp:                    # either a 4x4 row-major matrix ...
+      xyz: [0, 0, 0.127]             # ... or xyz (m) + rpy (deg, extrinsic x-y-z = R_z R_y R_x)
+      rpy_deg: [0, 0, 0]
+    body:                            # list of shapes, fixed in the TCP frame
+      - box: {size: [0.060, 0.040, 0.095], center: [0, 0, -0.0795]}
+      - mesh: {path: body.stl, scale: 0.001, T: {xyz: [...], rpy_deg: [...]}}  # path relative to the YAML
+    fingers:                         # ONE finger, the +x jaw; the -x jaw is it rotated 180 deg about z
+      box: {size: [0.008, 0.016, 0.040], center_y: 0.0, center_z: -0.012}
+      # or mesh: {path: finger.stl, scale: 1.0, T: ...}: in the mesh frame the jaw's inner face
+      #   is the plane x = 0 and the jaw extends towards +x; it is placed at x = +opening/2.
+    symmetric: true                  # optional: body invariant under a 180 deg turn about z
+                                     # (default: computed for box bodies, false with meshes)
+
+A finger box's inner face sits at ``x = +opening/2`` (the other finger's at ``-opening/2``).
+The closing sweep of a box finger from opening ``a`` to ``b`` is exactly one box; the sweep of a
+mesh finger is the convex hull of its two end placements (exact for a convex finger, a superset
+otherwise).
+"""
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+import trimesh
+import yaml
+
+from .errors import ConfigError, unknown_name
+
+#: the ``configs`` folder at the repository root (next to the ``grasplan`` package)
+CONFIG_DIR = Path(__file__).resolve().parents[1] / "configs"
+GRIPPER_DIR = CONFIG_DIR / "grippers"
+#: pre-grasp opening = min(max_opening, width + PREGRASP_CLEARANCE)
+PREGRASP_CLEARANCE = 0.010
+#: the closing sweep stops at width + CLOSE_CLEARANCE (1 mm per side before touching)
+CLOSE_CLEARANCE = 0.002
+
+
+def _rz180() -> np.ndarray:
+    T = np.eye(4)
+    T[0, 0] = T[1, 1] = -1.0
+    return T
+
+
+@dataclass(frozen=True, eq=False)
+class Box:
+    """A box with full side lengths ``extents`` (3,) whose centre pose in the TCP frame is
+    ``T_tcp_box`` (4, 4)."""
+
+    extents: np.ndarray
+    T_tcp_box: np.ndarray
+
+    def corners(self) -> np.ndarray:
+        """(8, 3) corners in the TCP frame."""
+        s = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], dtype=np.float64)
+        local = s * (0.5 * np.asarray(self.extents))
+        return local @ self.T_tcp_box[:3, :3].T + self.T_tcp_box[:3, 3]
+
+    def moved(self, T: np.ndarray) -> "Box":
+        """This box after the rigid motion ``T`` (4, 4) of the TCP frame."""
+        return Box(np.asarray(self.extents, dtype=np.float64), np.asarray(T, dtype=np.float64) @ self.T_tcp_box)
+
+
+@dataclass(frozen=True, eq=False)
+class MeshShape:
+    """A triangle mesh: ``vertices (n, 3)`` already expressed in the TCP frame, ``faces (m, 3)``."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    source: str = ""
+
+    def corners(self) -> np.ndarray:
+        return self.vertices
+
+    def moved(self, T: np.ndarray) -> "MeshShape":
+        T = np.asarray(T, dtype=np.float64)
+        return MeshShape(self.vertices @ T[:3, :3].T + T[:3, 3], self.faces, self.source)
+
+
+Shape = Box | MeshShape
+
+
+@dataclass(frozen=True, eq=False)
+class Gripper:
+    """A parallel-jaw gripper. ``finger`` is the +x jaw at opening 0 (inner face on x = 0)."""
+
+    name: str
+    max_opening: float
+    T_flange_tcp: np.ndarray
+    body: tuple
+    finger: Shape
+    symmetric: bool = True
+    source: str = ""
+
+    # -- finger geometry -------------------------------------------------------------------
+    def fingers(self, opening: float) -> tuple[Shape, Shape]:
+        """The two jaws at ``opening`` (m): inner faces at x = -opening/2 (first) and +opening/2."""
+        o = float(opening)
+        T = np.eye(4)
+        T[0, 3] = 0.5 * o
+        right = self.finger.moved(T)
+        return right.moved(_rz180()), right
+
+    def swept_fingers(self, open_from: float, close_to: float) -> tuple[Shape, Shape]:
+        """The volume each jaw sweeps while the opening moves between ``open_from`` and
+        ``close_to`` (either order): (-x jaw, +x jaw)."""
+        lo, hi = sorted((float(open_from), float(close_to)))
+        if isinstance(self.finger, Box):
+            f = self.finger  # axis-aligned (enforced by the loader): the sweep is one box
+            ext = np.array(f.extents, dtype=np.float64)
+            cx = f.T_tcp_box[0, 3]
+            T = f.T_tcp_box.copy()
+            # at opening o the jaw spans x in [cx - ex/2 + o/2, cx + ex/2 + o/2]; union over o in [lo, hi]
+            x0 = cx - ext[0] / 2 + lo / 2
+            x1 = cx + ext[0] / 2 + hi / 2
+            ext[0] = x1 - x0
+            T[0, 3] = 0.5 * (x0 + x1)
+            right = Box(ext, T)
+            return right.moved(_rz180()), right
+        return self._hull_sweep(lo, hi)
+
+    def _hull_sweep(self, lo: float, hi: float) -> tuple[Shape, Shape]:
+        a = self.fingers(lo)[1].corners()
+        b = self.fingers(hi)[1].corners()
+        hull = trimesh.convex.convex_hull(np.vstack([a, b]))
+        right = MeshShape(np.asarray(hull.vertices, dtype=np.float64), np.asarray(hull.faces, dtype=np.int64), "finger sweep hull")
+        return right.moved(_rz180()), right
+
+    def pregrasp_opening(self, width):
+        """``min(max_opening, width + 0.010)``; scalar or (n,) array."""
+        return np.minimum(self.max_opening, np.asarray(width, dtype=np.float64) + PREGRASP_CLEARANCE)
+
+    def close_to_opening(self, width):
+        """Where the checked closing sweep stops: ``min(width + 0.002, pregrasp_opening(width))``."""
+        w = np.asarray(width, dtype=np.float64)
+        return np.minimum(w + CLOSE_CLEARANCE, self.pregrasp_opening(w))
+
+    def to_json(self) -> dict:
+        """The ``gripper`` block of the grasps output."""
+        return {"name": self.name, "max_opening": float(self.max_opening), "T_flange_tcp": self.T_flange_tcp.tolist()}
+
+
+# -- loading ---------------------------------------------------------------------------------
+
+def available_grippers() -> list[str]:
+    """Names of the grippers shipped in ``configs/grippers/*.yaml``."""
+    return sorted(p.stem for p in GRIPPER_DIR.glob("*.yaml"))
+
+
+def _num(value, field_: str, *, positive=False, nonneg=False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ConfigError(f"{field_}: expected a number (metres), got {value!r}")
+    v = float(value)
+    if not math.isfinite(v):
+        raise ConfigError(f"{field_}: must be finite, got {value!r}")
+    if positive and v <= 0:
+        raise ConfigError(f"{field_}: must be > 0, got {value!r}")
+    if nonneg and v < 0:
+        raise ConfigError(f"{field_}: must be >= 0, got {value!r}")
+    return v
+
+
+def _vec(value, field_: str, n: int = 3, *, positive=False) -> np.ndarray:
+    if not isinstance(value, (list, tuple)) or len(value) != n:
+        raise ConfigError(f"{field_}: expected a list of {n} numbers, got {value!r}")
+    return np.array([_num(v, f"{field_}[{i}]", positive=positive) for i, v in enumerate(value)], dtype=np.float64)
+
+
+def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """(3, 3) rotation R_z(yaw) R_y(pitch) R_x(roll), angles in radians."""
+    cr, sr, cp, sp, cy, sy = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch), math.cos(yaw), math.sin(yaw)
+    return np.array([
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ])
+
+
+def parse_transform(value, field_: str) -> np.ndarray:
+    """A 4x4 rigid transform from a nested 4x4 list or ``{xyz: [..], rpy_deg: [..]}``."""
+    if isinstance(value, dict):
+        unknown = set(value) - {"xyz", "rpy_deg"}
+        if unknown:
+            raise ConfigError(f"{field_}: unknown keys {sorted(unknown)}; use xyz (m) and rpy_deg (deg)")
+        T = np.eye(4)
+        T[:3, 3] = _vec(value.get("xyz", [0, 0, 0]), f"{field_}.xyz")
+        rpy = np.radians(_vec(value.get("rpy_deg", [0, 0, 0]), f"{field_}.rpy_deg"))
+        T[:3, :3] = rpy_matrix(*rpy)
+        return T
+    if isinstance(value, (list, tuple)) and len(value) == 4:
+        T = np.array([_vec(r, f"{field_}[{i}]", 4) for i, r in enumerate(value)])
+        check_rigid(T, field_)
+        return T
+    raise ConfigError(f"{field_}: expected a 4x4 matrix (list of 4 rows) or {{xyz: [x,y,z], rpy_deg: [r,p,y]}}, got {value!r}")
+
+
+def check_rigid(T: np.ndarray, field_: str, *, tol: float = 1e-6) -> np.ndarray:
+    T = np.asarray(T, dtype=np.float64)
+    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+        raise ConfigError(f"{field_}: expected a finite 4x4 matrix")
+    R = T[:3, :3]
+    if not np.allclose(T[3], [0, 0, 0, 1], atol=tol) or not np.allclose(R @ R.T, np.eye(3), atol=tol) or np.linalg.det(R) < 0:
+        raise ConfigError(f"{field_}: not a rigid transform (rotation must be orthonormal with det +1, last row 0 0 0 1)")
+    return T
+
+
+def _box(spec, field_: str, *, finger: bool) -> Box:
+    if not isinstance(spec, dict):
+        raise ConfigError(f"{field_}: expected a mapping with 'size' and a centre, got {spec!r}")
+    allowed = {"size", "center_y", "center_z", "rpy_deg"} if finger else {"size", "center", "rpy_deg"}
+    unknown = set(spec) - allowed
+    if unknown:
+        raise ConfigError(f"{field_}: unknown keys {sorted(unknown)}; allowed: {sorted(allowed)}")
+    if "size" not in spec:
+        raise ConfigError(f"{field_}.size: missing (full side lengths [x, y, z] in metres)")
+    size = _vec(spec["size"], f"{field_}.size", positive=True)
+    T = np.eye(4)
+    if "rpy_deg" in spec:
+        T[:3, :3] = rpy_matrix(*np.radians(_vec(spec["rpy_deg"], f"{field_}.rpy_deg")))
+    if finger:
+        if "center_z" not in spec:
+            raise ConfigError(f"{field_}.center_z: missing (z of the finger box centre in the TCP frame, m)")
+        if "rpy_deg" in spec:
+            raise ConfigError(f"{field_}.rpy_deg: finger boxes are axis-aligned in the TCP frame; use a mesh finger")
+        # inner face on x = 0 at opening 0: centre at x = size_x / 2
+        T[:3, 3] = [size[0] / 2, _num(spec.get("center_y", 0.0), f"{field_}.center_y"), _num(spec["center_z"], f"{field_}.center_z")]
+    else:
+        if "center" not in spec:
+            raise ConfigError(f"{field_}.center: missing (box centre [x, y, z] in the TCP frame, m)")
+        T[:3, 3] = _vec(spec["center"], f"{field_}.center")
+    return Box(size, T)
+
+
+def _mesh(spec, field_: str, base: Path) -> MeshShape:
+    if isinstance(spec, str):
+        spec = {"path": spec}
+    if not isinstance(spec, dict) or "path" not in spec:
+        raise ConfigError(f"{field_}: expected {{path: file.stl, scale: 1.0, T: ...}}, got {spec!r}")
+    unknown = set(spec) - {"path", "scale", "T"}
+    if unknown:
+        raise ConfigError(f"{field_}: unknown keys {sorted(unknown)}; allowed: path, scale, T")
+    if not isinstance(spec["path"], str):
+        raise ConfigError(f"{field_}.path: expected a file name relative to the gripper YAML")
+    path = (base / spec["path"]).resolve()
+    if not path.is_file():
+        raise ConfigError(f"{field_}.path: mesh file {path} not found (paths are relative to the gripper YAML)")
+    scale = _num(spec.get("scale", 1.0), f"{field_}.scale", positive=True)
+    T = parse_transform(spec["T"], f"{field_}.T") if "T" in spec else np.eye(4)
+    try:
+        m = trimesh.load(str(path), force="mesh", process=True)
+    except Exception as exc:  # noqa: BLE001 - any reader error is a config error here
+        raise ConfigError(f"{field_}.path: cannot read {path}: {exc}") from exc
+    if not isinstance(m, trimesh.Trimesh) or len(m.faces) == 0:
+        raise ConfigError(f"{field_}.path: {path} holds no triangles")
+    v = np.asarray(m.vertices, dtype=np.float64) * scale
+    v = v @ T[:3, :3].T + T[:3, 3]
+    return MeshShape(v, np.asarray(m.faces, dtype=np.int64), str(path))
+
+
+def _box_body_symmetric(body: tuple) -> bool:
+    """True when the set of body boxes is unchanged by a 180 deg turn about the TCP z axis."""
+    key = lambda b: np.round(np.concatenate([b.corners()[np.lexsort(np.round(b.corners(), 9).T)].ravel()]), 9)  # noqa: E731
+    keys = sorted(tuple(key(b)) for b in body)
+    turned = sorted(tuple(key(b.moved(_rz180()))) for b in body)
+    return keys == turned
+
+
+def gripper_from_dict(data: dict, *, base: Path, name: str, source: str = "") -> Gripper:
+    """Validate a parsed gripper YAML (``base``: folder that mesh paths are relative to)."""
+    if not isinstance(data, dict):
+        raise ConfigError(f"{source or name}: a gripper file must be a YAML mapping")
+    allowed = {"name", "max_opening", "T_flange_tcp", "body", "fingers", "symmetric", "description"}
+    unknown = set(data) - allowed
+    if unknown:
+        raise ConfigError(f"{source}: unknown gripper fields {sorted(unknown)}; allowed: {sorted(allowed)}")
+    for req in ("max_opening", "T_flange_tcp", "body", "fingers"):
+        if req not in data:
+            raise ConfigError(f"{source}: missing field {req!r}")
+    gname = data.get("name", name)
+    if not isinstance(gname, str) or not gname:
+        raise ConfigError(f"{source}: name: expected a non-empty string")
+    max_opening = _num(data["max_opening"], "max_opening", positive=True)
+    T_flange_tcp = parse_transform(data["T_flange_tcp"], "T_flange_tcp")
+    if not isinstance(data["body"], list) or not data["body"]:
+        raise ConfigError(f"{source}: body: expected a non-empty list of {{box: ...}} or {{mesh: ...}}")
+    body = []
+    for i, item in enumerate(data["body"]):
+        f = f"body[{i}]"
+        if not isinstance(item, dict) or len(item) != 1 or next(iter(item)) not in ("box", "mesh"):
+            raise ConfigError(f"{f}: expected exactly one of {{box: ...}} or {{mesh: ...}}, got {item!r}")
+        kind, spec = next(iter(item.items()))
+        body.append(_box(spec, f"{f}.box", finger=False) if kind == "box" else _mesh(spec, f"{f}.mesh", base))
+    fin = data["fingers"]
+    if not isinstance(fin, dict) or len(fin) != 1 or next(iter(fin)) not in ("box", "mesh"):
+        raise ConfigError(f"fingers: expected exactly one of {{box: ...}} or {{mesh: ...}}, got {fin!r}")
+    kind, spec = next(iter(fin.items()))
+    finger = _box(spec, "fingers.box", finger=True) if kind == "box" else _mesh(spec, "fingers.mesh", base)
+    if isinstance(finger, MeshShape) and finger.vertices[:, 0].min() < -1e-9:
+        raise ConfigError("fingers.mesh: the finger must lie in x >= 0 of its frame (inner face on x = 0)")
+    if "symmetric" in data:
+        if not isinstance(data["symmetric"], bool):
+            raise ConfigError("symmetric: expected true or false")
+        symmetric = data["symmetric"]
+    else:
+        symmetric = all(isinstance(b, Box) for b in body) and _box_body_symmetric(tuple(body))
+    return Gripper(name=gname, max_opening=max_opening, T_flange_tcp=T_flange_tcp, body=tuple(body),
+                   finger=finger, symmetric=symmetric, source=source)
+
+
+@lru_cache(maxsize=32)
+def _load_file(path: str, mtime: float) -> Gripper:
+    p = Path(path)
+    try:
+        data = yaml.safe_load(p.read_text())
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{p}: not valid YAML: {exc}") from exc
+    try:
+        return gripper_from_dict(data, base=p.parent, name=p.stem, source=str(p))
+    except ConfigError as exc:
+        msg = str(exc)
+        raise ConfigError(msg if msg.startswith(str(p)) else f"{p}: {msg}") from None
+
+
+def load_gripper(name_or_path: str | os.PathLike = "schunk_egp_c_40") -> Gripper:
+    """A gripper by name (``configs/grippers/<name>.yaml``) or by path to a YAML file.
+
+    Raises ConfigError for an unknown name (listing the available ones) or a malformed file
+    (naming the field)."""
+    if isinstance(name_or_path, Gripper):
+        return name_or_path
+    s = str(name_or_path)
+    p = Path(s)
+    if p.suffix.lower() in (".yaml", ".yml") or os.sep in s or "/" in s:
+        if not p.is_file():
+            raise ConfigError(f"gripper file {p} not found; available grippers: {', '.join(available_grippers())}")
+    else:
+        p = GRIPPER_DIR / f"{s}.yaml"
+        if not p.is_file():
+            raise unknown_name("gripper", s, available_grippers(), hint="or give a path to a gripper YAML")
+    p = p.resolve()
+    return _load_file(str(p), p.stat().st_mtime)
