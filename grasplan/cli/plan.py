@@ -10,48 +10,6 @@ from ..errors import InputError, PlanningError
 from .common import ANGLE, LENGTH, info, progress, table, units_option, warn_all
 
 
-def parse_part_pose(text: str | None):
-    """``--part-pose``: ``x,y,z`` (m) or ``x,y,z,roll,pitch,yaw`` (m, deg; extrinsic x-y-z), or a
-    JSON/YAML file holding a 4x4 ``T_world_part`` (a matrix or ``{"T_world_part": matrix}``)."""
-    import numpy as np
-
-    if text is None:
-        return None
-    from pathlib import Path
-
-    p = Path(text)
-    if p.suffix.lower() in (".json", ".yaml", ".yml") or p.exists():
-        if not p.exists():
-            raise InputError(f"--part-pose: file {text} not found (give x,y,z[,roll,pitch,yaw] or a JSON/YAML 4x4 matrix)")
-        import yaml
-
-        data = yaml.safe_load(p.read_text())
-        if isinstance(data, dict):
-            data = data.get("T_world_part")
-        T = np.asarray(data, dtype=np.float64) if data is not None else np.zeros(0)
-        if T.shape != (4, 4):
-            raise InputError(f"--part-pose: {text} must hold a 4x4 matrix (or T_world_part: 4x4)")
-    else:
-        try:
-            v = [float(x) for x in text.replace(" ", "").split(",")]
-        except ValueError:
-            raise InputError(f"--part-pose: cannot read {text!r}; give x,y,z (m) or x,y,z,roll,pitch,yaw (m, deg)") from None
-        if len(v) not in (3, 6):
-            raise InputError(f"--part-pose: expected 3 or 6 numbers, got {len(v)}")
-        from scipy.spatial.transform import Rotation
-
-        T = np.eye(4)
-        T[:3, 3] = v[:3]
-        if len(v) == 6:
-            T[:3, :3] = Rotation.from_euler("xyz", v[3:], degrees=True).as_matrix()
-    if not np.all(np.isfinite(T)) or not np.allclose(T[3], [0, 0, 0, 1]):
-        raise InputError("--part-pose: not a homogeneous transform")
-    R = T[:3, :3]
-    if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
-        raise InputError("--part-pose: the rotation part is not a proper rotation matrix")
-    return T
-
-
 @click.command(name="plan")
 @click.argument("part", type=click.Path(dir_okay=False))
 @click.option("--robot", "robot_name", default="ur5", show_default=True,
@@ -61,8 +19,9 @@ def parse_part_pose(text: str | None):
 @click.option("--gripper", default="schunk_egp_c_40", show_default=True, help="Gripper name or YAML path.")
 @click.option("--cell", default="table", show_default=True, help="Cell name or YAML path.")
 @click.option("--part-pose", default=None,
-              help="Override the part's pose on the table: x,y,z (m) or x,y,z,roll,pitch,yaw (m, deg), "
-                   "or a JSON/YAML file with a 4x4 T_world_part. Default: the most probable stable pose.")
+              help="Override the part's pose: x,y,z,roll,pitch,yaw (lengths with optional units, angles deg; "
+                   "R = Rz(yaw) Ry(pitch) Rx(roll)) or a JSON/YAML file with a 4x4 T_world_part. "
+                   "Default: the cell's stable pose (the most probable one).")
 @click.option("--top", type=click.IntRange(min=1), default=20, show_default=True,
               help="Plan at most K grasps, best score first; the other ok grasps are not_tried.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of IK and OMPL (deterministic results).")
@@ -102,7 +61,11 @@ def command(part, robot_name, output, gripper, cell, part_pose, top, seed, roll_
                                       epsilon=epsilon, max_opening=max_opening, beta_deg=beta_deg, mu=mu)
     except ValueError as exc:
         raise InputError(str(exc)) from None
-    T_world_part = parse_part_pose(part_pose)
+    T_world_part = None
+    if part_pose is not None:
+        from ..cell import parse_part_pose
+
+        T_world_part = parse_part_pose(part_pose)
     load_robot(robot_name)  # unknown robot -> ConfigError listing the available ones
     t = time.perf_counter()
     p = load_part(part, units=units)
