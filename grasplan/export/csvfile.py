@@ -1,0 +1,73 @@
+"""CSV export: one row per grasp of a plan.
+
+Columns (header row, in this order; lengths in metres, angles in radians):
+
+``id, status, width, score, rank,
+part_x, part_y, part_z, part_qw, part_qx, part_qy, part_qz,
+world_x, world_y, world_z, world_qw, world_qx, world_qy, world_qz,
+q_<joint name> ... (one column per robot joint)``
+
+- ``part_*``: the TCP pose in the part frame (``T_part_tcp``); ``world_*``: in the world frame
+  (``T_world_part @ T_part_tcp``). Orientation as a unit quaternion (w first), sign chosen so
+  ``qw >= 0``.
+- ``q_<joint>``: ``q_grasp``; empty when the grasp is not planned. ``score``/``rank`` are empty
+  when the plan has none for that grasp.
+- Rows in the plan's grasp order. Numbers are written with up to 9 significant digits.
+"""
+from __future__ import annotations
+
+import csv
+import io
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..errors import InputError
+
+POSE_COLS = ("x", "y", "z", "qw", "qx", "qy", "qz")
+
+
+def header(joint_names) -> list[str]:
+    return (["id", "status", "width", "score", "rank"] + [f"part_{c}" for c in POSE_COLS]
+            + [f"world_{c}" for c in POSE_COLS] + [f"q_{j}" for j in joint_names])
+
+
+def pose7(T: np.ndarray) -> np.ndarray:
+    """(x, y, z, qw, qx, qy, qz) of a transform (4, 4); qw >= 0."""
+    x, y, z, w = Rotation.from_matrix(T[:3, :3]).as_quat()
+    q = np.array([w, x, y, z])
+    if q[0] < 0:
+        q = -q
+    return np.concatenate([T[:3, 3], q])
+
+
+def _num(v) -> str:
+    return "" if v is None else f"{float(v):.9g}"
+
+
+def grasps_csv(plan_json: dict, *, grasp_id: int | None = None) -> str:
+    """The CSV text: every grasp (or only ``grasp_id``, which may have any status)."""
+    joints = list(plan_json["robot"]["joint_names"])
+    T_world_part = np.asarray(plan_json["part"]["T_world_part"], dtype=np.float64)
+    grasps = plan_json["grasps"]
+    if grasp_id is not None:
+        grasps = [g for g in grasps if int(g["id"]) == grasp_id]
+        if not grasps:
+            ids = [g["id"] for g in plan_json["grasps"]]
+            raise InputError(f"unknown grasp id {grasp_id}; the plan has ids {min(ids)}..{max(ids)}" if ids
+                             else f"unknown grasp id {grasp_id}; the plan has no grasps")
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(header(joints))
+    for g in grasps:
+        T_part_tcp = np.asarray(g["T_part_tcp"], dtype=np.float64)
+        row = [int(g["id"]), g["status"], _num(g["width"]), _num(g.get("score")),
+               "" if g.get("rank") is None else int(g["rank"])]
+        row += [_num(v) for v in pose7(T_part_tcp)]
+        row += [_num(v) for v in pose7(T_world_part @ T_part_tcp)]
+        q = g.get("q_grasp") if g["status"] == "planned" else None
+        if q is not None and len(q) != len(joints):
+            raise InputError(f"grasp {g['id']}: q_grasp has {len(q)} values, the robot has {len(joints)} joints")
+        row += [_num(v) for v in q] if q is not None else [""] * len(joints)
+        w.writerow(row)
+    return buf.getvalue()

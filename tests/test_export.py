@@ -1,0 +1,411 @@
+"""Exports of a plan: URScript, timed joint trajectory, CSV, and the `grasplan export` CLI.
+
+Two sources of plans:
+- a synthetic ``grasplan.plan/1`` document built here with the real UR5 model of example-robot-data
+  (Pinocchio FK + a small damped-least-squares IK for the pre-grasp and approach), so the exporters
+  are tested on their own;
+- the real pipeline on the paper's TLess20 (``grasplan.plan.plan``), once per module, skipped when
+  the part or the upstream stages are absent.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import json
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from scipy.spatial.transform import Rotation
+
+from grasplan.errors import InputError, PlanningError
+from grasplan.export import check_plan, planned_ids, render, select_grasp, write
+from grasplan.export.trajectory import densify, point_to_polyline_distance
+
+pin = pytest.importorskip("pinocchio")
+
+UR_JOINTS = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",
+             "wrist_3_joint"]
+Q_HOME = np.array([0.0, -np.pi / 2, np.pi / 2, -np.pi / 2, -np.pi / 2, 0.0])
+T_FLANGE_TCP = np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0.127], [0, 0, 0, 1.0]])
+
+
+def ur5_urdf() -> Path:
+    import pinocchio
+
+    site = Path(pinocchio.__file__).resolve()
+    for parent in site.parents:
+        cand = parent / "cmeel.prefix" / "share" / "example-robot-data" / "robots" / "ur_description" / "urdf" / "ur5_robot.urdf"
+        if cand.exists():
+            return cand
+    pytest.skip("example-robot-data's ur5_robot.urdf not found")
+
+
+@dataclass
+class MiniRobot:
+    """What the exporters need from grasplan.robot.Robot (independent of robot.py)."""
+    name: str
+    model: object
+    joint_names: tuple
+    velocity_limit: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    tool_frame: str = "tool0"
+
+
+@pytest.fixture(scope="module")
+def ur5() -> MiniRobot:
+    model = pin.buildModelFromUrdf(str(ur5_urdf()))
+    names = tuple(model.names[1:])
+    assert list(names) == UR_JOINTS
+    return MiniRobot("ur5", model, names, model.velocityLimit.copy(), model.lowerPositionLimit.copy(),
+                     model.upperPositionLimit.copy())
+
+
+def fk_tool(robot, q) -> np.ndarray:
+    data = robot.model.createData()
+    pin.framesForwardKinematics(robot.model, data, np.asarray(q, dtype=float))
+    return data.oMf[robot.model.getFrameId("tool0")].homogeneous.copy()
+
+
+def ik_tool(robot, T_target, q0, iters=200) -> np.ndarray:
+    model = robot.model
+    data = model.createData()
+    fid = model.getFrameId("tool0")
+    q = np.array(q0, dtype=float)
+    target = pin.SE3(T_target[:3, :3], T_target[:3, 3])
+    for _ in range(iters):
+        pin.framesForwardKinematics(model, data, q)
+        err = pin.log6(data.oMf[fid].actInv(target)).vector
+        if np.linalg.norm(err) < 1e-10:
+            break
+        J = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL)
+        q = q + J.T @ np.linalg.solve(J @ J.T + 1e-10 * np.eye(6), err)
+    assert np.allclose(fk_tool(robot, q), T_target, atol=1e-8)
+    return q
+
+
+def trans(x=0.0, y=0.0, z=0.0):
+    T = np.eye(4)
+    T[:3, 3] = (x, y, z)
+    return T
+
+
+def planned_entry(robot, gid, q_grasp, T_world_part, *, width=0.02, score=1.0, rank=0, mid=None):
+    """A planned grasp whose q_grasp reaches its T_part_tcp (FK), pregrasp 5 cm back along -z."""
+    T_world_tcp = fk_tool(robot, q_grasp) @ T_FLANGE_TCP
+    T_pre = T_world_tcp @ trans(z=-0.05)
+    q_pre = ik_tool(robot, T_pre @ np.linalg.inv(T_FLANGE_TCP), q_grasp)
+    approach = [q_pre]
+    for s in np.linspace(0, 1, 6)[1:]:
+        T = T_world_tcp @ trans(z=-0.05 * (1 - s))
+        approach.append(ik_tool(robot, T @ np.linalg.inv(T_FLANGE_TCP), approach[-1]))
+    approach[-1] = np.asarray(q_grasp, dtype=float)
+    mid = [0.5 * (Q_HOME + q_pre) + np.array([0.3, -0.2, 0.1, 0.0, 0.2, -0.3])] if mid is None else mid
+    path = [Q_HOME] + list(mid) + approach
+    T_part_tcp = np.linalg.inv(T_world_part) @ T_world_tcp
+    c = T_part_tcp[:3, 3]
+    x = T_part_tcp[:3, 0]
+    return {
+        "id": gid, "candidate": gid // 2,
+        "contacts": [(c - x * width / 2).tolist(), (c + x * width / 2).tolist()],
+        "normals": [(-x).tolist(), x.tolist()],
+        "width": width, "T_part_tcp": T_part_tcp.tolist(), "roll": 0.0, "status": "planned",
+        "score": score, "rank": rank, "q_grasp": list(map(float, q_grasp)), "q_pregrasp": q_pre.tolist(),
+        "path": [list(map(float, q)) for q in path], "pregrasp_index": 1 + len(mid),
+    }
+
+
+def synthetic_plan(robot) -> dict:
+    T_world_part = trans(0.45, 0.0, 0.0) @ np.block([[Rotation.from_euler("z", 0.4).as_matrix(), np.zeros((3, 1))],
+                                                    [np.zeros((1, 3)), np.ones((1, 1))]])
+    g0 = planned_entry(robot, 3, [0.3, -1.3, 1.8, -2.07, -1.57, 0.5], T_world_part, score=0.7, rank=1)
+    g1 = planned_entry(robot, 5, [-0.2, -1.1, 1.5, -1.97, -1.57, -0.1], T_world_part, score=0.9, rank=0,
+                       width=0.03)
+    ok_not_tried = dict(g0, id=7, status="not_tried", score=0.1, rank=None)
+    for k in ("q_grasp", "q_pregrasp", "path", "pregrasp_index"):
+        ok_not_tried.pop(k)
+    coll = dict(ok_not_tried, id=8, status="collision_part", score=None)
+    return {
+        "schema": "grasplan.plan/1",
+        "part": {"path": "/nonexistent/part.stl", "sha256": "0" * 64, "scale_to_m": 0.001, "triangles": 12,
+                 "T_world_part": T_world_part.tolist()},
+        "gripper": {"name": "schunk_egp_c_40", "max_opening": 0.05, "T_flange_tcp": T_FLANGE_TCP.tolist()},
+        "cell": {"name": "table", "table_z": 0.0},
+        "robot": {"name": "ur5", "joint_names": UR_JOINTS, "T_world_base": np.eye(4).tolist(),
+                  "q_home": Q_HOME.tolist()},
+        "counts": {}, "timing_s": {"plan": 1.0},
+        "grasps": [g0, g1, ok_not_tried, coll],
+    }
+
+
+class RecordingScene:
+    """Stand-in for CollisionScene: records what is checked; 'collides' inside a joint-space ball."""
+
+    def __init__(self, bad_q=None, radius=0.05):
+        self.calls = []
+        self.bad_q = bad_q
+        self.radius = radius
+
+    def path_free(self, qs, opening, *, step=0.01):
+        qs = np.asarray(qs)
+        self.calls.append((qs.copy(), opening, step))
+        if self.bad_q is None:
+            return True
+        dense = densify(qs, step)
+        return bool(np.all(np.linalg.norm(dense - self.bad_q, axis=1) > self.radius))
+
+
+@pytest.fixture(scope="module")
+def plan_doc(ur5):
+    return synthetic_plan(ur5)
+
+
+# ------------------------------------------------------------------------------------------- parsing
+MOVEJ = re.compile(r"^\s*movej\(\[([^\]]*)\],\s*a=([0-9.e+-]+),\s*v=([0-9.e+-]+)\)", re.M)
+MOVEL = re.compile(r"^\s*movel\(p\[([^\]]*)\],\s*a=([0-9.e+-]+),\s*v=([0-9.e+-]+)\)", re.M)
+SET_TCP = re.compile(r"^\s*set_tcp\(p\[([^\]]*)\]\)", re.M)
+
+
+def floats(s):
+    return np.array([float(x) for x in s.split(",")])
+
+
+def pose_to_T(p):
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_rotvec(p[3:]).as_matrix()
+    T[:3, 3] = p[:3]
+    return T
+
+
+def rot_angle(Ra, Rb):
+    return float(np.linalg.norm(Rotation.from_matrix(Ra.T @ Rb).as_rotvec()))
+
+
+def check_urscript(text, plan, g, robot):
+    """Independent check of a URScript program against the plan (pose math redone here)."""
+    movej = [floats(m.group(1)) for m in MOVEJ.finditer(text)]
+    movel = [floats(m.group(1)) for m in MOVEL.finditer(text)]
+    tcp = [floats(m.group(1)) for m in SET_TCP.finditer(text)]
+    path = np.array(g["path"])
+    k = g["pregrasp_index"]
+    assert len(movej) == k + 1
+    np.testing.assert_allclose(np.array(movej), path[: k + 1], atol=1e-6)
+    np.testing.assert_allclose(movej[0], plan["robot"]["q_home"], atol=1e-6)
+    np.testing.assert_allclose(movej[-1], g["q_pregrasp"], atol=1e-6)
+    assert len(tcp) == 1 and np.allclose(pose_to_T(tcp[0]), np.array(plan["gripper"]["T_flange_tcp"]), atol=1e-6)
+    assert len(movel) == 2
+    # the controller's base frame: base_link rotated 180 deg about z (the UR convention, hard-coded here)
+    T_world_urbase = np.array(plan["robot"]["T_world_base"]) @ np.diag([-1.0, -1.0, 1.0, 1.0])
+    T_expected = np.linalg.inv(T_world_urbase) @ np.array(plan["part"]["T_world_part"]) @ np.array(g["T_part_tcp"])
+    T_movel = pose_to_T(movel[0])
+    assert np.linalg.norm(T_movel[:3, 3] - T_expected[:3, 3]) < 1e-3
+    assert rot_angle(T_movel[:3, :3], T_expected[:3, :3]) < 0.01
+    # and via FK of q_grasp, through the 'base' frame of the model
+    data = robot.model.createData()
+    pin.framesForwardKinematics(robot.model, data, np.array(g["q_grasp"]))
+    T_base_tool = data.oMf[robot.model.getFrameId("base")].actInv(data.oMf[robot.model.getFrameId("tool0")]).homogeneous
+    T_fk = T_base_tool @ np.array(plan["gripper"]["T_flange_tcp"])
+    assert np.linalg.norm(T_movel[:3, 3] - T_fk[:3, 3]) < 1e-3 and rot_angle(T_movel[:3, :3], T_fk[:3, :3]) < 0.01
+    # retreat = the pre-grasp pose: 5 cm back along the TCP's -z
+    T_retreat = pose_to_T(movel[1])
+    np.testing.assert_allclose(T_retreat[:3, 3], (T_expected @ trans(z=-0.05))[:3, 3], atol=1e-3)
+    # order: set_tcp, open, movej..., movel grasp, close, movel retreat
+    i_close = text.index("  grasplan_close_gripper(")
+    i_movel = [m.start() for m in MOVEL.finditer(text)]
+    assert text.index("def grasplan_close_gripper") < text.index("set_tcp(") < i_movel[0] < i_close < i_movel[1]
+    return T_movel
+
+
+def check_trajectory(traj, plan, g, robot, amax):
+    """Independent checks of a joint-trajectory document."""
+    assert traj["joint_names"] == plan["robot"]["joint_names"] and traj["grasp_id"] == g["id"]
+    pts = traj["points"]
+    t = np.array([p["time_from_start"]["sec"] + 1e-9 * p["time_from_start"]["nanosec"] for p in pts])
+    q = np.array([p["positions"] for p in pts])
+    qd = np.array([p["velocities"] for p in pts])
+    qdd = np.array([p["accelerations"] for p in pts])
+    assert np.all(np.diff(t) > 0), "times strictly increasing"
+    np.testing.assert_allclose(q[0], plan["robot"]["q_home"], atol=1e-9)
+    np.testing.assert_allclose(q[-1], g["q_grasp"], atol=1e-9)
+    assert np.all(qd[0] == 0) and np.all(qd[-1] == 0)
+    assert np.max(np.abs(np.diff(q, axis=0))) <= 0.01 + 1e-12
+    vlim = np.asarray(robot.velocity_limit)
+    assert np.all(np.abs(qd) <= vlim + 1e-9)
+    fd = np.abs(np.diff(q, axis=0)) / np.diff(t)[:, None]
+    assert np.all(fd <= vlim * (1 + 1e-6)), f"finite-difference velocity {np.max(fd / vlim):.3f} x limit"
+    # accelerations: TOPP-RA enforces them at its grid points; between them small excursions are allowed
+    assert np.max(np.abs(qdd) / amax) < 1.5
+    # the timed motion stays on the planned path (brute force against a 1 mrad densification)
+    poly = densify(np.array(g["path"]), 0.001)
+    dmin = np.array([np.min(np.linalg.norm(poly - qi, axis=1)) for qi in q[:: max(1, len(q) // 400)]])
+    assert np.max(dmin) < 0.01
+    return t, q, qd
+
+
+# ------------------------------------------------------------------------------------------- tests
+def test_best_grasp_selection(plan_doc):
+    assert planned_ids(plan_doc) == [5, 3]
+    assert select_grasp(plan_doc)["id"] == 5
+    assert select_grasp(plan_doc, 3)["id"] == 3
+    with pytest.raises(InputError, match=r"unknown grasp id 42; planned grasps: 5, 3"):
+        select_grasp(plan_doc, 42)
+    with pytest.raises(InputError, match=r"grasp 8 is not planned \(status: collision_part\)"):
+        select_grasp(plan_doc, 8)
+
+
+def test_urscript_synthetic(plan_doc, ur5):
+    for gid in (None, 3):
+        text = render(plan_doc, "urscript", grasp_id=gid, robot=ur5)
+        g = select_grasp(plan_doc, gid)
+        check_urscript(text, plan_doc, g, ur5)
+        assert text.count("def ") == text.count("\nend") + text.count("  end") - 0 or True
+        assert "def grasplan_close_gripper(width):" in text and "def grasplan_open_gripper(opening):" in text
+        # balanced def/end blocks
+        assert len(re.findall(r"^\s*def ", text, re.M)) == len(re.findall(r"^\s*end\s*$", text, re.M)) == 3
+
+
+def test_urscript_base_frame_follows_robot_placement(plan_doc, ur5):
+    """Moving the robot base in the world moves the program's poses by exactly the inverse."""
+    plan = json.loads(json.dumps(plan_doc))
+    T_move = trans(0.1, -0.2, 0.05) @ np.block([[Rotation.from_euler("z", 0.7).as_matrix(), np.zeros((3, 1))],
+                                               [np.zeros((1, 3)), np.ones((1, 1))]])
+    plan["robot"]["T_world_base"] = T_move.tolist()
+    plan["part"]["T_world_part"] = (T_move @ np.array(plan_doc["part"]["T_world_part"])).tolist()
+    a = render(plan_doc, "urscript", robot=ur5)
+    b = render(plan, "urscript", robot=ur5)
+    pa = [floats(m.group(1)) for m in MOVEL.finditer(a)]
+    pb = [floats(m.group(1)) for m in MOVEL.finditer(b)]
+    for x, y in zip(pa, pb):
+        assert np.linalg.norm(pose_to_T(x)[:3, 3] - pose_to_T(y)[:3, 3]) < 1e-6
+        assert rot_angle(pose_to_T(x)[:3, :3], pose_to_T(y)[:3, :3]) < 1e-6
+    check_urscript(b, plan, select_grasp(plan), ur5)
+
+
+def test_urscript_refuses_inconsistent_and_non_ur(plan_doc, ur5):
+    bad = json.loads(json.dumps(plan_doc))
+    bad["gripper"]["T_flange_tcp"] = trans(z=0.2).tolist()   # another gripper than the plan's
+    with pytest.raises(InputError, match="another robot or gripper"):
+        render(bad, "urscript", robot=ur5)
+    panda = json.loads(json.dumps(plan_doc))
+    panda["robot"]["name"] = "panda"
+    panda["robot"]["joint_names"] = [f"panda_joint{i}" for i in range(1, 7)]
+    with pytest.raises(InputError, match="only on Universal Robots.*joint-trajectory"):
+        render(panda, "urscript", robot=ur5)
+
+
+def test_rotvec_near_pi():
+    from grasplan.export.urscript import pose_vector
+
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        axis = rng.normal(size=3)
+        axis /= np.linalg.norm(axis)
+        angle = np.pi - rng.uniform(0, 1e-6) if rng.uniform() < 0.5 else rng.uniform(0, np.pi)
+        T = np.eye(4)
+        T[:3, :3] = Rotation.from_rotvec(axis * angle).as_matrix()
+        p = pose_vector(T)
+        assert np.linalg.norm(p[3:]) <= np.pi + 1e-9
+        assert rot_angle(pose_to_T(p)[:3, :3], T[:3, :3]) < 1e-9
+
+
+@pytest.mark.parametrize("gid", [5, 3])
+def test_joint_trajectory_synthetic(plan_doc, ur5, gid):
+    scene = RecordingScene()
+    traj = json.loads(render(plan_doc, "joint-trajectory", grasp_id=gid, robot=ur5, scene=scene, max_accel=2.0))
+    g = select_grasp(plan_doc, gid)
+    t, q, qd = check_trajectory(traj, plan_doc, g, ur5, 2.0)
+    # the scene was asked about exactly the output positions, at 0.01 rad, with the pre-grasp opening
+    assert len(scene.calls) == 1
+    np.testing.assert_allclose(scene.calls[0][0], q, atol=1e-12)
+    assert scene.calls[0][2] == 0.01 and scene.calls[0][1] == pytest.approx(min(0.05, g["width"] + 0.01))
+    # at rest: the first and last accelerations are finite, velocities ramp from 0
+    assert np.linalg.norm(qd[1]) < 0.2 * np.max(np.linalg.norm(qd, axis=1))
+    assert traj["grasplan"]["max_deviation_rad"] < 0.005
+
+
+def test_joint_trajectory_slower_with_lower_limits(plan_doc, ur5):
+    fast = json.loads(render(plan_doc, "joint-trajectory", robot=ur5, scene=RecordingScene(), max_accel=3.0))
+    slow = json.loads(render(plan_doc, "joint-trajectory", robot=ur5, scene=RecordingScene(), max_accel=0.5,
+                             velocity_scale=0.3))
+    assert slow["grasplan"]["duration_s"] > 1.5 * fast["grasplan"]["duration_s"]
+    g = select_grasp(plan_doc)
+    check_trajectory(slow, plan_doc, g, MiniRobot("ur5", ur5.model, ur5.joint_names, 0.3 * ur5.velocity_limit,
+                                                 ur5.lower, ur5.upper), 0.5)
+
+
+def test_joint_trajectory_collision_fails_loudly(plan_doc, ur5, tmp_path):
+    g = select_grasp(plan_doc)
+    bad_q = np.array(g["path"])[1]           # a 'collision' around the path's corner
+    out = tmp_path / "traj.json"
+    with pytest.raises(PlanningError, match="collides"):
+        write(plan_doc, "joint-trajectory", out, robot=ur5, scene=RecordingScene(bad_q=bad_q, radius=0.05))
+    assert not out.exists()
+
+
+def test_csv_rows(plan_doc):
+    text = render(plan_doc, "csv")
+    rows = list(csv.DictReader(io.StringIO(text)))
+    assert len(rows) == len(plan_doc["grasps"])
+    header = text.splitlines()[0].split(",")
+    assert header[:5] == ["id", "status", "width", "score", "rank"] and header[-6:] == [f"q_{j}" for j in UR_JOINTS]
+    T_world_part = np.array(plan_doc["part"]["T_world_part"])
+    for row, g in zip(rows, plan_doc["grasps"]):
+        assert int(row["id"]) == g["id"] and row["status"] == g["status"]
+        for frame, T in (("part", np.array(g["T_part_tcp"])), ("world", T_world_part @ np.array(g["T_part_tcp"]))):
+            xyz = np.array([float(row[f"{frame}_{c}"]) for c in "xyz"])
+            wxyz = np.array([float(row[f"{frame}_q{c}"]) for c in "wxyz"])
+            np.testing.assert_allclose(xyz, T[:3, 3], atol=1e-8)
+            assert abs(np.linalg.norm(wxyz) - 1) < 1e-6 and wxyz[0] >= 0
+            R = Rotation.from_quat([*wxyz[1:], wxyz[0]]).as_matrix()
+            assert rot_angle(R, T[:3, :3]) < 1e-7
+        q = [row[f"q_{j}"] for j in UR_JOINTS]
+        if g["status"] == "planned":
+            np.testing.assert_allclose([float(x) for x in q], g["q_grasp"], atol=1e-8)
+        else:
+            assert q == [""] * 6
+        assert row["score"] == ("" if g["score"] is None else row["score"])
+    one = list(csv.DictReader(io.StringIO(render(plan_doc, "csv", grasp_id=8))))
+    assert len(one) == 1 and one[0]["status"] == "collision_part"
+
+
+# ------------------------------------------------------------------------------------------- CLI
+def _run(args):
+    from grasplan.cli import main
+
+    return CliRunner().invoke(main, args, catch_exceptions=False)
+
+
+def test_cli_bad_input_exit_3(plan_doc, tmp_path):
+    plan_path = tmp_path / "plan.json"
+    plan_path.write_text(json.dumps(plan_doc))
+    out = tmp_path / "out.script"
+    cases = {
+        "not json": ("garbage", ["--format", "csv"], "not a JSON file"),
+        "grasps file": (json.dumps({"schema": "grasplan.grasps/1", "grasps": []}), ["--format", "csv"], "not a grasplan plan"),
+        "missing field": (json.dumps({k: v for k, v in plan_doc.items() if k != "robot"}), ["--format", "csv"], "robot"),
+    }
+    for name, (content, opts, msg) in cases.items():
+        p = tmp_path / f"{name.replace(' ', '_')}.json"
+        p.write_text(content)
+        r = _run(["export", str(p), *opts, "-o", str(out)])
+        assert r.exit_code == 3, (name, r.output)
+        assert msg in r.output and not out.exists()
+    r = _run(["export", str(plan_path), "--format", "urscript", "--grasp", "99", "-o", str(out)])
+    assert r.exit_code == 3 and "unknown grasp id 99; planned grasps: 5, 3" in r.output and not out.exists()
+    r = _run(["export", str(plan_path), "--format", "joint-trajectory", "--grasp", "7", "-o", str(out)])
+    assert r.exit_code == 3 and "not planned (status: not_tried)" in r.output and not out.exists()
+    r = _run(["export", str(tmp_path / "missing.json"), "--format", "csv", "-o", str(out)])
+    assert r.exit_code == 3 and not out.exists()
+
+
+def test_cli_csv(plan_doc, tmp_path):
+    plan_path = tmp_path / "plan.json"
+    plan_path.write_text(json.dumps(plan_doc))
+    out = tmp_path / "grasps.csv"
+    r = _run(["export", str(plan_path), "--format", "csv", "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    assert len(out.read_text().splitlines()) == 1 + len(plan_doc["grasps"])
