@@ -409,3 +409,120 @@ def test_cli_csv(plan_doc, tmp_path):
     r = _run(["export", str(plan_path), "--format", "csv", "-o", str(out)])
     assert r.exit_code == 0, r.output
     assert len(out.read_text().splitlines()) == 1 + len(plan_doc["grasps"])
+
+
+# ------------------------------------------------------------------------------------- real robot
+def _upstream(*mods):
+    import importlib
+
+    for m in mods:
+        try:
+            importlib.import_module(m)
+        except ImportError as exc:
+            pytest.skip(f"upstream module {m} not available yet ({exc})")
+
+
+def independent_path_free(scene_factory, qs, opening, step=0.01):
+    """Interpolate at <= step rad myself and ask a fresh scene about every configuration."""
+    scene = scene_factory()
+    dense = densify(np.asarray(qs), step)
+    assert np.max(np.abs(np.diff(dense, axis=0))) <= step + 1e-12
+    return all(scene.is_free(q, opening) for q in dense)
+
+
+def test_default_scene_and_robot_from_plan(tmp_path):
+    """The exporter loads the robot and rebuilds the CollisionScene from the plan file itself."""
+    _upstream("grasplan.robot", "grasplan.scene", "grasplan.gripper", "grasplan.cell")
+    from grasplan.io import sha256_file
+    from grasplan.robot import load_robot
+
+    robot = load_robot("ur5")
+    plan = synthetic_plan(robot)
+    part = Path(__file__).resolve().parents[1] / "examples" / "parts" / "box.stl"
+    plan["part"].update(path=str(part), sha256=sha256_file(part))
+    plan_path = tmp_path / "plan.json"
+    plan_path.write_text(json.dumps(plan))
+    out = tmp_path / "traj.json"
+    r = _run(["export", str(plan_path), "--format", "joint-trajectory", "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    traj = json.loads(out.read_text())
+    check_trajectory(traj, plan, select_grasp(plan), robot, 1.4)
+    # a part that is not the planned one is refused (the collision check would be meaningless)
+    other = Path(__file__).resolve().parents[1] / "examples" / "parts" / "gear.stl"
+    out2 = tmp_path / "traj2.json"
+    r = _run(["export", str(plan_path), "--format", "joint-trajectory", "--part", str(other), "-o", str(out2)])
+    assert r.exit_code == 3 and "sha256" in r.output and not out2.exists()
+
+
+@pytest.fixture(scope="module")
+def tless20(tmp_path_factory):
+    from conftest import paper_part
+
+    path = paper_part("TLess20.stl")
+    _upstream("grasplan.plan", "grasplan.grasps", "grasplan.robot", "grasplan.scene")
+    from grasplan.mesh import load_part
+    from grasplan.plan import plan as plan_part
+    from grasplan.robot import load_robot
+    from grasplan.scene import CollisionScene
+
+    result = plan_part(load_part(path), top=3)
+    doc = result.to_json()
+    plan_path = tmp_path_factory.mktemp("tless20") / "plan.json"
+    result.write(plan_path)
+    if not planned_ids(doc):
+        pytest.fail(f"no planned grasp for TLess20: {result.counts()}")
+    robot = load_robot("ur5")
+    gr = result.grasps
+
+    def scene_factory():
+        return CollisionScene(robot, gr.gripper, gr.cand.part.mesh, gr.T_world_part, gr.cell)
+
+    return {"doc": doc, "path": plan_path, "robot": robot, "result": result, "scene_factory": scene_factory}
+
+
+@pytest.mark.slow
+@pytest.mark.paper
+def test_tless20_urscript(tless20, tmp_path):
+    doc, robot = tless20["doc"], tless20["robot"]
+    check_plan(doc)
+    out = tmp_path / "pick.script"
+    r = _run(["export", str(tless20["path"]), "--format", "urscript", "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    g = select_grasp(doc)
+    assert g["id"] == planned_ids(doc)[0]
+    check_urscript(out.read_text(), doc, g, robot)
+
+
+@pytest.mark.slow
+@pytest.mark.paper
+def test_tless20_joint_trajectory(tless20, tmp_path):
+    doc, robot = tless20["doc"], tless20["robot"]
+    out = tmp_path / "traj.json"
+    r = _run(["export", str(tless20["path"]), "--format", "joint-trajectory", "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    traj = json.loads(out.read_text())
+    from grasplan.schemas import validate
+
+    validate(traj)
+    g = select_grasp(doc)
+    t, q, qd = check_trajectory(traj, doc, g, robot, 1.4)
+    opening = min(doc["gripper"]["max_opening"], g["width"] + 0.010)
+    assert independent_path_free(tless20["scene_factory"], q, opening)
+    # PlanResult.export (the lead's wiring) writes the same format
+    out2 = tless20["result"].export("joint-trajectory", tmp_path / "traj2.json")
+    assert json.loads(Path(out2).read_text())["grasp_id"] == g["id"]
+
+
+@pytest.mark.slow
+@pytest.mark.paper
+def test_tless20_csv(tless20, tmp_path):
+    doc = tless20["doc"]
+    out = tmp_path / "grasps.csv"
+    r = _run(["export", str(tless20["path"]), "--format", "csv", "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    rows = list(csv.DictReader(io.StringIO(out.read_text())))
+    assert len(rows) == len(doc["grasps"])
+    assert sum(r_["status"] == "planned" for r_ in rows) == len(planned_ids(doc))
+    from grasplan.schemas import validate
+
+    validate(doc)
