@@ -261,7 +261,10 @@ class Robot:
         out = []
         for g in gm.geometryObjects:
             T = self.T_world_base @ (d.oMi[g.parentJoint] * g.placement).homogeneous
-            out.append((g.name, T, str(g.meshPath or ""), np.array(g.meshScale, dtype=float)))
+            mesh = str(g.meshPath or "")
+            if mesh.upper() in ("BOX", "SPHERE", "CYLINDER", "CAPSULE", "CONE") or not Path(mesh).is_file():
+                mesh = ""  # a primitive (pinocchio names it "BOX" etc.)
+            out.append((g.name, T, mesh, np.array(g.meshScale, dtype=float)))
         return out
 
     def link_name(self, geom: pin.GeometryObject) -> str:
