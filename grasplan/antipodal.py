@@ -250,19 +250,18 @@ def evaluate_pairs(
     reason = np.zeros(k, dtype=np.int8)
     contacts = np.zeros((k, 2, 3))
     width = np.zeros(k)
-    ni, nj, ci, cj = geo.n[i], geo.n[j], geo.c[i], geo.c[j]
+    ni, nj = geo.n[i], geo.n[j]
     dot = np.einsum("ij,ij->i", ni, nj)
-    r1 = dot > -np.cos(np.radians(beta_deg)) + 1e-12
-    reason[r1] = 1
+    reason[dot > -np.cos(np.radians(beta_deg)) + 1e-12] = 1
+    ci, cj = geo.c[i], geo.c[j]
     dvec = cj - ci
-    dist = np.linalg.norm(dvec, axis=1)
-    r2 = (reason == 0) & (dist > max_opening + epsilon)
-    reason[r2] = 2
+    dist = np.sqrt(np.einsum("ij,ij->i", dvec, dvec))
+    reason[(reason == 0) & (dist > max_opening + epsilon)] = 2
     a = ni - nj
-    a /= np.maximum(np.linalg.norm(a, axis=1, keepdims=True), 1e-300)
-    s = ci - a * dist[:, None]
-    r3 = (reason == 0) & (np.linalg.norm(s - cj, axis=1) > epsilon)
-    reason[r3] = 3
+    a /= np.maximum(np.sqrt(np.einsum("ij,ij->i", a, a)), 1e-300)[:, None]
+    # |c_i - a dist - c_j|^2 = |d|^2 + dist^2 + 2 dist (a . d) with d = c_j - c_i  (= 2 dist (dist + a.d))
+    miss2 = 2.0 * dist * (dist + np.einsum("ij,ij->i", a, dvec))
+    reason[(reason == 0) & (miss2 > epsilon * epsilon)] = 3
     live = np.flatnonzero(reason == 0)
     if len(live) == 0:
         return reason, contacts, width
@@ -316,79 +315,93 @@ def _ccw(P):
     return P
 
 
-def _inside(P, X, eps):
-    """Points X (b, k, 2) inside CCW triangles P (b, 3, 2), with tolerance eps."""
-    ok = np.ones(X.shape[:2], dtype=bool)
-    for e in range(3):
-        A, B = P[:, e], P[:, (e + 1) % 3]
-        E = B - A
-        L = np.linalg.norm(E, axis=-1)
-        ok &= _cross2(E[:, None], X - A[:, None]) >= -eps * L[:, None]
-    return ok
-
-
 def _overlap_or_closest(Pi, Pj, eps):
-    """2D contact points: centroid of the overlap of triangles Pi, Pj (b,3,2), else the closest pair."""
+    """2D contact points: area centroid of the overlap of triangles Pi, Pj (b,3,2), else the closest pair.
+
+    Overlap polygon vertices = vertices of one triangle inside the other + edge/edge crossings
+    (all 15 candidates evaluated with broadcasting, invalid ones masked), ordered by angle around
+    their mean and fan-triangulated for the area centroid.
+    """
     b = len(Pi)
     Pi, Pj = _ccw(Pi), _ccw(Pj)
-    pts = [Pi, Pj]
-    mask = [_inside(Pj, Pi, eps), _inside(Pi, Pj, eps)]
-    for ea in range(3):
-        p, r = Pi[:, ea], Pi[:, (ea + 1) % 3] - Pi[:, ea]
-        for eb in range(3):
-            q, s = Pj[:, eb], Pj[:, (eb + 1) % 3] - Pj[:, eb]
-            den = _cross2(r, s)
-            good = np.abs(den) > 1e-300
-            safe = np.where(good, den, 1.0)
-            t = _cross2(q - p, s) / safe
-            u = _cross2(q - p, r) / safe
-            ok = good & (t >= 0) & (t <= 1) & (u >= 0) & (u <= 1)
-            pts.append((p + t[:, None] * r)[:, None])
-            mask.append(ok[:, None])
-    pts = np.concatenate(pts, axis=1)            # (b, 15, 2)
-    mask = np.concatenate(mask, axis=1)          # (b, 15)
-    cnt = mask.sum(axis=1)
+    xa, ya, xb, yb = Pi[..., 0], Pi[..., 1], Pj[..., 0], Pj[..., 1]
+    exa, eya = np.roll(xa, -1, axis=1) - xa, np.roll(ya, -1, axis=1) - ya     # (b, 3) edge k: v_k -> v_k+1
+    exb, eyb = np.roll(xb, -1, axis=1) - xb, np.roll(yb, -1, axis=1) - yb
+    la, lb = np.hypot(exa, eya), np.hypot(exb, eyb)
+
+    def inside(xp, yp, xt, yt, ex, ey, L):
+        # points (b, 3) inside triangles with edges (b, 3): cross(edge_e, p_v - t_e) >= -eps |edge_e|
+        cr = ex[:, None, :] * (yp[:, :, None] - yt[:, None, :]) - ey[:, None, :] * (xp[:, :, None] - xt[:, None, :])
+        return (cr >= -eps * L[:, None, :]).all(axis=2)
+
+    in_a = inside(xa, ya, xb, yb, exb, eyb, lb)           # vertices of i inside j
+    in_b = inside(xb, yb, xa, ya, exa, eya, la)
+    # edge crossings (b, 3, 3): edge ea of i with edge eb of j
+    rx, ry = exa[:, :, None], eya[:, :, None]
+    sx, sy = exb[:, None, :], eyb[:, None, :]
+    qx, qy = xb[:, None, :] - xa[:, :, None], yb[:, None, :] - ya[:, :, None]
+    den = rx * sy - ry * sx
+    good = np.abs(den) > 1e-300
+    safe = np.where(good, den, 1.0)
+    t = (qx * sy - qy * sx) / safe
+    u = (qx * ry - qy * rx) / safe
+    ok = good & (t >= 0) & (t <= 1) & (u >= 0) & (u <= 1)
+    cx = (xa[:, :, None] + t * rx).reshape(b, 9)
+    cy = (ya[:, :, None] + t * ry).reshape(b, 9)
+    X = np.concatenate([xa, xb, cx], axis=1)               # (b, 15)
+    Y = np.concatenate([ya, yb, cy], axis=1)
+    M = np.concatenate([in_a, in_b, ok.reshape(b, 9)], axis=1)
+    cnt = M.sum(axis=1)
     over = cnt > 0
-    q = np.zeros((b, 2))
+    qi = np.zeros((b, 2))
+    qj = np.zeros((b, 2))
     if over.any():
-        P, M = pts[over], mask[over]
-        m = (P * M[..., None]).sum(axis=1) / M.sum(axis=1, keepdims=True)
-        ang = np.arctan2(P[..., 1] - m[:, 1:], P[..., 0] - m[:, :1])
-        ang = np.where(M, ang, np.inf)
+        Xo, Yo, Mo = X[over], Y[over], M[over]
+        co = cnt[over][:, None]
+        mx = (Xo * Mo).sum(axis=1, keepdims=True) / co
+        my = (Yo * Mo).sum(axis=1, keepdims=True) / co
+        dx, dy = Xo - mx, Yo - my
+        # pseudo-angle (monotonic in the true angle, no trig): in [-2, 2]
+        pa = np.copysign(1.0 - dx / np.maximum(np.abs(dx) + np.abs(dy), 1e-300), dy)
+        ang = np.where(Mo, pa, np.inf)
         order = np.argsort(ang, axis=1)
-        Ps = np.take_along_axis(P, order[..., None], axis=1)
-        Ms = np.take_along_axis(M, order, axis=1)
-        n_valid = Ms.sum(axis=1)
-        k = np.arange(P.shape[1])[None, :]
-        nxt = np.where(k + 1 < n_valid[:, None], k + 1, 0)
-        Pn = np.take_along_axis(Ps, nxt[..., None], axis=1)
-        area = 0.5 * _cross2(Ps - m[:, None], Pn - m[:, None]) * Ms
-        cen = (m[:, None] + Ps + Pn) / 3.0
+        Xs = np.take_along_axis(Xo, order, axis=1) - mx
+        Ys = np.take_along_axis(Yo, order, axis=1) - my
+        k = np.arange(15)[None, :]
+        nxt = np.where(k + 1 < co, k + 1, 0)
+        Xn, Yn = np.take_along_axis(Xs, nxt, axis=1), np.take_along_axis(Ys, nxt, axis=1)
+        valid = k < co
+        area = np.where(valid, 0.5 * (Xs * Yn - Ys * Xn), 0.0)
         A = area.sum(axis=1)
-        big = A > (eps * eps)
-        cg = np.where(big[:, None], (area[..., None] * cen).sum(axis=1) / np.where(big, A, 1.0)[:, None], m)
-        q[over] = cg
-    qi, qj = q.copy(), q.copy()
+        big = A > eps * eps
+        Asafe = np.where(big, A, 1.0)
+        gx = np.where(big, (area * (Xs + Xn)).sum(axis=1) / (3.0 * Asafe), 0.0) + mx[:, 0]
+        gy = np.where(big, (area * (Ys + Yn)).sum(axis=1) / (3.0 * Asafe), 0.0) + my[:, 0]
+        qi[over, 0], qi[over, 1] = gx, gy
+        qj[over] = qi[over]
     far = ~over
     if far.any():
-        A, B = Pi[far], Pj[far]
-        best = np.full(len(A), np.inf)
-        bi = np.zeros((len(A), 2))
-        bj = np.zeros((len(A), 2))
-        for src, dst, src_is_i in ((A, B, True), (B, A, False)):
-            for v in range(3):
-                x = src[:, v]
-                for e in range(3):
-                    p, seg = dst[:, e], dst[:, (e + 1) % 3] - dst[:, e]
-                    L2 = np.maximum((seg * seg).sum(axis=1), 1e-300)
-                    t = np.clip(((x - p) * seg).sum(axis=1) / L2, 0.0, 1.0)
-                    y = p + t[:, None] * seg
-                    dd = np.linalg.norm(x - y, axis=1)
-                    better = dd < best
-                    best = np.where(better, dd, best)
-                    if src_is_i:
-                        bi[better], bj[better] = x[better], y[better]
-                    else:
-                        bi[better], bj[better] = y[better], x[better]
-        qi[far], qj[far] = bi, bj
+        A_, B_ = Pi[far], Pj[far]
+        # vertex v of src vs edge e of dst, both directions: (f, 3, 3) each
+        best_i, best_j, best_d = None, None, None
+        for src, dst, src_is_i in ((A_, B_, True), (B_, A_, False)):
+            p = dst[:, None, :, :]                               # (f, 1, 3, 2) edge starts
+            seg = np.roll(dst, -1, axis=1)[:, None] - p          # (f, 1, 3, 2)
+            x = src[:, :, None, :]                               # (f, 3, 1, 2)
+            L2 = np.maximum((seg * seg).sum(-1), 1e-300)
+            tt = np.clip(((x - p) * seg).sum(-1) / L2, 0.0, 1.0)  # (f, 3, 3)
+            y = p + tt[..., None] * seg                          # (f, 3, 3, 2)
+            xx = np.broadcast_to(x, y.shape)
+            dd = np.linalg.norm(xx - y, axis=-1).reshape(len(src), 9)
+            pi_ = (xx if src_is_i else y).reshape(len(src), 9, 2)
+            pj_ = (y if src_is_i else xx).reshape(len(src), 9, 2)
+            if best_d is None:
+                best_d, best_i, best_j = dd, pi_, pj_
+            else:
+                best_d = np.concatenate([best_d, dd], axis=1)
+                best_i = np.concatenate([best_i, pi_], axis=1)
+                best_j = np.concatenate([best_j, pj_], axis=1)
+        k = np.argmin(best_d, axis=1)
+        r = np.arange(len(k))
+        qi[far], qj[far] = best_i[r, k], best_j[r, k]
     return qi, qj
