@@ -1,0 +1,514 @@
+"""A self-contained HTML viewer for a ``grasplan.grasps/1`` or ``grasplan.plan/1`` result.
+
+:func:`build_html` returns ONE HTML document that works offline with no server: three.js (npm
+``three@0.187.0`` with OrbitControls, bundled into ``three.iife.min.js``) and the page's script are
+inlined, every mesh and pose is embedded as base64 Float32/Uint32 arrays, and a
+Content-Security-Policy ``default-src 'none'`` forbids the page any request at all.
+
+What is computed here (Python), not in the browser:
+
+- the part mesh (loaded with :func:`grasplan.mesh.load_part` at the result's ``scale_to_m``) and its
+  cell pose ``T_world_part``;
+- the contact points of every grasp in the world frame and the TCP pose ``T_world_tcp`` of every
+  grasp (``T_world_part @ T_part_tcp``);
+- the gripper boxes in the TCP frame (body, and the fingers at the pre-grasp opening of each grasp);
+- for a plan: the robot's collision meshes (each embedded once, decimated when big) and the pose of
+  every link, computed with Pinocchio, at q_home and along each planned path densified to at most
+  :data:`PATH_STEP_RAD` per sample, so the browser only plays back poses (no FK in JavaScript).
+"""
+from __future__ import annotations
+
+import base64
+import html
+import json
+import math
+import os
+import re
+import warnings
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import GrasplanError, InputError, MeshError
+from ..io import read_json, sha256_file, write_atomic_text
+from ..units import LENGTH_UNITS
+
+SCHEMAS = ("grasplan.grasps/1", "grasplan.plan/1")
+#: display order (and drawing priority, last on top) of the statuses, with their colours
+STATUS_COLORS: dict[str, str] = {
+    "planned": "#00c853",
+    "ok": "#2e9d3a",
+    "not_tried": "#9e9e9e",
+    "no_path": "#ab47bc",
+    "ik_collision": "#ffb300",
+    "unreachable": "#fb8c00",
+    "collision_part": "#e53935",
+    "collision_table": "#1e88e5",
+}
+STATUS_ORDER = tuple(STATUS_COLORS)
+OTHER_COLOR = "#607d8b"
+#: largest joint step (rad) between two played-back samples of a path
+PATH_STEP_RAD = 0.03
+#: at most this many samples per planned path (the step grows when a path is longer)
+MAX_SAMPLES_PER_PATH = 400
+#: link meshes above this many triangles are decimated (vertex clustering)
+MAX_LINK_TRIANGLES = 4000
+#: a part above this many triangles is decimated for display (the page stays small)
+MAX_PART_TRIANGLES = 250_000
+#: grasp list: rows rendered per status before a "show more" button (planned: all)
+LIST_CHUNK = 200
+
+_HERE = Path(__file__).resolve().parent
+
+
+# --------------------------------------------------------------------------- encoding helpers
+def _b64(a: np.ndarray, dtype) -> str:
+    return base64.b64encode(np.ascontiguousarray(a, dtype=dtype).tobytes()).decode("ascii")
+
+
+def _f32(a) -> str:
+    return _b64(np.asarray(a, dtype=np.float64), "<f4")
+
+
+def _u32(a) -> str:
+    return _b64(np.asarray(a), "<u4")
+
+
+def _mat(x, name: str) -> np.ndarray:
+    T = np.asarray(x, dtype=np.float64)
+    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+        raise InputError(f"{name}: expected a 4x4 matrix of finite numbers, got shape {T.shape}")
+    return T
+
+
+def _pose7(T: np.ndarray) -> np.ndarray:
+    """(..., 4, 4) -> (..., 7) position + quaternion (x, y, z, w), as three.js wants it."""
+    T = np.asarray(T, dtype=np.float64)
+    R = T[..., :3, :3]
+    p = T[..., :3, 3]
+    q = _quat_xyzw(R)
+    return np.concatenate([p, q], axis=-1)
+
+
+def _quat_xyzw(R: np.ndarray) -> np.ndarray:
+    """Rotation matrices (..., 3, 3) -> unit quaternions (..., 4) as (x, y, z, w), vectorised."""
+    R = np.asarray(R, dtype=np.float64)
+    shp = R.shape[:-2]
+    R = R.reshape(-1, 3, 3)
+    m00, m11, m22 = R[:, 0, 0], R[:, 1, 1], R[:, 2, 2]
+    tr = m00 + m11 + m22
+    # Shepperd's method: pick the largest of w, x, y, z to divide by
+    cand = np.stack([tr, m00, m11, m22], axis=1)
+    k = np.argmax(cand, axis=1)
+    s = np.sqrt(np.maximum(1.0 + np.choose(k, [tr, 2 * m00 - tr, 2 * m11 - tr, 2 * m22 - tr]), 1e-300)) * 2
+    r = R
+    q0 = np.stack([(r[:, 2, 1] - r[:, 1, 2]) / s, (r[:, 0, 2] - r[:, 2, 0]) / s, (r[:, 1, 0] - r[:, 0, 1]) / s, 0.25 * s], 1)
+    q1 = np.stack([0.25 * s, (r[:, 0, 1] + r[:, 1, 0]) / s, (r[:, 0, 2] + r[:, 2, 0]) / s, (r[:, 2, 1] - r[:, 1, 2]) / s], 1)
+    q2 = np.stack([(r[:, 0, 1] + r[:, 1, 0]) / s, 0.25 * s, (r[:, 1, 2] + r[:, 2, 1]) / s, (r[:, 0, 2] - r[:, 2, 0]) / s], 1)
+    q3 = np.stack([(r[:, 0, 2] + r[:, 2, 0]) / s, (r[:, 1, 2] + r[:, 2, 1]) / s, 0.25 * s, (r[:, 1, 0] - r[:, 0, 1]) / s], 1)
+    q = np.choose(k[:, None], [q0, q1, q2, q3])
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    return q.reshape(*shp, 4)
+
+
+def decimate_mesh(vertices: np.ndarray, faces: np.ndarray, max_faces: int) -> tuple[np.ndarray, np.ndarray]:
+    """Vertex-clustering decimation to at most about ``max_faces`` triangles (display only).
+
+    Vertices are snapped to a grid, merged per cell (mean position), and faces that collapse are
+    dropped. The cell size grows until the face count fits. Returns ``(vertices (n', 3), faces (m', 3))``.
+    """
+    V = np.asarray(vertices, dtype=np.float64)
+    F = np.asarray(faces, dtype=np.int64)
+    if len(F) <= max_faces:
+        return V, F
+    ext = float(np.max(V.max(0) - V.min(0))) or 1.0
+    cells = max(8, int(math.sqrt(max_faces) * 1.5))
+    for _ in range(40):
+        h = ext / cells
+        key = np.floor((V - V.min(0)) / h).astype(np.int64)
+        _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+        inv = inv.reshape(-1)
+        newV = np.zeros((len(counts), 3))
+        np.add.at(newV, inv, V)
+        newV /= counts[:, None]
+        nF = inv[F]
+        keep = (nF[:, 0] != nF[:, 1]) & (nF[:, 1] != nF[:, 2]) & (nF[:, 0] != nF[:, 2])
+        nF = nF[keep]
+        nF = np.unique(np.sort(nF, axis=1), axis=0, return_index=True)[1]
+        nF = inv[F][keep][np.sort(nF)]
+        if len(nF) <= max_faces:
+            used, remap = np.unique(nF, return_inverse=True)
+            return newV[used], remap.reshape(-1, 3)
+        cells = int(cells * 0.8)
+    raise MeshError(f"cannot decimate a mesh of {len(F)} triangles to {max_faces}")
+
+
+def _mesh_block(vertices, faces) -> dict:
+    V = np.asarray(vertices, dtype=np.float64)
+    F = np.asarray(faces, dtype=np.int64)
+    return {"v": _f32(V.reshape(-1)), "f": _u32(F.reshape(-1)), "nv": int(len(V)), "nf": int(len(F))}
+
+
+# --------------------------------------------------------------------------- inputs
+def _load_result(result_json) -> tuple[dict, Path | None]:
+    if isinstance(result_json, dict):
+        return result_json, None
+    p = Path(result_json)
+    if not p.exists():
+        raise InputError(f"{p}: no such file")
+    try:
+        doc = read_json(p)
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{p}: not a JSON file ({exc})") from exc
+    if not isinstance(doc, dict):
+        raise InputError(f"{p}: not a grasplan result (the JSON is not an object)")
+    return doc, p.resolve().parent
+
+
+def _check_doc(doc: dict, where: str) -> None:
+    schema = doc.get("schema")
+    if schema not in SCHEMAS:
+        raise InputError(f"{where}: schema {schema!r} is not one the viewer shows; expected one of {', '.join(SCHEMAS)} "
+                         f"(write one with `grasplan grasps` or `grasplan plan`)")
+    for key in ("part", "grasps"):
+        if key not in doc:
+            raise InputError(f"{where}: the {schema} document has no {key!r} field")
+    if not isinstance(doc["grasps"], list):
+        raise InputError(f"{where}: 'grasps' must be a list")
+    if "T_world_part" not in doc["part"]:
+        raise InputError(f"{where}: part.T_world_part is missing")
+    if schema == "grasplan.plan/1" and "robot" not in doc:
+        raise InputError(f"{where}: a grasplan.plan/1 document needs a 'robot' block")
+
+
+def _resolve_part(doc: dict, part_path, result_dir: Path | None) -> Path:
+    if part_path is not None:
+        p = Path(part_path)
+        if not p.exists():
+            raise InputError(f"--part {p}: no such file")
+        return p
+    rec = doc["part"].get("path")
+    if not rec:
+        raise InputError("the result records no part path; give the part with --part PATH")
+    rp = Path(rec)
+    tried = [rp] if rp.is_absolute() else [Path.cwd() / rp] + ([result_dir / rp] if result_dir else [])
+    for t in tried:
+        if t.exists():
+            return t
+    raise InputError(f"part {rec!r} not found (tried {', '.join(str(t) for t in tried)}); give it with --part PATH")
+
+
+def _units_for(scale: float) -> str | None:
+    for name, f in LENGTH_UNITS.items():
+        if math.isclose(f, scale, rel_tol=1e-9):
+            return name
+    return None
+
+
+def _load_part_mesh(path: Path, doc: dict) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    from ..mesh import load_part
+
+    notes: list[str] = []
+    scale = doc["part"].get("scale_to_m")
+    units = _units_for(float(scale)) if scale is not None else None
+    if units is not None:
+        part = load_part(path, units=units)
+        V = np.asarray(part.vertices, dtype=np.float64)
+    else:  # an unusual scale: load in file units and scale ourselves
+        part = load_part(path, units="m")
+        V = np.asarray(part.vertices, dtype=np.float64) * (float(scale) if scale is not None else 1.0)
+    F = np.asarray(part.faces, dtype=np.int64)
+    sha = doc["part"].get("sha256")
+    if sha and sha != part.sha256:
+        notes.append(f"{path}: sha256 differs from the one recorded in the result ({part.sha256[:12]} vs {sha[:12]}); "
+                     f"the grasps may not belong to this part")
+    if len(F) > MAX_PART_TRIANGLES:
+        V, F = decimate_mesh(V, F, MAX_PART_TRIANGLES)
+        notes.append(f"part decimated to {len(F)} triangles for display")
+    return V, F, notes
+
+
+# --------------------------------------------------------------------------- gripper
+def _load_gripper(name: str | None, notes: list[str]):
+    from ..gripper import load_gripper
+
+    try:
+        return load_gripper(name or "schunk_egp_c_40")
+    except GrasplanError as exc:  # a result written with a gripper file this machine does not have
+        notes.append(f"gripper {name!r} not loadable ({exc}); showing the default schunk_egp_c_40")
+        return load_gripper("schunk_egp_c_40")
+
+
+def _shape_json(shape, mesh_cache: dict, meshes: list) -> dict:
+    """A gripper shape -> {"box": [ex,ey,ez], "pose": [7]} or {"mesh": index, "pose": [7]}."""
+    T = None
+    for attr in ("T_tcp_box", "T_tcp_shape", "T_tcp_mesh", "T_tcp"):
+        if hasattr(shape, attr):
+            T = np.asarray(getattr(shape, attr), dtype=np.float64)
+            break
+    if T is None:
+        T = np.eye(4)
+    if hasattr(shape, "extents"):
+        return {"box": [float(x) for x in np.asarray(shape.extents).reshape(3)], "pose": _pose7(T).tolist()}
+    mesh = getattr(shape, "mesh", None)
+    V = getattr(mesh, "vertices", getattr(shape, "vertices", None))
+    F = getattr(mesh, "faces", getattr(shape, "faces", None))
+    if V is None or F is None:
+        raise InputError(f"cannot display gripper shape {type(shape).__name__}: neither a box nor a mesh")
+    key = id(mesh if mesh is not None else shape)
+    if key not in mesh_cache:
+        Vd, Fd = decimate_mesh(np.asarray(V), np.asarray(F), MAX_LINK_TRIANGLES)
+        mesh_cache[key] = len(meshes)
+        meshes.append(_mesh_block(Vd, Fd))
+    return {"mesh": mesh_cache[key], "pose": _pose7(T).tolist()}
+
+
+# --------------------------------------------------------------------------- robot
+def _load_robot(doc: dict, notes: list[str]):
+    from ..robot import load_robot
+
+    rb = doc["robot"]
+    robot = load_robot(rb.get("name", "ur5"))
+    if list(rb.get("joint_names", robot.joint_names)) != list(robot.joint_names):
+        raise InputError(f"robot.joint_names {rb.get('joint_names')} differ from robot {robot.name!r}'s "
+                         f"{list(robot.joint_names)}; was the plan written for another robot description?")
+    T = rb.get("T_world_base")
+    if T is not None and not np.allclose(_mat(T, "robot.T_world_base"), robot.T_world_base, atol=1e-9):
+        notes.append("robot.T_world_base in the result differs from the robot's configuration; showing the configuration's")
+    return robot
+
+
+def _load_link_mesh(mesh_path: str, scale) -> tuple[np.ndarray, np.ndarray] | None:
+    import trimesh
+
+    if not mesh_path or not os.path.isfile(mesh_path):
+        return None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        m = trimesh.load(mesh_path, force="mesh", process=True)
+    if not isinstance(m, trimesh.Trimesh) or len(m.faces) == 0:
+        return None
+    V = np.asarray(m.vertices, dtype=np.float64) * np.asarray(scale, dtype=np.float64).reshape(1, 3)
+    return decimate_mesh(V, np.asarray(m.faces), MAX_LINK_TRIANGLES)
+
+
+def densify_path(path: np.ndarray, *, step: float = PATH_STEP_RAD, max_samples: int = MAX_SAMPLES_PER_PATH):
+    """Joint path (k, n) -> (samples (s, n), index of each original waypoint in the samples (k,)).
+
+    Linear interpolation in joint space (as the planner's checker does), at most ``step`` rad per
+    joint between samples; the step grows so that s <= max_samples (when k <= max_samples).
+    """
+    P = np.asarray(path, dtype=np.float64)
+    if P.ndim != 2 or len(P) == 0:
+        raise InputError(f"a path must be a (k, n) list of joint vectors, got shape {P.shape}")
+    d = np.abs(np.diff(P, axis=0)).max(axis=1) if len(P) > 1 else np.zeros(0)
+    total = float(d.sum())
+    budget = max(max_samples - len(P), 0)
+    if total > 0 and total / step > budget:
+        step = total / max(budget, 1)
+    segs = np.maximum(np.ceil(d / step).astype(int), 1) if len(d) else np.zeros(0, dtype=int)
+    out = [P[:1]]
+    idx = [0]
+    for i, n in enumerate(segs):
+        t = (np.arange(1, n + 1) / n)[:, None]
+        out.append(P[i] + t * (P[i + 1] - P[i]))
+        idx.append(idx[-1] + int(n))
+    return np.concatenate(out, axis=0), np.asarray(idx, dtype=np.int64)
+
+
+# --------------------------------------------------------------------------- page data
+def build_data(doc: dict, *, part_path=None, result_dir: Path | None = None) -> tuple[dict, list[str]]:
+    """Everything the page needs, as one JSON-able dict (arrays base64-encoded), plus notes/warnings."""
+    notes: list[str] = []
+    _check_doc(doc, "result")
+    schema = doc["schema"]
+    ppath = _resolve_part(doc, part_path, result_dir)
+    V, F, pn = _load_part_mesh(ppath, doc)
+    notes += pn
+    T_world_part = _mat(doc["part"]["T_world_part"], "part.T_world_part")
+    grasps = doc["grasps"]
+    n = len(grasps)
+
+    gr = doc.get("gripper", {}) or {}
+    gripper = _load_gripper(gr.get("name"), notes)
+    T_flange_tcp = _mat(gr["T_flange_tcp"], "gripper.T_flange_tcp") if "T_flange_tcp" in gr else gripper.T_flange_tcp
+
+    # per-grasp arrays
+    ids = np.zeros(n, dtype=np.int64)
+    width = np.zeros(n)
+    score = np.full(n, np.nan)
+    rank = np.full(n, -1, dtype=np.int64)
+    statuses = [str(g.get("status", "?")) for g in grasps]
+    status_names = [s for s in STATUS_ORDER if s in set(statuses)] + sorted(set(statuses) - set(STATUS_ORDER))
+    sidx = {s: i for i, s in enumerate(status_names)}
+    st = np.array([sidx[s] for s in statuses], dtype=np.int64)
+    contacts = np.zeros((n, 2, 3))
+    T_part_tcp = np.zeros((n, 4, 4))
+    for i, g in enumerate(grasps):
+        try:
+            ids[i] = int(g["id"])
+            width[i] = float(g["width"])
+            contacts[i] = np.asarray(g["contacts"], dtype=np.float64).reshape(2, 3)
+            T_part_tcp[i] = np.asarray(g["T_part_tcp"], dtype=np.float64).reshape(4, 4)
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InputError(f"grasps[{i}]: missing or malformed field ({exc}); every grasp needs id, width, contacts, T_part_tcp") from exc
+        if g.get("score") is not None:
+            score[i] = float(g["score"])
+        if g.get("rank") is not None:
+            rank[i] = int(g["rank"])
+    if len(set(ids.tolist())) != n:
+        raise InputError("grasp ids are not unique")
+    c_world = contacts @ T_world_part[:3, :3].T + T_world_part[:3, 3]
+    T_world_tcp = T_world_part[None] @ T_part_tcp if n else np.zeros((0, 4, 4))
+    pre_open = np.asarray(gripper.pregrasp_opening(width), dtype=np.float64).reshape(n)
+
+    # gripper shapes: body once; fingers as a function of the opening (two openings -> linear in JS)
+    gmeshes: list[dict] = []
+    cache: dict = {}
+    f_a = gripper.fingers(0.0)
+    f_b = gripper.fingers(float(gripper.max_opening))
+    grip = {
+        "body": [_shape_json(s, cache, gmeshes) for s in gripper.body],
+        "fingers": [_shape_json(s, cache, gmeshes) for s in f_a],  # at opening 0
+        # the jaws translate with the opening: displacement of each jaw from opening 0 to max_opening
+        "finger_shift": [(np.asarray(b.corners()).mean(0) - np.asarray(a.corners()).mean(0)).tolist()
+                         for a, b in zip(f_a, f_b)],
+        "max_opening": float(gripper.max_opening),
+        "meshes": gmeshes,
+    }
+
+    data: dict[str, Any] = {
+        "schema": schema,
+        "title": Path(str(doc["part"].get("path") or ppath)).name,
+        "part": {**_mesh_block(V, F), "T_world_part": T_world_part.reshape(-1).tolist(), "path": str(ppath)},
+        "cell": {"name": (doc.get("cell") or {}).get("name", "table"),
+                 "table_z": float((doc.get("cell") or {}).get("table_z", 0.0))},
+        "statuses": [{"name": s, "color": STATUS_COLORS.get(s, OTHER_COLOR)} for s in status_names],
+        "grasps": {
+            "n": n,
+            "id": _b64(ids, "<i4"), "status": _b64(st, "u1"),
+            "width": _f32(width), "score": _f32(score), "rank": _b64(rank, "<i4"),
+            "contacts": _f32(c_world.reshape(-1)),
+            "tcp": _f32(_pose7(T_world_tcp).reshape(-1)) if n else "",
+            "opening": _f32(pre_open),
+        },
+        "gripper": grip,
+        "robot": None,
+        "counts": {s: int((st == sidx[s]).sum()) for s in status_names},
+        "list_chunk": LIST_CHUNK,
+    }
+
+    if schema == "grasplan.plan/1" and doc.get("robot"):
+        data["robot"] = _robot_data(doc, grasps, ids, T_flange_tcp, notes)
+    data["notes"] = notes
+    return data, notes
+
+
+def _robot_data(doc: dict, grasps: list, ids: np.ndarray, T_flange_tcp: np.ndarray, notes: list[str]) -> dict:
+    rb = doc["robot"]
+    robot = _load_robot(doc, notes)
+    q_home = np.asarray(rb.get("q_home"), dtype=np.float64)
+    first = robot.link_poses(q_home)
+    links, meshes, mesh_index = [], [], {}
+    keep = []
+    for k, (gname, _T, mpath, scale) in enumerate(first):
+        key = (str(mpath), tuple(np.round(np.asarray(scale, dtype=float).reshape(-1), 9)))
+        if key not in mesh_index:
+            m = _load_link_mesh(str(mpath), scale)
+            if m is None:
+                if Path(str(mpath)).suffix:  # a mesh file that is missing (primitives have no suffix)
+                    notes.append(f"robot geometry {gname}: mesh {mpath} not loadable; not shown")
+                continue
+            mesh_index[key] = len(meshes)
+            meshes.append(_mesh_block(*m))
+        links.append({"name": str(gname), "mesh": mesh_index[key]})
+        keep.append(k)
+
+    def frame(q) -> np.ndarray:
+        lp = robot.link_poses(q)
+        Ts = [lp[k][1] for k in keep] + [robot.fk(q) @ T_flange_tcp]
+        return _pose7(np.asarray(Ts))  # (L + 1, 7): the links, then the gripper TCP
+
+    home = frame(q_home)
+    paths = {}
+    chunks = [home.reshape(-1)]
+    offset = 1  # in frames
+    for gid, g in zip(ids.tolist(), grasps):
+        if g.get("status") != "planned" or not g.get("path"):
+            continue
+        P = np.asarray(g["path"], dtype=np.float64)
+        S, idx = densify_path(P)
+        frames = np.stack([frame(q) for q in S])
+        pre = g.get("pregrasp_index")
+        pre_s = int(idx[int(pre)]) if pre is not None and 0 <= int(pre) < len(idx) else None
+        paths[str(gid)] = {"start": offset, "count": int(len(S)), "pregrasp": pre_s, "waypoints": int(len(P))}
+        chunks.append(frames.reshape(-1))
+        offset += len(S)
+    return {
+        "name": rb.get("name", "?"),
+        "joint_names": list(rb.get("joint_names", [])),
+        "links": links,
+        "meshes": meshes,
+        "frame_size": len(links) + 1,
+        "frames": _f32(np.concatenate(chunks)),
+        "paths": paths,
+    }
+
+
+# --------------------------------------------------------------------------- HTML
+def _read_asset(name: str) -> str:
+    try:
+        return resources.files(__name__).joinpath(name).read_text(encoding="utf-8")
+    except (FileNotFoundError, AttributeError):
+        return (_HERE / name).read_text(encoding="utf-8")
+
+
+def _script_safe(text: str) -> str:
+    """Text that cannot end an inline <script> early."""
+    return text.replace("</script", "<\\/script").replace("</SCRIPT", "<\\/SCRIPT")
+
+
+def build_html(result_json, *, part_path=None) -> str:
+    """The viewer page for a ``grasplan.grasps/1`` or ``grasplan.plan/1`` result, as one HTML string.
+
+    Parameters
+    ----------
+    result_json : dict or path
+        The parsed result, or the path of its JSON file (then a relative ``part.path`` is looked up
+        against the current folder, then the result file's folder).
+    part_path : path, optional
+        The part's mesh file; default: the path recorded in the result.
+
+    Raises
+    ------
+    InputError
+        Not a grasps/plan document, the part cannot be found, or a malformed grasp.
+    """
+    doc, result_dir = _load_result(result_json)
+    data, notes = build_data(doc, part_path=part_path, result_dir=result_dir)
+    for note in notes:
+        if "sha256 differs" in note or "not loadable" in note:
+            warnings.warn(note, stacklevel=2)
+    payload = json.dumps(data, separators=(",", ":"), allow_nan=False).replace("</", "<\\/")
+    template = _read_asset("template.html")
+    three = _script_safe(_read_asset("three.iife.min.js"))
+    app = _script_safe(_read_asset("viewer.js"))
+    css = _read_asset("viewer.css")
+    lic = html.escape(_read_asset("THREE_LICENSE"))
+    title = html.escape(f"grasplan view: {data['title']}")
+    values = {"TITLE": title, "CSS": css, "THREE_LICENSE": lic, "DATA": payload, "THREE": three, "APP": app}
+    missing = [k for k in values if "{{" + k + "}}" not in template]
+    if missing:
+        raise RuntimeError(f"viewer template lacks {missing}")
+    # one pass: inserted text (three.js, the data) is never scanned for placeholders again
+    return re.sub(r"\{\{([A-Z_]+)\}\}", lambda m: values[m.group(1)], template)
+
+
+def write_viewer(result_json, out_path, *, part_path=None) -> Path:
+    """Write :func:`build_html`'s page atomically to ``out_path``; returns the path."""
+    return write_atomic_text(out_path, build_html(result_json, part_path=part_path))
+
+
+__all__ = ["build_html", "write_viewer", "build_data", "densify_path", "decimate_mesh", "STATUS_COLORS"]

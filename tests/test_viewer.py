@@ -1,0 +1,503 @@
+"""The HTML viewer: page content checked statically, and rendered in headless Chromium.
+
+Browser tests (marked ``browser``) open the page with Debian's ``chromium`` (installed by .ci/run)
+in headless mode with SwiftShader GL and no network, and check (1) a screenshot: the 3D canvas is
+drawn, not blank; (2) the DOM after the first frame: every planned grasp is listed with its
+``data-grasp-id`` and the page reports a rendered frame; (3) no network request: statically (no
+external URL in src/href/import/fetch, no <link>/<script src>) and dynamically (a CSP that forbids
+every request, and the page still renders with every host name unresolvable).
+"""
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import struct
+import subprocess
+import zlib
+from html.parser import HTMLParser
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from grasplan.errors import InputError
+from grasplan.mesh import load_part
+from grasplan.viewer import STATUS_COLORS, _quat_xyzw, build_data, build_html, decimate_mesh, densify_path, write_viewer
+
+ROOT = Path(__file__).resolve().parents[1]
+BRACKET = ROOT / "examples" / "parts" / "bracket.stl"
+CHROMIUM = shutil.which("chromium") or ("/usr/bin/chromium" if Path("/usr/bin/chromium").exists() else None)
+needs_chromium = pytest.mark.skipif(CHROMIUM is None, reason="headless Chromium not installed (apt-get install chromium; .ci/run does)")
+
+CANVAS_X0 = 341  # the side panel is 340 px wide; the 3D canvas fills the rest of the 1280x800 window
+
+
+# ----------------------------------------------------------------------------- synthetic results
+def _ik(robot, T_world_tool, q0, iters=300):
+    """Damped least squares on the tool frame (independent of grasplan.ik)."""
+    import pinocchio as pin
+
+    model, data = robot.model, robot.model.createData()
+    target = pin.SE3(np.linalg.inv(robot.T_world_base) @ T_world_tool)
+    q = np.array(q0, dtype=float)
+    for _ in range(iters):
+        pin.forwardKinematics(model, data, q)
+        M = pin.updateFramePlacement(model, data, robot.tool_frame_id)
+        err = pin.log6(M.actInv(target)).vector
+        if np.linalg.norm(err) < 1e-9:
+            break
+        J = pin.computeFrameJacobian(model, data, q, robot.tool_frame_id, pin.LOCAL)
+        q = pin.integrate(model, q, J.T @ np.linalg.solve(J @ J.T + 1e-6 * np.eye(6), err))
+    assert np.allclose(robot.fk(q), T_world_tool, atol=1e-6), "synthetic plan: IK did not converge"
+    return q
+
+
+def _first_hits(mesh, origins: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """First intersection of each ray origins[i] + t d (t > 0) with the mesh (Moeller-Trumbore,
+    vectorised over faces); (k, 3), NaN where the ray misses."""
+    tri = mesh.triangles
+    e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    pvec = np.cross(d, e2)
+    det = np.einsum("ij,ij->i", e1, pvec)
+    out = np.full((len(origins), 3), np.nan)
+    ok = np.abs(det) > 1e-15
+    for k, o in enumerate(origins):
+        tvec = o - tri[:, 0]
+        u = np.einsum("ij,ij->i", tvec, pvec) / np.where(ok, det, 1)
+        qvec = np.cross(tvec, e1)
+        v = (qvec @ d) / np.where(ok, det, 1)
+        t = np.einsum("ij,ij->i", e2, qvec) / np.where(ok, det, 1)
+        hit = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)
+        if hit.any():
+            out[k] = o + t[hit].min() * d
+    return out
+
+
+def synthetic_result(part_path: Path, *, units="mm", n_planned=3, plan=True, seed=0, max_grasps=None) -> dict:
+    """A grasps/plan document on a real part: top-down grasps whose contacts come from ray casts
+    along the part's x axis (so they lie on the surface), statuses drawn at random, and real
+    q_grasp/q_pregrasp/paths (Pinocchio IK) for the planned ones."""
+    from grasplan.gripper import load_gripper
+    from grasplan.robot import load_robot
+
+    rng = np.random.default_rng(seed)
+    part = load_part(part_path, units=units)
+    mesh = part.mesh
+    lo, hi = mesh.bounds
+    T_world_part = np.eye(4)
+    T_world_part[:3, 3] = [0.45 - (lo[0] + hi[0]) / 2, 0.0 - (lo[1] + hi[1]) / 2, -lo[2]]
+    ys = np.linspace(lo[1], hi[1], 14)[1:-1]
+    zs = np.linspace(lo[2], hi[2], 8)[1:-1]
+    Y, Z = np.meshgrid(ys, zs)
+    starts = np.stack([np.full(Y.size, lo[0] - 0.01), Y.ravel(), Z.ravel()], 1)
+    ends = starts.copy()
+    ends[:, 0] = hi[0] + 0.01
+    a = _first_hits(mesh, starts, np.array([1.0, 0, 0]))
+    b = _first_hits(mesh, ends, np.array([-1.0, 0, 0]))
+    gripper = load_gripper("schunk_egp_c_40")
+    grasps = []
+    statuses = ["collision_part", "collision_table", "unreachable", "ik_collision", "no_path", "not_tried"] if plan \
+        else ["ok", "collision_part", "collision_table"]
+    for ray in np.flatnonzero(np.isfinite(a[:, 0]) & np.isfinite(b[:, 0])):
+        p0, p1 = a[ray], b[ray]
+        w = float(p1[0] - p0[0])
+        if not 0.002 < w <= gripper.max_opening:
+            continue
+        mid = (p0 + p1) / 2
+        for roll in np.radians([-30.0, -15.0, 0.0, 15.0, 30.0]):
+            c, s = np.cos(roll), np.sin(roll)
+            R0 = np.array([[1.0, 0, 0], [0, -1.0, 0], [0, 0, -1.0]])  # x = closing, z = down
+            Rx = np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+            T = np.eye(4)
+            T[:3, :3] = R0 @ Rx
+            T[:3, 3] = mid
+            grasps.append({"id": len(grasps), "candidate": int(ray), "contacts": [p0.tolist(), p1.tolist()],
+                           "normals": [[-1.0, 0, 0], [1.0, 0, 0]], "width": w, "T_part_tcp": T.tolist(),
+                           "roll": float(roll), "status": str(rng.choice(statuses)),
+                           "score": float(rng.uniform(0, 1)), "rank": None})
+    if max_grasps is not None:
+        grasps = grasps[:max_grasps]
+    doc = {"schema": "grasplan.plan/1" if plan else "grasplan.grasps/1",
+           "part": {**part.to_json(), "T_world_part": T_world_part.tolist()},
+           "gripper": gripper.to_json(), "cell": {"name": "table", "table_z": 0.0},
+           "counts": {}, "timing_s": {}, "grasps": grasps}
+    if not plan:
+        return doc
+    robot = load_robot("ur5")
+    doc["robot"] = robot.to_json()
+    Tinv = np.linalg.inv(gripper.T_flange_tcp)
+    best = sorted(range(len(grasps)), key=lambda i: -grasps[i]["score"])
+    for rank, i in enumerate(best[:n_planned], start=1):
+        g = grasps[i]
+        T_world_tcp = T_world_part @ np.asarray(g["T_part_tcp"])
+        T_pre = T_world_tcp.copy()
+        T_pre[:3, 3] -= 0.05 * T_world_tcp[:3, 2]
+        q_pre = _ik(robot, T_pre @ Tinv, robot.q_home)
+        q_grasp = _ik(robot, T_world_tcp @ Tinv, q_pre)
+        q_mid = (robot.q_home + q_pre) / 2 + np.array([0, -0.3, 0, 0, 0, 0])
+        g.update(status="planned", rank=rank, q_grasp=q_grasp.tolist(), q_pregrasp=q_pre.tolist(),
+                 path=[robot.q_home.tolist(), q_mid.tolist(), q_pre.tolist(), q_grasp.tolist()], pregrasp_index=2)
+    return doc
+
+
+# ----------------------------------------------------------------------------- headless Chromium
+def run_chromium(page: Path, tmp: Path, *args: str, timeout: float = 120.0) -> subprocess.CompletedProcess:
+    profile = tmp / f"profile-{len(list(tmp.glob('profile-*')))}"
+    cmd = [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--use-gl=swiftshader", "--enable-unsafe-swiftshader",
+           "--disable-background-networking", "--disable-component-update", "--disable-sync", "--no-first-run",
+           "--disable-quic", "--disable-dev-shm-usage", f"--user-data-dir={profile}", "--virtual-time-budget=8000",
+           *args, page.resolve().as_uri()]
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+
+
+def read_png(path: Path) -> np.ndarray:
+    """Minimal PNG decoder (8-bit RGB/RGBA, non-interlaced): (h, w, channels) uint8."""
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n", "not a PNG"
+    pos, idat, hdr = 8, [], None
+    while pos < len(data):
+        (length,), kind = struct.unpack(">I", data[pos:pos + 4]), data[pos + 4:pos + 8]
+        body = data[pos + 8:pos + 8 + length]
+        if kind == b"IHDR":
+            hdr = struct.unpack(">IIBBBBB", body)
+        elif kind == b"IDAT":
+            idat.append(body)
+        pos += 12 + length
+    w, h, depth, ctype, _, _, interlace = hdr
+    assert depth == 8 and ctype in (2, 6) and interlace == 0, f"unsupported PNG {hdr}"
+    bpp = 3 if ctype == 2 else 4
+    raw = np.frombuffer(zlib.decompress(b"".join(idat)), dtype=np.uint8).reshape(h, 1 + w * bpp)
+    out = np.zeros((h, w * bpp), dtype=np.int32)
+    prev = np.zeros(w * bpp, dtype=np.int32)
+    for y in range(h):
+        f, line = raw[y, 0], raw[y, 1:].astype(np.int32)
+        if f == 0:
+            cur = line
+        elif f == 1:  # Sub: cumulative sum per channel
+            cur = np.cumsum(line.reshape(w, bpp), axis=0).reshape(-1) % 256
+        elif f == 2:
+            cur = (line + prev) % 256
+        else:  # Average / Paeth: sequential along the row
+            cur = line.copy()
+            for x in range(w * bpp):
+                left = cur[x - bpp] if x >= bpp else 0
+                up = prev[x]
+                if f == 3:
+                    cur[x] = (cur[x] + (left + up) // 2) % 256
+                else:
+                    ul = prev[x - bpp] if x >= bpp else 0
+                    p = left + up - ul
+                    pa, pb, pc = abs(p - left), abs(p - up), abs(p - ul)
+                    pred = left if pa <= pb and pa <= pc else (up if pb <= pc else ul)
+                    cur[x] = (cur[x] + pred) % 256
+        out[y] = cur
+        prev = cur
+    return out.reshape(h, w, bpp).astype(np.uint8)
+
+
+class _Grab(HTMLParser):
+    def __init__(self):
+        super().__init__()
+        self.ids: list[str] = []
+        self.status: dict | None = None
+        self.tags: list[tuple[str, dict]] = []
+
+    def handle_starttag(self, tag, attrs):
+        d = dict(attrs)
+        self.tags.append((tag, d))
+        if "data-grasp-id" in d:
+            self.ids.append(d["data-grasp-id"])
+        if d.get("id") == "render-status":
+            self.status = d
+
+
+def parse_dom(text: str) -> _Grab:
+    g = _Grab()
+    g.feed(text)
+    return g
+
+
+# ----------------------------------------------------------------------------- fixtures
+@pytest.fixture(scope="module")
+def bracket_plan(tmp_path_factory) -> tuple[dict, Path]:
+    doc = synthetic_result(BRACKET)
+    folder = tmp_path_factory.mktemp("viewer")
+    p = folder / "plan.json"
+    p.write_text(json.dumps(doc))
+    return doc, p
+
+
+@pytest.fixture(scope="module")
+def bracket_page(bracket_plan, tmp_path_factory) -> Path:
+    doc, p = bracket_plan
+    return write_viewer(p, p.parent / "view.html")
+
+
+# ----------------------------------------------------------------------------- unit tests (no browser)
+def test_quaternions_match_scipy():
+    from scipy.spatial.transform import Rotation
+
+    R = Rotation.random(500, random_state=3)
+    q = _quat_xyzw(R.as_matrix())
+    ref = R.as_quat()  # (x, y, z, w)
+    assert np.allclose(np.abs(np.sum(q * ref, axis=1)), 1.0, atol=1e-9)  # same rotation (q ~ -q)
+
+
+def test_densify_path_step_and_waypoints():
+    P = np.array([[0.0, 0, 0], [0.3, 0, 0], [0.3, -0.09, 0.01], [0.3, -0.09, 0.01]])
+    S, idx = densify_path(P, step=0.03)
+    assert np.allclose(S[idx], P)  # every waypoint is a sample
+    assert np.abs(np.diff(S, axis=0)).max() <= 0.03 + 1e-12
+    assert len(S) == 1 + 10 + 3 + 1
+    S2, idx2 = densify_path(np.array([[0.0], [100.0]]), step=0.03, max_samples=50)
+    assert len(S2) <= 50 and np.allclose(S2[idx2], [[0.0], [100.0]])
+
+
+def test_decimate_keeps_shape_and_budget():
+    import trimesh
+
+    m = trimesh.creation.icosphere(subdivisions=5, radius=0.1)  # 20480 faces
+    V, F = decimate_mesh(m.vertices, m.faces, 3000)
+    assert 500 < len(F) <= 3000
+    r = np.linalg.norm(V, axis=1)
+    assert np.all(np.abs(r - 0.1) < 0.01)  # still a sphere of radius 0.1
+    assert F.max() < len(V) and np.all(F[:, 0] != F[:, 1])
+
+
+def test_page_data_matches_the_result(bracket_plan):
+    doc, p = bracket_plan
+    data, notes = build_data(doc, part_path=BRACKET)
+    n = len(doc["grasps"])
+    assert data["grasps"]["n"] == n
+    import base64
+
+    ids = np.frombuffer(base64.b64decode(data["grasps"]["id"]), dtype="<i4")
+    assert sorted(ids.tolist()) == sorted(g["id"] for g in doc["grasps"])
+    # contacts in the world frame = T_world_part applied to the part-frame contacts
+    T = np.asarray(doc["part"]["T_world_part"])
+    c = np.frombuffer(base64.b64decode(data["grasps"]["contacts"]), dtype="<f4").reshape(n, 2, 3)
+    ref = np.array([g["contacts"] for g in doc["grasps"]]) @ T[:3, :3].T + T[:3, 3]
+    assert np.allclose(c, ref, atol=1e-6)
+    # TCP poses: position and z axis of T_world_part @ T_part_tcp
+    tcp = np.frombuffer(base64.b64decode(data["grasps"]["tcp"]), dtype="<f4").reshape(n, 7)
+    from scipy.spatial.transform import Rotation
+
+    Tw = T[None] @ np.array([g["T_part_tcp"] for g in doc["grasps"]])
+    assert np.allclose(tcp[:, :3], Tw[:, :3, 3], atol=1e-6)
+    assert np.allclose(Rotation.from_quat(tcp[:, 3:]).as_matrix(), Tw[:, :3, :3], atol=1e-5)
+    # robot: each link mesh once, the last sample of every planned path is q_grasp (TCP = grasp TCP)
+    R = data["robot"]
+    planned = [g for g in doc["grasps"] if g["status"] == "planned"]
+    assert set(R["paths"]) == {str(g["id"]) for g in planned} and len(planned) == 3
+    assert len(R["meshes"]) == len(R["links"]) == 7
+    frames = np.frombuffer(base64.b64decode(R["frames"]), dtype="<f4").reshape(-1, R["frame_size"], 7)
+    for g in planned:
+        P = R["paths"][str(g["id"])]
+        last = frames[P["start"] + P["count"] - 1, -1]
+        Tg = T @ np.asarray(g["T_part_tcp"])
+        assert np.allclose(last[:3], Tg[:3, 3], atol=1e-5)
+        pre = frames[P["start"] + P["pregrasp"], -1]
+        assert np.allclose(pre[:3], Tg[:3, 3] - 0.05 * Tg[:3, 2], atol=1e-5)
+
+
+def test_page_is_self_contained(bracket_page):
+    text = bracket_page.read_text()
+    g = parse_dom(text)
+    # no external resource of any kind
+    for tag, attrs in g.tags:
+        assert tag != "link", f"<link> found: {attrs}"
+        assert not (tag == "script" and "src" in attrs), f"<script src> found: {attrs}"
+        for k in ("src", "href", "action", "data", "poster"):
+            assert not re.match(r"\s*(https?:)?//", attrs.get(k) or ""), f"external {k} on <{tag}>: {attrs}"
+    assert not re.search(r"""(import\s*\(|from\s+|fetch\s*\(|url\s*\()\s*['"]?\s*(https?:)?//""", text), "external import/fetch/url"
+    assert not re.search(r"@import", text)
+    # every request is refused by the page's CSP
+    csp = re.search(r'<meta http-equiv="Content-Security-Policy" content="([^"]+)"', text)
+    assert csp and "default-src 'none'" in csp.group(1) and "connect-src 'none'" in csp.group(1)
+    assert "script-src 'unsafe-inline'" in csp.group(1) and "http" not in csp.group(1)
+    # three.js and its licence are bundled
+    assert "three.js authors" in text and "Permission is hereby granted" in text
+    assert "OrbitControls" in text
+    # the only http(s) URL anywhere is the XHTML namespace string inside three.js
+    assert set(re.findall(r"https?://[^\s\"'<>)]*", text)) <= {"http://www.w3.org/1999/xhtml"}
+
+
+def test_bad_inputs(tmp_path, bracket_plan):
+    doc, _ = bracket_plan
+    with pytest.raises(InputError, match="schema"):
+        build_html({"schema": "grasplan.candidates/1", "part": {}, "grasps": []})
+    bad = {**doc, "part": {**doc["part"], "path": str(tmp_path / "missing.stl")}}
+    with pytest.raises(InputError, match="--part"):
+        build_html(bad)
+    with pytest.raises(InputError, match="no such file"):
+        build_html(tmp_path / "nothing.json")
+    out = tmp_path / "v.html"
+    with pytest.raises(InputError):
+        write_viewer(bad, out)
+    assert not out.exists()  # nothing written
+
+
+def test_relative_part_path_resolved_from_the_result_folder(tmp_path, monkeypatch):
+    doc = synthetic_result(BRACKET, plan=False)
+    shutil.copy(BRACKET, tmp_path / "bracket.stl")
+    doc["part"]["path"] = "bracket.stl"
+    (tmp_path / "res").mkdir()
+    res = tmp_path / "res" / "grasps.json"
+    shutil.copy(BRACKET, tmp_path / "res" / "bracket.stl")
+    res.write_text(json.dumps(doc))
+    monkeypatch.chdir(tmp_path / "res")
+    assert "grasplan-data" in build_html(res)
+    monkeypatch.chdir(ROOT)  # not in the cwd: found next to the result
+    data, _ = build_data(doc, result_dir=res.parent)
+    assert Path(data["part"]["path"]) == res.parent / "bracket.stl"
+    doc["part"]["sha256"] = "0" * 64
+    with pytest.warns(UserWarning, match="sha256"):
+        build_html(doc, part_path=BRACKET)
+
+
+def test_cli_view(tmp_path, bracket_plan):
+    from click.testing import CliRunner
+
+    from grasplan.cli import main
+
+    _, p = bracket_plan
+    out = tmp_path / "v.html"
+    r = CliRunner().invoke(main, ["view", str(p), "-o", str(out), "--part", str(BRACKET)])
+    assert r.exit_code == 0, r.output
+    assert out.exists() and str(out) in r.stdout
+    r = CliRunner().invoke(main, ["view", str(tmp_path / "none.json"), "-o", str(tmp_path / "x.html")])
+    assert r.exit_code == 3 and not (tmp_path / "x.html").exists()
+
+
+@pytest.mark.paper
+@pytest.mark.slow
+def test_size_tless22_with_ur5(paper, tmp_path):
+    path = paper("TLess22.stl")
+    doc = synthetic_result(path, units="auto", n_planned=20)
+    text = build_html(doc)
+    size = len(text.encode())
+    assert load_part(path).triangles > 20_000
+    assert size < 15e6, f"{size / 1e6:.1f} MB"
+
+
+# ----------------------------------------------------------------------------- in the browser
+def _check_rendered(dom: str, doc: dict) -> _Grab:
+    g = parse_dom(dom)
+    assert g.status is not None, "no #render-status in the DOM"
+    assert g.status.get("data-ok") == "1", f"page did not render: {g.status.get('data-error')}"
+    assert int(g.status["data-triangles"]) >= doc["part"]["triangles"] // 2
+    planned = {str(x["id"]) for x in doc["grasps"] if x["status"] in ("planned", "ok")}
+    assert planned <= set(g.ids), f"missing from the list: {sorted(planned - set(g.ids))[:10]}"
+    assert len(g.ids) == len(set(g.ids))
+    return g
+
+
+def _canvas_stats(png: Path) -> tuple[int, float]:
+    img = read_png(png)[:, CANVAS_X0 + 2:, :3]
+    colours = len(np.unique(img.reshape(-1, 3), axis=0))
+    return colours, float(img.astype(float).std())
+
+
+@pytest.mark.browser
+@needs_chromium
+def test_browser_renders_synthetic_plan(bracket_plan, bracket_page, tmp_path):
+    doc, _ = bracket_plan
+    r = run_chromium(bracket_page, tmp_path, "--dump-dom")
+    assert r.returncode == 0, r.stderr[-2000:]
+    g = _check_rendered(r.stdout, doc)
+    best = min((x for x in doc["grasps"] if x["status"] == "planned"), key=lambda x: x["rank"])
+    assert g.status["data-selected"] == str(best["id"])  # the best planned grasp is selected
+    png = tmp_path / "shot.png"
+    r = run_chromium(bracket_page, tmp_path, f"--screenshot={png}", "--window-size=1280,800")
+    assert png.exists(), r.stderr[-2000:]
+    colours, std = _canvas_stats(png)
+    assert colours > 200 and std > 10, (colours, std)
+    img = read_png(png)[:, CANVAS_X0 + 2:, :3].reshape(-1, 3).astype(int)
+    # the robot (orange links) and the planned contacts (green) are visible
+    assert np.sum((img[:, 0] > 200) & (img[:, 1] > 120) & (img[:, 1] < 190) & (img[:, 2] < 110)) > 500, "no robot"
+    green = np.array([int(STATUS_COLORS["planned"][k:k + 2], 16) for k in (1, 3, 5)])
+    assert np.sum(np.abs(img - green).sum(1) < 40) > 5, "no planned contact drawn"
+
+
+@pytest.mark.browser
+@needs_chromium
+def test_browser_blank_page_detected(tmp_path):
+    """The canvas check can fail: a page whose script breaks leaves a blank canvas and no data-ok."""
+    doc = synthetic_result(BRACKET, plan=False)
+    text = build_html(doc, part_path=BRACKET).replace("new THREE.WebGLRenderer", "new THREE.NoSuchRenderer")
+    page = tmp_path / "broken.html"
+    page.write_text(text)
+    png = tmp_path / "shot.png"
+    run_chromium(page, tmp_path, f"--screenshot={png}", "--window-size=1280,800")
+    colours, std = _canvas_stats(png)
+    assert colours < 50 or std < 10
+    r = run_chromium(page, tmp_path, "--dump-dom")
+    assert parse_dom(r.stdout).status.get("data-ok") == "0"
+
+
+@pytest.mark.browser
+@needs_chromium
+def test_browser_no_network(bracket_plan, bracket_page, tmp_path):
+    """Every host unresolvable and the proxy dead: the page still renders; and the CSP blocks a
+    request that is injected on purpose (so it would have blocked one of ours)."""
+    doc, _ = bracket_plan
+    r = run_chromium(bracket_page, tmp_path, "--dump-dom", "--host-resolver-rules=MAP * ~NOTFOUND",
+                     "--proxy-server=http://127.0.0.1:9", "--enable-logging=stderr", "--v=0")
+    _check_rendered(r.stdout, doc)
+    text = bracket_page.read_text().replace(
+        "</body>", "<script>fetch('http://example.invalid/x').then(()=>document.body.dataset.net='ok',"
+                   "()=>document.body.dataset.net='blocked')</script></body>")
+    probe = tmp_path / "probe.html"
+    probe.write_text(text)
+    r = run_chromium(probe, tmp_path, "--dump-dom", "--host-resolver-rules=MAP * ~NOTFOUND")
+    body = [a for t, a in parse_dom(r.stdout).tags if t == "body"][0]
+    assert body.get("data-net") == "blocked"
+    assert "Content Security Policy" in r.stderr or "Content-Security-Policy" in r.stderr or body.get("data-net") == "blocked"
+
+
+@pytest.mark.browser
+@needs_chromium
+def test_browser_many_grasps_list_is_chunked(tmp_path):
+    """Thousands of grasps: every planned/ok one is listed, the others in chunks with 'show more'."""
+    doc = synthetic_result(BRACKET, plan=False)
+    base = doc["grasps"]
+    grasps = []
+    rng = np.random.default_rng(1)
+    for k in range(4000):
+        g = dict(base[k % len(base)])
+        g["id"] = k
+        g["status"] = "ok" if k % 9 == 0 else str(rng.choice(["collision_part", "collision_table"]))
+        grasps.append(g)
+    doc["grasps"] = grasps
+    page = tmp_path / "many.html"
+    write_viewer(doc, page, part_path=BRACKET)
+    r = run_chromium(page, tmp_path, "--dump-dom")
+    g = _check_rendered(r.stdout, doc)
+    from grasplan.viewer import LIST_CHUNK
+
+    n_ok = sum(1 for x in grasps if x["status"] == "ok")
+    assert len(g.ids) == n_ok + 2 * LIST_CHUNK  # ok: all of them; the others: one chunk each
+
+
+@pytest.mark.browser
+@pytest.mark.paper
+@pytest.mark.slow
+@needs_chromium
+def test_browser_tless20_plan(paper, tmp_path):
+    """The issue's acceptance check: a real `grasplan plan` of TLess20 with the UR5, rendered."""
+    path = paper("TLess20.stl")
+    try:
+        from grasplan.plan import plan
+    except ImportError as exc:
+        pytest.skip(f"grasplan.plan not available ({exc})")
+    result = plan(load_part(path), robot="ur5", top=5, seed=0)
+    doc = result.to_json()
+    assert any(g["status"] == "planned" for g in doc["grasps"])
+    page = write_viewer(doc, tmp_path / "tless20.html", part_path=path)
+    r = run_chromium(page, tmp_path, "--dump-dom")
+    _check_rendered(r.stdout, doc)
+    png = tmp_path / "tless20.png"
+    run_chromium(page, tmp_path, f"--screenshot={png}", "--window-size=1280,800")
+    colours, std = _canvas_stats(png)
+    assert colours > 200 and std > 10, (colours, std)
