@@ -73,16 +73,16 @@ def _point_triangle_distance(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
     return np.linalg.norm(p - res, axis=1)
 
 
-def _distance_to_mesh(points: np.ndarray, mesh: trimesh.Trimesh, chunk: int = 2_000_000) -> np.ndarray:
-    """Brute-force exact distance from each point to the mesh surface (all triangles)."""
+def _distance_to_mesh(points: np.ndarray, mesh: trimesh.Trimesh, *, reach: float) -> np.ndarray:
+    """Exact distance from each point to the mesh surface when it is <= ``reach`` (else inf):
+    only triangles whose bounding box, grown by ``reach``, holds the point can be that close."""
     tris = np.asarray(mesh.triangles)
-    out = np.empty(len(points))
-    step = max(1, chunk // len(tris))
-    for i in range(0, len(points), step):
-        p = points[i:i + step]
-        pp = np.repeat(p, len(tris), axis=0)
-        tt = np.tile(tris, (len(p), 1, 1))
-        out[i:i + step] = _point_triangle_distance(pp, tt).reshape(len(p), len(tris)).min(axis=1)
+    lo, hi = tris.min(axis=1) - reach, tris.max(axis=1) + reach
+    out = np.full(len(points), np.inf)
+    for i, p in enumerate(points):
+        near = np.flatnonzero(((p >= lo) & (p <= hi)).all(axis=1))
+        if len(near):
+            out[i] = _point_triangle_distance(np.repeat(p[None], len(near), axis=0), tris[near]).min()
     return out
 
 
@@ -133,7 +133,7 @@ def check_blm(mesh: trimesh.Trimesh, r: BLMResult, tol, *, alpha: float = ALPHA,
     if len(new_ids):
         rng = np.random.default_rng(0)
         pick = rng.choice(new_ids, size=min(n_sample, len(new_ids)), replace=False)
-        dist = _distance_to_mesh(V_out[pick], mesh)
+        dist = _distance_to_mesh(V_out[pick], mesh, reach=10 * tol.distance)
         assert dist.max() <= tol.distance, f"vertex off the surface by {dist.max():.3e} m"
 
     # surfaces: the labels are the input's (per parent) and the area per surface is unchanged
