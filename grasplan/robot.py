@@ -300,16 +300,17 @@ def _resolve(name_or_path: str | Path) -> tuple[str, Path]:
 def load_robot(name_or_path: str | Path = "ur5") -> Robot:
     """The robot named ``name_or_path`` (``robots/<name>.yaml``) or described by a YAML file.
 
-    Cached: the URDF/SRDF are parsed once per name/path; the same :class:`Robot` is returned on
-    every later call. Raises ConfigError for an unknown name (listing the available ones) or a
+    Cached: the URDF/SRDF are parsed once per name/path (and file version); the same
+    :class:`Robot` is returned on every later call. Raises ConfigError for an unknown name (listing the available ones) or a
     malformed file (naming the field).
     """
     key, path = _resolve(name_or_path)
-    return _load_cached(key, str(path))
+    st = path.stat()
+    return _load_cached(key, str(path), st.st_mtime_ns, st.st_size)
 
 
 @lru_cache(maxsize=None)
-def _load_cached(key: str, path: str) -> Robot:
+def _load_cached(key: str, path: str, mtime_ns: int, size: int) -> Robot:
     return _build_robot(Path(path))
 
 
