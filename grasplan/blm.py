@@ -213,29 +213,26 @@ def cluster_surfaces(mesh: trimesh.Trimesh, *, gamma_deg: float = 135.0, tol: To
         )
         indptr, indices = g.indptr, g.indices
         wide_order = order[~nar[order]]
-        surf_list = f_surf.tolist()
         for s in wide_order.tolist():
-            if surf_list[s] >= 0:
+            if f_surf[s] >= 0:
                 continue
             sid = next_id
             next_id += 1
-            ok = (f_n @ f_n[s]) >= cos_thr - 1e-12
-            surf_list[s] = sid
+            ok = (f_n @ f_n[s]) >= cos_thr - 1e-12   # admissible: within the cone of the seed normal
+            f_surf[s] = sid
             frontier = np.array([s], dtype=np.int64)
             while len(frontier):
-                # all neighbours of the frontier (vectorised CSR gather)
-                starts, ends = indptr[frontier], indptr[frontier + 1]
-                cnt = ends - starts
-                if cnt.sum() == 0:
+                # all neighbours of the frontier (vectorised CSR gather), one breadth-first wave
+                starts = indptr[frontier]
+                cnt = indptr[frontier + 1] - starts
+                total = int(cnt.sum())
+                if total == 0:
                     break
-                idx = np.repeat(starts - np.cumsum(np.r_[0, cnt[:-1]]), cnt) + np.arange(cnt.sum())
-                nb = np.unique(indices[idx])
-                cur = np.fromiter((surf_list[i] for i in nb.tolist()), dtype=np.int64, count=len(nb))
-                nb = nb[(cur < 0) & ok[nb]]
-                for i in nb.tolist():
-                    surf_list[i] = sid
+                csum = np.cumsum(cnt)
+                nb = indices[np.repeat(starts - (csum - cnt), cnt) + np.arange(total)]
+                nb = np.unique(nb[(f_surf[nb] < 0) & ok[nb]])
+                f_surf[nb] = sid
                 frontier = nb
-        f_surf = np.asarray(surf_list, dtype=np.int64)
     surface = _renumber_by_first(f_surf[facet])
     return facet, surface, nf, int(surface.max()) + 1 if m else 0
 
