@@ -2,10 +2,51 @@
 
 Pipeline (one module per stage): :mod:`grasplan.mesh` -> :mod:`grasplan.blm` ->
 :mod:`grasplan.convexity` -> :mod:`grasplan.antipodal` -> :mod:`grasplan.frames` ->
-:mod:`grasplan.collision` -> :mod:`grasplan.ik` -> :mod:`grasplan.paths` -> :mod:`grasplan.export`.
+:mod:`grasplan.collision` -> :mod:`grasplan.ik` -> :mod:`grasplan.paths` ->
+:mod:`grasplan.export` / :mod:`grasplan.viewer`.
+
+The whole pipeline in three lines::
+
+    import grasplan
+    result = grasplan.plan("part.stl", robot="ur5")       # or a Part from grasplan.load_part
+    result.export("urscript", "grasp.script")             # or "joint-trajectory", "csv"
+
+Heavy modules (Pinocchio, OMPL) load only when a function that needs them is first used.
 """
-from .errors import GrasplanError, InputError, MeshError, ConfigError
+from __future__ import annotations
+
+import importlib
+
+from .errors import ConfigError, GrasplanError, InputError, MeshError, PlanningError
 from .mesh import Part, load_part
 
 __version__ = "0.1.0"
-__all__ = ["GrasplanError", "InputError", "MeshError", "ConfigError", "Part", "load_part", "__version__"]
+
+# public name -> (module, attribute), imported on first use
+_LAZY = {
+    "CandidateParams": ("grasplan.candidates", "CandidateParams"),
+    "compute_candidates": ("grasplan.candidates", "compute_candidates"),
+    "compute_grasps": ("grasplan.grasps", "compute_grasps"),
+    "load_gripper": ("grasplan.gripper", "load_gripper"),
+    "load_robot": ("grasplan.robot", "load_robot"),
+    "load_cell": ("grasplan.cell", "load_cell"),
+    "solve_ik": ("grasplan.ik", "solve_ik"),
+    "plan": ("grasplan.plan", "plan"),
+    "write_viewer": ("grasplan.viewer", "write_viewer"),
+}
+
+__all__ = ["GrasplanError", "InputError", "MeshError", "ConfigError", "PlanningError", "Part", "load_part",
+           "__version__", *_LAZY]
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        module, attr = _LAZY[name]
+        value = getattr(importlib.import_module(module), attr)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'grasplan' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(__all__)
