@@ -57,8 +57,10 @@ MAX_SAMPLES_PER_PATH = 400
 MAX_LINK_TRIANGLES = 4000
 #: a part above this many triangles is decimated for display (the page stays small)
 MAX_PART_TRIANGLES = 250_000
-#: grasp list: rows rendered per status before a "show more" button (planned: all)
+#: grasp list: rows rendered per status before a "show more" button ...
 LIST_CHUNK = 200
+#: ... except for these statuses (the usable grasps), which are always listed in full
+LIST_FULL = ("planned", "ok")
 
 _HERE = Path(__file__).resolve().parent
 
@@ -398,6 +400,7 @@ def build_data(doc: dict, *, part_path=None, result_dir: Path | None = None) -> 
         "robot": None,
         "counts": {s: int((st == sidx[s]).sum()) for s in status_names},
         "list_chunk": LIST_CHUNK,
+        "list_full": list(LIST_FULL),
     }
 
     if schema == "grasplan.plan/1" and doc.get("robot"):

@@ -273,6 +273,7 @@
     const key = (i) => (grank[i] >= 0 ? grank[i] : 1e9);
     order.forEach((arr) => arr.sort((a, b) => key(a) - key(b) || (isNaN(gscore[b]) ? -1 : isNaN(gscore[a]) ? 1 : gscore[b] - gscore[a]) || gid[a] - gid[b]));
     const list = document.getElementById('grasp-list');
+    const FULL = D.list_full; // statuses listed in full (the usable grasps); the others in chunks
     const rows = new Map(); // grasp index -> element
     const groups = statuses.map((s, si) => {
       const el = document.createElement('div');
@@ -288,7 +289,7 @@
       list.appendChild(el);
       const grp = { el, body, more, shown: 0, si };
       more.addEventListener('click', () => showMore(grp, D.list_chunk));
-      showMore(grp, s.name === 'planned' ? order[si].length : D.list_chunk);
+      showMore(grp, FULL.includes(s.name) ? order[si].length : D.list_chunk);
       return grp;
     });
     function fmtScore(v) { return isNaN(v) ? '–' : v.toFixed(3); }
