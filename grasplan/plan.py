@@ -89,6 +89,35 @@ class PlanParams:
 
 
 @dataclass(frozen=True)
+class PlanTable:
+    """Per-grasp planning outcome, as arrays (there can be millions of grasp poses).
+
+    status : (M,) str, one of :data:`STATUSES`
+    score : (M,) float64, NaN for grasps the grasp stage rejected
+    rank : (M,) int64, 0 = best-scored ``ok`` grasp, -1 for rejected grasps
+    reason : (M,) object (str), why the grasp has its status
+    details : dict id -> {"q_grasp" (n,), "q_pregrasp" (n,), "path" (k, n), "pregrasp_index"}
+        for the planned grasps
+    """
+
+    status: np.ndarray
+    score: np.ndarray
+    rank: np.ndarray
+    reason: np.ndarray
+    details: dict
+
+    def entry(self, i: int) -> dict:
+        """Grasp ``i`` as a dict: id, status, score (None), rank (None), reason, and when planned
+        q_grasp, q_pregrasp, path, pregrasp_index."""
+        i = int(i)
+        e = {"id": i, "status": str(self.status[i]),
+             "score": None if np.isnan(self.score[i]) else float(self.score[i]),
+             "rank": None if self.rank[i] < 0 else int(self.rank[i]), "reason": str(self.reason[i])}
+        e.update(self.details.get(i, {}))
+        return e
+
+
+@dataclass(frozen=True)
 class PlanResult:
     """What ``plan`` found.
 
@@ -98,34 +127,45 @@ class PlanResult:
         The grasp stage's result (candidates, frames, collision status).
     robot : Robot
         The robot model planned for.
-    entries : tuple of dict
-        One per grasp (same order and ids as ``grasps``): ``status``, ``score`` (float | None),
-        ``rank`` (int | None), ``reason`` (str), and when planned ``q_grasp`` (n,),
-        ``q_pregrasp`` (n,), ``path`` (k, n) and ``pregrasp_index``.
+    table : PlanTable
+        Per-grasp status, score, rank, reason and (planned) joint vectors and path.
     timing_s : dict
-        Seconds per stage (the grasp stage's, then ``robot``, ``ik``, ``approach``,
-        ``joint_path``, ``plan``).
+        Seconds per planning stage: ``robot`` (load + scene), ``ik``, ``approach``,
+        ``joint_path``, ``plan`` (the whole planning loop incl. scoring); the grasp stage's own
+        timings are in ``grasps.timing_s``.
     params : PlanParams
     """
 
     grasps: Any
     robot: Any
-    entries: tuple
+    table: PlanTable
     timing_s: dict = field(default_factory=dict)
     params: PlanParams = field(default_factory=PlanParams)
 
+    @property
+    def entries(self) -> list[dict]:
+        """Every grasp as a dict (:meth:`PlanTable.entry`), in id order."""
+        return [self.table.entry(i) for i in range(len(self.table.status))]
+
+    def entry(self, grasp_id: int) -> dict:
+        return self.table.entry(grasp_id)
+
     def counts(self) -> dict:
-        c = {s: 0 for s in STATUSES}
-        for e in self.entries:
-            c[e["status"]] += 1
-        c["grasps"] = len(self.entries)
-        return c
+        u, c = np.unique(self.table.status.astype(str), return_counts=True)
+        got = dict(zip(u.tolist(), c.tolist()))
+        out = {s: int(got.get(s, 0)) for s in STATUSES}
+        out["grasps"] = int(len(self.table.status))
+        return out
 
     def planned(self) -> list[dict]:
         """Planned entries, best rank first."""
-        return sorted((e for e in self.entries if e["status"] == "planned"), key=lambda e: e["rank"])
+        return sorted((self.table.entry(i) for i in self.table.details), key=lambda e: e["rank"])
 
     def to_json(self) -> dict:
+        """``grasplan.plan/1``: the grasps document plus ``robot``, ``plan_params`` and per grasp
+        ``status``, ``score``, ``rank``, ``reason`` (+ ``q_grasp``, ``q_pregrasp``, ``path``,
+        ``pregrasp_index`` when planned). ``counts`` gains one entry per plan status; ``timing_s``
+        gains the planning stages."""
         doc = self.grasps.to_json()
         doc["schema"] = SCHEMA
         r = self.robot
@@ -135,26 +175,32 @@ class PlanResult:
             "T_world_base": np.asarray(r.T_world_base, dtype=np.float64).tolist(),
             "q_home": np.asarray(r.q_home, dtype=np.float64).tolist(),
         }
-        grasp_counts = doc.get("counts", {})
-        doc["counts"] = {**grasp_counts, **{f"plan_{k}" if k == "grasps" else k: v for k, v in self.counts().items()}}
-        doc["timing_s"] = {**doc.get("timing_s", {}), **self.timing_s}
+        counts = self.counts()
+        counts["plan_grasps"] = counts.pop("grasps")
+        doc["counts"] = {**doc.get("counts", {}), **counts}
+        doc["timing_s"] = {**doc.get("timing_s", {}), **{k: float(v) for k, v in self.timing_s.items()}}
         doc["plan_params"] = self.params.to_json()
-        out = []
-        for g, e in zip(doc["grasps"], self.entries):
-            if int(g["id"]) != int(e["id"]):
-                raise AssertionError("grasp ids and plan entries disagree")
-            g = dict(g)
-            g["status"] = e["status"]
-            g["score"] = e["score"]
-            g["rank"] = e["rank"]
-            g["reason"] = e["reason"]
-            if e["status"] == "planned":
-                g["q_grasp"] = np.asarray(e["q_grasp"]).tolist()
-                g["q_pregrasp"] = np.asarray(e["q_pregrasp"]).tolist()
-                g["path"] = np.asarray(e["path"]).tolist()
-                g["pregrasp_index"] = int(e["pregrasp_index"])
-            out.append(g)
-        doc["grasps"] = out
+        t = self.table
+        status = t.status.astype(str).tolist()
+        score = t.score.tolist()
+        rank = t.rank.tolist()
+        reason = t.reason.tolist()
+        grasps = doc["grasps"]
+        if len(grasps) != len(status):
+            raise AssertionError("grasps and plan table disagree in length")
+        for i, g in enumerate(grasps):
+            if int(g["id"]) != i:
+                raise AssertionError("grasp ids must be 0..M-1 in order")
+            g["status"] = status[i]
+            g["score"] = None if score[i] != score[i] else score[i]
+            g["rank"] = None if rank[i] < 0 else rank[i]
+            g["reason"] = reason[i]
+        for i, d in t.details.items():
+            g = grasps[i]
+            g["q_grasp"] = np.asarray(d["q_grasp"]).tolist()
+            g["q_pregrasp"] = np.asarray(d["q_pregrasp"]).tolist()
+            g["path"] = np.asarray(d["path"]).tolist()
+            g["pregrasp_index"] = int(d["pregrasp_index"])
         return doc
 
     def write(self, path) -> Path:
@@ -203,10 +249,10 @@ def _translate_z(d: float) -> np.ndarray:
 
 
 def plan_grasps(grasps, robot, scene, *, params: PlanParams = PlanParams(),
-                progress: Callable[[dict], None] | None = None) -> tuple[list[dict], dict]:
+                progress: Callable[[dict], None] | None = None) -> tuple[PlanTable, dict]:
     """Plan the ranked ``ok`` grasps of ``grasps`` (a GraspResult) for ``robot`` in ``scene``.
 
-    Returns (entries, timing_s); see :func:`plan`. ``progress`` gets a dict after every tried
+    Returns (PlanTable, timing_s); see :func:`plan`. ``progress`` gets a dict after every tried
     grasp: ``{"tried", "planned", "top", "candidates", "id", "status"}``.
     """
     from .ik import solve_ik
@@ -230,20 +276,14 @@ def plan_grasps(grasps, robot, scene, *, params: PlanParams = PlanParams(),
         scores[ok] = score_grasps(grasps.cand.part.mesh, T_world_part, T_part_tcp[ok], width[ok], float(gripper.max_opening))
     # rank: score descending, id ascending
     order = ok[np.lexsort((ok, -scores[ok]))] if len(ok) else ok
-    entries = []
-    for i in range(M):
-        st = str(status_in[i])
-        entries.append({
-            "id": i,
-            "status": st if st != "ok" else "not_tried",
-            "score": None if np.isnan(scores[i]) else float(scores[i]),
-            "rank": None,
-            "reason": {"collision_part": "the gripper hits the part at the grasp or while closing",
-                       "collision_table": "the gripper hits the table at the grasp or while closing"}.get(
-                st, "not tried: beyond the top K or the planning budget"),
-        })
-    for r, i in enumerate(order):
-        entries[i]["rank"] = int(r)
+    rank = np.full(M, -1, dtype=np.int64)
+    rank[order] = np.arange(len(order))
+    status = np.where(status_in == "ok", "not_tried", status_in).astype(object)
+    reason = np.empty(M, dtype=object)
+    reason[:] = "not tried: beyond the top K or the planning budget"
+    reason[status_in == "collision_part"] = "grasp stage: the gripper hits the part at the grasp or while closing"
+    reason[status_in == "collision_table"] = "grasp stage: the gripper hits the table at the grasp or while closing"
+    details: dict[int, dict] = {}
 
     q_home = np.asarray(robot.q_home, dtype=np.float64)
     planned = tried = 0
@@ -253,7 +293,7 @@ def plan_grasps(grasps, robot, scene, *, params: PlanParams = PlanParams(),
         if params.budget_s is not None and time.perf_counter() - t_all > params.budget_s:
             break
         tried += 1
-        e = entries[i]
+        e = {"status": "not_tried", "reason": ""}
         T_world_tcp = T_world_part @ T_part_tcp[i]
         T_world_pre = T_world_tcp @ _translate_z(-params.backoff)
         opening = float(gripper.pregrasp_opening(width[i]))
@@ -293,9 +333,9 @@ def plan_grasps(grasps, robot, scene, *, params: PlanParams = PlanParams(),
                         break
                     continue
                 path = np.concatenate([transit, approach[1:]], axis=0)
-                e.update(status="planned", reason=f"planned with IK solution {j} of {len(sols)}",
-                         q_grasp=approach[-1].copy(), q_pregrasp=q_pre.copy(), path=path,
-                         pregrasp_index=int(len(transit) - 1))
+                e.update(status="planned", reason=f"planned with IK solution {j} of {len(sols)} (closest to q_home first)")
+                details[int(i)] = {"q_grasp": approach[-1].copy(), "q_pregrasp": q_pre.copy(), "path": path,
+                                   "pregrasp_index": int(len(transit) - 1)}
                 planned += 1
                 break
             if e["status"] != "planned":
@@ -311,11 +351,12 @@ def plan_grasps(grasps, robot, scene, *, params: PlanParams = PlanParams(),
                     e["status"], e["reason"] = "ik_collision", detail
                 else:
                     e["status"], e["reason"] = "unreachable", detail
+        status[i], reason[i] = e["status"], e["reason"]
         if progress is not None:
             progress({"tried": tried, "planned": planned, "top": params.top, "candidates": len(order),
                       "id": int(i), "status": e["status"]})
     timing["plan"] = time.perf_counter() - t_all
-    return entries, timing
+    return PlanTable(status=status, score=scores, rank=rank, reason=reason, details=details), timing
 
 
 def plan(
@@ -370,6 +411,6 @@ def plan(
     t = time.perf_counter()
     scene = CollisionScene(rob, gr.gripper, part.mesh, gr.T_world_part, gr.cell)
     t_robot += time.perf_counter() - t
-    entries, timing = plan_grasps(gr, rob, scene, params=params, progress=progress)
+    table, timing = plan_grasps(gr, rob, scene, params=params, progress=progress)
     timing = {"robot": t_robot, **timing}
-    return PlanResult(grasps=gr, robot=rob, entries=tuple(entries), timing_s=timing, params=params)
+    return PlanResult(grasps=gr, robot=rob, table=table, timing_s=timing, params=params)
