@@ -143,12 +143,12 @@ def synthetic_result(part_path: Path, *, units="mm", n_planned=3, plan=True, see
 
 
 # ----------------------------------------------------------------------------- headless Chromium
-def run_chromium(page: Path, tmp: Path, *args: str, timeout: float = 120.0) -> subprocess.CompletedProcess:
+def run_chromium(page: Path, tmp: Path, *args: str, timeout: float = 120.0, fragment: str = "") -> subprocess.CompletedProcess:
     profile = tmp / f"profile-{len(list(tmp.glob('profile-*')))}"
     cmd = [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--use-gl=swiftshader", "--enable-unsafe-swiftshader",
            "--disable-background-networking", "--disable-component-update", "--disable-sync", "--no-first-run",
            "--disable-quic", "--disable-dev-shm-usage", f"--user-data-dir={profile}", "--virtual-time-budget=8000",
-           *args, page.resolve().as_uri()]
+           *args, page.resolve().as_uri() + fragment]
     return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
 
 
@@ -419,6 +419,19 @@ def test_browser_renders_synthetic_plan(bracket_plan, bracket_page, tmp_path):
     assert np.sum((img[:, 0] > 200) & (img[:, 1] > 120) & (img[:, 1] < 190) & (img[:, 2] < 110)) > 500, "no robot"
     green = np.array([int(STATUS_COLORS["planned"][k:k + 2], 16) for k in (1, 3, 5)])
     assert np.sum(np.abs(img - green).sum(1) < 40) > 5, "no planned contact drawn"
+
+
+@pytest.mark.browser
+@needs_chromium
+def test_browser_plays_a_path(bracket_plan, bracket_page, tmp_path):
+    """#grasp=ID&play selects a planned grasp and plays its path to the end (q_grasp)."""
+    doc, _ = bracket_plan
+    data, _ = build_data(doc, part_path=BRACKET)
+    worst = max((x for x in doc["grasps"] if x["status"] == "planned"), key=lambda x: x["rank"])
+    r = run_chromium(bracket_page, tmp_path, "--dump-dom", fragment=f"#grasp={worst['id']}&play")
+    st = _check_rendered(r.stdout, doc).status
+    assert st["data-selected"] == str(worst["id"])
+    assert st.get("data-played") == str(data["robot"]["paths"][str(worst["id"])]["count"])
 
 
 @pytest.mark.browser

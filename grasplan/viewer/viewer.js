@@ -330,7 +330,7 @@
     });
 
     // ------------------------------------------------------------------ selection and playback
-    let selected = -1, playing = false, playPos = 0, lastT = 0;
+    let selected = -1, playing = false, playPos = 0, playFrom = 0, playT0 = 0;
     const playBtn = document.getElementById('play');
     const scrub = document.getElementById('scrub');
     const phase = document.getElementById('phase');
@@ -392,27 +392,28 @@
       statusEl.dataset.selected = String(gid[i]);
       requestRender();
     }
-    function tick(t) {
+    // playback is driven by the clock (60 samples per second, about 1.8 rad/s at the densified
+    // step), so a throttled or slow frame rate skips samples instead of slowing the motion down
+    function tick() {
       if (!playing) return;
       const P = pathOf(selected);
-      const dt = lastT ? Math.min(0.1, (t - lastT) / 1000) : 0;
-      lastT = t;
-      playPos += dt * 60; // samples per second (about 1.8 rad/s at the densified step)
+      playPos = playFrom + (performance.now() - playT0) / 1000 * 60;
       if (playPos >= P.count - 1) {
         playPos = P.count - 1;
         playing = false;
         playBtn.textContent = '\u25B6 Play path';
       }
       setSample(Math.floor(playPos));
+      statusEl.dataset.played = String(Math.floor(playPos) + 1);
       if (playing) requestAnimationFrame(tick);
     }
     playBtn.addEventListener('click', () => {
       const P = pathOf(selected);
       if (!P) return;
       if (playing) { playing = false; playBtn.textContent = '\u25B6 Play path'; return; }
-      playPos = Number(scrub.value) >= P.count - 1 ? 0 : Number(scrub.value);
+      playFrom = Number(scrub.value) >= P.count - 1 ? 0 : Number(scrub.value);
+      playT0 = performance.now();
       playing = true;
-      lastT = 0;
       playBtn.textContent = '\u275A\u275A Pause';
       requestAnimationFrame(tick);
     });
@@ -458,7 +459,11 @@
     document.getElementById('frame-all').addEventListener('click', () => frameView('all'));
     let initial = -1;
     for (let si = 0; si < statuses.length && initial < 0; si++) if (order[si].length) initial = order[si][0];
+    // the URL fragment can pick a grasp and start the path: view.html#grasp=12&play
+    const hash = new URLSearchParams(location.hash.replace(/^#/, ''));
+    if (hash.has('grasp') && byId.has(Number(hash.get('grasp')))) initial = byId.get(Number(hash.get('grasp')));
     if (initial >= 0) select(initial);
     render(); // first frame now, so the status element is set even without animation frames
+    if (hash.has('play')) playBtn.click();
   }
 })();
