@@ -5,8 +5,9 @@ callable, start/goal), both deterministic for a given ``seed``:
 
 ``plan_joint_path``
     RRTConnect (OMPL 2.x) in joint space between two configurations inside the joint limits, then
-    shortcut-simplified (``PathSimplifier.simplifyMax``, which runs to convergence rather than to a
-    wall-clock budget, so the result does not depend on the machine's speed). Motions are checked by
+    shortcut-simplified (``PathSimplifier.reduceVertices`` + ``collapseCloseVertices``: a bounded
+    number of random shortcut attempts, not a wall-clock budget, so the result does not depend on
+    the machine's speed; ``simplifyMax`` shortens more but costs 5-10x the planning time). Motions are checked by
     OMPL's discrete motion validator with a resolution of ``step`` rad (Euclidean in joint space),
     and the final path is re-verified independently by interpolating every segment linearly in
     ``ceil(max_j |dq_j| / step)`` equal sub-steps (``<= step`` rad per joint per sub-step) and
@@ -83,6 +84,8 @@ def _validity_and_checker(scene_or_validity: Any, opening: float | None):
 def _ompl():
     from ompl import base as ob, geometric as og, util as ou
 
+    if ou.getLogLevel().value < ou.LogLevel.LOG_WARN.value:
+        ou.setLogLevel(ou.LogLevel.LOG_WARN)  # planner chatter (Info:) off; warnings stay
     return ob, og, ou
 
 
@@ -135,7 +138,7 @@ def plan_joint_path(
         Motion-check resolution; the returned path is verified by linear interpolation at ``<= step``
         rad per joint.
     simplify : bool
-        Shortcut the raw RRTConnect path (``simplifyMax``).
+        Shortcut the raw RRTConnect path (``reduceVertices`` + ``collapseCloseVertices``).
     attempts : int
         Attempts (seed, seed+1, ...; each with a finer OMPL resolution) before giving up.
 
@@ -206,7 +209,9 @@ def plan_joint_path(
             continue
         path_g = ss.getSolutionPath()
         if simplify:
-            og.PathSimplifier(si).simplifyMax(path_g)
+            ps = og.PathSimplifier(si)
+            ps.reduceVertices(path_g)
+            ps.collapseCloseVertices(path_g)
         states = path_g.getStates()
         path = np.array([[s[i] for i in range(n)] for s in states], dtype=np.float64)
         # exact endpoints (OMPL copies them, but make it bitwise)
