@@ -373,6 +373,7 @@ def plan(
     time_limit_per_query: float = 1.0,
     budget_s: float | None = 100.0,
     progress: Callable[[dict], None] | None = None,
+    load_s: float = 0.0,
 ) -> PlanResult:
     """Grasps of ``part`` that ``robot`` can reach, each with a verified path from ``q_home``.
 
@@ -393,6 +394,8 @@ def plan(
         RRTConnect budget per attempt.
     budget_s : float or None, s
         Wall-clock budget of the planning loop (grasps not reached are ``not_tried``).
+    load_s : float
+        Seconds the caller spent loading ``part`` (recorded as ``timing_s["load"]``).
     progress : callable(dict) or None
         Called after the grasp stage (``{"stage": "grasps", ...}``) and after every tried grasp.
     """
@@ -405,7 +408,7 @@ def plan(
     rob = load_robot(robot)
     t_robot = time.perf_counter() - t
     gr = compute_grasps(part, cand_params=cand_params, gripper=gripper, cell=cell, T_world_part=T_world_part,
-                        roll_step_deg=roll_step_deg)
+                        roll_step_deg=roll_step_deg, load_s=load_s)
     if progress is not None:
         progress({"stage": "grasps", "counts": gr.counts()})
     t = time.perf_counter()

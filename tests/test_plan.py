@@ -255,3 +255,60 @@ def test_independent_checker_can_fail(paper_plan):
     sols = solve_ik(robot, deeper @ np.linalg.inv(np.asarray(doc["gripper"]["T_flange_tcp"]))).q
     if len(sols):
         assert chk.collisions(sols[0], opening)
+
+
+# --------------------------------------------------------------------------------------------------
+# CLI on an example part (fast)
+# --------------------------------------------------------------------------------------------------
+def _run(args):
+    from click.testing import CliRunner
+
+    from grasplan.cli import main
+
+    return CliRunner().invoke(main, args)
+
+
+def test_cli_plan_bracket_independently_verified(tmp_path, example_part):
+    from grasplan.mesh import load_part
+    from grasplan.robot import load_robot
+
+    out = tmp_path / "plan.json"
+    r = _run(["plan", str(example_part("bracket.stl")), "--units", "mm", "--robot", "ur5", "--top", "3",
+              "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    assert "planned" in r.output and "seconds" in r.output
+    doc = json.loads(out.read_text())
+    check_plan_doc(doc, 3)
+    planned = [g for g in doc["grasps"] if g["status"] == "planned"]
+    assert len(planned) == 3
+    part = load_part(example_part("bracket.stl"), units="mm")
+    robot = load_robot("ur5")
+    chk = IndependentChecker(robot, part.mesh, doc["part"]["T_world_part"], doc["gripper"]["T_flange_tcp"])
+    for g in planned:
+        check_planned_grasp(chk, robot, g, doc)
+    # deterministic: the same run again gives the same paths
+    out2 = tmp_path / "plan2.json"
+    r = _run(["plan", str(example_part("bracket.stl")), "--units", "mm", "--top", "3", "-o", str(out2)])
+    doc2 = json.loads(out2.read_text())
+    assert [g.get("path") for g in doc2["grasps"]] == [g.get("path") for g in doc["grasps"]]
+
+
+def test_cli_unknown_robot_exit_3_nothing_written(tmp_path, example_part):
+    out = tmp_path / "plan.json"
+    r = _run(["plan", str(example_part("bracket.stl")), "--units", "mm", "--robot", "ur6", "-o", str(out)])
+    assert r.exit_code == 3
+    assert "ur5" in r.output and "panda" in r.output
+    assert not out.exists()
+
+
+def test_cli_out_of_reach_exit_4_file_explains(tmp_path, example_part):
+    """The part 5 m away: nothing reachable; exit 4, the file says why for every grasp."""
+    out = tmp_path / "plan.json"
+    r = _run(["plan", str(example_part("box.stl")), "--units", "mm", "--top", "3", "--part-pose", "5,0,0.01,0,0,0",
+              "-o", str(out)])
+    assert r.exit_code == 4, r.output
+    doc = json.loads(out.read_text())
+    st = [g["status"] for g in doc["grasps"]]
+    assert "planned" not in st
+    tried = [g for g in doc["grasps"] if g["status"] not in ("not_tried", "collision_part", "collision_table")]
+    assert tried and all(g["status"] == "unreachable" for g in tried)

@@ -92,11 +92,10 @@ def command(part, robot_name, output, gripper, cell, part_pose, top, seed, roll_
     try:
         result = plan(p, robot=robot_name, gripper=gripper, cell=cell, top=top, seed=seed, cand_params=cand_params,
                       roll_step_deg=roll_step_deg, T_world_part=T_world_part, time_limit_per_query=time_limit,
-                      budget_s=budget_s, progress=on_progress)
+                      budget_s=budget_s, progress=on_progress, load_s=load_s)
     finally:
         if bar_state["bar"] is not None:
             bar_state["ctx"].__exit__(None, None, None)
-    result.timing_s["load"] = result.timing_s.get("load", 0.0) or load_s
     result.write(output)
 
     counts = result.counts()
