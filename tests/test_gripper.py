@@ -1,0 +1,125 @@
+"""Gripper YAML loading, the issue-3 geometry of the default gripper, jaws and their sweep."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import yaml
+
+from grasplan.errors import ConfigError
+from grasplan.gripper import Box, MeshShape, available_grippers, load_gripper
+
+
+def _span(shape):
+    c = shape.corners()
+    return c.min(axis=0), c.max(axis=0)
+
+
+def test_default_gripper_matches_issue_geometry():
+    g = load_gripper()
+    assert g.name == "schunk_egp_c_40"
+    assert g.max_opening == pytest.approx(0.050)
+    T = np.eye(4)
+    T[2, 3] = 0.127
+    np.testing.assert_allclose(g.T_flange_tcp, T, atol=1e-12)
+    assert len(g.body) == 1 and isinstance(g.body[0], Box)
+    lo, hi = _span(g.body[0])
+    np.testing.assert_allclose(lo, [-0.030, -0.020, -0.127], atol=1e-12)
+    np.testing.assert_allclose(hi, [0.030, 0.020, -0.032], atol=1e-12)
+    for opening in (0.0, 0.013, 0.05):
+        left, right = g.fingers(opening)
+        llo, lhi = _span(left)
+        rlo, rhi = _span(right)
+        np.testing.assert_allclose(lhi[0], -opening / 2, atol=1e-12)  # inner faces
+        np.testing.assert_allclose(rlo[0], opening / 2, atol=1e-12)
+        np.testing.assert_allclose(rhi - rlo, [0.008, 0.016, 0.040], atol=1e-12)
+        np.testing.assert_allclose(lhi - llo, [0.008, 0.016, 0.040], atol=1e-12)
+        np.testing.assert_allclose([rlo[2], rhi[2]], [-0.032, 0.008], atol=1e-12)
+        np.testing.assert_allclose([rlo[1], rhi[1]], [-0.008, 0.008], atol=1e-12)
+    assert g.symmetric
+
+
+def test_swept_jaws_are_union_of_end_placements():
+    g = load_gripper()
+    left, right = g.swept_fingers(0.04, 0.022)
+    lo, hi = _span(right)
+    np.testing.assert_allclose([lo[0], hi[0]], [0.011, 0.020 + 0.008], atol=1e-12)
+    lo, hi = _span(left)
+    np.testing.assert_allclose([lo[0], hi[0]], [-0.028, -0.011], atol=1e-12)
+    # order of the two openings does not matter
+    a = g.swept_fingers(0.022, 0.04)[1]
+    np.testing.assert_allclose(a.corners(), right.corners(), atol=1e-15)
+
+
+def test_pregrasp_and_close_openings():
+    g = load_gripper()
+    np.testing.assert_allclose(g.pregrasp_opening([0.01, 0.045, 0.05]), [0.02, 0.05, 0.05])
+    np.testing.assert_allclose(g.close_to_opening([0.01, 0.0485, 0.05]), [0.012, 0.05, 0.05])
+
+
+def test_mesh_gripper_loads_relative_paths_and_hull_sweep():
+    assert "round_mesh_jaws" in available_grippers()
+    g = load_gripper("round_mesh_jaws")
+    assert any(isinstance(b, MeshShape) for b in g.body)
+    assert isinstance(g.finger, MeshShape)
+    left, right = g.swept_fingers(0.05, 0.03)
+    assert right.vertices[:, 0].min() == pytest.approx(0.015)
+    assert right.vertices[:, 0].max() == pytest.approx(0.025 + 0.010)
+    assert left.vertices[:, 0].max() == pytest.approx(-0.015)
+    # the body cylinder spans z from -0.140 to -0.050, radius 40 mm
+    v = g.body[0].vertices
+    assert v[:, 2].min() == pytest.approx(-0.140) and v[:, 2].max() == pytest.approx(-0.050)
+    assert np.linalg.norm(v[:, :2], axis=1).max() == pytest.approx(0.040, rel=1e-6)
+
+
+def test_unknown_gripper_lists_available():
+    with pytest.raises(ConfigError, match="available: .*schunk_egp_c_40"):
+        load_gripper("no_such_gripper")
+
+
+def _write(tmp_path, data):
+    p = tmp_path / "g.yaml"
+    p.write_text(yaml.safe_dump(data))
+    return p
+
+
+BASE = {
+    "max_opening": 0.05,
+    "T_flange_tcp": {"xyz": [0, 0, 0.1], "rpy_deg": [0, 0, 0]},
+    "body": [{"box": {"size": [0.06, 0.04, 0.05], "center": [0, 0, -0.06]}}],
+    "fingers": {"box": {"size": [0.008, 0.016, 0.04], "center_z": -0.012}},
+}
+
+
+@pytest.mark.parametrize(
+    "patch, field",
+    [
+        ({"max_opening": -1}, "max_opening"),
+        ({"max_opening": "wide"}, "max_opening"),
+        ({"T_flange_tcp": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 2, 0], [0, 0, 0, 1]]}, "T_flange_tcp"),
+        ({"T_flange_tcp": {"xyz": [0, 0]}}, "T_flange_tcp.xyz"),
+        ({"body": []}, "body"),
+        ({"body": [{"box": {"size": [0.06, 0.04], "center": [0, 0, 0]}}]}, r"body\[0\].box.size"),
+        ({"body": [{"box": {"size": [0.06, 0.04, 0.1]}}]}, r"body\[0\].box.center"),
+        ({"body": [{"sphere": 1}]}, r"body\[0\]"),
+        ({"body": [{"mesh": {"path": "missing.stl"}}]}, r"body\[0\].mesh.path"),
+        ({"fingers": {"box": {"size": [0.008, 0.016, 0.04]}}}, "fingers.box.center_z"),
+        ({"fingers": {"box": {"size": [0.008, -0.016, 0.04], "center_z": 0}}}, r"fingers.box.size\[1\]"),
+        ({"colour": "red"}, "colour"),
+    ],
+)
+def test_malformed_gripper_names_the_field(tmp_path, patch, field):
+    data = {**BASE, **patch}
+    with pytest.raises(ConfigError, match=field):
+        load_gripper(_write(tmp_path, data))
+
+
+def test_gripper_from_path_and_matrix_form(tmp_path):
+    data = {**BASE, "T_flange_tcp": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0.1], [0, 0, 0, 1]]}
+    g = load_gripper(_write(tmp_path, data))
+    assert g.name == "g" and g.T_flange_tcp[2, 3] == pytest.approx(0.1)
+    assert g.symmetric
+
+
+def test_asymmetric_box_body_detected(tmp_path):
+    data = {**BASE, "body": [{"box": {"size": [0.06, 0.04, 0.05], "center": [0.01, 0, -0.06]}}]}
+    assert not load_gripper(_write(tmp_path, data)).symmetric
