@@ -379,11 +379,12 @@ def _overlap_or_closest(Pi, Pj, eps):
         gy = np.where(big, (area * (Ys + Yn)).sum(axis=1) / (3.0 * Asafe), 0.0) + my[:, 0]
         qi[over, 0], qi[over, 1] = gx, gy
         qj[over] = qi[over]
+        over[np.flatnonzero(over)[~big]] = False     # zero-area overlap (touching): closest pairs below
     far = ~over
     if far.any():
         A_, B_ = Pi[far], Pj[far]
-        # vertex v of src vs edge e of dst, both directions: (f, 3, 3) each
-        best_i, best_j, best_d = None, None, None
+        # vertex v of src vs edge e of dst, both directions: 18 point/segment pairs per face pair
+        Di, Qi, Qj = [], [], []
         for src, dst, src_is_i in ((A_, B_, True), (B_, A_, False)):
             p = dst[:, None, :, :]                               # (f, 1, 3, 2) edge starts
             seg = np.roll(dst, -1, axis=1)[:, None] - p          # (f, 1, 3, 2)
@@ -392,16 +393,14 @@ def _overlap_or_closest(Pi, Pj, eps):
             tt = np.clip(((x - p) * seg).sum(-1) / L2, 0.0, 1.0)  # (f, 3, 3)
             y = p + tt[..., None] * seg                          # (f, 3, 3, 2)
             xx = np.broadcast_to(x, y.shape)
-            dd = np.linalg.norm(xx - y, axis=-1).reshape(len(src), 9)
-            pi_ = (xx if src_is_i else y).reshape(len(src), 9, 2)
-            pj_ = (y if src_is_i else xx).reshape(len(src), 9, 2)
-            if best_d is None:
-                best_d, best_i, best_j = dd, pi_, pj_
-            else:
-                best_d = np.concatenate([best_d, dd], axis=1)
-                best_i = np.concatenate([best_i, pi_], axis=1)
-                best_j = np.concatenate([best_j, pj_], axis=1)
-        k = np.argmin(best_d, axis=1)
-        r = np.arange(len(k))
-        qi[far], qj[far] = best_i[r, k], best_j[r, k]
+            Di.append(np.linalg.norm(xx - y, axis=-1).reshape(len(src), 9))
+            Qi.append((xx if src_is_i else y).reshape(len(src), 9, 2))
+            Qj.append((y if src_is_i else xx).reshape(len(src), 9, 2))
+        D = np.concatenate(Di, axis=1)
+        Qi_, Qj_ = np.concatenate(Qi, axis=1), np.concatenate(Qj, axis=1)
+        # ties (parallel nearest edges) are averaged, so the choice does not depend on vertex order or pose
+        tied = D <= D.min(axis=1, keepdims=True) + eps
+        wt = tied / tied.sum(axis=1, keepdims=True)
+        qi[far] = (Qi_ * wt[..., None]).sum(axis=1)
+        qj[far] = (Qj_ * wt[..., None]).sum(axis=1)
     return qi, qj
