@@ -341,7 +341,9 @@ def _overlap_or_closest(Pi, Pj, eps):
     sx, sy = exb[:, None, :], eyb[:, None, :]
     qx, qy = xb[:, None, :] - xa[:, :, None], yb[:, None, :] - ya[:, :, None]
     den = rx * sy - ry * sx
-    good = np.abs(den) > 1e-300
+    # (nearly) parallel edges: their crossing is ill-conditioned; the ends of a collinear overlap are
+    # vertices of one triangle inside the other, which the inside tests above already include
+    good = np.abs(den) > 1e-9 * np.hypot(rx, ry) * np.hypot(sx, sy)
     safe = np.where(good, den, 1.0)
     t = (qx * sy - qy * sx) / safe
     u = (qx * ry - qy * rx) / safe
