@@ -80,6 +80,26 @@ def obb_aabb_separated(c: np.ndarray, R: np.ndarray, h: np.ndarray, a: np.ndarra
     return sep
 
 
+def points_inside(mesh: trimesh.Trimesh, points: np.ndarray, *, chunk: int = 2_000_000) -> np.ndarray:
+    """(k,) bool: generalised winding number > 1/2 for a closed mesh (exact, no ray casting).
+
+    Sums the signed solid angles of all triangles seen from each point (O(k x faces))."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    tri = mesh.triangles
+    out = np.zeros(len(pts), dtype=bool)
+    step = max(1, chunk // max(len(tri), 1))
+    for s0 in range(0, len(pts), step):
+        p = pts[s0:s0 + step]
+        a, b, c = (tri[None, :, i, :] - p[:, None, :] for i in range(3))
+        la, lb, lc = (np.linalg.norm(v, axis=2) for v in (a, b, c))
+        num = np.einsum("pfi,pfi->pf", a, np.cross(b, c))
+        den = (la * lb * lc + np.einsum("pfi,pfi->pf", a, b) * lc + np.einsum("pfi,pfi->pf", a, c) * lb
+               + np.einsum("pfi,pfi->pf", b, c) * la)
+        w = np.sum(2.0 * np.arctan2(num, den), axis=1) / (4.0 * np.pi)
+        out[s0:s0 + step] = np.abs(w) > 0.5
+    return out
+
+
 class _ShapeSet:
     """One gripper shape per pose: coal geometry per unique variant, ``T_tcp_shape`` per pose."""
 
@@ -240,7 +260,7 @@ class GripperCollider:
             pts = np.array([Tgs[si][m][:3, 3] if sets[si].is_box else
                             (sets[si].variants[sets[si].index[m]].vertices[0] @ Tgs[si][m][:3, :3].T + Tgs[si][m][:3, 3])
                             for si, m in pts_idx])
-            inside = self.part_mesh.contains(pts)
+            inside = points_inside(self.part_mesh, pts)
             for (si, m), ins in zip(pts_idx, inside):
                 if ins:
                     hit[m] = True

@@ -64,14 +64,16 @@ def roll_angles(roll_step_deg: float) -> np.ndarray:
     return np.radians(np.arange(n, dtype=np.float64) * step)
 
 
-def unique_pairs(candidates: Candidates, *, decimals: int = 9) -> np.ndarray:
+def unique_pairs(candidates: Candidates, *, resolution: float = 1e-9) -> np.ndarray:
     """(n,) bool: True for the first occurrence of each unordered contact pair.
 
-    Contacts are compared after rounding to ``decimals`` digits in metres (1e-9 m default)."""
+    Contacts are compared on a grid of ``resolution`` metres (``floor(c / resolution)``): the
+    default 1e-9 m finds exact repeats; a coarser grid (``merge_distance``) also merges
+    near-identical candidates (contacts in the same grid cells, in either order)."""
     n = len(candidates)
     if n == 0:
         return np.zeros(0, dtype=bool)
-    c = np.round(candidates.contacts, decimals) + 0.0  # +0.0 turns -0.0 into 0.0
+    c = np.floor(candidates.contacts / float(resolution)).astype(np.int64)
     a, b = c[:, 0], c[:, 1]
     # order the two contacts lexicographically so that (a, b) and (b, a) give the same key
     swap = np.zeros(n, dtype=bool)
@@ -96,6 +98,7 @@ def grasp_frames(
     reference: np.ndarray | None = None,
     max_width: float | None = None,
     dedupe_swapped: bool = True,
+    merge_distance: float = 0.0,
 ) -> GraspFrames:
     """TCP poses for every candidate and roll angle (vectorised).
 
@@ -106,6 +109,9 @@ def grasp_frames(
     reference : (3,) direction (part frame) that roll 0 approaches along as closely as possible
     max_width : candidates wider than this (m) are not posed (``None``: all)
     dedupe_swapped : drop repeated / swapped contact pairs (right for a symmetric gripper)
+    merge_distance : > 0: also drop a candidate whose two contacts fall in the same
+        ``merge_distance`` grid cells as an earlier candidate's (in either order when
+        ``dedupe_swapped``); 0 drops exact repeats only
 
     Returns
     -------
@@ -116,8 +122,16 @@ def grasp_frames(
     use = np.ones(n, dtype=bool)
     if max_width is not None:
         use &= candidates.width <= float(max_width)
-    if dedupe_swapped and n:
-        use &= unique_pairs(candidates)
+    if n and (dedupe_swapped or merge_distance > 0):
+        res = float(merge_distance) if merge_distance > 0 else 1e-9
+        if dedupe_swapped:
+            use &= unique_pairs(candidates, resolution=res)
+        else:
+            key = np.floor(candidates.contacts.reshape(n, 6) / res).astype(np.int64)
+            _, first = np.unique(key, axis=0, return_index=True)
+            keep = np.zeros(n, dtype=bool)
+            keep[first] = True
+            use &= keep
     idx = np.flatnonzero(use).astype(np.int64)
     if len(idx) == 0:
         return GraspFrames(np.zeros((0, 4, 4)), np.zeros(0, dtype=np.int64), np.zeros(0))

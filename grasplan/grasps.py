@@ -37,6 +37,7 @@ class GraspResult:
     timing_s: dict = field(default_factory=dict)
     roll_step_deg: float = 15.0
     part_pose_source: str = "stable_pose"
+    merge_distance: float = 1e-3
 
     @property
     def width(self) -> np.ndarray:
@@ -66,12 +67,14 @@ class GraspResult:
         cell["part_pose"] = self.part_pose_source
         params = self.cand.params.to_json()
         params["roll_step_deg"] = float(self.roll_step_deg)
+        params["merge_distance"] = float(self.merge_distance)
         ci = fr.candidate
-        contacts = c.contacts[ci].tolist()
-        normals = c.normals[ci].tolist()
-        width = c.width[ci].tolist()
-        T = fr.T_part_tcp.tolist()
-        roll = fr.roll.tolist()
+        r = lambda a: np.round(a, 10).tolist()  # noqa: E731 - 1e-10 m / rad: keeps the files small
+        contacts = r(c.contacts[ci])
+        normals = r(c.normals[ci])
+        width = r(c.width[ci])
+        T = r(fr.T_part_tcp)
+        roll = r(fr.roll)
         st = self.status.tolist()
         cil = ci.tolist()
         grasps = [
@@ -99,6 +102,7 @@ def compute_grasps(
     cell: str | Cell = "table",
     T_world_part: np.ndarray | None = None,
     roll_step_deg: float = 15.0,
+    merge_distance: float = 1e-3,
     load_s: float = 0.0,
 ) -> GraspResult:
     """Candidates (``cand_params``), TCP poses every ``roll_step_deg`` about each closing axis, and
@@ -106,8 +110,13 @@ def compute_grasps(
 
     ``T_world_part`` (4, 4) overrides the cell's stable resting pose. Candidates wider than the
     gripper's ``max_opening`` are not posed. Swapped duplicate candidates are posed once when the
-    gripper is symmetric.
+    gripper is symmetric. ``merge_distance`` (m, default 1 mm; 0 = off): a candidate whose two
+    contacts fall in the same ``merge_distance`` grid cells as an earlier candidate's is not posed
+    (the BLM yields many near-identical pairs on neighbouring triangles; 1 mm is far below the
+    jaws' 16 mm width).
     """
+    if not (np.isfinite(merge_distance) and merge_distance >= 0):
+        raise InputError(f"merge_distance must be >= 0 m, got {merge_distance!r}")
     g = load_gripper(gripper)
     c = load_cell(cell)
     timing: dict = {}
@@ -130,7 +139,8 @@ def compute_grasps(
     t = time.perf_counter()
     down_in_part = T[:3, :3].T @ np.array([0.0, 0.0, -1.0])
     frames = grasp_frames(cand.candidates, roll_step_deg=roll_step_deg, reference=down_in_part,
-                          max_width=g.max_opening, dedupe_swapped=g.symmetric)
+                          max_width=g.max_opening, dedupe_swapped=g.symmetric,
+                          merge_distance=merge_distance)
     timing["frames"] = time.perf_counter() - t
 
     t = time.perf_counter()
@@ -138,7 +148,8 @@ def compute_grasps(
     status = collider.check(frames.T_part_tcp, cand.candidates.width[frames.candidate])
     timing["collision"] = time.perf_counter() - t
     return GraspResult(cand=cand, gripper=g, cell=c, T_world_part=T, frames=frames, status=status,
-                       timing_s=timing, roll_step_deg=float(roll_step_deg), part_pose_source=source)
+                       timing_s=timing, roll_step_deg=float(roll_step_deg), part_pose_source=source,
+                       merge_distance=float(merge_distance))
 
 
 def params_with_gripper(params: CandidateParams, gripper: Gripper) -> CandidateParams:

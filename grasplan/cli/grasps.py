@@ -22,6 +22,9 @@ from .common import ANGLE, LENGTH, info, table, units_option, warn_all
                    "angles deg, R = Rz(yaw) Ry(pitch) Rx(roll)) or a JSON/YAML file with a 4x4 T_world_part.")
 @click.option("--roll-step", type=ANGLE, default=15.0, show_default=True,
               help="Roll step about the closing axis, degrees (poses at 0, step, ... < 360).")
+@click.option("--merge-distance", type=str, default="1mm", show_default=True,
+              help="Pose a candidate only if its contacts are not in the same grid cells of this size as an "
+                   "earlier candidate's (1mm); 0 poses every candidate.")
 @click.option("--no-blm", is_flag=True, help="Skip the boundary layer mesher.")
 @click.option("--alpha", type=LENGTH, default=1e-4, show_default=True, help="BLM layer width (0.1mm).")
 @click.option("--gamma", type=ANGLE, default=135.0, show_default=True, help="BLM surface angle, degrees.")
@@ -36,7 +39,7 @@ from .common import ANGLE, LENGTH, info, table, units_option, warn_all
 @click.option("--indent", type=int, default=None, help="Indent the JSON (default: compact).")
 @units_option
 def command(part, output, gripper, cell, part_pose, roll_step, no_blm, alpha, gamma, d_shift, epsilon,
-            max_opening, mu, beta, only_ok, indent, units):
+            max_opening, mu, beta, only_ok, indent, units, merge_distance):
     """Gripper poses for PART's antipodal candidates, rolled about each closing axis, each checked
     for collisions of the gripper body and the closing jaws against the part and the table.
 
@@ -49,7 +52,12 @@ def command(part, output, gripper, cell, part_pose, roll_step, no_blm, alpha, ga
     from ..io import write_json
     from ..mesh import load_part
 
+    from ..units import parse_length
+
     t_all = time.perf_counter()
+    merge_distance = parse_length(merge_distance, name="--merge-distance", allow_negative=True)
+    if merge_distance < 0:
+        raise InputError(f"--merge-distance must be >= 0, got {merge_distance}")
     g = load_gripper(gripper)
     c = load_cell(cell)
     T_world_part = parse_part_pose(part_pose) if part_pose is not None else None
@@ -69,7 +77,7 @@ def command(part, output, gripper, cell, part_pose, roll_step, no_blm, alpha, ga
     info(f"  {p.units_note}")
     warn_all(p.warnings)
     res = compute_grasps(p, cand_params=params, gripper=g, cell=c, T_world_part=T_world_part,
-                         roll_step_deg=roll_step, load_s=load_s)
+                         roll_step_deg=roll_step, merge_distance=merge_distance, load_s=load_s)
     doc = res.to_json()
     if only_ok:
         doc["grasps"] = [e for e in doc["grasps"] if e["status"] == "ok"]
