@@ -206,7 +206,7 @@
     // 'part': the part and the gripper around it fill the view; 'all': the whole cell
     function frameView(what) {
       const target = partCenter.clone();
-      let dist = Math.max(partSize * 4, 0.45);
+      let dist = Math.max(partSize * 4, 0.6);
       if (what === 'all') {
         if (R) { target.set(partCenter.x * 0.6, partCenter.y * 0.6, tz + 0.3); dist = 1.9; } else dist *= 2;
       }
