@@ -315,94 +315,91 @@ def _ccw(P):
     return P
 
 
+def _clip_edges(xs, ys, xt, yt, ext, eyt, margin):
+    """Parameter intervals [t0, t1] of the 3 edges of triangles S (b,3) inside CCW triangles T (b,3).
+
+    Cyrus-Beck: edge k of S is ``p_k + t r_k``; inside T's edge e when ``alpha + beta t >= margin_e``.
+    """
+    rx, ry = np.roll(xs, -1, axis=1) - xs, np.roll(ys, -1, axis=1) - ys           # (b, 3)
+    # (b, k=3 edges of S, e=3 edges of T)
+    alpha = ext[:, None, :] * (ys[:, :, None] - yt[:, None, :]) - eyt[:, None, :] * (xs[:, :, None] - xt[:, None, :])
+    beta = ext[:, None, :] * ry[:, :, None] - eyt[:, None, :] * rx[:, :, None]
+    alpha = alpha - margin[:, None, :]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        root = -alpha / beta
+    t0 = np.where(beta > 0, root, -np.inf).max(axis=2).clip(0.0, 1.0)
+    t1 = np.where(beta < 0, root, np.inf).min(axis=2).clip(0.0, 1.0)
+    blocked = ((beta == 0) & (alpha < 0)).any(axis=2)
+    t1 = np.where(blocked, t0, t1)
+    return rx, ry, t0, np.maximum(t1, t0)
+
+
 def _overlap_or_closest(Pi, Pj, eps):
     """2D contact points: area centroid of the overlap of triangles Pi, Pj (b,3,2), else the closest pair.
 
-    Overlap polygon vertices = vertices of one triangle inside the other + edge/edge crossings
-    (all 15 candidates evaluated with broadcasting, invalid ones masked), ordered by angle around
-    their mean and fan-triangulated for the area centroid.
+    The overlap's boundary is made of the parts of each triangle's edges that lie inside the other
+    triangle (both counter-clockwise); Green's theorem over those directed segments gives its area
+    and centroid without ordering any vertices. An edge lying on the other triangle's edge line is
+    counted once (kept for triangle i, dropped for triangle j).
     """
     b = len(Pi)
     Pi, Pj = _ccw(Pi), _ccw(Pj)
+    org = Pi.mean(axis=1, keepdims=True)                      # local origin for Green's sums
+    Pi, Pj = Pi - org, Pj - org
     xa, ya, xb, yb = Pi[..., 0], Pi[..., 1], Pj[..., 0], Pj[..., 1]
-    exa, eya = np.roll(xa, -1, axis=1) - xa, np.roll(ya, -1, axis=1) - ya     # (b, 3) edge k: v_k -> v_k+1
+    exa, eya = np.roll(xa, -1, axis=1) - xa, np.roll(ya, -1, axis=1) - ya
     exb, eyb = np.roll(xb, -1, axis=1) - xb, np.roll(yb, -1, axis=1) - yb
     la, lb = np.hypot(exa, eya), np.hypot(exb, eyb)
-
-    def inside(xp, yp, xt, yt, ex, ey, L):
-        # points (b, 3) inside triangles with edges (b, 3): cross(edge_e, p_v - t_e) >= -eps |edge_e|
-        cr = ex[:, None, :] * (yp[:, :, None] - yt[:, None, :]) - ey[:, None, :] * (xp[:, :, None] - xt[:, None, :])
-        return (cr >= -eps * L[:, None, :]).all(axis=2)
-
-    in_a = inside(xa, ya, xb, yb, exb, eyb, lb)           # vertices of i inside j
-    in_b = inside(xb, yb, xa, ya, exa, eya, la)
-    # edge crossings (b, 3, 3): edge ea of i with edge eb of j
-    rx, ry = exa[:, :, None], eya[:, :, None]
-    sx, sy = exb[:, None, :], eyb[:, None, :]
-    qx, qy = xb[:, None, :] - xa[:, :, None], yb[:, None, :] - ya[:, :, None]
-    den = rx * sy - ry * sx
-    # (nearly) parallel edges: their crossing is ill-conditioned; the ends of a collinear overlap are
-    # vertices of one triangle inside the other, which the inside tests above already include
-    good = np.abs(den) > 1e-9 * np.hypot(rx, ry) * np.hypot(sx, sy)
-    safe = np.where(good, den, 1.0)
-    t = (qx * sy - qy * sx) / safe
-    u = (qx * ry - qy * rx) / safe
-    ok = good & (t >= 0) & (t <= 1) & (u >= 0) & (u <= 1)
-    cx = (xa[:, :, None] + t * rx).reshape(b, 9)
-    cy = (ya[:, :, None] + t * ry).reshape(b, 9)
-    X = np.concatenate([xa, xb, cx], axis=1)               # (b, 15)
-    Y = np.concatenate([ya, yb, cy], axis=1)
-    M = np.concatenate([in_a, in_b, ok.reshape(b, 9)], axis=1)
-    cnt = M.sum(axis=1)
-    over = cnt > 0
+    M = np.zeros(b)
+    Sx = np.zeros(b)
+    Sy = np.zeros(b)
+    for xs, ys, xt, yt, ext, eyt, margin in ((xa, ya, xb, yb, exb, eyb, -eps * lb),   # i's edges inside j (closed)
+                                             (xb, yb, xa, ya, exa, eya, eps * la)):   # j's edges strictly inside i
+        rx, ry, t0, t1 = _clip_edges(xs, ys, xt, yt, ext, eyt, margin)
+        x0, y0 = xs + t0 * rx, ys + t0 * ry
+        x1, y1 = xs + t1 * rx, ys + t1 * ry
+        cr = x0 * y1 - x1 * y0
+        M += cr.sum(axis=1)
+        Sx += ((x0 + x1) * cr).sum(axis=1)
+        Sy += ((y0 + y1) * cr).sum(axis=1)
+    area = 0.5 * M
+    over = area > eps * eps
     qi = np.zeros((b, 2))
     qj = np.zeros((b, 2))
     if over.any():
-        Xo, Yo, Mo = X[over], Y[over], M[over]
-        co = cnt[over][:, None]
-        mx = (Xo * Mo).sum(axis=1, keepdims=True) / co
-        my = (Yo * Mo).sum(axis=1, keepdims=True) / co
-        dx, dy = Xo - mx, Yo - my
-        # pseudo-angle (monotonic in the true angle, no trig): in [-2, 2]
-        pa = np.copysign(1.0 - dx / np.maximum(np.abs(dx) + np.abs(dy), 1e-300), dy)
-        ang = np.where(Mo, pa, np.inf)
-        order = np.argsort(ang, axis=1)
-        Xs = np.take_along_axis(Xo, order, axis=1) - mx
-        Ys = np.take_along_axis(Yo, order, axis=1) - my
-        k = np.arange(15)[None, :]
-        nxt = np.where(k + 1 < co, k + 1, 0)
-        Xn, Yn = np.take_along_axis(Xs, nxt, axis=1), np.take_along_axis(Ys, nxt, axis=1)
-        valid = k < co
-        area = np.where(valid, 0.5 * (Xs * Yn - Ys * Xn), 0.0)
-        A = area.sum(axis=1)
-        big = A > eps * eps
-        Asafe = np.where(big, A, 1.0)
-        gx = np.where(big, (area * (Xs + Xn)).sum(axis=1) / (3.0 * Asafe), 0.0) + mx[:, 0]
-        gy = np.where(big, (area * (Ys + Yn)).sum(axis=1) / (3.0 * Asafe), 0.0) + my[:, 0]
+        A = area[over]
+        gx = Sx[over] / (6.0 * A) + org[over, 0, 0]
+        gy = Sy[over] / (6.0 * A) + org[over, 0, 1]
+        Pi, Pj = Pi + org, Pj + org
         qi[over, 0], qi[over, 1] = gx, gy
         qj[over] = qi[over]
-        over[np.flatnonzero(over)[~big]] = False     # zero-area overlap (touching): closest pairs below
-    far = ~over
+    else:
+        Pi, Pj = Pi + org, Pj + org
+    far = ~over       # no overlap, or a zero-area one (touching): the closest pair of points
     if far.any():
-        A_, B_ = Pi[far], Pj[far]
-        # vertex v of src vs edge e of dst, both directions: 18 point/segment pairs per face pair
-        Di, Qi, Qj = [], [], []
-        for src, dst, src_is_i in ((A_, B_, True), (B_, A_, False)):
-            p = dst[:, None, :, :]                               # (f, 1, 3, 2) edge starts
-            seg = np.roll(dst, -1, axis=1)[:, None] - p          # (f, 1, 3, 2)
-            x = src[:, :, None, :]                               # (f, 3, 1, 2)
-            L2 = np.maximum((seg * seg).sum(-1), 1e-300)
-            tt = np.clip(((x - p) * seg).sum(-1) / L2, 0.0, 1.0)  # (f, 3, 3)
-            y = p + tt[..., None] * seg                          # (f, 3, 3, 2)
-            xx = np.broadcast_to(x, y.shape)
-            Di.append(np.linalg.norm(xx - y, axis=-1).reshape(len(src), 9))
-            Qi.append((xx if src_is_i else y).reshape(len(src), 9, 2))
-            Qj.append((y if src_is_i else xx).reshape(len(src), 9, 2))
-        D = np.concatenate(Di, axis=1)
-        Qi_, Qj_ = np.concatenate(Qi, axis=1), np.concatenate(Qj, axis=1)
+        xa, ya, xb, yb = Pi[far, :, 0], Pi[far, :, 1], Pj[far, :, 0], Pj[far, :, 1]
+        # vertex v of src vs edge e of dst, both directions: 18 point/segment pairs per face pair,
+        # as separate x/y arrays of shape (f, 3 vertices, 3 edges)
+        parts = []
+        for sx, sy, dx, dy, src_is_i in ((xa, ya, xb, yb, True), (xb, yb, xa, ya, False)):
+            px, py = dx[:, None, :], dy[:, None, :]
+            ex, ey = np.roll(dx, -1, axis=1)[:, None, :] - px, np.roll(dy, -1, axis=1)[:, None, :] - py
+            vx, vy = sx[:, :, None], sy[:, :, None]
+            L2 = np.maximum(ex * ex + ey * ey, 1e-300)
+            tt = np.clip(((vx - px) * ex + (vy - py) * ey) / L2, 0.0, 1.0)
+            yx, yy = px + tt * ex, py + tt * ey                    # closest point on the edge
+            vx, vy = np.broadcast_to(vx, yx.shape), np.broadcast_to(vy, yy.shape)
+            d2 = (vx - yx) ** 2 + (vy - yy) ** 2
+            f = len(sx)
+            if src_is_i:
+                parts.append((d2.reshape(f, 9), vx.reshape(f, 9), vy.reshape(f, 9), yx.reshape(f, 9), yy.reshape(f, 9)))
+            else:
+                parts.append((d2.reshape(f, 9), yx.reshape(f, 9), yy.reshape(f, 9), vx.reshape(f, 9), vy.reshape(f, 9)))
+        D2, Xi, Yi, Xj, Yj = (np.concatenate([parts[0][k], parts[1][k]], axis=1) for k in range(5))
         # ties (parallel nearest edges) are averaged, so the choice does not depend on vertex order or pose
-        tied = D <= D.min(axis=1, keepdims=True) + eps
+        dmin = np.sqrt(D2.min(axis=1, keepdims=True))
+        tied = D2 <= (dmin + eps) ** 2
         wt = tied / tied.sum(axis=1, keepdims=True)
-        qi[far] = (Qi_ * wt[..., None]).sum(axis=1)
-        qj[far] = (Qj_ * wt[..., None]).sum(axis=1)
+        qi[far, 0], qi[far, 1] = (Xi * wt).sum(axis=1), (Yi * wt).sum(axis=1)
+        qj[far, 0], qj[far, 1] = (Xj * wt).sum(axis=1), (Yj * wt).sum(axis=1)
     return qi, qj
