@@ -223,11 +223,28 @@ def _index_pairs(geo: _FaceGeometry, ids: np.ndarray, *, max_opening, beta_deg, 
     K = M / cb
     X = np.hstack([K * n, np.cross(c - o, n)])
     rho = np.sqrt(2.0) * M * (1.0 + 1e-9)
-    ta, tb = cKDTree(X), cKDTree(-X)
-    res = ta.sparse_distance_matrix(tb, rho, output_type="ndarray")
-    a, b = res["i"].astype(np.int64), res["j"].astype(np.int64)
-    keep = a < b
-    return ids[a[keep]], ids[b[keep]]
+    # Split the sphere of normals at a fixed generic direction h: every antipodal pair has one face in
+    # A = {n.h >= -delta} and the other in B = {n.h <= delta} (delta >= |n_i + n_j|), so one query
+    # A against -B finds each pair once (twice only inside the thin band |n.h| <= delta).
+    h = np.array([1.0, np.sqrt(2.0), np.sqrt(3.0)]) / np.sqrt(6.0)
+    nh = n @ h
+    delta = cb * 1.01
+    A = np.flatnonzero(nh >= -delta)
+    B = np.flatnonzero(nh <= delta)
+    if len(A) == 0 or len(B) == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    res = cKDTree(X[A]).sparse_distance_matrix(cKDTree(-X[B]), rho, output_type="ndarray")
+    a, b = A[res["i"]], B[res["j"]]
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    keep = lo < hi
+    lo, hi = lo[keep], hi[keep]
+    band = (np.abs(nh[lo]) <= delta) & (np.abs(nh[hi]) <= delta)
+    if band.any():   # pairs with both faces in the band may come twice
+        key = lo[band] * len(ids) + hi[band]
+        _, first = np.unique(key, return_index=True)
+        sel = np.concatenate([np.flatnonzero(~band), np.flatnonzero(band)[first]])
+        lo, hi = lo[sel], hi[sel]
+    return ids[lo], ids[hi]
 
 
 def evaluate_pairs(
