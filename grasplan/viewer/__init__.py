@@ -25,6 +25,7 @@ import math
 import os
 import re
 import warnings
+import zlib
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -66,16 +67,31 @@ _HERE = Path(__file__).resolve().parent
 
 
 # --------------------------------------------------------------------------- encoding helpers
-def _b64(a: np.ndarray, dtype) -> str:
-    return base64.b64encode(np.ascontiguousarray(a, dtype=dtype).tobytes()).decode("ascii")
+def _enc(a, dtype) -> str:
+    """Array -> base64 of its zlib-deflated little-endian bytes (the page inflates them with the
+    browser's DecompressionStream('deflate'))."""
+    raw = np.ascontiguousarray(np.asarray(a), dtype=dtype).tobytes()
+    return base64.b64encode(zlib.compress(raw, 6)).decode("ascii")
 
 
-def _f32(a) -> str:
-    return _b64(np.asarray(a, dtype=np.float64), "<f4")
-
-
-def _u32(a) -> str:
-    return _b64(np.asarray(a), "<u4")
+def _field(grasps: list, key: str, shape: tuple, dtype) -> np.ndarray:
+    """``grasps[i][key]`` for all i as one (n, *shape) array; InputError naming the first bad grasp."""
+    try:
+        a = np.array([g[key] for g in grasps], dtype=dtype)
+        if a.shape == (len(grasps), *shape) and np.all(np.isfinite(a)):
+            return a
+    except (KeyError, TypeError, ValueError):
+        pass
+    for i, g in enumerate(grasps):
+        try:
+            v = np.asarray(g[key], dtype=dtype)
+            ok = v.shape == shape and np.all(np.isfinite(v))
+        except (KeyError, TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise InputError(f"grasps[{i}] (id {g.get('id')!r}): {key!r} missing or malformed; expected "
+                             f"{'a number' if not shape else 'an array of shape ' + str(shape)}")
+    raise InputError(f"grasps: {key!r} malformed")
 
 
 def _mat(x, name: str) -> np.ndarray:
@@ -150,7 +166,7 @@ def decimate_mesh(vertices: np.ndarray, faces: np.ndarray, max_faces: int) -> tu
 def _mesh_block(vertices, faces) -> dict:
     V = np.asarray(vertices, dtype=np.float64)
     F = np.asarray(faces, dtype=np.int64)
-    return {"v": _f32(V.reshape(-1)), "f": _u32(F.reshape(-1)), "nv": int(len(V)), "nf": int(len(F))}
+    return {"v": _enc(V.reshape(-1), "<f4"), "f": _enc(F.reshape(-1), "<u4"), "nv": int(len(V)), "nf": int(len(F))}
 
 
 # --------------------------------------------------------------------------- inputs
@@ -337,34 +353,30 @@ def build_data(doc: dict, *, part_path=None, result_dir: Path | None = None) -> 
     gripper = _load_gripper(gr.get("name"), notes)
     T_flange_tcp = _mat(gr["T_flange_tcp"], "gripper.T_flange_tcp") if "T_flange_tcp" in gr else gripper.T_flange_tcp
 
-    # per-grasp arrays
-    ids = np.zeros(n, dtype=np.int64)
-    width = np.zeros(n)
-    score = np.full(n, np.nan)
-    rank = np.full(n, -1, dtype=np.int64)
+    # per-grasp arrays (vectorised: plan files can hold 10^5 grasps)
     statuses = [str(g.get("status", "?")) for g in grasps]
     status_names = [s for s in STATUS_ORDER if s in set(statuses)] + sorted(set(statuses) - set(STATUS_ORDER))
     sidx = {s: i for i, s in enumerate(status_names)}
-    st = np.array([sidx[s] for s in statuses], dtype=np.int64)
-    contacts = np.zeros((n, 2, 3))
-    T_part_tcp = np.zeros((n, 4, 4))
-    for i, g in enumerate(grasps):
-        try:
-            ids[i] = int(g["id"])
-            width[i] = float(g["width"])
-            contacts[i] = np.asarray(g["contacts"], dtype=np.float64).reshape(2, 3)
-            T_part_tcp[i] = np.asarray(g["T_part_tcp"], dtype=np.float64).reshape(4, 4)
-        except (KeyError, TypeError, ValueError) as exc:
-            raise InputError(f"grasps[{i}]: missing or malformed field ({exc}); every grasp needs id, width, contacts, T_part_tcp") from exc
-        if g.get("score") is not None:
-            score[i] = float(g["score"])
-        if g.get("rank") is not None:
-            rank[i] = int(g["rank"])
-    if len(set(ids.tolist())) != n:
+    st = np.array([sidx[s] for s in statuses], dtype=np.uint8).reshape(n)
+    ids = _field(grasps, "id", (), np.int64)
+    width = _field(grasps, "width", (), np.float64)
+    contacts = _field(grasps, "contacts", (2, 3), np.float64)
+    T_part_tcp = _field(grasps, "T_part_tcp", (4, 4), np.float64)
+    score = np.array([np.nan if g.get("score") is None else float(g["score"]) for g in grasps], dtype=np.float64)
+    ranks = {str(g["id"]): int(g["rank"]) for g in grasps if g.get("rank") is not None}
+    if len(np.unique(ids)) != n:
         raise InputError("grasp ids are not unique")
-    c_world = contacts @ T_world_part[:3, :3].T + T_world_part[:3, 3]
+    # contact pairs are shared by the roll variants of a candidate: store each pair once
+    c_world = (contacts @ T_world_part[:3, :3].T + T_world_part[:3, 3]).reshape(n, 6).astype(np.float32)
+    pairs, pair_of = np.unique(c_world, axis=0, return_inverse=True) if n else (np.zeros((0, 6), np.float32), np.zeros(0, np.int64))
+    pair_of = pair_of.reshape(n)
+    pair_width = np.zeros(len(pairs))
+    pair_width[pair_of] = width
+    pre_open = np.asarray(gripper.pregrasp_opening(pair_width), dtype=np.float64).reshape(len(pairs))
+    # one marker per (contact pair, status): what is drawn
+    marker = np.unique(np.stack([st.astype(np.int64), pair_of], 1), axis=0) if n else np.zeros((0, 2), np.int64)
     T_world_tcp = T_world_part[None] @ T_part_tcp if n else np.zeros((0, 4, 4))
-    pre_open = np.asarray(gripper.pregrasp_opening(width), dtype=np.float64).reshape(n)
+    tcp_q = _quat_xyzw(T_world_tcp[:, :3, :3]) if n else np.zeros((0, 4))
 
     # gripper shapes: body once; fingers as a function of the opening (two openings -> linear in JS)
     gmeshes: list[dict] = []
@@ -390,11 +402,13 @@ def build_data(doc: dict, *, part_path=None, result_dir: Path | None = None) -> 
         "statuses": [{"name": s, "color": STATUS_COLORS.get(s, OTHER_COLOR)} for s in status_names],
         "grasps": {
             "n": n,
-            "id": _b64(ids, "<i4"), "status": _b64(st, "u1"),
-            "width": _f32(width), "score": _f32(score), "rank": _b64(rank, "<i4"),
-            "contacts": _f32(c_world.reshape(-1)),
-            "tcp": _f32(_pose7(T_world_tcp).reshape(-1)) if n else "",
-            "opening": _f32(pre_open),
+            "id": _enc(ids, "<i4"), "status": _enc(st, "u1"), "score": _enc(score, "<f4"), "rank": ranks,
+            "pair": _enc(pair_of, "<u4"),                       # contact pair of each grasp
+            "pairs": _enc(pairs, "<f4"), "npairs": int(len(pairs)),  # world contacts (p, 6)
+            "width": _enc(pair_width, "<f4"), "opening": _enc(pre_open, "<f4"),  # per pair
+            "marker_status": _enc(marker[:, 0], "u1"), "marker_pair": _enc(marker[:, 1], "<u4"),
+            "tcp_p": _enc(T_world_tcp[:, :3, 3], "<f4"),        # TCP position, world
+            "tcp_q": _enc(np.round(tcp_q * 32767), "<i2"),      # TCP quaternion (x, y, z, w) * 32767
         },
         "gripper": grip,
         "robot": None,
@@ -455,7 +469,7 @@ def _robot_data(doc: dict, grasps: list, ids: np.ndarray, T_flange_tcp: np.ndarr
         "links": links,
         "meshes": meshes,
         "frame_size": len(links) + 1,
-        "frames": _f32(np.concatenate(chunks)),
+        "frames": _enc(np.concatenate(chunks), "<f4"),
         "paths": paths,
     }
 

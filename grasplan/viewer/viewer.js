@@ -14,24 +14,22 @@
   }
   window.addEventListener('error', (e) => fail(String(e.message || e)));
 
-  function b64(s, Type) {
-    if (!s) return new Type(0);
+  // arrays arrive as base64 of zlib-deflated little-endian bytes
+  async function dec(s, Type) {
     const bin = atob(s);
     const u8 = new Uint8Array(bin.length);
     for (let i = 0; i < bin.length; i++) u8[i] = bin.charCodeAt(i);
-    return new Type(u8.buffer);
+    if (typeof DecompressionStream === 'undefined') throw new Error('this browser lacks DecompressionStream; use a current Chrome, Firefox or Safari');
+    const stream = new Blob([u8]).stream().pipeThrough(new DecompressionStream('deflate'));
+    return new Type(await new Response(stream).arrayBuffer());
   }
   function esc(s) {
     return String(s).replace(/[&<>"]/g, (c) => ({ '&': '&amp;', '<': '&lt;', '>': '&gt;', '"': '&quot;' }[c]));
   }
 
-  try {
-    main();
-  } catch (e) {
-    fail((e && e.stack) || String(e));
-  }
+  main().catch((e) => fail((e && e.stack) || String(e)));
 
-  function main() {
+  async function main() {
     const THREE = window.THREE;
     if (!THREE) throw new Error('three.js is missing from the page');
     const D = JSON.parse(document.getElementById('grasplan-data').textContent);
@@ -39,14 +37,15 @@
     // ------------------------------------------------------------------ decode
     const G = D.grasps;
     const n = G.n;
-    const gid = b64(G.id, Int32Array);
-    const gst = b64(G.status, Uint8Array);
-    const gwidth = b64(G.width, Float32Array);
-    const gscore = b64(G.score, Float32Array);
-    const grank = b64(G.rank, Int32Array);
-    const gcont = b64(G.contacts, Float32Array);
-    const gtcp = b64(G.tcp, Float32Array);
-    const gopen = b64(G.opening, Float32Array);
+    const [gid, gst, gscore, gpair, pairs, pwidth, popen, mstatus, mpair, tcpP, tcpQ] = await Promise.all([
+      dec(G.id, Int32Array), dec(G.status, Uint8Array), dec(G.score, Float32Array), dec(G.pair, Uint32Array),
+      dec(G.pairs, Float32Array), dec(G.width, Float32Array), dec(G.opening, Float32Array),
+      dec(G.marker_status, Uint8Array), dec(G.marker_pair, Uint32Array), dec(G.tcp_p, Float32Array), dec(G.tcp_q, Int16Array)]);
+    const grank = new Int32Array(n);
+    for (let i = 0; i < n; i++) { const r = G.rank[String(gid[i])]; grank[i] = r === undefined ? -1 : r; }
+    const gwidth = (i) => pwidth[gpair[i]];
+    const gopen = (i) => popen[gpair[i]];
+    const gcont = (i) => pairs.subarray(gpair[i] * 6, gpair[i] * 6 + 6);
     const statuses = D.statuses;
     const byId = new Map();
     for (let i = 0; i < n; i++) byId.set(gid[i], i);
@@ -77,17 +76,18 @@
       obj.position.set(arr[off], arr[off + 1], arr[off + 2]);
       obj.quaternion.set(arr[off + 3], arr[off + 4], arr[off + 5], arr[off + 6]);
     }
-    function geometryOf(block) {
+    async function geometryOf(block) {
+      const [v, f] = await Promise.all([dec(block.v, Float32Array), dec(block.f, Uint32Array)]);
       const g = new THREE.BufferGeometry();
-      g.setAttribute('position', new THREE.BufferAttribute(b64(block.v, Float32Array), 3));
-      g.setIndex(new THREE.BufferAttribute(b64(block.f, Uint32Array), 1));
+      g.setAttribute('position', new THREE.BufferAttribute(v, 3));
+      g.setIndex(new THREE.BufferAttribute(f, 1));
       g.computeVertexNormals();
       g.computeBoundingSphere();
       return g;
     }
 
     // ------------------------------------------------------------------ part and table
-    const partGeom = geometryOf(D.part);
+    const partGeom = await geometryOf(D.part);
     const partMat = new THREE.MeshStandardMaterial({
       color: 0xb0b8c4, metalness: 0.1, roughness: 0.6, flatShading: true,
       polygonOffset: true, polygonOffsetFactor: 1, polygonOffsetUnits: 1,
@@ -120,12 +120,13 @@
     const visibleStatus = statuses.map(() => true);
     const points = [];
     const pointSize = n > 5000 ? 4 : 6;
+    // one marker per (contact pair, status), so the roll variants of a candidate cost one pair
     statuses.forEach((s, si) => {
       let cnt = 0;
-      for (let i = 0; i < n; i++) if (gst[i] === si) cnt++;
+      for (let m = 0; m < mstatus.length; m++) if (mstatus[m] === si) cnt++;
       const pos = new Float32Array(cnt * 6);
       let k = 0;
-      for (let i = 0; i < n; i++) if (gst[i] === si) { pos.set(gcont.subarray(i * 6, i * 6 + 6), k); k += 6; }
+      for (let m = 0; m < mstatus.length; m++) if (mstatus[m] === si) { pos.set(pairs.subarray(mpair[m] * 6, mpair[m] * 6 + 6), k); k += 6; }
       const g = new THREE.BufferGeometry();
       g.setAttribute('position', new THREE.BufferAttribute(pos, 3));
       const p = new THREE.Points(g, new THREE.PointsMaterial({ color: s.color, size: pointSize, sizeAttenuation: false }));
@@ -137,7 +138,7 @@
 
     // ------------------------------------------------------------------ gripper
     const GR = D.gripper;
-    const gripMeshes = GR.meshes.map(geometryOf);
+    const gripMeshes = await Promise.all(GR.meshes.map(geometryOf));
     const gripMat = new THREE.MeshStandardMaterial({ color: 0x3d4f6b, metalness: 0.3, roughness: 0.5, transparent: true, opacity: 0.8 });
     const fingerMat = new THREE.MeshStandardMaterial({ color: 0x263238, metalness: 0.3, roughness: 0.5 });
     function shapeObj(sh, mat) {
@@ -177,8 +178,8 @@
     const R = D.robot;
     let robot = null, rframes = null, linkObjs = [];
     if (R) {
-      rframes = b64(R.frames, Float32Array);
-      const geoms = R.meshes.map(geometryOf);
+      rframes = await dec(R.frames, Float32Array);
+      const geoms = await Promise.all(R.meshes.map(geometryOf));
       const linkMat = new THREE.MeshStandardMaterial({ color: 0xf2a33a, metalness: 0.15, roughness: 0.55, flatShading: true });
       const homeMat = new THREE.MeshStandardMaterial({ color: 0x9aa5b1, transparent: true, opacity: 0.35, depthWrite: false });
       robot = new THREE.Group();
@@ -272,6 +273,8 @@
     for (let i = 0; i < n; i++) order[gst[i]].push(i);
     const key = (i) => (grank[i] >= 0 ? grank[i] : 1e9);
     order.forEach((arr) => arr.sort((a, b) => key(a) - key(b) || (isNaN(gscore[b]) ? -1 : isNaN(gscore[a]) ? 1 : gscore[b] - gscore[a]) || gid[a] - gid[b]));
+    const firstOf = new Map(); // status * pairs.length + pair -> best grasp with that pair and status
+    order.forEach((arr, si) => arr.forEach((i) => { const k = si * pairs.length + gpair[i]; if (!firstOf.has(k)) firstOf.set(k, i); }));
     const list = document.getElementById('grasp-list');
     const FULL = D.list_full; // statuses listed in full (the usable grasps); the others in chunks
     const rows = new Map(); // grasp index -> element
@@ -306,7 +309,7 @@
         row.dataset.graspId = String(gid[i]);
         row.dataset.status = s.name;
         row.innerHTML = `<span class="sw" style="background:${s.color}"></span><span>#${gid[i]}</span><span>${esc(s.name)}</span>` +
-          `<span class="w">${(gwidth[i] * 1000).toFixed(1)} mm</span><span class="s">${fmtScore(gscore[i])}</span>`;
+          `<span class="w">${(gwidth(i) * 1000).toFixed(1)} mm</span><span class="s">${fmtScore(gscore[i])}</span>`;
         rows.set(i, row);
         frag.appendChild(row);
       }
@@ -363,10 +366,11 @@
       const row = ensureRow(i);
       if (row) { row.classList.add('sel'); row.scrollIntoView({ block: 'nearest' }); }
       const s = statuses[gst[i]].name;
-      setPose(gripper, gtcp, i * 7);
-      setOpening(gopen[i]);
+      gripper.position.set(tcpP[i * 3], tcpP[i * 3 + 1], tcpP[i * 3 + 2]);
+      gripper.quaternion.set(tcpQ[i * 4], tcpQ[i * 4 + 1], tcpQ[i * 4 + 2], tcpQ[i * 4 + 3]).normalize();
+      setOpening(gopen(i));
       gripper.visible = showGripper.checked;
-      const c = gcont.subarray(i * 6, i * 6 + 6);
+      const c = gcont(i);
       selSpheres[0].position.set(c[0], c[1], c[2]);
       selSpheres[1].position.set(c[3], c[4], c[5]);
       axisGeom.attributes.position.array.set(c);
@@ -374,7 +378,7 @@
       axisGeom.computeBoundingSphere();
       selGroup.visible = true;
       const P = pathOf(i);
-      let txt = `grasp #${gid[i]}  ${s}\nwidth ${(gwidth[i] * 1000).toFixed(2)} mm   pre-grasp opening ${(gopen[i] * 1000).toFixed(1)} mm\nscore ${fmtScore(gscore[i])}` + (grank[i] >= 0 ? `   rank ${grank[i]}` : '');
+      let txt = `grasp #${gid[i]}  ${s}\nwidth ${(gwidth(i) * 1000).toFixed(2)} mm   pre-grasp opening ${(gopen(i) * 1000).toFixed(1)} mm\nscore ${fmtScore(gscore[i])}` + (grank[i] >= 0 ? `   rank ${grank[i]}` : '');
       if (P) {
         robotMaterial(true);
         scrub.max = String(P.count - 1);
@@ -438,17 +442,19 @@
       const x = e.clientX - rect.left, y = e.clientY - rect.top;
       const v = new THREE.Vector3();
       let best = -1, bd = 100;
-      for (let i = 0; i < n; i++) {
-        if (!visibleStatus[gst[i]]) continue;
+      for (let m = 0; m < mstatus.length; m++) {
+        if (!visibleStatus[mstatus[m]]) continue;
+        const o = mpair[m] * 6;
         for (let k = 0; k < 2; k++) {
-          v.set(gcont[i * 6 + 3 * k], gcont[i * 6 + 3 * k + 1], gcont[i * 6 + 3 * k + 2]).project(camera);
+          v.set(pairs[o + 3 * k], pairs[o + 3 * k + 1], pairs[o + 3 * k + 2]).project(camera);
           if (v.z > 1) continue;
           const dx = (v.x + 1) / 2 * rect.width - x, dy = (1 - v.y) / 2 * rect.height - y;
           const d = dx * dx + dy * dy;
-          if (d < bd) { bd = d; best = i; }
+          if (d < bd) { bd = d; best = m; }
         }
       }
-      if (best >= 0) select(best);
+      // the marker's best grasp: the first one of its status group (rank, then score order)
+      if (best >= 0) select(firstOf.get(mstatus[best] * pairs.length + mpair[best]));
     });
     document.getElementById('hud').textContent = 'drag: orbit · right-drag: pan · wheel: zoom · click a contact point or a list row';
 
