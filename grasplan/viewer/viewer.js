@@ -470,6 +470,8 @@
     if (hash.has('grasp') && byId.has(Number(hash.get('grasp')))) initial = byId.get(Number(hash.get('grasp')));
     if (initial >= 0) select(initial);
     render(); // first frame now, so the status element is set even without animation frames
+    if (hash.has('sample') && pathOf(selected)) setSample(Number(hash.get('sample')));
+    if (hash.has('view')) frameView(hash.get('view'));
     if (hash.has('play')) playBtn.click();
   }
 })();
