@@ -170,12 +170,11 @@ def find_candidates(
         return Candidates.empty()
     if search == "index":
         i, j = _index_pairs(geo, ids, max_opening=max_opening, beta_deg=beta_deg, epsilon=epsilon, tol=tol)
+        batches = ((i[s:s + _CHUNK], j[s:s + _CHUNK]) for s in range(0, len(i), _CHUNK))
     else:
-        a, b = np.triu_indices(len(ids), 1)
-        i, j = ids[a], ids[b]
+        batches = _all_pairs(ids)
     out = []
-    for s in range(0, len(i), _CHUNK):
-        ci, cj = i[s:s + _CHUNK], j[s:s + _CHUNK]
+    for ci, cj in batches:
         reason, contacts, width = evaluate_pairs(geo, ci, cj, max_opening=max_opening, beta_deg=beta_deg,
                                                  epsilon=epsilon, mu=mu, tol=tol)
         keep = reason == 0
@@ -190,6 +189,20 @@ def find_candidates(
     faces = np.stack([fi, fj], axis=1)[order].astype(np.int64)
     normals = np.stack([geo.n[faces[:, 0]], geo.n[faces[:, 1]]], axis=1) if len(faces) else np.zeros((0, 2, 3))
     return Candidates(contacts[order], normals, width[order], faces)
+
+
+def _all_pairs(ids: np.ndarray):
+    """Every pair ``(ids[a], ids[b])``, ``a < b``, in batches of about ``_CHUNK`` (the O(m^2) reference)."""
+    m = len(ids)
+    a = 0
+    while a < m - 1:
+        rows = max(1, _CHUNK // max(1, m - a - 1))
+        r = np.arange(a, min(m - 1, a + rows))
+        cnt = m - 1 - r
+        ia = np.repeat(r, cnt)
+        ib = np.arange(len(ia)) - np.repeat(np.cumsum(cnt) - cnt, cnt) + np.repeat(r + 1, cnt)
+        yield ids[ia], ids[ib]
+        a = int(r[-1]) + 1
 
 
 @dataclass(frozen=True)
