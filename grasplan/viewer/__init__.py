@@ -443,12 +443,17 @@ def _robot_data(doc: dict, grasps: list, ids: np.ndarray, T_flange_tcp: np.ndarr
         links.append({"name": str(gname), "mesh": mesh_index[key]})
         keep.append(k)
 
-    def frame(q) -> np.ndarray:
-        lp = robot.link_poses(q)
-        Ts = [lp[k][1] for k in keep] + [robot.fk(q) @ T_flange_tcp]
-        return _pose7(np.asarray(Ts))  # (L + 1, 7): the links, then the gripper TCP
+    def frames_of(qs: np.ndarray) -> np.ndarray:
+        """(s, n) joint vectors -> (s, L + 1, 7) poses: the links, then the gripper TCP."""
+        Ts = np.empty((len(qs), len(keep) + 1, 4, 4))
+        for j, q in enumerate(qs):
+            lp = robot.link_poses(q)
+            for m, k in enumerate(keep):
+                Ts[j, m] = lp[k][1]
+            Ts[j, -1] = robot.fk(q) @ T_flange_tcp
+        return _pose7(Ts)
 
-    home = frame(q_home)
+    home = frames_of(q_home[None])[0]
     paths = {}
     chunks = [home.reshape(-1)]
     offset = 1  # in frames
@@ -457,7 +462,7 @@ def _robot_data(doc: dict, grasps: list, ids: np.ndarray, T_flange_tcp: np.ndarr
             continue
         P = np.asarray(g["path"], dtype=np.float64)
         S, idx = densify_path(P)
-        frames = np.stack([frame(q) for q in S])
+        frames = frames_of(S)
         pre = g.get("pregrasp_index")
         pre_s = int(idx[int(pre)]) if pre is not None and 0 <= int(pre) < len(idx) else None
         paths[str(gid)] = {"start": offset, "count": int(len(S)), "pregrasp": pre_s, "waypoints": int(len(P))}
