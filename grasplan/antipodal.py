@@ -396,15 +396,16 @@ def _overlap_or_closest(Pi, Pj, eps):
     over = area > eps * eps
     qi = np.zeros((b, 2))
     qj = np.zeros((b, 2))
+    A = np.where(over, area, 1.0)
+    gx, gy = Sx / (6.0 * A), Sy / (6.0 * A)
+    # Triangles that only touch (within eps) leave an open boundary whose "centroid" is meaningless:
+    # keep the overlap point only where it really lies inside both triangles, else use closest points.
+    for x, y, ex, ey, L in ((xa, ya, exa, eya, la), (xb, yb, exb, eyb, lb)):
+        over &= ((ex * (gy[:, None] - y) - ey * (gx[:, None] - x)) >= -eps * L).all(axis=1)
+    Pi, Pj = Pi + org, Pj + org
     if over.any():
-        A = area[over]
-        gx = Sx[over] / (6.0 * A) + org[over, 0, 0]
-        gy = Sy[over] / (6.0 * A) + org[over, 0, 1]
-        Pi, Pj = Pi + org, Pj + org
-        qi[over, 0], qi[over, 1] = gx, gy
+        qi[over, 0], qi[over, 1] = gx[over] + org[over, 0, 0], gy[over] + org[over, 0, 1]
         qj[over] = qi[over]
-    else:
-        Pi, Pj = Pi + org, Pj + org
     far = ~over       # no overlap, or a zero-area one (touching): the closest pair of points
     if far.any():
         xa, ya, xb, yb = Pi[far, :, 0], Pi[far, :, 1], Pj[far, :, 0], Pj[far, :, 1]
