@@ -497,7 +497,7 @@ def test_browser_plays_a_path(bracket_plan, bracket_page, tmp_path):
     data, _ = build_data(doc, part_path=BRACKET)
     worst = max((x for x in doc["grasps"] if x["status"] == "planned"), key=lambda x: x["rank"])
     # the path takes count / 60 s to play; the page's start (inflating the arrays) also uses virtual time
-    r = run_chromium(bracket_page, tmp_path, "--dump-dom", fragment=f"#grasp={worst['id']}&play", budget_ms=30000)
+    r = run_chromium(bracket_page, tmp_path, "--dump-dom", fragment=f"#grasp={worst['id']}&play", budget_ms=15000)
     st = _check_rendered(r.stdout, doc).status
     assert st["data-selected"] == str(worst["id"])
     assert st.get("data-played") == str(data["robot"]["paths"][str(worst["id"])]["count"])

@@ -409,7 +409,7 @@
       }
       setSample(Math.floor(playPos));
       statusEl.dataset.played = String(Math.floor(playPos) + 1);
-      if (playing) requestAnimationFrame(tick);
+      if (playing) setTimeout(tick, 16); // timers, not frames: also runs under headless virtual time
     }
     playBtn.addEventListener('click', () => {
       const P = pathOf(selected);
@@ -419,7 +419,7 @@
       playT0 = performance.now();
       playing = true;
       playBtn.textContent = '\u275A\u275A Pause';
-      requestAnimationFrame(tick);
+      setTimeout(tick, 0);
     });
     scrub.addEventListener('input', () => { playing = false; setSample(Number(scrub.value)); });
 
