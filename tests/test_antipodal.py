@@ -195,7 +195,7 @@ def test_touching_projections_keep_contacts_on_the_faces():
     lo = np.array([[-6.601233, 0.514198], [12.662167, -1.368], [-6.060933, 0.853802]]) * 1e-3
     hi = np.array([[12.662167, -1.368], [-18.837833, 3.132], [3.162167, 3.132]]) * 1e-3
     V = np.vstack([np.c_[lo, np.zeros(3)], np.c_[hi, np.full(3, 0.01)]])
-    mesh = trimesh.Trimesh(V, [[0, 2, 1], [3, 4, 5]], process=False)
+    mesh = trimesh.Trimesh(V, [[0, 2, 1], [3, 5, 4]], process=False)
     assert mesh.face_normals[0, 2] < 0 < mesh.face_normals[1, 2]
     c = find_candidates(mesh, np.ones(2, bool))
     assert len(c) == 1
