@@ -455,29 +455,27 @@ def test_default_scene_and_robot_from_plan(tmp_path):
 
 
 @pytest.fixture(scope="module")
-def tless20(tmp_path_factory):
+def tless20():
+    """TLess20 planned once with the UR5 (top 3). The plan has ~10^6 grasps (every roll of every
+    candidate), so the exports are run in memory (the CLI is exercised on the synthetic plans)."""
     from conftest import paper_part
 
     path = paper_part("TLess20.stl")
     _upstream("grasplan.plan", "grasplan.grasps", "grasplan.robot", "grasplan.scene")
     from grasplan.mesh import load_part
     from grasplan.plan import plan as plan_part
-    from grasplan.robot import load_robot
     from grasplan.scene import CollisionScene
 
     result = plan_part(load_part(path), top=3)
     doc = result.to_json()
-    plan_path = tmp_path_factory.mktemp("tless20") / "plan.json"
-    result.write(plan_path)
     if not planned_ids(doc):
         pytest.fail(f"no planned grasp for TLess20: {result.counts()}")
-    robot = load_robot("ur5")
     gr = result.grasps
 
     def scene_factory():
-        return CollisionScene(robot, gr.gripper, gr.cand.part.mesh, gr.T_world_part, gr.cell)
+        return CollisionScene(result.robot, gr.gripper, gr.cand.part.mesh, gr.T_world_part, gr.cell)
 
-    return {"doc": doc, "path": plan_path, "robot": robot, "result": result, "scene_factory": scene_factory}
+    return {"doc": doc, "robot": result.robot, "result": result, "scene_factory": scene_factory}
 
 
 @pytest.mark.slow
@@ -485,9 +483,7 @@ def tless20(tmp_path_factory):
 def test_tless20_urscript(tless20, tmp_path):
     doc, robot = tless20["doc"], tless20["robot"]
     check_plan(doc)
-    out = tmp_path / "pick.script"
-    r = _run(["export", str(tless20["path"]), "--format", "urscript", "-o", str(out)])
-    assert r.exit_code == 0, r.output
+    out = write(doc, "urscript", tmp_path / "pick.script", robot=robot)
     g = select_grasp(doc)
     assert g["id"] == planned_ids(doc)[0]
     check_urscript(out.read_text(), doc, g, robot)
@@ -496,33 +492,32 @@ def test_tless20_urscript(tless20, tmp_path):
 @pytest.mark.slow
 @pytest.mark.paper
 def test_tless20_joint_trajectory(tless20, tmp_path):
-    doc, robot = tless20["doc"], tless20["robot"]
-    out = tmp_path / "traj.json"
-    r = _run(["export", str(tless20["path"]), "--format", "joint-trajectory", "-o", str(out)])
-    assert r.exit_code == 0, r.output
-    traj = json.loads(out.read_text())
     from grasplan.schemas import validate
 
-    validate(traj)
-    g = select_grasp(doc)
-    t, q, qd = check_trajectory(traj, doc, g, robot, 1.4)
-    opening = min(doc["gripper"]["max_opening"], g["width"] + 0.010)
-    assert independent_path_free(tless20["scene_factory"], q, opening)
-    # PlanResult.export (the lead's wiring) writes the same format
-    out2 = tless20["result"].export("joint-trajectory", tmp_path / "traj2.json")
-    assert json.loads(Path(out2).read_text())["grasp_id"] == g["id"]
+    doc, robot = tless20["doc"], tless20["robot"]
+    scene = tless20["scene_factory"]()
+    for gid in planned_ids(doc)[:2]:
+        out = write(doc, "joint-trajectory", tmp_path / f"traj{gid}.json", grasp_id=gid, robot=robot, scene=scene)
+        traj = json.loads(out.read_text())
+        validate(traj)
+        g = select_grasp(doc, gid)
+        t, q, qd = check_trajectory(traj, doc, g, robot, 1.4)
+        opening = min(doc["gripper"]["max_opening"], g["width"] + 0.010)
+        assert independent_path_free(tless20["scene_factory"], q, opening)
+        assert np.max(np.abs(qd) / np.asarray(robot.velocity_limit)) <= 1.0
 
 
 @pytest.mark.slow
 @pytest.mark.paper
-def test_tless20_csv(tless20, tmp_path):
+def test_tless20_csv(tless20):
     doc = tless20["doc"]
-    out = tmp_path / "grasps.csv"
-    r = _run(["export", str(tless20["path"]), "--format", "csv", "-o", str(out)])
-    assert r.exit_code == 0, r.output
-    rows = list(csv.DictReader(io.StringIO(out.read_text())))
-    assert len(rows) == len(doc["grasps"])
-    assert sum(r_["status"] == "planned" for r_ in rows) == len(planned_ids(doc))
-    from grasplan.schemas import validate
-
-    validate(doc)
+    text = render(doc, "csv")
+    lines = text.splitlines()
+    assert len(lines) == 1 + len(doc["grasps"])
+    planned = set(planned_ids(doc))
+    rows = [r_ for r_ in csv.DictReader(io.StringIO(text)) if r_["status"] == "planned"]
+    assert {int(r_["id"]) for r_ in rows} == planned
+    by_id = {g["id"]: g for g in doc["grasps"] if g["id"] in planned}
+    for r_ in rows:
+        np.testing.assert_allclose([float(r_[f"q_{j}"]) for j in doc["robot"]["joint_names"]],
+                                   by_id[int(r_["id"])]["q_grasp"], atol=1e-8)

@@ -33,12 +33,13 @@ def header(joint_names) -> list[str]:
 
 
 def pose7(T: np.ndarray) -> np.ndarray:
-    """(x, y, z, qw, qx, qy, qz) of a transform (4, 4); qw >= 0."""
-    x, y, z, w = Rotation.from_matrix(T[:3, :3]).as_quat()
-    q = np.array([w, x, y, z])
-    if q[0] < 0:
-        q = -q
-    return np.concatenate([T[:3, 3], q])
+    """(x, y, z, qw, qx, qy, qz) of transforms (..., 4, 4) -> (..., 7); qw >= 0."""
+    T = np.asarray(T, dtype=np.float64)
+    flat = T.reshape(-1, 4, 4)
+    xyzw = Rotation.from_matrix(flat[:, :3, :3]).as_quat().reshape(-1, 4)
+    q = np.concatenate([xyzw[:, 3:], xyzw[:, :3]], axis=1)
+    q[q[:, 0] < 0] *= -1.0
+    return np.concatenate([flat[:, :3, 3], q], axis=1).reshape(T.shape[:-2] + (7,))
 
 
 def _num(v) -> str:
@@ -46,7 +47,7 @@ def _num(v) -> str:
 
 
 def grasps_csv(plan_json: dict, *, grasp_id: int | None = None) -> str:
-    """The CSV text: every grasp (or only ``grasp_id``, which may have any status)."""
+    """The CSV text: every grasp (or only ``grasp_id``, which may have any status). Poses vectorised."""
     joints = list(plan_json["robot"]["joint_names"])
     T_world_part = np.asarray(plan_json["part"]["T_world_part"], dtype=np.float64)
     grasps = plan_json["grasps"]
@@ -59,15 +60,26 @@ def grasps_csv(plan_json: dict, *, grasp_id: int | None = None) -> str:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(header(joints))
-    for g in grasps:
-        T_part_tcp = np.asarray(g["T_part_tcp"], dtype=np.float64)
-        row = [int(g["id"]), g["status"], _num(g["width"]), _num(g.get("score")),
-               "" if g.get("rank") is None else int(g["rank"])]
-        row += [_num(v) for v in pose7(T_part_tcp)]
-        row += [_num(v) for v in pose7(T_world_part @ T_part_tcp)]
+    if not grasps:
+        return buf.getvalue()
+    T_part_tcp = np.asarray([g["T_part_tcp"] for g in grasps], dtype=np.float64)
+    if T_part_tcp.shape != (len(grasps), 4, 4):
+        raise InputError("every grasp's T_part_tcp must be a 4x4 matrix")
+    poses = np.concatenate([pose7(T_part_tcp), pose7(T_world_part @ T_part_tcp)], axis=1)
+    fmt = ",".join(["{:.9g}"] * 14)
+    empty_q = "," * (len(joints) - 1)
+    lines = [buf.getvalue().rstrip("\n")]
+    for g, p in zip(grasps, poses.tolist()):
         q = g.get("q_grasp") if g["status"] == "planned" else None
         if q is not None and len(q) != len(joints):
             raise InputError(f"grasp {g['id']}: q_grasp has {len(q)} values, the robot has {len(joints)} joints")
-        row += [_num(v) for v in q] if q is not None else [""] * len(joints)
-        w.writerow(row)
-    return buf.getvalue()
+        qtxt = ",".join(_num(v) for v in q) if q is not None else empty_q
+        rank = "" if g.get("rank") is None else str(int(g["rank"]))
+        lines.append(f"{int(g['id'])},{_csv_text(g['status'])},{_num(g['width'])},{_num(g.get('score'))},{rank},"
+                     f"{fmt.format(*p)},{qtxt}")
+    return "\n".join(lines) + "\n"
+
+
+def _csv_text(s: str) -> str:
+    s = str(s)
+    return '"' + s.replace('"', '""') + '"' if any(c in s for c in ',"\n') else s
