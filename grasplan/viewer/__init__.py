@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import GrasplanError, InputError, MeshError
-from ..io import read_json, sha256_file, write_atomic_text
+from ..io import read_json, write_atomic_text
 from ..units import LENGTH_UNITS
 
 SCHEMAS = ("grasplan.grasps/1", "grasplan.plan/1")
@@ -152,10 +152,9 @@ def decimate_mesh(vertices: np.ndarray, faces: np.ndarray, max_faces: int) -> tu
         np.add.at(newV, inv, V)
         newV /= counts[:, None]
         nF = inv[F]
-        keep = (nF[:, 0] != nF[:, 1]) & (nF[:, 1] != nF[:, 2]) & (nF[:, 0] != nF[:, 2])
-        nF = nF[keep]
-        nF = np.unique(np.sort(nF, axis=1), axis=0, return_index=True)[1]
-        nF = inv[F][keep][np.sort(nF)]
+        nF = nF[(nF[:, 0] != nF[:, 1]) & (nF[:, 1] != nF[:, 2]) & (nF[:, 0] != nF[:, 2])]  # collapsed
+        _, first = np.unique(np.sort(nF, axis=1), axis=0, return_index=True)  # duplicates
+        nF = nF[np.sort(first)]
         if len(nF) <= max_faces:
             used, remap = np.unique(nF, return_inverse=True)
             return newV[used], remap.reshape(-1, 3)
@@ -260,27 +259,18 @@ def _load_gripper(name: str | None, notes: list[str]):
 
 
 def _shape_json(shape, mesh_cache: dict, meshes: list) -> dict:
-    """A gripper shape -> {"box": [ex,ey,ez], "pose": [7]} or {"mesh": index, "pose": [7]}."""
-    T = None
-    for attr in ("T_tcp_box", "T_tcp_shape", "T_tcp_mesh", "T_tcp"):
-        if hasattr(shape, attr):
-            T = np.asarray(getattr(shape, attr), dtype=np.float64)
-            break
-    if T is None:
-        T = np.eye(4)
+    """A gripper shape -> ``{"box": [ex, ey, ez], "pose": [7]}`` (a :class:`grasplan.gripper.Box`) or
+    ``{"mesh": index, "pose": identity}`` (a ``MeshShape``, vertices already in the TCP frame)."""
     if hasattr(shape, "extents"):
-        return {"box": [float(x) for x in np.asarray(shape.extents).reshape(3)], "pose": _pose7(T).tolist()}
-    mesh = getattr(shape, "mesh", None)
-    V = getattr(mesh, "vertices", getattr(shape, "vertices", None))
-    F = getattr(mesh, "faces", getattr(shape, "faces", None))
-    if V is None or F is None:
+        return {"box": [float(x) for x in np.asarray(shape.extents).reshape(3)],
+                "pose": _pose7(np.asarray(shape.T_tcp_box, dtype=np.float64)).tolist()}
+    if not (hasattr(shape, "vertices") and hasattr(shape, "faces")):
         raise InputError(f"cannot display gripper shape {type(shape).__name__}: neither a box nor a mesh")
-    key = id(mesh if mesh is not None else shape)
-    if key not in mesh_cache:
-        Vd, Fd = decimate_mesh(np.asarray(V), np.asarray(F), MAX_LINK_TRIANGLES)
-        mesh_cache[key] = len(meshes)
-        meshes.append(_mesh_block(Vd, Fd))
-    return {"mesh": mesh_cache[key], "pose": _pose7(T).tolist()}
+    if id(shape) not in mesh_cache:
+        V, F = decimate_mesh(np.asarray(shape.vertices), np.asarray(shape.faces), MAX_LINK_TRIANGLES)
+        mesh_cache[id(shape)] = len(meshes)
+        meshes.append(_mesh_block(V, F))
+    return {"mesh": mesh_cache[id(shape)], "pose": _pose7(np.eye(4)).tolist()}
 
 
 # --------------------------------------------------------------------------- robot
