@@ -109,10 +109,10 @@ def check_candidates(result, *, sample=400, seed=0):
     for mesh in (part.mesh, result.mesh):
         dist = surface_distance(mesh, pts, limit)
         assert dist.max() <= limit, f"contact {dist.max():.3g} m off the surface (limit {limit:.3g})"
-    # contact k lies on its own face (distance to that face's plane)
-    tri = result.mesh.triangles[c.faces[idx]]                     # (s, 2, 3, 3)
-    off = np.einsum("skj,skj->sk", c.contacts[idx] - tri[:, :, 0], c.normals[idx])
-    assert np.abs(off).max() <= limit
+    # contact k lies on its own face k (inside the triangle, not just in its plane)
+    for k in range(2):
+        own = point_triangle_distance(result.mesh.triangles[c.faces[:, k]], c.contacts[:, k])
+        assert own.max() <= limit, f"contact {k} {own.max():.3g} m off its own face"
 
 
 @pytest.mark.slow
