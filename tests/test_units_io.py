@@ -43,6 +43,9 @@ def test_write_json_is_atomic_and_refuses_nan(tmp_path):
         write_json(out, {"a": float("nan")})
     assert read_json(out) == {"a": [0, 1, 2], "b": 1.5}  # the old file is intact
     assert [p.name for p in out.parent.iterdir()] == ["x.json"]  # no temporary left behind
+    umask = os.umask(0)
+    os.umask(umask)
+    assert out.stat().st_mode & 0o777 == 0o666 & ~umask  # like open(), not mkstemp's 0600
 
 
 def test_tolerance_scales_with_part():
