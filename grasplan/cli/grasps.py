@@ -20,6 +20,8 @@ from .common import ANGLE, LENGTH, info, table, units_option, warn_all
 @click.option("--part-pose", default=None,
               help="Override the part's resting pose: 'x,y,z,roll,pitch,yaw' (lengths m or with units, "
                    "angles deg, R = Rz(yaw) Ry(pitch) Rx(roll)) or a JSON/YAML file with a 4x4 T_world_part.")
+@click.option("--pose-index", type=click.IntRange(min=0), default=None,
+              help="Rest the part in this stable pose (0 = most probable) instead of the cell's pose_index.")
 @click.option("--roll-step", type=ANGLE, default=15.0, show_default=True,
               help="Roll step about the closing axis, degrees (poses at 0, step, ... < 360).")
 @click.option("--merge-distance", type=str, default="1mm", show_default=True,
@@ -38,7 +40,7 @@ from .common import ANGLE, LENGTH, info, table, units_option, warn_all
               help="Write only the ok grasps (counts still cover every pose); keeps files small.")
 @click.option("--indent", type=int, default=None, help="Indent the JSON (default: compact).")
 @units_option
-def command(part, output, gripper, cell, part_pose, roll_step, no_blm, alpha, gamma, d_shift, epsilon,
+def command(part, output, gripper, cell, part_pose, pose_index, roll_step, no_blm, alpha, gamma, d_shift, epsilon,
             max_opening, mu, beta, only_ok, indent, units, merge_distance):
     """Gripper poses for PART's antipodal candidates, rolled about each closing axis, each checked
     for collisions of the gripper body and the closing jaws against the part and the table.
@@ -60,6 +62,10 @@ def command(part, output, gripper, cell, part_pose, roll_step, no_blm, alpha, ga
         raise InputError(f"--merge-distance must be >= 0, got {merge_distance}")
     g = load_gripper(gripper)
     c = load_cell(cell)
+    if pose_index is not None:
+        from dataclasses import replace
+
+        c = replace(c, pose_index=pose_index)
     T_world_part = parse_part_pose(part_pose) if part_pose is not None else None
     if not 0.0 < roll_step <= 360.0:
         raise InputError(f"--roll-step must be in (0, 360] degrees, got {roll_step}")
