@@ -1,0 +1,113 @@
+"""`grasplan grasps` end to end on an example part, its JSON, and bad-input handling."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from grasplan.cli import main
+from grasplan.cell import parse_part_pose, stable_pose, load_cell
+from grasplan.errors import InputError
+from grasplan.grasps import compute_grasps
+from grasplan.mesh import load_part
+
+
+@pytest.fixture(scope="module")
+def box_json(tmp_path_factory, example_part):
+    out = tmp_path_factory.mktemp("g") / "box.json"
+    r = CliRunner().invoke(main, ["grasps", str(example_part("box.stl")), "-o", str(out), "--roll-step", "30"])
+    assert r.exit_code == 0, r.output + str(r.exception)
+    return out, r.output
+
+
+def test_cli_writes_issue_schema(box_json):
+    out, stdout = box_json
+    doc = json.loads(out.read_text())
+    assert doc["schema"] == "grasplan.grasps/1"
+    assert {"path", "sha256", "scale_to_m", "triangles", "T_world_part"} <= set(doc["part"])
+    assert set(doc["gripper"]) >= {"name", "max_opening", "T_flange_tcp"} and doc["gripper"]["name"] == "schunk_egp_c_40"
+    assert doc["cell"]["name"] == "table"
+    assert doc["params"]["roll_step_deg"] == 30 and doc["params"]["max_opening"] == pytest.approx(0.05)
+    n = doc["counts"]
+    assert n["poses"] == len(doc["grasps"]) == n["ok"] + n["collision_part"] + n["collision_table"]
+    assert n["ok"] > 0
+    g = doc["grasps"][0]
+    assert set(g) == {"id", "candidate", "contacts", "normals", "width", "T_part_tcp", "roll", "status"}
+    assert [e["id"] for e in doc["grasps"]] == list(range(len(doc["grasps"])))
+    for e in doc["grasps"][:50]:
+        T = np.array(e["T_part_tcp"])
+        c = np.array(e["contacts"])
+        np.testing.assert_allclose(T[:3, 3], c.mean(axis=0), atol=1e-9)
+        np.testing.assert_allclose(T[:3, 0], (c[1] - c[0]) / e["width"], atol=1e-8)
+        assert e["width"] <= doc["gripper"]["max_opening"]
+    T_wp = np.array(doc["part"]["T_world_part"])
+    assert T_wp.shape == (4, 4)
+    for word in ("candidates", "poses", "collision_part", "collision_table"):
+        assert word in stdout
+
+
+def test_ok_grasps_clear_the_table(box_json):
+    out, _ = box_json
+    doc = json.loads(out.read_text())
+    T_wp = np.array(doc["part"]["T_world_part"])
+    for e in doc["grasps"]:
+        if e["status"] == "ok":
+            T_wt = T_wp @ np.array(e["T_part_tcp"])
+            # fingertips (z up to +0.008 in the TCP frame, +-(o/2+8mm) in x, +-8 mm in y) stay above z = 0
+            o = min(0.05, e["width"] + 0.01) / 2 + 0.008
+            corners = np.array([[sx * o, sy * 0.008, 0.008] for sx in (-1, 1) for sy in (-1, 1)])
+            assert (corners @ T_wt[:3, :3].T + T_wt[:3, 3])[:, 2].min() >= -1e-6
+
+
+def test_api_matches_cli_and_part_pose(example_part):
+    part = load_part(example_part("box.stl"))
+    T = parse_part_pose("0.45,0,0.5m,0,0,0")  # floating high above the table: no table collisions
+    res = compute_grasps(part, T_world_part=T, roll_step_deg=90)
+    n = res.counts()
+    assert n["collision_table"] == 0 and n["ok"] > 0
+    np.testing.assert_allclose(res.T_world_part, T)
+    assert res.to_json()["cell"]["part_pose"] == "given"
+    # default resting pose: the lowest point on z = 0
+    T0 = stable_pose(part.mesh, load_cell())
+    z = part.mesh.vertices @ T0[:3, :3].T + T0[:3, 3]
+    assert z[:, 2].min() == pytest.approx(0.0, abs=1e-12)
+    np.testing.assert_allclose((T0[:3, :3] @ part.mesh.center_mass + T0[:3, 3])[:2], [0.45, 0.0], atol=1e-12)
+
+
+def test_part_pose_parsing(tmp_path):
+    T = parse_part_pose("450mm, 0, 1cm, 0, 0, 90")
+    np.testing.assert_allclose(T[:3, 3], [0.45, 0, 0.01])
+    np.testing.assert_allclose(T[:3, :3], [[0, -1, 0], [1, 0, 0], [0, 0, 1]], atol=1e-12)
+    f = tmp_path / "pose.json"
+    f.write_text(json.dumps({"T_world_part": T.tolist()}))
+    np.testing.assert_allclose(parse_part_pose(f), T)
+    for bad in ("1,2,3", "a,b,c,d,e,f"):
+        with pytest.raises(InputError):
+            parse_part_pose(bad)
+    f.write_text(json.dumps([[1, 0], [0, 1]]))
+    with pytest.raises(InputError):
+        parse_part_pose(f)
+
+
+@pytest.mark.parametrize(
+    "args, needle",
+    [
+        (["--gripper", "nope"], "available: round_mesh_jaws, schunk_egp_c_40"),
+        (["--cell", "nope"], "available: table"),
+        (["--part-pose", "1,2"], "--part-pose"),
+    ],
+)
+def test_bad_input_exit_3_nothing_written(tmp_path, example_part, args, needle):
+    out = tmp_path / "o.json"
+    r = CliRunner().invoke(main, ["grasps", str(example_part("box.stl")), "-o", str(out), *args])
+    assert r.exit_code == 3, r.output
+    assert needle in r.output
+    assert not out.exists()
+
+
+def test_missing_part_exit_3(tmp_path):
+    out = tmp_path / "o.json"
+    r = CliRunner().invoke(main, ["grasps", str(tmp_path / "none.stl"), "-o", str(out)])
+    assert r.exit_code == 3 and not out.exists()
