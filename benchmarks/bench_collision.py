@@ -1,0 +1,68 @@
+"""Gripper-vs-part pose checks per second (target >= 20 000 /s on this 2-core machine).
+
+Runs the full collision check (body + both swept jaws vs the part BVH, table half-space) of the
+poses ``grasplan grasps`` builds for a part, several times, and prints the median rate.
+
+    python benchmarks/bench_collision.py [PART ...] [--runs 5] [--poses 100000]
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from grasplan.candidates import CandidateParams, compute_candidates  # noqa: E402
+from grasplan.cell import load_cell, stable_pose  # noqa: E402
+from grasplan.collision import GripperCollider  # noqa: E402
+from grasplan.frames import grasp_frames  # noqa: E402
+from grasplan.gripper import load_gripper  # noqa: E402
+from grasplan.mesh import load_part  # noqa: E402
+
+PAPER = ROOT.parent / "shared" / "parts" / "paper"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("parts", nargs="*", default=[str(PAPER / "TLess20.stl"), str(PAPER / "SileanePepper.stl")])
+    ap.add_argument("--runs", type=int, default=5)
+    ap.add_argument("--poses", type=int, default=100_000, help="poses per run (at most)")
+    args = ap.parse_args()
+    g = load_gripper()
+    cell = load_cell()
+    rows = []
+    for path in args.parts:
+        if not Path(path).exists():
+            print(f"skip {path}: not found", file=sys.stderr)
+            continue
+        part = load_part(path)
+        T = stable_pose(part.mesh, cell)
+        c = compute_candidates(part, CandidateParams()).candidates
+        fr = grasp_frames(c, roll_step_deg=15, max_width=g.max_opening, merge_distance=0.0,
+                          reference=T[:3, :3].T @ [0, 0, -1.0])
+        sel = np.random.default_rng(0).permutation(len(fr))[: args.poses]
+        Tp, w = fr.T_part_tcp[sel], c.width[fr.candidate[sel]]
+        col = GripperCollider(part.mesh, g, cell, T)  # part BVH built once
+        rates, calls = [], 0
+        for _ in range(args.runs):
+            col.coal_calls = 0
+            t = time.perf_counter()
+            st = col.check(Tp, w)
+            rates.append(len(w) / (time.perf_counter() - t))
+            calls = col.coal_calls
+        ok = int(np.count_nonzero(st == "ok"))
+        rows.append((Path(path).name, len(part.mesh.faces), len(w), ok, calls / len(w), statistics.median(rates), min(rates), max(rates)))
+    print(f"{'part':<20}{'faces':>8}{'poses':>9}{'ok':>7}{'coal/pose':>11}{'median/s':>11}{'min/s':>10}{'max/s':>10}")
+    for r in rows:
+        print(f"{r[0]:<20}{r[1]:>8}{r[2]:>9}{r[3]:>7}{r[4]:>11.2f}{r[5]:>11.0f}{r[6]:>10.0f}{r[7]:>10.0f}")
+    print("target: >= 20000 poses/s")
+
+
+if __name__ == "__main__":
+    main()
