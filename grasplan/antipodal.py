@@ -364,6 +364,20 @@ def _clip_edges(xs, ys, xt, yt, ext, eyt, margin):
     return rx, ry, t0, np.maximum(t1, t0)
 
 
+def _clamp_to_triangle(q, P):
+    """Points q (b, 2) moved to the nearest point of CCW triangles P (b, 3, 2) when outside them."""
+    x, y = P[..., 0], P[..., 1]
+    ex, ey = np.roll(x, -1, axis=1) - x, np.roll(y, -1, axis=1) - y
+    dx, dy = q[:, :1] - x, q[:, 1:] - y
+    inside = ((ex * dy - ey * dx) >= 0).all(axis=1)
+    t = np.clip((dx * ex + dy * ey) / np.maximum(ex * ex + ey * ey, 1e-300), 0.0, 1.0)
+    px, py = x + t * ex, y + t * ey
+    k = ((q[:, :1] - px) ** 2 + (q[:, 1:] - py) ** 2).argmin(axis=1)
+    r = np.arange(len(q))
+    near = np.stack([px[r, k], py[r, k]], axis=1)
+    return np.where(inside[:, None], q, near)
+
+
 def _overlap_or_closest(Pi, Pj, eps):
     """2D contact points: area centroid of the overlap of triangles Pi, Pj (b,3,2), else the closest pair.
 
@@ -400,12 +414,20 @@ def _overlap_or_closest(Pi, Pj, eps):
     gx, gy = Sx / (6.0 * A), Sy / (6.0 * A)
     # Triangles that only touch (within eps) leave an open boundary whose "centroid" is meaningless:
     # keep the overlap point only where it really lies inside both triangles, else use closest points.
+    # "Inside" = exactly inside, or within eps of an edge *segment* (a margin on the edge lines alone
+    # would reach far beyond the tip of a sliver's acute corner).
     for x, y, ex, ey, L in ((xa, ya, exa, eya, la), (xb, yb, exb, eyb, lb)):
-        over &= ((ex * (gy[:, None] - y) - ey * (gx[:, None] - x)) >= -eps * L).all(axis=1)
+        dx, dy = gx[:, None] - x, gy[:, None] - y
+        inside = ((ex * dy - ey * dx) >= 0).all(axis=1)
+        t = np.clip((dx * ex + dy * ey) / np.maximum(L * L, 1e-300), 0.0, 1.0)
+        near = (((dx - t * ex) ** 2 + (dy - t * ey) ** 2).min(axis=1)) <= eps * eps
+        over &= inside | near
     Pi, Pj = Pi + org, Pj + org
     if over.any():
-        qi[over, 0], qi[over, 1] = gx[over] + org[over, 0, 0], gy[over] + org[over, 0, 1]
-        qj[over] = qi[over]
+        g = np.stack([gx[over] + org[over, 0, 0], gy[over] + org[over, 0, 1]], axis=1)
+        # a point within eps outside a triangle is moved onto it, so each contact is exactly on its face
+        qi[over] = _clamp_to_triangle(g, Pi[over])
+        qj[over] = _clamp_to_triangle(g, Pj[over])
     far = ~over       # no overlap, or a zero-area one (touching): the closest pair of points
     if far.any():
         xa, ya, xb, yb = Pi[far, :, 0], Pi[far, :, 1], Pj[far, :, 0], Pj[far, :, 1]
