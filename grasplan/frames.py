@@ -99,6 +99,7 @@ def grasp_frames(
     max_width: float | None = None,
     dedupe_swapped: bool = True,
     merge_distance: float = 0.0,
+    select: np.ndarray | None = None,
 ) -> GraspFrames:
     """TCP poses for every candidate and roll angle (vectorised).
 
@@ -112,6 +113,8 @@ def grasp_frames(
     merge_distance : > 0: also drop a candidate whose two contacts fall in the same
         ``merge_distance`` grid cells as an earlier candidate's (in either order when
         ``dedupe_swapped``); 0 drops exact repeats only
+    select : optional (k,) int indices of the candidates that may be posed (e.g. from
+        :func:`grasplan.thinning.thin_candidates`); the others are not posed
 
     Returns
     -------
@@ -122,6 +125,10 @@ def grasp_frames(
     use = np.ones(n, dtype=bool)
     if max_width is not None:
         use &= candidates.width <= float(max_width)
+    if select is not None:
+        allowed = np.zeros(n, dtype=bool)
+        allowed[np.asarray(select, dtype=np.int64)] = True
+        use &= allowed
     if n and (dedupe_swapped or merge_distance > 0):
         res = float(merge_distance) if merge_distance > 0 else 1e-9
         if dedupe_swapped:

@@ -38,6 +38,7 @@ class GraspResult:
     roll_step_deg: float = 15.0
     part_pose_source: str = "stable_pose"
     merge_distance: float = 1e-3
+    thin: tuple = (0.0, 10.0)
 
     @property
     def width(self) -> np.ndarray:
@@ -68,6 +69,8 @@ class GraspResult:
         params = self.cand.params.to_json()
         params["roll_step_deg"] = float(self.roll_step_deg)
         params["merge_distance"] = float(self.merge_distance)
+        params["thin_spacing"] = float(self.thin[0])
+        params["thin_axis_deg"] = float(self.thin[1])
         ci = fr.candidate
         r = lambda a: np.round(a, 10).tolist()  # noqa: E731 - 1e-10 m / rad: keeps the files small
         contacts = r(c.contacts[ci])
@@ -103,6 +106,8 @@ def compute_grasps(
     T_world_part: np.ndarray | None = None,
     roll_step_deg: float = 15.0,
     merge_distance: float = 1e-3,
+    thin_spacing: float = 0.0,
+    thin_axis_deg: float = 10.0,
     load_s: float = 0.0,
 ) -> GraspResult:
     """Candidates (``cand_params``), TCP poses every ``roll_step_deg`` about each closing axis, and
@@ -113,7 +118,9 @@ def compute_grasps(
     gripper is symmetric. ``merge_distance`` (m, default 1 mm; 0 = off): a candidate whose two
     contacts fall in the same ``merge_distance`` grid cells as an earlier candidate's is not posed
     (the BLM yields many near-identical pairs on neighbouring triangles; 1 mm is far below the
-    jaws' 16 mm width).
+    jaws' 16 mm width). ``thin_spacing`` > 0 (m) additionally poses only one candidate per cluster
+    of :func:`grasplan.thinning.thin_candidates` (grasp-centre grid of that pitch x closing-axis
+    direction quantised to ``thin_axis_deg``); 0 (default) = off.
     """
     if not (np.isfinite(merge_distance) and merge_distance >= 0):
         raise InputError(f"merge_distance must be >= 0 m, got {merge_distance!r}")
@@ -138,9 +145,14 @@ def compute_grasps(
 
     t = time.perf_counter()
     down_in_part = T[:3, :3].T @ np.array([0.0, 0.0, -1.0])
+    select = None
+    if thin_spacing > 0:
+        from .thinning import thin_candidates
+
+        select = thin_candidates(cand.candidates, spacing=float(thin_spacing), axis_step_deg=float(thin_axis_deg))
     frames = grasp_frames(cand.candidates, roll_step_deg=roll_step_deg, reference=down_in_part,
                           max_width=g.max_opening, dedupe_swapped=g.symmetric,
-                          merge_distance=merge_distance)
+                          merge_distance=merge_distance, select=select)
     timing["frames"] = time.perf_counter() - t
 
     t = time.perf_counter()
@@ -149,7 +161,7 @@ def compute_grasps(
     timing["collision"] = time.perf_counter() - t
     return GraspResult(cand=cand, gripper=g, cell=c, T_world_part=T, frames=frames, status=status,
                        timing_s=timing, roll_step_deg=float(roll_step_deg), part_pose_source=source,
-                       merge_distance=float(merge_distance))
+                       merge_distance=float(merge_distance), thin=(float(thin_spacing), float(thin_axis_deg)))
 
 
 def params_with_gripper(params: CandidateParams, gripper: Gripper) -> CandidateParams:

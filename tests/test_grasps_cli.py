@@ -111,3 +111,17 @@ def test_missing_part_exit_3(tmp_path):
     out = tmp_path / "o.json"
     r = CliRunner().invoke(main, ["grasps", str(tmp_path / "none.stl"), "-o", str(out)])
     assert r.exit_code == 3 and not out.exists()
+
+
+def test_thinning_and_merge_reduce_posed_candidates(example_part):
+    part = load_part(example_part("gear.stl"))
+    full = compute_grasps(part, roll_step_deg=120, merge_distance=0.0)
+    merged = compute_grasps(part, roll_step_deg=120)
+    thin = compute_grasps(part, roll_step_deg=120, thin_spacing=0.005)
+    a, b, c = (r.counts()["posed_candidates"] for r in (full, merged, thin))
+    assert a >= b >= c and c < a
+    assert thin.to_json()["params"]["thin_spacing"] == 0.005
+    # thinning and merging only drop poses: every remaining pose exists in the full set with the same status
+    key = {(int(ci), round(float(r), 6)): s for ci, r, s in zip(full.frames.candidate, full.frames.roll, full.status)}
+    for ci, r, s in zip(thin.frames.candidate, thin.frames.roll, thin.status):
+        assert key[(int(ci), round(float(r), 6))] == s

@@ -27,6 +27,9 @@ from .common import ANGLE, LENGTH, info, table, units_option, warn_all
 @click.option("--merge-distance", type=str, default="1mm", show_default=True,
               help="Pose a candidate only if its contacts are not in the same grid cells of this size as an "
                    "earlier candidate's (1mm); 0 poses every candidate.")
+@click.option("--thin", "thin_spacing", type=LENGTH, default=None,
+              help="Also pose only one candidate per cluster (grasp-centre grid of this pitch x closing axis in "
+                   "10 deg steps, grasplan.thinning), e.g. 3mm [default: off].")
 @click.option("--no-blm", is_flag=True, help="Skip the boundary layer mesher.")
 @click.option("--alpha", type=LENGTH, default=1e-4, show_default=True, help="BLM layer width (0.1mm).")
 @click.option("--gamma", type=ANGLE, default=135.0, show_default=True, help="BLM surface angle, degrees.")
@@ -41,7 +44,7 @@ from .common import ANGLE, LENGTH, info, table, units_option, warn_all
 @click.option("--indent", type=int, default=None, help="Indent the JSON (default: compact).")
 @units_option
 def command(part, output, gripper, cell, part_pose, pose_index, roll_step, no_blm, alpha, gamma, d_shift, epsilon,
-            max_opening, mu, beta, only_ok, indent, units, merge_distance):
+            max_opening, mu, beta, only_ok, indent, units, merge_distance, thin_spacing):
     """Gripper poses for PART's antipodal candidates, rolled about each closing axis, each checked
     for collisions of the gripper body and the closing jaws against the part and the table.
 
@@ -83,7 +86,8 @@ def command(part, output, gripper, cell, part_pose, pose_index, roll_step, no_bl
     info(f"  {p.units_note}")
     warn_all(p.warnings)
     res = compute_grasps(p, cand_params=params, gripper=g, cell=c, T_world_part=T_world_part,
-                         roll_step_deg=roll_step, merge_distance=merge_distance, load_s=load_s)
+                         roll_step_deg=roll_step, merge_distance=merge_distance,
+                         thin_spacing=thin_spacing or 0.0, load_s=load_s)
     doc = res.to_json()
     if only_ok:
         doc["grasps"] = [e for e in doc["grasps"] if e["status"] == "ok"]
