@@ -8,7 +8,7 @@ import trimesh
 from hypothesis import HealthCheck, Phase, example, given, settings
 from hypothesis import strategies as st
 
-from conftest import PAPER_PARTS, SHARP_PAPER_PARTS, paper_part
+from conftest import EXAMPLE_PARTS, PAPER_PARTS, SHARP_PAPER_PARTS, paper_part
 from grasplan import antipodal as ap
 from grasplan.antipodal import Candidates, find_candidates
 from grasplan.blm import boundary_layer
@@ -212,7 +212,7 @@ def test_facing_each_other_is_rejected():
 
 
 def _stage_inputs(name, blm):
-    part = load_part(f"examples/parts/{name}", units="mm") if name != "box30" else part_from_trimesh(
+    part = load_part(EXAMPLE_PARTS / name, units="mm") if name != "box30" else part_from_trimesh(
         trimesh.creation.box(extents=[0.03, 0.02, 0.01]))
     mesh = boundary_layer(part.mesh, tol=part.tol).mesh if blm else part.mesh
     return part, mesh, classify_convexity(mesh, tol=part.tol)

@@ -121,8 +121,8 @@ def test_bracket_notch_faces_are_concave(example_part):
     assert convex[others].all()
 
 
-def test_rigid_motion_invariance():
-    part = load_part("examples/parts/gear.stl", units="mm")
+def test_rigid_motion_invariance(example_part):
+    part = load_part(example_part("gear.stl"), units="mm")
     rng = np.random.default_rng(3)
     T = trimesh.transformations.random_rotation_matrix(rng.random(3))
     T[:3, 3] = rng.normal(size=3)
