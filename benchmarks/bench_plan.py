@@ -94,7 +94,7 @@ def bench_rrt(n_queries: int, seed: int = 0):
 
 def bench_plan(parts: list[Path]):
     from grasplan.mesh import load_part
-    from grasplan.plan import plan
+    from grasplan.planning import plan
 
     rows = []
     for path in parts:

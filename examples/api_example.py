@@ -5,7 +5,7 @@ Run:  python examples/api_example.py [PART] [-o OUT_DIR] [--top K]
 
 Steps:
 1. ``load_part`` reads the mesh (units decided from its size: the example parts are in mm).
-2. ``grasplan.plan.plan`` runs every stage: boundary layer mesher, convexity, antipodal candidates,
+2. ``grasplan.planning.plan`` runs every stage: boundary layer mesher, convexity, antipodal candidates,
    gripper poses with full-jaw collision checks, IK and collision-free joint paths for the best
    ``top`` grasps. It returns a ``PlanResult``.
 3. ``PlanResult.write`` saves the ``grasplan.plan/1`` JSON; ``grasplan.schemas.validate`` checks it.
@@ -20,7 +20,7 @@ from pathlib import Path
 
 from grasplan import export
 from grasplan.mesh import load_part
-from grasplan.plan import plan
+from grasplan.planning import plan
 from grasplan.schemas import validate
 
 HERE = Path(__file__).resolve().parent

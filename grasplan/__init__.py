@@ -31,7 +31,7 @@ _LAZY = {
     "load_robot": ("grasplan.robot", "load_robot"),
     "load_cell": ("grasplan.cell", "load_cell"),
     "solve_ik": ("grasplan.ik", "solve_ik"),
-    "plan": ("grasplan.plan", "plan"),
+    "plan": ("grasplan.planning", "plan"),
     "write_viewer": ("grasplan.viewer", "write_viewer"),
 }
 

@@ -37,7 +37,7 @@ def test_make_parts(tmp_path):
 
 @pytest.mark.slow
 def test_api_example(tmp_path):
-    for mod in ("grasplan.plan", "grasplan.grasps", "grasplan.robot", "grasplan.scene"):
+    for mod in ("grasplan.planning", "grasplan.grasps", "grasplan.robot", "grasplan.scene"):
         if importlib.util.find_spec(mod) is None:
             pytest.skip(f"upstream module {mod} not available yet")
     r = _run([EXAMPLES / "api_example.py", "-o", tmp_path, "--top", "3"])

@@ -4,7 +4,7 @@ Two sources of plans:
 - a synthetic ``grasplan.plan/1`` document built here with the real UR5 model of example-robot-data
   (Pinocchio FK + a small damped-least-squares IK for the pre-grasp and approach), so the exporters
   are tested on their own;
-- the real pipeline on the paper's TLess20 (``grasplan.plan.plan``), once per module, skipped when
+- the real pipeline on the paper's TLess20 (``grasplan.planning.plan``), once per module, skipped when
   the part or the upstream stages are absent.
 """
 from __future__ import annotations
@@ -461,9 +461,9 @@ def tless20():
     from conftest import paper_part
 
     path = paper_part("TLess20.stl")
-    _upstream("grasplan.plan", "grasplan.grasps", "grasplan.robot", "grasplan.scene")
+    _upstream("grasplan.planning", "grasplan.grasps", "grasplan.robot", "grasplan.scene")
     from grasplan.mesh import load_part
-    from grasplan.plan import plan as plan_part
+    from grasplan.planning import plan as plan_part
     from grasplan.scene import CollisionScene
 
     result = plan_part(load_part(path), top=3)

@@ -204,7 +204,7 @@ TOP = 5
 def paper_plan(request):
     from conftest import paper_part
     from grasplan.mesh import load_part
-    from grasplan.plan import plan
+    from grasplan.planning import plan
 
     path = paper_part(request.param)
     t = time.perf_counter()

@@ -576,9 +576,9 @@ def test_browser_many_grasps_list_is_chunked(tmp_path):
 def test_browser_tless20_plan(paper, tmp_path):
     """The issue's acceptance check: a real `grasplan plan` of TLess20 with the UR5, rendered."""
     path = paper("TLess20.stl")
-    for module in ("grasplan.plan", "grasplan.grasps", "grasplan.scene", "grasplan.paths"):
+    for module in ("grasplan.planning", "grasplan.grasps", "grasplan.scene", "grasplan.paths"):
         pytest.importorskip(module, reason="the planning pipeline has not landed")
-    from grasplan.plan import plan
+    from grasplan.planning import plan
 
     result = plan(load_part(path), robot="ur5", top=3, seed=0, budget_s=30.0)
     doc = result.to_json()

@@ -51,7 +51,7 @@ def command(part, robot_name, output, gripper, cell, part_pose, top, seed, roll_
     when no grasp could be planned: the per-grasp statuses say why.
     """
     from ..mesh import load_part
-    from ..plan import STATUSES, plan
+    from ..planning import STATUSES, plan
     from ..robot import load_robot
 
     t0 = time.perf_counter()

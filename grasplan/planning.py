@@ -37,6 +37,7 @@ Score (documented, all terms in [0, 1])::
 """
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -48,7 +49,7 @@ import numpy as np
 from .candidates import CandidateParams
 from .errors import InputError
 from .io import write_json
-from .mesh import Part
+from .mesh import Part, load_part
 
 SCHEMA = "grasplan.plan/1"
 Status = Literal["planned", "collision_part", "collision_table", "unreachable", "ik_collision", "no_path", "not_tried"]
@@ -360,8 +361,9 @@ def plan_grasps(grasps, robot, scene, *, params: PlanParams = PlanParams(),
 
 
 def plan(
-    part: Part,
+    part: Part | str | os.PathLike,
     *,
+    units: str = "auto",
     robot: str = "ur5",
     gripper: str = "schunk_egp_c_40",
     cell: str = "table",
@@ -379,8 +381,10 @@ def plan(
 
     Parameters
     ----------
-    part : Part
-        From :func:`grasplan.mesh.load_part`.
+    part : Part or path
+        From :func:`grasplan.mesh.load_part`, or a mesh file path (loaded with ``units``).
+    units : str
+        Units of the mesh file when ``part`` is a path (see :func:`grasplan.mesh.load_part`).
     robot, gripper, cell : str
         Names (or paths) for ``load_robot``, ``load_gripper``, ``load_cell``; unknown names raise
         ``ConfigError`` listing the available ones (before any heavy work).
@@ -403,6 +407,10 @@ def plan(
     from .robot import load_robot
     from .scene import CollisionScene
 
+    if not isinstance(part, Part):
+        t = time.perf_counter()
+        part = load_part(part, units=units)
+        load_s = time.perf_counter() - t
     params = PlanParams(top=top, seed=seed, time_limit_per_query=time_limit_per_query, budget_s=budget_s)
     t = time.perf_counter()
     rob = load_robot(robot)
