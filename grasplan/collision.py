@@ -161,6 +161,8 @@ class GripperCollider:
         # world z of a part-frame point p: zrow[:3] @ p + zrow[3]
         self.zrow = T_world_part[2].copy()
         self.request = coal.CollisionRequest()
+        self.request.enable_contact = False  # a yes/no answer: no EPA penetration/contact computation
+        self.request.num_max_contacts = 1
         self.result = coal.CollisionResult()
         self._tf = coal.Transform3s()
         self._identity = coal.Transform3s()
@@ -239,9 +241,13 @@ class GripperCollider:
         collide = coal.collide
         req, res, tf, I, bvh = self.request, self.result, self._tf, self._identity, self.part_bvh
         calls = 0
-        # jaws first: they sit next to the contacts and hit the part most often
+        # shapes that hit most often are tried first (jaws first to begin with; the order adapts
+        # every 512 poses to the hit counts so far); the first hit decides the pose
         order = list(range(len(sets)))[::-1]
-        for m in poses:
+        first_hits = [0] * len(sets)
+        for k, m in enumerate(poses):
+            if k and k % 512 == 0:
+                order = sorted(order, key=lambda i: -first_hits[i])
             for si in order:
                 if not need[si, m]:
                     continue
@@ -252,6 +258,7 @@ class GripperCollider:
                 calls += 1
                 if collide(sets[si].geoms[sets[si].index[m]], tf, bvh, I, req, res):
                     hit[m] = True
+                    first_hits[si] += 1
                     break
         self.coal_calls += calls
         # a shape crossing no triangle may still lie wholly inside a closed part
