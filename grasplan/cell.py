@@ -107,86 +107,24 @@ def load_cell(name_or_path: str | os.PathLike = "table") -> Cell:
 
 # -- stable poses ----------------------------------------------------------------------------
 
-def _solid_angles(tri: np.ndarray, p: np.ndarray) -> np.ndarray:
-    """Solid angle (sr) of triangles ``(n, 3, 3)`` seen from ``p`` (Van Oosterom & Strackee)."""
-    a, b, c = (tri[:, i] - p for i in range(3))
-    la, lb, lc = (np.linalg.norm(v, axis=1) for v in (a, b, c))
-    num = np.abs(np.einsum("ij,ij->i", a, np.cross(b, c)))
-    den = la * lb * lc + np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", a, c) * lb + np.einsum("ij,ij->i", b, c) * la
-    return 2.0 * np.arctan2(num, den)
-
-
 def stable_poses(mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray]:
-    """Quasi-static resting poses of ``mesh`` on a plane (Goldberg et al.'s toppling model, as in
-    ``trimesh.poses.compute_stable_poses`` with sigma = 0, reimplemented without networkx).
+    """Quasi-static resting poses of ``mesh`` on a plane: trimesh's implementation of the toppling
+    model (Goldberg et al.; ``trimesh.poses.compute_stable_poses``) with ``sigma = 0``, so no random
+    perturbation of the centre of mass: deterministic.
 
-    Returns ``(R (k, 3, 3), prob (k,))``, most probable first (ties: by the resting normal, so the
-    result is deterministic). ``R`` rotates the part so that the resting face's outward normal
-    points down (-z); the translation is left to :func:`stable_pose`.
+    Returns ``(R (k, 3, 3), prob (k,))``, most probable first (ties: by the resting normal in the
+    part frame, so the order is deterministic). ``R`` is ``R_world_part``: it turns the part so
+    that it rests on its face; the translation is left to :func:`stable_pose`.
     """
-    hull = mesh.convex_hull
-    com = mesh.center_mass if mesh.is_watertight and mesh.volume > 0 else hull.center_mass
-    tri = hull.triangles
-    n = hull.face_normals
-    nf = len(tri)
-    prob = _solid_angles(tri, com) / (4.0 * np.pi)
-    # centre of mass projected onto each face's plane, barycentric inside test
-    d = np.einsum("ij,ij->i", n, com - tri[:, 0])
-    proj = com - d[:, None] * n
-    bary = trimesh.triangles.points_to_barycentric(tri, proj)
-    stable = np.all(bary >= -1e-12, axis=1)
-    # unstable faces topple across the edge whose wedge (centroid, edge) holds the projection
-    succ = np.arange(nf)
-    adj = hull.face_adjacency
-    edges = hull.face_adjacency_edges
-    src = np.concatenate([adj[:, 0], adj[:, 1]])
-    dst = np.concatenate([adj[:, 1], adj[:, 0]])
-    e = np.concatenate([edges, edges])
-    cen = hull.triangles_center[src]
-    v1 = hull.vertices[e[:, 0]]
-    v2 = hull.vertices[e[:, 1]]
-    nn = n[src]
-    flip = np.einsum("ij,ij->i", np.cross(v1 - cen, v2 - cen), nn) < 0
-    v1, v2 = np.where(flip[:, None], v2, v1), np.where(flip[:, None], v1, v2)
-    pc = proj[src]
-    # inside the wedge: on the left of centroid->v1 ... and right of centroid->v2, in the face plane
-    s1 = np.einsum("ij,ij->i", np.cross(v1 - cen, pc - cen), nn)
-    s2 = np.einsum("ij,ij->i", np.cross(pc - cen, v2 - cen), nn)
-    ok = (s1 <= 0) & (s2 <= 0) & ~stable[src]
-    # first matching neighbour per source face (deterministic: order of face_adjacency)
-    order = np.flatnonzero(ok)
-    _, first = np.unique(src[order], return_index=True)
-    succ[src[order[first]]] = dst[order[first]]
-    # follow the topple chain to its sink (pointer doubling); faces in cycles are dropped
-    root = succ.copy()
-    for _ in range(int(np.ceil(np.log2(nf + 1))) + 2):
-        root = root[root]
-    sink = stable[root] & (succ[root] == root)
-    acc = np.zeros(nf)
-    np.add.at(acc, root[sink], prob[sink])
-    faces = np.flatnonzero(acc > 0)
-    # merge coplanar sinks (same resting normal)
-    keys = np.round(n[faces], 3) + 0.0
-    uk, inv = np.unique(keys, axis=0, return_inverse=True)
-    inv = inv.reshape(-1)
-    p = np.zeros(len(uk))
-    np.add.at(p, inv, acc[faces])
-    normals = np.zeros((len(uk), 3))
-    for k in range(len(uk)):  # one per resting plane (a handful)
-        normals[k] = n[faces[inv == k][0]]
-    order = np.lexsort((uk[:, 2], uk[:, 1], uk[:, 0], -np.round(p, 12)))  # by probability, then normal
-    R = np.stack([_rest_rotation(normals[k]) for k in order]) if len(order) else np.zeros((0, 3, 3))
-    return R, p[order] / max(p.sum(), 1e-300)
-
-
-def _rest_rotation(normal: np.ndarray) -> np.ndarray:
-    """Rotation taking the outward ``normal`` to -z (the same construction as trimesh)."""
-    z = -np.asarray(normal, dtype=np.float64)
-    x = np.array([-z[1], z[0], 0.0])
-    x = np.array([1.0, 0.0, 0.0]) if np.linalg.norm(x) < 1e-12 else x / np.linalg.norm(x)
-    y = np.cross(z, x)
-    y /= np.linalg.norm(y)
-    return np.array([x, y, z])
+    com = mesh.center_mass if mesh.is_watertight and mesh.volume > 0 else mesh.convex_hull.center_mass
+    transforms, probs = trimesh.poses.compute_stable_poses(mesh, center_mass=com, sigma=0.0, n_samples=1, threshold=0.0)
+    if len(transforms) == 0:
+        return np.zeros((0, 3, 3)), np.zeros(0)
+    R = np.asarray(transforms, dtype=np.float64)[:, :3, :3]
+    probs = np.asarray(probs, dtype=np.float64)
+    down = np.round(np.einsum("kji,j->ki", R, [0.0, 0.0, -1.0]), 6) + 0.0  # resting normal, part frame
+    order = np.lexsort((down[:, 2], down[:, 1], down[:, 0], -np.round(probs, 9)))
+    return R[order], probs[order] / probs.sum()
 
 
 def stable_pose(part_mesh: trimesh.Trimesh, cell: Cell | None = None) -> np.ndarray:

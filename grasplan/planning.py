@@ -371,6 +371,7 @@ def plan(
     seed: int = 0,
     cand_params: CandidateParams = CandidateParams(),
     roll_step_deg: float = 15.0,
+    thin_spacing: float = 0.003,
     T_world_part: np.ndarray | None = None,
     time_limit_per_query: float = 1.0,
     budget_s: float | None = 100.0,
@@ -392,7 +393,7 @@ def plan(
         Plan at most ``top`` grasps, best score first.
     seed : int
         Seeds IK and OMPL: same inputs and seed, same result.
-    cand_params, roll_step_deg, T_world_part
+    cand_params, roll_step_deg, thin_spacing, T_world_part
         Passed to :func:`grasplan.grasps.compute_grasps`.
     time_limit_per_query : float, s
         RRTConnect budget per attempt.
@@ -416,7 +417,7 @@ def plan(
     rob = load_robot(robot)
     t_robot = time.perf_counter() - t
     gr = compute_grasps(part, cand_params=cand_params, gripper=gripper, cell=cell, T_world_part=T_world_part,
-                        roll_step_deg=roll_step_deg, load_s=load_s)
+                        roll_step_deg=roll_step_deg, thin_spacing=thin_spacing, load_s=load_s)
     if progress is not None:
         progress({"stage": "grasps", "counts": gr.counts()})
     t = time.perf_counter()

@@ -24,12 +24,12 @@ from .common import ANGLE, LENGTH, info, table, units_option, warn_all
               help="Rest the part in this stable pose (0 = most probable) instead of the cell's pose_index.")
 @click.option("--roll-step", type=ANGLE, default=15.0, show_default=True,
               help="Roll step about the closing axis, degrees (poses at 0, step, ... < 360).")
-@click.option("--merge-distance", type=str, default="1mm", show_default=True,
-              help="Pose a candidate only if its contacts are not in the same grid cells of this size as an "
-                   "earlier candidate's (1mm); 0 poses every candidate.")
-@click.option("--thin", "thin_spacing", type=LENGTH, default=None,
-              help="Also pose only one candidate per cluster (grasp-centre grid of this pitch x closing axis in "
-                   "10 deg steps, grasplan.thinning), e.g. 3mm [default: off].")
+@click.option("--thin", "thin_spacing", type=str, default="3mm", show_default=True,
+              help="Pose only one candidate per cluster (grasp-centre grid of this pitch x closing axis in "
+                   "10 deg steps, grasplan.thinning); 0 poses every candidate.")
+@click.option("--merge-distance", type=str, default="0", show_default=True,
+              help="Also skip a candidate whose contacts fall in the same grid cells of this size as an "
+                   "earlier candidate's; 0 = off.")
 @click.option("--no-blm", is_flag=True, help="Skip the boundary layer mesher.")
 @click.option("--alpha", type=LENGTH, default=1e-4, show_default=True, help="BLM layer width (0.1mm).")
 @click.option("--gamma", type=ANGLE, default=135.0, show_default=True, help="BLM surface angle, degrees.")
@@ -63,6 +63,9 @@ def command(part, output, gripper, cell, part_pose, pose_index, roll_step, no_bl
     merge_distance = parse_length(merge_distance, name="--merge-distance", allow_negative=True)
     if merge_distance < 0:
         raise InputError(f"--merge-distance must be >= 0, got {merge_distance}")
+    thin_spacing = parse_length(thin_spacing, name="--thin", allow_negative=True)
+    if thin_spacing < 0:
+        raise InputError(f"--thin must be >= 0, got {thin_spacing}")
     g = load_gripper(gripper)
     c = load_cell(cell)
     if pose_index is not None:
@@ -87,7 +90,7 @@ def command(part, output, gripper, cell, part_pose, pose_index, roll_step, no_bl
     warn_all(p.warnings)
     res = compute_grasps(p, cand_params=params, gripper=g, cell=c, T_world_part=T_world_part,
                          roll_step_deg=roll_step, merge_distance=merge_distance,
-                         thin_spacing=thin_spacing or 0.0, load_s=load_s)
+                         thin_spacing=thin_spacing, load_s=load_s)
     doc = res.to_json()
     if only_ok:
         doc["grasps"] = [e for e in doc["grasps"] if e["status"] == "ok"]

@@ -27,6 +27,11 @@ from .common import ANGLE, LENGTH, info, progress, table, units_option, warn_all
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of IK and OMPL (deterministic results).")
 @click.option("--roll-step", "roll_step_deg", type=ANGLE, default=15.0, show_default=True,
               help="Roll step of the TCP about the closing axis, degrees.")
+@click.option("--thin", "thin_spacing", type=str, default="3mm", show_default=True,
+              help="Pose one candidate per cluster (grasp-centre grid of this pitch x closing axis in 10 deg "
+                   "steps); 0 poses every candidate.")
+@click.option("--pose-index", type=click.IntRange(min=0), default=None,
+              help="Rest the part in this stable pose (0 = most probable) instead of the cell's pose_index.")
 @click.option("--time-limit", "time_limit", type=click.FloatRange(min=0.0, min_open=True), default=1.0,
               show_default=True, help="RRTConnect time per attempt (seconds).")
 @click.option("--budget", "budget_s", type=click.FloatRange(min=0.0, min_open=True), default=100.0,
@@ -42,8 +47,8 @@ from .common import ANGLE, LENGTH, info, progress, table, units_option, warn_all
               help="Normals anti-parallel within this (degrees).")
 @click.option("--mu", type=click.FloatRange(min=0.0), default=0.3, show_default=True, help="Friction coefficient.")
 @units_option
-def command(part, robot_name, output, gripper, cell, part_pose, top, seed, roll_step_deg, time_limit, budget_s,
-            no_blm, alpha, gamma_deg, d_shift, epsilon, max_opening, beta_deg, mu, units):
+def command(part, robot_name, output, gripper, cell, part_pose, top, seed, roll_step_deg, thin_spacing, pose_index,
+            time_limit, budget_s, no_blm, alpha, gamma_deg, d_shift, epsilon, max_opening, beta_deg, mu, units):
     """Plan grasps of PART that ROBOT can reach: IK, straight approach, OMPL path from home.
 
     Writes grasplan.plan/1 JSON (the grasps file plus robot, per-grasp status, score, rank and,
@@ -61,6 +66,17 @@ def command(part, robot_name, output, gripper, cell, part_pose, top, seed, roll_
                                       epsilon=epsilon, max_opening=max_opening, beta_deg=beta_deg, mu=mu)
     except ValueError as exc:
         raise InputError(str(exc)) from None
+    from ..units import parse_length
+
+    thin_spacing = parse_length(thin_spacing, name="--thin", allow_negative=True)
+    if thin_spacing < 0:
+        raise InputError(f"--thin must be >= 0, got {thin_spacing}")
+    if pose_index is not None:
+        from dataclasses import replace
+
+        from ..cell import load_cell
+
+        cell = replace(load_cell(cell), pose_index=pose_index)
     T_world_part = None
     if part_pose is not None:
         from ..cell import parse_part_pose
@@ -91,7 +107,8 @@ def command(part, robot_name, output, gripper, cell, part_pose, top, seed, roll_
 
     try:
         result = plan(p, robot=robot_name, gripper=gripper, cell=cell, top=top, seed=seed, cand_params=cand_params,
-                      roll_step_deg=roll_step_deg, T_world_part=T_world_part, time_limit_per_query=time_limit,
+                      roll_step_deg=roll_step_deg, thin_spacing=thin_spacing, T_world_part=T_world_part,
+                      time_limit_per_query=time_limit,
                       budget_s=budget_s, progress=on_progress, load_s=load_s)
     finally:
         if bar_state["bar"] is not None:
