@@ -161,7 +161,11 @@ class GripperCollider:
         # world z of a part-frame point p: zrow[:3] @ p + zrow[3]
         self.zrow = T_world_part[2].copy()
         self.request = coal.CollisionRequest()
-        self.request.enable_contact = False  # a yes/no answer: no EPA penetration/contact computation
+        # enable_contact stays True (coal's default) although a yes/no answer is all we need: with
+        # enable_contact = False coal 3.0 misses shallow box-into-mesh penetrations (a swept jaw
+        # 51 micrometres into SileaneGear reported free; python-fcl and coal with contacts both
+        # report it). test_paper_part_ok_and_rejected_independently_checked[SileaneGear] pins it.
+        self.request.enable_contact = True
         self.request.num_max_contacts = 1
         self.result = coal.CollisionResult()
         self._tf = coal.Transform3s()

@@ -244,3 +244,4 @@ def test_part_status_invariant_under_rigid_motion(seed):
     a = GripperCollider(box, g, Cell("table"), np.eye(4)).part_collision(T, w)
     b = GripperCollider(moved, g, Cell("table"), np.eye(4)).part_collision(M @ T, w)
     assert np.array_equal(a, b)
+

@@ -115,9 +115,9 @@ def test_missing_part_exit_3(tmp_path):
 
 def test_thinning_and_merge_reduce_posed_candidates(example_part):
     part = load_part(example_part("gear.stl"))
-    full = compute_grasps(part, roll_step_deg=120, merge_distance=0.0)
-    merged = compute_grasps(part, roll_step_deg=120)
-    thin = compute_grasps(part, roll_step_deg=120, thin_spacing=0.005)
+    full = compute_grasps(part, roll_step_deg=120, merge_distance=0.0, thin_spacing=0.0)
+    merged = compute_grasps(part, roll_step_deg=120, merge_distance=1e-3, thin_spacing=0.0)
+    thin = compute_grasps(part, roll_step_deg=120, merge_distance=1e-3, thin_spacing=0.005)
     a, b, c = (r.counts()["posed_candidates"] for r in (full, merged, thin))
     assert a >= b >= c and c < a
     assert thin.to_json()["params"]["thin_spacing"] == 0.005
