@@ -42,7 +42,8 @@ from .common import ANGLE, LENGTH, info, progress, table, units_option, warn_all
               help="BLM surface angle (degrees): facets join a surface when normals differ <= 180 - gamma.")
 @click.option("--d-shift", type=LENGTH, default=1e-5, show_default="0.01mm", help="Convexity test shift.")
 @click.option("--epsilon", type=LENGTH, default=5e-3, show_default="5mm", help="Antipodal overlap threshold.")
-@click.option("--max-opening", type=LENGTH, default=0.05, show_default="50mm", help="Largest contact distance.")
+@click.option("--max-opening", type=LENGTH, default=None,
+              help="Largest contact distance searched [default: the gripper's max_opening].")
 @click.option("--beta", "beta_deg", type=ANGLE, default=2.0, show_default=True,
               help="Normals anti-parallel within this (degrees).")
 @click.option("--mu", type=click.FloatRange(min=0.0), default=0.3, show_default=True, help="Friction coefficient.")
@@ -61,6 +62,10 @@ def command(part, robot_name, output, gripper, cell, part_pose, top, seed, roll_
 
     t0 = time.perf_counter()
     # validate cheap inputs first: nothing is written on bad input
+    if max_opening is None:
+        from ..gripper import load_gripper
+
+        max_opening = load_gripper(gripper).max_opening  # unknown gripper -> ConfigError listing them
     try:
         cand_params = CandidateParams(blm=not no_blm, alpha=alpha, gamma_deg=gamma_deg, d_shift=d_shift,
                                       epsilon=epsilon, max_opening=max_opening, beta_deg=beta_deg, mu=mu)
