@@ -176,9 +176,13 @@ class PlanResult:
             "T_world_base": np.asarray(r.T_world_base, dtype=np.float64).tolist(),
             "q_home": np.asarray(r.q_home, dtype=np.float64).tolist(),
         }
+        # the grasp stage's "ok" (collision-free) poses are split into the plan statuses here; its
+        # other counts (candidates, poses, ...) stay, and "collision_free" keeps the stage's number
+        stage_counts = dict(doc.get("counts", {}))
+        stage_counts["collision_free"] = stage_counts.pop("ok", 0)
         counts = self.counts()
-        counts["plan_grasps"] = counts.pop("grasps")
-        doc["counts"] = {**doc.get("counts", {}), **counts}
+        counts.pop("grasps", None)  # == stage_counts["poses"]
+        doc["counts"] = {**stage_counts, **counts}
         doc["timing_s"] = {**doc.get("timing_s", {}), **{k: float(v) for k, v in self.timing_s.items()}}
         doc["plan_params"] = self.params.to_json()
         t = self.table

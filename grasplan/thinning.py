@@ -7,8 +7,8 @@ with the tessellation instead of the part (TLess20: 72 k candidates -> 1.7 M pos
 names this as its next step ("to reduce the number of grasps, a clustering algorithm will be
 tested").
 
-Clustering: each candidate is keyed by the cell of a grid of pitch ``spacing`` that holds its grasp
-centre (the contacts' midpoint, part frame) and by its closing-axis direction quantised to
+Clustering: each candidate is keyed by the cell of a grid of pitch ``spacing`` (walls offset by
+0.618 of the pitch, away from the round coordinates of CAD parts) that holds its grasp centre (the contacts' midpoint, part frame) and by its closing-axis direction quantised to
 ``axis_step_deg`` (sign-free: contact order does not matter to a symmetric gripper). Each cluster
 keeps one representative: the candidate closest to the cluster's mean grasp centre (ties: lowest
 index). Deterministic, vectorised, O(n log n).
@@ -18,6 +18,9 @@ from __future__ import annotations
 import numpy as np
 
 from .antipodal import Candidates
+
+
+_GRID_OFFSET = 0.5 * (np.sqrt(5.0) - 1.0)  # 0.618..., far from the round fractions CAD uses
 
 
 def thin_candidates(candidates: Candidates, *, spacing: float = 0.003, axis_step_deg: float = 10.0) -> np.ndarray:
@@ -50,7 +53,11 @@ def thin_candidates(candidates: Candidates, *, spacing: float = 0.003, axis_step
     major = np.abs(axis).argmax(axis=1)
     axis *= np.where(axis[np.arange(n), major] < 0, -1.0, 1.0)[:, None]
     step = np.radians(axis_step_deg)
-    key = np.column_stack([np.floor(centre / spacing), np.round(axis / step)]).astype(np.int64)
+    # CAD coordinates sit on round numbers (z = 0, x = 15 mm): a grid with cell walls there would
+    # split identical grasps by float noise (6e-18 vs -1e-33), so the walls are offset by an
+    # irrational fraction of the pitch, and likewise for the axis bins
+    key = np.column_stack([np.floor(centre / spacing + _GRID_OFFSET),
+                           np.floor(axis / step + 0.5 + _GRID_OFFSET)]).astype(np.int64)
     key -= key.min(axis=0)
     dims = key.max(axis=0) + 1
     if np.prod(dims.astype(np.float64)) < 2.0**62:  # one int64 per key: a flat unique is ~10x faster

@@ -310,17 +310,24 @@ def test_paper_parts(paper, name):
 
 
 # ----------------------------------------------------------------------------- CLI
-def test_cli_writes_stl_in_input_units(example_part, tmp_path):
-    src = example_part("bracket.stl")
+@pytest.mark.parametrize("output_units, scale", [(None, 1e-3), ("input", 1.0), ("cm", 0.1)])
+def test_cli_writes_stl_with_recorded_units(example_part, tmp_path, output_units, scale):
+    src = example_part("bracket.stl")  # millimetres
     out = tmp_path / "sub" / "bracket_blm.stl"
-    res = CliRunner().invoke(cli_main, ["blm", str(src), "-o", str(out), "--alpha", "0.1mm"])
+    args = ["blm", str(src), "-o", str(out), "--alpha", "0.1mm"]
+    if output_units:
+        args += ["--output-units", output_units]
+    res = CliRunner().invoke(cli_main, args)
     assert res.exit_code == 0, res.output
-    assert "triangles out" in res.output and "mm" in res.output
+    assert "triangles out" in res.output
     raw_in = trimesh.load(str(src), force="mesh")
     raw_out = trimesh.load(str(out), force="mesh")
-    # same file units (mm): same bounding box, same volume, more triangles
-    np.testing.assert_allclose(raw_out.bounds, raw_in.bounds, atol=1e-4)
-    part_in, part_out = load_part(src), load_part(out)
+    # default metres (like every output), 'input' = the file's mm, or the units asked for
+    np.testing.assert_allclose(raw_out.bounds, raw_in.bounds * scale, atol=1e-4 * scale)
+    unit = {None: "m", "input": "mm", "cm": "cm"}[output_units]
+    assert out.read_bytes()[:80].startswith(f"grasplan blm: units {unit} ".encode())
+    part_in = load_part(src)
+    part_out = load_part(out, units=unit)
     assert part_out.report.watertight
     assert abs(part_out.mesh.volume - part_in.mesh.volume) <= 1e-5 * part_in.mesh.volume
     r = boundary_layer(part_in.mesh, tol=part_in.tol)

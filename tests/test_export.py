@@ -351,10 +351,12 @@ def test_csv_rows(plan_doc):
     rows = list(csv.DictReader(io.StringIO(text)))
     assert len(rows) == len(plan_doc["grasps"])
     header = text.splitlines()[0].split(",")
-    assert header[:5] == ["id", "status", "width", "score", "rank"] and header[-6:] == [f"q_{j}" for j in UR_JOINTS]
+    assert header[:4] == ["id", "status", "width", "score"] and header[-7:-1] == [f"q_{j}" for j in UR_JOINTS]
+    assert header[-1] == "part_scale_to_m" and "-0," not in text
     T_world_part = np.array(plan_doc["part"]["T_world_part"])
     for row, g in zip(rows, plan_doc["grasps"]):
         assert int(row["id"]) == g["id"] and row["status"] == g["status"]
+        assert float(row["part_scale_to_m"]) == plan_doc["part"]["scale_to_m"]
         for frame, T in (("part", np.array(g["T_part_tcp"])), ("world", T_world_part @ np.array(g["T_part_tcp"]))):
             xyz = np.array([float(row[f"{frame}_{c}"]) for c in "xyz"])
             wxyz = np.array([float(row[f"{frame}_q{c}"]) for c in "wxyz"])
@@ -368,8 +370,10 @@ def test_csv_rows(plan_doc):
         else:
             assert q == [""] * 6
         assert row["score"] == ("" if g["score"] is None else row["score"])
-    one = list(csv.DictReader(io.StringIO(render(plan_doc, "csv", grasp_id=8))))
-    assert len(one) == 1 and one[0]["status"] == "collision_part"
+    one = list(csv.DictReader(io.StringIO(render(plan_doc, "csv", grasp_id=5))))
+    assert len(one) == 1 and one[0]["status"] == "planned" and int(one[0]["id"]) == 5
+    with pytest.raises(InputError, match=r"grasp 8 is not planned \(status: collision_part\)"):
+        render(plan_doc, "csv", grasp_id=8)
 
 
 # ------------------------------------------------------------------------------------------- CLI
@@ -396,8 +400,9 @@ def test_cli_bad_input_exit_3(plan_doc, tmp_path):
         assert msg in r.output and not out.exists()
     r = _run(["export", str(plan_path), "--format", "urscript", "--grasp", "99", "-o", str(out)])
     assert r.exit_code == 3 and "unknown grasp id 99; planned grasps: 5, 3" in r.output and not out.exists()
-    r = _run(["export", str(plan_path), "--format", "joint-trajectory", "--grasp", "7", "-o", str(out)])
-    assert r.exit_code == 3 and "not planned (status: not_tried)" in r.output and not out.exists()
+    for fmt in ("joint-trajectory", "csv"):
+        r = _run(["export", str(plan_path), "--format", fmt, "--grasp", "7", "-o", str(out)])
+        assert r.exit_code == 3 and "not planned (status: not_tried)" in r.output and not out.exists()
     r = _run(["export", str(tmp_path / "missing.json"), "--format", "csv", "-o", str(out)])
     assert r.exit_code == 3 and not out.exists()
 

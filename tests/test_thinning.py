@@ -26,7 +26,9 @@ def _brute_force(cands: Candidates, spacing: float, step_deg: float) -> set[tupl
         a = (c[1] - c[0]) / np.linalg.norm(c[1] - c[0])
         if a[np.argmax(np.abs(a))] < 0:
             a = -a
-        keys.add(tuple(np.floor(centre / spacing).astype(int)) + tuple(np.round(a / np.radians(step_deg)).astype(int)))
+        off = 0.5 * (np.sqrt(5.0) - 1.0)
+        keys.add(tuple(np.floor(centre / spacing + off).astype(int))
+                 + tuple(np.floor(a / np.radians(step_deg) + 0.5 + off).astype(int)))
     return keys
 
 
@@ -55,12 +57,19 @@ def test_contact_order_does_not_matter():
 def test_near_duplicates_collapse_and_distinct_grasps_survive():
     base = np.array([[0.0, 0.0, 0.0], [0.0005, 0.0, 0.0], [0.0, 0.0004, 0.0], [0.02, 0.0, 0.0]])
     axes = np.array([[1.0, 0, 0], [1.0, 0.001, 0], [-1.0, 0, 0], [1.0, 0, 0]])
-    # shift into the middle of a grid cell so the first three share one cell
-    keep = thin_candidates(_candidates(base + 0.0015, axes), spacing=0.003)
+    # the first three are within 0.5 mm of the origin: one cell (the grid walls are not at round coordinates)
+    keep = thin_candidates(_candidates(base, axes), spacing=0.003)
     assert len(keep) == 2 and keep[-1] == 3
     # a perpendicular axis at the same place is a different grasp
-    keep = thin_candidates(_candidates(np.zeros((2, 3)) + 0.0015, np.array([[1.0, 0, 0], [0, 1.0, 0]])), spacing=0.003)
+    keep = thin_candidates(_candidates(np.zeros((2, 3)), np.array([[1.0, 0, 0], [0, 1.0, 0]])), spacing=0.003)
     assert len(keep) == 2
+
+
+def test_float_noise_at_round_coordinates_does_not_split_a_grasp():
+    # the same grasp twice, its centre at z = 0 give or take float noise (as CAD parts produce)
+    centres = np.array([[0.0, 0.0, 6e-18], [0.0, 0.0, -1e-33], [0.015, 0.0, 0.0], [0.015 - 1e-17, 0.0, 0.0]])
+    axes = np.array([[1.0, 0, 0], [1.0, 0, 1e-17], [0, 1.0, 0], [0, 1.0, -1e-17]])
+    assert len(thin_candidates(_candidates(centres, axes), spacing=0.003)) == 2
 
 
 def test_zero_spacing_keeps_all_and_bad_values_raise():

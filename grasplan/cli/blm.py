@@ -21,12 +21,26 @@ def export_bytes(mesh: trimesh.Trimesh, file_type: str) -> bytes:
     return data.encode("utf-8") if isinstance(data, str) else bytes(data)
 
 
+def stamp_units(payload: bytes, file_type: str, note: str) -> bytes:
+    """Record ``note`` (the output's units and scale) inside the mesh file: the 80-byte header of a
+    binary STL (never starting with 'solid', which would read as ASCII STL), a comment in OBJ/PLY."""
+    text = note.encode("ascii", "replace")
+    if file_type == "stl":
+        return text[:80].ljust(80, b" ") + payload[80:]
+    if file_type == "obj":
+        return b"# " + text + b"\n" + payload
+    if file_type == "ply" and payload.startswith(b"ply\n"):
+        first, rest = payload.split(b"\n", 2)[:2], payload.split(b"\n", 2)[2]
+        return b"\n".join(first) + b"\ncomment " + text + b"\n" + rest
+    return payload
+
+
 @click.command(
     help=(
         "Insert the boundary layer (Vogt et al. 2021, Sec. III-A) into PART's mesh and write the "
         "remeshed part to OUT. The geometry is unchanged: only faces along surface boundaries are "
-        "subdivided. OUT is written in PART's file units (e.g. millimetres in, millimetres out) so "
-        "it drops back into the CAD tool it came from."
+        "subdivided. OUT is written in metres, like every grasplan output, and its header records "
+        "the units; --output-units mm (or the file's own units, 'input') writes it back in CAD units."
     )
 )
 @click.argument("part", type=click.Path(path_type=Path))
@@ -36,7 +50,14 @@ def export_bytes(mesh: trimesh.Trimesh, file_type: str) -> bytes:
     "output",
     required=True,
     type=click.Path(dir_okay=False, path_type=Path),
-    help="Remeshed part to write (.stl binary, .ply or .obj); written atomically, in the input's units.",
+    help="Remeshed part to write (.stl binary, .ply or .obj); written atomically.",
+)
+@click.option(
+    "--output-units",
+    type=click.Choice(["m", "mm", "cm", "um", "in", "ft", "input"]),
+    default="m",
+    show_default=True,
+    help="Units of OUT's coordinates; 'input' = the part file's units (recorded in OUT's header).",
 )
 @click.option(
     "--alpha",
@@ -56,7 +77,7 @@ def export_bytes(mesh: trimesh.Trimesh, file_type: str) -> bytes:
     "most 180 - gamma (95 = coarse, few surfaces; 170 = fine).",
 )
 @units_option
-def command(part: Path, output: Path, alpha: float, gamma_deg: float, units: str) -> None:
+def command(part: Path, output: Path, alpha: float, gamma_deg: float, units: str, output_units: str) -> None:
     from ..blm import boundary_layer
     from ..mesh import load_part
 
@@ -76,12 +97,16 @@ def command(part: Path, output: Path, alpha: float, gamma_deg: float, units: str
     r = boundary_layer(p.mesh, alpha=alpha, gamma_deg=gamma_deg, tol=p.tol)
     t_blm = time.perf_counter() - t0
 
-    # back to the file's units: the output replaces the input in the user's CAD/toolchain
-    out_mesh = trimesh.Trimesh(vertices=r.mesh.vertices / p.scale_to_m, faces=r.mesh.faces, process=False)
-    payload = export_bytes(out_mesh, OUTPUT_TYPES[suffix])
+    from ..units import LENGTH_UNITS
+
+    unit = p.units if output_units == "input" else output_units
+    m_per_unit = LENGTH_UNITS[unit]
+    out_mesh = trimesh.Trimesh(vertices=r.mesh.vertices / m_per_unit, faces=r.mesh.faces, process=False)
+    note = (f"grasplan blm: units {unit} (scale_to_m {m_per_unit:g}); source {part.name} in {p.units} "
+            f"(scale_to_m {p.scale_to_m:g}); alpha {alpha:g} m, gamma {gamma_deg:g} deg")
+    payload = stamp_units(export_bytes(out_mesh, OUTPUT_TYPES[suffix]), OUTPUT_TYPES[suffix], note)
     write_atomic_bytes(output, payload)
 
-    unit = p.units
     rows = [
         ("triangles in", p.triangles),
         ("triangles out", int(len(r.mesh.faces))),
@@ -98,4 +123,4 @@ def command(part: Path, output: Path, alpha: float, gamma_deg: float, units: str
         ("blm (s)", float(t_blm)),
     ]
     click.echo(table(rows, header=("blm", str(part))))
-    click.echo(f"wrote {output} ({unit}, the input file's units; scale_to_m = {p.scale_to_m:g})")
+    click.echo(f"wrote {output} (units {unit}, scale_to_m {m_per_unit:g}; recorded in its header)")

@@ -213,6 +213,8 @@ def render(plan_json: dict, fmt: Format, *, grasp_id: int | None = None, max_acc
     if fmt == "csv":
         from .csvfile import grasps_csv
 
+        if grasp_id is not None:
+            select_grasp(plan_json, grasp_id)  # the same rule as the other formats: a planned grasp
         return grasps_csv(plan_json, grasp_id=grasp_id)
     raise InputError(f"unknown export format {fmt!r}; available: {', '.join(FORMATS)}")
 
@@ -227,7 +229,7 @@ def write(plan_json: dict, fmt: Format, path: str | os.PathLike, *, grasp_id: in
     grasp_id
         The grasp to export (must have status ``planned``); default: the best planned grasp
         (highest score, then lowest rank). For ``csv``, ``None`` writes every grasp and an id writes
-        only that grasp's row.
+        only that (planned) grasp's row.
     max_accel
         Joint acceleration limit, rad/s^2, for ``joint-trajectory`` (scalar or one per joint).
     velocity_scale

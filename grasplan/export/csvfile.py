@@ -28,8 +28,10 @@ POSE_COLS = ("x", "y", "z", "qw", "qx", "qy", "qz")
 
 
 def header(joint_names) -> list[str]:
-    return (["id", "status", "width", "score", "rank"] + [f"part_{c}" for c in POSE_COLS]
-            + [f"world_{c}" for c in POSE_COLS] + [f"q_{j}" for j in joint_names])
+    # issue 5's columns in its order; the part's scale last (a constant column: "record the part's
+    # scale in every output", without moving any contracted column)
+    return (["id", "status", "width", "score"] + [f"part_{c}" for c in POSE_COLS]
+            + [f"world_{c}" for c in POSE_COLS] + [f"q_{j}" for j in joint_names] + ["part_scale_to_m"])
 
 
 def pose7(T: np.ndarray) -> np.ndarray:
@@ -43,7 +45,7 @@ def pose7(T: np.ndarray) -> np.ndarray:
 
 
 def _num(v) -> str:
-    return "" if v is None else f"{float(v):.9g}"
+    return "" if v is None else f"{float(v) + 0.0:.9g}"
 
 
 def grasps_csv(plan_json: dict, *, grasp_id: int | None = None) -> str:
@@ -65,7 +67,8 @@ def grasps_csv(plan_json: dict, *, grasp_id: int | None = None) -> str:
     T_part_tcp = np.asarray([g["T_part_tcp"] for g in grasps], dtype=np.float64)
     if T_part_tcp.shape != (len(grasps), 4, 4):
         raise InputError("every grasp's T_part_tcp must be a 4x4 matrix")
-    poses = np.concatenate([pose7(T_part_tcp), pose7(T_world_part @ T_part_tcp)], axis=1)
+    poses = np.concatenate([pose7(T_part_tcp), pose7(T_world_part @ T_part_tcp)], axis=1) + 0.0  # no "-0"
+    scale = _num(plan_json["part"]["scale_to_m"])
     fmt = ",".join(["{:.9g}"] * 14)
     empty_q = "," * (len(joints) - 1)
     lines = [buf.getvalue().rstrip("\n")]
@@ -74,9 +77,8 @@ def grasps_csv(plan_json: dict, *, grasp_id: int | None = None) -> str:
         if q is not None and len(q) != len(joints):
             raise InputError(f"grasp {g['id']}: q_grasp has {len(q)} values, the robot has {len(joints)} joints")
         qtxt = ",".join(_num(v) for v in q) if q is not None else empty_q
-        rank = "" if g.get("rank") is None else str(int(g["rank"]))
-        lines.append(f"{int(g['id'])},{_csv_text(g['status'])},{_num(g['width'])},{_num(g.get('score'))},{rank},"
-                     f"{fmt.format(*p)},{qtxt}")
+        lines.append(f"{int(g['id'])},{_csv_text(g['status'])},{_num(g['width'])},{_num(g.get('score'))},"
+                     f"{fmt.format(*p)},{qtxt},{scale}")
     return "\n".join(lines) + "\n"
 
 

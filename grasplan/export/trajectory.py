@@ -249,6 +249,7 @@ def joint_trajectory(plan_json: dict, *, grasp_id: int | None = None, max_accel=
         "grasplan": {
             "robot": plan_json["robot"]["name"],
             "part_sha256": plan_json["part"]["sha256"],
+            "part_scale_to_m": plan_json["part"]["scale_to_m"],
             "duration_s": res["duration"],
             "velocity_limit": vmax.tolist(),
             "acceleration_limit": amax.tolist(),

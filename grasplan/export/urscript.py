@@ -151,7 +151,8 @@ def urscript_program(plan_json: dict, *, grasp_id: int | None = None, robot=None
     L: list[str] = []
     L += [
         f"# grasplan: pick program for grasp {g['id']} (status planned, score {g.get('score')}, rank {g.get('rank')})",
-        f"# plan: {source or '(in memory)'}; part: {part['path']} (sha256 {part['sha256'][:16]}...)",
+        f"# plan: {source or '(in memory)'}; part: {part['path']} (sha256 {part['sha256'][:16]}..., "
+        f"scale_to_m {part['scale_to_m']:g}: file units -> metres)",
         f"# robot: {plan_json['robot']['name']}; gripper: {plan_json['gripper']['name']}; "
         f"grasp width {width * 1000:.2f} mm, pre-grasp opening {opening * 1000:.2f} mm",
         "# Units: metres, radians. Poses p[x, y, z, rx, ry, rz] are in the controller's base frame",

@@ -386,7 +386,8 @@ def build_data(doc: dict, *, part_path=None, result_dir: Path | None = None) -> 
     data: dict[str, Any] = {
         "schema": schema,
         "title": Path(str(doc["part"].get("path") or ppath)).name,
-        "part": {**_mesh_block(V, F), "T_world_part": T_world_part.reshape(-1).tolist(), "path": str(ppath)},
+        "part": {**_mesh_block(V, F), "T_world_part": T_world_part.reshape(-1).tolist(), "path": str(ppath),
+                 "scale_to_m": float(doc["part"].get("scale_to_m", 1.0))},
         "cell": {"name": (doc.get("cell") or {}).get("name", "table"),
                  "table_z": float((doc.get("cell") or {}).get("table_z", 0.0))},
         "statuses": [{"name": s, "color": STATUS_COLORS.get(s, OTHER_COLOR)} for s in status_names],
