@@ -26,8 +26,9 @@ import numpy as np
 import trimesh
 import yaml
 
-from .errors import ConfigError, InputError, unknown_name
-from .gripper import CONFIG_DIR, _num, check_rigid, rpy_matrix
+from .config_files import CONFIG_DIR, available, resolve_yaml
+from .errors import ConfigError, InputError
+from .gripper import _num, check_rigid, rpy_matrix
 from .units import parse_angle_deg, parse_length
 
 CELL_DIR = CONFIG_DIR / "cells"
@@ -57,7 +58,8 @@ class Cell:
 
 
 def available_cells() -> list[str]:
-    return sorted(p.stem for p in CELL_DIR.glob("*.yaml"))
+    """Names of the cells shipped in ``configs/cells/*.yaml``."""
+    return available(CELL_DIR)
 
 
 def cell_from_dict(data, *, name: str, source: str = "") -> Cell:
@@ -85,15 +87,7 @@ def load_cell(name_or_path: str | os.PathLike = "table") -> Cell:
     """A cell by name (``configs/cells/<name>.yaml``) or path to a YAML file."""
     if isinstance(name_or_path, Cell):
         return name_or_path
-    s = str(name_or_path)
-    p = Path(s)
-    if p.suffix.lower() in (".yaml", ".yml") or "/" in s or os.sep in s:
-        if not p.is_file():
-            raise ConfigError(f"cell file {p} not found; available cells: {', '.join(available_cells())}")
-    else:
-        p = CELL_DIR / f"{s}.yaml"
-        if not p.is_file():
-            raise unknown_name("cell", s, available_cells(), hint="or give a path to a cell YAML")
+    p = resolve_yaml("cell", name_or_path, CELL_DIR)
     try:
         data = yaml.safe_load(p.read_text())
     except yaml.YAMLError as exc:

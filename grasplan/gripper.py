@@ -38,10 +38,10 @@ import numpy as np
 import trimesh
 import yaml
 
-from .errors import ConfigError, unknown_name
+from .config_files import CONFIG_DIR, available, resolve_yaml
+from .errors import ConfigError
 
 #: the ``configs`` folder at the repository root (next to the ``grasplan`` package)
-CONFIG_DIR = Path(__file__).resolve().parents[1] / "configs"
 GRIPPER_DIR = CONFIG_DIR / "grippers"
 #: pre-grasp opening = min(max_opening, width + PREGRASP_CLEARANCE)
 PREGRASP_CLEARANCE = 0.010
@@ -157,7 +157,7 @@ class Gripper:
 
 def available_grippers() -> list[str]:
     """Names of the grippers shipped in ``configs/grippers/*.yaml``."""
-    return sorted(p.stem for p in GRIPPER_DIR.glob("*.yaml"))
+    return available(GRIPPER_DIR)
 
 
 def _num(value, field_: str, *, positive=False, nonneg=False) -> float:
@@ -341,14 +341,5 @@ def load_gripper(name_or_path: str | os.PathLike = "schunk_egp_c_40") -> Gripper
     (naming the field)."""
     if isinstance(name_or_path, Gripper):
         return name_or_path
-    s = str(name_or_path)
-    p = Path(s)
-    if p.suffix.lower() in (".yaml", ".yml") or os.sep in s or "/" in s:
-        if not p.is_file():
-            raise ConfigError(f"gripper file {p} not found; available grippers: {', '.join(available_grippers())}")
-    else:
-        p = GRIPPER_DIR / f"{s}.yaml"
-        if not p.is_file():
-            raise unknown_name("gripper", s, available_grippers(), hint="or give a path to a gripper YAML")
-    p = p.resolve()
+    p = resolve_yaml("gripper", name_or_path, GRIPPER_DIR)
     return _load_file(str(p), p.stat().st_mtime)

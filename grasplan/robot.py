@@ -51,9 +51,8 @@ import numpy as np
 import pinocchio as pin
 import yaml
 
+from .config_files import ROBOTS_DIR, available, resolve_yaml
 from .errors import ConfigError, InputError, unknown_name
-
-ROBOTS_DIR = Path(__file__).resolve().parents[1] / "robots"
 _PKG_SHARE = "cmeel.prefix/share"
 
 
@@ -281,20 +280,12 @@ class Robot:
 # --------------------------------------------------------------------------------------------
 def available_robots() -> list[str]:
     """Names of the robot descriptions shipped in ``robots/``."""
-    return sorted(p.stem for p in ROBOTS_DIR.glob("*.yaml"))
+    return available(ROBOTS_DIR)
 
 
 def _resolve(name_or_path: str | Path) -> tuple[str, Path]:
-    s = str(name_or_path)
-    p = Path(s)
-    if s.endswith((".yaml", ".yml")) or p.is_file():
-        if not p.is_file():
-            raise ConfigError(f"robot file {p} does not exist")
-        return str(p.resolve()), p.resolve()
-    cand = ROBOTS_DIR / f"{s}.yaml"
-    if not cand.is_file():
-        raise unknown_name("robot", s, available_robots(), hint="or give a path to a robot YAML file")
-    return s, cand
+    path = resolve_yaml("robot", name_or_path, ROBOTS_DIR)
+    return str(path), path
 
 
 def load_robot(name_or_path: str | Path = "ur5") -> Robot:

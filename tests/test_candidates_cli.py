@@ -84,3 +84,17 @@ def test_help_documents_every_option():
     r = run(["--help"])
     for opt in ("--no-blm", "--alpha", "--gamma", "--d-shift", "--epsilon", "--max-opening", "--mu", "--beta", "--units", "-o"):
         assert opt in r.output
+
+
+@pytest.mark.parametrize("command", ["blm", "candidates"])
+def test_alpha_in_metres_by_mistake_is_refused(example_part, tmp_path, command):
+    """A bare number is metres: '--alpha 0.1' on a 40 mm part is a units mistake, refused with the fix."""
+    from click.testing import CliRunner
+
+    from grasplan.cli import main
+
+    out = tmp_path / ("out.stl" if command == "blm" else "out.json")
+    r = CliRunner().invoke(main, [command, str(example_part("bracket.stl")), "--alpha", "0.1", "-o", str(out)])
+    assert r.exit_code == 3 and "did you mean 0.1mm" in r.output and not out.exists()
+    r = CliRunner().invoke(main, [command, str(example_part("bracket.stl")), "--alpha", "0.1mm", "-o", str(out)])
+    assert r.exit_code == 0 and out.exists()
