@@ -253,3 +253,42 @@ def part_from_arrays(
 def part_from_trimesh(mesh: trimesh.Trimesh, *, path: str = "<memory>", units: Units | str = "m") -> Part:
     """A :class:`Part` from an in-memory trimesh (file units given by ``units``)."""
     return part_from_arrays(mesh.vertices, mesh.faces, path=path, units=units)
+
+
+def units_for_scale(scale_to_m: float) -> str:
+    """The unit name whose metres-per-unit is ``scale_to_m`` (what :func:`load_part` recorded)."""
+    for name, factor in LENGTH_UNITS.items():
+        if np.isclose(factor, float(scale_to_m), rtol=1e-9, atol=0.0):
+            return name
+    raise MeshError(f"scale_to_m = {scale_to_m!r} is not one grasplan reads files in ({', '.join(LENGTH_UNITS)}); "
+                    f"the result file is corrupt")
+
+
+def load_recorded_part(part_json: dict, *, path: str | os.PathLike | None = None,
+                       search_dirs: tuple[str | os.PathLike, ...] = ()) -> Part:
+    """Load the part a result file was made from, at the scale it recorded.
+
+    Parameters
+    ----------
+    part_json : dict
+        A result's ``part`` block (``path``, ``scale_to_m``; ``sha256`` is left to the caller,
+        who decides whether a different file is an error or a warning).
+    path : path, optional
+        The mesh to use instead of the recorded path (``--part``).
+    search_dirs : paths
+        Where a relative recorded path is also looked for, after the current folder (e.g. the
+        result file's folder).
+    """
+    if path is not None:
+        candidates = [Path(path)]
+    else:
+        recorded = part_json.get("path")
+        if not recorded:
+            raise MeshError("the result records no part path; give the part with --part PATH")
+        rp = Path(recorded)
+        candidates = [rp] if rp.is_absolute() else [Path.cwd() / rp] + [Path(d) / rp for d in search_dirs]
+    found = next((c for c in candidates if c.is_file()), None)
+    if found is None:
+        tried = ", ".join(str(c) for c in candidates)
+        raise MeshError(f"part not found (tried {tried}); give the mesh the result was made from with --part PATH")
+    return load_part(found, units=units_for_scale(part_json["scale_to_m"]))

@@ -138,3 +138,21 @@ def test_rigid_motion_keeps_volume_and_counts(seed):
     moved = box.copy().apply_transform(T)
     part = part_from_arrays(moved.vertices, moved.faces, units="m")
     assert part.triangles == 12 and part.mesh.volume == pytest.approx(6e-6, rel=1e-9)
+
+
+@pytest.mark.parametrize("units", ["cm", "in", "mm", "m"])
+def test_load_recorded_part_uses_the_recorded_scale(tmp_path, units):
+    """Export and viewer reload a result's part: at the recorded scale, not by guessing (a 3 cm
+    box written in cm numbers would read as 3 mm with units=auto)."""
+    from grasplan.mesh import load_recorded_part
+
+    box = trimesh.creation.box(extents=(3.0, 2.0, 1.0))
+    path = _write_stl(tmp_path / "box.stl", box)
+    original = load_part(path, units=units)
+    again = load_recorded_part(original.to_json() | {"path": "box.stl"}, search_dirs=(tmp_path,))
+    assert again.scale_to_m == original.scale_to_m
+    assert np.allclose(np.ptp(again.vertices, axis=0), np.ptp(original.vertices, axis=0))
+    with pytest.raises(MeshError, match="--part"):
+        load_recorded_part(original.to_json() | {"path": "elsewhere/box.stl"})
+    with pytest.raises(MeshError, match="corrupt"):
+        load_recorded_part(original.to_json() | {"scale_to_m": 0.37})

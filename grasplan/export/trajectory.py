@@ -147,22 +147,14 @@ def build_scene(plan_json: dict, robot, *, part_path: str | os.PathLike | None =
     """A CollisionScene rebuilt from the plan's part, gripper, cell and robot (loaded once)."""
     from ..cell import load_cell
     from ..gripper import load_gripper
-    from ..io import sha256_file
-    from ..mesh import load_part
+    from ..mesh import load_recorded_part
     from ..scene import CollisionScene
 
     part_info = plan_json["part"]
-    path = part_path or part_info["path"]
-    if not os.path.isfile(path):
-        raise InputError(f"the plan's part {path!r} is not found; pass its mesh with --part PATH "
-                         "(needed to verify the timed trajectory against collisions)")
-    sha = sha256_file(path)
-    if sha != part_info["sha256"]:
-        raise InputError(f"{path}: sha256 {sha[:12]}... differs from the planned part's {part_info['sha256'][:12]}...; "
-                         "pass the mesh the plan was made from with --part")
-    scale = float(part_info["scale_to_m"])
-    units = "mm" if abs(scale - 1e-3) < 1e-12 else ("m" if abs(scale - 1.0) < 1e-12 else "auto")
-    part = load_part(path, units=units)
+    part = load_recorded_part(part_info, path=part_path)
+    if part.sha256 != part_info["sha256"]:
+        raise InputError(f"{part.path}: sha256 {part.sha256[:12]}... differs from the planned part's "
+                         f"{part_info['sha256'][:12]}...; pass the mesh the plan was made from with --part")
     gripper = load_gripper(plan_json["gripper"].get("path") or plan_json["gripper"]["name"])
     cell = load_cell(plan_json["cell"].get("path") or plan_json["cell"]["name"])
     T_world_part = np.asarray(plan_json["part"]["T_world_part"], dtype=np.float64)

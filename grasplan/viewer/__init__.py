@@ -34,7 +34,6 @@ import numpy as np
 
 from ..errors import GrasplanError, InputError, MeshError
 from ..io import read_json, write_atomic_text
-from ..units import LENGTH_UNITS
 
 SCHEMAS = ("grasplan.grasps/1", "grasplan.plan/1")
 #: display order (and drawing priority, last on top) of the statuses, with their colours
@@ -200,51 +199,22 @@ def _check_doc(doc: dict, where: str) -> None:
         raise InputError(f"{where}: a grasplan.plan/1 document needs a 'robot' block")
 
 
-def _resolve_part(doc: dict, part_path, result_dir: Path | None) -> Path:
-    if part_path is not None:
-        p = Path(part_path)
-        if not p.exists():
-            raise InputError(f"--part {p}: no such file")
-        return p
-    rec = doc["part"].get("path")
-    if not rec:
-        raise InputError("the result records no part path; give the part with --part PATH")
-    rp = Path(rec)
-    tried = [rp] if rp.is_absolute() else [Path.cwd() / rp] + ([result_dir / rp] if result_dir else [])
-    for t in tried:
-        if t.exists():
-            return t
-    raise InputError(f"part {rec!r} not found (tried {', '.join(str(t) for t in tried)}); give it with --part PATH")
+def _load_part_mesh(doc: dict, part_path, result_dir: Path | None) -> tuple[Path, np.ndarray, np.ndarray, list[str]]:
+    """The result's part at its recorded scale (metres), decimated for display if large."""
+    from ..mesh import load_recorded_part
 
-
-def _units_for(scale: float) -> str | None:
-    for name, f in LENGTH_UNITS.items():
-        if math.isclose(f, scale, rel_tol=1e-9):
-            return name
-    return None
-
-
-def _load_part_mesh(path: Path, doc: dict) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    from ..mesh import load_part
-
-    notes: list[str] = []
-    scale = doc["part"].get("scale_to_m")
-    units = _units_for(float(scale)) if scale is not None else None
-    if units is not None:
-        part = load_part(path, units=units)
-        V = np.asarray(part.vertices, dtype=np.float64)
-    else:  # an unusual scale: load in file units and scale ourselves
-        part = load_part(path, units="m")
-        V = np.asarray(part.vertices, dtype=np.float64) * (float(scale) if scale is not None else 1.0)
+    part = load_recorded_part(doc["part"], path=part_path, search_dirs=(result_dir,) if result_dir else ())
+    V = np.asarray(part.vertices, dtype=np.float64)
     F = np.asarray(part.faces, dtype=np.int64)
+    notes: list[str] = []
     sha = doc["part"].get("sha256")
     if sha and sha != part.sha256:
-        notes.append(f"{path}: sha256 differs from the one recorded in the result ({part.sha256[:12]} vs {sha[:12]}); "
+        notes.append(f"{part.path}: sha256 differs from the one recorded in the result ({part.sha256[:12]} vs {sha[:12]}); "
                      f"the grasps may not belong to this part")
     if len(F) > MAX_PART_TRIANGLES:
         V, F = decimate_mesh(V, F, MAX_PART_TRIANGLES)
         notes.append(f"part decimated to {len(F)} triangles for display")
-    return V, F, notes
+    return Path(part.path), V, F, notes
 
 
 # --------------------------------------------------------------------------- gripper
@@ -332,8 +302,7 @@ def build_data(doc: dict, *, part_path=None, result_dir: Path | None = None) -> 
     notes: list[str] = []
     _check_doc(doc, "result")
     schema = doc["schema"]
-    ppath = _resolve_part(doc, part_path, result_dir)
-    V, F, pn = _load_part_mesh(ppath, doc)
+    ppath, V, F, pn = _load_part_mesh(doc, part_path, result_dir)
     notes += pn
     T_world_part = _mat(doc["part"]["T_world_part"], "part.T_world_part")
     grasps = doc["grasps"]
