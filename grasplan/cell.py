@@ -28,8 +28,9 @@ import yaml
 
 from .config_files import CONFIG_DIR, available, resolve_yaml
 from .errors import ConfigError, InputError
-from .gripper import _num, check_rigid, rpy_matrix
+from .gripper import _num, rpy_matrix
 from .units import parse_angle_deg, parse_length
+from .transforms import check_transform
 
 CELL_DIR = CONFIG_DIR / "cells"
 
@@ -169,16 +170,7 @@ def parse_part_pose(text: str | os.PathLike) -> np.ndarray:
             if "T_world_part" not in data:
                 raise InputError(f"--part-pose: {p} has no key 'T_world_part' (a 4x4 row-major matrix)")
             data = data["T_world_part"]
-        try:
-            T = np.asarray(data, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise InputError(f"--part-pose: {p}: expected a 4x4 matrix of numbers") from None
-        if T.shape != (4, 4):
-            raise InputError(f"--part-pose: {p}: expected a 4x4 matrix, got shape {T.shape}")
-        try:
-            return check_rigid(T, f"--part-pose {p}")
-        except ConfigError as exc:
-            raise InputError(str(exc)) from None
+        return check_transform(data, f"--part-pose {p}")
     parts = _POSE_SPLIT.split(s.strip())
     if len(parts) != 6:
         raise InputError(f"--part-pose: expected 'x,y,z,roll,pitch,yaw' (m or with units; degrees) or a JSON/YAML file, got {s!r}")

@@ -32,17 +32,11 @@ import coal
 
 from .cell import Cell
 from .gripper import Box, Gripper, MeshShape
+from .transforms import check_transform
 
 STATUSES = ("ok", "collision_part", "collision_table")
 #: a shape reaching below the table top by less than this (m) only touches it
 TABLE_CONTACT_TOL = 1e-6
-
-
-def _check_T(T: np.ndarray, name: str) -> np.ndarray:
-    T = np.asarray(T, dtype=np.float64)
-    if T.ndim != 3 or T.shape[1:] != (4, 4):
-        raise ValueError(f"{name} must have shape (M, 4, 4), got {T.shape}")
-    return T
 
 
 def _bvh(vertices: np.ndarray, faces: np.ndarray) -> coal.BVHModelOBBRSS:
@@ -146,9 +140,7 @@ class GripperCollider:
     """
 
     def __init__(self, part_mesh: trimesh.Trimesh, gripper: Gripper, cell: Cell, T_world_part: np.ndarray):
-        T_world_part = np.asarray(T_world_part, dtype=np.float64)
-        if T_world_part.shape != (4, 4):
-            raise ValueError(f"T_world_part must have shape (4, 4), got {T_world_part.shape}")
+        T_world_part = check_transform(T_world_part, "T_world_part", error=ValueError)
         self.part_mesh = part_mesh
         self.gripper = gripper
         self.cell = cell
@@ -281,7 +273,7 @@ class GripperCollider:
         """Status per pose: (M,) array of str in ``STATUSES``.
 
         T_part_tcp : (M, 4, 4) TCP poses in the part frame; width : (M,) contact distance (m)."""
-        T_part_tcp = _check_T(T_part_tcp, "T_part_tcp")
+        T_part_tcp = check_transform(T_part_tcp, "T_part_tcp", batch=True, error=ValueError)
         width = np.asarray(width, dtype=np.float64).reshape(-1)
         if width.shape != (len(T_part_tcp),):
             raise ValueError(f"width must have shape ({len(T_part_tcp)},), got {width.shape}")
@@ -297,7 +289,7 @@ class GripperCollider:
 
     def part_collision(self, T_part_tcp: np.ndarray, width: np.ndarray) -> np.ndarray:
         """(M,) bool: any shape hits the part (no table check)."""
-        T_part_tcp = _check_T(T_part_tcp, "T_part_tcp")
+        T_part_tcp = check_transform(T_part_tcp, "T_part_tcp", batch=True, error=ValueError)
         width = np.asarray(width, dtype=np.float64).reshape(-1)
         return self._part_hits(T_part_tcp, self.shape_sets(width))
 

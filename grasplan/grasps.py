@@ -17,6 +17,7 @@ from .errors import InputError
 from .frames import GraspFrames, grasp_frames
 from .gripper import Gripper, load_gripper
 from .mesh import Part
+from .transforms import check_transform
 
 SCHEMA = "grasplan.grasps/1"
 
@@ -138,9 +139,7 @@ def compute_grasps(
         T = stable_pose(part.mesh, c)
         source = "stable_pose"
     else:
-        T = np.asarray(T_world_part, dtype=np.float64)
-        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-            raise InputError(f"T_world_part must be a finite (4, 4) matrix, got shape {T.shape}")
+        T = check_transform(T_world_part, "T_world_part")
         source = "given"
     timing["stable_pose"] = time.perf_counter() - t
 

@@ -40,6 +40,7 @@ import yaml
 
 from .config_files import CONFIG_DIR, available, resolve_yaml
 from .errors import ConfigError
+from .transforms import check_transform
 
 #: the ``configs`` folder at the repository root (next to the ``grasplan`` package)
 GRIPPER_DIR = CONFIG_DIR / "grippers"
@@ -202,19 +203,8 @@ def parse_transform(value, field_: str) -> np.ndarray:
         return T
     if isinstance(value, (list, tuple)) and len(value) == 4:
         T = np.array([_vec(r, f"{field_}[{i}]", 4) for i, r in enumerate(value)])
-        check_rigid(T, field_)
-        return T
+        return check_transform(T, field_, error=ConfigError)
     raise ConfigError(f"{field_}: expected a 4x4 matrix (list of 4 rows) or {{xyz: [x,y,z], rpy_deg: [r,p,y]}}, got {value!r}")
-
-
-def check_rigid(T: np.ndarray, field_: str, *, tol: float = 1e-6) -> np.ndarray:
-    T = np.asarray(T, dtype=np.float64)
-    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        raise ConfigError(f"{field_}: expected a finite 4x4 matrix")
-    R = T[:3, :3]
-    if not np.allclose(T[3], [0, 0, 0, 1], atol=tol) or not np.allclose(R @ R.T, np.eye(3), atol=tol) or np.linalg.det(R) < 0:
-        raise ConfigError(f"{field_}: not a rigid transform (rotation must be orthonormal with det +1, last row 0 0 0 1)")
-    return T
 
 
 def _box(spec, field_: str, *, finger: bool) -> Box:

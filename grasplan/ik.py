@@ -33,6 +33,7 @@ import pinocchio as pin
 
 from .errors import InputError
 from .robot import Robot
+from .transforms import check_transform
 
 TWO_PI = 2.0 * math.pi
 
@@ -67,16 +68,6 @@ class IKResult:
 # --------------------------------------------------------------------------------------------
 # helpers
 # --------------------------------------------------------------------------------------------
-def _check_T(T, where: str = "T_world_tool") -> np.ndarray:
-    T = np.asarray(T, dtype=float)
-    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        raise InputError(f"{where}: expected a finite (4, 4) homogeneous matrix, got shape {T.shape}")
-    R = T[:3, :3]
-    if not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
-        raise InputError(f"{where}: the rotation part is not a proper rotation matrix")
-    return T
-
-
 def pose_error(T_a: np.ndarray, T_b: np.ndarray) -> tuple[float, float]:
     """(position error m, rotation angle rad) between two (4, 4) poses."""
     dp = float(np.linalg.norm(T_a[:3, 3] - T_b[:3, 3]))
@@ -313,7 +304,7 @@ class IKSolver:
               max_solutions: int | None = None, pos_tol: float = 1e-6, rot_tol: float = 1e-6
               ) -> IKResult:
         r = self.robot
-        T_world_tool = _check_T(T_world_tool)
+        T_world_tool = check_transform(T_world_tool, "T_world_tool")
         q_ref = r.q_home.copy() if q_ref is None else r.check_q(q_ref, where="q_ref")
         if method not in ("auto", "analytic", "clik"):
             raise InputError(f"method: expected 'auto', 'analytic' or 'clik', got {method!r}")

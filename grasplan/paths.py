@@ -34,6 +34,8 @@ from typing import Any
 
 import numpy as np
 
+from .transforms import check_transform
+
 #: default interpolation resolution (rad, per joint) of every path check
 STEP = 0.01
 
@@ -355,10 +357,8 @@ def approach_path_reason(
     reach the first pose), ``"ik"`` (IK lost on the line), ``"limits"``, ``"jump"``, ``"deviation"``
     (kinematic failures) or ``"collision"``.
     """
-    T_pre = np.asarray(T_world_tcp_pre, dtype=np.float64)
-    T_gr = np.asarray(T_world_tcp_grasp, dtype=np.float64)
-    if T_pre.shape != (4, 4) or T_gr.shape != (4, 4):
-        raise ValueError("T_world_tcp_pre and T_world_tcp_grasp must be (4, 4)")
+    T_pre = check_transform(T_world_tcp_pre, "T_world_tcp_pre", error=ValueError)
+    T_gr = check_transform(T_world_tcp_grasp, "T_world_tcp_grasp", error=ValueError)
     if T_flange_tcp is None:
         T_flange_tcp = scene.gripper.T_flange_tcp
     T_flange_tcp = np.asarray(T_flange_tcp, dtype=np.float64)

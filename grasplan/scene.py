@@ -39,6 +39,7 @@ import pinocchio as pin
 
 from .errors import InputError
 from .robot import Robot
+from .transforms import check_transform
 
 TABLE = "table"
 PART = "part"
@@ -150,9 +151,7 @@ class CollisionScene:
         if part_mesh is not None:
             if T_world_part is None:
                 raise InputError("T_world_part (4, 4) is required with a part mesh")
-            T_wp = np.asarray(T_world_part, dtype=float)
-            if T_wp.shape != (4, 4) or not np.all(np.isfinite(T_wp)):
-                raise InputError(f"T_world_part: expected a finite (4, 4) matrix, got shape {T_wp.shape}")
+            T_wp = check_transform(T_world_part, "T_world_part")
             self.T_world_part = T_wp
             bvh = _bvh(np.asarray(part_mesh.vertices), np.asarray(part_mesh.faces))
             self._env_ids[PART] = gm.addGeometryObject(

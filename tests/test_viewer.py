@@ -23,7 +23,7 @@ import pytest
 
 from grasplan.errors import InputError
 from grasplan.mesh import load_part
-from grasplan.viewer import STATUS_COLORS, _quat_xyzw, build_data, build_html, decimate_mesh, densify_path, write_viewer
+from grasplan.viewer import STATUS_COLORS, build_data, build_html, decimate_mesh, densify_path, write_viewer
 
 ROOT = Path(__file__).resolve().parents[1]
 BRACKET = ROOT / "examples" / "parts" / "bracket.stl"
@@ -272,15 +272,6 @@ def test_png_decoder_against_zlib_encoded_image(tmp_path):
     png.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
                     + chunk(b"IDAT", zlib.compress(b"".join(rows))) + chunk(b"IEND", b""))
     assert np.array_equal(read_png(png), img)
-
-
-def test_quaternions_match_scipy():
-    from scipy.spatial.transform import Rotation
-
-    R = Rotation.random(500, random_state=3)
-    q = _quat_xyzw(R.as_matrix())
-    ref = R.as_quat()  # (x, y, z, w)
-    assert np.allclose(np.abs(np.sum(q * ref, axis=1)), 1.0, atol=1e-9)  # same rotation (q ~ -q)
 
 
 def test_densify_path_step_and_waypoints():

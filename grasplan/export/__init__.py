@@ -35,6 +35,7 @@ from typing import Any, Literal
 import numpy as np
 
 from ..errors import InputError
+from ..transforms import check_transform
 
 Format = Literal["urscript", "joint-trajectory", "csv"]
 FORMATS: tuple[str, ...] = ("urscript", "joint-trajectory", "csv")
@@ -156,8 +157,8 @@ def select_grasp(plan_json: dict, grasp_id: int | None = None) -> dict:
 def grasp_arrays(plan_json: dict, g: dict) -> dict[str, np.ndarray]:
     """NumPy views of a planned grasp: T_world_part, T_part_tcp, T_world_tcp, q_home, path, ..."""
     n = len(plan_json["robot"]["joint_names"])
-    T_world_part = _mat4(plan_json["part"]["T_world_part"], "part.T_world_part")
-    T_part_tcp = _mat4(g["T_part_tcp"], f"grasp {g['id']} T_part_tcp")
+    T_world_part = check_transform(plan_json["part"]["T_world_part"], "part.T_world_part")
+    T_part_tcp = check_transform(g["T_part_tcp"], f"grasp {g['id']} T_part_tcp")
     path = np.asarray(g["path"], dtype=np.float64)
     q_home = np.asarray(plan_json["robot"]["q_home"], dtype=np.float64)
     q_grasp = np.asarray(g["q_grasp"], dtype=np.float64)
@@ -181,16 +182,6 @@ def grasp_arrays(plan_json: dict, g: dict) -> dict[str, np.ndarray]:
                              "the plan file is inconsistent")
     return {"T_world_part": T_world_part, "T_part_tcp": T_part_tcp, "T_world_tcp": T_world_part @ T_part_tcp,
             "path": path, "q_home": q_home, "q_grasp": q_grasp, "q_pregrasp": q_pre, "pregrasp_index": k}
-
-
-def _mat4(m, what: str) -> np.ndarray:
-    T = np.asarray(m, dtype=np.float64)
-    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        raise InputError(f"{what} must be a finite 4x4 matrix")
-    R = T[:3, :3]
-    if np.max(np.abs(R.T @ R - np.eye(3))) > 1e-6 or abs(np.linalg.det(R) - 1) > 1e-6:
-        raise InputError(f"{what} is not a rigid transform (rotation part not orthonormal)")
-    return T
 
 
 def render(plan_json: dict, fmt: Format, *, grasp_id: int | None = None, max_accel: float = DEFAULT_MAX_ACCEL,

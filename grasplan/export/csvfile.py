@@ -20,9 +20,9 @@ import csv
 import io
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from ..errors import InputError
+from ..transforms import pose7
 
 POSE_COLS = ("x", "y", "z", "qw", "qx", "qy", "qz")
 
@@ -32,16 +32,6 @@ def header(joint_names) -> list[str]:
     # scale in every output", without moving any contracted column)
     return (["id", "status", "width", "score"] + [f"part_{c}" for c in POSE_COLS]
             + [f"world_{c}" for c in POSE_COLS] + [f"q_{j}" for j in joint_names] + ["part_scale_to_m"])
-
-
-def pose7(T: np.ndarray) -> np.ndarray:
-    """(x, y, z, qw, qx, qy, qz) of transforms (..., 4, 4) -> (..., 7); qw >= 0."""
-    T = np.asarray(T, dtype=np.float64)
-    flat = T.reshape(-1, 4, 4)
-    xyzw = Rotation.from_matrix(flat[:, :3, :3]).as_quat().reshape(-1, 4)
-    q = np.concatenate([xyzw[:, 3:], xyzw[:, :3]], axis=1)
-    q[q[:, 0] < 0] *= -1.0
-    return np.concatenate([flat[:, :3, 3], q], axis=1).reshape(T.shape[:-2] + (7,))
 
 
 def _num(v) -> str:

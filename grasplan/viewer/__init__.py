@@ -34,6 +34,7 @@ import numpy as np
 
 from ..errors import GrasplanError, InputError, MeshError
 from ..io import read_json, write_atomic_text
+from ..transforms import check_transform, pose7, quaternions
 
 SCHEMAS = ("grasplan.grasps/1", "grasplan.plan/1")
 #: display order (and drawing priority, last on top) of the statuses, with their colours
@@ -91,43 +92,6 @@ def _field(grasps: list, key: str, shape: tuple, dtype) -> np.ndarray:
             raise InputError(f"grasps[{i}] (id {g.get('id')!r}): {key!r} missing or malformed; expected "
                              f"{'a number' if not shape else 'an array of shape ' + str(shape)}")
     raise InputError(f"grasps: {key!r} malformed")
-
-
-def _mat(x, name: str) -> np.ndarray:
-    T = np.asarray(x, dtype=np.float64)
-    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        raise InputError(f"{name}: expected a 4x4 matrix of finite numbers, got shape {T.shape}")
-    return T
-
-
-def _pose7(T: np.ndarray) -> np.ndarray:
-    """(..., 4, 4) -> (..., 7) position + quaternion (x, y, z, w), as three.js wants it."""
-    T = np.asarray(T, dtype=np.float64)
-    R = T[..., :3, :3]
-    p = T[..., :3, 3]
-    q = _quat_xyzw(R)
-    return np.concatenate([p, q], axis=-1)
-
-
-def _quat_xyzw(R: np.ndarray) -> np.ndarray:
-    """Rotation matrices (..., 3, 3) -> unit quaternions (..., 4) as (x, y, z, w), vectorised."""
-    R = np.asarray(R, dtype=np.float64)
-    shp = R.shape[:-2]
-    R = R.reshape(-1, 3, 3)
-    m00, m11, m22 = R[:, 0, 0], R[:, 1, 1], R[:, 2, 2]
-    tr = m00 + m11 + m22
-    # Shepperd's method: pick the largest of w, x, y, z to divide by
-    cand = np.stack([tr, m00, m11, m22], axis=1)
-    k = np.argmax(cand, axis=1)
-    s = np.sqrt(np.maximum(1.0 + np.choose(k, [tr, 2 * m00 - tr, 2 * m11 - tr, 2 * m22 - tr]), 1e-300)) * 2
-    r = R
-    q0 = np.stack([(r[:, 2, 1] - r[:, 1, 2]) / s, (r[:, 0, 2] - r[:, 2, 0]) / s, (r[:, 1, 0] - r[:, 0, 1]) / s, 0.25 * s], 1)
-    q1 = np.stack([0.25 * s, (r[:, 0, 1] + r[:, 1, 0]) / s, (r[:, 0, 2] + r[:, 2, 0]) / s, (r[:, 2, 1] - r[:, 1, 2]) / s], 1)
-    q2 = np.stack([(r[:, 0, 1] + r[:, 1, 0]) / s, 0.25 * s, (r[:, 1, 2] + r[:, 2, 1]) / s, (r[:, 0, 2] - r[:, 2, 0]) / s], 1)
-    q3 = np.stack([(r[:, 0, 2] + r[:, 2, 0]) / s, (r[:, 1, 2] + r[:, 2, 1]) / s, 0.25 * s, (r[:, 1, 0] - r[:, 0, 1]) / s], 1)
-    q = np.choose(k[:, None], [q0, q1, q2, q3])
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    return q.reshape(*shp, 4)
 
 
 def decimate_mesh(vertices: np.ndarray, faces: np.ndarray, max_faces: int) -> tuple[np.ndarray, np.ndarray]:
@@ -233,14 +197,14 @@ def _shape_json(shape, mesh_cache: dict, meshes: list) -> dict:
     ``{"mesh": index, "pose": identity}`` (a ``MeshShape``, vertices already in the TCP frame)."""
     if hasattr(shape, "extents"):
         return {"box": [float(x) for x in np.asarray(shape.extents).reshape(3)],
-                "pose": _pose7(np.asarray(shape.T_tcp_box, dtype=np.float64)).tolist()}
+                "pose": pose7(np.asarray(shape.T_tcp_box, dtype=np.float64), order="xyzw").tolist()}
     if not (hasattr(shape, "vertices") and hasattr(shape, "faces")):
         raise InputError(f"cannot display gripper shape {type(shape).__name__}: neither a box nor a mesh")
     if id(shape) not in mesh_cache:
         V, F = decimate_mesh(np.asarray(shape.vertices), np.asarray(shape.faces), MAX_LINK_TRIANGLES)
         mesh_cache[id(shape)] = len(meshes)
         meshes.append(_mesh_block(V, F))
-    return {"mesh": mesh_cache[id(shape)], "pose": _pose7(np.eye(4)).tolist()}
+    return {"mesh": mesh_cache[id(shape)], "pose": pose7(np.eye(4), order="xyzw").tolist()}
 
 
 # --------------------------------------------------------------------------- robot
@@ -253,7 +217,7 @@ def _load_robot(doc: dict, notes: list[str]):
         raise InputError(f"robot.joint_names {rb.get('joint_names')} differ from robot {robot.name!r}'s "
                          f"{list(robot.joint_names)}; was the plan written for another robot description?")
     T = rb.get("T_world_base")
-    if T is not None and not np.allclose(_mat(T, "robot.T_world_base"), robot.T_world_base, atol=1e-9):
+    if T is not None and not np.allclose(check_transform(T, "robot.T_world_base"), robot.T_world_base, atol=1e-9):
         notes.append("robot.T_world_base in the result differs from the robot's configuration; showing the configuration's")
     return robot
 
@@ -304,13 +268,13 @@ def build_data(doc: dict, *, part_path=None, result_dir: Path | None = None) -> 
     schema = doc["schema"]
     ppath, V, F, pn = _load_part_mesh(doc, part_path, result_dir)
     notes += pn
-    T_world_part = _mat(doc["part"]["T_world_part"], "part.T_world_part")
+    T_world_part = check_transform(doc["part"]["T_world_part"], "part.T_world_part")
     grasps = doc["grasps"]
     n = len(grasps)
 
     gr = doc.get("gripper", {}) or {}
     gripper = _load_gripper(gr.get("name"), notes)
-    T_flange_tcp = _mat(gr["T_flange_tcp"], "gripper.T_flange_tcp") if "T_flange_tcp" in gr else gripper.T_flange_tcp
+    T_flange_tcp = check_transform(gr["T_flange_tcp"], "gripper.T_flange_tcp") if "T_flange_tcp" in gr else gripper.T_flange_tcp
 
     # per-grasp arrays (vectorised: plan files can hold 10^5 grasps)
     statuses = [str(g.get("status", "?")) for g in grasps]
@@ -335,7 +299,7 @@ def build_data(doc: dict, *, part_path=None, result_dir: Path | None = None) -> 
     # one marker per (contact pair, status): what is drawn
     marker = np.unique(np.stack([st.astype(np.int64), pair_of], 1), axis=0) if n else np.zeros((0, 2), np.int64)
     T_world_tcp = T_world_part[None] @ T_part_tcp if n else np.zeros((0, 4, 4))
-    tcp_q = _quat_xyzw(T_world_tcp[:, :3, :3]) if n else np.zeros((0, 4))
+    tcp_q = quaternions(T_world_tcp[:, :3, :3], order="xyzw") if n else np.zeros((0, 4))
 
     # gripper shapes: body once; fingers as a function of the opening (two openings -> linear in JS)
     gmeshes: list[dict] = []
@@ -411,7 +375,7 @@ def _robot_data(doc: dict, grasps: list, ids: np.ndarray, T_flange_tcp: np.ndarr
             for m, k in enumerate(keep):
                 Ts[j, m] = lp[k][1]
             Ts[j, -1] = robot.fk(q) @ T_flange_tcp
-        return _pose7(Ts)
+        return pose7(Ts, order="xyzw")
 
     home = frames_of(q_home[None])[0]
     paths = {}

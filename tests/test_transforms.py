@@ -1,0 +1,77 @@
+"""The transform boundary check and the quaternion poses every file format uses."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from grasplan.errors import ConfigError, InputError
+from grasplan.transforms import check_transform, pose7, quaternions
+
+
+def _matrix_from_wxyz(q: np.ndarray) -> np.ndarray:
+    """Rotation matrix of a unit quaternion, written out by hand (independent of scipy)."""
+    w, x, y, z = q
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+def _rotation(axis, angle) -> np.ndarray:
+    a = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+    K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
+
+
+@settings(max_examples=60, deadline=None)
+@given(axis=st.tuples(*[st.floats(-1, 1)] * 3).filter(lambda v: np.linalg.norm(v) > 1e-3),
+       angle=st.one_of(st.floats(-np.pi, np.pi), st.sampled_from([np.pi, -np.pi, np.pi - 1e-9, 0.0])))
+def test_quaternions_rebuild_the_rotation(axis, angle):
+    R = _rotation(axis, angle)
+    wxyz = quaternions(R)
+    xyzw = quaternions(R, order="xyzw")
+    assert np.isclose(np.linalg.norm(wxyz), 1.0) and wxyz[0] >= 0
+    assert np.allclose(xyzw, wxyz[[1, 2, 3, 0]])
+    assert np.allclose(_matrix_from_wxyz(wxyz), R, atol=1e-9)
+
+
+def test_pose7_batches_and_orders():
+    rng = np.random.default_rng(0)
+    T = np.tile(np.eye(4), (5, 2, 1, 1))
+    for idx in np.ndindex(5, 2):
+        T[idx][:3, :3] = _rotation(rng.normal(size=3), rng.uniform(-np.pi, np.pi))
+        T[idx][:3, 3] = rng.normal(size=3)
+    P = pose7(T)
+    assert P.shape == (5, 2, 7)
+    assert np.allclose(P[..., :3], T[..., :3, 3])
+    for idx in np.ndindex(5, 2):
+        assert np.allclose(_matrix_from_wxyz(P[idx][3:]), T[idx][:3, :3], atol=1e-9)
+    assert np.allclose(pose7(T, order="xyzw")[..., 3:], P[..., [4, 5, 6, 3]])
+
+
+def test_check_transform_accepts_rigid_and_names_what_is_wrong():
+    T = np.eye(4)
+    T[:3, :3] = _rotation([1, 2, 3], 0.7)
+    assert check_transform(T.tolist(), "T_world_part").shape == (4, 4)
+    assert check_transform(np.stack([T, T]), "T_part_tcp", batch=True).shape == (2, 4, 4)
+    cases = {
+        "shape": (np.eye(3), r"expected shape \(4, 4\), got \(3, 3\)"),
+        "nan": (np.where(np.eye(4) == 1, np.nan, 0.0), "NaN"),
+        "last row": (np.vstack([T[:3], [0, 0, 1, 1]]), "not a rigid transform"),
+        "scaled": (np.diag([2.0, 1, 1, 1]), "not a rigid transform"),
+        "mirror": (np.diag([-1.0, 1, 1, 1]), "not a rigid transform"),
+        "text": ("abc", "expected a 4x4 matrix of numbers|expected shape"),
+    }
+    for what, (bad, msg) in cases.items():
+        with pytest.raises(InputError, match=f"T_world_part: .*(?:{msg})") as err:
+            check_transform(bad, "T_world_part")
+        assert err.value.exit_code == 3, what
+    with pytest.raises(ConfigError, match="T_flange_tcp"):
+        check_transform(np.diag([2.0, 1, 1, 1]), "T_flange_tcp", error=ConfigError)
+    batch = np.stack([T, T, np.diag([1.0, 1, 1, 2])])
+    with pytest.raises(ValueError, match=r"T_part_tcp\[2\]"):
+        check_transform(batch, "T_part_tcp", batch=True, error=ValueError)
+    with pytest.raises(InputError, match=r"expected shape \(N, 4, 4\)"):
+        check_transform(T, "T_part_tcp", batch=True)
