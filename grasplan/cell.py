@@ -26,9 +26,9 @@ import numpy as np
 import trimesh
 import yaml
 
-from .config_files import CONFIG_DIR, available, resolve_yaml
+from .config_files import CONFIG_DIR, available, config_number, resolve_yaml
 from .errors import ConfigError, InputError
-from .gripper import _num, rpy_matrix
+from .gripper import rpy_matrix
 from .units import parse_angle_deg, parse_length
 from .transforms import check_transform
 
@@ -73,11 +73,11 @@ def cell_from_dict(data, *, name: str, source: str = "") -> Cell:
     cname = data.get("name", name)
     if not isinstance(cname, str) or not cname:
         raise ConfigError(f"{source}: name: expected a non-empty string")
-    table_z = _num(data.get("table_z", 0.0), "table_z")
+    table_z = config_number(data.get("table_z", 0.0), "table_z")
     xy = data.get("part_xy", [0.45, 0.0])
     if not isinstance(xy, (list, tuple)) or len(xy) != 2:
         raise ConfigError(f"{source}: part_xy: expected [x, y] in metres, got {xy!r}")
-    part_xy = (_num(xy[0], "part_xy[0]"), _num(xy[1], "part_xy[1]"))
+    part_xy = (config_number(xy[0], "part_xy[0]"), config_number(xy[1], "part_xy[1]"))
     pi = data.get("pose_index", 0)
     if isinstance(pi, bool) or not isinstance(pi, int) or pi < 0:
         raise ConfigError(f"{source}: pose_index: expected an integer >= 0, got {pi!r}")

@@ -38,7 +38,7 @@ import numpy as np
 import trimesh
 import yaml
 
-from .config_files import CONFIG_DIR, available, resolve_yaml
+from .config_files import CONFIG_DIR, available, config_number, config_vector, resolve_yaml
 from .errors import ConfigError
 from .transforms import check_transform
 
@@ -161,25 +161,6 @@ def available_grippers() -> list[str]:
     return available(GRIPPER_DIR)
 
 
-def _num(value, field_: str, *, positive=False, nonneg=False) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ConfigError(f"{field_}: expected a number (metres), got {value!r}")
-    v = float(value)
-    if not math.isfinite(v):
-        raise ConfigError(f"{field_}: must be finite, got {value!r}")
-    if positive and v <= 0:
-        raise ConfigError(f"{field_}: must be > 0, got {value!r}")
-    if nonneg and v < 0:
-        raise ConfigError(f"{field_}: must be >= 0, got {value!r}")
-    return v
-
-
-def _vec(value, field_: str, n: int = 3, *, positive=False) -> np.ndarray:
-    if not isinstance(value, (list, tuple)) or len(value) != n:
-        raise ConfigError(f"{field_}: expected a list of {n} numbers, got {value!r}")
-    return np.array([_num(v, f"{field_}[{i}]", positive=positive) for i, v in enumerate(value)], dtype=np.float64)
-
-
 def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
     """(3, 3) rotation R_z(yaw) R_y(pitch) R_x(roll), angles in radians."""
     cr, sr, cp, sp, cy, sy = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch), math.cos(yaw), math.sin(yaw)
@@ -197,12 +178,12 @@ def parse_transform(value, field_: str) -> np.ndarray:
         if unknown:
             raise ConfigError(f"{field_}: unknown keys {sorted(unknown)}; use xyz (m) and rpy_deg (deg)")
         T = np.eye(4)
-        T[:3, 3] = _vec(value.get("xyz", [0, 0, 0]), f"{field_}.xyz")
-        rpy = np.radians(_vec(value.get("rpy_deg", [0, 0, 0]), f"{field_}.rpy_deg"))
+        T[:3, 3] = config_vector(value.get("xyz", [0, 0, 0]), f"{field_}.xyz")
+        rpy = np.radians(config_vector(value.get("rpy_deg", [0, 0, 0]), f"{field_}.rpy_deg"))
         T[:3, :3] = rpy_matrix(*rpy)
         return T
     if isinstance(value, (list, tuple)) and len(value) == 4:
-        T = np.array([_vec(r, f"{field_}[{i}]", 4) for i, r in enumerate(value)])
+        T = np.array([config_vector(r, f"{field_}[{i}]", 4) for i, r in enumerate(value)])
         return check_transform(T, field_, error=ConfigError)
     raise ConfigError(f"{field_}: expected a 4x4 matrix (list of 4 rows) or {{xyz: [x,y,z], rpy_deg: [r,p,y]}}, got {value!r}")
 
@@ -216,21 +197,21 @@ def _box(spec, field_: str, *, finger: bool) -> Box:
         raise ConfigError(f"{field_}: unknown keys {sorted(unknown)}; allowed: {sorted(allowed)}")
     if "size" not in spec:
         raise ConfigError(f"{field_}.size: missing (full side lengths [x, y, z] in metres)")
-    size = _vec(spec["size"], f"{field_}.size", positive=True)
+    size = config_vector(spec["size"], f"{field_}.size", positive=True)
     T = np.eye(4)
     if "rpy_deg" in spec:
-        T[:3, :3] = rpy_matrix(*np.radians(_vec(spec["rpy_deg"], f"{field_}.rpy_deg")))
+        T[:3, :3] = rpy_matrix(*np.radians(config_vector(spec["rpy_deg"], f"{field_}.rpy_deg")))
     if finger:
         if "center_z" not in spec:
             raise ConfigError(f"{field_}.center_z: missing (z of the finger box centre in the TCP frame, m)")
         if "rpy_deg" in spec:
             raise ConfigError(f"{field_}.rpy_deg: finger boxes are axis-aligned in the TCP frame; use a mesh finger")
         # inner face on x = 0 at opening 0: centre at x = size_x / 2
-        T[:3, 3] = [size[0] / 2, _num(spec.get("center_y", 0.0), f"{field_}.center_y"), _num(spec["center_z"], f"{field_}.center_z")]
+        T[:3, 3] = [size[0] / 2, config_number(spec.get("center_y", 0.0), f"{field_}.center_y"), config_number(spec["center_z"], f"{field_}.center_z")]
     else:
         if "center" not in spec:
             raise ConfigError(f"{field_}.center: missing (box centre [x, y, z] in the TCP frame, m)")
-        T[:3, 3] = _vec(spec["center"], f"{field_}.center")
+        T[:3, 3] = config_vector(spec["center"], f"{field_}.center")
     return Box(size, T)
 
 
@@ -247,7 +228,7 @@ def _mesh(spec, field_: str, base: Path) -> MeshShape:
     path = (base / spec["path"]).resolve()
     if not path.is_file():
         raise ConfigError(f"{field_}.path: mesh file {path} not found (paths are relative to the gripper YAML)")
-    scale = _num(spec.get("scale", 1.0), f"{field_}.scale", positive=True)
+    scale = config_number(spec.get("scale", 1.0), f"{field_}.scale", positive=True)
     T = parse_transform(spec["T"], f"{field_}.T") if "T" in spec else np.eye(4)
     try:
         m = trimesh.load(str(path), force="mesh", process=True)
@@ -282,7 +263,7 @@ def gripper_from_dict(data: dict, *, base: Path, name: str, source: str = "") ->
     gname = data.get("name", name)
     if not isinstance(gname, str) or not gname:
         raise ConfigError(f"{source}: name: expected a non-empty string")
-    max_opening = _num(data["max_opening"], "max_opening", positive=True)
+    max_opening = config_number(data["max_opening"], "max_opening", positive=True)
     T_flange_tcp = parse_transform(data["T_flange_tcp"], "T_flange_tcp")
     if not isinstance(data["body"], list) or not data["body"]:
         raise ConfigError(f"{source}: body: expected a non-empty list of {{box: ...}} or {{mesh: ...}}")

@@ -36,9 +36,7 @@ YAML schema (all lengths m, angles rad; angles may be written as expressions suc
 """
 from __future__ import annotations
 
-import ast
 import importlib.metadata
-import math
 import sys
 import threading
 import xml.etree.ElementTree as ET
@@ -51,7 +49,7 @@ import numpy as np
 import pinocchio as pin
 import yaml
 
-from .config_files import ROBOTS_DIR, available, resolve_yaml
+from .config_files import ROBOTS_DIR, available, config_number, config_vector, resolve_yaml
 from .errors import ConfigError, InputError, unknown_name
 _PKG_SHARE = "cmeel.prefix/share"
 
@@ -88,40 +86,6 @@ def package_share_dir(package: str = "example-robot-data") -> Path:
 # --------------------------------------------------------------------------------------------
 # Small YAML helpers
 # --------------------------------------------------------------------------------------------
-_ALLOWED = (ast.Expression, ast.BinOp, ast.UnaryOp, ast.Constant, ast.Name, ast.Add, ast.Sub,
-            ast.Mult, ast.Div, ast.USub, ast.UAdd, ast.Load)
-
-
-def _num(value: Any, where: str) -> float:
-    """A float from a YAML scalar: a number or an expression of numbers and ``pi``."""
-    if isinstance(value, bool):
-        raise ConfigError(f"{where}: expected a number, got {value!r}")
-    if isinstance(value, (int, float)):
-        out = float(value)
-    elif isinstance(value, str):
-        try:
-            tree = ast.parse(value.strip(), mode="eval")
-            if not all(isinstance(n, _ALLOWED) for n in ast.walk(tree)) or any(
-                    isinstance(n, ast.Name) and n.id != "pi" for n in ast.walk(tree)):
-                raise ValueError
-            out = float(eval(compile(tree, "<yaml>", "eval"), {"__builtins__": {}}, {"pi": math.pi}))
-        except Exception:
-            raise ConfigError(f"{where}: cannot read {value!r} as a number (use e.g. 1.57 or -pi/2)") from None
-    else:
-        raise ConfigError(f"{where}: expected a number, got {value!r}")
-    if not math.isfinite(out):
-        raise ConfigError(f"{where}: {value!r} is not finite")
-    return out
-
-
-def _vec(value: Any, n: int | None, where: str) -> np.ndarray:
-    if not isinstance(value, (list, tuple)):
-        raise ConfigError(f"{where}: expected a list of numbers, got {value!r}")
-    if n is not None and len(value) != n:
-        raise ConfigError(f"{where}: expected {n} numbers, got {len(value)}")
-    return np.array([_num(v, f"{where}[{i}]") for i, v in enumerate(value)], dtype=float)
-
-
 def _frozen(a: np.ndarray) -> np.ndarray:
     a = np.array(a, dtype=float)
     a.setflags(write=False)
@@ -373,7 +337,7 @@ def _build_robot(path: Path) -> Robot:
                 raise ConfigError(f"{path}: field 'lock_joints': unknown joint {jn!r}; joints: "
                                   f"{', '.join(list(model.names)[1:])}")
             jid = model.getJointId(jn)
-            q0[model.idx_qs[jid]] = _num(val, f"{path}: lock_joints.{jn}")
+            q0[model.idx_qs[jid]] = config_number(val, f"{path}: lock_joints.{jn}")
             ids.append(jid)
         model, (cmodel, vmodel) = pin.buildReducedModel(model, [cmodel, vmodel], ids, q0)
 
@@ -403,8 +367,8 @@ def _build_robot(path: Path) -> Robot:
             raise ConfigError(f"{w}.name: frame {fr['name']!r} already exists in the URDF")
         pid = model.getFrameId(fr["parent"])
         parent = model.frames[pid]
-        local = se3_from_xyz_rpy(_vec(fr.get("xyz", [0, 0, 0]), 3, f"{w}.xyz"),
-                                 _vec(fr.get("rpy", [0, 0, 0]), 3, f"{w}.rpy"))
+        local = se3_from_xyz_rpy(config_vector(fr.get("xyz", [0, 0, 0]), f"{w}.xyz", 3),
+                                 config_vector(fr.get("rpy", [0, 0, 0]), f"{w}.rpy", 3))
         model.addFrame(pin.Frame(fr["name"], parent.parentJoint, pid, parent.placement * local,
                                  pin.FrameType.OP_FRAME))
 
@@ -424,7 +388,7 @@ def _build_robot(path: Path) -> Robot:
     if not (np.all(np.isfinite(lower)) and np.all(np.isfinite(upper))):
         raise ConfigError(f"{path}: field 'urdf': every joint needs finite position limits")
 
-    q_home = _vec(_field(cfg, "q_home", path), model.nq, f"{path}: field 'q_home'")
+    q_home = config_vector(_field(cfg, "q_home", path), f"{path}: field 'q_home'", model.nq)
     if np.any(q_home < lower - 1e-9) or np.any(q_home > upper + 1e-9):
         raise ConfigError(f"{path}: field 'q_home' {q_home.tolist()} is outside the joint limits "
                           f"[{lower.tolist()}, {upper.tolist()}]")
@@ -435,7 +399,7 @@ def _build_robot(path: Path) -> Robot:
     else:
         if not isinstance(Twb, list) or len(Twb) != 4:
             raise ConfigError(f"{path}: field 'T_world_base' must be 'identity' or a 4x4 list")
-        T_world_base = np.stack([_vec(r, 4, f"{path}: field 'T_world_base'[{i}]") for i, r in enumerate(Twb)])
+        T_world_base = np.stack([config_vector(r, f"{path}: field 'T_world_base'[{i}]", 4) for i, r in enumerate(Twb)])
         R = T_world_base[:3, :3]
         if not (np.allclose(R @ R.T, np.eye(3), atol=1e-6) and np.isclose(np.linalg.det(R), 1.0, atol=1e-6)
                 and np.allclose(T_world_base[3], [0, 0, 0, 1])):

@@ -123,3 +123,19 @@ def test_gripper_from_path_and_matrix_form(tmp_path):
 def test_asymmetric_box_body_detected(tmp_path):
     data = {**BASE, "body": [{"box": {"size": [0.06, 0.04, 0.05], "center": [0.01, 0, -0.06]}}]}
     assert not load_gripper(_write(tmp_path, data)).symmetric
+
+
+def test_config_numbers_are_read_alike_in_every_description():
+    """Grippers, cells and robots share one YAML number reader: pi expressions, sign checks."""
+    from grasplan.config_files import config_number, config_vector
+    from grasplan.errors import ConfigError
+
+    assert config_number("-pi/2", "q_home[1]") == pytest.approx(-np.pi / 2)
+    assert config_vector([0.1, "pi/4", 2], "xyz").tolist() == pytest.approx([0.1, np.pi / 4, 2.0])
+    for bad, kw, msg in [(True, {}, "expected a number"), ("__import__('os')", {}, "cannot read"),
+                         (float("inf"), {}, "finite"), (0.0, {"positive": True}, "> 0"),
+                         (-1e-3, {"nonneg": True}, ">= 0")]:
+        with pytest.raises(ConfigError, match=msg):
+            config_number(bad, "field", **kw)
+    with pytest.raises(ConfigError, match="list of 3 numbers"):
+        config_vector([1, 2], "size")
