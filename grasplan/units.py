@@ -25,7 +25,8 @@ _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _LENGTH_RE = re.compile(rf"^\s*({_NUMBER})\s*([a-zA-Z]*)\s*$")
 
 
-def parse_length(text: str | float | int, *, name: str = "length", allow_negative: bool = False) -> float:
+def parse_length(text: str | float | int, *, name: str = "length", allow_zero: bool = False,
+                 allow_negative: bool = False) -> float:
     """Parse a length such as ``"0.1mm"`` or ``"0.05"`` (metres) and return metres.
 
     >>> parse_length("0.1mm")
@@ -48,7 +49,9 @@ def parse_length(text: str | float | int, *, name: str = "length", allow_negativ
         value = float(m.group(1)) * LENGTH_UNITS[unit]
     if not math.isfinite(value):
         raise InputError(f"{name}: {text!r} is not a finite length")
-    if value <= 0 and not allow_negative:
+    if value < 0 and not allow_negative:
+        raise InputError(f"{name}: must be {'>= 0' if allow_zero else 'a positive length'}, got {text!r}")
+    if value == 0 and not (allow_zero or allow_negative):
         raise InputError(f"{name}: must be a positive length, got {text!r}")
     return value
 

@@ -54,3 +54,33 @@ def test_tolerance_scales_with_part():
     assert big.merge < big.distance
     with pytest.raises(ValueError):
         Tolerance.for_scale(0.0)
+
+
+def test_zero_lengths_only_where_zero_means_off():
+    assert parse_length("0", name="--thin", allow_zero=True) == 0.0
+    assert parse_length("3mm", name="--thin", allow_zero=True) == pytest.approx(0.003)
+    with pytest.raises(InputError, match=">= 0"):
+        parse_length("-1mm", name="--thin", allow_zero=True)
+    with pytest.raises(InputError, match="positive"):
+        parse_length("0", name="--alpha")
+
+
+@pytest.mark.parametrize("command", ["grasps", "plan"])
+def test_thin_option_accepts_zero_and_refuses_negative(tmp_path, example_part, command):
+    from click.testing import CliRunner
+
+    from grasplan.cli import main
+
+    out = tmp_path / "out.json"
+    base = [command, str(example_part("gear.stl")), "-o", str(out)] + (["--robot", "ur5"] if command == "plan" else [])
+    r = CliRunner().invoke(main, base + ["--thin", "-1mm"])
+    assert r.exit_code == 2 and "--thin" in r.output and ">= 0" in r.output and not out.exists()
+    if command == "grasps":
+        posed = {}
+        for thin in ("3mm", "0"):
+            r = CliRunner().invoke(main, base + ["--roll-step", "120", "--thin", thin])
+            assert r.exit_code == 0, r.output
+            doc = read_json(out)
+            posed[thin] = doc["counts"]["posed_candidates"]
+            assert doc["params"]["thin_spacing"] == (0.003 if thin == "3mm" else 0.0)
+        assert 0 < posed["3mm"] < posed["0"]

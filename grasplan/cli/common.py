@@ -14,15 +14,20 @@ from ..units import parse_angle_deg, parse_length
 
 
 class LengthType(click.ParamType):
-    """A length option: ``0.1mm``, ``5cm`` or a bare number in metres; converted to metres."""
+    """A length option: ``0.1mm``, ``5cm`` or a bare number in metres; converted to metres.
+    Positive, or >= 0 with ``allow_zero`` (where 0 means "off")."""
 
     name = "LENGTH"
+
+    def __init__(self, *, allow_zero: bool = False):
+        self.allow_zero = allow_zero
 
     def convert(self, value, param, ctx):
         if isinstance(value, float):
             return value
         try:
-            return parse_length(value, name=f"--{param.name.replace('_', '-')}" if param else "length")
+            return parse_length(value, name=f"--{param.name.replace('_', '-')}" if param else "length",
+                                allow_zero=self.allow_zero)
         except InputError as exc:
             self.fail(str(exc), param, ctx)
 
@@ -42,6 +47,7 @@ class AngleType(click.ParamType):
 
 
 LENGTH = LengthType()
+LENGTH_OR_ZERO = LengthType(allow_zero=True)
 ANGLE = AngleType()
 
 units_option = click.option(

@@ -6,7 +6,7 @@ import time
 import click
 
 from ..errors import InputError
-from .common import ANGLE, LENGTH, info, table, units_option, warn_all
+from .common import ANGLE, LENGTH, LENGTH_OR_ZERO, info, table, units_option, warn_all
 
 
 @click.command(name="grasps")
@@ -24,10 +24,10 @@ from .common import ANGLE, LENGTH, info, table, units_option, warn_all
               help="Rest the part in this stable pose (0 = most probable) instead of the cell's pose_index.")
 @click.option("--roll-step", type=ANGLE, default=15.0, show_default=True,
               help="Roll step about the closing axis, degrees (poses at 0, step, ... < 360).")
-@click.option("--thin", "thin_spacing", type=str, default="3mm", show_default=True,
+@click.option("--thin", "thin_spacing", type=LENGTH_OR_ZERO, default=0.003, show_default="3mm",
               help="Pose only one candidate per cluster (grasp-centre grid of this pitch x closing axis in "
                    "10 deg steps, grasplan.thinning); 0 poses every candidate.")
-@click.option("--merge-distance", type=str, default="0", show_default=True,
+@click.option("--merge-distance", type=LENGTH_OR_ZERO, default=0.0, show_default="0",
               help="Also skip a candidate whose contacts fall in the same grid cells of this size as an "
                    "earlier candidate's; 0 = off.")
 @click.option("--no-blm", is_flag=True, help="Skip the boundary layer mesher.")
@@ -57,15 +57,7 @@ def command(part, output, gripper, cell, part_pose, pose_index, roll_step, no_bl
     from ..io import write_json
     from ..mesh import load_part
 
-    from ..units import parse_length
-
     t_all = time.perf_counter()
-    merge_distance = parse_length(merge_distance, name="--merge-distance", allow_negative=True)
-    if merge_distance < 0:
-        raise InputError(f"--merge-distance must be >= 0, got {merge_distance}")
-    thin_spacing = parse_length(thin_spacing, name="--thin", allow_negative=True)
-    if thin_spacing < 0:
-        raise InputError(f"--thin must be >= 0, got {thin_spacing}")
     g = load_gripper(gripper)
     c = load_cell(cell)
     if pose_index is not None:

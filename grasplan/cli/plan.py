@@ -7,7 +7,7 @@ import click
 
 from ..candidates import CandidateParams
 from ..errors import InputError, PlanningError
-from .common import ANGLE, LENGTH, info, progress, table, units_option, warn_all
+from .common import ANGLE, LENGTH, LENGTH_OR_ZERO, info, progress, table, units_option, warn_all
 
 
 @click.command(name="plan")
@@ -27,7 +27,7 @@ from .common import ANGLE, LENGTH, info, progress, table, units_option, warn_all
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of IK and OMPL (deterministic results).")
 @click.option("--roll-step", "roll_step_deg", type=ANGLE, default=15.0, show_default=True,
               help="Roll step of the TCP about the closing axis, degrees.")
-@click.option("--thin", "thin_spacing", type=str, default="3mm", show_default=True,
+@click.option("--thin", "thin_spacing", type=LENGTH_OR_ZERO, default=0.003, show_default="3mm",
               help="Pose one candidate per cluster (grasp-centre grid of this pitch x closing axis in 10 deg "
                    "steps); 0 poses every candidate.")
 @click.option("--pose-index", type=click.IntRange(min=0), default=None,
@@ -71,11 +71,6 @@ def command(part, robot_name, output, gripper, cell, part_pose, top, seed, roll_
                                       epsilon=epsilon, max_opening=max_opening, beta_deg=beta_deg, mu=mu)
     except ValueError as exc:
         raise InputError(str(exc)) from None
-    from ..units import parse_length
-
-    thin_spacing = parse_length(thin_spacing, name="--thin", allow_negative=True)
-    if thin_spacing < 0:
-        raise InputError(f"--thin must be >= 0, got {thin_spacing}")
     if pose_index is not None:
         from dataclasses import replace
 
