@@ -119,7 +119,7 @@ def compute_grasps(
     gripper is symmetric. ``thin_spacing`` (m, default 3 mm; 0 = off) poses only one candidate per
     cluster of :func:`grasplan.thinning.thin_candidates` (grasp-centre grid of that pitch x
     closing-axis direction quantised to ``thin_axis_deg``): the BLM yields many near-identical
-    pairs on neighbouring triangles (TLess20: 72 k candidates, 1.7 M poses unthinned; 1.8 k
+    pairs on neighbouring triangles (TLess20: 72 k candidates, 1.7 M poses unthinned; 1.7 k
     candidates at 3 mm, far below the jaws' 16 mm width). ``merge_distance`` (m, default 0 = off)
     additionally skips a candidate whose two contacts fall in the same grid cells of that size as
     an earlier candidate's.
