@@ -6,7 +6,7 @@ starts from its :class:`GraspResult`.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -163,7 +163,3 @@ def compute_grasps(
                        timing_s=timing, roll_step_deg=float(roll_step_deg), part_pose_source=source,
                        merge_distance=float(merge_distance), thin=(float(thin_spacing), float(thin_axis_deg)))
 
-
-def params_with_gripper(params: CandidateParams, gripper: Gripper) -> CandidateParams:
-    """``params`` with ``max_opening`` set to the gripper's."""
-    return replace(params, max_opening=gripper.max_opening)
