@@ -237,6 +237,10 @@ def cluster_surfaces(mesh: trimesh.Trimesh, *, gamma_deg: float = 135.0, tol: To
     return facet, surface, nf, int(surface.max()) + 1 if m else 0
 
 
+#: a boundary layer wider than this fraction of the part's diagonal is a units mistake, not a choice
+MAX_ALPHA_FRACTION = 0.1
+
+
 def boundary_layer(
     mesh: trimesh.Trimesh, *, alpha: float = 1e-4, gamma_deg: float = 135.0, tol: Tolerance | None = None
 ) -> BLMResult:
@@ -269,6 +273,12 @@ def boundary_layer(
     if V.ndim != 2 or V.shape[1] != 3 or F.ndim != 2 or F.shape[1] != 3 or len(F) == 0:
         raise MeshError(f"BLM needs a triangle mesh with vertices (n, 3) and faces (m, 3), got {V.shape} and {F.shape}")
     tol = tol or Tolerance.for_mesh(V)
+    if alpha > MAX_ALPHA_FRACTION * tol.scale:
+        raise InputError(
+            f"alpha = {alpha:g} m is {alpha / tol.scale:.0%} of the part's size ({tol.scale:.4g} m "
+            f"diagonal): the boundary layer would swallow its faces. A bare number is metres: did you mean "
+            f"{alpha:g}mm? (the paper uses 0.001-2 mm)"
+        )
     m = len(F)
 
     facet, surface, n_facets, n_surfaces = cluster_surfaces(mesh, gamma_deg=gamma_deg, tol=tol)

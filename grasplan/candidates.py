@@ -14,7 +14,6 @@ import trimesh
 from .antipodal import Candidates, find_candidates
 from .blm import BLMResult, boundary_layer
 from .convexity import classify_convexity
-from .errors import InputError
 from .mesh import Part
 
 SCHEMA = "grasplan.candidates/1"
@@ -79,25 +78,8 @@ class CandidateResult:
         }
 
 
-#: a boundary layer wider than this fraction of the part's diagonal is a units mistake, not a choice
-MAX_ALPHA_FRACTION = 0.1
-
-
-def check_alpha(alpha: float, part: Part) -> None:
-    """Refuse a BLM width that would swallow the part's faces (typically ``--alpha 0.1`` meant as mm:
-    a bare number is metres)."""
-    if alpha > MAX_ALPHA_FRACTION * part.tol.scale:
-        raise InputError(
-            f"alpha = {alpha:g} m is {alpha / part.tol.scale:.0%} of the part's size ({part.tol.scale:.4g} m "
-            f"diagonal): the boundary layer would swallow its faces. A bare number is metres: did you mean "
-            f"{alpha:g}mm? (the paper uses 0.001-2 mm)"
-        )
-
-
 def compute_candidates(part: Part, params: CandidateParams = CandidateParams(), *, load_s: float = 0.0) -> CandidateResult:
     """Run BLM (unless ``params.blm`` is False), convexity and the antipodal search on ``part``."""
-    if params.blm:
-        check_alpha(params.alpha, part)
     timing = {"load": float(load_s)}
     t = time.perf_counter()
     blm_result = None

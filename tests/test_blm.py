@@ -362,3 +362,10 @@ def test_cli_help():
     assert res.exit_code == 0
     for opt in ("--alpha", "--gamma", "--units", "--output"):
         assert opt in res.output
+
+
+def test_alpha_larger_than_the_part_is_refused_by_the_mesher_itself():
+    box = trimesh.creation.box(extents=(0.03, 0.02, 0.01))
+    with pytest.raises(InputError, match="did you mean 0.1mm"):
+        boundary_layer(box, alpha=0.1)
+    assert len(boundary_layer(box, alpha=1e-4).mesh.faces) > len(box.faces)

@@ -93,9 +93,6 @@ def command(part: Path, output: Path, alpha: float, gamma_deg: float, units: str
     info(p.units_note)
     warn_all(p.warnings)
 
-    from ..candidates import check_alpha
-
-    check_alpha(alpha, p)
     t0 = time.perf_counter()
     r = boundary_layer(p.mesh, alpha=alpha, gamma_deg=gamma_deg, tol=p.tol)
     t_blm = time.perf_counter() - t0
