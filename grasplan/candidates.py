@@ -6,7 +6,7 @@ grasps and plan pipelines start from its result.
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 import trimesh
@@ -17,6 +17,9 @@ from .convexity import classify_convexity
 from .mesh import Part
 
 SCHEMA = "grasplan.candidates/1"
+#: contact distance searched when no gripper says otherwise: the paper's Schunk Co-act EGP-C 40
+#: with fingers for a 50 mm opening
+DEFAULT_MAX_OPENING = 0.05
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -28,13 +31,15 @@ class CandidateParams:
     gamma_deg: float = 135.0     #: BLM surface angle: facets join when normals differ <= 180 - gamma
     d_shift: float = 1e-5        #: convexity: centroid shift along the normal, m (0.01 mm)
     epsilon: float = 5e-3        #: antipodal overlap threshold, m (5 mm)
-    max_opening: float = 0.05    #: gripper's maximum opening, m (Schunk EGP-C 40: 50 mm)
+    max_opening: float | None = None  #: largest contact distance, m; None: the gripper's (else DEFAULT_MAX_OPENING)
     beta_deg: float = 2.0        #: normals anti-parallel within this, degrees
     mu: float = 0.3              #: friction coefficient (cone half-angle atan(mu))
 
     def __post_init__(self):
         for name in ("alpha", "d_shift", "epsilon", "max_opening"):
             v = getattr(self, name)
+            if v is None and name == "max_opening":
+                continue
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be a positive length in metres, got {v!r}")
         if not 90.0 < self.gamma_deg <= 180.0:
@@ -79,7 +84,12 @@ class CandidateResult:
 
 
 def compute_candidates(part: Part, params: CandidateParams = CandidateParams(), *, load_s: float = 0.0) -> CandidateResult:
-    """Run BLM (unless ``params.blm`` is False), convexity and the antipodal search on ``part``."""
+    """Run BLM (unless ``params.blm`` is False), convexity and the antipodal search on ``part``.
+
+    ``params.max_opening = None`` searches up to :data:`DEFAULT_MAX_OPENING`; the result's
+    ``params`` hold the value used."""
+    if params.max_opening is None:
+        params = replace(params, max_opening=DEFAULT_MAX_OPENING)
     timing = {"load": float(load_s)}
     t = time.perf_counter()
     blm_result = None

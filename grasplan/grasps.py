@@ -6,7 +6,7 @@ starts from its :class:`GraspResult`.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -128,6 +128,8 @@ def compute_grasps(
         raise InputError(f"merge_distance must be >= 0 m, got {merge_distance!r}")
     g = load_gripper(gripper)
     c = load_cell(cell)
+    if cand_params.max_opening is None:  # search exactly as far as this gripper opens
+        cand_params = replace(cand_params, max_opening=g.max_opening)
     timing: dict = {}
     t = time.perf_counter()
     cand = compute_candidates(part, cand_params, load_s=load_s)

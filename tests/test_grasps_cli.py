@@ -125,3 +125,25 @@ def test_thinning_and_merge_reduce_posed_candidates(example_part):
     key = {(int(ci), round(float(r), 6)): s for ci, r, s in zip(full.frames.candidate, full.frames.roll, full.status)}
     for ci, r, s in zip(thin.frames.candidate, thin.frames.roll, thin.status):
         assert key[(int(ci), round(float(r), 6))] == s
+
+
+def test_candidate_search_follows_the_gripper_opening(tmp_path):
+    """The Python API searches as far as the gripper opens (not a fixed 50 mm), and records it."""
+    import trimesh
+
+    from grasplan.candidates import DEFAULT_MAX_OPENING, CandidateParams, compute_candidates
+    from grasplan.gripper import GRIPPER_DIR
+    from grasplan.mesh import part_from_trimesh
+
+    text = (GRIPPER_DIR / "schunk_egp_c_40.yaml").read_text()
+    assert "max_opening: 0.05" in text
+    wide = tmp_path / "wide.yaml"
+    wide.write_text(text.replace("max_opening: 0.05", "max_opening: 0.08"))
+    part = part_from_trimesh(trimesh.creation.box(extents=(0.07, 0.02, 0.01)))
+    res = compute_grasps(part, gripper=str(wide), roll_step_deg=90)
+    assert res.cand.params.max_opening == 0.08 and res.to_json()["params"]["max_opening"] == 0.08
+    assert res.cand.candidates.width.max() == pytest.approx(0.07)  # across the 70 mm length
+    default = compute_candidates(part, CandidateParams())
+    assert default.params.max_opening == DEFAULT_MAX_OPENING and default.candidates.width.max() < 0.05
+    explicit = compute_grasps(part, cand_params=CandidateParams(max_opening=0.03), gripper=str(wide), roll_step_deg=90)
+    assert explicit.cand.params.max_opening == 0.03  # an explicit value wins

@@ -69,7 +69,7 @@ def command(part, output, gripper, cell, part_pose, pose_index, roll_step, no_bl
         raise InputError(f"--roll-step must be in (0, 360] degrees, got {roll_step}")
     try:
         params = CandidateParams(blm=not no_blm, alpha=alpha, gamma_deg=gamma, d_shift=d_shift, epsilon=epsilon,
-                                 max_opening=g.max_opening if max_opening is None else max_opening,
+                                 max_opening=max_opening,
                                  beta_deg=beta, mu=mu)
     except ValueError as exc:
         raise InputError(str(exc)) from None

@@ -62,10 +62,6 @@ def command(part, robot_name, output, gripper, cell, part_pose, top, seed, roll_
 
     t0 = time.perf_counter()
     # validate cheap inputs first: nothing is written on bad input
-    if max_opening is None:
-        from ..gripper import load_gripper
-
-        max_opening = load_gripper(gripper).max_opening  # unknown gripper -> ConfigError listing them
     try:
         cand_params = CandidateParams(blm=not no_blm, alpha=alpha, gamma_deg=gamma_deg, d_shift=d_shift,
                                       epsilon=epsilon, max_opening=max_opening, beta_deg=beta_deg, mu=mu)
