@@ -7,7 +7,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 OUT    ?= out
 
-.PHONY: install demo test bench parts clean
+.PHONY: install demo test bench parts wheel fuzz clean
 
 install: $(STAMP)
 
@@ -30,8 +30,13 @@ demo: install
 test: install
 	$(PY) -m pytest -n 2 -q
 
+wheel: install
+	$(PY) -m build --wheel --outdir dist .
+	@rm -rf build
+	@ls -1 dist/*.whl
+
 bench: install
 	$(PY) benchmarks/run_all.py
 
 clean:
-	rm -rf $(VENV) $(OUT) .pytest_cache .hypothesis
+	rm -rf $(VENV) $(OUT) .pytest_cache .hypothesis build dist

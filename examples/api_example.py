@@ -5,12 +5,14 @@ Run:  python examples/api_example.py [PART] [-o OUT_DIR] [--top K]
 
 Steps:
 1. ``load_part`` reads the mesh (units decided from its size: the example parts are in mm).
-2. ``grasplan.planning.plan`` runs every stage: boundary layer mesher, convexity, antipodal candidates,
+2. ``grasplan.plan`` runs every stage: boundary layer mesher, convexity, antipodal candidates,
    gripper poses with full-jaw collision checks, IK and collision-free joint paths for the best
-   ``top`` grasps. It returns a ``PlanResult``.
-3. ``PlanResult.write`` saves the ``grasplan.plan/1`` JSON; ``grasplan.schemas.validate`` checks it.
-4. ``grasplan.export.write`` turns the plan into a URScript program, a timed, collision-checked
-   joint trajectory (ROS JointTrajectory layout) and a CSV of every grasp.
+   ``top`` grasps (options: ``CandidateParams``, ``GraspParams``, ``PlanParams``). It returns a
+   typed ``PlanResult``.
+3. ``PlanResult.write`` saves the self-contained ``grasplan.plan/1`` JSON; ``grasplan.load_result``
+   reads it back (gripper, cell and robot rebuilt from the file, everything validated).
+4. ``grasplan.export.write`` turns the plan into every registered format (``grasplan.export.FORMATS``):
+   URScript, a timed joint trajectory, CSV, KUKA KRL, ABB RAPID, MoveIt grasps.
 """
 from __future__ import annotations
 
@@ -18,10 +20,8 @@ import argparse
 import sys
 from pathlib import Path
 
+import grasplan
 from grasplan import export
-from grasplan.mesh import load_part
-from grasplan.planning import plan
-from grasplan.schemas import validate
 
 HERE = Path(__file__).resolve().parent
 
@@ -33,8 +33,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--top", type=int, default=5, help="plan at most this many grasps")
     args = ap.parse_args(argv)
 
-    part = load_part(args.part)                       # metres from here on
-    result = plan(part, robot="ur5", top=args.top, seed=0)
+    part = grasplan.load_part(args.part)              # metres from here on
+    result = grasplan.plan(part, "ur5", planning=grasplan.PlanParams(top=args.top, seed=0))
     counts = result.counts()
     print(f"{args.part.name}: {counts['grasps']} grasps, {counts['planned']} planned")
     if counts["planned"] == 0:
@@ -43,15 +43,17 @@ def main(argv: list[str] | None = None) -> int:
 
     args.out.mkdir(parents=True, exist_ok=True)
     plan_path = result.write(args.out / "plan.json")
-    doc = result.to_json()
-    validate(doc)                                     # the JSON Schema shipped in grasplan/schemas
+    loaded = grasplan.load_result(plan_path)           # validated, models rebuilt from the file
 
-    best = export.planned_ids(doc)[0]                 # highest score
+    best = loaded.planned_ids()[0]                     # best rank
     written = [
-        export.write(doc, "urscript", args.out / "pick.script"),                       # best grasp
-        export.write(doc, "joint-trajectory", args.out / "trajectory.json", max_accel=1.0),
-        export.write(doc, "csv", args.out / "grasps.csv"),                             # every grasp
+        export.write(loaded, "urscript", args.out / "pick.script"),                    # best grasp
+        export.write(loaded, "joint-trajectory", args.out / "trajectory.json", max_accel=1.0),
+        export.write(loaded, "csv", args.out / "grasps.csv"),                          # every grasp
     ]
+    for name, fmt in sorted(export.load_builtin_formats().items()):
+        if name not in ("urscript", "joint-trajectory", "csv"):
+            written.append(export.write(loaded, name, args.out / f"pick_{name.replace('-', '_')}{fmt.extension}"))
     # the same through the result object:
     written.append(result.export("urscript", args.out / f"pick_grasp{best}.script", grasp_id=best))
     for p in [plan_path, *written]:

@@ -8,8 +8,17 @@ Pipeline (one module per stage): :mod:`grasplan.mesh` -> :mod:`grasplan.blm` ->
 The whole pipeline in three lines::
 
     import grasplan
-    result = grasplan.plan("part.stl", robot="ur5")       # or a Part from grasplan.load_part
-    result.export("urscript", "grasp.script")             # or "joint-trajectory", "csv"
+    result = grasplan.plan("part.stl", "ur5")              # or a Part from grasplan.load_part
+    result.export("urscript", "grasp.script")              # any name in grasplan.export.FORMATS
+
+Options are three frozen dataclasses (``CandidateParams``, ``GraspParams``, ``PlanParams``)::
+
+    grasplan.plan(part, "ur5", candidates=grasplan.CandidateParams(spacing=0.003),
+                  planning=grasplan.PlanParams(top=5, seed=1))
+
+A saved result comes back typed, with its gripper, cell and robot rebuilt from the file::
+
+    plan = grasplan.load_result("plan.json")
 
 Heavy modules (Pinocchio, OMPL) load only when a function that needs them is first used.
 """
@@ -24,7 +33,13 @@ __version__ = "0.1.0"
 
 # public name -> (module, attribute), imported on first use
 _LAZY = {
-    "CandidateParams": ("grasplan.candidates", "CandidateParams"),
+    "CandidateParams": ("grasplan.params", "CandidateParams"),
+    "GraspParams": ("grasplan.params", "GraspParams"),
+    "PlanParams": ("grasplan.params", "PlanParams"),
+    "PlanResult": ("grasplan.result", "PlanResult"),
+    "load_result": ("grasplan.result", "load_result"),
+    "use_config_dirs": ("grasplan.config_files", "use_config_dirs"),
+    "export": ("grasplan.export", None),
     "compute_candidates": ("grasplan.candidates", "compute_candidates"),
     "compute_grasps": ("grasplan.grasps", "compute_grasps"),
     "load_gripper": ("grasplan.gripper", "load_gripper"),
@@ -42,7 +57,8 @@ __all__ = ["GrasplanError", "InputError", "MeshError", "ConfigError", "PlanningE
 def __getattr__(name: str):
     if name in _LAZY:
         module, attr = _LAZY[name]
-        value = getattr(importlib.import_module(module), attr)
+        mod = importlib.import_module(module)
+        value = mod if attr is None else getattr(mod, attr)
         globals()[name] = value
         return value
     raise AttributeError(f"module 'grasplan' has no attribute {name!r}")

@@ -57,16 +57,24 @@ class Candidates:
         ``|contacts[:, 1] - contacts[:, 0]|``.
     faces : (n, 2) int64
         Face indices (into the mesh the search ran on) of the two contacts.
+    region : (n,) int64
+        Region id of each candidate: ``method="regions"``: index of the pair of convex areas whose
+        overlap it samples (:mod:`grasplan.regions`); ``method="paper"``: -1 (each face pair is its
+        own region). Defaults to -1 when not given.
     """
 
     contacts: np.ndarray
     normals: np.ndarray
     width: np.ndarray
     faces: np.ndarray
+    region: np.ndarray | None = None
 
     def __post_init__(self):
         n = len(self.width)
-        for name, shape in (("contacts", (n, 2, 3)), ("normals", (n, 2, 3)), ("width", (n,)), ("faces", (n, 2))):
+        if self.region is None:
+            object.__setattr__(self, "region", np.full(n, -1, dtype=np.int64))
+        for name, shape in (("contacts", (n, 2, 3)), ("normals", (n, 2, 3)), ("width", (n,)), ("faces", (n, 2)),
+                            ("region", (n,))):
             a = getattr(self, name)
             if a.shape != shape:
                 raise ValueError(f"Candidates.{name} must have shape {shape}, got {a.shape}")
@@ -79,13 +87,15 @@ class Candidates:
         return cls(np.zeros((0, 2, 3)), np.zeros((0, 2, 3)), np.zeros(0), np.zeros((0, 2), dtype=np.int64))
 
     def subset(self, index) -> "Candidates":
-        return Candidates(self.contacts[index], self.normals[index], self.width[index], self.faces[index])
+        return Candidates(self.contacts[index], self.normals[index], self.width[index], self.faces[index],
+                          self.region[index])
 
     def transformed(self, T: np.ndarray) -> "Candidates":
         """The same candidates after a rigid motion ``T`` (4, 4) of the part."""
         T = np.asarray(T, dtype=np.float64)
         R, t = T[:3, :3], T[:3, 3]
-        return Candidates(self.contacts @ R.T + t, self.normals @ R.T, self.width.copy(), self.faces.copy())
+        return Candidates(self.contacts @ R.T + t, self.normals @ R.T, self.width.copy(), self.faces.copy(),
+                          self.region.copy())
 
     def to_json(self) -> dict:
         return {
@@ -93,17 +103,21 @@ class Candidates:
             "normals": self.normals.tolist(),
             "width": self.width.tolist(),
             "faces": self.faces.tolist(),
+            "region": self.region.tolist(),
         }
 
     @classmethod
     def from_json(cls, d: dict) -> "Candidates":
+        """Inverse of :meth:`to_json`; documents without ``region`` (older files) get -1."""
         if not d["width"]:
             return cls.empty()
+        region = d.get("region")
         return cls(
             np.asarray(d["contacts"], dtype=np.float64).reshape(-1, 2, 3),
             np.asarray(d["normals"], dtype=np.float64).reshape(-1, 2, 3),
             np.asarray(d["width"], dtype=np.float64),
             np.asarray(d["faces"], dtype=np.int64).reshape(-1, 2),
+            None if region is None else np.asarray(region, dtype=np.int64).reshape(-1),
         )
 
 
@@ -122,6 +136,8 @@ def find_candidates(
     mu: float = 0.3,
     tol: Tolerance | None = None,
     search: Literal["index", "brute"] = "index",
+    method: Literal["regions", "paper"] = "paper",
+    spacing: float = 0.002,
 ) -> Candidates:
     """Antipodal pairs of convex faces of ``mesh`` (see the module docstring for the rules).
 
@@ -140,13 +156,20 @@ def find_candidates(
     tol : Tolerance, optional
         Part tolerance (default: from the mesh).
     search : {"index", "brute"}
-        ``"index"``: the sub-quadratic 6D KD-tree search; ``"brute"``: every pair of convex faces
-        (O(m^2), reference for tests and benchmarks).
+        ``method="paper"`` only. ``"index"``: the sub-quadratic 6D KD-tree search, streamed in
+        bounded chunks; ``"brute"``: every pair of convex faces (O(m^2) time, chunked; reference
+        for tests and benchmarks).
+    method : {"regions", "paper"}
+        ``"paper"``: one contact pair per face pair (rules 1.-6. above, Vogt et al. 2021);
+        ``"regions"``: sampled contact regions (:mod:`grasplan.regions`).
+    spacing : float
+        ``method="regions"``: lattice pitch of the samples, metres.
 
     Returns
     -------
     Candidates
-        Sorted by face pair ``(i, j)``, ``i < j``; contact 0 on face i.
+        ``"paper"``: sorted by face pair ``(i, j)``, ``i < j``, contact 0 on face i, ``region`` -1.
+        ``"regions"``: sorted by region, ``region`` set (see :mod:`grasplan.regions`).
     """
     F = np.asarray(mesh.faces, dtype=np.int64)
     convex = np.asarray(convex, dtype=bool)
@@ -161,6 +184,10 @@ def find_candidates(
         raise ValueError(f"mu must be >= 0, got {mu!r}")
     if search not in ("index", "brute"):
         raise ValueError(f"search must be 'index' or 'brute', got {search!r}")
+    if method not in ("regions", "paper"):
+        raise ValueError(f"method must be 'regions' or 'paper', got {method!r}")
+    if method == "regions" and not (np.isfinite(spacing) and spacing > 0):
+        raise ValueError(f"spacing must be a positive length in metres, got {spacing!r}")
     V = np.asarray(mesh.vertices, dtype=np.float64)
     if tol is None:
         tol = Tolerance.for_mesh(V)
@@ -168,17 +195,26 @@ def find_candidates(
     ids = np.flatnonzero(convex & geo.valid)
     if len(ids) < 2:
         return Candidates.empty()
+    if method == "regions":
+        from .regions import find_regions
+
+        contacts, normals, width, faces, region = find_regions(
+            mesh, convex, geo, max_opening=max_opening, beta_deg=beta_deg, mu=mu, spacing=spacing, tol=tol)
+        return Candidates(contacts, normals, width, faces, region)
     if search == "index":
-        i, j = _index_pairs(geo, ids, max_opening=max_opening, beta_deg=beta_deg, epsilon=epsilon, tol=tol)
-        batches = ((i[s:s + _CHUNK], j[s:s + _CHUNK]) for s in range(0, len(i), _CHUNK))
+        batches = stream_pairs(geo.c[ids], geo.n[ids], np.full(len(ids), 0.5 * epsilon),
+                               reach=max_opening + epsilon, beta_deg=beta_deg, tol=tol)
+        batches = ((ids[i], ids[j]) for i, j in batches)
     else:
         batches = _all_pairs(ids)
     out = []
     for ci, cj in batches:
-        reason, contacts, width = evaluate_pairs(geo, ci, cj, max_opening=max_opening, beta_deg=beta_deg,
-                                                 epsilon=epsilon, mu=mu, tol=tol)
-        keep = reason == 0
-        out.append((ci[keep], cj[keep], contacts[keep], width[keep]))
+        for s in range(0, len(ci), _CHUNK):
+            bi, bj = ci[s:s + _CHUNK], cj[s:s + _CHUNK]
+            reason, contacts, width = evaluate_pairs(geo, bi, bj, max_opening=max_opening, beta_deg=beta_deg,
+                                                     epsilon=epsilon, mu=mu, tol=tol)
+            keep = reason == 0
+            out.append((bi[keep], bj[keep], contacts[keep], width[keep]))
     if not out:
         return Candidates.empty()
     fi = np.concatenate([o[0] for o in out])
@@ -189,6 +225,71 @@ def find_candidates(
     faces = np.stack([fi, fj], axis=1)[order].astype(np.int64)
     normals = np.stack([geo.n[faces[:, 0]], geo.n[faces[:, 1]]], axis=1) if len(faces) else np.zeros((0, 2, 3))
     return Candidates(contacts[order], normals, width[order], faces)
+
+
+#: rows of the query side per KD-tree call of :func:`stream_pairs` (bounds each call's output)
+_QUERY_ROWS = 4096
+#: size classes of :func:`stream_pairs`: lateral bounds within a class differ by at most this factor
+_CLASS_RATIO = 4.0
+
+
+def stream_pairs(c: np.ndarray, n: np.ndarray, lateral: np.ndarray, *, reach: float, beta_deg: float,
+                 tol: Tolerance):
+    """Chunks ``(a, b)`` (int64 index arrays, ``a < b``) of the pairs of oriented elements that may be
+    anti-parallel within beta with lateral offset ``<= lateral[a] + lateral[b]``.
+
+    Elements are planar pieces (faces, or coplanar areas) with centroid ``c`` (k, 3), unit normal
+    ``n`` (k, 3) and ``lateral`` (k,) m, the largest distance from the centroid to the piece's
+    boundary (any larger value is safe). ``reach`` (m) bounds the centroids' distance along the
+    closing axis. Each element is the line through its centroid along its normal, in 6D
+    ``x = (K n, (c - o) x n)``; a pair that can pass has ``|x_a + x_b| <= sqrt(2) M`` with ``M`` the
+    lateral bound plus ``reach sin(beta/2)`` plus ``R |n_a + n_b|``. Elements are split into size
+    classes (``lateral`` within a factor :data:`_CLASS_RATIO`), so one large piece does not widen the
+    radius for all small ones, and each KD-tree call queries at most :data:`_QUERY_ROWS` elements:
+    no array grows with k^2. Every qualifying pair is yielded exactly once (a superset of the
+    pairs passing the exact tests; the tests check it against brute force)."""
+    k = len(c)
+    if k < 2:
+        return
+    o = 0.5 * (c.min(axis=0) + c.max(axis=0))
+    R = float(np.linalg.norm(c - o, axis=1).max())
+    half = np.radians(beta_deg) / 2.0
+    cb = max(2.0 * np.sin(half), 1e-9)                 # chord |n_a + n_b| for an angle beta
+    mom = np.cross(c - o, n)
+    lat = np.maximum(np.asarray(lateral, dtype=np.float64), 0.0)
+    base = max(float(lat.min()), tol.distance)
+    cls = np.floor(np.log(np.maximum(lat, base) / base) / np.log(_CLASS_RATIO)).astype(np.int64)
+    # Split the sphere of normals at a fixed generic direction h: every antipodal pair has one element
+    # in A = {n.h >= -delta} and the other in B = {n.h <= delta} (delta >= |n_a + n_b|). A pair with
+    # both elements in the band |n.h| <= delta is met twice (as (a, b) and (b, a)): kept once, a < b.
+    h = np.array([1.0, np.sqrt(2.0), np.sqrt(3.0)]) / np.sqrt(6.0)
+    nh = n @ h
+    delta = cb * 1.01
+    inA, inB = nh >= -delta, nh <= delta
+    band = ~(inA ^ inB)
+    classes = np.unique(cls)
+    lat_max = {int(q): float(lat[cls == q].max()) for q in classes}
+    for qa in classes:
+        A = np.flatnonzero(inA & (cls == qa))
+        if len(A) == 0:
+            continue
+        for qb in classes:
+            B = np.flatnonzero(inB & (cls == qb))
+            if len(B) == 0:
+                continue
+            M = lat_max[int(qa)] + lat_max[int(qb)] + reach * np.sin(half) + R * cb + 4 * tol.distance
+            K = M / cb
+            rho = np.sqrt(2.0) * M * (1.0 + 1e-9)
+            treeB = cKDTree(-np.hstack([K * n[B], mom[B]]))
+            for s in range(0, len(A), _QUERY_ROWS):
+                As = A[s:s + _QUERY_ROWS]
+                res = cKDTree(np.hstack([K * n[As], mom[As]])).sparse_distance_matrix(
+                    treeB, rho, output_type="ndarray")
+                a, b = As[res["i"]], B[res["j"]]
+                keep = (a != b) & ~(band[a] & band[b] & (a > b))
+                a, b = a[keep], b[keep]
+                if len(a):
+                    yield np.minimum(a, b), np.maximum(a, b)
 
 
 def _all_pairs(ids: np.ndarray):
@@ -221,43 +322,6 @@ class _FaceGeometry:
         n = np.zeros_like(cr)
         n[valid] = cr[valid] / nrm[valid, None]
         return cls(tri, tri.mean(axis=1), n, valid)
-
-
-def _index_pairs(geo: _FaceGeometry, ids: np.ndarray, *, max_opening, beta_deg, epsilon, tol):
-    """Superset of the pairs ``(i, j)``, ``i < j``, of ``ids`` that can pass rules 1.-3."""
-    c, n = geo.c[ids], geo.n[ids]
-    o = 0.5 * (c.min(axis=0) + c.max(axis=0))
-    R = float(np.linalg.norm(c - o, axis=1).max())
-    half = np.radians(beta_deg) / 2.0
-    cb = max(2.0 * np.sin(half), 1e-9)                 # chord |n_i + n_j| for an angle beta
-    dmax = max_opening + epsilon
-    # |(c_i-c_j) x n_i| <= eps + dmax sin(beta/2); moments differ by that plus R |n_i + n_j|
-    M = epsilon + dmax * np.sin(half) + R * cb + 4 * tol.distance
-    K = M / cb
-    X = np.hstack([K * n, np.cross(c - o, n)])
-    rho = np.sqrt(2.0) * M * (1.0 + 1e-9)
-    # Split the sphere of normals at a fixed generic direction h: every antipodal pair has one face in
-    # A = {n.h >= -delta} and the other in B = {n.h <= delta} (delta >= |n_i + n_j|), so one query
-    # A against -B finds each pair once (twice only inside the thin band |n.h| <= delta).
-    h = np.array([1.0, np.sqrt(2.0), np.sqrt(3.0)]) / np.sqrt(6.0)
-    nh = n @ h
-    delta = cb * 1.01
-    A = np.flatnonzero(nh >= -delta)
-    B = np.flatnonzero(nh <= delta)
-    if len(A) == 0 or len(B) == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    res = cKDTree(X[A]).sparse_distance_matrix(cKDTree(-X[B]), rho, output_type="ndarray")
-    a, b = A[res["i"]], B[res["j"]]
-    lo, hi = np.minimum(a, b), np.maximum(a, b)
-    keep = lo < hi
-    lo, hi = lo[keep], hi[keep]
-    band = (np.abs(nh[lo]) <= delta) & (np.abs(nh[hi]) <= delta)
-    if band.any():   # pairs with both faces in the band may come twice
-        key = lo[band] * len(ids) + hi[band]
-        _, first = np.unique(key, return_index=True)
-        sel = np.concatenate([np.flatnonzero(~band), np.flatnonzero(band)[first]])
-        lo, hi = lo[sel], hi[sel]
-    return ids[lo], ids[hi]
 
 
 def evaluate_pairs(

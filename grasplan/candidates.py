@@ -6,7 +6,7 @@ grasps and plan pipelines start from its result.
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import trimesh
@@ -15,45 +15,9 @@ from .antipodal import Candidates, find_candidates
 from .blm import BLMResult, boundary_layer
 from .convexity import classify_convexity
 from .mesh import Part
+from .params import DEFAULT_MAX_OPENING, CandidateParams
 
 SCHEMA = "grasplan.candidates/1"
-#: contact distance searched when no gripper says otherwise: the paper's Schunk Co-act EGP-C 40
-#: with fingers for a 50 mm opening
-DEFAULT_MAX_OPENING = 0.05
-
-
-@dataclass(frozen=True, kw_only=True)
-class CandidateParams:
-    """Parameters of stages 2-4. Lengths in metres, angles in degrees (as the user gives them)."""
-
-    blm: bool = True
-    alpha: float = 1e-4          #: BLM boundary-layer width, m (paper default 0.1 mm)
-    gamma_deg: float = 135.0     #: BLM surface angle: facets join when normals differ <= 180 - gamma
-    d_shift: float = 1e-5        #: convexity: centroid shift along the normal, m (0.01 mm)
-    epsilon: float = 5e-3        #: antipodal overlap threshold, m (5 mm)
-    max_opening: float | None = None  #: largest contact distance, m; None: the gripper's (else DEFAULT_MAX_OPENING)
-    beta_deg: float = 2.0        #: normals anti-parallel within this, degrees
-    mu: float = 0.3              #: friction coefficient (cone half-angle atan(mu))
-
-    def __post_init__(self):
-        for name in ("alpha", "d_shift", "epsilon", "max_opening"):
-            v = getattr(self, name)
-            if v is None and name == "max_opening":
-                continue
-            if not (np.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be a positive length in metres, got {v!r}")
-        if not 90.0 < self.gamma_deg <= 180.0:
-            raise ValueError(f"gamma_deg must be in (90, 180], got {self.gamma_deg!r}")
-        if not 0.0 <= self.beta_deg < 90.0:
-            raise ValueError(f"beta_deg must be in [0, 90), got {self.beta_deg!r}")
-        if not (np.isfinite(self.mu) and self.mu >= 0):
-            raise ValueError(f"mu must be >= 0, got {self.mu!r}")
-
-    def to_json(self) -> dict:
-        """Every parameter, lengths in m, angles in deg (names say so)."""
-        return asdict(self)
-
-
 @dataclass(frozen=True)
 class CandidateResult:
     part: Part
@@ -112,6 +76,8 @@ def compute_candidates(part: Part, params: CandidateParams = CandidateParams(), 
         epsilon=params.epsilon,
         mu=params.mu,
         tol=part.tol,
+        method=params.method,
+        spacing=params.spacing,
     )
     timing["antipodal"] = time.perf_counter() - t
     return CandidateResult(part=part, params=params, mesh=mesh, blm=blm_result, convex=convex, candidates=cands, timing_s=timing)

@@ -31,10 +31,9 @@ import trimesh
 import coal
 
 from .cell import Cell
-from .gripper import Box, Gripper, MeshShape
+from .gripper import Box, Gripper
 from .transforms import check_transform
 
-STATUSES = ("ok", "collision_part", "collision_table")
 #: a shape reaching below the table top by less than this (m) only touches it
 TABLE_CONTACT_TOL = 1e-6
 
@@ -109,7 +108,7 @@ class _ShapeSet:
                 geoms.append(_bvh(v.vertices, v.faces))
         self.geoms = geoms
         # local bounding box of each variant, in the TCP frame (for the prefilter)
-        Ts, hs, low = [], [], []
+        Ts, hs, _low = [], [], []
         for v in variants:
             if isinstance(v, Box):
                 Ts.append(v.T_tcp_box)

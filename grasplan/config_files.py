@@ -1,68 +1,248 @@
-"""Finding described things (grippers, cells, robots) by name or by path to a YAML file.
+"""Finding described things (grippers, cells, robots) by name or by path, and reading YAML numbers.
 
-A name is looked up as ``<folder>/<name>.yaml``; anything ending in ``.yaml``/``.yml``, holding a
-path separator or naming an existing file is a path. An unknown name lists the available ones.
+Lookup order for a name (the first folder holding ``<name>.yaml`` wins):
+
+1. ``--config-dir DIR`` (CLI) / :func:`use_config_dirs` (API), in the order given;
+2. ``$GRASPLAN_CONFIG_PATH``: folders separated by ``os.pathsep`` (``:`` on Linux);
+3. ``./configs`` and ``./robots`` of the current folder;
+4. the descriptions packaged inside grasplan (``grasplan/data``, shipped in the wheel).
+
+A config folder ``DIR`` of steps 1-2 holds ``grippers/``, ``cells/`` and ``robots/`` (or, laid
+out like this repository, ``configs/grippers``, ``configs/cells`` and ``robots/``). Anything ending
+in ``.yaml``/``.yml``, holding a path separator or naming an existing file is a path, not a name.
+An unknown name lists every folder looked in and the names found there.
 """
 from __future__ import annotations
 
-import ast
+import contextlib
+import contextvars
 import math
 import os
+import re
+from collections.abc import Iterator, Sequence
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .errors import ConfigError, unknown_name
+from .errors import ConfigError
 
-#: the repository's top-level folders of descriptions (next to the ``grasplan`` package)
-REPO_ROOT = Path(__file__).resolve().parents[1]
-CONFIG_DIR = REPO_ROOT / "configs"
-ROBOTS_DIR = REPO_ROOT / "robots"
+#: descriptions shipped inside the package (also reached through the repository's
+#: top-level ``configs`` and ``robots`` links)
+PACKAGED_DIR = Path(str(resources.files("grasplan") / "data"))
+#: kind -> sub-folder of a config folder
+KIND_FOLDERS = {"gripper": "grippers", "cell": "cells", "robot": "robots"}
+ENV_VAR = "GRASPLAN_CONFIG_PATH"
+
+_CONFIG_DIRS: contextvars.ContextVar[tuple[Path, ...]] = contextvars.ContextVar("grasplan_config_dirs", default=())
 
 
-def available(folder: Path) -> list[str]:
-    """Names of the ``*.yaml`` descriptions in ``folder``, sorted."""
-    return sorted(p.stem for p in Path(folder).glob("*.yaml"))
+def set_config_dirs(dirs: Sequence[str | os.PathLike]) -> None:
+    """Put ``dirs`` first in the lookup order (what ``--config-dir`` does) for this context."""
+    out = []
+    for d in dirs:
+        p = Path(d).expanduser()
+        if not p.is_dir():
+            raise ConfigError(f"config folder {p} does not exist (give a folder holding grippers/, cells/ "
+                              "or robots/)")
+        out.append(p.resolve())
+    _CONFIG_DIRS.set(tuple(out))
 
 
-def resolve_yaml(kind: str, name_or_path: str | os.PathLike, folder: Path) -> Path:
+@contextlib.contextmanager
+def use_config_dirs(*dirs: str | os.PathLike) -> Iterator[None]:
+    """Context manager: look in ``dirs`` first (API twin of ``--config-dir``)."""
+    token = _CONFIG_DIRS.set(())
+    try:
+        set_config_dirs(dirs)
+        yield
+    finally:
+        _CONFIG_DIRS.reset(token)
+
+
+def _roots_sub(root: Path, sub: str) -> list[Path]:
+    if sub == "robots":
+        return [root / "robots"]
+    return [root / sub, root / "configs" / sub]
+
+
+def search_path(kind: str) -> list[Path]:
+    """The folders looked in for ``kind`` ("gripper", "cell" or "robot"), in lookup order."""
+    sub = KIND_FOLDERS[kind]
+    folders: list[Path] = []
+    for d in _CONFIG_DIRS.get():
+        folders += _roots_sub(d, sub)
+    for d in os.environ.get(ENV_VAR, "").split(os.pathsep):
+        if d.strip():
+            folders += _roots_sub(Path(d).expanduser(), sub)
+    cwd = Path.cwd()
+    folders.append(cwd / "robots" if sub == "robots" else cwd / "configs" / sub)
+    folders.append(PACKAGED_DIR / "robots" if sub == "robots" else PACKAGED_DIR / "configs" / sub)
+    seen, out = set(), []
+    for f in folders:
+        key = f.resolve() if f.exists() else f
+        if key not in seen:
+            seen.add(key)
+            out.append(f)
+    return out
+
+
+def available(kind: str) -> list[str]:
+    """Names of the ``kind`` descriptions found anywhere on the search path, sorted."""
+    names = set()
+    for folder in search_path(kind):
+        if folder.is_dir():
+            names.update(p.stem for p in folder.glob("*.yaml"))
+    return sorted(names)
+
+
+def _looked(kind: str) -> str:
+    rows = []
+    for folder in search_path(kind):
+        found = sorted(p.stem for p in folder.glob("*.yaml")) if folder.is_dir() else None
+        rows.append(f"{folder} ({', '.join(found) or 'empty'})" if found is not None else f"{folder} (missing)")
+    return "; ".join(rows)
+
+
+def is_path_like(name_or_path: str | os.PathLike) -> bool:
+    s = str(name_or_path)
+    return s.endswith((".yaml", ".yml")) or "/" in s or os.sep in s or Path(s).is_file()
+
+
+def resolve_yaml(kind: str, name_or_path: str | os.PathLike) -> Path:
     """The YAML file for ``name_or_path`` (absolute path); raises ConfigError naming what exists."""
     s = str(name_or_path)
-    p = Path(s)
-    if s.endswith((".yaml", ".yml")) or "/" in s or os.sep in s or p.is_file():
-        if not p.is_file():
-            raise ConfigError(f"{kind} file {p} not found; available {kind}s: {', '.join(available(folder)) or '(none)'}")
+    if not s or "\x00" in s or len(s) > 4096:
+        raise ConfigError(f"invalid {kind} name {s[:80]!r}; available {kind}s: {', '.join(available(kind)) or '(none)'}")
+    if is_path_like(s):
+        p = Path(s).expanduser()
+        try:
+            ok = p.is_file()
+        except OSError:
+            ok = False
+        if not ok:
+            raise ConfigError(f"{kind} file {p} not found; give an existing YAML file or a name "
+                              f"({', '.join(available(kind)) or 'none found'})")
         return p.resolve()
-    candidate = Path(folder) / f"{s}.yaml"
-    if not candidate.is_file():
-        raise unknown_name(kind, s, available(folder), hint=f"or give a path to a {kind} YAML")
-    return candidate.resolve()
+    for folder in search_path(kind):
+        candidate = folder / f"{s}.yaml"
+        if candidate.is_file():
+            return candidate.resolve()
+    names = ", ".join(available(kind)) or "(none)"
+    raise ConfigError(f"unknown {kind} {s!r}; available: {names}. Looked in: {_looked(kind)}. "
+                      f"Give a path to a {kind} YAML, --config-dir DIR or ${ENV_VAR}")
 
 
-_EXPR_NODES = (ast.Expression, ast.BinOp, ast.UnaryOp, ast.Constant, ast.Name, ast.Add, ast.Sub,
-               ast.Mult, ast.Div, ast.USub, ast.UAdd, ast.Load)
+def packaged_file(*parts: str) -> Path:
+    """A file shipped in ``grasplan/data`` (e.g. ``packaged_file("configs", "paper_parts.yaml")``)."""
+    return PACKAGED_DIR.joinpath(*parts)
 
 
-def config_number(value: Any, where: str, *, positive: bool = False, nonneg: bool = False) -> float:
-    """A float from a YAML scalar: a number, or an expression of numbers and ``pi`` (``-pi/2``)."""
+# ------------------------------------------------------------------------------------------------
+# numbers in YAML files: a tiny grammar, never Python's eval
+# ------------------------------------------------------------------------------------------------
+_TOKEN = re.compile(r"\s*(?:(\d+\.?\d*(?:[eE][-+]?\d+)?|\.\d+(?:[eE][-+]?\d+)?)|(pi)|([-+*/()]))")
+_MAX_EXPR = 64
+
+
+def parse_number_expr(text: str) -> float:
+    """A number or an expression of numbers, ``pi``, ``+ - * /``, unary signs and parentheses
+    (``-pi/2``, ``3*pi/4``, ``1e-3``). Raises ValueError for anything else (at most 64 chars)."""
+    if len(text) > _MAX_EXPR:
+        raise ValueError("too long")
+    tokens: list[tuple[str, str]] = []
+    pos, s = 0, text.strip()
+    while pos < len(s):
+        m = _TOKEN.match(s, pos)
+        if not m or m.end() == pos:
+            raise ValueError(f"unexpected {s[pos:pos + 10]!r}")
+        num, pi, op = m.groups()
+        tokens.append(("n", num) if num else ("pi", "pi") if pi else ("op", op))
+        pos = m.end()
+    i = 0
+
+    def peek():
+        return tokens[i][1] if i < len(tokens) else None
+
+    def take():
+        nonlocal i
+        i += 1
+        return tokens[i - 1]
+
+    def expr(depth):
+        v = term(depth)
+        while peek() in ("+", "-"):
+            op = take()[1]
+            r = term(depth)
+            v = v + r if op == "+" else v - r
+        return v
+
+    def term(depth):
+        v = unary(depth)
+        while peek() in ("*", "/"):
+            op = take()[1]
+            r = unary(depth)
+            if op == "/" and r == 0:
+                raise ValueError("division by zero")
+            v = v * r if op == "*" else v / r
+        return v
+
+    def unary(depth):
+        if depth > 8:
+            raise ValueError("nested too deep")
+        if peek() in ("+", "-"):
+            op = take()[1]
+            v = unary(depth + 1)
+            return -v if op == "-" else v
+        return atom(depth)
+
+    def atom(depth):
+        if i >= len(tokens):
+            raise ValueError("unexpected end")
+        kind, val = take()
+        if kind == "n":
+            return float(val)
+        if kind == "pi":
+            return math.pi
+        if val == "(":
+            v = expr(depth + 1)
+            if peek() != ")":
+                raise ValueError("missing )")
+            take()
+            return v
+        raise ValueError(f"unexpected {val!r}")
+
+    if not tokens:
+        raise ValueError("empty")
+    out = expr(0)
+    if i != len(tokens):
+        raise ValueError("trailing text")
+    return out
+
+
+def config_number(value: Any, where: str, *, positive: bool = False, nonneg: bool = False,
+                  max_abs: float = 1e6) -> float:
+    """A float from a YAML scalar: a number, or an expression of numbers and ``pi`` (``-pi/2``).
+
+    Finite and at most ``max_abs`` in magnitude (lengths in metres, angles; 1e6 by default)."""
     if isinstance(value, bool):
         raise ConfigError(f"{where}: expected a number, got {value!r}")
     if isinstance(value, (int, float)):
-        out = float(value)
+        out = float(value) if abs(value) < 1e300 or not isinstance(value, int) else math.inf
     elif isinstance(value, str):
         try:
-            tree = ast.parse(value.strip(), mode="eval")
-            if not all(isinstance(n, _EXPR_NODES) for n in ast.walk(tree)) or any(
-                    isinstance(n, ast.Name) and n.id != "pi" for n in ast.walk(tree)):
-                raise ValueError
-            out = float(eval(compile(tree, "<yaml>", "eval"), {"__builtins__": {}}, {"pi": math.pi}))
-        except Exception:
-            raise ConfigError(f"{where}: cannot read {value!r} as a number (use e.g. 1.57 or -pi/2)") from None
+            out = parse_number_expr(value)
+        except (ValueError, OverflowError):
+            shown = value if len(value) <= 40 else value[:40] + "..."
+            raise ConfigError(f"{where}: cannot read {shown!r} as a number (use e.g. 1.57 or -pi/2)") from None
     else:
-        raise ConfigError(f"{where}: expected a number, got {value!r}")
+        shown = repr(value)
+        raise ConfigError(f"{where}: expected a number, got {shown[:60]}")
     if not math.isfinite(out):
         raise ConfigError(f"{where}: must be finite, got {value!r}")
+    if abs(out) > max_abs:
+        raise ConfigError(f"{where}: {out:g} is out of range (|value| <= {max_abs:g})")
     if positive and out <= 0:
         raise ConfigError(f"{where}: must be > 0, got {value!r}")
     if nonneg and out < 0:
@@ -73,8 +253,10 @@ def config_number(value: Any, where: str, *, positive: bool = False, nonneg: boo
 def config_vector(value: Any, where: str, n: int | None = 3, *, positive: bool = False) -> np.ndarray:
     """``(n,)`` float64 from a YAML list of numbers (each read by :func:`config_number`)."""
     if not isinstance(value, (list, tuple)):
-        raise ConfigError(f"{where}: expected a list of {n or 'some'} numbers, got {value!r}")
+        raise ConfigError(f"{where}: expected a list of {n or 'some'} numbers, got {str(value)[:60]!r}")
     if n is not None and len(value) != n:
-        raise ConfigError(f"{where}: expected a list of {n} numbers, got {len(value)}: {value!r}")
+        raise ConfigError(f"{where}: expected a list of {n} numbers, got {len(value)}")
+    if len(value) > 10000:
+        raise ConfigError(f"{where}: list too long ({len(value)})")
     return np.array([config_number(v, f"{where}[{i}]", positive=positive) for i, v in enumerate(value)],
                     dtype=np.float64)

@@ -154,7 +154,7 @@ def classify_convexity(
 
 def _lp_feasible(idx, K, Nb, V, c, n, e1, e2, d_shift, eps) -> np.ndarray:
     """For faces ``idx`` that all have exactly ``K`` hull points: is ``{w : w.t_q <= d - h_q}`` non-empty?"""
-    b = len(idx)
+    len(idx)
     cols = Nb.indices[(Nb.indptr[idx][:, None] + np.arange(K)[None, :])]   # (b, K)
     q = V[cols] - c[idx][:, None, :]                                      # (b, K, 3)
     h = np.einsum("bkj,bj->bk", q, n[idx])

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .antipodal import Candidates
+from .params import GraspParams
 
 
 @dataclass(frozen=True)
@@ -94,7 +95,7 @@ def unique_pairs(candidates: Candidates, *, resolution: float = 1e-9) -> np.ndar
 def grasp_frames(
     candidates: Candidates,
     *,
-    roll_step_deg: float = 15.0,
+    roll_step_deg: float = GraspParams.default("roll_step_deg"),
     reference: np.ndarray | None = None,
     max_width: float | None = None,
     dedupe_swapped: bool = True,

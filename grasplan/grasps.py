@@ -1,7 +1,9 @@
 """Stages 5-6 composed: candidates -> TCP poses (rolled) -> collision status, and their JSON.
 
-``compute_grasps(part, ...)`` is the pure function behind ``grasplan grasps``; the plan pipeline
-starts from its :class:`GraspResult`.
+``compute_grasps(part, gripper=, cell=, candidates=CandidateParams(), grasps=GraspParams())`` is
+the pure function behind ``grasplan grasps``; the plan pipeline starts from its
+:class:`GraspResult`, and :meth:`GraspResult.to_result` turns it into the typed
+:class:`grasplan.result.PlanResult` that files, exports and the viewer use.
 """
 from __future__ import annotations
 
@@ -10,13 +12,15 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .candidates import CandidateParams, CandidateResult, compute_candidates
+from .candidates import CandidateResult, compute_candidates
 from .cell import Cell, load_cell, stable_pose
-from .collision import STATUSES, GripperCollider
-from .errors import InputError
+from .collision import GripperCollider
 from .frames import GraspFrames, grasp_frames
 from .gripper import Gripper, load_gripper
 from .mesh import Part
+from .params import DEFAULT_CELL, DEFAULT_GRIPPER, CandidateParams, GraspParams
+from .result import GRASP_STATUSES as STATUSES
+from .result import GraspTable, Params, PartRecord, PlanResult
 from .transforms import check_transform
 
 SCHEMA = "grasplan.grasps/1"
@@ -35,11 +39,9 @@ class GraspResult:
     T_world_part: np.ndarray
     frames: GraspFrames
     status: np.ndarray
+    params: GraspParams = GraspParams()
     timing_s: dict = field(default_factory=dict)
-    roll_step_deg: float = 15.0
     part_pose_source: str = "stable_pose"
-    merge_distance: float = 0.0
-    thin: tuple = (0.003, 10.0)
 
     @property
     def width(self) -> np.ndarray:
@@ -53,86 +55,77 @@ class GraspResult:
 
     def counts(self) -> dict:
         st = self.status
-        return {
+        out = {
             "candidates": len(self.cand.candidates),
             "posed_candidates": int(len(np.unique(self.frames.candidate))),
             "poses": int(len(st)),
-            **{s: int(np.count_nonzero(st == s)) for s in STATUSES},
         }
+        region = getattr(self.cand.candidates, "region", None)
+        if region is not None and len(region):
+            out["regions"] = int(len(np.unique(region[region >= 0])))
+        out.update({s: int(np.count_nonzero(st == s)) for s in STATUSES})
+        return out
 
-    def to_json(self) -> dict:
+    def table(self) -> GraspTable:
+        """Per-pose arrays (:class:`grasplan.result.GraspTable`)."""
         c = self.cand.candidates
-        fr = self.frames
-        part = self.cand.part.to_json()
-        part["T_world_part"] = self.T_world_part.tolist()
-        cell = self.cell.to_json()
-        cell["part_pose"] = self.part_pose_source
-        params = self.cand.params.to_json()
-        params["roll_step_deg"] = float(self.roll_step_deg)
-        params["merge_distance"] = float(self.merge_distance)
-        params["thin_spacing"] = float(self.thin[0])
-        params["thin_axis_deg"] = float(self.thin[1])
-        ci = fr.candidate
-        r = lambda a: np.round(a, 10).tolist()  # noqa: E731 - 1e-10 m / rad: keeps the files small
-        contacts = r(c.contacts[ci])
-        normals = r(c.normals[ci])
-        width = r(c.width[ci])
-        T = r(fr.T_part_tcp)
-        roll = r(fr.roll)
-        st = self.status.tolist()
-        cil = ci.tolist()
-        grasps = [
-            {"id": i, "candidate": cil[i], "contacts": contacts[i], "normals": normals[i], "width": width[i],
-             "T_part_tcp": T[i], "roll": roll[i], "status": st[i]}
-            for i in range(len(st))
-        ]
-        return {
-            "schema": SCHEMA,
-            "part": part,
-            "gripper": self.gripper.to_json(),
-            "cell": cell,
-            "params": params,
-            "counts": self.counts(),
-            "timing_s": dict(self.timing_s),
-            "grasps": grasps,
-        }
+        ci = np.asarray(self.frames.candidate, dtype=np.int64)
+        M = len(ci)
+        region = getattr(c, "region", None)
+        return GraspTable(candidate=ci, region=np.asarray(region)[ci] if region is not None else np.full(M, -1, dtype=np.int64),
+                          contacts=c.contacts[ci], normals=c.normals[ci], width=c.width[ci],
+                          T_part_tcp=np.asarray(self.frames.T_part_tcp, dtype=np.float64).reshape(M, 4, 4),
+                          roll=np.asarray(self.frames.roll, dtype=np.float64), status=self.status.astype(object),
+                          score=np.full(M, np.nan), rank=np.full(M, -1, dtype=np.int64),
+                          reason=np.full(M, "", dtype=object))
+
+    def to_result(self) -> PlanResult:
+        """This grasp result as a :class:`grasplan.result.PlanResult` (no robot)."""
+        part = self.cand.part
+        rec = PartRecord(path=part.path, sha256=part.sha256, scale_to_m=part.scale_to_m, triangles=part.triangles,
+                         T_world_part=np.asarray(self.T_world_part, dtype=np.float64))
+        counts = self.counts()
+        stage = {k: counts[k] for k in ("candidates", "posed_candidates", "poses", "regions") if k in counts}
+        return PlanResult(part=rec, gripper=self.gripper, cell=self.cell, robot=None, grasps=self.table(),
+                          params=Params(self.cand.params, self.params), counts_stage=stage,
+                          timing_s=dict(self.timing_s), part_pose_source=self.part_pose_source,
+                          grasp_result=self, part_mesh=part.mesh)
+
+    def to_json(self, *, only_ok: bool = False) -> dict:
+        """``grasplan.grasps/1`` (see :meth:`grasplan.result.PlanResult.to_json`)."""
+        return self.to_result().to_json(only_ok=only_ok)
 
 
 def compute_grasps(
     part: Part,
     *,
-    cand_params: CandidateParams = CandidateParams(),
-    gripper: str | Gripper = "schunk_egp_c_40",
-    cell: str | Cell = "table",
+    gripper: str | Gripper = DEFAULT_GRIPPER,
+    cell: str | Cell = DEFAULT_CELL,
+    candidates: CandidateParams = CandidateParams(),
+    grasps: GraspParams = GraspParams(),
     T_world_part: np.ndarray | None = None,
-    roll_step_deg: float = 15.0,
-    merge_distance: float = 0.0,
-    thin_spacing: float = 0.003,
-    thin_axis_deg: float = 10.0,
     load_s: float = 0.0,
 ) -> GraspResult:
-    """Candidates (``cand_params``), TCP poses every ``roll_step_deg`` about each closing axis, and
-    the collision status of each pose against the part and the cell's table.
+    """Candidates, TCP poses every ``grasps.roll_step_deg`` about each closing axis, and the
+    collision status of each pose against the part and the cell's table.
 
-    ``T_world_part`` (4, 4) overrides the cell's stable resting pose. Candidates wider than the
-    gripper's ``max_opening`` are not posed. Swapped duplicate candidates are posed once when the
-    gripper is symmetric. ``thin_spacing`` (m, default 3 mm; 0 = off) poses only one candidate per
-    cluster of :func:`grasplan.thinning.thin_candidates` (grasp-centre grid of that pitch x
-    closing-axis direction quantised to ``thin_axis_deg``): the BLM yields many near-identical
-    pairs on neighbouring triangles (TLess20: 72 k candidates, 1.7 M poses unthinned; 1.7 k
-    candidates at 3 mm, far below the jaws' 16 mm width). ``merge_distance`` (m, default 0 = off)
-    additionally skips a candidate whose two contacts fall in the same grid cells of that size as
-    an earlier candidate's.
+    ``T_world_part`` (4, 4) overrides the cell's stable resting pose (``grasps.pose_index``, else
+    the cell's). Candidates wider than the gripper's ``max_opening`` are not posed; the candidate
+    search runs up to the gripper's ``max_opening`` unless ``candidates.max_opening`` says
+    otherwise. Swapped duplicate candidates are posed once when the gripper is symmetric.
+    ``grasps.thin_spacing`` (m; 0 = off) poses one candidate per cluster of
+    :func:`grasplan.thinning.thin_candidates`; ``grasps.merge_distance`` (m; 0 = off) additionally
+    skips a candidate whose two contacts fall in the same grid cells as an earlier candidate's.
     """
-    if not (np.isfinite(merge_distance) and merge_distance >= 0):
-        raise InputError(f"merge_distance must be >= 0 m, got {merge_distance!r}")
     g = load_gripper(gripper)
     c = load_cell(cell)
-    if cand_params.max_opening is None:  # search exactly as far as this gripper opens
-        cand_params = replace(cand_params, max_opening=g.max_opening)
+    if grasps.pose_index is not None:
+        c = replace(c, pose_index=grasps.pose_index)
+    if candidates.max_opening is None:  # search exactly as far as this gripper opens
+        candidates = replace(candidates, max_opening=g.max_opening)
     timing: dict = {}
     t = time.perf_counter()
-    cand = compute_candidates(part, cand_params, load_s=load_s)
+    cand = compute_candidates(part, candidates, load_s=load_s)
     timing.update(cand.timing_s)
     timing["candidates"] = time.perf_counter() - t
 
@@ -148,20 +141,19 @@ def compute_grasps(
     t = time.perf_counter()
     down_in_part = T[:3, :3].T @ np.array([0.0, 0.0, -1.0])
     select = None
-    if thin_spacing > 0:
+    if grasps.thin_spacing > 0:
         from .thinning import thin_candidates
 
-        select = thin_candidates(cand.candidates, spacing=float(thin_spacing), axis_step_deg=float(thin_axis_deg))
-    frames = grasp_frames(cand.candidates, roll_step_deg=roll_step_deg, reference=down_in_part,
+        select = thin_candidates(cand.candidates, spacing=float(grasps.thin_spacing),
+                                 axis_step_deg=float(grasps.thin_axis_deg))
+    frames = grasp_frames(cand.candidates, roll_step_deg=grasps.roll_step_deg, reference=down_in_part,
                           max_width=g.max_opening, dedupe_swapped=g.symmetric,
-                          merge_distance=merge_distance, select=select)
+                          merge_distance=grasps.merge_distance, select=select)
     timing["frames"] = time.perf_counter() - t
 
     t = time.perf_counter()
     collider = GripperCollider(part.mesh, g, c, T)
     status = collider.check(frames.T_part_tcp, cand.candidates.width[frames.candidate])
     timing["collision"] = time.perf_counter() - t
-    return GraspResult(cand=cand, gripper=g, cell=c, T_world_part=T, frames=frames, status=status,
-                       timing_s=timing, roll_step_deg=float(roll_step_deg), part_pose_source=source,
-                       merge_distance=float(merge_distance), thin=(float(thin_spacing), float(thin_axis_deg)))
-
+    return GraspResult(cand=cand, gripper=g, cell=c, T_world_part=T, frames=frames, status=status, params=grasps,
+                       timing_s=timing, part_pose_source=source)

@@ -38,12 +38,15 @@ import numpy as np
 import trimesh
 import yaml
 
-from .config_files import CONFIG_DIR, available, config_number, config_vector, resolve_yaml
+from .config_files import available, config_number, config_vector, packaged_file, resolve_yaml
 from .errors import ConfigError
+from .params import DEFAULT_GRIPPER
 from .transforms import check_transform
 
 #: the ``configs`` folder at the repository root (next to the ``grasplan`` package)
-GRIPPER_DIR = CONFIG_DIR / "grippers"
+GRIPPER_DIR = packaged_file("configs", "grippers")  # the packaged grippers
+#: grip force when the YAML gives none, N (Schunk EGP-C 40: 140 N)
+DEFAULT_GRIP_FORCE = 140.0
 #: pre-grasp opening = min(max_opening, width + PREGRASP_CLEARANCE)
 PREGRASP_CLEARANCE = 0.010
 #: the closing sweep stops at width + CLOSE_CLEARANCE (1 mm per side before touching)
@@ -105,6 +108,7 @@ class Gripper:
     finger: Shape
     symmetric: bool = True
     source: str = ""
+    grip_force: float = DEFAULT_GRIP_FORCE  #: N, the force each jaw presses with (gripper YAML ``grip_force``)
 
     # -- finger geometry -------------------------------------------------------------------
     def fingers(self, opening: float) -> tuple[Shape, Shape]:
@@ -149,16 +153,75 @@ class Gripper:
         w = np.asarray(width, dtype=np.float64)
         return np.minimum(w + CLOSE_CLEARANCE, self.pregrasp_opening(w))
 
-    def to_json(self) -> dict:
-        """The ``gripper`` block of the grasps output."""
-        return {"name": self.name, "max_opening": float(self.max_opening), "T_flange_tcp": self.T_flange_tcp.tolist()}
+    def to_json(self, *, definition: bool = False) -> dict:
+        """The ``gripper`` block of the grasps and plan outputs; with ``definition`` also the
+        resolved shapes (boxes, mesh vertices in the TCP frame), so a result file rebuilds the
+        gripper without its YAML (:func:`gripper_from_json`)."""
+        out = {"name": self.name, "max_opening": float(self.max_opening), "T_flange_tcp": self.T_flange_tcp.tolist(),
+               "grip_force": float(self.grip_force)}
+        if definition:
+            out["definition"] = {"body": [_shape_json(b) for b in self.body], "finger": _shape_json(self.finger),
+                                 "symmetric": bool(self.symmetric)}
+        return out
 
 
 # -- loading ---------------------------------------------------------------------------------
 
+def _shape_json(shape: Shape) -> dict:
+    if isinstance(shape, Box):
+        return {"box": {"extents": np.asarray(shape.extents, dtype=float).tolist(), "T": shape.T_tcp_box.tolist()}}
+    return {"mesh": {"vertices": np.round(shape.vertices, 9).tolist(), "faces": np.asarray(shape.faces).tolist()}}
+
+
+def _shape_from_json(d, where: str) -> Shape:
+    if not isinstance(d, dict) or len(d) != 1 or next(iter(d)) not in ("box", "mesh"):
+        raise ConfigError(f"{where}: expected {{box: {{extents, T}}}} or {{mesh: {{vertices, faces}}}}")
+    kind, spec = next(iter(d.items()))
+    if not isinstance(spec, dict):
+        raise ConfigError(f"{where}.{kind}: expected a mapping")
+    if kind == "box":
+        ext = config_vector(spec.get("extents"), f"{where}.box.extents", positive=True)
+        T = parse_transform(spec.get("T"), f"{where}.box.T")
+        return Box(ext, T)
+    try:
+        V = np.asarray(spec.get("vertices"), dtype=np.float64)
+        F = np.asarray(spec.get("faces"), dtype=np.int64)
+    except (TypeError, ValueError, OverflowError):
+        raise ConfigError(f"{where}.mesh: vertices and faces must be numeric arrays") from None
+    if V.ndim != 2 or V.shape[1] != 3 or F.ndim != 2 or F.shape[1] != 3 or len(F) == 0 or len(V) > 10**6:
+        raise ConfigError(f"{where}.mesh: expected vertices (n, 3) and faces (m, 3)")
+    if not np.all(np.isfinite(V)) or np.abs(V).max() > 10 or F.min() < 0 or F.max() >= len(V):
+        raise ConfigError(f"{where}.mesh: vertices must be finite (|v| <= 10 m) and faces index them")
+    return MeshShape(V, F, "embedded")
+
+
+def gripper_from_json(d, *, where: str = "gripper") -> Gripper:
+    """Rebuild a :class:`Gripper` from :meth:`Gripper.to_json` ``(definition=True)`` output."""
+    if not isinstance(d, dict) or not isinstance(d.get("definition"), dict):
+        raise ConfigError(f"{where}: the file embeds no gripper definition (written by an older grasplan?); "
+                          "re-run `grasplan grasps` / `grasplan plan` to get a self-contained result")
+    name = d.get("name")
+    if not isinstance(name, str) or not name or len(name) > 200:
+        raise ConfigError(f"{where}.name: expected a non-empty string")
+    defn = d["definition"]
+    body = defn.get("body")
+    if not isinstance(body, list) or not body or len(body) > 64:
+        raise ConfigError(f"{where}.definition.body: expected a list of 1..64 shapes")
+    shapes = tuple(_shape_from_json(b, f"{where}.definition.body[{i}]") for i, b in enumerate(body))
+    finger = _shape_from_json(defn.get("finger"), f"{where}.definition.finger")
+    sym = defn.get("symmetric", True)
+    if not isinstance(sym, bool):
+        raise ConfigError(f"{where}.definition.symmetric: expected true or false")
+    return Gripper(name=name, max_opening=config_number(d.get("max_opening"), f"{where}.max_opening", positive=True, max_abs=2.0),
+                   T_flange_tcp=parse_transform(d.get("T_flange_tcp"), f"{where}.T_flange_tcp"), body=shapes,
+                   finger=finger, symmetric=sym, source="embedded",
+                   grip_force=config_number(d.get("grip_force", DEFAULT_GRIP_FORCE), f"{where}.grip_force",
+                                            positive=True, max_abs=1e5))
+
+
 def available_grippers() -> list[str]:
     """Names of the grippers shipped in ``configs/grippers/*.yaml``."""
-    return available(GRIPPER_DIR)
+    return available("gripper")
 
 
 def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
@@ -253,7 +316,7 @@ def gripper_from_dict(data: dict, *, base: Path, name: str, source: str = "") ->
     """Validate a parsed gripper YAML (``base``: folder that mesh paths are relative to)."""
     if not isinstance(data, dict):
         raise ConfigError(f"{source or name}: a gripper file must be a YAML mapping")
-    allowed = {"name", "max_opening", "T_flange_tcp", "body", "fingers", "symmetric", "description"}
+    allowed = {"name", "max_opening", "T_flange_tcp", "body", "fingers", "symmetric", "description", "grip_force"}
     unknown = set(data) - allowed
     if unknown:
         raise ConfigError(f"{source}: unknown gripper fields {sorted(unknown)}; allowed: {sorted(allowed)}")
@@ -287,8 +350,9 @@ def gripper_from_dict(data: dict, *, base: Path, name: str, source: str = "") ->
         symmetric = data["symmetric"]
     else:
         symmetric = all(isinstance(b, Box) for b in body) and _box_body_symmetric(tuple(body))
+    grip_force = config_number(data.get("grip_force", DEFAULT_GRIP_FORCE), "grip_force", positive=True, max_abs=1e5)
     return Gripper(name=gname, max_opening=max_opening, T_flange_tcp=T_flange_tcp, body=tuple(body),
-                   finger=finger, symmetric=symmetric, source=source)
+                   finger=finger, symmetric=symmetric, source=source, grip_force=grip_force)
 
 
 @lru_cache(maxsize=32)
@@ -305,12 +369,12 @@ def _load_file(path: str, mtime: float) -> Gripper:
         raise ConfigError(msg if msg.startswith(str(p)) else f"{p}: {msg}") from None
 
 
-def load_gripper(name_or_path: str | os.PathLike = "schunk_egp_c_40") -> Gripper:
+def load_gripper(name_or_path: str | os.PathLike = DEFAULT_GRIPPER) -> Gripper:
     """A gripper by name (``configs/grippers/<name>.yaml``) or by path to a YAML file.
 
     Raises ConfigError for an unknown name (listing the available ones) or a malformed file
     (naming the field)."""
     if isinstance(name_or_path, Gripper):
         return name_or_path
-    p = resolve_yaml("gripper", name_or_path, GRIPPER_DIR)
+    p = resolve_yaml("gripper", name_or_path)
     return _load_file(str(p), p.stat().st_mtime)

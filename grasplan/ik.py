@@ -273,6 +273,29 @@ class CLIK:
         dp, dr = pose_error(oMf.homogeneous, oMdes.homogeneous)
         return q if (dp <= pos_tol and dr <= rot_tol) else None
 
+    def fk(self, q) -> np.ndarray:
+        """T_world_tool (4, 4) with this solver's own data."""
+        m, d = self.robot.model, self.data
+        pin.framesForwardKinematics(m, d, np.asarray(q, dtype=np.float64))
+        return self.robot.T_world_base @ d.oMf[self.robot.tool_frame_id].homogeneous
+
+    def track(self, T_world_tool: np.ndarray, q_seed: np.ndarray, *, iters: int = 20, pos_tol: float = 1e-6,
+              rot_tol: float = 1e-5, damping: float = 1e-6) -> np.ndarray | None:
+        """Newton / damped least squares from ``q_seed`` without joint clipping, for following a
+        Cartesian path in small steps (the caller checks limits and jumps); q (n,) or None."""
+        m, d, fid = self.robot.model, self.data, self.robot.tool_frame_id
+        target = pin.SE3(_inv(self.robot.T_world_base) @ np.asarray(T_world_tool, dtype=np.float64))
+        q = np.array(q_seed, dtype=np.float64)
+        eye6 = np.eye(6)
+        for _ in range(iters):
+            pin.framesForwardKinematics(m, d, q)
+            err = pin.log6(d.oMf[fid].actInv(target)).vector  # in the tool (LOCAL) frame
+            if np.linalg.norm(err[:3]) < pos_tol and np.linalg.norm(err[3:]) < rot_tol:
+                return q
+            J = pin.computeFrameJacobian(m, d, q, fid, pin.LOCAL)
+            q = pin.integrate(m, q, J.T @ np.linalg.solve(J @ J.T + damping * eye6, err))
+        return None
+
 
 # --------------------------------------------------------------------------------------------
 # solver object and entry point

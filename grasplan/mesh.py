@@ -11,7 +11,13 @@ else (missing file, unreadable or empty mesh, NaN/inf coordinates, no area) is r
 """
 from __future__ import annotations
 
+import functools
+import hashlib
+import io
+import logging
 import os
+import re
+import stat
 import warnings as _warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,7 +27,6 @@ import numpy as np
 import trimesh
 
 from .errors import MeshError
-from .io import sha256_file
 from .tolerance import Tolerance
 from .units import LENGTH_UNITS
 
@@ -30,7 +35,21 @@ UNIT_CHOICES: tuple[str, ...] = ("auto", *LENGTH_UNITS)
 #: largest extent (file units) from which ``auto`` reads a file as millimetres
 AUTO_MM_THRESHOLD = 2.0
 SUPPORTED_SUFFIXES = (".stl", ".obj", ".ply", ".off", ".glb", ".gltf")
-
+#: parts with more triangles are refused before they are read (the candidate search and the
+#: collision checks need memory roughly proportional to the triangle count; decimate first)
+MAX_TRIANGLES = 1_000_000
+#: mesh files larger than this (bytes) are refused before they are read
+MAX_FILE_BYTES = 1 << 30
+#: a part's largest extent in metres must lie in this range (outside it the units are wrong or
+#: the coordinates are garbage: a parallel-jaw gripper holds neither a 0.1 mm speck nor a house)
+MIN_EXTENT_M, MAX_EXTENT_M = 1e-4, 100.0
+#: no vertex may lie further than this from the origin (metres): float64 keeps ~1e-12 relative
+#: precision, so a part far from the origin loses its shape
+MAX_COORD_M = 1e3
+#: extents (metres) a gripper part plausibly has; outside it the units hint lists alternatives
+PLAUSIBLE_EXTENT_M = (2e-3, 1.0)
+#: longest file name component the file systems grasplan runs on accept (bytes)
+NAME_MAX_BYTES = 255
 
 @dataclass(frozen=True)
 class MeshReport:
@@ -88,38 +107,222 @@ class Part:
         }
 
 
+def show_path(path: str | os.PathLike, *, limit: int = 120) -> str:
+    """``path`` for a one-line message: control characters escaped, long paths shortened."""
+    text = os.fsdecode(path) if isinstance(path, bytes) else str(path)
+    out = "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text)
+    if len(out) > limit:
+        out = f"{out[: limit // 2 - 2]}...{out[-(limit // 2 - 2):]} ({len(text)} characters)"
+    return out
+
+
+def _fmt_len(metres: float) -> str:
+    return f"{metres * 1e3:.4g} mm" if metres < 1.0 else f"{metres:.4g} m"
+
+
+def units_alternatives(extent: float, *, exclude: str = "", limit: int = 3) -> list[tuple[str, float]]:
+    """Units that make a part of ``extent`` file units a plausibly sized gripper part.
+
+    Returns up to ``limit`` ``(unit, extent_m)`` pairs with ``extent_m`` in
+    :data:`PLAUSIBLE_EXTENT_M`, the closest to a 50 mm part first (in log scale)."""
+    rows = [(u, extent * f) for u, f in LENGTH_UNITS.items() if u != exclude]
+    rows = [(u, m) for u, m in rows if PLAUSIBLE_EXTENT_M[0] <= m <= PLAUSIBLE_EXTENT_M[1]]
+    rows.sort(key=lambda r: abs(np.log(r[1] / 0.05)))
+    return rows[:limit]
+
+
+def units_hint(extent: float, unit: str) -> str:
+    """A hint naming the ``--units`` that would give a plausible size, or ``""`` when the part's
+    size in ``unit`` (``extent`` file units) is already plausible."""
+    metres = extent * LENGTH_UNITS[unit]
+    if PLAUSIBLE_EXTENT_M[0] <= metres <= PLAUSIBLE_EXTENT_M[1]:
+        return ""
+    alts = units_alternatives(extent, exclude=unit)
+    if not alts:
+        return ""
+    opts = " or ".join(f"--units {u} ({_fmt_len(m)})" for u, m in alts)
+    return f"a {_fmt_len(metres)} part is unusual for a gripper; if the file is not in {unit}, pass {opts}"
+
+
 def decide_units(extent: float, units: str) -> tuple[float, str, str]:
-    """Return ``(scale_to_m, unit, note)`` for a mesh whose largest extent is ``extent`` file units."""
+    """Return ``(scale_to_m, unit, note)`` for a mesh whose largest extent is ``extent`` file units.
+
+    The note says what was decided and, when the resulting size is implausible for a gripper part
+    (outside :data:`PLAUSIBLE_EXTENT_M`), which ``--units`` would give a plausible one."""
     if units != "auto":
         if units not in LENGTH_UNITS:
             raise MeshError(f"unknown units {units!r}; use one of {', '.join(UNIT_CHOICES)}")
-        return LENGTH_UNITS[units], units, f"units {units} (given)"
-    if extent >= AUTO_MM_THRESHOLD:
-        return (
-            1e-3,
-            "mm",
-            f"units auto: largest extent {extent:.4g} -> millimetres "
-            f"({extent * 1e-3:.4g} m); pass --units m if that is wrong",
-        )
-    return (
-        1.0,
-        "m",
-        f"units auto: largest extent {extent:.4g} -> metres; pass --units mm if the part is really {extent:.4g} mm",
-    )
+        scale, unit, note = LENGTH_UNITS[units], units, f"units {units} (given)"
+    elif extent >= AUTO_MM_THRESHOLD:
+        scale, unit = 1e-3, "mm"
+        note = (f"units auto: largest extent {extent:.4g} -> millimetres ({extent * 1e-3:.4g} m); "
+                f"pass --units m if that is wrong")
+    else:
+        scale, unit = 1.0, "m"
+        note = f"units auto: largest extent {extent:.4g} -> metres"
+    hint = units_hint(extent, unit)
+    if hint:
+        note = f"{note}; {hint}"
+    elif units == "auto" and unit == "m":
+        note += f"; pass --units mm if the part is really {extent:.4g} mm"
+    return scale, unit, note
 
 
-def _read_mesh(path: Path) -> trimesh.Trimesh:
+# -- reading files ---------------------------------------------------------------------------
+
+_STL_RECORD = np.dtype([("normal", "<f4", (3,)), ("v", "<f4", (3, 3)), ("attr", "<u2")])
+_NUM = rb"[-+]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?|nan|inf(?:inity)?)"
+_ASCII_VERTEX = re.compile(rb"\bvertex[ \t]+(" + _NUM + rb")[ \t]+(" + _NUM + rb")[ \t]+(" + _NUM + rb")(?=\s)",
+                           re.IGNORECASE)
+_ASCII_VERTEX_WORD = re.compile(rb"\bvertex\b", re.IGNORECASE)
+
+
+def _too_many(src: str, n: int, what: str = "triangles") -> MeshError:
+    return MeshError(f"{src}: {n:,} {what} is more than grasplan handles (limit {MAX_TRIANGLES:,} triangles, "
+                     f"grasplan.mesh.MAX_TRIANGLES); decimate the mesh first (e.g. quadric decimation in "
+                     f"MeshLab or Blender) to at most {MAX_TRIANGLES:,} triangles")
+
+
+def _read_stl(data: bytes, src: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(vertices (3m, 3), faces (m, 3))`` in file units from the bytes of a binary or ASCII STL."""
+    size = len(data)
+    declared = int(np.frombuffer(data, "<u4", count=1, offset=80)[0]) if size >= 84 else -1
+    if declared >= 0 and size == 84 + 50 * declared:  # a complete binary STL (the header may say "solid")
+        if declared == 0:
+            raise MeshError(f"{src}: the binary STL holds no triangles (its header declares 0)")
+        if declared > MAX_TRIANGLES:
+            raise _too_many(src, declared)
+        rec = np.frombuffer(data, _STL_RECORD, count=declared, offset=84)
+        v = rec["v"].reshape(-1, 3).astype(np.float64)
+        return v, np.arange(len(v), dtype=np.int64).reshape(-1, 3)
+    if data.lstrip()[:5].lower() == b"solid" and b"\0" not in data[:4096]:
+        return _read_ascii_stl(data, src)
+    if declared < 0:
+        raise MeshError(f"{src}: {size} bytes is too short for an STL file (a binary STL has an 84-byte "
+                        f"header, an ASCII STL starts with 'solid'); the file is truncated or not an STL")
+    need = 84 + 50 * declared
+    what = "truncated" if size < need else "followed by extra data"
+    raise MeshError(f"{src}: not a valid STL: as binary STL its header declares {declared:,} triangles "
+                    f"({need:,} bytes) but the file has {size:,} bytes ({what}), and it is not an ASCII STL "
+                    f"(no 'solid' at the start); re-export the mesh from CAD")
+
+
+def _read_ascii_stl(data: bytes, src: str) -> tuple[np.ndarray, np.ndarray]:
+    n_words = len(_ASCII_VERTEX_WORD.findall(data))
+    if n_words > 3 * MAX_TRIANGLES:
+        raise _too_many(src, n_words // 3)
+    rows = _ASCII_VERTEX.findall(data)
+    if len(rows) != n_words:
+        good = {m.start() for m in _ASCII_VERTEX.finditer(data)}
+        bad = next(m for m in _ASCII_VERTEX_WORD.finditer(data) if m.start() not in good)
+        line_no = data.count(b"\n", 0, bad.start()) + 1
+        line = data[bad.start(): bad.start() + 80].split(b"\n")[0].decode("ascii", "replace")
+        raise MeshError(f"{src}: ASCII STL line {line_no}: cannot read {line.strip()!r} as 'vertex x y z' "
+                        f"(three numbers); the file is damaged, re-export it")
+    if not rows:
+        raise MeshError(f"{src}: the ASCII STL holds no triangles")
+    if len(rows) % 3:
+        raise MeshError(f"{src}: the ASCII STL has {len(rows)} vertices, not a multiple of 3 (every facet "
+                        f"needs exactly 3); the file is damaged, re-export it")
+    with np.errstate(all="ignore"):
+        v = np.array(rows, dtype=np.bytes_).astype(np.float64)  # overflow (1e999) reads as inf
+    return v, np.arange(len(v), dtype=np.int64).reshape(-1, 3)
+
+
+def _declared_faces(data: bytes, suffix: str) -> int:
+    """A cheap lower bound on the triangle count of an OBJ/PLY/OFF file (``-1`` if unknown)."""
+    if suffix == ".obj":
+        return data.count(b"\nf ") + data.startswith(b"f ")
+    if suffix == ".ply":
+        m = re.search(rb"element\s+face\s+(\d{1,18})", data[:65536])
+        return int(m.group(1)) if m else -1
+    if suffix == ".off":
+        m = re.match(rb"\s*C?N?OFF\s+(\d{1,18})\s+(\d{1,18})", data[:4096])
+        return int(m.group(2)) if m else -1
+    return -1
+
+
+def _read_other(path: Path, data: bytes, src: str) -> tuple[np.ndarray, np.ndarray]:
+    """OBJ/PLY/OFF/glTF through trimesh; any failure becomes one MeshError without library text."""
+    suffix = path.suffix.lower()
+    declared = _declared_faces(data, suffix)
+    if declared > MAX_TRIANGLES:
+        raise _too_many(src, declared, "faces")
+    kind = suffix.lstrip(".").upper()
+    log = logging.getLogger("trimesh")
+    was_disabled, log.disabled = log.disabled, True
     try:
-        with _warnings.catch_warnings():
+        with _warnings.catch_warnings(), np.errstate(all="ignore"):
             _warnings.simplefilter("ignore")
-            loaded = trimesh.load(str(path), force="mesh", process=False)
-    except Exception as exc:  # trimesh raises many types for unreadable files
-        raise MeshError(f"{path}: cannot read the mesh ({type(exc).__name__}: {exc}); is it a valid STL/OBJ/PLY file?") from exc
-    if isinstance(loaded, trimesh.Scene):  # force='mesh' on an empty scene
-        raise MeshError(f"{path}: the file holds no triangles")
-    if not isinstance(loaded, trimesh.Trimesh):
-        raise MeshError(f"{path}: the file holds no triangle mesh (got {type(loaded).__name__})")
-    return loaded
+            loaded = trimesh.load(io.BytesIO(data), file_type=suffix.lstrip("."), force="mesh", process=False)
+        if isinstance(loaded, trimesh.Scene):  # force='mesh' on an empty scene
+            raise MeshError(f"{src}: the {kind} file holds no triangles")
+        if not isinstance(loaded, trimesh.Trimesh):
+            raise MeshError(f"{src}: the {kind} file holds no triangle mesh")
+        v = np.asarray(loaded.vertices, dtype=np.float64)
+        f = np.asarray(loaded.faces, dtype=np.int64)
+    except MeshError:
+        raise
+    except Exception:  # trimesh raises many types for damaged files; their text is internal
+        raise MeshError(f"{src}: cannot read the file as {kind}: it is damaged, truncated or not a valid {kind} file; "
+                        f"re-export it (binary STL is the most reliable)") from None
+    finally:
+        log.disabled = was_disabled
+    if f.ndim != 2 or len(f) == 0:
+        raise MeshError(f"{src}: the {kind} file holds no triangles")
+    return v, f
+
+
+def _open_checked(p: Path, src: str) -> bytes:
+    """The bytes of the regular file ``p``; every OS-level problem becomes a MeshError."""
+    if "\x00" in str(p):
+        raise MeshError(f"{src}: a path cannot contain a NUL character")
+    too_long = [c for c in p.parts if len(os.fsencode(c)) > NAME_MAX_BYTES]
+    if too_long:
+        raise MeshError(f"{src}: the name {show_path(too_long[0], limit=60)} is {len(os.fsencode(too_long[0]))} "
+                        f"bytes long; file systems allow at most {NAME_MAX_BYTES}: rename the file")
+    try:
+        st = os.stat(p)
+    except FileNotFoundError:
+        raise MeshError(f"{src}: no such file") from None
+    except PermissionError:
+        raise MeshError(f"{src}: permission denied (cannot look into its folder)") from None
+    except OSError as exc:
+        raise MeshError(f"{src}: cannot open the file ({exc.strerror or 'operating-system error'})") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise MeshError(f"{src}: is a folder, not a mesh file; give the STL/OBJ/PLY file inside it")
+    if not stat.S_ISREG(st.st_mode):
+        kind = ("a named pipe (FIFO)" if stat.S_ISFIFO(st.st_mode) else "a socket" if stat.S_ISSOCK(st.st_mode)
+                else "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else "not a regular file")
+        raise MeshError(f"{src}: is {kind}, not a mesh file; save the mesh to a regular file first")
+    if p.suffix.lower() not in SUPPORTED_SUFFIXES:
+        raise MeshError(f"{src}: unsupported file type {show_path(p.suffix or '(none)', limit=20)!r}; "
+                        f"use one of {', '.join(SUPPORTED_SUFFIXES)}")
+    if st.st_size == 0:
+        raise MeshError(f"{src}: the file is empty")
+    if st.st_size > MAX_FILE_BYTES:
+        raise MeshError(f"{src}: {st.st_size:,} bytes is larger than grasplan reads ({MAX_FILE_BYTES:,} bytes, "
+                        f"grasplan.mesh.MAX_FILE_BYTES); decimate the mesh to at most {MAX_TRIANGLES:,} triangles")
+    try:
+        with open(p, "rb") as fh:
+            return fh.read(MAX_FILE_BYTES + 1)
+    except PermissionError:
+        raise MeshError(f"{src}: permission denied; make the file readable (chmod +r)") from None
+    except OSError as exc:
+        raise MeshError(f"{src}: cannot read the file ({exc.strerror or 'operating-system error'})") from None
+
+
+def _read_mesh(path: Path) -> tuple[np.ndarray, np.ndarray, bytes]:
+    """``(vertices, faces, raw bytes)`` of a mesh file, in file units."""
+    src = show_path(path)
+    data = _open_checked(path, src)
+    if path.suffix.lower() == ".stl":
+        v, f = _read_stl(data, src)
+    else:
+        v, f = _read_other(path, data, src)
+    if len(f) > MAX_TRIANGLES:
+        raise _too_many(src, len(f))
+    return v, f, data
 
 
 def load_part(path: str | os.PathLike, *, units: Units | str = "auto") -> Part:
@@ -128,30 +331,36 @@ def load_part(path: str | os.PathLike, *, units: Units | str = "auto") -> Part:
     Parameters
     ----------
     path : str or PathLike
-        STL (binary or ASCII), OBJ or PLY file.
+        STL (binary or ASCII), OBJ, PLY, OFF or glTF file, at most :data:`MAX_TRIANGLES`
+        triangles and :data:`MAX_FILE_BYTES` bytes.
     units : {"auto", "m", "cm", "mm", "um", "in", "ft"}
         Units of the file's coordinates.
 
     Raises
     ------
     MeshError
-        Missing file, unreadable or empty mesh, NaN/inf coordinates, or no area.
+        One message naming the file and what is wrong with it: missing, not a regular file,
+        unreadable, empty, damaged or truncated, too many triangles, NaN/inf coordinates, a size
+        outside [:data:`MIN_EXTENT_M`, :data:`MAX_EXTENT_M`] in the chosen units, or no area.
     """
-    p = Path(path)
-    if not p.exists():
-        raise MeshError(f"{p}: no such file")
-    if p.is_dir():
-        raise MeshError(f"{p}: is a folder, not a mesh file")
-    if p.suffix.lower() not in SUPPORTED_SUFFIXES:
-        raise MeshError(f"{p}: unsupported file type {p.suffix or '(none)'!r}; use one of {', '.join(SUPPORTED_SUFFIXES)}")
-    if p.stat().st_size == 0:
-        raise MeshError(f"{p}: the file is empty")
-    raw = _read_mesh(p)
-    return part_from_arrays(
-        raw.vertices, raw.faces, path=str(p), sha256=sha256_file(p), units=units, source=str(p)
-    )
+    p = Path(os.fsdecode(path))
+    v, f, data = _read_mesh(p)
+    return part_from_arrays(v, f, path=str(p), sha256=hashlib.sha256(data).hexdigest(), units=units,
+                            source=show_path(p))
 
 
+def _quiet(fn):
+    """Run ``fn`` with NumPy floating-point and library warnings silenced: callers get a Part or one
+    MeshError, never a RuntimeWarning printed on stderr."""
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        with _warnings.catch_warnings(), np.errstate(all="ignore"):
+            _warnings.simplefilter("ignore")
+            return fn(*args, **kwargs)
+    return wrapper
+
+
+@_quiet
 def part_from_arrays(
     vertices: np.ndarray,
     faces: np.ndarray,
@@ -161,20 +370,53 @@ def part_from_arrays(
     units: Units | str = "m",
     source: str | None = None,
 ) -> Part:
-    """Build a cleaned :class:`Part` from ``vertices (n, 3)`` and ``faces (m, 3)`` in file units."""
-    src = source or path
-    v = np.asarray(vertices, dtype=np.float64)
-    f = np.asarray(faces, dtype=np.int64)
+    """Build a cleaned :class:`Part` from ``vertices (n, 3)`` and ``faces (m, 3)`` in file units.
+
+    ``source`` is how messages name the input (default ``path``). Raises :class:`MeshError` for
+    an empty or corrupt mesh, more than :data:`MAX_TRIANGLES` faces, NaN/inf coordinates, a
+    largest extent outside [:data:`MIN_EXTENT_M`, :data:`MAX_EXTENT_M`] metres, a vertex more than
+    :data:`MAX_COORD_M` from the origin, or no area."""
+    src = source or show_path(path)
+    try:
+        v = np.asarray(vertices, dtype=np.float64)
+        f = np.asarray(faces)
+    except (TypeError, ValueError, OverflowError):
+        raise MeshError(f"{src}: vertices and faces must be arrays of numbers") from None
     if v.ndim != 2 or v.shape[1] != 3 or len(v) == 0 or f.ndim != 2 or f.shape[1] != 3 or len(f) == 0:
         raise MeshError(f"{src}: the mesh is empty (no triangles)")
+    if len(f) > MAX_TRIANGLES:
+        raise _too_many(src, len(f))
+    if not (np.issubdtype(f.dtype, np.integer) or (np.issubdtype(f.dtype, np.floating)
+                                                    and np.all(np.isfinite(f)) and np.all(f == np.round(f)))):
+        raise MeshError(f"{src}: face indices must be integers; the file is corrupt")
     if f.min() < 0 or f.max() >= len(v):
         raise MeshError(f"{src}: faces reference vertices that do not exist; the file is corrupt")
+    f = f.astype(np.int64)
     used = np.unique(f)
-    if not np.all(np.isfinite(v[used])):
-        bad = int((~np.isfinite(v[used])).any(axis=1).sum())
+    vu = v[used]
+    if not np.all(np.isfinite(vu)):
+        bad = int((~np.isfinite(vu)).any(axis=1).sum())
         raise MeshError(f"{src}: {bad} vertices have NaN or infinite coordinates; re-export the mesh from CAD")
-    extent = float(np.ptp(v[used], axis=0).max())
+    with np.errstate(over="ignore", invalid="ignore"):
+        extent = float(np.ptp(vu, axis=0).max())
+        reach = float(np.abs(vu).max())
+    if not np.isfinite(extent):
+        raise MeshError(f"{src}: coordinates up to {reach:.3g} overflow (the part would be infinitely large); "
+                        f"the file is corrupt, re-export it")
+    if extent == 0.0:
+        raise MeshError(f"{src}: all {len(used)} vertices are the same point: the mesh has no area")
     scale_to_m, unit, note = decide_units(extent, str(units))
+    size_m, reach_m = extent * scale_to_m, reach * scale_to_m
+    if not (MIN_EXTENT_M <= size_m <= MAX_EXTENT_M):
+        alts = units_alternatives(extent, exclude=unit)
+        fix = ("; if the file is not in " + unit + ", pass " +
+               " or ".join(f"--units {u} ({_fmt_len(m)})" for u, m in alts)) if alts else \
+            "; the coordinates are probably garbage: re-export the mesh from CAD"
+        raise MeshError(f"{src}: the part is {_fmt_len(size_m)} across in {unit} ({note.split(';')[0]}); grasplan "
+                        f"handles parts from {MIN_EXTENT_M * 1e3:g} mm to {MAX_EXTENT_M:g} m{fix}")
+    if reach_m > MAX_COORD_M:
+        raise MeshError(f"{src}: the part lies {reach_m:.3g} m from the origin (limit {MAX_COORD_M:g} m): far "
+                        f"from the origin floating point loses its shape; move it near the origin in CAD")
     v_m = v * scale_to_m
     tol = Tolerance.for_mesh(v_m[used])
 
@@ -208,6 +450,9 @@ def part_from_arrays(
 
     # 4. consistent winding, outward normals (only meaningful on a closed mesh)
     warn: list[str] = []
+    hint = units_hint(extent, unit)
+    if hint:
+        warn.append(f"{src}: {hint}")
     before = mesh.faces.copy()
     trimesh.repair.fix_winding(mesh)
     winding_fixed = not np.array_equal(before, mesh.faces)

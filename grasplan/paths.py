@@ -45,23 +45,35 @@ Validity = Callable[[np.ndarray], bool]
 # --------------------------------------------------------------------------------------------------
 # interpolation and independent path checking
 # --------------------------------------------------------------------------------------------------
-def interpolate_path(path: np.ndarray, *, step: float = STEP) -> np.ndarray:
-    """Densify a ``(k, n)`` joint path: every segment split into ``ceil(max|dq| / step)`` equal parts.
+def interpolate_path(path: np.ndarray, *, step: float = STEP, return_index: bool = False):
+    """The one joint-path densifier: every segment of a ``(k, n)`` path split into
+    ``ceil(max|dq| / step)`` equal parts (a repeated waypoint adds no point).
 
     Returns ``(m, n)`` with the original waypoints included (first and last rows unchanged); the
-    largest per-joint change between consecutive rows is ``<= step``.
+    largest per-joint change between consecutive rows is ``<= step``. With ``return_index`` also
+    the row of each original waypoint in the output, ``(k,)``.
     """
     path = np.asarray(path, dtype=np.float64)
     if path.ndim != 2 or len(path) == 0:
         raise ValueError(f"path must have shape (k, n) with k >= 1, got {path.shape}")
     if not step > 0:
         raise ValueError(f"step must be > 0 rad, got {step!r}")
-    out = [path[:1]]
-    for a, b in zip(path[:-1], path[1:]):
-        m = max(1, int(np.ceil(np.max(np.abs(b - a)) / step - 1e-12)))
-        t = (np.arange(1, m + 1) / m)[:, None]
-        out.append(a + t * (b - a))
-    return np.concatenate(out, axis=0)
+    keep = np.concatenate([[True], np.max(np.abs(np.diff(path, axis=0)), axis=1) > 1e-12]) if len(path) > 1 \
+        else np.ones(1, dtype=bool)
+    kept = path[keep]
+    if len(kept) < 2:
+        out = kept.copy()
+        return (out, np.zeros(len(path), dtype=np.int64)) if return_index else out
+    d = np.diff(kept, axis=0)
+    pieces = np.maximum(1, np.ceil(np.max(np.abs(d), axis=1) / step - 1e-12).astype(np.int64))
+    seg = np.repeat(np.arange(len(d)), pieces)
+    start = np.repeat(np.cumsum(pieces) - pieces, pieces)
+    frac = (np.arange(len(seg)) - start) / pieces[seg]
+    out = np.vstack([kept[:1], (kept[seg] + ((frac + 1.0 / pieces[seg])[:, None]) * d[seg])])
+    if not return_index:
+        return out
+    row_of_kept = np.concatenate([[0], np.cumsum(pieces)])
+    return out, row_of_kept[np.cumsum(keep) - 1]
 
 
 def path_free_fn(validity: Validity, path: np.ndarray, *, step: float = STEP) -> bool:
@@ -228,65 +240,6 @@ def plan_joint_path(
 # --------------------------------------------------------------------------------------------------
 # straight-line TCP approach
 # --------------------------------------------------------------------------------------------------
-class _LineIK:
-    """Damped least-squares IK for a robot's tool frame, seeded with the previous solution.
-
-    Built once per robot (Pinocchio data is scratch space). ``T_world_model`` maps Pinocchio's
-    model frame to the world (``robot.fk(q) = T_world_model @ oMf(q)``), measured once.
-    """
-
-    def __init__(self, robot):
-        import pinocchio as pin
-
-        self.pin = pin
-        self.robot = robot
-        self.model = robot.model
-        self.data = robot.model.createData()
-        self.fid = int(robot.tool_frame_id)
-        q0 = np.asarray(robot.q_home, dtype=np.float64)
-        T_model_tool = self._fk_model(q0)
-        self.T_world_model = np.asarray(robot.fk(q0)) @ np.linalg.inv(T_model_tool)
-        self.T_model_world = np.linalg.inv(self.T_world_model)
-
-    def _fk_model(self, q):
-        pin = self.pin
-        pin.framesForwardKinematics(self.model, self.data, q)
-        return self.data.oMf[self.fid].homogeneous.copy()
-
-    def fk(self, q) -> np.ndarray:
-        """T_world_tool (4, 4)."""
-        return self.T_world_model @ self._fk_model(np.asarray(q, dtype=np.float64))
-
-    def solve(self, T_world_tool, q_seed, *, iters: int = 20, tol_pos: float = 1e-6, tol_rot: float = 1e-5,
-              damping: float = 1e-6):
-        """Newton/DLS from ``q_seed``; returns q (n,) or None (no convergence)."""
-        pin = self.pin
-        target = pin.SE3(self.T_model_world @ T_world_tool)
-        q = np.array(q_seed, dtype=np.float64)
-        for _ in range(iters):
-            pin.framesForwardKinematics(self.model, self.data, q)
-            cur = self.data.oMf[self.fid]
-            err = pin.log6(cur.actInv(target)).vector  # in the tool (LOCAL) frame
-            if np.linalg.norm(err[:3]) < tol_pos and np.linalg.norm(err[3:]) < tol_rot:
-                return q
-            J = pin.computeFrameJacobian(self.model, self.data, q, self.fid, pin.LOCAL)
-            dq = J.T @ np.linalg.solve(J @ J.T + damping * np.eye(6), err)
-            q = pin.integrate(self.model, q, dq)
-        return None
-
-
-_LINE_IK_CACHE: dict[int, _LineIK] = {}
-
-
-def _line_ik(robot) -> _LineIK:
-    key = id(robot)
-    solver = _LINE_IK_CACHE.get(key)
-    if solver is None or solver.robot is not robot:
-        solver = _LineIK(robot)
-        _LINE_IK_CACHE[key] = solver
-    return solver
-
-
 def _dist_to_segment(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Distances of points ``p`` (m, 3) to the segment a-b."""
     ab = b - a
@@ -363,7 +316,9 @@ def approach_path_reason(
         T_flange_tcp = scene.gripper.T_flange_tcp
     T_flange_tcp = np.asarray(T_flange_tcp, dtype=np.float64)
     T_tcp_flange = np.linalg.inv(T_flange_tcp)
-    solver = _line_ik(robot)
+    from .ik import get_solver
+
+    solver = get_solver(robot).clik  # this thread's own Pinocchio data
     lower = np.asarray(robot.lower, dtype=np.float64)
     upper = np.asarray(robot.upper, dtype=np.float64)
     q = np.asarray(q_pre, dtype=np.float64).copy()
@@ -382,7 +337,7 @@ def approach_path_reason(
         T = np.eye(4)
         T[:3, :3] = R
         T[:3, 3] = a + (b - a) * (i / m)
-        q_new = solver.solve(T @ T_tcp_flange, q)
+        q_new = solver.track(T @ T_tcp_flange, q)
         if q_new is None:
             return None, "ik"
         if np.any(q_new < lower) or np.any(q_new > upper):

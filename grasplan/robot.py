@@ -49,8 +49,9 @@ import numpy as np
 import pinocchio as pin
 import yaml
 
-from .config_files import ROBOTS_DIR, available, config_number, config_vector, resolve_yaml
+from .config_files import available, config_number, config_vector, resolve_yaml
 from .errors import ConfigError, InputError, unknown_name
+from .params import DEFAULT_ROBOT
 _PKG_SHARE = "cmeel.prefix/share"
 
 
@@ -141,6 +142,11 @@ class Robot:
     mounted_links: tuple[str, ...] = ()
     kind: str = "generic"
     config_path: Path | None = None
+    source_yaml: str = ""                 #: the robot YAML's text (embedded in plans)
+    package: str | None = None            #: the package holding the URDF/SRDF (e.g. example-robot-data)
+    joint_sign: np.ndarray | None = None  #: (n,) controller angle [deg] = sign * degrees(q) + offset_deg
+    joint_offset_deg: np.ndarray | None = None
+    controller_base_frame: str | None = None  #: model frame of the controller's base (UR: "base")
     _tls: threading.local = field(default_factory=threading.local, repr=False, compare=False)
 
     # ---- basic properties -------------------------------------------------------------------
@@ -234,9 +240,25 @@ class Robot:
         """The URDF link a geometry object belongs to."""
         return self.model.frames[geom.parentFrame].name
 
-    def to_json(self) -> dict:
-        return {"name": self.name, "joint_names": list(self.joint_names),
-                "T_world_base": self.T_world_base.tolist(), "q_home": self.q_home.tolist()}
+    def to_json(self, *, source: bool = False) -> dict:
+        """The ``robot`` block of a plan; with ``source`` also where the model came from (package,
+        URDF/SRDF paths relative to it, the YAML text), so :func:`robot_from_json` rebuilds it."""
+        out = {"name": self.name, "joint_names": list(self.joint_names),
+               "T_world_base": self.T_world_base.tolist(), "q_home": self.q_home.tolist()}
+        if source:
+            out["source"] = {"package": self.package, "urdf": str(self.urdf_path),
+                             "srdf": str(self.srdf_path) if self.srdf_path else None,
+                             "yaml_path": str(self.config_path) if self.config_path else None,
+                             "yaml": self.source_yaml}
+        return out
+
+    def T_world_controller_base(self) -> np.ndarray:
+        """(4, 4) pose of the controller's base frame (``controller_base_frame``, else the model root)."""
+        if not self.controller_base_frame:
+            return self.T_world_base.copy()
+        d = self.model.createData()
+        pin.framesForwardKinematics(self.model, d, pin.neutral(self.model))
+        return self.T_world_base @ d.oMf[self.model.getFrameId(self.controller_base_frame)].homogeneous
 
 
 # --------------------------------------------------------------------------------------------
@@ -244,15 +266,52 @@ class Robot:
 # --------------------------------------------------------------------------------------------
 def available_robots() -> list[str]:
     """Names of the robot descriptions shipped in ``robots/``."""
-    return available(ROBOTS_DIR)
+    return available("robot")
+
+
+def robot_from_json(d, *, where: str = "robot") -> "Robot":
+    """Rebuild the robot a plan was made for from its embedded ``source`` (the YAML text; URDF/SRDF
+    from the recorded package, else the recorded paths). Checks joint names and q_home against the
+    plan's ``robot`` block."""
+    import hashlib
+
+    if not isinstance(d, dict) or not isinstance(d.get("source"), dict) or not isinstance(d["source"].get("yaml"), str):
+        raise ConfigError(f"{where}: the plan embeds no robot source (written by an older grasplan?); re-run "
+                          "`grasplan plan` to get a self-contained plan")
+    src = d["source"]
+    yaml_path = src.get("yaml_path")
+    yaml_dir = Path(yaml_path).parent if isinstance(yaml_path, str) and Path(yaml_path).parent.is_dir() else None
+    key = hashlib.sha256(src["yaml"].encode("utf-8", "replace")).hexdigest()
+    fallback = {k: src.get(k) for k in ("urdf", "srdf") if isinstance(src.get(k), str)}
+    robot = _from_json_cached(key, src["yaml"], str(yaml_dir) if yaml_dir else "", tuple(sorted(fallback.items())))
+    names = d.get("joint_names")
+    if list(robot.joint_names) != names:
+        raise ConfigError(f"{where}: joint_names {str(names)[:120]} do not match robot {robot.name!r} "
+                          f"({', '.join(robot.joint_names)}); the plan file is inconsistent")
+    if d.get("name") != robot.name:
+        raise ConfigError(f"{where}: name {str(d.get('name'))[:40]!r} does not match its source ({robot.name!r})")
+    try:
+        qh = np.asarray(d.get("q_home"), dtype=float)
+        Twb = np.asarray(d.get("T_world_base"), dtype=float)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{where}: q_home and T_world_base must be numbers") from None
+    if qh.shape != robot.q_home.shape or not np.allclose(qh, robot.q_home, atol=1e-9) \
+            or Twb.shape != (4, 4) or not np.allclose(Twb, robot.T_world_base, atol=1e-9):
+        raise ConfigError(f"{where}: q_home / T_world_base differ from the embedded robot description")
+    return robot
+
+
+@lru_cache(maxsize=8)
+def _from_json_cached(key: str, text: str, yaml_dir: str, fallback: tuple) -> "Robot":
+    return _build_robot_text(text, "embedded robot description", Path(yaml_dir) if yaml_dir else None, dict(fallback))
 
 
 def _resolve(name_or_path: str | Path) -> tuple[str, Path]:
-    path = resolve_yaml("robot", name_or_path, ROBOTS_DIR)
+    path = resolve_yaml("robot", name_or_path)
     return str(path), path
 
 
-def load_robot(name_or_path: str | Path = "ur5") -> Robot:
+def load_robot(name_or_path: str | Path = DEFAULT_ROBOT) -> Robot:
     """The robot named ``name_or_path`` (``robots/<name>.yaml``) or described by a YAML file.
 
     Cached: the URDF/SRDF are parsed once per name/path (and file version); the same
@@ -279,14 +338,27 @@ def _field(cfg: dict, name: str, where: Path, *, required: bool = True, default:
 
 def _build_robot(path: Path) -> Robot:
     try:
-        cfg = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as exc:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"cannot read robot file {path}: {exc}") from None
+    return _build_robot_text(text, path, path.parent)
+
+
+def _build_robot_text(text: str, path: Path | str, yaml_dir: Path | None, urdf_fallback: dict | None = None) -> Robot:
+    """Build a robot from the YAML ``text``; ``path`` labels errors, relative URDF/SRDF paths are
+    resolved against ``yaml_dir`` (or, when that folder is gone, ``urdf_fallback``'s recorded paths)."""
+    if len(text) > 1_000_000:
+        raise ConfigError(f"{path}: robot file too large ({len(text)} bytes)")
+    try:
+        cfg = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"cannot read robot file {path}: not valid YAML ({str(exc).splitlines()[0]})") from None
     if not isinstance(cfg, dict):
         raise ConfigError(f"{path}: expected a mapping of fields, got {type(cfg).__name__}")
     known = {"name", "description", "package", "urdf", "srdf", "kind", "tool_frame", "frames",
-             "lock_joints", "remove_links", "mounted_links", "T_world_base", "q_home"}
-    extra = sorted(set(cfg) - known)
+             "lock_joints", "remove_links", "mounted_links", "T_world_base", "q_home",
+             "controller_joint_map", "controller_base_frame"}
+    extra = sorted(map(str, set(cfg) - known))
     if extra:
         raise ConfigError(f"{path}: unknown field(s) {extra}; known fields: {sorted(known)}")
 
@@ -303,8 +375,8 @@ def _build_robot(path: Path) -> Robot:
         root = share / str(package) / "robots"
         package_dirs = (str(share),)
     else:
-        root = path.parent
-        package_dirs = (str(path.parent),)
+        root = yaml_dir if yaml_dir is not None else Path(".")
+        package_dirs = (str(root),)
 
     def _file(fname: str, required: bool) -> Path | None:
         v = _field(cfg, fname, path, required=required)
@@ -313,6 +385,8 @@ def _build_robot(path: Path) -> Robot:
         if not isinstance(v, str):
             raise ConfigError(f"{path}: field {fname!r} must be a path string")
         p = Path(v) if Path(v).is_absolute() else root / v
+        if not p.is_file() and urdf_fallback and urdf_fallback.get(fname):
+            p = Path(urdf_fallback[fname])
         if not p.is_file():
             raise ConfigError(f"{path}: field {fname!r}: file {p} not found")
         return p
@@ -414,10 +488,27 @@ def _build_robot(path: Path) -> Robot:
 
     disabled = parse_srdf_disabled_pairs(srdf_path) if srdf_path else ()
 
+    cmap = _field(cfg, "controller_joint_map", path, required=False, default=None) or {}
+    if not isinstance(cmap, dict) or set(cmap) - {"sign", "offset_deg"}:
+        raise ConfigError(f"{path}: field 'controller_joint_map' must be {{sign: [+1/-1 per joint], offset_deg: [deg per joint]}}")
+    sign = config_vector(cmap.get("sign", [1] * model.nq), f"{path}: controller_joint_map.sign", model.nq)
+    if not np.all(np.isin(sign, (-1.0, 1.0))):
+        raise ConfigError(f"{path}: controller_joint_map.sign: each entry must be 1 or -1, got {sign.tolist()}")
+    offset = config_vector(cmap.get("offset_deg", [0] * model.nq), f"{path}: controller_joint_map.offset_deg", model.nq)
+    base_frame = _field(cfg, "controller_base_frame", path, required=False, default=None)
+    if base_frame is None and kind == "ur" and model.existFrame("base"):
+        base_frame = "base"  # the UR controller's base frame (ur_description)
+    if base_frame is not None and (not isinstance(base_frame, str) or not model.existFrame(base_frame)):
+        raise unknown_name("controller_base_frame", str(base_frame), [f.name for f in model.frames],
+                           hint=f"field 'controller_base_frame' in {path}")
+
     return Robot(name=name, model=model, collision_model=cmodel, visual_model=vmodel,
                  joint_names=joint_names, q_home=_frozen(q_home), lower=_frozen(lower),
                  upper=_frozen(upper), velocity_limit=_frozen(vel), tool_frame=tool_frame,
                  tool_frame_id=tool_frame_id, T_world_base=_frozen(T_world_base),
                  disabled_pairs=disabled, urdf_path=urdf_path, srdf_path=srdf_path,
                  package_dirs=package_dirs, mounted_links=tuple(mounted), kind=kind,
-                 config_path=path)
+                 config_path=Path(path) if yaml_dir is not None else None, source_yaml=text,
+                 package=str(package) if package is not None else None,
+                 joint_sign=_frozen(sign), joint_offset_deg=_frozen(offset),
+                 controller_base_frame=base_frame)

@@ -18,12 +18,14 @@ from __future__ import annotations
 import numpy as np
 
 from .antipodal import Candidates
+from .params import GraspParams
 
 
 _GRID_OFFSET = 0.5 * (np.sqrt(5.0) - 1.0)  # 0.618..., far from the round fractions CAD uses
 
 
-def thin_candidates(candidates: Candidates, *, spacing: float = 0.003, axis_step_deg: float = 10.0) -> np.ndarray:
+def thin_candidates(candidates: Candidates, *, spacing: float = GraspParams.default("thin_spacing"),
+                    axis_step_deg: float = GraspParams.default("thin_axis_deg")) -> np.ndarray:
     """Indices (sorted, int64) of one representative candidate per cluster.
 
     Parameters

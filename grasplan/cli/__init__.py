@@ -4,6 +4,7 @@ fast and a heavy dependency (Pinocchio, OMPL) is loaded only by the commands tha
 from __future__ import annotations
 
 import importlib
+import os
 import sys
 
 import click
@@ -18,6 +19,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "plan": ("plan", "Grasps a robot can reach: IK and collision-free approach paths."),
     "export": ("export", "Write a planned grasp as URScript, a timed joint trajectory or CSV."),
     "view": ("view", "Write a self-contained HTML viewer for a grasps or plan file."),
+    "simulate": ("simulate", "Close, lift and shake grasps in MuJoCo; record which ones hold the part."),
+    "batch": ("batch", "Plan a whole catalogue of parts (files, folders, manifests), locally or on Ray."),
 }
 
 
@@ -40,8 +43,33 @@ class LazyGroup(click.Group):
         try:
             return super().invoke(ctx)
         except GrasplanError as exc:
-            click.echo(f"grasplan: error: {exc}", err=True)
+            click.echo(f"grasplan: error: {_one_line(str(exc))}", err=True)
             sys.exit(exc.exit_code)
+        except (click.exceptions.Exit, click.ClickException, click.exceptions.Abort, SystemExit):
+            raise
+        except KeyboardInterrupt:
+            click.echo("grasplan: interrupted; no output was written", err=True)
+            sys.exit(130)
+        except MemoryError:
+            click.echo("grasplan: error: out of memory; the input is too large for this machine "
+                       "(try a coarser mesh or a larger --spacing)", err=True)
+            sys.exit(3)
+        except RecursionError:
+            click.echo("grasplan: error: the input is nested too deeply to read", err=True)
+            sys.exit(3)
+        except Exception as exc:  # a bug: one clear line, the traceback only on request
+            if os.environ.get("GRASPLAN_DEBUG"):
+                raise
+            click.echo(f"grasplan: internal error ({type(exc).__name__}); no output was written. This is a bug: "
+                       "please report it with the command line (GRASPLAN_DEBUG=1 shows the traceback)", err=True)
+            sys.exit(1)
+
+
+def _one_line(msg: str, limit: int = 2000) -> str:
+    """An error message as one line of printable text (inputs cannot forge further lines)."""
+    msg = " ".join(msg.split())
+    msg = "".join(c if c.isprintable() else "?" for c in msg)
+    return msg if len(msg) <= limit else msg[: limit - 3] + "..."
 
 
 @click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})

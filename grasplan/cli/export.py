@@ -1,63 +1,67 @@
-"""``grasplan export PLAN.json --format urscript|joint-trajectory|csv [--grasp ID] -o OUT``."""
+"""``grasplan export PLAN.json --format NAME [--grasp ID] -o OUT``: a robot program or data file."""
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 import click
 
-from ..export import DEFAULT_MAX_ACCEL, FORMATS, load_plan, planned_ids
+from ..export import load_builtin_formats
+from ..export.registry import DEFAULT_MAX_ACCEL
 from .common import info
+from .options import FLOAT, INT
+
+_FORMATS = load_builtin_formats()
 
 
-@click.command(name="export")
-@click.argument("plan", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--format", "fmt", type=click.Choice(FORMATS), required=True,
-              help="urscript: a UR program (movej path, movel approach, gripper stubs); joint-trajectory: a "
-                   "timed, collision-checked ROS JointTrajectory as JSON; csv: one row per grasp.")
-@click.option("--grasp", "grasp_id", type=int, default=None,
-              help="Id of the grasp to export (must be planned). Default: the best planned grasp (highest score). "
-                   "For csv: only this grasp's row (default: every grasp).")
-@click.option("-o", "--output", "out", type=click.Path(dir_okay=False, path_type=Path), required=True,
-              help="Output file (written atomically; nothing is written on error).")
-@click.option("--max-accel", type=float, default=DEFAULT_MAX_ACCEL, show_default=True,
+def _formats_help() -> str:
+    return "\n".join(f"  {f.name:<17} {f.description} ({f.extension})" for f in _FORMATS.values())
+
+
+@click.command(name="export", epilog="\b\nFormats:\n" + _formats_help())
+@click.argument("plan", type=click.Path(dir_okay=True))
+@click.option("--format", "fmt", type=click.Choice(sorted(_FORMATS)), required=True,
+              help="Output format (list below).")
+@click.option("--grasp", "grasp_id", type=INT, default=None,
+              help="Id of the grasp to export (must be planned). Default: the best planned grasp. "
+                   "For csv and moveit-grasp: only this grasp (default: every grasp).")
+@click.option("-o", "--output", "out", type=click.Path(dir_okay=False), required=True,
+              help="Output file (written atomically; nothing is written on error). Multi-file formats (krl) "
+                   "write their other files next to it with the same stem.")
+@click.option("--max-accel", type=FLOAT, default=DEFAULT_MAX_ACCEL, show_default=True,
               help="joint-trajectory: joint acceleration limit, rad/s^2, for every joint (the URDF has none; "
                    "the default is the UR controller's default movej acceleration).")
-@click.option("--velocity-scale", type=click.FloatRange(0.0, 1.0, min_open=True), default=1.0, show_default=True,
-              help="joint-trajectory: fraction of the URDF joint velocity limits to use.")
-@click.option("--part", "part_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="joint-trajectory: the part's mesh file, when it is no longer at the path recorded in the plan "
-                   "(used to verify the timed trajectory against collisions; its sha256 must match).")
+@click.option("--velocity-scale", type=FLOAT, default=1.0, show_default=True,
+              help="joint-trajectory: fraction (0, 1] of the URDF joint velocity limits to use.")
+@click.option("--part", "part_path", type=click.Path(dir_okay=True), default=None,
+              help="The part's mesh file, when it is no longer at the path recorded in the plan (used to verify "
+                   "the timed trajectory against collisions; its sha256 must match).")
 def command(plan, fmt, grasp_id, out, max_accel, velocity_scale, part_path):
-    """Write a planned grasp of PLAN (a grasplan.plan/1 file from `grasplan plan`) as a robot program.
+    """Write a planned grasp of PLAN (a grasplan.plan/1 file from `grasplan plan`) in a robot's language.
+
+    PLAN is self-contained: the gripper, cell and robot are rebuilt from it (no YAML needed).
 
     \b
     Examples:
       grasplan export plan.json --format urscript -o pick.script
+      grasplan export plan.json --format krl -o pick.src          # also writes pick.dat
       grasplan export plan.json --format joint-trajectory --grasp 12 --max-accel 2 -o traj.json
       grasplan export plan.json --format csv -o grasps.csv
     """
+    from pathlib import Path
+
     from ..export import write
+    from ..result import load_result
 
     t0 = time.perf_counter()
-    doc = load_plan(plan)
-    ids = planned_ids(doc)
-    if fmt != "csv" or grasp_id is not None:
-        info(f"plan {plan}: {len(doc['grasps'])} grasps, {len(ids)} planned")
-    path = write(doc, fmt, out, grasp_id=grasp_id, max_accel=max_accel, velocity_scale=velocity_scale,
-                 part_path=part_path, source=str(plan), check=False)
+    res = load_result(plan, part=part_path)
+    ids = res.planned_ids()
+    info(f"plan {plan}: {len(res.grasps)} grasps, {len(ids)} planned")
+    path = write(res, fmt, out, grasp_id=grasp_id, part=part_path, max_accel=max_accel,
+                 velocity_scale=velocity_scale, source=Path(plan).name)
     dt = time.perf_counter() - t0
-    if fmt == "csv":
-        rows = len(doc["grasps"]) if grasp_id is None else 1
-        click.echo(f"wrote {path}: {rows} grasp rows ({len(ids)} planned) in {dt:.2f} s")
+    f = _FORMATS[fmt]
+    if not f.per_grasp:
+        what = f"{len(res.grasps) if grasp_id is None else 1} grasps ({len(ids)} planned)"
     else:
-        gid = grasp_id if grasp_id is not None else ids[0]
-        extra = ""
-        if fmt == "joint-trajectory":
-            import json
-
-            traj = json.loads(Path(path).read_text())
-            g = traj["grasplan"]
-            extra = (f", {len(traj['points'])} points, {g['duration_s']:.2f} s, "
-                     f"peak velocity {g['max_velocity_ratio'] * 100:.0f} % of the limit, collision-free")
-        click.echo(f"wrote {path}: {fmt} for grasp {gid}{extra} in {dt:.2f} s")
+        what = f"grasp {grasp_id if grasp_id is not None else ids[0]}"
+    click.echo(f"wrote {path}: {fmt}, {what}, in {dt:.2f} s")

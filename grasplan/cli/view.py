@@ -2,37 +2,36 @@
 from __future__ import annotations
 
 import warnings
-from pathlib import Path
 
 import click
 
-from ..errors import InputError
 from .common import info, warn_all
 
 
 @click.command("view")
-@click.argument("result", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("-o", "--output", "output", required=True, type=click.Path(dir_okay=False, path_type=Path),
+@click.argument("result", type=click.Path(dir_okay=True))
+@click.option("-o", "--output", "output", required=True, type=click.Path(dir_okay=False),
               help="The HTML file to write (one self-contained file; open it in any browser, no server needed).")
-@click.option("--part", "part", type=click.Path(dir_okay=False, path_type=Path), default=None,
+@click.option("--part", "part", type=click.Path(dir_okay=True), default=None,
               help="The part's mesh file. Default: part.path recorded in RESULT (a relative path is looked up "
-                   "in the current folder, then next to RESULT).")
-def command(result: Path, output: Path, part: Path | None) -> None:
+                   "in the current folder, then next to RESULT). Its sha256 must match RESULT's.")
+@click.option("--allow-other-part", is_flag=True,
+              help="Draw a part whose sha256 differs from RESULT's (the grasps may not belong to it).")
+def command(result: str, output: str, part: str | None, allow_other_part: bool) -> None:
     """Write a self-contained HTML viewer for a grasps or plan file (RESULT).
 
     The page shows the part in its cell pose, the table, every grasp's contacts coloured by status,
     the selected grasp's gripper (jaws at the pre-grasp opening) and, for a plan, the robot at
     q_grasp with a button that plays the path home -> pre-grasp -> grasp. It makes no network
-    request (three.js is bundled).
+    request (three.js is bundled). RESULT is self-contained: no gripper, cell or robot YAML needed.
     """
+    from ..result import load_result
     from ..viewer import write_viewer  # imported here: the CLI stays fast for other commands
 
-    if not result.exists():
-        raise InputError(f"{result}: no such file (expected a grasplan grasps or plan JSON)")
     info(f"view: {result}")
+    res = load_result(result)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        path = write_viewer(result, output, part_path=part)
+        path = write_viewer(res, output, part_path=part, allow_other_part=allow_other_part)
     warn_all(str(w.message) for w in caught)
-    size = path.stat().st_size
-    click.echo(f"wrote {path} ({size / 1e6:.2f} MB)")
+    click.echo(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB)")

@@ -23,6 +23,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..transforms import pose7
+from .registry import ExportFormat, register
 
 POSE_COLS = ("x", "y", "z", "qw", "qx", "qy", "qz")
 
@@ -38,40 +39,43 @@ def _num(v) -> str:
     return "" if v is None else f"{float(v) + 0.0:.9g}"
 
 
-def grasps_csv(plan_json: dict, *, grasp_id: int | None = None) -> str:
-    """The CSV text: every grasp (or only ``grasp_id``, which may have any status). Poses vectorised."""
-    joints = list(plan_json["robot"]["joint_names"])
-    T_world_part = np.asarray(plan_json["part"]["T_world_part"], dtype=np.float64)
-    grasps = plan_json["grasps"]
-    if grasp_id is not None:
-        grasps = [g for g in grasps if int(g["id"]) == grasp_id]
-        if not grasps:
-            ids = [g["id"] for g in plan_json["grasps"]]
-            raise InputError(f"unknown grasp id {grasp_id}; the plan has ids {min(ids)}..{max(ids)}" if ids
-                             else f"unknown grasp id {grasp_id}; the plan has no grasps")
+def grasps_csv(plan, *, grasp_id: int | None = None) -> str:
+    """The CSV text of a :class:`~grasplan.result.PlanResult`: every grasp (or only ``grasp_id``).
+    Vectorised over grasps (TLess20: ~1e5 rows)."""
+    t = plan.grasps
+    joints = list(plan.robot.joint_names)
+    ids = np.arange(len(t)) if grasp_id is None else np.asarray([plan.select(grasp_id).id])
     buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(header(joints))
-    if not grasps:
-        return buf.getvalue()
-    T_part_tcp = np.asarray([g["T_part_tcp"] for g in grasps], dtype=np.float64)
-    if T_part_tcp.shape != (len(grasps), 4, 4):
-        raise InputError("every grasp's T_part_tcp must be a 4x4 matrix")
-    poses = np.concatenate([pose7(T_part_tcp), pose7(T_world_part @ T_part_tcp)], axis=1) + 0.0  # no "-0"
-    scale = _num(plan_json["part"]["scale_to_m"])
+    csv.writer(buf, lineterminator="\n").writerow(header(joints))
+    lines = [buf.getvalue().rstrip("\n")]
+    if len(ids) == 0:
+        return lines[0] + "\n"
+    T_part_tcp = t.T_part_tcp[ids]
+    poses = np.concatenate([pose7(T_part_tcp), pose7(plan.T_world_part @ T_part_tcp)], axis=1) + 0.0  # no "-0"
+    if not np.all(np.isfinite(poses)) or not np.all(np.isfinite(t.width[ids])):
+        raise InputError("the plan has non-finite poses or widths; it is corrupt")
+    scale = _num(plan.part.scale_to_m)
     fmt = ",".join(["{:.9g}"] * 14)
     empty_q = "," * (len(joints) - 1)
-    lines = [buf.getvalue().rstrip("\n")]
-    for g, p in zip(grasps, poses.tolist()):
-        q = g.get("q_grasp") if g["status"] == "planned" else None
-        if q is not None and len(q) != len(joints):
-            raise InputError(f"grasp {g['id']}: q_grasp has {len(q)} values, the robot has {len(joints)} joints")
-        qtxt = ",".join(_num(v) for v in q) if q is not None else empty_q
-        lines.append(f"{int(g['id'])},{_csv_text(g['status'])},{_num(g['width'])},{_num(g.get('score'))},"
-                     f"{fmt.format(*p)},{qtxt},{scale}")
+    status = t.status[ids].astype(str).tolist()
+    width = t.width[ids].tolist()
+    score = t.score[ids].tolist()
+    for k, (i, p) in enumerate(zip(ids.tolist(), poses.tolist())):
+        m = plan.motions.get(i)
+        qtxt = ",".join(_num(v) for v in m.q_grasp) if m is not None else empty_q
+        sc = None if score[k] != score[k] else score[k]
+        lines.append(f"{i},{_csv_text(status[k])},{_num(width[k])},{_num(sc)},{fmt.format(*p)},{qtxt},{scale}")
     return "\n".join(lines) + "\n"
 
 
 def _csv_text(s: str) -> str:
     s = str(s)
-    return '"' + s.replace('"', '""') + '"' if any(c in s for c in ',"\n') else s
+    return '"' + s.replace('"', '""') + '"' if any(c in s for c in ',"\n\r') else s
+
+
+def _render(plan, opts) -> dict[str, str]:
+    return {".csv": grasps_csv(plan, grasp_id=opts.grasp_id)}
+
+
+register(ExportFormat(name="csv", extension=".csv", per_grasp=False, render=_render,
+                      description="One row per grasp: status, width, score, TCP pose (part, world), q_grasp."))

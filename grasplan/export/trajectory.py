@@ -26,12 +26,11 @@ checks}}``; ``joint_names`` and ``points`` map one to one onto the ROS message.
 from __future__ import annotations
 
 import math
-import os
 
 import numpy as np
 
 from ..errors import InputError, PlanningError
-from . import DEFAULT_MAX_ACCEL, grasp_arrays, select_grasp
+from .registry import DEFAULT_MAX_ACCEL, ExportFormat, register
 
 SCHEMA = "grasplan.joint_trajectory/1"
 KNOT_STEP = 0.005      #: rad, spline knot spacing (max joint motion between knots)
@@ -41,21 +40,10 @@ CHECK_STEP = 0.01      #: rad, collision check interpolation step
 
 
 def densify(path: np.ndarray, step: float) -> np.ndarray:
-    """Insert points on each straight segment so no joint moves more than ``step`` between points.
+    """The planner's densifier (:func:`grasplan.paths.interpolate_path`)."""
+    from ..paths import interpolate_path
 
-    path: (k, n) -> (m, n), consecutive duplicates removed; the original waypoints are kept.
-    """
-    path = np.asarray(path, dtype=np.float64)
-    keep = np.concatenate([[True], np.max(np.abs(np.diff(path, axis=0)), axis=1) > 1e-12])
-    path = path[keep]
-    if len(path) < 2:
-        return path
-    d = np.diff(path, axis=0)
-    pieces = np.maximum(1, np.ceil(np.max(np.abs(d), axis=1) / step).astype(int))
-    seg = np.repeat(np.arange(len(d)), pieces)
-    frac = np.concatenate([np.arange(p) / p for p in pieces])
-    out = path[seg] + frac[:, None] * d[seg]
-    return np.vstack([out, path[-1:]])
+    return interpolate_path(path, step=step)
 
 
 def point_to_polyline_distance(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
@@ -129,8 +117,8 @@ def time_parameterize(path: np.ndarray, vmax: np.ndarray, amax: np.ndarray) -> d
     return {"t": t, "q": q, "qd": qd, "qdd": qdd, "knots": knots, "sd": sd, "duration": float(t[-1])}
 
 
-def _limits(plan_json: dict, robot, max_accel, velocity_scale) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    n = len(plan_json["robot"]["joint_names"])
+def _limits(robot, max_accel, velocity_scale) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    n = robot.nq
     if not (0.0 < velocity_scale <= 1.0):
         raise InputError(f"velocity_scale must be in (0, 1], got {velocity_scale!r}")
     amax = np.broadcast_to(np.asarray(max_accel, dtype=np.float64), (n,)).copy() if np.ndim(max_accel) == 0 \
@@ -139,51 +127,34 @@ def _limits(plan_json: dict, robot, max_accel, velocity_scale) -> tuple[np.ndarr
         raise InputError(f"max_accel must be > 0 rad/s^2 (one value or {n}), got {max_accel!r}")
     vlim = np.asarray(robot.velocity_limit, dtype=np.float64)
     if vlim.shape != (n,) or np.any(vlim <= 0):
-        raise InputError(f"robot {plan_json['robot']['name']!r}: velocity limits {vlim} unusable")
+        raise InputError(f"robot {robot.name!r}: velocity limits {vlim} unusable")
     return vlim * velocity_scale, amax, np.asarray(robot.lower, dtype=np.float64), np.asarray(robot.upper, dtype=np.float64)
 
 
-def build_scene(plan_json: dict, robot, *, part_path: str | os.PathLike | None = None):
-    """A CollisionScene rebuilt from the plan's part, gripper, cell and robot (loaded once)."""
-    from ..cell import load_cell
-    from ..gripper import load_gripper
-    from ..mesh import load_recorded_part
+def build_scene(plan):
+    """A CollisionScene of the plan's own robot, gripper, part (sha256-checked) and cell."""
     from ..scene import CollisionScene
 
-    part_info = plan_json["part"]
-    part = load_recorded_part(part_info, path=part_path)
-    if part.sha256 != part_info["sha256"]:
-        raise InputError(f"{part.path}: sha256 {part.sha256[:12]}... differs from the planned part's "
-                         f"{part_info['sha256'][:12]}...; pass the mesh the plan was made from with --part")
-    gripper = load_gripper(plan_json["gripper"].get("path") or plan_json["gripper"]["name"])
-    cell = load_cell(plan_json["cell"].get("path") or plan_json["cell"]["name"])
-    T_world_part = np.asarray(plan_json["part"]["T_world_part"], dtype=np.float64)
-    return CollisionScene(robot, gripper, part.mesh, T_world_part, cell)
+    return CollisionScene(plan.robot, plan.gripper, plan.mesh(), plan.T_world_part, plan.cell)
 
 
-def joint_trajectory(plan_json: dict, *, grasp_id: int | None = None, max_accel=DEFAULT_MAX_ACCEL,
-                     velocity_scale: float = 1.0, robot=None, scene=None,
-                     part_path: str | os.PathLike | None = None) -> dict:
-    """The ``grasplan.joint_trajectory/1`` document for ``grasp_id`` (default: the best planned grasp).
+def joint_trajectory(plan, *, grasp_id: int | None = None, max_accel=DEFAULT_MAX_ACCEL,
+                     velocity_scale: float = 1.0, scene=None) -> dict:
+    """The ``grasplan.joint_trajectory/1`` document for ``grasp_id`` (default: the best planned
+    grasp) of a :class:`~grasplan.result.PlanResult`.
 
-    ``robot``: object with ``velocity_limit``, ``lower``, ``upper`` (n,) (default: load the plan's
-    robot). ``scene``: object with ``path_free(qs, opening, *, step)`` (default: :func:`build_scene`).
+    ``scene``: object with ``path_free(qs, opening, *, step)`` (default: :func:`build_scene`).
     Raises PlanningError when the timed trajectory fails a check (never writes an unchecked one).
     """
-    g = select_grasp(plan_json, grasp_id)
-    a = grasp_arrays(plan_json, g)
-    if robot is None:
-        from ..robot import load_robot
-
-        robot = load_robot(plan_json["robot"]["name"])
-    vmax, amax, lower, upper = _limits(plan_json, robot, max_accel, velocity_scale)
-    path = a["path"]
+    g = plan.select(grasp_id)
+    robot = plan.robot
+    m = g.motion
+    vmax, amax, lower, upper = _limits(robot, max_accel, velocity_scale)
+    path = np.asarray(m.path, dtype=np.float64)
     if np.any(path < lower - 1e-9) or np.any(path > upper + 1e-9):
-        raise InputError(f"grasp {g['id']}: the planned path leaves the joint limits of {plan_json['robot']['name']!r}")
-
+        raise InputError(f"grasp {g.id}: the planned path leaves the joint limits of {robot.name!r}")
     res = time_parameterize(path, vmax, amax)
     t, q, qd, qdd = res["t"], res["q"], res["qd"], res["qdd"]
-
     # ---- checks (fatal) ----
     dt = np.diff(t)
     problems = []
@@ -198,16 +169,15 @@ def joint_trajectory(plan_json: dict, *, grasp_id: int | None = None, max_accel=
         problems.append(f"velocity {max(v_ratio, v_fd_ratio):.3f} x the limit")
     if np.any(q < lower - 1e-9) or np.any(q > upper + 1e-9):
         problems.append("joint limits exceeded")
-    if np.max(np.abs(q[0] - a["q_home"])) > 1e-9 or np.max(np.abs(q[-1] - a["q_grasp"])) > 1e-9:
+    if np.max(np.abs(q[0] - path[0])) > 1e-9 or np.max(np.abs(q[-1] - m.q_grasp)) > 1e-9:
         problems.append("does not run from q_home to q_grasp")
     if problems:
-        raise PlanningError(f"grasp {g['id']}: the timed trajectory fails its checks: {'; '.join(problems)}")
+        raise PlanningError(f"grasp {g.id}: the timed trajectory fails its checks: {'; '.join(problems)}")
     a_ratio = float(np.max(np.abs(qdd) / amax))
     deviation = float(np.max(point_to_polyline_distance(q, path)))
-
-    opening = min(float(plan_json["gripper"]["max_opening"]), float(g["width"]) + 0.010)
+    opening = float(plan.gripper.pregrasp_opening(g.width))
     if scene is None:
-        scene = build_scene(plan_json, robot, part_path=part_path)
+        scene = build_scene(plan)
     if not scene.path_free(q, opening, step=CHECK_STEP):
         detail = ""
         first = getattr(scene, "first_collision", None)
@@ -217,7 +187,7 @@ def joint_trajectory(plan_json: dict, *, grasp_id: int | None = None, max_accel=
                 if hit:
                     detail = f" (first contact: {hit})"
                     break
-        raise PlanningError(f"grasp {g['id']}: the timed trajectory collides when interpolated at {CHECK_STEP} rad"
+        raise PlanningError(f"grasp {g.id}: the timed trajectory collides when interpolated at {CHECK_STEP} rad"
                             f"{detail}; it deviates up to {deviation:.4f} rad from the planned path. "
                             "Export another grasp with --grasp, or re-plan.")
 
@@ -231,17 +201,17 @@ def joint_trajectory(plan_json: dict, *, grasp_id: int | None = None, max_accel=
                        "time_from_start": {"sec": sec, "nanosec": ns}})
     ns_all = [p["time_from_start"]["sec"] * 1_000_000_000 + p["time_from_start"]["nanosec"] for p in points]
     if any(b <= a_ for a_, b in zip(ns_all, ns_all[1:])):
-        raise PlanningError(f"grasp {g['id']}: two points share a time_from_start after rounding to nanoseconds")
+        raise PlanningError(f"grasp {g.id}: two points share a time_from_start after rounding to nanoseconds")
 
     return {
         "schema": SCHEMA,
-        "joint_names": list(plan_json["robot"]["joint_names"]),
-        "grasp_id": int(g["id"]),
+        "joint_names": list(robot.joint_names),
+        "grasp_id": int(g.id),
         "points": points,
         "grasplan": {
-            "robot": plan_json["robot"]["name"],
-            "part_sha256": plan_json["part"]["sha256"],
-            "part_scale_to_m": plan_json["part"]["scale_to_m"],
+            "robot": robot.name,
+            "part_sha256": plan.part.sha256,
+            "part_scale_to_m": plan.part.scale_to_m,
             "duration_s": res["duration"],
             "velocity_limit": vmax.tolist(),
             "acceleration_limit": amax.tolist(),
@@ -255,3 +225,14 @@ def joint_trajectory(plan_json: dict, *, grasp_id: int | None = None, max_accel=
                       "parameterisation), rest to rest",
         },
     }
+
+
+def _render(plan, opts) -> dict[str, str]:
+    from ..io import to_json_text
+
+    doc = joint_trajectory(plan, grasp_id=opts.grasp_id, max_accel=opts.max_accel, velocity_scale=opts.velocity_scale)
+    return {".json": to_json_text(doc, indent=1) + "\n"}
+
+
+register(ExportFormat(name="joint-trajectory", extension=".json", render=_render,
+                      description="ROS JointTrajectory (JSON), TOPP-RA timed within the limits, re-checked for collisions."))

@@ -32,9 +32,9 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import GrasplanError, InputError, MeshError
-from ..io import read_json, write_atomic_text
-from ..transforms import check_transform, pose7, quaternions
+from ..errors import InputError, MeshError
+from ..io import write_atomic_text
+from ..transforms import pose7, quaternions
 
 SCHEMAS = ("grasplan.grasps/1", "grasplan.plan/1")
 #: display order (and drawing priority, last on top) of the statuses, with their colours
@@ -72,26 +72,6 @@ def _enc(a, dtype) -> str:
     browser's DecompressionStream('deflate'))."""
     raw = np.ascontiguousarray(np.asarray(a), dtype=dtype).tobytes()
     return base64.b64encode(zlib.compress(raw, 6)).decode("ascii")
-
-
-def _field(grasps: list, key: str, shape: tuple, dtype) -> np.ndarray:
-    """``grasps[i][key]`` for all i as one (n, *shape) array; InputError naming the first bad grasp."""
-    try:
-        a = np.array([g[key] for g in grasps], dtype=dtype)
-        if a.shape == (len(grasps), *shape) and np.all(np.isfinite(a)):
-            return a
-    except (KeyError, TypeError, ValueError):
-        pass
-    for i, g in enumerate(grasps):
-        try:
-            v = np.asarray(g[key], dtype=dtype)
-            ok = v.shape == shape and np.all(np.isfinite(v))
-        except (KeyError, TypeError, ValueError):
-            ok = False
-        if not ok:
-            raise InputError(f"grasps[{i}] (id {g.get('id')!r}): {key!r} missing or malformed; expected "
-                             f"{'a number' if not shape else 'an array of shape ' + str(shape)}")
-    raise InputError(f"grasps: {key!r} malformed")
 
 
 def decimate_mesh(vertices: np.ndarray, faces: np.ndarray, max_faces: int) -> tuple[np.ndarray, np.ndarray]:
@@ -132,66 +112,7 @@ def _mesh_block(vertices, faces) -> dict:
 
 
 # --------------------------------------------------------------------------- inputs
-def _load_result(result_json) -> tuple[dict, Path | None]:
-    if isinstance(result_json, dict):
-        return result_json, None
-    p = Path(result_json)
-    if not p.exists():
-        raise InputError(f"{p}: no such file")
-    try:
-        doc = read_json(p)
-    except (OSError, ValueError) as exc:
-        raise InputError(f"{p}: not a JSON file ({exc})") from exc
-    if not isinstance(doc, dict):
-        raise InputError(f"{p}: not a grasplan result (the JSON is not an object)")
-    return doc, p.resolve().parent
-
-
-def _check_doc(doc: dict, where: str) -> None:
-    schema = doc.get("schema")
-    if schema not in SCHEMAS:
-        raise InputError(f"{where}: schema {schema!r} is not one the viewer shows; expected one of {', '.join(SCHEMAS)} "
-                         f"(write one with `grasplan grasps` or `grasplan plan`)")
-    for key in ("part", "grasps"):
-        if key not in doc:
-            raise InputError(f"{where}: the {schema} document has no {key!r} field")
-    if not isinstance(doc["grasps"], list):
-        raise InputError(f"{where}: 'grasps' must be a list")
-    if "T_world_part" not in doc["part"]:
-        raise InputError(f"{where}: part.T_world_part is missing")
-    if schema == "grasplan.plan/1" and "robot" not in doc:
-        raise InputError(f"{where}: a grasplan.plan/1 document needs a 'robot' block")
-
-
-def _load_part_mesh(doc: dict, part_path, result_dir: Path | None) -> tuple[Path, np.ndarray, np.ndarray, list[str]]:
-    """The result's part at its recorded scale (metres), decimated for display if large."""
-    from ..mesh import load_recorded_part
-
-    part = load_recorded_part(doc["part"], path=part_path, search_dirs=(result_dir,) if result_dir else ())
-    V = np.asarray(part.vertices, dtype=np.float64)
-    F = np.asarray(part.faces, dtype=np.int64)
-    notes: list[str] = []
-    sha = doc["part"].get("sha256")
-    if sha and sha != part.sha256:
-        notes.append(f"{part.path}: sha256 differs from the one recorded in the result ({part.sha256[:12]} vs {sha[:12]}); "
-                     f"the grasps may not belong to this part")
-    if len(F) > MAX_PART_TRIANGLES:
-        V, F = decimate_mesh(V, F, MAX_PART_TRIANGLES)
-        notes.append(f"part decimated to {len(F)} triangles for display")
-    return Path(part.path), V, F, notes
-
-
 # --------------------------------------------------------------------------- gripper
-def _load_gripper(name: str | None, notes: list[str]):
-    from ..gripper import load_gripper
-
-    try:
-        return load_gripper(name or "schunk_egp_c_40")
-    except GrasplanError as exc:  # a result written with a gripper file this machine does not have
-        notes.append(f"gripper {name!r} not loadable ({exc}); showing the default schunk_egp_c_40")
-        return load_gripper("schunk_egp_c_40")
-
-
 def _shape_json(shape, mesh_cache: dict, meshes: list) -> dict:
     """A gripper shape -> ``{"box": [ex, ey, ez], "pose": [7]}`` (a :class:`grasplan.gripper.Box`) or
     ``{"mesh": index, "pose": identity}`` (a ``MeshShape``, vertices already in the TCP frame)."""
@@ -208,20 +129,6 @@ def _shape_json(shape, mesh_cache: dict, meshes: list) -> dict:
 
 
 # --------------------------------------------------------------------------- robot
-def _load_robot(doc: dict, notes: list[str]):
-    from ..robot import load_robot
-
-    rb = doc["robot"]
-    robot = load_robot(rb.get("name", "ur5"))
-    if list(rb.get("joint_names", robot.joint_names)) != list(robot.joint_names):
-        raise InputError(f"robot.joint_names {rb.get('joint_names')} differ from robot {robot.name!r}'s "
-                         f"{list(robot.joint_names)}; was the plan written for another robot description?")
-    T = rb.get("T_world_base")
-    if T is not None and not np.allclose(check_transform(T, "robot.T_world_base"), robot.T_world_base, atol=1e-9):
-        notes.append("robot.T_world_base in the result differs from the robot's configuration; showing the configuration's")
-    return robot
-
-
 def _load_link_mesh(mesh_path: str, scale) -> tuple[np.ndarray, np.ndarray] | None:
     import trimesh
 
@@ -239,56 +146,54 @@ def _load_link_mesh(mesh_path: str, scale) -> tuple[np.ndarray, np.ndarray] | No
 def densify_path(path: np.ndarray, *, step: float = PATH_STEP_RAD, max_samples: int = MAX_SAMPLES_PER_PATH):
     """Joint path (k, n) -> (samples (s, n), index of each original waypoint in the samples (k,)).
 
-    Linear interpolation in joint space (as the planner's checker does), at most ``step`` rad per
-    joint between samples; the step grows so that s <= max_samples (when k <= max_samples).
+    The planner's densifier (:func:`grasplan.paths.interpolate_path`) at ``step`` rad per joint,
+    the step grown so that s <= max_samples (when k <= max_samples).
     """
+    from ..paths import interpolate_path
+
     P = np.asarray(path, dtype=np.float64)
     if P.ndim != 2 or len(P) == 0:
         raise InputError(f"a path must be a (k, n) list of joint vectors, got shape {P.shape}")
-    d = np.abs(np.diff(P, axis=0)).max(axis=1) if len(P) > 1 else np.zeros(0)
-    total = float(d.sum())
+    total = float(np.abs(np.diff(P, axis=0)).max(axis=1).sum()) if len(P) > 1 else 0.0
     budget = max(max_samples - len(P), 0)
     if total > 0 and total / step > budget:
         step = total / max(budget, 1)
-    segs = np.maximum(np.ceil(d / step).astype(int), 1) if len(d) else np.zeros(0, dtype=int)
-    out = [P[:1]]
-    idx = [0]
-    for i, n in enumerate(segs):
-        t = (np.arange(1, n + 1) / n)[:, None]
-        out.append(P[i] + t * (P[i + 1] - P[i]))
-        idx.append(idx[-1] + int(n))
-    return np.concatenate(out, axis=0), np.asarray(idx, dtype=np.int64)
+    return interpolate_path(P, step=step, return_index=True)
 
 
 # --------------------------------------------------------------------------- page data
-def build_data(doc: dict, *, part_path=None, result_dir: Path | None = None) -> tuple[dict, list[str]]:
-    """Everything the page needs, as one JSON-able dict (arrays base64-encoded), plus notes/warnings."""
+def build_data(res, *, part_path=None, allow_other_part: bool = False) -> tuple[dict, list[str]]:
+    """Everything the page needs for a :class:`~grasplan.result.PlanResult`, as one JSON-able dict
+    (arrays base64-encoded), plus notes/warnings."""
     notes: list[str] = []
-    _check_doc(doc, "result")
-    schema = doc["schema"]
-    ppath, V, F, pn = _load_part_mesh(doc, part_path, result_dir)
-    notes += pn
-    T_world_part = check_transform(doc["part"]["T_world_part"], "part.T_world_part")
-    grasps = doc["grasps"]
-    n = len(grasps)
-
-    gr = doc.get("gripper", {}) or {}
-    gripper = _load_gripper(gr.get("name"), notes)
-    T_flange_tcp = check_transform(gr["T_flange_tcp"], "gripper.T_flange_tcp") if "T_flange_tcp" in gr else gripper.T_flange_tcp
+    schema = res.schema
+    mesh = res.mesh(part_path, allow_other_part=allow_other_part)
+    V = np.asarray(mesh.vertices, dtype=np.float64)
+    F = np.asarray(mesh.faces, dtype=np.int64)
+    if len(F) > MAX_PART_TRIANGLES:
+        V, F = decimate_mesh(V, F, MAX_PART_TRIANGLES)
+        notes.append(f"part decimated to {len(F)} triangles for display")
+    T_world_part = res.T_world_part
+    t = res.grasps
+    n = len(t)
+    gripper = res.gripper
+    T_flange_tcp = gripper.T_flange_tcp
 
     # per-grasp arrays (vectorised: plan files can hold 10^5 grasps)
-    statuses = [str(g.get("status", "?")) for g in grasps]
-    status_names = [s for s in STATUS_ORDER if s in set(statuses)] + sorted(set(statuses) - set(STATUS_ORDER))
+    statuses = t.status.astype(str)
+    present = set(statuses.tolist())
+    status_names = [s for s in STATUS_ORDER if s in present] + sorted(present - set(STATUS_ORDER))
     sidx = {s: i for i, s in enumerate(status_names)}
-    st = np.array([sidx[s] for s in statuses], dtype=np.uint8).reshape(n)
-    ids = _field(grasps, "id", (), np.int64)
-    width = _field(grasps, "width", (), np.float64)
-    contacts = _field(grasps, "contacts", (2, 3), np.float64)
-    T_part_tcp = _field(grasps, "T_part_tcp", (4, 4), np.float64)
-    score = np.array([np.nan if g.get("score") is None else float(g["score"]) for g in grasps], dtype=np.float64)
-    ranks = {str(g["id"]): int(g["rank"]) for g in grasps if g.get("rank") is not None}
-    if len(np.unique(ids)) != n:
-        raise InputError("grasp ids are not unique")
+    st = np.zeros(n, dtype=np.uint8)
+    for s_, i_ in sidx.items():
+        st[statuses == s_] = i_
+    ids = t.ids
+    width = t.width
+    contacts = t.contacts
+    T_part_tcp = t.T_part_tcp
+    score = t.score
+    rk = np.flatnonzero(t.rank >= 0)
+    ranks = dict(zip(map(str, rk.tolist()), t.rank[rk].tolist()))
     # contact pairs are shared by the roll variants of a candidate: store each pair once
     c_world = (contacts @ T_world_part[:3, :3].T + T_world_part[:3, 3]).reshape(n, 6).astype(np.float32)
     pairs, pair_of = np.unique(c_world, axis=0, return_inverse=True) if n else (np.zeros((0, 6), np.float32), np.zeros(0, np.int64))
@@ -318,11 +223,10 @@ def build_data(doc: dict, *, part_path=None, result_dir: Path | None = None) -> 
 
     data: dict[str, Any] = {
         "schema": schema,
-        "title": Path(str(doc["part"].get("path") or ppath)).name,
-        "part": {**_mesh_block(V, F), "T_world_part": T_world_part.reshape(-1).tolist(), "path": str(ppath),
-                 "scale_to_m": float(doc["part"].get("scale_to_m", 1.0))},
-        "cell": {"name": (doc.get("cell") or {}).get("name", "table"),
-                 "table_z": float((doc.get("cell") or {}).get("table_z", 0.0))},
+        "title": res.part.label,
+        "part": {**_mesh_block(V, F), "T_world_part": T_world_part.reshape(-1).tolist(), "path": res.part.path,
+                 "scale_to_m": float(res.part.scale_to_m), "sha256": res.part.sha256},
+        "cell": {"name": res.cell.name, "table_z": float(res.cell.table_z)},
         "statuses": [{"name": s, "color": STATUS_COLORS.get(s, OTHER_COLOR)} for s in status_names],
         "grasps": {
             "n": n,
@@ -341,16 +245,15 @@ def build_data(doc: dict, *, part_path=None, result_dir: Path | None = None) -> 
         "list_full": list(LIST_FULL),
     }
 
-    if schema == "grasplan.plan/1" and doc.get("robot"):
-        data["robot"] = _robot_data(doc, grasps, ids, T_flange_tcp, notes)
+    if res.robot is not None:
+        data["robot"] = _robot_data(res, T_flange_tcp, notes)
     data["notes"] = notes
     return data, notes
 
 
-def _robot_data(doc: dict, grasps: list, ids: np.ndarray, T_flange_tcp: np.ndarray, notes: list[str]) -> dict:
-    rb = doc["robot"]
-    robot = _load_robot(doc, notes)
-    q_home = np.asarray(rb.get("q_home"), dtype=np.float64)
+def _robot_data(res, T_flange_tcp: np.ndarray, notes: list[str]) -> dict:
+    robot = res.robot
+    q_home = np.asarray(robot.q_home, dtype=np.float64)
     first = robot.link_poses(q_home)
     links, meshes, mesh_index = [], [], {}
     keep = []
@@ -381,20 +284,18 @@ def _robot_data(doc: dict, grasps: list, ids: np.ndarray, T_flange_tcp: np.ndarr
     paths = {}
     chunks = [home.reshape(-1)]
     offset = 1  # in frames
-    for gid, g in zip(ids.tolist(), grasps):
-        if g.get("status") != "planned" or not g.get("path"):
-            continue
-        P = np.asarray(g["path"], dtype=np.float64)
+    for gid in sorted(res.motions):
+        m = res.motions[gid]
+        P = np.asarray(m.path, dtype=np.float64)
         S, idx = densify_path(P)
         frames = frames_of(S)
-        pre = g.get("pregrasp_index")
-        pre_s = int(idx[int(pre)]) if pre is not None and 0 <= int(pre) < len(idx) else None
+        pre_s = int(idx[int(m.pregrasp_index)])
         paths[str(gid)] = {"start": offset, "count": int(len(S)), "pregrasp": pre_s, "waypoints": int(len(P))}
         chunks.append(frames.reshape(-1))
         offset += len(S)
     return {
-        "name": rb.get("name", "?"),
-        "joint_names": list(rb.get("joint_names", [])),
+        "name": robot.name,
+        "joint_names": list(robot.joint_names),
         "links": links,
         "meshes": meshes,
         "frame_size": len(links) + 1,
@@ -416,28 +317,33 @@ def _script_safe(text: str) -> str:
     return text.replace("</script", "<\\/script").replace("</SCRIPT", "<\\/SCRIPT")
 
 
-def build_html(result_json, *, part_path=None) -> str:
-    """The viewer page for a ``grasplan.grasps/1`` or ``grasplan.plan/1`` result, as one HTML string.
+def build_html(result, *, part_path=None, allow_other_part: bool = False) -> str:
+    """The viewer page for a grasps or plan result, as one HTML string.
 
     Parameters
     ----------
-    result_json : dict or path
-        The parsed result, or the path of its JSON file (then a relative ``part.path`` is looked up
-        against the current folder, then the result file's folder).
+    result : PlanResult, dict or path
+        A :class:`~grasplan.result.PlanResult`, or a grasps/plan document or file (read with
+        :func:`grasplan.result.load_result`: validated in full, models rebuilt from the file).
     part_path : path, optional
-        The part's mesh file; default: the path recorded in the result.
+        The part's mesh file; default: the path recorded in the result (a relative path is looked
+        up in the current folder, then next to the result file). Its sha256 must match the
+        result's unless ``allow_other_part``.
 
     Raises
     ------
     InputError
-        Not a grasps/plan document, the part cannot be found, or a malformed grasp.
+        Not a grasps/plan document, the part cannot be found or differs, or a malformed grasp.
     """
-    doc, result_dir = _load_result(result_json)
-    data, notes = build_data(doc, part_path=part_path, result_dir=result_dir)
+    from ..result import load_result
+
+    res = load_result(result)
+    data, notes = build_data(res, part_path=part_path, allow_other_part=allow_other_part)
     for note in notes:
-        if "sha256 differs" in note or "not loadable" in note:
-            warnings.warn(note, stacklevel=2)
-    payload = json.dumps(data, separators=(",", ":"), allow_nan=False).replace("</", "<\\/")
+        warnings.warn(note, stacklevel=2)
+    # every "<" escaped: no input string (a part or gripper name holding "</script>" or "<!--<script>")
+    # can end the script block or switch the HTML parser's script state
+    payload = json.dumps(data, separators=(",", ":"), allow_nan=False).replace("<", "\\u003c")
     template = _read_asset("template.html")
     three = _script_safe(_read_asset("three.iife.min.js"))
     app = _script_safe(_read_asset("viewer.js"))
@@ -452,9 +358,9 @@ def build_html(result_json, *, part_path=None) -> str:
     return re.sub(r"\{\{([A-Z_]+)\}\}", lambda m: values[m.group(1)], template)
 
 
-def write_viewer(result_json, out_path, *, part_path=None) -> Path:
+def write_viewer(result, out_path, *, part_path=None, allow_other_part: bool = False) -> Path:
     """Write :func:`build_html`'s page atomically to ``out_path``; returns the path."""
-    return write_atomic_text(out_path, build_html(result_json, part_path=part_path))
+    return write_atomic_text(out_path, build_html(result, part_path=part_path, allow_other_part=allow_other_part))
 
 
 __all__ = ["build_html", "write_viewer", "build_data", "densify_path", "decimate_mesh", "STATUS_COLORS"]

@@ -1,0 +1,164 @@
+"""ABB RAPID export: one planned grasp as a RAPID program module (``.mod``).
+
+The module ``MODULE <program_name>`` holds:
+
+- ``PERS tooldata <program_name>_tool``: the gripper's ``T_flange_tcp`` as ``tframe`` (mm, quaternion
+  ``[q1, q2, q3, q4]`` = w, x, y, z). The load (``tload``) is a **placeholder** (mass
+  :data:`PLACEHOLDER_MASS_KG`, centre of gravity halfway to the TCP): grasplan's gripper files have no
+  mass; set the real values (or run LoadIdentify) before running at speed.
+- ``PERS wobjdata <program_name>_wobj``: ``uframe`` = the plan's ``T_world_base`` (the robot's base
+  frame in the world), ``oframe`` identity; the Cartesian targets are in this work object.
+- ``LOCAL CONST jointtarget jt_1 .. jt_k``: the planned joint path ``q_home -> q_pregrasp`` (degrees),
+  driven with ``MoveAbsJ ..., fine`` (exact stops: the planner verified straight joint interpolation
+  between waypoints; a zone would cut corners).
+- ``LOCAL CONST robtarget rt_grasp, rt_retreat``: TCP poses (mm, quaternion w first) for the straight
+  ``MoveL`` approach and retreat. ``confdata`` ``[cf1, cf4, cf6, cfx]``: the quarter revolutions of
+  axes 1, 4 and 6 at the grasp (``floor(angle / 90 deg)``), ``cfx`` 0; the procedure runs the linear
+  moves with ``ConfL \\Off`` so the controller keeps the configuration the ``MoveAbsJ`` path reached.
+- ``PROC <program_name>_main()``: the pick, and ``LOCAL PROC`` stubs ``grasplan_gripper_open`` /
+  ``grasplan_gripper_close`` to fill in with the gripper's I/O.
+
+Joint values: ``controller angle [deg] = joint_sign * degrees(q) + joint_offset_deg`` per joint (the
+robot YAML's ``controller_joint_map``). ``rax_1 .. rax_6`` are joints 1..6; a 7-joint arm (Panda) puts
+joint 7 in ``eax_a`` (in the robtargets too, as in the KRL export); unused external axes are
+``9E9``. Other joint counts are refused.
+
+Every text that comes from an input is reduced by :func:`grasplan.export.program.safe_text` and
+appears only in ``!`` comments. Non-finite numbers and joint values outside the limits are refused
+with :class:`~grasplan.errors.InputError`. See ``docs/robot_programs.md``.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+from ..transforms import check_transform, quaternions
+from .krl import (
+    check_program_name,
+    controller_joint_deg,
+    header_lines,
+    num,
+    redundant_joint_deg,
+    waypoint_labels,
+)
+from .program import MotionProgram, motion_program, safe_text
+from .registry import ExportFormat, ExportOptions, register
+
+#: speeddata of the joint moves and of the linear approach/retreat (predefined RAPID data)
+JOINT_SPEED = "v200"
+LINEAR_SPEED = "v50"
+#: kg, the tload mass written until the gripper files carry one (see the module docstring)
+PLACEHOLDER_MASS_KG = 1.0
+#: seconds the gripper stubs wait (placeholder for the gripper's "done" signal)
+GRIPPER_WAIT_S = 0.5
+#: RAPID value of an unused external axis
+NO_AXIS = "9E9"
+#: digits of quaternion components (RAPID checks that orientations are normalised)
+QUAT_DIGITS = 9
+
+__all__ = ["confdata", "rapid_module", "render"]
+
+
+def _pose(T: np.ndarray) -> str:
+    """RAPID ``pose``: ``[[x, y, z], [q1, q2, q3, q4]]`` in mm, quaternion w first."""
+    q = quaternions(T[:3, :3], order="wxyz")
+    return ("[[" + ",".join(num(v * 1000.0) for v in T[:3, 3]) + "],["
+            + ",".join(num(v, QUAT_DIGITS) for v in q) + "]]")
+
+
+def _extax(ext_deg: np.ndarray) -> str:
+    vals = [num(v) for v in ext_deg] + [NO_AXIS] * (6 - len(ext_deg))
+    return "[" + ",".join(vals) + "]"
+
+
+def confdata(joint_deg: np.ndarray) -> list[int]:
+    """``[cf1, cf4, cf6, cfx]``: quarter revolutions ``floor(angle / 90)`` of axes 1, 4, 6; ``cfx`` 0."""
+    d = np.asarray(joint_deg, dtype=np.float64)
+    return [int(np.floor(d[0] / 90.0)), int(np.floor(d[3] / 90.0)), int(np.floor(d[5] / 90.0)), 0]
+
+
+def rapid_module(mp: MotionProgram, program_name: str = "grasplan_pick") -> dict[str, str]:
+    """``{".mod": text}``: the RAPID module for ``mp``. Units mm, degrees, quaternions w first.
+
+    Raises :class:`InputError` for a robot with other than 6 or 7 joints, a non-finite value or a
+    joint value outside the limits.
+    """
+    name = check_program_name(program_name)  # <= 24 characters: + "_main" stays within RAPID's 32
+    n = len(mp.joint_names)
+    if n not in (6, 7):
+        raise InputError(f"RAPID export supports arms with 6 joints (rax_1..rax_6) or 7 (joint 7 as eax_a); robot "
+                         f"{safe_text(mp.robot_name)} has {n}. Use --format joint-trajectory")
+    path = controller_joint_deg(mp, mp.path, "path")
+    q_grasp = controller_joint_deg(mp, mp.q_grasp, "q_grasp")[0]
+    T_tool = check_transform(mp.T_flange_tcp, "T_flange_tcp")
+    T_base = check_transform(mp.T_world_base, "T_world_base")
+    T_grasp = check_transform(mp.T_base_tcp_grasp, "T_base_tcp_grasp")
+    T_retreat = check_transform(mp.T_base_tcp_retreat, "T_base_tcp_retreat")
+    for what, v in (("width", mp.width), ("pregrasp_opening", mp.pregrasp_opening)):
+        if not (np.isfinite(v) and v >= 0):
+            raise InputError(f"{what}: expected a finite length >= 0 m, got {v!r}")
+    ext_grasp, ext_retreat = redundant_joint_deg(mp, q_grasp)
+    cog = 0.5 * T_tool[:3, 3] * 1000.0
+    conf = ",".join(str(c) for c in confdata(q_grasp))
+    tool, wobj = f"{name}_tool", f"{name}_wobj"
+    move = f"{tool}\\WObj:={wobj};"
+
+    k = len(path)
+    jts = [f"jt_{i + 1}" for i in range(k)]
+    labels = waypoint_labels(k)
+    L = [
+        f"MODULE {name}",
+        *header_lines(mp, "  !", "Units: mm, degrees; quaternions [q1,q2,q3,q4] = w, x, y, z."),
+        "  ! Joint 7 of a 7-joint arm is eax_a." if n == 7 else "  ! External axes are unused (9E9).",
+        "  ! tooldata: TCP = T_flange_tcp of the gripper. tload is a PLACEHOLDER",
+        f"  ! (mass {num(PLACEHOLDER_MASS_KG, 1)} kg, cog halfway to the TCP): set your gripper's mass and cog.",
+        (f"  PERS tooldata {tool}:=[TRUE,{_pose(T_tool)},[{num(PLACEHOLDER_MASS_KG, 3)},"
+        f"[{','.join(num(c) for c in cog)}],[1,0,0,0],0,0,0]];"),
+        "  ! wobjdata: uframe = the robot's base frame in the world (T_world_base)",
+        f"  PERS wobjdata {wobj}:=[FALSE,TRUE,\"\",{_pose(T_base)},[[0,0,0],[1,0,0,0]]];",
+        f"  ! joint path q_home -> q_pregrasp ({k} waypoints)",
+        *(f"  LOCAL CONST jointtarget {t}:=[[{','.join(num(v) for v in q[:6])}],{_extax(q[6:])}];"
+          for t, q in zip(jts, path)),
+        "  ! straight approach and retreat: TCP in the work object",
+        f"  LOCAL CONST robtarget rt_grasp:=[{_pose(T_grasp)[1:-1]},[{conf}],{_extax(ext_grasp)}];",
+        f"  LOCAL CONST robtarget rt_retreat:=[{_pose(T_retreat)[1:-1]},[{conf}],{_extax(ext_retreat)}];",
+        "",
+        f"  PROC {name}_main()",
+        "    ! The joint path was verified collision-free with straight joint interpolation between",
+        "    ! waypoints: keep the MoveAbsJ moves at zone fine.",
+        f"    grasplan_gripper_open {num(mp.pregrasp_opening * 1000, 3)};",
+        *(f"    MoveAbsJ {t}\\NoEOffs,{JOINT_SPEED},fine,{move}  ! {lab}" for t, lab in zip(jts, labels)),
+        "    ConfL\\Off;",
+        "    ! straight approach to the grasp TCP (jaws open)",
+        f"    MoveL rt_grasp,{LINEAR_SPEED},fine,{move}",
+        f"    grasplan_gripper_close {num(mp.width * 1000, 3)};",
+        f"    ! straight retreat ({num(mp.retreat_distance * 1000, 1)} mm)",
+        f"    MoveL rt_retreat,{LINEAR_SPEED},fine,{move}",
+        "    ConfL\\On;",
+        "  ENDPROC",
+        "",
+        "  LOCAL PROC grasplan_gripper_open(num opening_mm)",
+        "    ! FILL IN: open the jaws to opening_mm (mm) with your gripper's I/O, e.g. SetDO,",
+        "    ! and return only when they have finished moving. grasplan cannot know the wiring.",
+        f"    WaitTime {num(GRIPPER_WAIT_S, 1)};",
+        "  ENDPROC",
+        "",
+        "  LOCAL PROC grasplan_gripper_close(num width_mm)",
+        "    ! FILL IN: close the jaws on the part (width_mm between the contacts, mm).",
+        f"    WaitTime {num(GRIPPER_WAIT_S, 1)};",
+        "  ENDPROC",
+        "ENDMODULE",
+    ]
+    return {".mod": "\n".join(L) + "\n"}
+
+
+def render(plan, options: ExportOptions) -> dict[str, str]:
+    """Registry entry: the RAPID module of ``options.grasp_id`` (default the best planned grasp)."""
+    mp = motion_program(plan, options.grasp_id, source=options.source)
+    return rapid_module(mp, options.program_name)
+
+
+register(ExportFormat(
+    name="rapid", extension=".mod",
+    description="ABB RAPID module: MoveAbsJ jointtargets along the path, MoveL approach/retreat, tooldata, wobjdata",
+    render=render))

@@ -1,0 +1,562 @@
+"""Result types of the grasps and plan stages, and the one loader that turns a file into them.
+
+:class:`PlanResult` is what :func:`grasplan.plan` returns, what ``grasplan.grasps.compute_grasps``
+results become (:meth:`GraspResult.to_result`), and what :func:`load_result` reads back from a
+``grasplan.grasps/1`` or ``grasplan.plan/1`` file. Exports and the viewer take a ``PlanResult``;
+nothing downstream re-parses JSON or re-resolves a gripper, cell or robot by name: the documents
+embed their resolved definitions (``gripper.definition``, the whole ``cell``, ``robot.source``)
+and :func:`load_result` rebuilds the models from them.
+
+Per-grasp data are arrays (:class:`GraspTable`; TLess20 has ~1e5 poses), indexed by grasp id.
+"""
+from __future__ import annotations
+
+import enum
+import math
+import os
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import InputError
+from .params import CandidateParams, GraspParams, PlanParams
+
+GRASPS_SCHEMA = "grasplan.grasps/1"
+PLAN_SCHEMA = "grasplan.plan/1"
+SCHEMAS = (GRASPS_SCHEMA, PLAN_SCHEMA)
+
+
+class Status(str, enum.Enum):
+    """Per-grasp status: the grasp stage gives ``ok`` / ``collision_*``; the plan stage splits
+    ``ok`` into ``planned``, ``unreachable``, ``ik_collision``, ``no_path`` and ``not_tried``."""
+
+    OK = "ok"
+    PLANNED = "planned"
+    COLLISION_PART = "collision_part"
+    COLLISION_TABLE = "collision_table"
+    UNREACHABLE = "unreachable"
+    IK_COLLISION = "ik_collision"
+    NO_PATH = "no_path"
+    NOT_TRIED = "not_tried"
+
+
+#: statuses of the grasp stage (``grasplan.grasps/1``)
+GRASP_STATUSES: tuple[str, ...] = (Status.OK.value, Status.COLLISION_PART.value, Status.COLLISION_TABLE.value)
+#: statuses of the plan stage (``grasplan.plan/1``), in report order
+PLAN_STATUSES: tuple[str, ...] = tuple(s.value for s in (
+    Status.PLANNED, Status.COLLISION_PART, Status.COLLISION_TABLE, Status.UNREACHABLE, Status.IK_COLLISION,
+    Status.NO_PATH, Status.NOT_TRIED))
+
+
+@dataclass(frozen=True)
+class PartRecord:
+    """The part a result was computed for: its file, identity and pose in the cell."""
+
+    path: str
+    sha256: str
+    scale_to_m: float
+    triangles: int
+    T_world_part: np.ndarray
+
+    def to_json(self) -> dict:
+        return {"path": self.path, "sha256": self.sha256, "scale_to_m": float(self.scale_to_m),
+                "triangles": int(self.triangles), "T_world_part": np.asarray(self.T_world_part).tolist()}
+
+    @property
+    def label(self) -> str:
+        """The part's file name (for headers; exporters still reduce it to a safe character set)."""
+        return Path(self.path).name if self.path else "(in memory)"
+
+
+@dataclass(frozen=True)
+class GraspTable:
+    """Per-grasp arrays (M grasps, id = index). Lengths m, angles rad.
+
+    candidate (M,) int64, region (M,) int64 (-1: none), contacts / normals (M, 2, 3),
+    width (M,), T_part_tcp (M, 4, 4), roll (M,), status (M,) object (str), score (M,) float64 (NaN:
+    none), rank (M,) int64 (-1: none), reason (M,) object (str; "" in grasps files)."""
+
+    candidate: np.ndarray
+    region: np.ndarray
+    contacts: np.ndarray
+    normals: np.ndarray
+    width: np.ndarray
+    T_part_tcp: np.ndarray
+    roll: np.ndarray
+    status: np.ndarray
+    score: np.ndarray
+    rank: np.ndarray
+    reason: np.ndarray
+
+    def __len__(self) -> int:
+        return int(len(self.width))
+
+    @property
+    def ids(self) -> np.ndarray:
+        return np.arange(len(self), dtype=np.int64)
+
+    def with_plan(self, status, score, rank, reason) -> "GraspTable":
+        return replace(self, status=status, score=score, rank=rank, reason=reason)
+
+
+@dataclass(frozen=True)
+class Motion:
+    """A planned grasp's joint motion (rad): ``path`` (k, n) runs q_home -> q_pregrasp (at
+    ``pregrasp_index``) -> q_grasp along the straight approach."""
+
+    q_grasp: np.ndarray
+    q_pregrasp: np.ndarray
+    path: np.ndarray
+    pregrasp_index: int
+
+    def to_json(self) -> dict:
+        return {"q_grasp": np.asarray(self.q_grasp).tolist(), "q_pregrasp": np.asarray(self.q_pregrasp).tolist(),
+                "path": np.asarray(self.path).tolist(), "pregrasp_index": int(self.pregrasp_index)}
+
+
+@dataclass(frozen=True)
+class GraspView:
+    """One grasp of a result, as exporters read it."""
+
+    id: int
+    T_part_tcp: np.ndarray
+    T_world_tcp: np.ndarray
+    width: float
+    status: str
+    score: float | None
+    rank: int | None
+    motion: Motion | None
+
+
+@dataclass(frozen=True)
+class Params:
+    """The three parameter objects a result was made with."""
+
+    candidates: CandidateParams = field(default_factory=CandidateParams)
+    grasps: GraspParams = field(default_factory=GraspParams)
+    planning: PlanParams = field(default_factory=PlanParams)
+
+
+@dataclass(frozen=True, eq=False)
+class PlanResult:
+    """A grasps or plan result (``robot`` is None for a grasps result).
+
+    part : PartRecord; gripper : Gripper; cell : Cell; robot : Robot or None;
+    grasps : GraspTable; motions : {grasp id: Motion} for the planned grasps;
+    params : Params; counts : stage counts (candidates, poses, ...); timing_s : seconds per stage;
+    part_pose_source : "stable_pose" | "given"; grasp_result : the in-memory GraspResult (None when
+    loaded from a file); part_mesh : the part's trimesh in metres when known (in memory, or loaded
+    by :func:`load_result` with ``load_mesh=True``).
+    """
+
+    part: PartRecord
+    gripper: Any
+    cell: Any
+    robot: Any
+    grasps: GraspTable
+    motions: dict = field(default_factory=dict)
+    params: Params = field(default_factory=Params)
+    counts_stage: dict = field(default_factory=dict)
+    timing_s: dict = field(default_factory=dict)
+    part_pose_source: str = "stable_pose"
+    grasp_result: Any = None
+    part_mesh: Any = None
+    origin: Path | None = None   #: the file this result was loaded from (relative part paths resolve next to it)
+
+    def mesh(self, part=None, *, allow_other_part: bool = False):
+        """The part's trimesh (metres): in memory, else loaded from ``part`` or the recorded path
+        (sha256-checked)."""
+        if self.part_mesh is not None and part is None:
+            return self.part_mesh
+        dirs = (self.origin.parent,) if self.origin is not None else ()
+        return load_part_mesh(self.part, part=part, search_dirs=dirs, allow_other_part=allow_other_part)
+
+    # ---- views ------------------------------------------------------------------------------
+    @property
+    def schema(self) -> str:
+        return PLAN_SCHEMA if self.robot is not None else GRASPS_SCHEMA
+
+    @property
+    def T_world_part(self) -> np.ndarray:
+        return self.part.T_world_part
+
+    @property
+    def retreat_distance(self) -> float:
+        """Straight retreat after closing, m (the cell's, else the approach back-off)."""
+        return float(getattr(self.cell, "retreat_distance", None) or self.params.planning.backoff)
+
+    def counts(self) -> dict:
+        """Grasps per status (every status of this result's stage) and ``grasps`` (the total)."""
+        names = PLAN_STATUSES if self.robot is not None else GRASP_STATUSES
+        u, c = np.unique(self.grasps.status.astype(str), return_counts=True)
+        got = dict(zip(u.tolist(), c.tolist()))
+        out = {s: int(got.get(s, 0)) for s in names}
+        out["grasps"] = len(self.grasps)
+        return out
+
+    def planned_ids(self) -> list[int]:
+        """Ids of the planned grasps, best first (rank, then id)."""
+        ids = np.flatnonzero(self.grasps.status.astype(str) == Status.PLANNED.value)
+        rank = self.grasps.rank[ids]
+        order = np.lexsort((ids, np.where(rank < 0, np.iinfo(np.int64).max, rank)))
+        return ids[order].tolist()
+
+    def grasp(self, grasp_id: int) -> GraspView:
+        t = self.grasps
+        i = int(grasp_id)
+        if not 0 <= i < len(t):
+            raise InputError(f"unknown grasp id {grasp_id}; the result has ids 0..{len(t) - 1}" if len(t)
+                             else f"unknown grasp id {grasp_id}; the result has no grasps")
+        sc = float(t.score[i])
+        return GraspView(id=i, T_part_tcp=t.T_part_tcp[i], T_world_tcp=self.T_world_part @ t.T_part_tcp[i],
+                         width=float(t.width[i]), status=str(t.status[i]),
+                         score=None if math.isnan(sc) else sc, rank=None if t.rank[i] < 0 else int(t.rank[i]),
+                         motion=self.motions.get(i))
+
+    def select(self, grasp_id: int | None = None) -> GraspView:
+        """The planned grasp ``grasp_id``, or the best planned one; InputError saying what exists."""
+        ids = self.planned_ids()
+        if self.robot is None:
+            raise InputError("this is a grasps result (no robot, no motion); run `grasplan plan PART --robot NAME` "
+                             "to get a plan to export")
+        if grasp_id is None:
+            if not ids:
+                c = {k: v for k, v in self.counts().items() if v and k != "grasps"}
+                summary = ", ".join(f"{k}: {v}" for k, v in sorted(c.items())) or "no grasps at all"
+                raise InputError(f"the plan has no planned grasp to export ({summary}); try `grasplan plan` "
+                                 "with a larger --top or another gripper/cell")
+            return self.grasp(ids[0])
+        if isinstance(grasp_id, bool) or not isinstance(grasp_id, (int, np.integer)) or not 0 <= grasp_id < len(self.grasps):
+            shown = ", ".join(map(str, ids[:50])) + (" ..." if len(ids) > 50 else "")
+            raise InputError(f"unknown grasp id {grasp_id}; planned grasps: {shown or '(none)'}")
+        g = self.grasp(int(grasp_id))
+        if g.motion is None:
+            shown = ", ".join(map(str, ids[:20])) + (" ..." if len(ids) > 20 else "")
+            raise InputError(f"grasp {grasp_id} is not planned (status: {g.status}); planned grasps: {shown or '(none)'}")
+        return g
+
+    def entry(self, i: int) -> dict:
+        """Grasp ``i`` as its JSON dict."""
+        return self._entries([int(i)])[0]
+
+    def planned(self) -> list[dict]:
+        """Planned grasps as JSON dicts, best first."""
+        return self._entries(self.planned_ids())
+
+    # ---- JSON -------------------------------------------------------------------------------
+    def _entries(self, ids) -> list[dict]:
+        t = self.grasps
+        ids = np.asarray(ids, dtype=np.int64)
+        r = lambda a: np.round(a, 10).tolist()  # noqa: E731 - 1e-10 m / rad: keeps the files small
+        contacts, normals, width = r(t.contacts[ids]), r(t.normals[ids]), r(t.width[ids])
+        T, roll = r(t.T_part_tcp[ids]), r(t.roll[ids])
+        cand, region = t.candidate[ids].tolist(), t.region[ids].tolist()
+        status = t.status[ids].astype(str).tolist()
+        plan = self.robot is not None
+        score, rank, reason = t.score[ids].tolist(), t.rank[ids].tolist(), t.reason[ids].tolist()
+        out = []
+        for k, i in enumerate(ids.tolist()):
+            e = {"id": i, "candidate": cand[k], "region": region[k], "contacts": contacts[k], "normals": normals[k],
+                 "width": width[k], "T_part_tcp": T[k], "roll": roll[k], "status": status[k]}
+            if plan:
+                e["score"] = None if score[k] != score[k] else score[k]
+                e["rank"] = None if rank[k] < 0 else rank[k]
+                e["reason"] = reason[k]
+                m = self.motions.get(i)
+                if m is not None:
+                    e.update(m.to_json())
+            out.append(e)
+        return out
+
+    def to_json(self, *, only_ok: bool = False) -> dict:
+        """``grasplan.grasps/1`` (no robot) or ``grasplan.plan/1``; self-contained: the gripper's
+        resolved shapes, the whole cell and the robot's source are embedded."""
+        part = self.part.to_json()
+        cell = self.cell.to_json()
+        cell["part_pose"] = self.part_pose_source
+        params = self.params.candidates.to_json()
+        params.update(self.params.grasps.to_json())
+        doc = {"schema": self.schema, "part": part, "gripper": self.gripper.to_json(definition=True),
+               "cell": cell, "params": params}
+        counts = dict(self.counts_stage)
+        st = self.grasps.status.astype(str)
+        if self.robot is None:
+            counts.update({s: int(np.count_nonzero(st == s)) for s in GRASP_STATUSES})
+        else:
+            counts.pop("ok", None)
+            counts["collision_free"] = int(np.count_nonzero((st != Status.COLLISION_PART.value)
+                                                            & (st != Status.COLLISION_TABLE.value)))
+            c = self.counts()
+            c.pop("grasps")
+            counts.update(c)
+            doc["robot"] = self.robot.to_json(source=True)
+            doc["plan_params"] = self.params.planning.to_json()
+        doc["counts"] = counts
+        doc["timing_s"] = {k: float(v) for k, v in self.timing_s.items()}
+        ids = np.flatnonzero(st == "ok") if only_ok else np.arange(len(self.grasps))
+        if only_ok:
+            doc["only_ok"] = True
+        doc["grasps"] = self._entries(ids)
+        return doc
+
+    def write(self, path, *, only_ok: bool = False, indent: int | None = None) -> Path:
+        """Write the result's JSON atomically."""
+        from .io import write_json
+
+        return write_json(path, self.to_json(only_ok=only_ok), indent=indent)
+
+    def export(self, fmt: str, path, grasp_id: int | None = None, **options) -> Path:
+        """Write ``fmt`` (a name in :data:`grasplan.export.FORMATS`) to ``path``."""
+        from .export import write
+
+        return write(self, fmt, path, grasp_id=grasp_id, **options)
+
+
+# ------------------------------------------------------------------------------------------------
+# loading
+# ------------------------------------------------------------------------------------------------
+#: documents with more grasps than this get the JSON Schema on a sample plus a vectorised check
+#: of every grasp (jsonschema checks ~1000 grasps/s)
+SCHEMA_SAMPLE = 50
+MAX_JSON_BYTES = 2 * 1024**3
+
+
+def read_document(path: str | os.PathLike) -> dict:
+    """Parse a grasplan JSON file; InputError for anything that is not one."""
+    import json
+
+    p = Path(path)
+    try:
+        if not p.is_file():
+            raise InputError(f"{p}: no such file (expected a grasplan grasps or plan JSON file)")
+        if p.stat().st_size > MAX_JSON_BYTES:
+            raise InputError(f"{p}: {p.stat().st_size / 1e9:.1f} GB is larger than grasplan reads ({MAX_JSON_BYTES / 1e9:.0f} GB)")
+        with open(p, "rb") as f:
+            doc = json.load(f)
+    except OSError as exc:
+        raise InputError(f"{p}: cannot read it ({exc.strerror or exc})") from None
+    except RecursionError:
+        raise InputError(f"{p}: JSON nested too deeply; not a grasplan result") from None
+    except (UnicodeDecodeError, ValueError) as exc:
+        raise InputError(f"{p}: not a JSON file ({str(exc)[:80]}); expected a result written by grasplan") from None
+    return doc
+
+
+def _arr(grasps: list, key: str, shape: tuple, dtype, where: str, *, default=None) -> np.ndarray:
+    try:
+        if default is not None:
+            vals = [g.get(key, default) if isinstance(g, dict) else None for g in grasps]
+        else:
+            vals = [g[key] for g in grasps]
+        a = np.array(vals, dtype=dtype)
+        if a.shape == (len(grasps), *shape) and (dtype is object or np.all(np.isfinite(a))):
+            return a
+    except (KeyError, TypeError, ValueError, OverflowError):
+        pass
+    for i, g in enumerate(grasps):
+        try:
+            v = np.asarray(g[key] if default is None else g.get(key, default), dtype=dtype)
+            ok = v.shape == shape and (dtype is object or bool(np.all(np.isfinite(v))))
+        except (KeyError, TypeError, ValueError, OverflowError, AttributeError):
+            ok = False
+        if not ok:
+            gid = g.get("id") if isinstance(g, dict) else None
+            raise InputError(f"{where}: grasps[{i}] (id {str(gid)[:20]}): {key!r} missing or malformed; expected "
+                             f"{'a finite number' if not shape else 'finite numbers of shape ' + str(shape)}")
+    raise InputError(f"{where}: grasps: {key!r} malformed")
+
+
+def result_from_document(doc: Any, *, where: str = "document", part_mesh=None) -> PlanResult:
+    """Validate a parsed grasps/plan document in full (schema on a sample, every grasp vectorised,
+    finite numbers, rigid transforms, joint vectors of the robot's length within its limits, FK of
+    each planned grasp at its recorded TCP) and rebuild the typed result."""
+    from .cell import Cell
+    from .gripper import gripper_from_json
+    from .schemas import validate
+    from .transforms import check_transform
+
+    if not isinstance(doc, dict) or doc.get("schema") not in SCHEMAS:
+        found = doc.get("schema") if isinstance(doc, dict) else type(doc).__name__
+        raise InputError(f"{where}: not a grasplan grasps or plan file: schema is {str(found)[:60]!r}, expected "
+                         f"{' or '.join(map(repr, SCHEMAS))}")
+    schema = doc["schema"]
+    grasps = doc.get("grasps")
+    if not isinstance(grasps, list):
+        raise InputError(f"{where}: $.grasps must be a list")
+    if len(grasps) > SCHEMA_SAMPLE:
+        step = max(1, len(grasps) // SCHEMA_SAMPLE)
+        sample = [g for i, g in enumerate(grasps) if i % step == 0
+                  or (isinstance(g, dict) and g.get("status") == "planned")]
+        _validate(validate, {**doc, "grasps": sample}, schema, where)
+    else:
+        _validate(validate, doc, schema, where)
+    M = len(grasps)
+    ids = _arr(grasps, "id", (), np.float64, where)
+    if M and not np.array_equal(ids, np.arange(M)):
+        raise InputError(f"{where}: grasp ids must be 0..{M - 1} in order (found {str(grasps[0].get('id'))[:20]}...)")
+    names = PLAN_STATUSES if schema == PLAN_SCHEMA else GRASP_STATUSES
+    status = _arr(grasps, "status", (), object, where)
+    bad = sorted(set(status.tolist()) - set(names)) if M else []
+    if bad:
+        raise InputError(f"{where}: unknown grasp status {str(bad[:3])[:80]}; expected one of {', '.join(names)}")
+    T = _arr(grasps, "T_part_tcp", (4, 4), np.float64, where)
+    if M:
+        check_transform(T, f"{where}: grasps[*].T_part_tcp", batch=True)
+    width = _arr(grasps, "width", (), np.float64, where)
+    if np.any(width < 0) or np.any(width > 10):
+        raise InputError(f"{where}: grasp widths must be in [0, 10] m")
+    table = GraspTable(
+        candidate=_arr(grasps, "candidate", (), np.float64, where).astype(np.int64),
+        region=_arr(grasps, "region", (), np.float64, where, default=-1).astype(np.int64),
+        contacts=_arr(grasps, "contacts", (2, 3), np.float64, where),
+        normals=_arr(grasps, "normals", (2, 3), np.float64, where),
+        width=width, T_part_tcp=T.reshape(M, 4, 4),
+        roll=_arr(grasps, "roll", (), np.float64, where),
+        status=status,
+        score=np.array([np.nan if (s := g.get("score")) is None else s for g in grasps], dtype=np.float64)
+        if schema == PLAN_SCHEMA else np.full(M, np.nan),
+        rank=np.array([-1 if (r := g.get("rank")) is None else r for g in grasps], dtype=np.int64)
+        if schema == PLAN_SCHEMA else np.full(M, -1, dtype=np.int64),
+        reason=_arr(grasps, "reason", (), object, where, default="") if M else np.zeros(0, dtype=object),
+    )
+    if schema == PLAN_SCHEMA and M and not np.all(np.isfinite(table.score[~np.isnan(table.score)])):
+        raise InputError(f"{where}: grasp scores must be finite numbers or null")
+    p = doc["part"]
+    part = PartRecord(path=str(p["path"]), sha256=str(p["sha256"]), scale_to_m=float(p["scale_to_m"]),
+                      triangles=int(p["triangles"]),
+                      T_world_part=check_transform(p["T_world_part"], f"{where}: part.T_world_part"))
+    if not (math.isfinite(part.scale_to_m) and 0 < part.scale_to_m <= 1e3):
+        raise InputError(f"{where}: part.scale_to_m must be a positive scale, got {part.scale_to_m!r}")
+    gripper = gripper_from_json(doc["gripper"], where=f"{where}: gripper")
+    cell = Cell.from_json({k: v for k, v in doc["cell"].items() if k != "part_pose"}
+                          if isinstance(doc["cell"], dict) else doc["cell"])
+    cp, gp, pp = _params_from_doc(doc, where)
+    robot = None
+    motions: dict[int, Motion] = {}
+    if schema == PLAN_SCHEMA:
+        from .robot import robot_from_json
+
+        robot = robot_from_json(doc["robot"], where=f"{where}: robot")
+        motions = _motions(grasps, status, robot, where)
+        _check_fk(robot, gripper, part.T_world_part, table.T_part_tcp, motions, where)
+    counts = {k: v for k, v in (doc.get("counts") or {}).items() if k in ("candidates", "posed_candidates", "poses",
+                                                                           "regions")}
+    timing = {str(k): float(v) for k, v in (doc.get("timing_s") or {}).items()
+              if isinstance(v, (int, float)) and not isinstance(v, bool)}
+    return PlanResult(part=part, gripper=gripper, cell=cell, robot=robot, grasps=table, motions=motions,
+                      params=Params(cp, gp, pp), counts_stage=counts, timing_s=timing,
+                      part_pose_source=str((doc.get("cell") or {}).get("part_pose", "stable_pose")), part_mesh=part_mesh)
+
+
+def _validate(validate, doc, schema, where):
+    try:
+        validate(doc, schema)
+    except InputError as exc:
+        raise InputError(f"{where}: {exc}") from None
+    except RecursionError:
+        raise InputError(f"{where}: JSON nested too deeply; not a grasplan result") from None
+
+
+def _params_from_doc(doc: dict, where: str):
+    from dataclasses import fields
+
+    prm = doc.get("params") or {}
+    try:
+        cp = CandidateParams.from_json({k: v for k, v in prm.items() if k in {f.name for f in fields(CandidateParams)}})
+        gp = GraspParams.from_json({k: v for k, v in prm.items() if k in {f.name for f in fields(GraspParams)}})
+        pp = PlanParams.from_json(doc.get("plan_params") or {})
+    except (InputError, TypeError) as exc:
+        raise InputError(f"{where}: params: {exc}") from None
+    return cp, gp, pp
+
+
+def _motions(grasps: list, status: np.ndarray, robot, where: str) -> dict[int, Motion]:
+    n = robot.nq
+    out: dict[int, Motion] = {}
+    for i in np.flatnonzero(status == "planned").tolist():
+        g = grasps[i]
+        try:
+            path = np.asarray(g["path"], dtype=np.float64)
+            qg = np.asarray(g["q_grasp"], dtype=np.float64)
+            qp = np.asarray(g["q_pregrasp"], dtype=np.float64)
+            k = g["pregrasp_index"]
+        except (KeyError, TypeError, ValueError, OverflowError):
+            raise InputError(f"{where}: planned grasp {i} needs numeric q_grasp, q_pregrasp, path and pregrasp_index") from None
+        if path.ndim != 2 or path.shape[1] != n or len(path) < 2 or qg.shape != (n,) or qp.shape != (n,):
+            raise InputError(f"{where}: planned grasp {i}: joint vectors must have the robot's {n} joints "
+                             f"({', '.join(robot.joint_names)}) and the path >= 2 of them")
+        if not (np.all(np.isfinite(path)) and np.all(np.isfinite(qg)) and np.all(np.isfinite(qp))):
+            raise InputError(f"{where}: planned grasp {i}: joint values must be finite numbers")
+        if isinstance(k, bool) or not isinstance(k, int) or not 0 <= k < len(path):
+            raise InputError(f"{where}: planned grasp {i}: pregrasp_index must be an index into its path")
+        if not np.all(robot.within_limits(path, tol=1e-6)):
+            raise InputError(f"{where}: planned grasp {i}: the path leaves the joint limits of robot {robot.name!r}")
+        for a_name, a, b_name, b in (("path[0]", path[0], "q_home", robot.q_home),
+                                     ("path[pregrasp_index]", path[k], "q_pregrasp", qp),
+                                     ("path[-1]", path[-1], "q_grasp", qg)):
+            if np.max(np.abs(a - b)) > 1e-6:
+                raise InputError(f"{where}: planned grasp {i}: {a_name} differs from {b_name} by "
+                                 f"{np.max(np.abs(a - b)):.3g} rad; the plan file is inconsistent")
+        out[i] = Motion(q_grasp=qg, q_pregrasp=qp, path=path, pregrasp_index=int(k))
+    return out
+
+
+#: FK check tolerances (m, rad): FK(q_grasp) @ T_flange_tcp must be the recorded grasp TCP
+FK_POS_TOL = 1e-3
+FK_ROT_TOL = 1e-2
+
+
+def _check_fk(robot, gripper, T_world_part, T_part_tcp, motions: dict, where: str) -> None:
+    if not motions:
+        return
+    ids = np.fromiter(motions, dtype=np.int64)
+    q = np.stack([motions[i].q_grasp for i in ids])
+    T_fk = robot.fk_batch(q) @ gripper.T_flange_tcp
+    T_rec = T_world_part @ T_part_tcp[ids]
+    dp = np.linalg.norm(T_fk[:, :3, 3] - T_rec[:, :3, 3], axis=1)
+    cos = np.clip((np.einsum("nij,nij->n", T_fk[:, :3, :3], T_rec[:, :3, :3]) - 1.0) / 2.0, -1.0, 1.0)
+    dr = np.arccos(cos)
+    bad = np.flatnonzero((dp > FK_POS_TOL) | (dr > FK_ROT_TOL))
+    if len(bad):
+        b = int(bad[0])
+        raise InputError(f"{where}: planned grasp {int(ids[b])}: FK(q_grasp) is {dp[b] * 1000:.1f} mm / {dr[b]:.3f} rad "
+                         f"from its recorded TCP with robot {robot.name!r}; the plan was made with another robot or "
+                         "gripper, or was edited")
+
+
+def load_result(source: str | os.PathLike | dict | PlanResult, *, part: str | os.PathLike | None = None,
+                load_mesh: bool = False, allow_other_part: bool = False) -> PlanResult:
+    """A :class:`PlanResult` from a grasps/plan file (or a parsed document, or a result).
+
+    ``load_mesh``: also load the part's mesh (from ``part`` or the recorded path, relative paths
+    also looked up next to the file) at the recorded scale; its sha256 must match unless
+    ``allow_other_part``."""
+    if isinstance(source, PlanResult):
+        res = source
+        where = "result"
+        base = None
+    else:
+        where = str(source) if not isinstance(source, dict) else "document"
+        doc = source if isinstance(source, dict) else read_document(source)
+        base = None if isinstance(source, dict) else Path(source).resolve().parent
+        res = result_from_document(doc, where=where)
+        if base is not None:
+            res = replace(res, origin=Path(source).resolve())
+    if load_mesh and (res.part_mesh is None or part is not None):
+        res = replace(res, part_mesh=load_part_mesh(res.part, part=part, search_dirs=(base,) if base else (),
+                                                    allow_other_part=allow_other_part))
+    return res
+
+
+def load_part_mesh(record: PartRecord, *, part=None, search_dirs=(), allow_other_part: bool = False):
+    """The part's trimesh (metres) for a result; InputError when its sha256 differs from the record."""
+    from .mesh import load_recorded_part
+
+    p = load_recorded_part({"path": record.path, "scale_to_m": record.scale_to_m}, path=part,
+                           search_dirs=tuple(str(d) for d in search_dirs))
+    if p.sha256 != record.sha256 and not allow_other_part:
+        raise InputError(f"{p.path}: sha256 {p.sha256[:12]}... differs from the result's part {record.sha256[:12]}...; "
+                         "give the mesh the result was made from with --part (or --allow-other-part to draw it anyway)")
+    return p.mesh

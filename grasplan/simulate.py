@@ -1,0 +1,342 @@
+"""Lift-and-shake check of grasps in MuJoCo (issue 11), headless, on the CPU.
+
+Model (one per part and gripper, reused for every grasp):
+
+- the **part** is a free body of uniform density (:mod:`grasplan.mass`: mass, centre of mass and
+  inertia), colliding through convex pieces: a CoACD convex decomposition (``decomposition=
+  "coacd"``, cached per part geometry in ``$GRASPLAN_CACHE_DIR`` or ``~/.cache/grasplan``, written
+  atomically) or the part's convex hull (``"hull"``: a cheap stand-in, exact for convex parts, for
+  tests);
+- the **gripper**: its body shapes fixed, its two jaws (the gripper's own finger shapes) on
+  prismatic joints along the closing axis, coupled (centric, as the real gripper) and each pushed
+  by a motor of at most ``grip_force`` N, with damping so they close at about 5 cm/s;
+- the **table**: a box whose top is the cell's table plane, touching only the part.
+
+The simulation runs in the gripper's (TCP) frame, which only translates: lifting and shaking the
+gripper is exactly a change of the effective gravity ``R_world_tcp^T (g - a_gripper(t))`` and a
+table moving away. Protocol: settle ``SETTLE_S``, close ``CLOSE_S`` (pre-grasp opening
+``gripper.pregrasp_opening(width)``), lift ``LIFT_HEIGHT`` (10 cm) in ``LIFT_S`` (0.5 s, cosine
+profile, peak 2 m/s^2), shake ``SHAKE_ACCEL`` (+-5 m/s^2) along world x then y for ``SHAKE_S``
+(1 s in all, ``SHAKE_HZ`` sine). Success: at the end the part moved less than ``SLIP_TOL`` (5 mm, its
+centre of mass) and turned less than ``TURN_TOL_DEG`` (5 deg) relative to the jaws since they closed.
+A part more than ``ABORT_SLIP`` off stops its run early (``slip_m`` is then the distance then).
+
+Deterministic: MuJoCo runs single-threaded from a reset state; ``seed`` only selects the CoACD
+decomposition (it is part of the cache key).
+"""
+from __future__ import annotations
+
+import hashlib
+import io
+import math
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from .errors import InputError
+from .gripper import Box, Gripper
+from .io import write_atomic_bytes
+from .mass import DEFAULT_DENSITY, MassProperties, mass_properties
+from .transforms import check_transform, quaternions
+
+#: lift height (m) and duration (s)
+LIFT_HEIGHT, LIFT_S = 0.10, 0.5
+#: shake amplitude (m/s^2), total duration (s, half along world x then half along y), frequency (Hz)
+SHAKE_ACCEL, SHAKE_S, SHAKE_HZ = 5.0, 1.0, 4.0
+#: settle with open jaws, then close (s)
+SETTLE_S, CLOSE_S = 0.05, 0.3
+#: success thresholds: centre-of-mass displacement (m) and rotation (deg) relative to the jaws
+SLIP_TOL, TURN_TOL_DEG = 0.005, 5.0
+#: a run stops once the part is this far off the jaws (m): it has fallen
+ABORT_SLIP = 0.03
+#: physics step and control period (s): gravity and the table pose are updated every control period
+TIMESTEP, CONTROL_DT = 0.001, 0.005
+#: jaw closing speed under full force (m/s) -> joint damping grip_force / speed; jaw mass (kg)
+CLOSE_SPEED, JAW_MASS = 0.05, 0.2
+#: contact time constant (s, >= 2 timesteps): stiff enough that grip_force indents well below 1 mm
+SOLREF_TIMECONST = 0.002
+#: torsional friction length of MuJoCo's soft contacts (m): torque <= mu * this * normal force
+TORSION_LENGTH = 1e-3
+#: table half extents (m)
+TABLE_HALF = (0.5, 0.5, 0.025)
+#: gravity, m/s^2
+G = 9.81
+#: CoACD settings (concavity threshold, max pieces)
+COACD_THRESHOLD, COACD_MAX_PIECES = 0.05, 32
+DECOMPOSITIONS = ("coacd", "hull")
+
+
+@dataclass(frozen=True)
+class SimResult:
+    """Outcome per simulated grasp: ``success`` (k,) bool, ``slip_m`` (k,) m, ``turn_deg`` (k,) deg,
+    and the whole run's wall time ``seconds``; ``pieces``: convex pieces of the part's collision."""
+
+    success: np.ndarray
+    slip_m: np.ndarray
+    turn_deg: np.ndarray
+    seconds: float
+    pieces: int
+
+    def to_json(self, i: int) -> dict:
+        """The ``sim`` object of grasp ``i``."""
+        return {"success": bool(self.success[i]), "slip_m": float(self.slip_m[i]), "turn_deg": float(self.turn_deg[i])}
+
+
+# ------------------------------------------------------------------------------------------------
+# convex decomposition, cached
+# ------------------------------------------------------------------------------------------------
+def cache_dir() -> Path:
+    """``$GRASPLAN_CACHE_DIR`` or ``~/.cache/grasplan``."""
+    env = os.environ.get("GRASPLAN_CACHE_DIR")
+    return Path(env).expanduser() if env else Path.home() / ".cache" / "grasplan"
+
+
+def _mesh_key(mesh: trimesh.Trimesh, extra: str) -> str:
+    h = hashlib.sha256()
+    h.update(np.ascontiguousarray(mesh.vertices, dtype=np.float64).tobytes())
+    h.update(np.ascontiguousarray(mesh.faces, dtype=np.int64).tobytes())
+    h.update(extra.encode())
+    return h.hexdigest()
+
+
+def convex_pieces(mesh: trimesh.Trimesh, *, decomposition: str = "coacd", seed: int = 0,
+                  cache: bool = True) -> list[np.ndarray]:
+    """Vertices ``(n_i, 3)`` (m, part frame) of the convex pieces the part collides with.
+
+    ``decomposition="coacd"``: CoACD (threshold ``COACD_THRESHOLD``, at most ``COACD_MAX_PIECES``,
+    ``seed``), cached under :func:`cache_dir` by a sha256 of the mesh geometry and the settings;
+    ``"hull"``: the convex hull (no cache needed)."""
+    if decomposition not in DECOMPOSITIONS:
+        raise InputError(f"decomposition {decomposition!r}: expected one of {', '.join(DECOMPOSITIONS)}")
+    if decomposition == "hull":
+        return [np.asarray(mesh.convex_hull.vertices, dtype=np.float64)]
+    key = _mesh_key(mesh, f"coacd/{COACD_THRESHOLD}/{COACD_MAX_PIECES}/{int(seed)}")
+    path = cache_dir() / "coacd" / f"{key}.npz"
+    if cache and path.is_file():
+        try:
+            with np.load(path) as z:
+                v, off = z["vertices"], z["offsets"]
+            return [v[a:b] for a, b in zip(off[:-1], off[1:])]
+        except (OSError, ValueError, KeyError):
+            pass  # a corrupt cache entry is recomputed and replaced below
+    import coacd
+
+    coacd.set_log_level("error")
+    parts = coacd.run_coacd(coacd.Mesh(np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int32)),
+                            threshold=COACD_THRESHOLD, max_convex_hull=COACD_MAX_PIECES, seed=int(seed))
+    pieces = [np.asarray(v, dtype=np.float64) for v, _ in parts if len(v) >= 4]
+    if not pieces:
+        pieces = [np.asarray(mesh.convex_hull.vertices, dtype=np.float64)]
+    if cache:
+        off = np.cumsum([0] + [len(p) for p in pieces])
+        buf = io.BytesIO()
+        np.savez(buf, vertices=np.concatenate(pieces), offsets=off)
+        write_atomic_bytes(path, buf.getvalue())
+    return pieces
+
+
+# ------------------------------------------------------------------------------------------------
+# the MuJoCo model
+# ------------------------------------------------------------------------------------------------
+def _fmt(a) -> str:
+    return " ".join(f"{x:.9g}" for x in np.asarray(a, dtype=np.float64).ravel())
+
+
+def _shape_xml(shape, name: str, assets: list, attrs: str) -> str:
+    if isinstance(shape, Box):
+        q = quaternions(shape.T_tcp_box[:3, :3])
+        return (f'<geom name="{name}" type="box" size="{_fmt(0.5 * np.asarray(shape.extents))}" '
+                f'pos="{_fmt(shape.T_tcp_box[:3, 3])}" quat="{_fmt(q)}" {attrs}/>')
+    assets.append(f'<mesh name="{name}" vertex="{_fmt(shape.vertices)}"/>')  # MuJoCo collides with its hull
+    return f'<geom name="{name}" type="mesh" mesh="{name}" {attrs}/>'
+
+
+def build_model_xml(pieces: list[np.ndarray], mass_props: MassProperties, gripper: Gripper, *, mu: float,
+                    grip_force: float) -> str:
+    """MJCF text of the part (free body, convex ``pieces``), the gripper (world = TCP frame) and a
+    mocap table."""
+    assets: list[str] = []
+    fr = f'friction="{mu:.6g} {mu * TORSION_LENGTH:.6g} 0" condim="4" solref="{SOLREF_TIMECONST:.6g} 1"'
+    grip_geoms = " ".join(_shape_xml(s, f"body{i}", assets, f'contype="1" conaffinity="0" {fr}')
+                          for i, s in enumerate(gripper.body))
+    jaw1 = _shape_xml(gripper.finger, "jaw1", assets, f'contype="1" conaffinity="0" {fr}')
+    T180 = np.diag([-1.0, -1.0, 1.0, 1.0])
+    jaw0 = _shape_xml(gripper.finger.moved(T180), "jaw0", assets, f'contype="1" conaffinity="0" {fr}')
+    part_geoms = []
+    for i, v in enumerate(pieces):
+        assets.append(f'<mesh name="piece{i}" vertex="{_fmt(v)}"/>')
+        part_geoms.append(f'<geom type="mesh" mesh="piece{i}" contype="3" conaffinity="1" {fr}/>')
+    I = mass_props.inertia
+    full = [I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]]
+    half = 0.5 * gripper.max_opening
+    damping = grip_force / CLOSE_SPEED
+    jaw_inertia = _fmt([JAW_MASS * 1e-4] * 3)
+    return f"""<mujoco model="grasplan_lift_shake">
+  <compiler angle="radian" inertiafromgeom="false" boundmass="1e-6" boundinertia="1e-12"/>
+  <option timestep="{TIMESTEP}" cone="elliptic" impratio="10" integrator="implicitfast"/>
+  <asset>{''.join(assets)}</asset>
+  <worldbody>
+    {grip_geoms}
+    <body name="jaw0" pos="0 0 0">
+      <inertial pos="0 0 0" mass="{JAW_MASS}" diaginertia="{jaw_inertia}"/>
+      <joint name="jaw0" type="slide" axis="-1 0 0" range="0 {half:.9g}" limited="true" damping="{damping:.6g}"/>
+      {jaw0}
+    </body>
+    <body name="jaw1" pos="0 0 0">
+      <inertial pos="0 0 0" mass="{JAW_MASS}" diaginertia="{jaw_inertia}"/>
+      <joint name="jaw1" type="slide" axis="1 0 0" range="0 {half:.9g}" limited="true" damping="{damping:.6g}"/>
+      {jaw1}
+    </body>
+    <body name="part">
+      <freejoint name="part"/>
+      <inertial pos="{_fmt(mass_props.com)}" mass="{mass_props.mass:.9g}" fullinertia="{_fmt(full)}"/>
+      {''.join(part_geoms)}
+    </body>
+    <body name="table" mocap="true">
+      <geom type="box" size="{_fmt(TABLE_HALF)}" contype="0" conaffinity="2" {fr}/>
+    </body>
+  </worldbody>
+  <equality><joint joint1="jaw0" joint2="jaw1" polycoef="0 1 0 0 0" solref="{SOLREF_TIMECONST:.6g} 1"/></equality>
+  <actuator>
+    <motor name="close0" joint="jaw0" gear="-1" ctrlrange="0 {grip_force:.9g}" ctrllimited="true"/>
+    <motor name="close1" joint="jaw1" gear="-1" ctrlrange="0 {grip_force:.9g}" ctrllimited="true"/>
+  </actuator>
+</mujoco>"""
+
+
+def _profile() -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """Per control period: gripper acceleration (P, 3) m/s^2 and height (P,) m in the world, the
+    close flag (P,) and the index where the jaws have closed."""
+    n_settle = round(SETTLE_S / CONTROL_DT)
+    n_close = round(CLOSE_S / CONTROL_DT)
+    n_lift = round(LIFT_S / CONTROL_DT)
+    n_shake = round(SHAKE_S / CONTROL_DT)
+    P = n_settle + n_close + n_lift + n_shake
+    acc = np.zeros((P, 3))
+    z = np.zeros(P)
+    t = (np.arange(n_lift) + 0.5) * CONTROL_DT
+    w = math.pi / LIFT_S
+    s = slice(n_settle + n_close, n_settle + n_close + n_lift)
+    acc[s, 2] = 0.5 * LIFT_HEIGHT * w * w * np.cos(w * t)
+    z[s] = 0.5 * LIFT_HEIGHT * (1.0 - np.cos(w * t))
+    z[n_settle + n_close + n_lift:] = LIFT_HEIGHT
+    ts = (np.arange(n_shake) + 0.5) * CONTROL_DT
+    half = n_shake // 2
+    a = SHAKE_ACCEL * np.sin(2.0 * math.pi * SHAKE_HZ * ts)
+    acc[P - n_shake:P - n_shake + half, 0] = a[:half]
+    acc[P - n_shake + half:, 1] = a[half:]
+    close = np.zeros(P, dtype=bool)
+    close[n_settle:] = True
+    return acc, z, close, n_settle + n_close
+
+
+def _rotation_angle_deg(R: np.ndarray) -> float:
+    return math.degrees(math.acos(float(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0))))
+
+
+def simulate_grasps(part_mesh: trimesh.Trimesh, gripper: Gripper, T_world_part: np.ndarray, T_part_tcp: np.ndarray,
+                    width: np.ndarray, *, table_z: float = 0.0, density: float = DEFAULT_DENSITY,
+                    mass: float | None = None, mass_props: MassProperties | None = None,
+                    grip_force: float | None = None, mu: float = 0.3, seed: int = 0,
+                    decomposition: str = "coacd", cache: bool = True) -> SimResult:
+    """Close, lift and shake each grasp; see the module docstring.
+
+    Parameters
+    ----------
+    part_mesh : trimesh.Trimesh
+        Part frame, metres.
+    gripper : Gripper
+    T_world_part : (4, 4)
+        The part resting on the table.
+    T_part_tcp : (k, 4, 4)
+        Grasps (TCP frames in the part frame).
+    width : (k,)
+        Contact distance per grasp, m (sets the pre-grasp opening).
+    table_z : float
+        Height of the table top in the world, m.
+    density, mass, mass_props
+        Uniform density (kg/m^3) or total mass (kg), or precomputed mass properties.
+    grip_force : float, optional
+        N per jaw; default ``gripper.grip_force``.
+    mu : float
+        Friction coefficient of every contact.
+    seed : int
+        Selects the CoACD decomposition.
+    decomposition : "coacd" | "hull"
+        The part's collision shape (``"hull"``: its convex hull; cheap, for tests or convex parts).
+    cache : bool
+        Read and write the CoACD cache.
+    """
+    import mujoco
+
+    t_start = time.perf_counter()
+    Twp = check_transform(T_world_part, "T_world_part")
+    T = np.asarray(T_part_tcp, dtype=np.float64)
+    T = check_transform(T.reshape(-1, 4, 4), "T_part_tcp", batch=True)
+    w = np.asarray(width, dtype=np.float64).reshape(-1)
+    if len(w) != len(T) or not np.all(np.isfinite(w)) or np.any(w <= 0):
+        raise InputError(f"simulate: expected one positive width (m) per grasp ({len(T)}), got {np.shape(width)}")
+    if np.any(w > gripper.max_opening + 1e-9):
+        raise InputError(f"simulate: a grasp is wider ({w.max():.4f} m) than the gripper opens "
+                         f"({gripper.max_opening:.4f} m); simulate grasps from the same gripper")
+    if not (math.isfinite(mu) and mu >= 0):
+        raise InputError(f"simulate: mu must be a finite number >= 0, got {mu!r}")
+    F = float(gripper.grip_force if grip_force is None else grip_force)
+    if not (math.isfinite(F) and F > 0):
+        raise InputError(f"simulate: grip_force must be > 0 N, got {grip_force!r}")
+    mp = mass_props if mass_props is not None else mass_properties(part_mesh, density=density, mass=mass)
+    pieces = convex_pieces(part_mesh, decomposition=decomposition, seed=seed, cache=cache)
+    model = mujoco.MjModel.from_xml_string(build_model_xml(pieces, mp, gripper, mu=mu, grip_force=F))
+    data = mujoco.MjData(model)
+    q_part = model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "part")]
+    q_jaw = [model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"jaw{j}")] for j in range(2)]
+    part_body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "part")
+    acc, lift_z, close, i_closed = _profile()
+    nstep = round(CONTROL_DT / TIMESTEP)
+    g_world = np.array([0.0, 0.0, -G])
+    # table box centre in the world: under the part, top face on table_z
+    T_world_table = np.eye(4)
+    T_world_table[:3, 3] = [Twp[0, 3], Twp[1, 3], table_z - TABLE_HALF[2]]
+
+    k = len(T)
+    success = np.zeros(k, dtype=bool)
+    slip = np.zeros(k)
+    turn = np.zeros(k)
+    for i in range(k):
+        T_world_tcp = Twp @ T[i]
+        R_wt = T_world_tcp[:3, :3]
+        T_tcp_part = np.linalg.inv(T[i])
+        mujoco.mj_resetData(model, data)
+        data.qpos[q_part:q_part + 3] = T_tcp_part[:3, 3]
+        data.qpos[q_part + 3:q_part + 7] = quaternions(T_tcp_part[:3, :3])
+        half_open = 0.5 * float(gripper.pregrasp_opening(w[i]))
+        data.qpos[q_jaw[0]] = data.qpos[q_jaw[1]] = half_open
+        # table pose in the TCP frame as the gripper rises by lift_z (P,)
+        T_tcp_table0 = np.linalg.inv(T_world_tcp) @ T_world_table
+        down_tcp = R_wt.T @ np.array([0.0, 0.0, -1.0])
+        table_quat = quaternions(T_tcp_table0[:3, :3])
+        data.mocap_quat[0] = table_quat
+        gravity = (g_world - acc) @ R_wt  # (P, 3): R_wt^T (g - a) per control period
+        ref = None
+        for p in range(len(acc)):
+            model.opt.gravity[:] = gravity[p]
+            data.mocap_pos[0] = T_tcp_table0[:3, 3] + lift_z[p] * down_tcp
+            data.ctrl[:] = F if close[p] else 0.0
+            mujoco.mj_step(model, data, nstep=nstep)
+            if p + 1 == i_closed:
+                ref = (data.xpos[part_body].copy(), data.xmat[part_body].reshape(3, 3).copy(),
+                       data.xipos[part_body].copy())
+            elif ref is not None and p % 10 == 0:
+                if np.linalg.norm(data.xipos[part_body] - ref[2]) > ABORT_SLIP:
+                    break
+        com_now = data.xipos[part_body]
+        R_now = data.xmat[part_body].reshape(3, 3)
+        slip[i] = float(np.linalg.norm(com_now - ref[2]))
+        turn[i] = _rotation_angle_deg(R_now @ ref[1].T)
+        success[i] = slip[i] < SLIP_TOL and turn[i] < TURN_TOL_DEG
+    return SimResult(success=success, slip_m=slip, turn_deg=turn, seconds=time.perf_counter() - t_start,
+                     pieces=len(pieces))

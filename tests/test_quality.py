@@ -1,0 +1,202 @@
+"""Contact patches, gravity margin, Ferrari-Canny epsilon and the scoring file (issue 11)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import trimesh
+
+from grasplan.errors import ConfigError, InputError
+from grasplan.gripper import load_gripper
+from grasplan.mass import mass_properties
+from grasplan.quality import (CONTACT_TYPES, G, clip_polygons, contact_patches, grasp_quality, load_score_weights,
+                              load_scoring, pad_rectangle, polygon_moments, score_quality_terms)
+
+MU = 0.3
+BOX = (0.12, 0.03, 0.03)
+
+
+@pytest.fixture(scope="module")
+def gripper():
+    return load_gripper("schunk_egp_c_40")
+
+
+@pytest.fixture(scope="module")
+def box():
+    return trimesh.creation.box(BOX)
+
+
+def top_grasp(x: float, y: float = 0.0, half_width: float = 0.015):
+    """A grasp from above (TCP z = -part z) closing along part y, centred at (x, y, 0)."""
+    T = np.eye(4)
+    T[:3, 0] = [0, 1, 0]
+    T[:3, 2] = [0, 0, -1]
+    T[:3, 1] = np.cross(T[:3, 2], T[:3, 0])
+    T[:3, 3] = [x, y, 0]
+    c = np.array([[x, y - half_width, 0], [x, y + half_width, 0]])
+    n = np.array([[0, -1.0, 0], [0, 1.0, 0]])
+    return T, c, n
+
+
+def grasps(xs):
+    T, C, N = zip(*(top_grasp(x) for x in xs))
+    return np.array(T), np.array(C), np.array(N), np.full(len(xs), 0.03)
+
+
+def on_table(z: float) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, 3] = [0.45, 0.0, z]
+    return T
+
+
+# -- clipping and moments against independent estimates ---------------------------------------------
+def test_clip_triangle_area_matches_monte_carlo():
+    rng = np.random.default_rng(1)
+    tri = rng.uniform(-1, 1, size=(40, 3, 2))
+    lo, hi = -0.3, 0.5
+    P, n = np.concatenate([tri, np.zeros((40, 3, 1))], axis=2), np.full(40, 3)
+    for axis in (0, 1):
+        P, n = clip_polygons(P, n, axis, np.full(40, lo), keep_below=False)
+        P, n = clip_polygons(P, n, axis, np.full(40, hi), keep_below=True)
+    m = polygon_moments(P[..., 0], P[..., 1], n)
+    # Monte Carlo: points in the square, inside each triangle by barycentric signs
+    pts = rng.uniform(lo, hi, size=(200_000, 2))
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+
+    def side(p, q, r):
+        return (q[:, None, 0] - p[:, None, 0]) * (r[None, :, 1] - p[:, None, 1]) - \
+               (q[:, None, 1] - p[:, None, 1]) * (r[None, :, 0] - p[:, None, 0])
+
+    s1, s2, s3 = side(a, b, pts), side(b, c, pts), side(c, a, pts)
+    inside = ((s1 >= 0) & (s2 >= 0) & (s3 >= 0)) | ((s1 <= 0) & (s2 <= 0) & (s3 <= 0))
+    mc_area = inside.mean(axis=1) * (hi - lo) ** 2
+    np.testing.assert_allclose(m[:, 0], mc_area, atol=0.01)
+    mc_mean_y = np.where(inside.sum(1) > 0, (inside * pts[None, :, 0]).sum(1) / np.maximum(inside.sum(1), 1), 0)
+    big = mc_area > 0.05
+    np.testing.assert_allclose((m[big, 1] / m[big, 0]), mc_mean_y[big], atol=0.01)
+
+
+def test_polygon_moments_of_a_rectangle():
+    Y = np.array([[0.0, 2.0, 2.0, 0.0]])
+    Z = np.array([[0.0, 0.0, 1.0, 1.0]])
+    A, Sy, Sz, Syy, Szz, Syz = polygon_moments(Y, Z, np.array([4]))[0]
+    assert (A, Sy, Sz) == pytest.approx((2.0, 2.0, 1.0))
+    assert (Syy, Szz, Syz) == pytest.approx((2.0 * 4 / 3, 2.0 / 3, 1.0))
+    # clockwise order gives the same unsigned moments
+    assert polygon_moments(Y[:, ::-1], Z[:, ::-1], np.array([4]))[0] == pytest.approx([A, Sy, Sz, Syy, Szz, Syz])
+
+
+# -- contact patches ---------------------------------------------------------------------------------
+def test_box_face_patch_is_pad_times_overlap(gripper, box):
+    (y0, y1), (z0, z1) = pad_rectangle(gripper)
+    T, C, N, w = grasps([0.0, 0.052])
+    area, kind, widths = contact_patches(box, gripper, T, C)
+    # centre: the pad (y0..y1 along part x) overlaps the face over its height; TCP z = -part z
+    overlap_z = min(z1, 0.015) - max(z0, -0.015)
+    expected = np.array([(y1 - y0) * overlap_z, (min(0.06, 0.052 + y1) - (0.052 + y0)) * overlap_z])
+    np.testing.assert_allclose(area, np.repeat(expected[:, None], 2, axis=1), rtol=1e-9)
+    assert (np.array(CONTACT_TYPES)[kind] == "surface").all()
+    np.testing.assert_allclose(widths[0, 0], sorted([y1 - y0, overlap_z]), rtol=1e-9)
+
+
+def test_patch_does_not_depend_on_chunking(gripper):
+    part = trimesh.creation.box(BOX).subdivide().subdivide()
+    T, C, N, w = grasps(np.linspace(-0.05, 0.05, 9))
+    a1, k1, w1 = contact_patches(part, gripper, T, C)
+    a2, k2, w2 = contact_patches(part, gripper, T, C, max_pairs=50)
+    np.testing.assert_allclose(a1, a2, rtol=1e-12)
+    assert (k1 == k2).all()
+    np.testing.assert_allclose(a1, contact_patches(trimesh.creation.box(BOX), gripper, T, C)[0], rtol=1e-9)
+
+
+def test_cylinder_side_is_a_line_and_sphere_a_point(gripper):
+    cyl = trimesh.creation.cylinder(radius=0.012, height=0.1, sections=256)  # axis along z
+    T = np.eye(4)
+    T[:3, 0] = [1, 0, 0]
+    T[:3, 2] = [0, 1, 0]  # approach along y, pad long side along the cylinder axis (TCP z x x = part z... )
+    T[:3, 1] = np.cross(T[:3, 2], T[:3, 0])
+    C = np.array([[[-0.012, 0, 0], [0.012, 0, 0]]])
+    area, kind, _ = contact_patches(cyl, gripper, T[None], C)
+    assert (np.array(CONTACT_TYPES)[kind[0]] == "line").all()
+    sph = trimesh.creation.icosphere(subdivisions=5, radius=0.012)
+    area_s, kind_s, _ = contact_patches(sph, gripper, T[None], C)
+    assert (np.array(CONTACT_TYPES)[kind_s[0]] == "point").all()
+    assert (area_s < area).all()
+
+
+# -- gravity margin and epsilon ------------------------------------------------------------------------
+def test_gravity_margin_centre_matches_hand_calculation(gripper, box):
+    mp = mass_properties(box, mass=0.2)
+    T, C, N, w = grasps([0.0])
+    q = grasp_quality(box, mp, gripper, T, C, N, w, T_world_part=on_table(0.015), mu=MU)
+    # through the centre of mass from above: worst load 2 m g straight down, half per contact, no torque
+    assert q.gravity_margin[0] == pytest.approx(MU * gripper.grip_force / (0.2 * G), rel=1e-9)
+    q2 = grasp_quality(box, mp, gripper, T, C, N, w, T_world_part=on_table(0.015), mu=MU, grip_force=10.0)
+    assert q2.gravity_margin[0] == pytest.approx(q.gravity_margin[0] * 10.0 / gripper.grip_force, rel=1e-9)
+
+
+def test_gravity_margin_falls_away_from_centre_of_mass(gripper, box):
+    mp = mass_properties(box)
+    T, C, N, w = grasps(np.linspace(0.0, 0.05, 6))
+    q = grasp_quality(box, mp, gripper, T, C, N, w, T_world_part=on_table(0.015), mu=MU)
+    assert np.all(np.diff(q.gravity_margin) < 0)
+
+
+def test_epsilon_centre_beats_off_centre(gripper, box):
+    mp = mass_properties(box)
+    T, C, N, w = grasps([0.0, 0.02, 0.045])
+    q = grasp_quality(box, mp, gripper, T, C, N, w, T_world_part=on_table(0.015), mu=MU)
+    assert q.epsilon[0] > q.epsilon[1] > q.epsilon[2] > 0
+    # no friction: two opposite point forces cannot resist tangential loads
+    q0 = grasp_quality(box, mp, gripper, T, C, N, w, T_world_part=on_table(0.015), mu=0.0)
+    assert (q0.epsilon == 0).all()
+
+
+def test_quality_json_and_bad_input(gripper, box):
+    mp = mass_properties(box)
+    T, C, N, w = grasps([0.0, 0.01])
+    q = grasp_quality(box, mp, gripper, T, C, N, w, T_world_part=on_table(0.015), mu=MU)
+    j = q.to_json(1, score=0.5)
+    assert set(j) == {"contact", "gravity_margin", "epsilon", "score"}
+    assert [c["type"] for c in j["contact"]] == ["surface", "surface"]
+    assert j["contact"][0]["area"] == pytest.approx(q.contact_area[1, 0])
+    with pytest.raises(InputError, match="contacts and normals"):
+        grasp_quality(box, mp, gripper, T, C[:1], N, w, T_world_part=on_table(0.015), mu=MU)
+    with pytest.raises(InputError, match="mu"):
+        grasp_quality(box, mp, gripper, T, C, N, w, T_world_part=on_table(0.015), mu=-1.0)
+    with pytest.raises(InputError, match="grip_force"):
+        grasp_quality(box, mp, gripper, T, C, N, w, T_world_part=on_table(0.015), mu=MU, grip_force=0.0)
+
+
+# -- scoring file ------------------------------------------------------------------------------------
+def test_packaged_weights_include_reachability_and_physical_terms():
+    names = dict(load_score_weights())
+    assert {"center", "top", "width", "gravity_margin", "epsilon"} <= set(names)
+    assert all(v >= 0 for v in names.values()) and sum(names.values()) > 0
+
+
+def test_score_terms_are_normalised_and_monotonic(gripper, box):
+    mp = mass_properties(box)
+    T, C, N, w = grasps(np.linspace(0.0, 0.05, 6))
+    q = grasp_quality(box, mp, gripper, T, C, N, w, T_world_part=on_table(0.015), mu=MU)
+    terms = score_quality_terms(q)
+    for v in terms.values():
+        assert v.shape == (6,) and np.all((v >= 0) & (v <= 1))
+    assert np.all(np.diff(terms["gravity_margin"]) <= 0) and terms["gravity_margin"][0] > terms["gravity_margin"][-1]
+    cfg = load_scoring()
+    assert terms["gravity_margin"][0] == pytest.approx(min(1.0, math.log(q.gravity_margin[0]) / math.log(cfg.gravity_margin_ref)))
+
+
+@pytest.mark.parametrize("text, match", [
+    ("weights: {center: -1}", "must be >= 0"),
+    ("weights: {}", "weights"),
+    ("weights: {center: 1}\nnormalisation: {gravity_margin_ref: 0.5}", "must be > 1"),
+    ("weights: {center: 1}\nextra: 2", "unknown fields"),
+    ("weights: [1, 2", "not valid YAML"),
+])
+def test_bad_scoring_file_is_config_error(tmp_path, text, match):
+    p = tmp_path / "scoring.yaml"
+    p.write_text(text)
+    with pytest.raises(ConfigError, match=match):
+        load_scoring(p)
