@@ -572,7 +572,7 @@ def _iter_local(jobs: Sequence[PartJob], *, workers: int, staging: Path, config_
     while pending:
         pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"))
         in_flight: dict[cf.Future, tuple[PartJob, Path]] = {}
-        broken = False
+        broken = finished = False
         try:
             while pending or in_flight:
                 while pending and len(in_flight) < 2 * workers and not broken:
@@ -605,10 +605,25 @@ def _iter_local(jobs: Sequence[PartJob], *, workers: int, staging: Path, config_
                     yield job, outcome, d
                 if broken and not in_flight:
                     break
+            finished = True
         finally:
+            if not finished:  # Ctrl-C or the caller stopped: do not wait for the parts in flight
+                _terminate_workers(pool)
             pool.shutdown(wait=True, cancel_futures=True)
             for _, d in in_flight.values():
                 shutil.rmtree(d, ignore_errors=True)
+
+
+def _terminate_workers(pool) -> None:
+    """Stop a process pool's workers now (Python >= 3.14 has ``terminate_workers``; before, the
+    executor keeps its processes in ``_processes``)."""
+    terminate = getattr(pool, "terminate_workers", None)
+    if terminate is not None:
+        terminate()
+        return
+    for proc in list((getattr(pool, "_processes", None) or {}).values()):
+        if proc.is_alive():
+            proc.terminate()
 
 
 def _died_outcome(n: int) -> dict:

@@ -348,14 +348,22 @@ def parse_part_pose(text: str | os.PathLike) -> np.ndarray:
     matrix (top level, or under the key ``T_world_part``). The pose is used as given: the part
     may float above or sink into the table (the collision check does not move it)."""
     s = str(text)
+    if len(s) > 4096 or "\x00" in s:
+        raise InputError("--part-pose: expected 'x,y,z,roll,pitch,yaw' or a JSON/YAML file with T_world_part")
     p = Path(s)
-    if p.suffix.lower() in (".json", ".yaml", ".yml") or p.is_file():
-        if not p.is_file():
+    try:
+        is_file = p.is_file()
+    except OSError:  # e.g. a name too long for the file system: not a file
+        is_file = False
+    if p.suffix.lower() in (".json", ".yaml", ".yml") or is_file:
+        if not is_file:
             raise InputError(f"--part-pose: file {p} not found")
         try:
+            if p.stat().st_size > 1_000_000:
+                raise InputError(f"--part-pose: {p} is too large for a pose file")
             data = yaml.safe_load(p.read_text())  # YAML is a superset of JSON
-        except yaml.YAMLError as exc:
-            raise InputError(f"--part-pose: {p} is not valid JSON/YAML: {exc}") from exc
+        except (yaml.YAMLError, UnicodeDecodeError, OSError) as exc:
+            raise InputError(f"--part-pose: {p} is not a readable JSON/YAML file ({str(exc).splitlines()[0][:80]})") from None
         if isinstance(data, dict):
             if "T_world_part" not in data:
                 raise InputError(f"--part-pose: {p} has no key 'T_world_part' (a 4x4 row-major matrix)")

@@ -43,9 +43,13 @@ def set_config_dirs(dirs: Sequence[str | os.PathLike]) -> None:
     out = []
     for d in dirs:
         p = Path(d).expanduser()
-        if not p.is_dir():
-            raise ConfigError(f"config folder {p} does not exist (give a folder holding grippers/, cells/ "
-                              "or robots/)")
+        try:
+            ok = p.is_dir()
+        except (OSError, ValueError):
+            ok = False
+        if not ok:
+            raise ConfigError(f"--config-dir {str(p)[:200]}: no such folder (give a folder holding grippers/, "
+                              "cells/ or robots/)")
         out.append(p.resolve())
     _CONFIG_DIRS.set(tuple(out))
 
@@ -107,13 +111,18 @@ def _looked(kind: str) -> str:
 
 def is_path_like(name_or_path: str | os.PathLike) -> bool:
     s = str(name_or_path)
-    return s.endswith((".yaml", ".yml")) or "/" in s or os.sep in s or Path(s).is_file()
+    if s.endswith((".yaml", ".yml")) or "/" in s or os.sep in s:
+        return True
+    try:
+        return Path(s).is_file()
+    except (OSError, ValueError):  # a name too long for the file system is no file
+        return False
 
 
 def resolve_yaml(kind: str, name_or_path: str | os.PathLike) -> Path:
     """The YAML file for ``name_or_path`` (absolute path); raises ConfigError naming what exists."""
     s = str(name_or_path)
-    if not s or "\x00" in s or len(s) > 4096:
+    if not s or "\x00" in s or len(s) > 255:
         raise ConfigError(f"invalid {kind} name {s[:80]!r}; available {kind}s: {', '.join(available(kind)) or '(none)'}")
     if is_path_like(s):
         p = Path(s).expanduser()

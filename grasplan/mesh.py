@@ -27,6 +27,7 @@ import numpy as np
 import trimesh
 
 from .errors import MeshError
+from .io import NAME_MAX_BYTES, show_path
 from .tolerance import Tolerance
 from .units import LENGTH_UNITS
 
@@ -105,15 +106,6 @@ class Part:
             "scale_to_m": self.scale_to_m,
             "triangles": self.triangles,
         }
-
-
-def show_path(path: str | os.PathLike, *, limit: int = 120) -> str:
-    """``path`` for a one-line message: control characters escaped, long paths shortened."""
-    text = os.fsdecode(path) if isinstance(path, bytes) else str(path)
-    out = "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text)
-    if len(out) > limit:
-        out = f"{out[: limit // 2 - 2]}...{out[-(limit // 2 - 2):]} ({len(text)} characters)"
-    return out
 
 
 def _fmt_len(metres: float) -> str:

@@ -224,8 +224,14 @@ def contact_patches(part_mesh: trimesh.Trimesh, gripper: Gripper, T_part_tcp: np
     tris = np.asarray(part_mesh.triangles, dtype=np.float64)
     fn = np.asarray(part_mesh.face_normals, dtype=np.float64)
     cent = tris.mean(axis=1)
-    face_r = float(np.linalg.norm(tris - cent[:, None], axis=2).max()) if len(tris) else 0.0
-    tree = cKDTree(cent)
+    face_rad = np.linalg.norm(tris - cent[:, None], axis=2).max(axis=1) if len(tris) else np.zeros(0)
+    pad_reach = math.hypot(np.abs(rect[0]).max(), np.abs(rect[1]).max()) + depth
+    # faces no larger than the pad are found by a KD-tree of centroids; larger ones (few on a CAD
+    # mesh: big planar facets) are paired with every grasp
+    small = np.flatnonzero(face_rad <= pad_reach)
+    big = np.flatnonzero(face_rad > pad_reach)
+    reach = pad_reach + (float(face_rad[small].max()) if len(small) else 0.0)
+    tree = cKDTree(cent[small]) if len(small) else None
     cos_flat = math.cos(math.radians(flat_deg))
     # moments: [grasp, jaw, (all, flat), 6]
     mom = np.zeros((M, 2, 2, 6))
@@ -236,29 +242,37 @@ def contact_patches(part_mesh: trimesh.Trimesh, gripper: Gripper, T_part_tcp: np
         y_lo, y_hi = sorted(ysgn * rect[0])
         z_lo, z_hi = rect[1]
         x_c = np.einsum("mi,mi->m", C[:, j] - o, R[:, :, 0])  # contact's x in the TCP frame
-        reach = math.hypot(max(abs(y_lo), abs(y_hi)), max(abs(z_lo), abs(z_hi))) + depth + face_r
-        counts = tree.query_ball_point(C[:, j], reach, return_length=True) if M else np.zeros(0, int)
+        counts = len(big) + (tree.query_ball_point(C[:, j], reach, return_length=True) if tree is not None and M
+                             else np.zeros(M, dtype=np.int64))
         start = 0
         while start < M:
             stop = start + max(1, int(np.searchsorted(np.cumsum(counts[start:]), max_pairs, side="right")))
-            lists = tree.query_ball_point(C[start:stop, j], reach)
-            lens = np.fromiter((len(x) for x in lists), dtype=np.int64, count=stop - start)
-            g = np.repeat(np.arange(start, stop), lens)
-            f = np.fromiter((k for x in lists for k in x), dtype=np.int64, count=int(lens.sum()))
+            lists = tree.query_ball_point(C[start:stop, j], reach) if tree is not None else [[]] * (stop - start)
+            lens = np.array([len(x) for x in lists], dtype=np.int64)  # one entry per grasp
+            g = np.concatenate([np.repeat(np.arange(start, stop), lens), np.repeat(np.arange(start, stop), len(big))])
+            f = np.concatenate([small[np.concatenate([np.asarray(x, dtype=np.int64) for x in lists])] if lens.sum() else
+                                np.zeros(0, dtype=np.int64), np.tile(big, stop - start)])
             start = stop
             if len(f) == 0:
                 continue
             nx = np.einsum("ki,ki->k", fn[f], R[g, :, 0])
             facing = nx < 0 if j == 0 else nx > 0
             g, f, nx = g[facing], f[facing], nx[facing]
-            # triangles in the TCP frame: v_tcp = R^T (v - o)
-            P = np.einsum("kvi,kij->kvj", tris[f] - o[g][:, None], R[g])
-            n = np.full(len(f), 3)
-            for axis, lo, hi in ((0, x_c[g] - depth, x_c[g] + depth), (1, np.full(len(f), y_lo), np.full(len(f), y_hi)),
-                                 (2, np.full(len(f), z_lo), np.full(len(f), z_hi))):
-                P, n = clip_polygons(P, n, axis, lo, keep_below=False)
-                P, n = clip_polygons(P, n, axis, hi, keep_below=True)
-            if P.shape[1] == 0:
+            # cull on the contact slab first (x only), then bring the survivors into the TCP frame
+            x = np.einsum("kvi,ki->kv", tris[f] - o[g][:, None], R[g, :, 0])
+            xc = x_c[g]
+            near = (x.min(axis=1) <= xc + depth) & (x.max(axis=1) >= xc - depth)
+            g, f, nx, xc = g[near], f[near], nx[near], xc[near]
+            P = np.einsum("kvi,kij->kvj", tris[f] - o[g][:, None], R[g])  # v_tcp = R^T (v - o)
+            box_lo = np.stack([xc - depth, np.full(len(f), y_lo), np.full(len(f), z_lo)], axis=1)
+            box_hi = np.stack([xc + depth, np.full(len(f), y_hi), np.full(len(f), z_hi)], axis=1)
+            meets = np.all((P.min(axis=1) <= box_hi) & (P.max(axis=1) >= box_lo), axis=1)  # cull before clipping
+            P, g, nx, box_lo, box_hi = P[meets], g[meets], nx[meets], box_lo[meets], box_hi[meets]
+            n = np.full(len(P), 3)
+            for axis in range(3):
+                P, n = clip_polygons(P, n, axis, box_lo[:, axis], keep_below=False)
+                P, n = clip_polygons(P, n, axis, box_hi[:, axis], keep_below=True)
+            if len(P) == 0 or P.shape[1] == 0:
                 continue
             m6 = polygon_moments(P[..., 1], P[..., 2], n)
             flat = np.abs(nx) >= cos_flat

@@ -60,8 +60,10 @@ def command(plan, fmt, grasp_id, out, max_accel, velocity_scale, part_path):
                  velocity_scale=velocity_scale, source=Path(plan).name)
     dt = time.perf_counter() - t0
     f = _FORMATS[fmt]
-    if not f.per_grasp:
-        what = f"{len(res.grasps) if grasp_id is None else 1} grasps ({len(ids)} planned)"
+    if fmt == "csv":
+        what = f"{len(res.grasps) if grasp_id is None else 1} grasp rows ({len(ids)} planned)"
+    elif not f.per_grasp:
+        what = f"{len(ids) if grasp_id is None else 1} planned grasps"
     else:
         what = f"grasp {grasp_id if grasp_id is not None else ids[0]}"
     click.echo(f"wrote {path}: {fmt}, {what}, in {dt:.2f} s")

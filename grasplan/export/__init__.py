@@ -94,8 +94,17 @@ def write(plan, fmt: str, path: str | os.PathLike, *, grasp_id: int | None = Non
     """
     from ..io import write_atomic_text
 
-    files = render(plan, fmt, grasp_id=grasp_id, part=part, **options)
     path = Path(path)
+    f = get_format(fmt)
+    if f.program_named_by_file and "program_name" not in options:
+        import re
+
+        if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]{0,23}", path.stem):
+            raise InputError(f"{path.name}: a {fmt} program is named after its file; use -o NAME{f.extension} with "
+                             "NAME a letter then letters, digits or _ (at most 24 characters), e.g. pick_part1"
+                             f"{f.extension}")
+        options["program_name"] = path.stem
+    files = render(plan, fmt, grasp_id=grasp_id, part=part, **options)
     targets = [(path if k == 0 else path.with_suffix(ext), text) for k, (ext, text) in enumerate(files.items())]
     written: list[Path] = []
     try:

@@ -252,4 +252,4 @@ def render(plan, options: ExportOptions) -> dict[str, str]:
 register(ExportFormat(
     name="krl", extension=".src",
     description="KUKA KRL program (.src + .dat): PTP E6AXIS path, LIN approach/retreat, $TOOL/$BASE, gripper stub",
-    render=render))
+    render=render, extra_extensions=(".dat",), program_named_by_file=True))

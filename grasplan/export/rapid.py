@@ -161,4 +161,4 @@ def render(plan, options: ExportOptions) -> dict[str, str]:
 register(ExportFormat(
     name="rapid", extension=".mod",
     description="ABB RAPID module: MoveAbsJ jointtargets along the path, MoveL approach/retreat, tooldata, wobjdata",
-    render=render))
+    render=render, program_named_by_file=True))

@@ -54,6 +54,8 @@ class ExportFormat:
     render: Callable[[Any, ExportOptions], dict[str, str]]
     per_grasp: bool = True
     extra_extensions: tuple[str, ...] = ()  #: further files written next to the primary one (KRL: (".dat",))
+    #: the program inside is named after the output file (KUKA loads NAME.src only with DEF NAME)
+    program_named_by_file: bool = False
 
 
 FORMATS: dict[str, ExportFormat] = {}
