@@ -7,7 +7,9 @@ present) and the example parts, each written again under random rigid transforms
 (0.8-1.25, so a millimetre file stays millimetres) until ``--parts`` files exist, in a temporary
 folder. Each worker count runs the same catalogue into a fresh output folder in its own process;
 the peak RSS of the workers is that process's ``RUSAGE_CHILDREN`` high-water mark (the largest
-worker), the driver's is ``RUSAGE_SELF``. Target: speed-up >= 1.8x from 1 to 2 workers.
+worker), the driver's is ``RUSAGE_SELF``; CPU s/part is the workers' user + system time per part
+and the machine's 1-minute load average is printed at the start and end of each run (the speed-up
+is only meaningful when nothing else competes for the cores). Target: speed-up >= 1.8x from 1 to 2 workers.
 """
 from __future__ import annotations
 
@@ -57,11 +59,14 @@ def run_one(catalogue: Path, out: Path, workers: int, top: int, engine: str) -> 
     from grasplan.batch import BatchOptions, run_batch
     from grasplan.params import PlanParams
 
+    load0 = os.getloadavg()[0]
     t0 = time.perf_counter()
     s = run_batch([catalogue], out, options=BatchOptions(planning=PlanParams(top=top)), engine=engine,
                   workers=workers)
     wall = time.perf_counter() - t0
-    return {"wall_s": wall, "rows": s.rows,
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return {"wall_s": wall, "rows": s.rows, "worker_cpu_s": ru.ru_utime + ru.ru_stime,
+            "load": (load0, os.getloadavg()[0]),
             # Linux reports ru_maxrss in KiB
             "worker_rss_mib": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024,
             "driver_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
@@ -107,11 +112,15 @@ def main() -> int:
             r = results[w]
             per_part = [x["seconds"] for x in r["rows"] if x.get("seconds") is not None]
             statuses = [x["status"] for x in r["rows"]]
-            rows.append((w, a.engine, len(r["rows"]), statuses.count("planned"), r["wall_s"],
-                         60.0 * len(r["rows"]) / r["wall_s"], statistics.median(per_part), base / r["wall_s"],
-                         r["worker_rss_mib"], r["driver_rss_mib"]))
+            n = len(r["rows"])
+            rows.append((w, a.engine, n, statuses.count("planned"), r["wall_s"], 60.0 * n / r["wall_s"],
+                         statistics.median(per_part), r["worker_cpu_s"] / n, base / r["wall_s"],
+                         r["worker_rss_mib"], r["driver_rss_mib"], f"{r['load'][0]:.1f} / {r['load'][1]:.1f}"))
         print(table(rows, header=("workers", "engine", "parts", "planned", "wall s", "parts/min",
-                                  "median s/part", "speed-up", "peak RSS/worker MiB", "driver RSS MiB")))
+                                  "median s/part", "CPU s/part", "speed-up", "peak RSS/worker MiB",
+                                  "driver RSS MiB", "load avg start/end")))
+        print(f"{os.cpu_count()} cores; a load average above the core count means other processes shared them "
+              "(the speed-up is then a lower bound; CPU s/part shows the work itself)")
         # the same plans whatever the worker count (timing aside)
         same = all(_plans(Path(tmp) / f"out{counts[0]}", results[counts[0]]["rows"])
                    == _plans(Path(tmp) / f"out{w}", results[w]["rows"]) for w in counts[1:])

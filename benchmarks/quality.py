@@ -25,13 +25,13 @@ from scipy.stats import spearmanr
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from grasplan.grasps import compute_grasps  # noqa: E402
-from grasplan.mass import mass_properties  # noqa: E402
-from grasplan.mesh import load_part  # noqa: E402
-from grasplan.params import CandidateParams  # noqa: E402
-from grasplan.quality import grasp_quality, load_scoring, score_quality_terms  # noqa: E402
-from grasplan.scoring import TERMS, ScoreContext, distinct_order  # noqa: E402
-from grasplan.simulate import convex_pieces, simulate_grasps  # noqa: E402
+from grasplan.grasps import compute_grasps
+from grasplan.mass import mass_properties
+from grasplan.mesh import load_part
+from grasplan.params import CandidateParams
+from grasplan.quality import grasp_quality, load_scoring, score_quality_terms
+from grasplan.scoring import TERMS, ScoreContext, distinct_order
+from grasplan.simulate import convex_pieces, simulate_grasps
 
 PAPER = Path(os.environ.get("GRASPLAN_PAPER_PARTS", ROOT.parent / "shared" / "parts" / "paper"))
 PAPER_PARTS = ["IPAGearShaft.stl", "IPARingScrew.stl", "SileaneBunny.obj", "SileaneGear.stl",

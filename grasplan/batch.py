@@ -62,10 +62,24 @@ from typing import Any
 from urllib.parse import quote
 
 from .errors import GrasplanError, InputError
-from .io import read_json, sha256_file, write_atomic_bytes, write_atomic_text, write_json
+from .io import (
+    read_json,
+    sha256_file,
+    write_atomic_bytes,
+    write_atomic_text,
+    write_json,
+)
 from .mesh import SUPPORTED_SUFFIXES, UNIT_CHOICES
-from .params import (DEFAULT_CELL, DEFAULT_GRIPPER, DEFAULT_ROBOT, PARAM_CLASSES, CandidateParams, GraspParams,
-                     PlanParams, option_name)
+from .params import (
+    DEFAULT_CELL,
+    DEFAULT_GRIPPER,
+    DEFAULT_ROBOT,
+    PARAM_CLASSES,
+    CandidateParams,
+    GraspParams,
+    PlanParams,
+    option_name,
+)
 from .units import parse_angle_deg, parse_length
 
 SUMMARY_SCHEMA = "grasplan.batch-summary/1"
@@ -651,12 +665,16 @@ def _iter_ray(jobs: Sequence[PartJob], *, workers: int | None, address: str | No
         try:
             if address:
                 ray.init(address=address, **kwargs)
-            else:
+            else:  # "local": a new runtime even when RAY_ADDRESS or a `ray start` cluster exists
                 ray.init(address="local", num_cpus=workers, **kwargs)
         except (ConnectionError, ValueError, RuntimeError) as exc:
-            raise InputError(f"--ray-address {address}: cannot join the Ray cluster ({exc}); start it with "
-                             "`ray start --head` and pass the address it prints") from None
+            if address:
+                raise InputError(f"--ray-address {address}: cannot join the Ray cluster ({exc}); start it with "
+                                 "`ray start --head` and pass the address it prints") from None
+            raise InputError(f"--engine ray: cannot start a local Ray runtime ({exc}); try --engine local") from None
         started = True
+    in_flight: dict[Any, PartJob] = {}
+    finished = False
     try:
         from ray.exceptions import RayError
 
@@ -664,7 +682,6 @@ def _iter_ray(jobs: Sequence[PartJob], *, workers: int | None, address: str | No
         cpus = int(ray.cluster_resources().get("CPU", 1))
         limit = 2 * max(1, cpus if workers is None or address else workers)
         pending = list(reversed(jobs))
-        in_flight: dict[Any, PartJob] = {}
         while pending or in_flight:
             while pending and len(in_flight) < limit:
                 job = pending.pop()
@@ -678,7 +695,11 @@ def _iter_ray(jobs: Sequence[PartJob], *, workers: int | None, address: str | No
                     outcome = _died_outcome(MAX_CRASHES)
                     outcome["row"]["error"] = f"Ray task failed ({type(exc).__name__}); rerun the batch to retry it"
                 yield job, outcome, None
+        finished = True
     finally:
+        if not finished:  # Ctrl-C or the caller stopped: free the cluster's CPUs
+            for ref in in_flight:
+                ray.cancel(ref, force=True)
         if started:
             ray.shutdown()
 

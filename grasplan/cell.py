@@ -29,10 +29,10 @@ import yaml
 
 from .config_files import available, config_number, packaged_file, resolve_yaml
 from .errors import ConfigError, InputError
-from .params import DEFAULT_CELL
 from .gripper import rpy_matrix
-from .units import parse_angle_deg, parse_length
+from .params import DEFAULT_CELL
 from .transforms import check_transform
+from .units import parse_angle_deg, parse_length
 
 CELL_DIR = packaged_file("configs", "cells")  # the packaged cells
 #: |table_z| and |part_xy| at most this (metres): a robot cell is a few metres across
@@ -66,7 +66,7 @@ class Cell:
         }
 
     @classmethod
-    def from_json(cls, d: dict) -> "Cell":
+    def from_json(cls, d: dict) -> Cell:
         """Rebuild a cell from exactly what :meth:`to_json` writes (a result file's ``cell`` block),
         with the same range checks as a cell YAML. Raises ConfigError (exit 3) naming the field."""
         where = "cell"

@@ -25,26 +25,17 @@ table), else ``collision_table`` when any shape is below the table top, else ``o
 """
 from __future__ import annotations
 
+import coal
 import numpy as np
 import trimesh
 
-import coal
-
 from .cell import Cell
+from .geometry import bvh
 from .gripper import Box, Gripper
 from .transforms import check_transform
 
 #: a shape reaching below the table top by less than this (m) only touches it
 TABLE_CONTACT_TOL = 1e-6
-
-
-def _bvh(vertices: np.ndarray, faces: np.ndarray) -> coal.BVHModelOBBRSS:
-    m = coal.BVHModelOBBRSS()
-    m.beginModel(len(faces), len(vertices))
-    m.addVertices(np.ascontiguousarray(vertices, dtype=np.float64))
-    m.addTriangles(np.ascontiguousarray(faces, dtype=np.int64))
-    m.endModel()
-    return m
 
 
 def obb_aabb_separated(c: np.ndarray, R: np.ndarray, h: np.ndarray, a: np.ndarray, e: np.ndarray) -> np.ndarray:
@@ -105,7 +96,7 @@ class _ShapeSet:
             if isinstance(v, Box):
                 geoms.append(coal.Box(*np.asarray(v.extents, dtype=np.float64)))
             else:
-                geoms.append(_bvh(v.vertices, v.faces))
+                geoms.append(bvh(v.vertices, v.faces))
         self.geoms = geoms
         # local bounding box of each variant, in the TCP frame (for the prefilter)
         Ts, hs, _low = [], [], []
@@ -144,7 +135,7 @@ class GripperCollider:
         self.gripper = gripper
         self.cell = cell
         self.T_world_part = T_world_part
-        self.part_bvh = _bvh(part_mesh.vertices, part_mesh.faces)
+        self.part_bvh = bvh(part_mesh.vertices, part_mesh.faces)
         lo, hi = part_mesh.bounds
         self.aabb_center = 0.5 * (lo + hi)
         self.aabb_half = 0.5 * (hi - lo)

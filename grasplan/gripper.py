@@ -38,7 +38,13 @@ import numpy as np
 import trimesh
 import yaml
 
-from .config_files import available, config_number, config_vector, packaged_file, resolve_yaml
+from .config_files import (
+    available,
+    config_number,
+    config_vector,
+    packaged_file,
+    resolve_yaml,
+)
 from .errors import ConfigError
 from .params import DEFAULT_GRIPPER
 from .transforms import check_transform

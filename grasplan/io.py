@@ -70,7 +70,7 @@ def check_output_path(out: str | os.PathLike, *, inputs: Iterable[str | os.PathL
                              f"output to a normal folder")
     try:
         st = os.stat(path)
-    except FileNotFoundError:
+    except (FileNotFoundError, NotADirectoryError):  # the parent checks below say which part is wrong
         st = None
     except OSError as exc:
         raise InputError(f"{option}: cannot use {show_path(path)} ({exc.strerror or 'operating-system error'})") from None

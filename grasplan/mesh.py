@@ -49,8 +49,6 @@ MIN_EXTENT_M, MAX_EXTENT_M = 1e-4, 100.0
 MAX_COORD_M = 1e3
 #: extents (metres) a gripper part plausibly has; outside it the units hint lists alternatives
 PLAUSIBLE_EXTENT_M = (2e-3, 1.0)
-#: longest file name component the file systems grasplan runs on accept (bytes)
-NAME_MAX_BYTES = 255
 
 @dataclass(frozen=True)
 class MeshReport:
@@ -96,7 +94,7 @@ class Part:
 
     @property
     def triangles(self) -> int:
-        return int(len(self.mesh.faces))
+        return len(self.mesh.faces)
 
     def to_json(self) -> dict:
         """The ``part`` block shared by every output schema."""
@@ -337,8 +335,9 @@ def load_part(path: str | os.PathLike, *, units: Units | str = "auto") -> Part:
     """
     p = Path(os.fsdecode(path))
     v, f, data = _read_mesh(p)
-    return part_from_arrays(v, f, path=str(p), sha256=hashlib.sha256(data).hexdigest(), units=units,
-                            source=show_path(p))
+    digest = hashlib.sha256(data).hexdigest()
+    del data  # up to MAX_FILE_BYTES: not kept while the mesh is cleaned
+    return part_from_arrays(v, f, path=str(p), sha256=digest, units=units, source=show_path(p))
 
 
 def _quiet(fn):
@@ -474,6 +473,10 @@ def part_from_arrays(
         watertight=watertight,
         bodies=bodies,
     )
+    if not sha256:  # an in-memory part: the sha256 of its input arrays (float64 vertices, int64 faces)
+        h = hashlib.sha256(np.ascontiguousarray(vertices, dtype="<f8").tobytes())
+        h.update(np.ascontiguousarray(faces, dtype="<i8").tobytes())
+        sha256 = h.hexdigest()
     return Part(
         path=path,
         sha256=sha256,
@@ -495,7 +498,7 @@ def part_from_trimesh(mesh: trimesh.Trimesh, *, path: str = "<memory>", units: U
 def units_for_scale(scale_to_m: float) -> str:
     """The unit name whose metres-per-unit is ``scale_to_m`` (what :func:`load_part` recorded)."""
     for name, factor in LENGTH_UNITS.items():
-        if np.isclose(factor, float(scale_to_m), rtol=1e-9, atol=0.0):
+        if np.isfinite(float(scale_to_m)) and np.isclose(factor, float(scale_to_m), rtol=1e-9, atol=0.0):
             return name
     raise MeshError(f"scale_to_m = {scale_to_m!r} is not one grasplan reads files in ({', '.join(LENGTH_UNITS)}); "
                     f"the result file is corrupt")
@@ -516,16 +519,21 @@ def load_recorded_part(part_json: dict, *, path: str | os.PathLike | None = None
         Where a relative recorded path is also looked for, after the current folder (e.g. the
         result file's folder).
     """
+    if not isinstance(part_json, dict):
+        raise MeshError("the result's part block is not a mapping; the result file is corrupt")
+    scale = part_json.get("scale_to_m")
+    if isinstance(scale, bool) or not isinstance(scale, (int, float)):
+        raise MeshError(f"part.scale_to_m = {str(scale)[:40]} is not a number; the result file is corrupt")
     if path is not None:
         candidates = [Path(path)]
     else:
         recorded = part_json.get("path")
-        if not recorded:
+        if not recorded or not isinstance(recorded, str):
             raise MeshError("the result records no part path; give the part with --part PATH")
         rp = Path(recorded)
         candidates = [rp] if rp.is_absolute() else [Path.cwd() / rp] + [Path(d) / rp for d in search_dirs]
-    found = next((c for c in candidates if c.is_file()), None)
+    found = next((c for c in candidates if os.path.isfile(c)), None)  # never raises (long names)
     if found is None:
-        tried = ", ".join(str(c) for c in candidates)
+        tried = ", ".join(show_path(c) for c in candidates)
         raise MeshError(f"part not found (tried {tried}); give the mesh the result was made from with --part PATH")
-    return load_part(found, units=units_for_scale(part_json["scale_to_m"]))
+    return load_part(found, units=units_for_scale(scale))

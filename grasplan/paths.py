@@ -96,7 +96,9 @@ def _validity_and_checker(scene_or_validity: Any, opening: float | None):
 # OMPL RRTConnect
 # --------------------------------------------------------------------------------------------------
 def _ompl():
-    from ompl import base as ob, geometric as og, util as ou
+    from ompl import base as ob
+    from ompl import geometric as og
+    from ompl import util as ou
 
     if ou.getLogLevel().value < ou.LogLevel.LOG_WARN.value:
         ou.setLogLevel(ou.LogLevel.LOG_WARN)  # planner chatter (Info:) off; warnings stay

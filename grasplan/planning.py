@@ -39,7 +39,14 @@ from collections.abc import Callable
 import numpy as np
 
 from .mesh import Part, load_part
-from .params import DEFAULT_CELL, DEFAULT_GRIPPER, DEFAULT_ROBOT, CandidateParams, GraspParams, PlanParams
+from .params import (
+    DEFAULT_CELL,
+    DEFAULT_GRIPPER,
+    DEFAULT_ROBOT,
+    CandidateParams,
+    GraspParams,
+    PlanParams,
+)
 from .result import Motion, Params, PlanResult
 from .scoring import distinct_order, score_grasps
 

@@ -52,6 +52,7 @@ import yaml
 from .config_files import available, config_number, config_vector, resolve_yaml
 from .errors import ConfigError, InputError, unknown_name
 from .params import DEFAULT_ROBOT
+
 _PKG_SHARE = "cmeel.prefix/share"
 
 
@@ -283,7 +284,8 @@ def robot_from_json(d, *, where: str = "robot") -> "Robot":
     yaml_dir = Path(yaml_path).parent if isinstance(yaml_path, str) and Path(yaml_path).parent.is_dir() else None
     key = hashlib.sha256(src["yaml"].encode("utf-8", "replace")).hexdigest()
     fallback = {k: src.get(k) for k in ("urdf", "srdf") if isinstance(src.get(k), str)}
-    robot = _from_json_cached(key, src["yaml"], str(yaml_dir) if yaml_dir else "", tuple(sorted(fallback.items())))
+    robot = _from_json_cached(key, src["yaml"], str(yaml_dir) if yaml_dir else "", tuple(sorted(fallback.items())),
+                              yaml_path if isinstance(yaml_path, str) else "")
     names = d.get("joint_names")
     if list(robot.joint_names) != names:
         raise ConfigError(f"{where}: joint_names {str(names)[:120]} do not match robot {robot.name!r} "
@@ -302,8 +304,11 @@ def robot_from_json(d, *, where: str = "robot") -> "Robot":
 
 
 @lru_cache(maxsize=8)
-def _from_json_cached(key: str, text: str, yaml_dir: str, fallback: tuple) -> "Robot":
-    return _build_robot_text(text, "embedded robot description", Path(yaml_dir) if yaml_dir else None, dict(fallback))
+def _from_json_cached(key: str, text: str, yaml_dir: str, fallback: tuple, yaml_path: str) -> "Robot":
+    from dataclasses import replace
+
+    robot = _build_robot_text(text, "embedded robot description", Path(yaml_dir) if yaml_dir else None, dict(fallback))
+    return replace(robot, config_path=Path(yaml_path) if yaml_path else None)
 
 
 def _resolve(name_or_path: str | Path) -> tuple[str, Path]:

@@ -38,6 +38,7 @@ import numpy as np
 import pinocchio as pin
 
 from .errors import InputError
+from .geometry import bvh, shape_geometry  # noqa: F401 - shape_geometry is part of this module's API
 from .robot import Robot
 from .transforms import check_transform
 
@@ -49,34 +50,6 @@ TABLE_SIZE = (20.0, 20.0, 2.0)  # m: the table box (top face at z = table_z, cen
 def _se3(T: np.ndarray) -> pin.SE3:
     T = np.asarray(T, dtype=float)
     return pin.SE3(T[:3, :3].copy(), T[:3, 3].copy())
-
-
-def _bvh(vertices: np.ndarray, faces: np.ndarray) -> coal.BVHModelOBBRSS:
-    m = coal.BVHModelOBBRSS()
-    v = np.ascontiguousarray(vertices, dtype=float)
-    f = np.ascontiguousarray(faces, dtype=np.int64)
-    m.beginModel(len(f), len(v))
-    m.addVertices(v)
-    m.addTriangles(f)
-    m.endModel()
-    return m
-
-
-def shape_geometry(shape: Any) -> tuple[coal.CollisionGeometry, np.ndarray]:
-    """(coal geometry, T_tcp_geom (4, 4)) for a gripper shape.
-
-    Duck-typed: a box has ``extents`` (3,) and ``T_tcp_box`` (4, 4); a mesh has ``vertices``
-    (V, 3) and ``faces`` (F, 3) in the TCP frame (or ``.mesh``, a trimesh).
-    """
-    if hasattr(shape, "extents") and hasattr(shape, "T_tcp_box"):
-        e = np.asarray(shape.extents, dtype=float)
-        return coal.Box(float(e[0]), float(e[1]), float(e[2])), np.asarray(shape.T_tcp_box, dtype=float)
-    if hasattr(shape, "vertices") and hasattr(shape, "faces"):
-        return _bvh(np.asarray(shape.vertices), np.asarray(shape.faces)), np.eye(4)
-    if hasattr(shape, "mesh"):
-        return _bvh(np.asarray(shape.mesh.vertices), np.asarray(shape.mesh.faces)), np.eye(4)
-    raise InputError(f"gripper shape {type(shape).__name__}: expected a box (extents, T_tcp_box) "
-                     f"or a mesh (vertices, faces)")
 
 
 def _tx(x: float) -> np.ndarray:
@@ -153,9 +126,9 @@ class CollisionScene:
                 raise InputError("T_world_part (4, 4) is required with a part mesh")
             T_wp = check_transform(T_world_part, "T_world_part")
             self.T_world_part = T_wp
-            bvh = _bvh(np.asarray(part_mesh.vertices), np.asarray(part_mesh.faces))
+            part_bvh = bvh(np.asarray(part_mesh.vertices), np.asarray(part_mesh.faces))
             self._env_ids[PART] = gm.addGeometryObject(
-                pin.GeometryObject(PART, 0, 0, _se3(T_base_world @ T_wp), bvh))
+                pin.GeometryObject(PART, 0, 0, _se3(T_base_world @ T_wp), part_bvh))
         else:
             self.T_world_part = None
         self.geom_model = gm

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import hashlib
 import io
+import itertools
 import math
 import os
 import time
@@ -120,7 +121,7 @@ def convex_pieces(mesh: trimesh.Trimesh, *, decomposition: str = "coacd", seed: 
         try:
             with np.load(path) as z:
                 v, off = z["vertices"], z["offsets"]
-            return [v[a:b] for a, b in zip(off[:-1], off[1:])]
+            return [v[a:b] for a, b in itertools.pairwise(off)]
         except (OSError, ValueError, KeyError):
             pass  # a corrupt cache entry is recomputed and replaced below
     import coacd
@@ -330,9 +331,8 @@ def simulate_grasps(part_mesh: trimesh.Trimesh, gripper: Gripper, T_world_part: 
             if p + 1 == i_closed:
                 ref = (data.xpos[part_body].copy(), data.xmat[part_body].reshape(3, 3).copy(),
                        data.xipos[part_body].copy())
-            elif ref is not None and p % 10 == 0:
-                if np.linalg.norm(data.xipos[part_body] - ref[2]) > ABORT_SLIP:
-                    break
+            elif ref is not None and p % 10 == 0 and np.linalg.norm(data.xipos[part_body] - ref[2]) > ABORT_SLIP:
+                break
         com_now = data.xipos[part_body]
         R_now = data.xmat[part_body].reshape(3, 3)
         slip[i] = float(np.linalg.norm(com_now - ref[2]))

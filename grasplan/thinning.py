@@ -20,7 +20,6 @@ import numpy as np
 from .antipodal import Candidates
 from .params import GraspParams
 
-
 _GRID_OFFSET = 0.5 * (np.sqrt(5.0) - 1.0)  # 0.618..., far from the round fractions CAD uses
 
 

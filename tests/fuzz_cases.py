@@ -76,15 +76,15 @@ def ascii_stl(v: np.ndarray, f: np.ndarray, *, fmt: Callable[[float], str] = rep
 
 
 def obj_text(v: np.ndarray, f: np.ndarray) -> bytes:
-    return ("".join(f"v {a!r} {b!r} {c!r}\n" for a, b, c in np.asarray(v, float))
-            + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in np.asarray(f))).encode()
+    return ("".join(f"v {a!r} {b!r} {c!r}\n" for a, b, c in np.asarray(v, float).tolist())
+            + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in np.asarray(f).tolist())).encode()
 
 
 def ply_ascii(v: np.ndarray, f: np.ndarray) -> bytes:
     head = (f"ply\nformat ascii 1.0\nelement vertex {len(v)}\nproperty float x\nproperty float y\n"
             f"property float z\nelement face {len(f)}\nproperty list uchar int vertex_indices\nend_header\n")
-    return (head + "".join(f"{a!r} {b!r} {c!r}\n" for a, b, c in np.asarray(v, float))
-            + "".join(f"3 {a} {b} {c}\n" for a, b, c in np.asarray(f))).encode()
+    return (head + "".join(f"{a!r} {b!r} {c!r}\n" for a, b, c in np.asarray(v, float).tolist())
+            + "".join(f"3 {a} {b} {c}\n" for a, b, c in np.asarray(f).tolist())).encode()
 
 
 def ply_binary(v: np.ndarray, f: np.ndarray) -> bytes:
@@ -97,8 +97,8 @@ def ply_binary(v: np.ndarray, f: np.ndarray) -> bytes:
 
 
 def off_text(v: np.ndarray, f: np.ndarray) -> bytes:
-    return (f"OFF\n{len(v)} {len(f)} 0\n" + "".join(f"{a!r} {b!r} {c!r}\n" for a, b, c in np.asarray(v, float))
-            + "".join(f"3 {a} {b} {c}\n" for a, b, c in np.asarray(f))).encode()
+    return (f"OFF\n{len(v)} {len(f)} 0\n" + "".join(f"{a!r} {b!r} {c!r}\n" for a, b, c in np.asarray(v, float).tolist())
+            + "".join(f"3 {a} {b} {c}\n" for a, b, c in np.asarray(f).tolist())).encode()
 
 
 def _file(name: str, data: bytes) -> Callable[[Path], Path]:

@@ -105,6 +105,8 @@ def test_bad_batch_inputs_exit_3_and_write_nothing(tmp_path):
     assert not out.exists()
     r = _cli(["batch", str(EXAMPLES / "box.stl"), "-o", str(out), "--export", "nonsense"])
     assert r.exit_code == 3 and "nonsense" in r.output and "available" in r.output
+    r = _cli(["batch", str(EXAMPLES / "box.stl"), "-o", str(out), "--robot", "ur6"])
+    assert r.exit_code == 3 and "ur6" in r.output and "ur5" in r.output
     assert not out.exists()
 
 
@@ -208,23 +210,24 @@ def test_nothing_planned_anywhere_exits_4(tmp_path):
 # ---------------------------------------------------------------------------------------------- ray
 @pytest.mark.slow
 def test_ray_engine_gives_the_local_engines_plans(batch, catalogue, tmp_path):
-    ray = pytest.importorskip("ray", reason="Ray is an optional extra: pip install 'grasplan[ray]'")
+    """`--engine ray --workers 2`: a private local Ray runtime (ray.init(address="local", num_cpus=2));
+    the parts travel as bytes, the plans and exports come back identical to the local engine's."""
+    pytest.importorskip("ray", reason="Ray is an optional extra: pip install 'grasplan[ray]'")
     out, _ = batch
     parts = [catalogue / "box.stl", catalogue / "bracket.stl", catalogue / "garbage.stl"]
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
-    try:
-        s = run_batch(parts, tmp_path / "ray", options=BatchOptions(planning=PlanParams(top=3), exports=("csv",)),
-                      engine="ray")
-    finally:
-        ray.shutdown()
-    local = {r["part"]: r for r in json.loads((out / "summary.json").read_text())["parts"]}
-    assert [r["status"] for r in s.rows] == ["planned", "planned", "bad_input"]
-    for r in s.rows:
-        assert r["dir"] == local[r["part"]]["dir"] and r["error"] == local[r["part"]]["error"]
-        if r["status"] == "planned":
-            assert _plan_doc(tmp_path / "ray" / r["dir"] / "plan.json") == _plan_doc(out / r["dir"] / "plan.json")
-            assert (tmp_path / "ray" / r["dir"] / "export-csv.csv").read_bytes() == (out / r["dir"] / "export-csv.csv").read_bytes()
-            assert (tmp_path / "ray" / r["dir"] / "view.html").is_file()
+    r = _cli(["batch", *map(str, parts), "-o", str(tmp_path / "ray"), "--top", "3", "--export", "csv",
+              "--engine", "ray", "--workers", "2"])
+    assert r.exit_code == 0, r.output
+    rows = json.loads((tmp_path / "ray" / "summary.json").read_text())["parts"]
+    local = {row["part"]: row for row in json.loads((out / "summary.json").read_text())["parts"]}
+    assert [row["status"] for row in rows] == ["planned", "planned", "bad_input"]
+    for row in rows:
+        assert row["dir"] == local[row["part"]]["dir"] and row["error"] == local[row["part"]]["error"]
+        if row["status"] == "planned":
+            got, ref = tmp_path / "ray" / row["dir"], out / row["dir"]
+            assert _plan_doc(got / "plan.json") == _plan_doc(ref / "plan.json")
+            assert (got / "export-csv.csv").read_bytes() == (ref / "export-csv.csv").read_bytes()
+            assert (got / "view.html").is_file()
 
 
 def test_per_part_pose_index_reaches_the_plan_and_other_options_replan(tmp_path):

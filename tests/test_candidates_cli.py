@@ -14,8 +14,8 @@ TOP = {"schema", "part", "params", "counts", "timing_s", "candidates"}
 PART = {"path", "sha256", "scale_to_m", "triangles"}
 COUNTS = {"triangles_in", "triangles_blm", "convex_faces", "candidates"}
 TIMING = {"load", "blm", "convexity", "antipodal"}
-CANDS = {"contacts", "normals", "width", "faces"}
-PARAMS = {"blm", "alpha", "gamma_deg", "d_shift", "epsilon", "max_opening", "beta_deg", "mu"}
+CANDS = {"contacts", "normals", "width", "faces", "region"}
+PARAMS = {"blm", "alpha", "gamma_deg", "d_shift", "epsilon", "max_opening", "beta_deg", "mu", "method", "spacing"}
 
 
 def run(args):
@@ -40,6 +40,8 @@ def test_json_layout_and_values(tmp_path, example_part):
     contacts, normals = np.array(c["contacts"]), np.array(c["normals"])
     assert contacts.shape == (n, 2, 3) and normals.shape == (n, 2, 3) and len(c["width"]) == n
     assert np.array(c["faces"]).shape == (n, 2)
+    # the default method is the paper's face pairs: each face pair is its own region (-1)
+    assert d["params"]["method"] == "paper" and np.array_equal(c["region"], np.full(n, -1))
     assert np.allclose(np.linalg.norm(contacts[:, 1] - contacts[:, 0], axis=1), c["width"])
     assert np.allclose(np.linalg.norm(normals, axis=2), 1.0)
     assert np.abs(contacts).max() < 0.1          # metres, not millimetres
@@ -82,8 +84,21 @@ def test_bad_values_are_exit_3(tmp_path, example_part):
 
 def test_help_documents_every_option():
     r = run(["--help"])
-    for opt in ("--no-blm", "--alpha", "--gamma", "--d-shift", "--epsilon", "--max-opening", "--mu", "--beta", "--units", "-o"):
+    for opt in ("--no-blm", "--alpha", "--gamma", "--d-shift", "--epsilon", "--max-opening", "--mu", "--beta", "--units",
+                "--method", "--spacing", "-o"):
         assert opt in r.output
+
+
+def test_nothing_found_is_exit_4_and_file_still_written(tmp_path, example_part):
+    """The box is 10 x 20 x 30 mm: no contact pair fits a 5 mm opening. Exit 4, empty result written."""
+    out = tmp_path / "c.json"
+    r = CliRunner().invoke(main, ["candidates", str(example_part("box.stl")), "--units", "mm", "--max-opening", "5mm",
+                                  "-o", str(out)])
+    assert r.exit_code == 4, r.output
+    assert "no antipodal candidate" in r.output
+    d = json.loads(out.read_text())
+    assert d["counts"]["candidates"] == 0 and d["candidates"]["width"] == []
+    assert d["params"]["max_opening"] == pytest.approx(0.005)
 
 
 @pytest.mark.parametrize("command", ["blm", "candidates"])

@@ -22,8 +22,9 @@ from click.testing import CliRunner
 from scipy.spatial.transform import Rotation
 
 from grasplan.errors import InputError, PlanningError
-from grasplan.export import check_plan, planned_ids, render, select_grasp, write
-from grasplan.export.trajectory import densify, point_to_polyline_distance
+from grasplan.export import FORMATS, render, write
+from grasplan.export.trajectory import densify, joint_trajectory, point_to_polyline_distance
+from grasplan.result import PlanResult, load_result
 
 pin = pytest.importorskip("pinocchio")
 
@@ -31,6 +32,9 @@ UR_JOINTS = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_
              "wrist_3_joint"]
 Q_HOME = np.array([0.0, -np.pi / 2, np.pi / 2, -np.pi / 2, -np.pi / 2, 0.0])
 T_FLANGE_TCP = np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0.127], [0, 0, 0, 1.0]])
+#: ids of the synthetic plan: two planned grasps (PLANNED_IDS, best first), one not_tried, one collision_part
+PLANNED_IDS = [1, 0]
+NOT_TRIED, COLLIDING = 2, 3
 
 
 def ur5_urdf() -> Path:
@@ -46,7 +50,7 @@ def ur5_urdf() -> Path:
 
 @dataclass
 class MiniRobot:
-    """What the exporters need from grasplan.robot.Robot (independent of robot.py)."""
+    """What the checks need of a robot, built here from the URDF (independent of robot.py)."""
     name: str
     model: object
     joint_names: tuple
@@ -56,13 +60,17 @@ class MiniRobot:
     tool_frame: str = "tool0"
 
 
-@pytest.fixture(scope="module")
-def ur5() -> MiniRobot:
+def mini_ur5() -> MiniRobot:
     model = pin.buildModelFromUrdf(str(ur5_urdf()))
     names = tuple(model.names[1:])
     assert list(names) == UR_JOINTS
     return MiniRobot("ur5", model, names, model.velocityLimit.copy(), model.lowerPositionLimit.copy(),
                      model.upperPositionLimit.copy())
+
+
+@pytest.fixture(scope="module")
+def ur5() -> MiniRobot:
+    return mini_ur5()
 
 
 def fk_tool(robot, q) -> np.ndarray:
@@ -94,52 +102,92 @@ def trans(x=0.0, y=0.0, z=0.0):
     return T
 
 
-def planned_entry(robot, gid, q_grasp, T_world_part, *, width=0.02, score=1.0, rank=0, mid=None):
+def rot_z(angle):
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_euler("z", angle).as_matrix()
+    return T
+
+
+def planned_entry(robot, gid, q_grasp, T_world_part, *, width=0.02, score=1.0, rank=0, mid=None,
+                  T_world_base=np.eye(4)):
     """A planned grasp whose q_grasp reaches its T_part_tcp (FK), pregrasp 5 cm back along -z."""
-    T_world_tcp = fk_tool(robot, q_grasp) @ T_FLANGE_TCP
-    T_pre = T_world_tcp @ trans(z=-0.05)
+    T_base_tcp = fk_tool(robot, q_grasp) @ T_FLANGE_TCP
+    T_pre = T_base_tcp @ trans(z=-0.05)
     q_pre = ik_tool(robot, T_pre @ np.linalg.inv(T_FLANGE_TCP), q_grasp)
     approach = [q_pre]
     for s in np.linspace(0, 1, 6)[1:]:
-        T = T_world_tcp @ trans(z=-0.05 * (1 - s))
+        T = T_base_tcp @ trans(z=-0.05 * (1 - s))
         approach.append(ik_tool(robot, T @ np.linalg.inv(T_FLANGE_TCP), approach[-1]))
     approach[-1] = np.asarray(q_grasp, dtype=float)
     mid = [0.5 * (Q_HOME + q_pre) + np.array([0.3, -0.2, 0.1, 0.0, 0.2, -0.3])] if mid is None else mid
     path = [Q_HOME] + list(mid) + approach
-    T_part_tcp = np.linalg.inv(T_world_part) @ T_world_tcp
+    T_part_tcp = np.linalg.inv(T_world_part) @ T_world_base @ T_base_tcp
     c = T_part_tcp[:3, 3]
     x = T_part_tcp[:3, 0]
     return {
-        "id": gid, "candidate": gid // 2,
+        "id": gid, "candidate": gid // 2, "region": -1,
         "contacts": [(c - x * width / 2).tolist(), (c + x * width / 2).tolist()],
         "normals": [(-x).tolist(), x.tolist()],
         "width": width, "T_part_tcp": T_part_tcp.tolist(), "roll": 0.0, "status": "planned",
-        "score": score, "rank": rank, "q_grasp": list(map(float, q_grasp)), "q_pregrasp": q_pre.tolist(),
-        "path": [list(map(float, q)) for q in path], "pregrasp_index": 1 + len(mid),
+        "score": score, "rank": rank, "reason": "planned (synthetic)", "q_grasp": list(map(float, q_grasp)),
+        "q_pregrasp": q_pre.tolist(), "path": [list(map(float, q)) for q in path], "pregrasp_index": 1 + len(mid),
     }
 
 
-def synthetic_plan(robot) -> dict:
-    T_world_part = trans(0.45, 0.0, 0.0) @ np.block([[Rotation.from_euler("z", 0.4).as_matrix(), np.zeros((3, 1))],
-                                                    [np.zeros((1, 3)), np.ones((1, 1))]])
-    g0 = planned_entry(robot, 3, [0.3, -1.3, 1.8, -2.07, -1.57, 0.5], T_world_part, score=0.7, rank=1)
-    g1 = planned_entry(robot, 5, [-0.2, -1.1, 1.5, -1.97, -1.57, -0.1], T_world_part, score=0.9, rank=0,
-                       width=0.03)
-    ok_not_tried = dict(g0, id=7, status="not_tried", score=0.1, rank=None)
+def robot_block(name="ur5", T_world_base=None) -> dict:
+    """The self-contained ``robot`` block of a plan (grasplan's own robot description, embedded);
+    ``T_world_base`` places the robot elsewhere by editing the embedded YAML."""
+    from grasplan.robot import load_robot
+
+    block = load_robot(name).to_json(source=True)
+    if T_world_base is not None:
+        text = block["source"]["yaml"]
+        assert text.count("T_world_base: identity") == 1
+        block["source"]["yaml"] = text.replace("T_world_base: identity",
+                                               f"T_world_base: {json.dumps(np.asarray(T_world_base).tolist())}")
+        block["T_world_base"] = np.asarray(T_world_base).tolist()
+    return block
+
+
+def synthetic_plan(robot, *, T_world_base=np.eye(4), part=None) -> dict:
+    """A ``grasplan.plan/1`` document: grasps 0 and 1 planned (1 is the best), 2 not_tried,
+    3 collision_part. Poses by Pinocchio here (``robot``: a MiniRobot); the gripper, cell and robot
+    blocks are grasplan's embedded definitions. ``part``: a mesh file to record (default: a
+    non-existent path, fine for exports that need no collision check)."""
+    from grasplan.cell import load_cell
+    from grasplan.gripper import load_gripper
+    from grasplan.io import sha256_file
+
+    T_world_base = np.asarray(T_world_base, dtype=float)
+    T_world_part = T_world_base @ trans(0.45, 0.0, 0.0) @ rot_z(0.4)
+    g0 = planned_entry(robot, 0, [0.3, -1.3, 1.8, -2.07, -1.57, 0.5], T_world_part, score=0.7, rank=1,
+                       T_world_base=T_world_base)
+    g1 = planned_entry(robot, 1, [-0.2, -1.1, 1.5, -1.97, -1.57, -0.1], T_world_part, score=0.9, rank=0,
+                       width=0.03, T_world_base=T_world_base)
+    ok_not_tried = dict(g0, id=NOT_TRIED, status="not_tried", score=0.1, rank=None, reason="not tried")
     for k in ("q_grasp", "q_pregrasp", "path", "pregrasp_index"):
         ok_not_tried.pop(k)
-    coll = dict(ok_not_tried, id=8, status="collision_part", score=None)
+    coll = dict(ok_not_tried, id=COLLIDING, status="collision_part", score=None, reason="grasp stage")
+    gripper = load_gripper("schunk_egp_c_40").to_json(definition=True)
+    np.testing.assert_allclose(gripper["T_flange_tcp"], T_FLANGE_TCP, atol=1e-12)  # the poses above assume it
+    cell = dict(load_cell("table").to_json(), part_pose="given")
+    rec = {"path": "/nonexistent/part.stl", "sha256": "0" * 64, "scale_to_m": 0.001, "triangles": 12}
+    if part is not None:
+        rec = {"path": str(part), "sha256": sha256_file(part), "scale_to_m": 0.001, "triangles": 12}
     return {
         "schema": "grasplan.plan/1",
-        "part": {"path": "/nonexistent/part.stl", "sha256": "0" * 64, "scale_to_m": 0.001, "triangles": 12,
-                 "T_world_part": T_world_part.tolist()},
-        "gripper": {"name": "schunk_egp_c_40", "max_opening": 0.05, "T_flange_tcp": T_FLANGE_TCP.tolist()},
-        "cell": {"name": "table", "table_z": 0.0},
-        "robot": {"name": "ur5", "joint_names": UR_JOINTS, "T_world_base": np.eye(4).tolist(),
-                  "q_home": Q_HOME.tolist()},
+        "part": {**rec, "T_world_part": T_world_part.tolist()},
+        "gripper": gripper,
+        "cell": cell,
+        "params": {},
+        "robot": robot_block("ur5", T_world_base if not np.allclose(T_world_base, np.eye(4)) else None),
         "counts": {}, "timing_s": {"plan": 1.0},
         "grasps": [g0, g1, ok_not_tried, coll],
     }
+
+
+def entry(doc, gid) -> dict:
+    return next(g for g in doc["grasps"] if g["id"] == gid)
 
 
 class RecordingScene:

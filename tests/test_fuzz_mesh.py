@@ -13,7 +13,6 @@ from contextlib import contextmanager
 
 import pytest
 from click.testing import CliRunner
-
 from fuzz_cases import DEFAULT_SEED, mesh_cases, representative
 
 FULL = os.environ.get("GRASPLAN_FUZZ_FULL", "") not in ("", "0")

@@ -12,6 +12,7 @@ from grasplan.cell import parse_part_pose, stable_pose, load_cell
 from grasplan.errors import InputError
 from grasplan.grasps import compute_grasps
 from grasplan.mesh import load_part
+from grasplan.params import GraspParams
 
 
 @pytest.fixture(scope="module")
@@ -27,14 +28,19 @@ def test_cli_writes_issue_schema(box_json):
     doc = json.loads(out.read_text())
     assert doc["schema"] == "grasplan.grasps/1"
     assert {"path", "sha256", "scale_to_m", "triangles", "T_world_part"} <= set(doc["part"])
-    assert set(doc["gripper"]) >= {"name", "max_opening", "T_flange_tcp"} and doc["gripper"]["name"] == "schunk_egp_c_40"
+    assert set(doc["gripper"]) >= {"name", "max_opening", "T_flange_tcp", "definition"}
+    assert doc["gripper"]["name"] == "schunk_egp_c_40"
+    # the document is self-contained: the gripper's resolved shapes and the whole cell are embedded
+    assert doc["gripper"]["definition"]["body"] and "finger" in doc["gripper"]["definition"]
+    assert doc["cell"]["part_pose"] == "stable_pose"
     assert doc["cell"]["name"] == "table"
     assert doc["params"]["roll_step_deg"] == 30 and doc["params"]["max_opening"] == pytest.approx(0.05)
     n = doc["counts"]
     assert n["poses"] == len(doc["grasps"]) == n["ok"] + n["collision_part"] + n["collision_table"]
     assert n["ok"] > 0
     g = doc["grasps"][0]
-    assert set(g) == {"id", "candidate", "contacts", "normals", "width", "T_part_tcp", "roll", "status"}
+    assert set(g) == {"id", "candidate", "region", "contacts", "normals", "width", "T_part_tcp", "roll", "status"}
+    assert {e["region"] for e in doc["grasps"]} == {-1}  # the default method is the paper's face pairs
     assert [e["id"] for e in doc["grasps"]] == list(range(len(doc["grasps"])))
     for e in doc["grasps"][:50]:
         T = np.array(e["T_part_tcp"])
@@ -64,7 +70,7 @@ def test_ok_grasps_clear_the_table(box_json):
 def test_api_matches_cli_and_part_pose(example_part):
     part = load_part(example_part("box.stl"))
     T = parse_part_pose("0.45,0,0.5m,0,0,0")  # floating high above the table: no table collisions
-    res = compute_grasps(part, T_world_part=T, roll_step_deg=90)
+    res = compute_grasps(part, T_world_part=T, grasps=GraspParams(roll_step_deg=90))
     n = res.counts()
     assert n["collision_table"] == 0 and n["ok"] > 0
     np.testing.assert_allclose(res.T_world_part, T)
@@ -115,9 +121,9 @@ def test_missing_part_exit_3(tmp_path):
 
 def test_thinning_and_merge_reduce_posed_candidates(example_part):
     part = load_part(example_part("gear.stl"))
-    full = compute_grasps(part, roll_step_deg=120, merge_distance=0.0, thin_spacing=0.0)
-    merged = compute_grasps(part, roll_step_deg=120, merge_distance=1e-3, thin_spacing=0.0)
-    thin = compute_grasps(part, roll_step_deg=120, merge_distance=1e-3, thin_spacing=0.005)
+    full = compute_grasps(part, grasps=GraspParams(roll_step_deg=120, merge_distance=0.0, thin_spacing=0.0))
+    merged = compute_grasps(part, grasps=GraspParams(roll_step_deg=120, merge_distance=1e-3, thin_spacing=0.0))
+    thin = compute_grasps(part, grasps=GraspParams(roll_step_deg=120, merge_distance=1e-3, thin_spacing=0.005))
     a, b, c = (r.counts()["posed_candidates"] for r in (full, merged, thin))
     assert a >= b >= c and c < a
     assert thin.to_json()["params"]["thin_spacing"] == 0.005
@@ -131,7 +137,8 @@ def test_candidate_search_follows_the_gripper_opening(tmp_path):
     """The Python API searches as far as the gripper opens (not a fixed 50 mm), and records it."""
     import trimesh
 
-    from grasplan.candidates import DEFAULT_MAX_OPENING, CandidateParams, compute_candidates
+    from grasplan.candidates import compute_candidates
+    from grasplan.params import DEFAULT_MAX_OPENING, CandidateParams
     from grasplan.gripper import GRIPPER_DIR
     from grasplan.mesh import part_from_trimesh
 
@@ -140,10 +147,37 @@ def test_candidate_search_follows_the_gripper_opening(tmp_path):
     wide = tmp_path / "wide.yaml"
     wide.write_text(text.replace("max_opening: 0.05", "max_opening: 0.08"))
     part = part_from_trimesh(trimesh.creation.box(extents=(0.07, 0.02, 0.01)))
-    res = compute_grasps(part, gripper=str(wide), roll_step_deg=90)
+    res = compute_grasps(part, gripper=str(wide), grasps=GraspParams(roll_step_deg=90))
     assert res.cand.params.max_opening == 0.08 and res.to_json()["params"]["max_opening"] == 0.08
     assert res.cand.candidates.width.max() == pytest.approx(0.07)  # across the 70 mm length
     default = compute_candidates(part, CandidateParams())
     assert default.params.max_opening == DEFAULT_MAX_OPENING and default.candidates.width.max() < 0.05
-    explicit = compute_grasps(part, cand_params=CandidateParams(max_opening=0.03), gripper=str(wide), roll_step_deg=90)
+    explicit = compute_grasps(part, candidates=CandidateParams(max_opening=0.03), gripper=str(wide),
+                              grasps=GraspParams(roll_step_deg=90))
     assert explicit.cand.params.max_opening == 0.03  # an explicit value wins
+
+
+def test_old_keywords_are_gone_and_params_name_the_cli_option(example_part):
+    """The per-option keywords moved into GraspParams; its validation names the CLI spelling."""
+    part = load_part(example_part("box.stl"))
+    with pytest.raises(TypeError):
+        compute_grasps(part, roll_step_deg=90)
+    with pytest.raises(InputError, match=r"--roll-step \(roll_step_deg\).*got 0"):
+        GraspParams(roll_step_deg=0)
+    with pytest.raises(InputError, match=r"--thin \(thin_spacing\).*got -0.001"):
+        GraspParams(thin_spacing=-0.001)
+
+
+def test_nothing_collision_free_is_exit_4_and_file_still_written(tmp_path, example_part):
+    """A gripper opening 5 mm cannot take the 10 x 20 x 30 mm box: no pose, exit 4, the file is written."""
+    from grasplan.gripper import GRIPPER_DIR
+
+    small = tmp_path / "small.yaml"
+    small.write_text((GRIPPER_DIR / "schunk_egp_c_40.yaml").read_text().replace("max_opening: 0.05",
+                                                                                 "max_opening: 0.005"))
+    out = tmp_path / "o.json"
+    r = CliRunner().invoke(main, ["grasps", str(example_part("box.stl")), "--gripper", str(small), "-o", str(out)])
+    assert r.exit_code == 4, r.output
+    assert "no collision-free grasp" in r.output
+    doc = json.loads(out.read_text())
+    assert doc["counts"]["ok"] == 0 and doc["grasps"] == []

@@ -10,8 +10,18 @@ import trimesh
 from grasplan.errors import ConfigError, InputError
 from grasplan.gripper import load_gripper
 from grasplan.mass import mass_properties
-from grasplan.quality import (CONTACT_TYPES, G, clip_polygons, contact_patches, grasp_quality, load_score_weights,
-                              load_scoring, pad_rectangle, polygon_moments, score_quality_terms)
+from grasplan.quality import (
+    CONTACT_TYPES,
+    G,
+    clip_polygons,
+    contact_patches,
+    grasp_quality,
+    load_score_weights,
+    load_scoring,
+    pad_rectangle,
+    polygon_moments,
+    score_quality_terms,
+)
 
 MU = 0.3
 BOX = (0.12, 0.03, 0.03)
@@ -90,7 +100,7 @@ def test_polygon_moments_of_a_rectangle():
 # -- contact patches ---------------------------------------------------------------------------------
 def test_box_face_patch_is_pad_times_overlap(gripper, box):
     (y0, y1), (z0, z1) = pad_rectangle(gripper)
-    T, C, N, w = grasps([0.0, 0.052])
+    T, C, _N, _w = grasps([0.0, 0.052])
     area, kind, widths = contact_patches(box, gripper, T, C)
     # centre: the pad (y0..y1 along part x) overlaps the face over its height; TCP z = -part z
     overlap_z = min(z1, 0.015) - max(z0, -0.015)
@@ -102,9 +112,9 @@ def test_box_face_patch_is_pad_times_overlap(gripper, box):
 
 def test_patch_does_not_depend_on_chunking(gripper):
     part = trimesh.creation.box(BOX).subdivide().subdivide()
-    T, C, N, w = grasps(np.linspace(-0.05, 0.05, 9))
-    a1, k1, w1 = contact_patches(part, gripper, T, C)
-    a2, k2, w2 = contact_patches(part, gripper, T, C, max_pairs=50)
+    T, C, _N, _w = grasps(np.linspace(-0.05, 0.05, 9))
+    a1, k1, _w1 = contact_patches(part, gripper, T, C)
+    a2, k2, _w2 = contact_patches(part, gripper, T, C, max_pairs=50)
     np.testing.assert_allclose(a1, a2, rtol=1e-12)
     assert (k1 == k2).all()
     np.testing.assert_allclose(a1, contact_patches(trimesh.creation.box(BOX), gripper, T, C)[0], rtol=1e-9)

@@ -157,7 +157,7 @@ def test_config_dir_option(tmp_path):
     assert doc["gripper"]["name"] == "custom_jaws" and doc["cell"]["name"] == "raised"
     assert cfg["gripper"].is_file()
     r = _run(["grasps", BRACKET, "--config-dir", tmp_path / "missing", "-o", tmp_path / "x.json"])
-    assert r.exit_code == 3 and "does not exist" in r.output
+    assert r.exit_code == 3 and "no such folder" in r.output
 
 
 def test_params_validate_themselves():

@@ -84,3 +84,119 @@ def test_thin_option_accepts_zero_and_refuses_negative(tmp_path, example_part, c
             posed[thin] = doc["counts"]["posed_candidates"]
             assert doc["params"]["thin_spacing"] == (0.003 if thin == "3mm" else 0.0)
         assert 0 < posed["3mm"] < posed["0"]
+
+
+# -- issue 14: outputs that cannot or must not be written are refused before any work -----------
+
+def test_check_output_path_refuses_what_cannot_be_written(tmp_path):
+    from grasplan.io import check_output_path
+
+    (tmp_path / "file").write_text("x")
+    mesh = tmp_path / "part.stl"
+    mesh.write_text("solid")
+    cases = {
+        "": "empty",
+        "   ": "empty",
+        "/proc/x.json": "under /proc",
+        "/sys/x.json": "under /sys",
+        "/dev/null": "under /dev",
+        str(tmp_path): "is a folder",
+        str(tmp_path / "file" / "x.json"): "is a file, not a folder",
+        str(tmp_path / "missing" / "x.json"): "does not exist",
+        str(tmp_path / ("y" * 300 + ".json")): "at most 255",
+        "a\x00b.json": "NUL",
+    }
+    for out, message in cases.items():
+        with pytest.raises(InputError, match=message):
+            check_output_path(out)
+    with pytest.raises(InputError, match="also an input"):
+        check_output_path(tmp_path / "." / "part.stl", inputs=[mesh])
+    (tmp_path / "link.stl").symlink_to(mesh)
+    with pytest.raises(InputError, match="also an input"):
+        check_output_path(tmp_path / "link.stl", inputs=[str(mesh)])
+    assert check_output_path(tmp_path / "new.json", inputs=[mesh]) == tmp_path / "new.json"
+    assert check_output_path(tmp_path / "a" / "b.json", create_parents=True) == tmp_path / "a" / "b.json"
+
+
+def test_check_output_path_refuses_a_read_only_folder(tmp_path):
+    from grasplan.io import check_output_path
+
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o500)
+    try:
+        if os.access(ro, os.W_OK):
+            pytest.skip("running as root: a read-only folder is still writable")
+        with pytest.raises(InputError, match="not writable"):
+            check_output_path(ro / "x.json")
+    finally:
+        ro.chmod(0o700)
+
+
+def test_write_error_is_an_input_error_and_leaves_nothing(tmp_path):
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(InputError, match="cannot write"):
+        write_json(tmp_path / "file" / "x.json", {"a": 1})
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file"]
+
+
+def test_long_output_name_still_gets_a_temporary_file(tmp_path):
+    out = tmp_path / ("z" * 250 + ".json")
+    write_json(out, {"a": 1})
+    assert read_json(out) == {"a": 1}
+
+
+_SIGTERM_WRITER = r"""
+import os, signal, sys
+from pathlib import Path
+import grasplan.io as gio
+
+out = Path(sys.argv[1])
+real_fsync = os.fsync
+
+def slow_fsync(fd):
+    print("writing", flush=True)      # the temporary file exists now
+    signal.pause() if sys.argv[2] == "pause" else None
+    real_fsync(fd)
+
+gio.os.fsync = slow_fsync
+gio.write_atomic_bytes(out, b"new content")
+"""
+
+
+@pytest.mark.parametrize("previous", ["default", "python"])
+def test_sigterm_during_a_write_removes_the_temporary_file(tmp_path, previous):
+    import signal
+    import subprocess
+    import sys
+
+    out = tmp_path / "out.json"
+    out.write_text("old")
+    script = _SIGTERM_WRITER
+    if previous == "python":  # a handler of the caller's is restored and still called
+        script = ("import signal, sys\nsignal.signal(signal.SIGTERM, lambda s, f: (print('caller handler', "
+                  "flush=True), sys.exit(7)))\n") + script
+    proc = subprocess.Popen([sys.executable, "-c", script, str(out), "pause"], stdout=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout.readline().strip() == "writing"
+        assert len(list(tmp_path.glob(".out.json.*.tmp"))) == 1
+        proc.send_signal(signal.SIGTERM)
+        rc = proc.wait(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    rest = proc.stdout.read()
+    if previous == "default":
+        assert rc == -signal.SIGTERM  # the process still ends the way SIGTERM ends it
+    else:
+        assert rc == 7 and "caller handler" in rest
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.json"]  # no temporary file left
+    assert out.read_text() == "old"  # the existing output is intact
+
+
+def test_sigterm_handler_is_restored_after_a_write(tmp_path):
+    import signal
+
+    before = signal.getsignal(signal.SIGTERM)
+    write_json(tmp_path / "x.json", {"a": 1})
+    assert signal.getsignal(signal.SIGTERM) is before

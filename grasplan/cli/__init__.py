@@ -3,6 +3,7 @@ exposing a click command called ``command``) and is imported only when it runs, 
 fast and a heavy dependency (Pinocchio, OMPL) is loaded only by the commands that need it."""
 from __future__ import annotations
 
+import contextvars
 import importlib
 import os
 import sys
@@ -41,7 +42,9 @@ class LazyGroup(click.Group):
 
     def invoke(self, ctx):
         try:
-            return super().invoke(ctx)
+            # a copied context: --config-dir (a context variable) ends with the command, so an
+            # in-process caller (tests, batch workers) starts the next command with a clean lookup
+            return contextvars.copy_context().run(super().invoke, ctx)
         except GrasplanError as exc:
             click.echo(f"grasplan: error: {_one_line(str(exc))}", err=True)
             sys.exit(exc.exit_code)

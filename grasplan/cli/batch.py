@@ -71,6 +71,8 @@ def command(parts, out_dir, workers, engine, ray_address, exports, no_view, **kw
         if row["status"] != "planned":
             click.echo("  " + format_row(row))
     click.echo(f"wrote {summary.out_dir / 'summary.csv'} and {summary.out_dir / 'index.html'}")
+    if summary.exit_code == 4:
+        click.echo("grasplan: no part has a planned grasp; each part's log.txt and plan.json say why", err=True)
     sys.exit(summary.exit_code)
 
 

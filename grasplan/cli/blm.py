@@ -9,7 +9,9 @@ import trimesh
 
 from ..errors import InputError
 from ..io import write_atomic_bytes
-from .common import ANGLE, LENGTH, info, table, units_option, warn_all
+from ..params import CandidateParams
+from .common import check_output, info, table, units_option, warn_all
+from .options import param_options
 
 #: output formats by suffix (trimesh exporter names)
 OUTPUT_TYPES = {".stl": "stl", ".ply": "ply", ".obj": "obj"}
@@ -59,23 +61,7 @@ def stamp_units(payload: bytes, file_type: str, note: str) -> bytes:
     show_default=True,
     help="Units of OUT's coordinates; 'input' = the part file's units (recorded in OUT's header).",
 )
-@click.option(
-    "--alpha",
-    type=LENGTH,
-    default="0.1mm",
-    show_default=True,
-    help="Boundary-layer width: distance of the shifted vertices from the neighbouring facet's plane "
-    "(0.1mm, 1e-4; a bare number is metres).",
-)
-@click.option(
-    "--gamma",
-    "gamma_deg",
-    type=ANGLE,
-    default=135.0,
-    show_default=True,
-    help="Surface angle in degrees, in (90, 180]: facets join a surface when their normals deviate by at "
-    "most 180 - gamma (95 = coarse, few surfaces; 170 = fine).",
-)
+@param_options(CandidateParams, only=("alpha", "gamma_deg"))
 @units_option
 def command(part: Path, output: Path, alpha: float, gamma_deg: float, units: str, output_units: str) -> None:
     from ..blm import boundary_layer
@@ -84,8 +70,9 @@ def command(part: Path, output: Path, alpha: float, gamma_deg: float, units: str
     suffix = output.suffix.lower()
     if suffix not in OUTPUT_TYPES:
         raise InputError(f"{output}: unsupported output type {output.suffix or '(none)'!r}; use one of {', '.join(OUTPUT_TYPES)}")
-    if not (90.0 < gamma_deg <= 180.0):
-        raise InputError(f"--gamma must be in (90, 180] degrees, got {gamma_deg:g}")
+    output = Path(check_output(output, part))
+    prm = CandidateParams(alpha=alpha, gamma_deg=gamma_deg)  # the one range check of both options
+    alpha, gamma_deg = prm.alpha, prm.gamma_deg
 
     t0 = time.perf_counter()
     p = load_part(part, units=units)

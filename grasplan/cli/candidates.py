@@ -7,7 +7,7 @@ import click
 
 from ..errors import PlanningError
 from ..params import CandidateParams
-from .common import info, table, units_option, warn_all
+from .common import check_output, info, table, units_option, warn_all
 from .options import output_option, param_options, params_from_kwargs
 
 
@@ -28,6 +28,7 @@ def command(part: str, output: str, units: str, **kwargs) -> None:
     from ..io import write_json
     from ..mesh import load_part
 
+    output = check_output(output, part)
     params = params_from_kwargs(kwargs, (CandidateParams,))["candidates"]
     info(f"grasplan candidates {part}")
     t0 = time.perf_counter()

@@ -59,6 +59,15 @@ units_option = click.option(
 )
 
 
+def check_output(output, *inputs):
+    """The ``-o`` path checked before any work (:func:`grasplan.io.check_output_path`): not empty, not
+    a system or special file, its folder writable (missing folders are created), not one of the
+    ``inputs`` (None entries are skipped)."""
+    from ..io import check_output_path
+
+    return check_output_path(output, inputs=[i for i in inputs if i is not None], create_parents=True)
+
+
 def info(msg: str) -> None:
     """A progress/status line on stderr (stdout stays for summaries)."""
     click.echo(msg, err=True)

@@ -7,7 +7,7 @@ import click
 
 from ..export import load_builtin_formats
 from ..export.registry import DEFAULT_MAX_ACCEL
-from .common import info
+from .common import check_output, info
 from .options import FLOAT, INT
 
 _FORMATS = load_builtin_formats()
@@ -53,6 +53,7 @@ def command(plan, fmt, grasp_id, out, max_accel, velocity_scale, part_path):
     from ..result import load_result
 
     t0 = time.perf_counter()
+    out = check_output(out, plan, part_path)
     res = load_result(plan, part=part_path)
     ids = res.planned_ids()
     info(f"plan {plan}: {len(res.grasps)} grasps, {len(ids)} planned")

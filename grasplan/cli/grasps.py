@@ -7,8 +7,14 @@ import click
 
 from ..errors import PlanningError
 from ..params import CandidateParams, GraspParams
-from .common import info, table, warn_all
-from .options import apply_config_dirs, cell_options, output_option, param_options, params_from_kwargs
+from .common import check_output, info, table, warn_all
+from .options import (
+    apply_config_dirs,
+    cell_options,
+    output_option,
+    param_options,
+    params_from_kwargs,
+)
 
 
 @click.command(name="grasps")
@@ -32,6 +38,7 @@ def command(part, output, gripper, cell, part_pose, units, only_ok, indent, **kw
     from ..mesh import load_part
 
     t_all = time.perf_counter()
+    output = check_output(output, part)
     apply_config_dirs(kwargs)
     prm = params_from_kwargs(kwargs, (CandidateParams, GraspParams))
     g = load_gripper(gripper)

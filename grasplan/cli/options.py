@@ -13,8 +13,16 @@ from dataclasses import MISSING, fields
 
 import click
 
-from ..params import (DEFAULT_CELL, DEFAULT_GRIPPER, DEFAULT_ROBOT, PARAM_CLASSES, CandidateParams, GraspParams,
-                      PlanParams, option_name)
+from ..params import (
+    DEFAULT_CELL,
+    DEFAULT_GRIPPER,
+    DEFAULT_ROBOT,
+    PARAM_CLASSES,
+    CandidateParams,
+    GraspParams,
+    PlanParams,
+    option_name,
+)
 from .common import ANGLE, LENGTH, LENGTH_OR_ZERO, units_option
 
 #: which keyword of params_from_kwargs' result each class fills
@@ -79,10 +87,12 @@ def _option(f):
                         show_default=show, help=md["help"])
 
 
-def param_options(*classes, exclude: tuple[str, ...] = ()):
-    """Decorator: one click option per (non-internal) field of each parameter class."""
+def param_options(*classes, exclude: tuple[str, ...] = (), only: tuple[str, ...] | None = None):
+    """Decorator: one click option per (non-internal) field of each parameter class (all but
+    ``exclude``, or just ``only``)."""
     opts = [_option(f) for cls in classes for f in fields(cls)
-            if f.metadata.get("kind") not in (None, "internal") and f.name not in exclude]
+            if f.metadata.get("kind") not in (None, "internal") and f.name not in exclude
+            and (only is None or f.name in only)]
 
     def deco(fn):
         for o in reversed(opts):

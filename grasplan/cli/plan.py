@@ -7,8 +7,15 @@ import click
 
 from ..errors import PlanningError
 from ..params import CandidateParams, GraspParams, PlanParams
-from .common import info, progress, table, warn_all
-from .options import apply_config_dirs, cell_options, output_option, param_options, params_from_kwargs, robot_option
+from .common import check_output, info, progress, table, warn_all
+from .options import (
+    apply_config_dirs,
+    cell_options,
+    output_option,
+    param_options,
+    params_from_kwargs,
+    robot_option,
+)
 
 
 @click.command(name="plan")
@@ -32,6 +39,7 @@ def command(part, robot, output, gripper, cell, part_pose, units, **kwargs):
     from ..robot import load_robot
 
     t0 = time.perf_counter()
+    output = check_output(output, part)
     apply_config_dirs(kwargs)
     prm = params_from_kwargs(kwargs)
     # resolve everything cheap first: nothing is written on bad input

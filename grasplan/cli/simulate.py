@@ -52,8 +52,15 @@ def command(result: Path, output: Path, top: int, part: Path | None, seed: int, 
     from ..mass import DEFAULT_DENSITY, mass_properties
     from ..params import CandidateParams
     from ..result import load_result
-    from ..simulate import (LIFT_HEIGHT, LIFT_S, SHAKE_ACCEL, SHAKE_S, SLIP_TOL, TURN_TOL_DEG,
-                            simulate_grasps)
+    from ..simulate import (
+        LIFT_HEIGHT,
+        LIFT_S,
+        SHAKE_ACCEL,
+        SHAKE_S,
+        SLIP_TOL,
+        TURN_TOL_DEG,
+        simulate_grasps,
+    )
 
     if not result.exists():
         raise InputError(f"{result}: no such file (expected a grasplan grasps or plan JSON)")
@@ -83,7 +90,7 @@ def command(result: Path, output: Path, top: int, part: Path | None, seed: int, 
                    "grip_force": float(res.gripper.grip_force if grip_force is None else grip_force),
                    "lift_height": LIFT_HEIGHT, "lift_s": LIFT_S, "shake_accel": SHAKE_ACCEL, "shake_s": SHAKE_S,
                    "slip_tol": SLIP_TOL, "turn_tol_deg": TURN_TOL_DEG},
-        "counts": {"simulated": int(len(sel)), "held": int(sim.success.sum())},
+        "counts": {"simulated": len(sel), "held": int(sim.success.sum())},
         "timing_s": {"simulate": float(sim.seconds)},
         "grasps": [{"id": int(ids[k]), "score": None if math.isnan(score[sel[k]]) else float(score[sel[k]]),
                     "sim": sim.to_json(k)} for k in range(len(sel))],

@@ -5,7 +5,7 @@ import warnings
 
 import click
 
-from .common import info, warn_all
+from .common import check_output, info, warn_all
 
 
 @click.command("view")
@@ -26,8 +26,11 @@ def command(result: str, output: str, part: str | None, allow_other_part: bool) 
     request (three.js is bundled). RESULT is self-contained: no gripper, cell or robot YAML needed.
     """
     from ..result import load_result
-    from ..viewer import write_viewer  # imported here: the CLI stays fast for other commands
+    from ..viewer import (
+        write_viewer,  # imported here: the CLI stays fast for other commands
+    )
 
+    output = check_output(output, result, part)
     info(f"view: {result}")
     res = load_result(result)
     with warnings.catch_warnings(record=True) as caught:

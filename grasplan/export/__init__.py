@@ -23,7 +23,14 @@ import os
 from pathlib import Path
 
 from ..errors import InputError
-from .registry import DEFAULT_MAX_ACCEL, FORMATS, ExportFormat, ExportOptions, get_format, register
+from .registry import (
+    DEFAULT_MAX_ACCEL,
+    FORMATS,
+    ExportFormat,
+    ExportOptions,
+    get_format,
+    register,
+)
 
 #: the shipped formats, imported (and so registered) on first use of the registry
 BUILTIN_MODULES = ("urscript", "trajectory", "csvfile", "krl", "rapid", "moveit_grasp")

@@ -219,6 +219,7 @@ def build_data(res, *, part_path=None, allow_other_part: bool = False) -> tuple[
                          for a, b in zip(f_a, f_b)],
         "max_opening": float(gripper.max_opening),
         "meshes": gmeshes,
+        "name": gripper.name,
     }
 
     data: dict[str, Any] = {

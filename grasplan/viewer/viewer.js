@@ -253,7 +253,8 @@
     const planned = counts.planned || 0;
     document.getElementById('title').textContent = D.title;
     document.getElementById('summary').textContent =
-      `${D.schema} · ${D.part.nf} triangles (file scale ${D.part.scale_to_m} m/unit) · ${n} grasps` + (R ? ` · ${planned} planned · robot ${R.name}` : '') +
+      `${D.schema} · ${D.part.nf} triangles (file scale ${D.part.scale_to_m} m/unit) · ${n} grasps` +
+      ` · gripper ${D.gripper.name} · cell ${D.cell.name}` + (R ? ` · ${planned} planned · robot ${R.name}` : '') +
       (D.notes && D.notes.length ? `\n${D.notes.join('\n')}` : '');
     const legend = document.getElementById('legend');
     statuses.forEach((s, si) => {
