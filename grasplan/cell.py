@@ -27,7 +27,7 @@ import numpy as np
 import trimesh
 import yaml
 
-from .config_files import available, config_number, packaged_file, resolve_yaml
+from .config_files import available, config_number, packaged_file, read_yaml, resolve_yaml
 from .errors import ConfigError, InputError
 from .gripper import rpy_matrix
 from .params import DEFAULT_CELL
@@ -130,10 +130,7 @@ def load_cell(name_or_path: str | os.PathLike = DEFAULT_CELL) -> Cell:
     if isinstance(name_or_path, Cell):
         return name_or_path
     p = resolve_yaml("cell", name_or_path)
-    try:
-        data = yaml.safe_load(p.read_text())
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{p}: not valid YAML: {exc}") from exc
+    data = read_yaml("cell", p)
     try:
         return cell_from_dict(data, name=p.stem, source=str(p))
     except ConfigError as exc:

@@ -143,6 +143,33 @@ def resolve_yaml(kind: str, name_or_path: str | os.PathLike) -> Path:
                       f"Give a path to a {kind} YAML, --config-dir DIR or ${ENV_VAR}")
 
 
+#: a description file larger than this is refused before it is parsed
+MAX_CONFIG_BYTES = 1_000_000
+
+
+def read_yaml(kind: str, path: Path):
+    """Parse a gripper/cell/robot YAML with ``yaml.safe_load`` (no Python tags); ConfigError for an
+    unreadable, binary, oversized or invalid file."""
+    import yaml
+
+    try:
+        if path.stat().st_size > MAX_CONFIG_BYTES:
+            raise ConfigError(f"{path}: {path.stat().st_size} bytes is too large for a {kind} file "
+                              f"(limit {MAX_CONFIG_BYTES})")
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise ConfigError(f"{path}: not a text file; a {kind} description is a UTF-8 YAML file") from None
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read it ({exc.strerror or exc})") from None
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        first = str(exc).splitlines()[0] if str(exc) else "syntax error"
+        raise ConfigError(f"{path}: not valid YAML ({first[:120]})") from None
+    except RecursionError:
+        raise ConfigError(f"{path}: YAML nested too deeply") from None
+
+
 def packaged_file(*parts: str) -> Path:
     """A file shipped in ``grasplan/data`` (e.g. ``packaged_file("configs", "paper_parts.yaml")``)."""
     return PACKAGED_DIR.joinpath(*parts)

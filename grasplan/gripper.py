@@ -36,13 +36,13 @@ from pathlib import Path
 
 import numpy as np
 import trimesh
-import yaml
 
 from .config_files import (
     available,
     config_number,
     config_vector,
     packaged_file,
+    read_yaml,
     resolve_yaml,
 )
 from .errors import ConfigError
@@ -306,6 +306,8 @@ def _mesh(spec, field_: str, base: Path) -> MeshShape:
     if not isinstance(m, trimesh.Trimesh) or len(m.faces) == 0:
         raise ConfigError(f"{field_}.path: {path} holds no triangles")
     v = np.asarray(m.vertices, dtype=np.float64) * scale
+    if not np.all(np.isfinite(v)) or np.abs(v).max() > 10.0:
+        raise ConfigError(f"{field_}.path: {path} has non-finite or huge coordinates (|v| <= 10 m after scale)")
     v = v @ T[:3, :3].T + T[:3, 3]
     return MeshShape(v, np.asarray(m.faces, dtype=np.int64), str(path))
 
@@ -364,10 +366,7 @@ def gripper_from_dict(data: dict, *, base: Path, name: str, source: str = "") ->
 @lru_cache(maxsize=32)
 def _load_file(path: str, mtime: float) -> Gripper:
     p = Path(path)
-    try:
-        data = yaml.safe_load(p.read_text())
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{p}: not valid YAML: {exc}") from exc
+    data = read_yaml("gripper", p)
     try:
         return gripper_from_dict(data, base=p.parent, name=p.stem, source=str(p))
     except ConfigError as exc:

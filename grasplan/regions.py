@@ -178,13 +178,15 @@ def area_boundary_edges(F: np.ndarray, label: np.ndarray) -> np.ndarray:
     return (cnt[inv.ravel()] < 2).reshape(-1, 3) | (lab < 0).reshape(-1, 3)
 
 
-def _inside(P: np.ndarray, q: np.ndarray, eps: float) -> np.ndarray:
-    """(b,) bool: points ``q`` (b, 2) inside (or within eps of) CCW triangles ``P`` (b, 3, 2)."""
+def _inside(P: np.ndarray, q: np.ndarray, eps: float, edge: np.ndarray) -> np.ndarray:
+    """(b,) bool: points ``q`` (b, 2) inside CCW triangles ``P`` (b, 3, 2), at least ``eps`` from an edge
+    of the region's boundary (points on a region's boundary are never sampled, whatever the
+    tessellation; on an inner edge the point is found in both triangles and deduplicated)."""
     x, y = P[..., 0], P[..., 1]
     ex, ey = np.roll(x, -1, axis=1) - x, np.roll(y, -1, axis=1) - y
     L = np.maximum(np.hypot(ex, ey), 1e-300)
     side = (ex * (q[:, 1:] - y) - ey * (q[:, :1] - x)) / L
-    return (side >= -eps).all(axis=1)
+    return (side >= np.where(edge, eps, -eps)).all(axis=1)
 
 
 def _size_classes(r: np.ndarray) -> np.ndarray:
@@ -277,7 +279,7 @@ def find_regions(mesh, convex, geo, *, max_opening, beta_deg, mu, spacing, tol):
 
     bedge = area_boundary_edges(np.asarray(mesh.faces, dtype=np.int64), lab)
     # ---- pass 1: face pairs whose projections overlap, and the moments of each region ----
-    kept_i, kept_j, keys, mom, _big = [], [], [], [], []
+    kept_i, kept_j, keys, mom = [], [], [], []
     for i, j, P, Q in face_pairs():
         a = areas.normal[P] - areas.normal[Q]
         a /= np.linalg.norm(a, axis=1, keepdims=True)
@@ -314,6 +316,8 @@ def find_regions(mesh, convex, geo, *, max_opening, beta_deg, mu, spacing, tol):
     a /= np.linalg.norm(a, axis=1, keepdims=True)
     t1, t2 = _frame(a)
     A = S[:, 0]
+    live = A > tol.area                  # regions whose projections really overlap
+    A = np.where(live, A, 1.0)
     gx, gy = S[:, 1] / A, S[:, 2] / A
     cxx, cyy, cxy = S[:, 3] / A - gx * gx, S[:, 4] / A - gy * gy, S[:, 5] / A - gx * gy
     aniso = np.hypot(cxx - cyy, 2 * cxy) > 1e-6 * (cxx + cyy)
@@ -322,7 +326,6 @@ def find_regions(mesh, convex, geo, *, max_opening, beta_deg, mu, spacing, tol):
     e1, e2 = ct * t1 + st * t2, -st * t1 + ct * t2
     g3 = areas.centroid[RP] + gx[:, None] * t1 + gy[:, None] * t2      # centroid, in the plane through P's centroid
     small = A < spacing * spacing
-    live = A > tol.area
     # ---- pass 2: lattice points inside each triangle pair's overlap ----
     s_reg, s_q, s_i, s_j, s_lat = [], [], [], [], []
     for s in range(0, len(fi), _CHUNK):
@@ -347,7 +350,9 @@ def find_regions(mesh, convex, geo, *, max_opening, beta_deg, mu, spacing, tol):
             li = lo_i[owner] + k // nj[owner]
             lj = lo_j[owner] + k % nj[owner]
             q = np.column_stack([li * spacing, lj * spacing])
-            inside = _inside(_ccw(Pi[owner]), q, eps) & _inside(_ccw(Pj[owner]), q, eps)
+            Ci, Ei = _ccw_edges(Pi[owner], bedge[i[owner]])
+            Cj, Ej = _ccw_edges(Pj[owner], bedge[j[owner]])
+            inside = _inside(Ci, q, eps, Ei) & _inside(Cj, q, eps, Ej)
             o = owner[inside]
             s_reg.append(r[o])
             s_q.append(q[inside])

@@ -89,13 +89,22 @@ class GraspTable:
     score: np.ndarray
     rank: np.ndarray
     reason: np.ndarray
+    id_values: np.ndarray | None = None  #: grasp ids when not 0..M-1 (a grasps file written with --only-ok)
 
     def __len__(self) -> int:
         return int(len(self.width))
 
     @property
     def ids(self) -> np.ndarray:
-        return np.arange(len(self), dtype=np.int64)
+        """(M,) grasp ids: 0..M-1, or the ids a filtered file kept (strictly increasing)."""
+        return self.id_values if self.id_values is not None else np.arange(len(self), dtype=np.int64)
+
+    def index_of(self, grasp_id: int) -> int | None:
+        """Row of grasp ``grasp_id``, None when there is none."""
+        if self.id_values is None:
+            return int(grasp_id) if 0 <= grasp_id < len(self) else None
+        k = int(np.searchsorted(self.id_values, grasp_id))
+        return k if k < len(self) and self.id_values[k] == grasp_id else None
 
     def with_plan(self, status, score, rank, reason) -> "GraspTable":
         return replace(self, status=status, score=score, rank=rank, reason=reason)
@@ -205,12 +214,12 @@ class PlanResult:
 
     def grasp(self, grasp_id: int) -> GraspView:
         t = self.grasps
-        i = int(grasp_id)
-        if not 0 <= i < len(t):
-            raise InputError(f"unknown grasp id {grasp_id}; the result has ids 0..{len(t) - 1}" if len(t)
-                             else f"unknown grasp id {grasp_id}; the result has no grasps")
+        i = t.index_of(int(grasp_id))
+        if i is None:
+            raise InputError(f"unknown grasp id {grasp_id}; the result has ids {int(t.ids[0])}..{int(t.ids[-1])}"
+                             if len(t) else f"unknown grasp id {grasp_id}; the result has no grasps")
         sc = float(t.score[i])
-        return GraspView(id=i, T_part_tcp=t.T_part_tcp[i], T_world_tcp=self.T_world_part @ t.T_part_tcp[i],
+        return GraspView(id=int(t.ids[i]), T_part_tcp=t.T_part_tcp[i], T_world_tcp=self.T_world_part @ t.T_part_tcp[i],
                          width=float(t.width[i]), status=str(t.status[i]),
                          score=None if math.isnan(sc) else sc, rank=None if t.rank[i] < 0 else int(t.rank[i]),
                          motion=self.motions.get(i))
@@ -228,7 +237,8 @@ class PlanResult:
                 raise InputError(f"the plan has no planned grasp to export ({summary}); try `grasplan plan` "
                                  "with a larger --top or another gripper/cell")
             return self.grasp(ids[0])
-        if isinstance(grasp_id, bool) or not isinstance(grasp_id, (int, np.integer)) or not 0 <= grasp_id < len(self.grasps):
+        if isinstance(grasp_id, bool) or not isinstance(grasp_id, (int, np.integer)) \
+                or self.grasps.index_of(int(grasp_id)) is None:
             shown = ", ".join(map(str, ids[:50])) + (" ..." if len(ids) > 50 else "")
             raise InputError(f"unknown grasp id {grasp_id}; planned grasps: {shown or '(none)'}")
         g = self.grasp(int(grasp_id))
@@ -256,9 +266,10 @@ class PlanResult:
         status = t.status[ids].astype(str).tolist()
         plan = self.robot is not None
         score, rank, reason = t.score[ids].tolist(), t.rank[ids].tolist(), t.reason[ids].tolist()
+        gid = t.ids[ids].tolist()
         out = []
         for k, i in enumerate(ids.tolist()):
-            e = {"id": i, "candidate": cand[k], "region": region[k], "contacts": contacts[k], "normals": normals[k],
+            e = {"id": gid[k], "candidate": cand[k], "region": region[k], "contacts": contacts[k], "normals": normals[k],
                  "width": width[k], "T_part_tcp": T[k], "roll": roll[k], "status": status[k]}
             if plan:
                 e["score"] = None if score[k] != score[k] else score[k]
@@ -394,8 +405,14 @@ def result_from_document(doc: Any, *, where: str = "document", part_mesh=None) -
         _validate(validate, doc, schema, where)
     M = len(grasps)
     ids = _arr(grasps, "id", (), np.float64, where)
+    id_values = None
     if M and not np.array_equal(ids, np.arange(M)):
-        raise InputError(f"{where}: grasp ids must be 0..{M - 1} in order (found {str(grasps[0].get('id'))[:20]}...)")
+        filtered = doc.get("only_ok") is True and schema == GRASPS_SCHEMA
+        if not (filtered and np.all(ids == np.round(ids)) and ids[0] >= 0 and np.all(np.diff(ids) > 0)
+                and ids[-1] < 2**53):
+            raise InputError(f"{where}: grasp ids must be 0..{M - 1} in order (a file written with --only-ok: "
+                             "strictly increasing ids)")
+        id_values = ids.astype(np.int64)
     names = PLAN_STATUSES if schema == PLAN_SCHEMA else GRASP_STATUSES
     status = _arr(grasps, "status", (), object, where)
     bad = sorted(set(status.tolist()) - set(names)) if M else []
@@ -420,6 +437,7 @@ def result_from_document(doc: Any, *, where: str = "document", part_mesh=None) -
         rank=np.array([-1 if (r := g.get("rank")) is None else r for g in grasps], dtype=np.int64)
         if schema == PLAN_SCHEMA else np.full(M, -1, dtype=np.int64),
         reason=_arr(grasps, "reason", (), object, where, default="") if M else np.zeros(0, dtype=object),
+        id_values=id_values,
     )
     if schema == PLAN_SCHEMA and M and not np.all(np.isfinite(table.score[~np.isnan(table.score)])):
         raise InputError(f"{where}: grasp scores must be finite numbers or null")

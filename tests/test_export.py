@@ -295,22 +295,52 @@ def check_trajectory(traj, plan, g, robot, amax):
 
 
 # ------------------------------------------------------------------------------------------- tests
+def test_doc_loads_as_a_typed_plan(plan_doc):
+    """The synthetic document passes the full loader (schema, FK of planned grasps vs their TCP)."""
+    res = load_result(plan_doc)
+    assert isinstance(res, PlanResult) and res.schema == "grasplan.plan/1" and res.robot.name == "ur5"
+    np.testing.assert_allclose(res.robot.q_home, Q_HOME, atol=1e-12)
+    assert sorted(res.motions) == sorted(PLANNED_IDS)
+    assert res.counts()["planned"] == 2 and res.counts()["not_tried"] == 1 and res.counts()["collision_part"] == 1
+    # the result writes back the document it was read from (the grasps, bit for bit after rounding)
+    again = res.to_json()
+    for a, b in zip(again["grasps"], plan_doc["grasps"]):
+        assert a["id"] == b["id"] and a["status"] == b["status"] and a["rank"] == b["rank"]
+        np.testing.assert_allclose(a["T_part_tcp"], b["T_part_tcp"], atol=1e-9)
+        if b["status"] == "planned":
+            np.testing.assert_allclose(a["path"], b["path"], atol=1e-12)
+
+
 def test_best_grasp_selection(plan_doc):
-    assert planned_ids(plan_doc) == [5, 3]
-    assert select_grasp(plan_doc)["id"] == 5
-    assert select_grasp(plan_doc, 3)["id"] == 3
-    with pytest.raises(InputError, match=r"unknown grasp id 42; planned grasps: 5, 3"):
-        select_grasp(plan_doc, 42)
-    with pytest.raises(InputError, match=r"grasp 8 is not planned \(status: collision_part\)"):
-        select_grasp(plan_doc, 8)
+    res = load_result(plan_doc)
+    assert res.planned_ids() == PLANNED_IDS
+    assert res.select().id == PLANNED_IDS[0]
+    assert res.select(0).id == 0
+    assert [g["id"] for g in res.planned()] == PLANNED_IDS
+    with pytest.raises(InputError, match=r"unknown grasp id 42; planned grasps: 1, 0"):
+        res.select(42)
+    with pytest.raises(InputError, match=rf"grasp {COLLIDING} is not planned \(status: collision_part\)"):
+        res.select(COLLIDING)
+
+
+def test_registry_lists_the_shipped_formats():
+    from grasplan.export import load_builtin_formats
+
+    load_builtin_formats()
+    assert {"urscript", "joint-trajectory", "csv", "krl", "rapid", "moveit-grasp"} <= set(FORMATS)
+    for name, f in FORMATS.items():
+        assert f.name == name and f.extension.startswith(".") and f.description
+    with pytest.raises(InputError, match=r"unknown export format 'nope'; available: .*urscript"):
+        render({}, "nope")
 
 
 def test_urscript_synthetic(plan_doc, ur5):
-    for gid in (None, 3):
-        text = render(plan_doc, "urscript", grasp_id=gid, robot=ur5)
-        g = select_grasp(plan_doc, gid)
+    for gid in (None, 0):
+        files = render(plan_doc, "urscript", grasp_id=gid)
+        assert list(files) == [".script"]
+        text = files[".script"]
+        g = entry(plan_doc, PLANNED_IDS[0] if gid is None else gid)
         check_urscript(text, plan_doc, g, ur5)
-        assert text.count("def ") == text.count("\nend") + text.count("  end") - 0 or True
         assert "def grasplan_close_gripper(width):" in text and "def grasplan_open_gripper(opening):" in text
         # balanced def/end blocks
         assert len(re.findall(r"^\s*def ", text, re.M)) == len(re.findall(r"^\s*end\s*$", text, re.M)) == 3
@@ -318,31 +348,46 @@ def test_urscript_synthetic(plan_doc, ur5):
 
 def test_urscript_base_frame_follows_robot_placement(plan_doc, ur5):
     """Moving the robot base in the world moves the program's poses by exactly the inverse."""
-    plan = json.loads(json.dumps(plan_doc))
-    T_move = trans(0.1, -0.2, 0.05) @ np.block([[Rotation.from_euler("z", 0.7).as_matrix(), np.zeros((3, 1))],
-                                               [np.zeros((1, 3)), np.ones((1, 1))]])
-    plan["robot"]["T_world_base"] = T_move.tolist()
-    plan["part"]["T_world_part"] = (T_move @ np.array(plan_doc["part"]["T_world_part"])).tolist()
-    a = render(plan_doc, "urscript", robot=ur5)
-    b = render(plan, "urscript", robot=ur5)
+    T_move = trans(0.1, -0.2, 0.05) @ rot_z(0.7)
+    plan = synthetic_plan(ur5, T_world_base=T_move)
+    assert np.allclose(load_result(plan).robot.T_world_base, T_move)
+    a = render(plan_doc, "urscript")[".script"]
+    b = render(plan, "urscript")[".script"]
     pa = [floats(m.group(1)) for m in MOVEL.finditer(a)]
     pb = [floats(m.group(1)) for m in MOVEL.finditer(b)]
+    assert len(pa) == len(pb) == 2
     for x, y in zip(pa, pb):
         assert np.linalg.norm(pose_to_T(x)[:3, 3] - pose_to_T(y)[:3, 3]) < 1e-6
         assert rot_angle(pose_to_T(x)[:3, :3], pose_to_T(y)[:3, :3]) < 1e-6
-    check_urscript(b, plan, select_grasp(plan), ur5)
+    check_urscript(b, plan, entry(plan, PLANNED_IDS[0]), ur5)
 
 
-def test_urscript_refuses_inconsistent_and_non_ur(plan_doc, ur5):
+def test_urscript_refuses_inconsistent_and_non_ur(plan_doc, tmp_path):
     bad = json.loads(json.dumps(plan_doc))
     bad["gripper"]["T_flange_tcp"] = trans(z=0.2).tolist()   # another gripper than the plan's
     with pytest.raises(InputError, match="another robot or gripper"):
-        render(bad, "urscript", robot=ur5)
-    panda = json.loads(json.dumps(plan_doc))
-    panda["robot"]["name"] = "panda"
-    panda["robot"]["joint_names"] = [f"panda_joint{i}" for i in range(1, 7)]
+        render(bad, "urscript")
+    out = tmp_path / "p.script"
+    with pytest.raises(InputError, match="another robot or gripper"):
+        write(bad, "urscript", out)
+    assert not out.exists()
+    # a plan for a Panda (7 joints, not a UR arm): URScript refuses it and names the other formats
+    from grasplan.robot import load_robot
+
+    panda = load_robot("panda")
+    q_home = np.asarray(panda.q_home)
+    step = 0.05 * np.sign(np.asarray(panda.upper) - q_home)   # towards the inside of the limits
+    q_pre, q_grasp = q_home + step, q_home + 2 * step
+    doc = json.loads(json.dumps(plan_doc))
+    T_world_part = np.array(doc["part"]["T_world_part"])
+    T_world_tcp = panda.fk(q_grasp) @ T_FLANGE_TCP
+    g = dict(entry(doc, 0), T_part_tcp=(np.linalg.inv(T_world_part) @ T_world_tcp).tolist(), q_grasp=q_grasp.tolist(),
+             q_pregrasp=q_pre.tolist(), path=[q_home.tolist(), q_pre.tolist(), q_grasp.tolist()], pregrasp_index=1)
+    doc["grasps"] = [g]
+    doc["robot"] = robot_block("panda")
+    assert load_result(doc).robot.nq == 7
     with pytest.raises(InputError, match="only on Universal Robots.*joint-trajectory"):
-        render(panda, "urscript", robot=ur5)
+        render(doc, "urscript")
 
 
 def test_rotvec_near_pi():
@@ -360,11 +405,11 @@ def test_rotvec_near_pi():
         assert rot_angle(pose_to_T(p)[:3, :3], T[:3, :3]) < 1e-9
 
 
-@pytest.mark.parametrize("gid", [5, 3])
+@pytest.mark.parametrize("gid", PLANNED_IDS)
 def test_joint_trajectory_synthetic(plan_doc, ur5, gid):
     scene = RecordingScene()
-    traj = json.loads(render(plan_doc, "joint-trajectory", grasp_id=gid, robot=ur5, scene=scene, max_accel=2.0))
-    g = select_grasp(plan_doc, gid)
+    traj = joint_trajectory(load_result(plan_doc), grasp_id=gid, scene=scene, max_accel=2.0)
+    g = entry(plan_doc, gid)
     t, q, qd = check_trajectory(traj, plan_doc, g, ur5, 2.0)
     # the scene was asked about exactly the output positions, at 0.01 rad, with the pre-grasp opening
     assert len(scene.calls) == 1
@@ -373,29 +418,38 @@ def test_joint_trajectory_synthetic(plan_doc, ur5, gid):
     # at rest: the first and last accelerations are finite, velocities ramp from 0
     assert np.linalg.norm(qd[1]) < 0.2 * np.max(np.linalg.norm(qd, axis=1))
     assert traj["grasplan"]["max_deviation_rad"] < 0.005
+    # the reported deviation is the distance of the samples to the planned polyline
+    assert traj["grasplan"]["max_deviation_rad"] == pytest.approx(
+        float(np.max(point_to_polyline_distance(q, np.array(g["path"])))), abs=1e-12)
 
 
 def test_joint_trajectory_slower_with_lower_limits(plan_doc, ur5):
-    fast = json.loads(render(plan_doc, "joint-trajectory", robot=ur5, scene=RecordingScene(), max_accel=3.0))
-    slow = json.loads(render(plan_doc, "joint-trajectory", robot=ur5, scene=RecordingScene(), max_accel=0.5,
-                             velocity_scale=0.3))
+    res = load_result(plan_doc)
+    fast = joint_trajectory(res, scene=RecordingScene(), max_accel=3.0)
+    slow = joint_trajectory(res, scene=RecordingScene(), max_accel=0.5, velocity_scale=0.3)
     assert slow["grasplan"]["duration_s"] > 1.5 * fast["grasplan"]["duration_s"]
-    g = select_grasp(plan_doc)
+    g = entry(plan_doc, PLANNED_IDS[0])
     check_trajectory(slow, plan_doc, g, MiniRobot("ur5", ur5.model, ur5.joint_names, 0.3 * ur5.velocity_limit,
                                                  ur5.lower, ur5.upper), 0.5)
 
 
-def test_joint_trajectory_collision_fails_loudly(plan_doc, ur5, tmp_path):
-    g = select_grasp(plan_doc)
+def test_joint_trajectory_collision_fails_loudly(plan_doc, tmp_path, monkeypatch):
+    """write() with a scene that reports a collision near the path's corner: PlanningError, no file."""
+    from grasplan.export import trajectory
+
+    g = entry(plan_doc, PLANNED_IDS[0])
     bad_q = np.array(g["path"])[1]           # a 'collision' around the path's corner
+    scene = RecordingScene(bad_q=bad_q, radius=0.05)
+    monkeypatch.setattr(trajectory, "build_scene", lambda plan: scene)
     out = tmp_path / "traj.json"
     with pytest.raises(PlanningError, match="collides"):
-        write(plan_doc, "joint-trajectory", out, robot=ur5, scene=RecordingScene(bad_q=bad_q, radius=0.05))
-    assert not out.exists()
+        write(plan_doc, "joint-trajectory", out)
+    assert len(scene.calls) == 1 and not out.exists()
+    assert list(tmp_path.iterdir()) == []   # no temporary file left either
 
 
 def test_csv_rows(plan_doc):
-    text = render(plan_doc, "csv")
+    text = render(plan_doc, "csv")[".csv"]
     rows = list(csv.DictReader(io.StringIO(text)))
     assert len(rows) == len(plan_doc["grasps"])
     header = text.splitlines()[0].split(",")
@@ -405,6 +459,7 @@ def test_csv_rows(plan_doc):
     for row, g in zip(rows, plan_doc["grasps"]):
         assert int(row["id"]) == g["id"] and row["status"] == g["status"]
         assert float(row["part_scale_to_m"]) == plan_doc["part"]["scale_to_m"]
+        assert float(row["width"]) == pytest.approx(g["width"], abs=1e-9)
         for frame, T in (("part", np.array(g["T_part_tcp"])), ("world", T_world_part @ np.array(g["T_part_tcp"]))):
             xyz = np.array([float(row[f"{frame}_{c}"]) for c in "xyz"])
             wxyz = np.array([float(row[f"{frame}_q{c}"]) for c in "wxyz"])
@@ -417,11 +472,35 @@ def test_csv_rows(plan_doc):
             np.testing.assert_allclose([float(x) for x in q], g["q_grasp"], atol=1e-8)
         else:
             assert q == [""] * 6
-        assert row["score"] == ("" if g["score"] is None else row["score"])
-    one = list(csv.DictReader(io.StringIO(render(plan_doc, "csv", grasp_id=5))))
-    assert len(one) == 1 and one[0]["status"] == "planned" and int(one[0]["id"]) == 5
-    with pytest.raises(InputError, match=r"grasp 8 is not planned \(status: collision_part\)"):
-        render(plan_doc, "csv", grasp_id=8)
+        if g["score"] is None:
+            assert row["score"] == ""
+        else:
+            assert float(row["score"]) == pytest.approx(g["score"], abs=1e-9)
+    one = list(csv.DictReader(io.StringIO(render(plan_doc, "csv", grasp_id=1)[".csv"])))
+    assert len(one) == 1 and one[0]["status"] == "planned" and int(one[0]["id"]) == 1
+    with pytest.raises(InputError, match=rf"grasp {COLLIDING} is not planned \(status: collision_part\)"):
+        render(plan_doc, "csv", grasp_id=COLLIDING)
+
+
+def test_grasps_result_is_not_exported(plan_doc):
+    """A grasps result (no robot, no motion) is refused with the command that makes a plan."""
+    doc = grasps_doc(plan_doc)
+    res = load_result(doc)
+    assert res.robot is None
+    for fmt in ("csv", "urscript"):
+        with pytest.raises(InputError, match=r"grasplan plan PART --robot NAME"):
+            render(res, fmt)
+
+
+def grasps_doc(plan_doc) -> dict:
+    """The synthetic plan turned into a ``grasplan.grasps/1`` document (every grasp ok)."""
+    doc = {k: json.loads(json.dumps(v)) for k, v in plan_doc.items() if k != "robot"}
+    doc["schema"] = "grasplan.grasps/1"
+    for g in doc["grasps"]:
+        for k in ("score", "rank", "reason", "q_grasp", "q_pregrasp", "path", "pregrasp_index"):
+            g.pop(k, None)
+        g["status"] = "ok"
+    return doc
 
 
 # ------------------------------------------------------------------------------------------- CLI
@@ -435,24 +514,26 @@ def test_cli_bad_input_exit_3(plan_doc, tmp_path):
     plan_path = tmp_path / "plan.json"
     plan_path.write_text(json.dumps(plan_doc))
     out = tmp_path / "out.script"
+    no_robot = {k: v for k, v in plan_doc.items() if k != "robot"}
     cases = {
         "not json": ("garbage", ["--format", "csv"], "not a JSON file"),
-        "grasps file": (json.dumps({"schema": "grasplan.grasps/1", "grasps": []}), ["--format", "csv"], "not a grasplan plan"),
-        "missing field": (json.dumps({k: v for k, v in plan_doc.items() if k != "robot"}), ["--format", "csv"], "robot"),
+        "grasps file": (json.dumps(grasps_doc(plan_doc)), ["--format", "csv"], "this is a grasps result"),
+        "missing field": (json.dumps(no_robot), ["--format", "csv"], "'robot' is a required property"),
+        "other schema": (json.dumps({"schema": "other/1"}), ["--format", "csv"], "not a grasplan grasps or plan file"),
     }
     for name, (content, opts, msg) in cases.items():
         p = tmp_path / f"{name.replace(' ', '_')}.json"
         p.write_text(content)
         r = _run(["export", str(p), *opts, "-o", str(out)])
         assert r.exit_code == 3, (name, r.output)
-        assert msg in r.output and not out.exists()
+        assert msg in r.output and not out.exists(), (name, r.output)
     r = _run(["export", str(plan_path), "--format", "urscript", "--grasp", "99", "-o", str(out)])
-    assert r.exit_code == 3 and "unknown grasp id 99; planned grasps: 5, 3" in r.output and not out.exists()
+    assert r.exit_code == 3 and "unknown grasp id 99; planned grasps: 1, 0" in r.output and not out.exists()
     for fmt in ("joint-trajectory", "csv"):
-        r = _run(["export", str(plan_path), "--format", fmt, "--grasp", "7", "-o", str(out)])
+        r = _run(["export", str(plan_path), "--format", fmt, "--grasp", str(NOT_TRIED), "-o", str(out)])
         assert r.exit_code == 3 and "not planned (status: not_tried)" in r.output and not out.exists()
     r = _run(["export", str(tmp_path / "missing.json"), "--format", "csv", "-o", str(out)])
-    assert r.exit_code == 3 and not out.exists()
+    assert r.exit_code == 3 and "no such file" in r.output and not out.exists()
 
 
 def test_cli_csv(plan_doc, tmp_path):
@@ -461,20 +542,20 @@ def test_cli_csv(plan_doc, tmp_path):
     out = tmp_path / "grasps.csv"
     r = _run(["export", str(plan_path), "--format", "csv", "-o", str(out)])
     assert r.exit_code == 0, r.output
+    assert out.read_text() == render(plan_doc, "csv")[".csv"]
     assert len(out.read_text().splitlines()) == 1 + len(plan_doc["grasps"])
 
 
+def test_cli_format_choices_come_from_the_registry():
+    from grasplan.export import load_builtin_formats
+
+    r = _run(["export", "--help"])
+    assert r.exit_code == 0
+    for name, f in load_builtin_formats().items():
+        assert name in r.output and f.extension in r.output
+
+
 # ------------------------------------------------------------------------------------- real robot
-def _upstream(*mods):
-    import importlib
-
-    for m in mods:
-        try:
-            importlib.import_module(m)
-        except ImportError as exc:
-            pytest.skip(f"upstream module {m} not available yet ({exc})")
-
-
 def independent_path_free(scene_factory, qs, opening, step=0.01):
     """Interpolate at <= step rad myself and ask a fresh scene about every configuration."""
     scene = scene_factory()
@@ -483,23 +564,17 @@ def independent_path_free(scene_factory, qs, opening, step=0.01):
     return all(scene.is_free(q, opening) for q in dense)
 
 
-def test_default_scene_and_robot_from_plan(tmp_path):
-    """The exporter loads the robot and rebuilds the CollisionScene from the plan file itself."""
-    _upstream("grasplan.robot", "grasplan.scene", "grasplan.gripper", "grasplan.cell")
-    from grasplan.io import sha256_file
-    from grasplan.robot import load_robot
-
-    robot = load_robot("ur5")
-    plan = synthetic_plan(robot)
+def test_default_scene_and_robot_from_plan(tmp_path, ur5):
+    """The exporter rebuilds the robot and the CollisionScene from the plan file itself."""
     part = Path(__file__).resolve().parents[1] / "examples" / "parts" / "box.stl"
-    plan["part"].update(path=str(part), sha256=sha256_file(part))
+    plan = synthetic_plan(ur5, part=part)
     plan_path = tmp_path / "plan.json"
     plan_path.write_text(json.dumps(plan))
     out = tmp_path / "traj.json"
     r = _run(["export", str(plan_path), "--format", "joint-trajectory", "-o", str(out)])
     assert r.exit_code == 0, r.output
     traj = json.loads(out.read_text())
-    check_trajectory(traj, plan, select_grasp(plan), robot, 1.4)
+    check_trajectory(traj, plan, entry(plan, PLANNED_IDS[0]), ur5, 1.4)
     # a part that is not the planned one is refused (the collision check would be meaningless)
     other = Path(__file__).resolve().parents[1] / "examples" / "parts" / "gear.stl"
     out2 = tmp_path / "traj2.json"
@@ -509,37 +584,40 @@ def test_default_scene_and_robot_from_plan(tmp_path):
 
 @pytest.fixture(scope="module")
 def tless20():
-    """TLess20 planned once with the UR5 (top 3). The plan has ~10^6 grasps (every roll of every
-    candidate), so the exports are run in memory (the CLI is exercised on the synthetic plans)."""
+    """TLess20 planned once with the UR5 (top 3), exported in memory; its document is read back
+    once by the full loader."""
     from conftest import paper_part
 
     path = paper_part("TLess20.stl")
-    _upstream("grasplan.planning", "grasplan.grasps", "grasplan.robot", "grasplan.scene")
     from grasplan.mesh import load_part
+    from grasplan.params import PlanParams
     from grasplan.planning import plan as plan_part
-    from grasplan.scene import CollisionScene
 
-    result = plan_part(load_part(path), top=3)
-    doc = result.to_json()
-    if not planned_ids(doc):
+    result = plan_part(load_part(path), planning=PlanParams(top=3))
+    if not result.planned_ids():
         pytest.fail(f"no planned grasp for TLess20: {result.counts()}")
-    gr = result.grasps
+    doc = result.to_json()
 
     def scene_factory():
-        return CollisionScene(result.robot, gr.gripper, gr.cand.part.mesh, gr.T_world_part, gr.cell)
+        from grasplan.scene import CollisionScene
 
-    return {"doc": doc, "robot": result.robot, "result": result, "scene_factory": scene_factory}
+        return CollisionScene(result.robot, result.gripper, result.mesh(), result.T_world_part, result.cell)
+
+    return {"doc": doc, "robot": mini_ur5(), "result": result, "scene_factory": scene_factory}
 
 
 @pytest.mark.slow
 @pytest.mark.paper
 def test_tless20_urscript(tless20, tmp_path):
-    doc, robot = tless20["doc"], tless20["robot"]
-    check_plan(doc)
-    out = write(doc, "urscript", tmp_path / "pick.script", robot=robot)
-    g = select_grasp(doc)
-    assert g["id"] == planned_ids(doc)[0]
-    check_urscript(out.read_text(), doc, g, robot)
+    doc, robot, result = tless20["doc"], tless20["robot"], tless20["result"]
+    loaded = load_result(doc)   # the full check of a real plan's document
+    assert loaded.planned_ids() == result.planned_ids()
+    out = write(result, "urscript", tmp_path / "pick.script")
+    best = result.planned_ids()[0]
+    assert result.select().id == best
+    check_urscript(out.read_text(), doc, entry(doc, best), robot)
+    # the loaded document exports the same program
+    assert render(loaded, "urscript")[".script"] == out.read_text()
 
 
 @pytest.mark.slow
@@ -547,13 +625,12 @@ def test_tless20_urscript(tless20, tmp_path):
 def test_tless20_joint_trajectory(tless20, tmp_path):
     from grasplan.schemas import validate
 
-    doc, robot = tless20["doc"], tless20["robot"]
-    scene = tless20["scene_factory"]()
-    for gid in planned_ids(doc)[:2]:
-        out = write(doc, "joint-trajectory", tmp_path / f"traj{gid}.json", grasp_id=gid, robot=robot, scene=scene)
+    doc, robot, result = tless20["doc"], tless20["robot"], tless20["result"]
+    for gid in result.planned_ids()[:2]:
+        out = write(result, "joint-trajectory", tmp_path / f"traj{gid}.json", grasp_id=gid)
         traj = json.loads(out.read_text())
         validate(traj)
-        g = select_grasp(doc, gid)
+        g = entry(doc, gid)
         t, q, qd = check_trajectory(traj, doc, g, robot, 1.4)
         opening = min(doc["gripper"]["max_opening"], g["width"] + 0.010)
         assert independent_path_free(tless20["scene_factory"], q, opening)
@@ -563,11 +640,11 @@ def test_tless20_joint_trajectory(tless20, tmp_path):
 @pytest.mark.slow
 @pytest.mark.paper
 def test_tless20_csv(tless20):
-    doc = tless20["doc"]
-    text = render(doc, "csv")
+    doc, result = tless20["doc"], tless20["result"]
+    text = render(result, "csv")[".csv"]
     lines = text.splitlines()
     assert len(lines) == 1 + len(doc["grasps"])
-    planned = set(planned_ids(doc))
+    planned = set(result.planned_ids())
     rows = [r_ for r_ in csv.DictReader(io.StringIO(text)) if r_["status"] == "planned"]
     assert {int(r_["id"]) for r_ in rows} == planned
     by_id = {g["id"]: g for g in doc["grasps"] if g["id"] in planned}

@@ -21,13 +21,10 @@ def _run(args):
 
 @pytest.fixture(scope="module")
 def synthetic_plan():
-    from test_export import MiniRobot, synthetic_plan  # noqa: E402  (tests/ is on sys.path)
-    import pinocchio as pin
-    from test_export import ur5_urdf
+    pytest.importorskip("pinocchio")
+    from test_export import mini_ur5, synthetic_plan  # noqa: E402  (tests/ is on sys.path)
 
-    model = pin.buildModelFromUrdf(str(ur5_urdf()))
-    robot = MiniRobot("ur5", model, tuple(model.names[1:]), model.velocityLimit.copy(),
-                      model.lowerPositionLimit.copy(), model.upperPositionLimit.copy())
+    robot = mini_ur5()
     return synthetic_plan(robot), robot
 
 
@@ -97,6 +94,10 @@ def test_plan_validates_and_negatives(synthetic_plan):
     bad = copy.deepcopy(plan)
     bad["part"]["T_world_part"] = bad["part"]["T_world_part"][:3]
     assert any("$.part.T_world_part" in e for e in errors(bad))
+    # the self-contained blocks: the gripper's definition and the robot's source
+    bad = copy.deepcopy(plan)
+    del bad["gripper"]["definition"]
+    assert any("'definition' is a required property" in e for e in errors(bad))
     # a not-planned grasp needs no joint data
     ok = copy.deepcopy(plan)
     assert ok["grasps"][2]["status"] == "not_tried" and "path" not in ok["grasps"][2]
@@ -104,13 +105,13 @@ def test_plan_validates_and_negatives(synthetic_plan):
 
 
 def test_grasps_schema_hand_built(synthetic_plan):
+    from test_export import grasps_doc
+
     plan, _ = synthetic_plan
-    doc = {k: copy.deepcopy(v) for k, v in plan.items() if k != "robot"}
-    doc["schema"] = "grasplan.grasps/1"
-    for g in doc["grasps"]:
-        for k in ("score", "rank", "q_grasp", "q_pregrasp", "path", "pregrasp_index"):
-            g.pop(k, None)
-        g["status"] = "ok"
+    doc = grasps_doc(plan)
+    assert doc["schema"] == "grasplan.grasps/1" and "robot" not in doc
+    assert all(set(g) == {"id", "candidate", "region", "contacts", "normals", "width", "T_part_tcp", "roll", "status"}
+               for g in doc["grasps"])
     assert errors(doc) == []
     doc["grasps"][0]["status"] = "planned"          # a plan status is not a grasps status
     assert any("$.grasps[0].status" in e for e in errors(doc))
@@ -121,10 +122,14 @@ def test_grasps_schema_hand_built(synthetic_plan):
 def test_joint_trajectory_output_validates(synthetic_plan, tmp_path):
     from test_export import RecordingScene
 
-    from grasplan.export import write
+    from grasplan.export import trajectory, write
 
     plan, robot = synthetic_plan
-    out = write(plan, "joint-trajectory", tmp_path / "t.json", robot=robot, scene=RecordingScene())
+    scene = RecordingScene()
+    with pytest.MonkeyPatch.context() as mp:   # the written file, without the part's mesh (not in this plan)
+        mp.setattr(trajectory, "build_scene", lambda res: scene)
+        out = write(plan, "joint-trajectory", tmp_path / "t.json")
+    assert len(scene.calls) == 1
     doc = json.loads(out.read_text())
     assert validate(doc) == "grasplan.joint_trajectory/1"
     bad = copy.deepcopy(doc)
@@ -141,16 +146,7 @@ def test_not_a_grasplan_document():
         validate({"schema": "grasplan.nothing/1"})
 
 
-def _grasps_available():
-    try:
-        import grasplan.grasps  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
 @pytest.mark.slow
-@pytest.mark.skipif(not _grasps_available(), reason="grasplan.grasps (upstream) not available yet")
 def test_grasps_and_plan_cli_outputs_validate(tmp_path, example_part):
     """`grasplan grasps` and `grasplan plan` on the example bracket: both files validate."""
     part = str(example_part("bracket.stl"))
@@ -161,3 +157,7 @@ def test_grasps_and_plan_cli_outputs_validate(tmp_path, example_part):
     r = _run(["plan", part, "--robot", "ur5", "--top", "2", "-o", str(p_out)])
     assert r.exit_code in (0, 4), r.output
     assert validate(json.loads(p_out.read_text())) == "grasplan.plan/1"
+    # and both read back through the full loader (schema, grasps, robot, FK of the planned grasps)
+    from grasplan.result import load_result
+
+    assert load_result(g_out).schema == "grasplan.grasps/1" and load_result(p_out).robot.name == "ur5"

@@ -1,0 +1,193 @@
+"""Region candidates (method="regions", issue 10): samples lie on both convex areas and in the friction
+cone, do not depend on the tessellation or the part's pose, and the chunked search changes nothing."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+from hypothesis import HealthCheck, Phase, given, settings
+from hypothesis import strategies as st
+
+from grasplan import antipodal as ap
+from grasplan import regions as rg
+from grasplan.antipodal import Candidates, find_candidates
+from grasplan.mesh import part_from_trimesh
+from grasplan.tolerance import Tolerance
+from test_antipodal import point_triangle_distance
+
+MU, BETA, SPACING = 0.3, 2.0, 0.002
+
+
+def _regions(mesh, convex=None, tol=None, **kw):
+    convex = np.ones(len(mesh.faces), bool) if convex is None else convex
+    tol = Tolerance.for_mesh(mesh.vertices) if tol is None else tol
+    return find_candidates(mesh, convex, method="regions", spacing=kw.pop("spacing", SPACING), mu=MU,
+                           beta_deg=BETA, tol=tol, **kw)
+
+
+def _slab_pair(size=(0.020, 0.012), gap=0.010, subdivide=None):
+    """Two opposite rectangles (2 triangles each; optionally subdivided) facing away: a slab's faces."""
+    w, h = size
+    q = np.array([[0, 0, 0], [w, 0, 0], [w, h, 0], [0, h, 0]], float)
+    V = np.vstack([q, q + [0, 0, gap]])
+    F = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7]])    # bottom normal -z, top +z
+    if subdivide:
+        V, F = trimesh.remesh.subdivide_to_size(V, F, subdivide)
+    return trimesh.Trimesh(V, F, process=subdivide is not None)   # merge the subdivision's duplicate vertices
+
+
+def _sorted(c: Candidates):
+    key = np.round(c.contacts.reshape(len(c), 6) / 1e-9).astype(np.int64)
+    o = np.lexsort(key.T[::-1])
+    return c.contacts[o]
+
+
+def test_samples_on_both_areas_inside_friction_cone():
+    mesh = trimesh.creation.box(extents=[0.060, 0.045, 0.014])
+    tol = Tolerance.for_mesh(mesh.vertices)
+    c = _regions(mesh)
+    assert len(c) > 100
+    # each contact on its own triangle, the two faces in the region's two (distinct) areas
+    for k in range(2):
+        assert point_triangle_distance(mesh.triangles[c.faces[:, k]], c.contacts[:, k]).max() <= tol.distance
+    areas = rg.convex_areas(mesh, np.ones(len(mesh.faces), bool), tol)
+    la, lb = areas.label[c.faces[:, 0]], areas.label[c.faces[:, 1]]
+    assert (la != lb).all()
+    for r in np.unique(c.region):        # one region = one pair of areas
+        sel = c.region == r
+        assert len(np.unique(la[sel])) == 1 and len(np.unique(lb[sel])) == 1
+    d = c.contacts[:, 1] - c.contacts[:, 0]
+    w = np.linalg.norm(d, axis=1)
+    assert np.allclose(w, c.width) and (w <= 0.05).all()
+    dn = d / w[:, None]
+    half = np.arctan(MU)
+    assert (np.arccos(np.clip(np.einsum("ij,ij->i", dn, -c.normals[:, 0]), -1, 1)) <= half + 1e-9).all()
+    assert (np.arccos(np.clip(np.einsum("ij,ij->i", dn, c.normals[:, 1]), -1, 1)) <= half + 1e-9).all()
+    assert np.allclose(c.normals, mesh.face_normals[c.faces])
+    # the 60 mm pair is wider than the opening: only the 45 mm and 14 mm pairs; lattice counts of a
+    # 2 mm grid centred on each rectangle strictly inside (60 x 14: 29 x 7, 60 x 45: 29 x 23)
+    widths = np.unique(np.round(c.width, 9))
+    assert np.allclose(widths, [0.014, 0.045])
+    assert np.count_nonzero(np.isclose(c.width, 0.014)) == 29 * 23
+    assert np.count_nonzero(np.isclose(c.width, 0.045)) == 29 * 7
+
+
+def test_face_pair_and_its_subdivision_give_the_same_samples():
+    coarse = _regions(_slab_pair())
+    fine_mesh = _slab_pair(subdivide=0.00025)
+    assert len(fine_mesh.faces) >= 10_000
+    fine = _regions(fine_mesh)
+    assert len(coarse) == 9 * 5
+    assert len(fine) == len(coarse)
+    assert np.allclose(_sorted(fine), _sorted(coarse), atol=1e-9)
+
+
+def test_region_centroid_is_sampled_for_a_strip_thinner_than_the_pitch():
+    # a 1 mm wide strip (thinner than the 2 mm pitch, offset from the lattice) still gets its centroid
+    c = _regions(_slab_pair(size=(0.020, 0.001)))
+    assert len(c) == 9
+    assert np.allclose(c.contacts[:, 0, 1], 0.0005)
+
+
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow],
+          phases=[Phase.explicit, Phase.generate])
+@given(quat=st.tuples(*[st.floats(-1, 1) for _ in range(4)]).filter(lambda q: np.linalg.norm(q) > 0.1),
+       shift=st.tuples(*[st.floats(-0.5, 0.5) for _ in range(3)]))
+def test_invariant_under_rigid_motion(quat, shift):
+    base = trimesh.Trimesh(*trimesh.remesh.subdivide_to_size(
+        trimesh.creation.box(extents=[0.031, 0.022, 0.013]).vertices,
+        trimesh.creation.box(extents=[0.031, 0.022, 0.013]).faces, 0.004), process=False)
+    tol = Tolerance.for_mesh(base.vertices)
+    T = trimesh.transformations.quaternion_matrix(np.asarray(quat) / np.linalg.norm(quat))
+    T[:3, 3] = shift
+    moved = base.copy()
+    moved.apply_transform(T)
+    a, b = _regions(base, tol=tol), _regions(moved, tol=tol)
+    assert len(a) > 0 and len(a) == len(b)
+    assert np.array_equal(a.region, b.region)
+    back = a.transformed(T)
+    assert np.allclose(_sorted(back), _sorted(b), atol=tol.distance)
+
+
+def test_chunked_search_equals_unchunked(monkeypatch, example_part):
+    from grasplan.convexity import classify_convexity
+    from grasplan.mesh import load_part
+
+    part = load_part(example_part("gear.stl"), units="mm")
+    convex = classify_convexity(part.mesh, tol=part.tol)
+    ref = _regions(part.mesh, convex, part.tol)
+    paper_ref = find_candidates(part.mesh, convex, tol=part.tol, method="paper")
+    monkeypatch.setattr(ap, "_QUERY_ROWS", 7)
+    monkeypatch.setattr(rg, "_CHUNK", 101)
+    small = _regions(part.mesh, convex, part.tol)
+    paper_small = find_candidates(part.mesh, convex, tol=part.tol, method="paper")
+    assert len(ref) > 0
+    assert np.array_equal(ref.faces, small.faces) and np.array_equal(ref.contacts, small.contacts)
+    assert np.array_equal(paper_ref.faces, paper_small.faces)
+
+
+def test_stream_pairs_superset_of_brute_force_with_mixed_sizes():
+    rng = np.random.default_rng(3)
+    k = 400
+    c = rng.uniform(-0.03, 0.03, (k, 3))
+    n = rng.normal(size=(k, 3))
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    n[k // 2:] = -n[:k // 2] + rng.normal(scale=0.005, size=(k // 2, 3))     # near-antipodal partners
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    lat = rng.choice([1e-4, 1e-3, 2e-2], size=k)
+    tol = Tolerance.for_scale(0.1)
+    got = set()
+    for a, b in ap.stream_pairs(c, n, lat, reach=0.05, beta_deg=BETA, tol=tol):
+        pairs = list(zip(a.tolist(), b.tolist()))
+        assert not (set(pairs) & got)                                         # each pair once
+        got.update(pairs)
+    A, B = np.triu_indices(k, 1)
+    ok = np.einsum("ij,ij->i", n[A], n[B]) <= -np.cos(np.radians(BETA))
+    d = c[B] - c[A]
+    ax = n[A] - n[B]
+    ax /= np.linalg.norm(ax, axis=1, keepdims=True)
+    along = np.einsum("ij,ij->i", d, ax)
+    lateral = np.linalg.norm(d - along[:, None] * ax, axis=1)
+    ok &= (lateral <= lat[A] + lat[B]) & (np.abs(along) <= 0.05)
+    want = set(zip(A[ok].tolist(), B[ok].tolist()))
+    assert want and want <= got
+
+
+def test_candidate_count_does_not_follow_the_tessellation():
+    box = trimesh.creation.box(extents=[0.060, 0.045, 0.014])
+    fine = trimesh.Trimesh(*trimesh.remesh.subdivide_to_size(box.vertices, box.faces, 0.0015), process=False)
+    n0, n1 = len(_regions(box)), len(_regions(fine))
+    assert abs(n1 - n0) <= 0.01 * n0
+
+
+def test_region_json_round_trip_and_old_documents():
+    c = _regions(trimesh.creation.box(extents=[0.03, 0.02, 0.01]))
+    back = Candidates.from_json(c.to_json())
+    assert np.array_equal(back.region, c.region) and (c.region >= 0).all()
+    old = c.to_json()
+    del old["region"]
+    assert (Candidates.from_json(old).region == -1).all()
+    assert np.array_equal(c.subset([2, 0]).region, c.region[[2, 0]])
+
+
+def test_bad_spacing_and_method():
+    mesh = _slab_pair()
+    with pytest.raises(ValueError, match="spacing"):
+        find_candidates(mesh, np.ones(4, bool), method="regions", spacing=0.0)
+    with pytest.raises(ValueError, match="method"):
+        find_candidates(mesh, np.ones(4, bool), method="faces")  # type: ignore[arg-type]
+
+
+def test_part_pipeline_regions(example_part):
+    from grasplan.candidates import CandidateParams, compute_candidates
+    from grasplan.mesh import load_part
+
+    part = load_part(example_part("bracket.stl"), units="mm")
+    try:
+        params = CandidateParams(method="regions")
+    except TypeError:
+        pytest.skip("CandidateParams has no method field in this checkout")
+    r = compute_candidates(part, params)
+    assert len(r.candidates) > 0
+    assert r.convex[r.candidates.faces].all()
+
