@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import statistics
 import sys
 import time
@@ -55,10 +56,12 @@ def main() -> int:
         if target is not None and med > target:
             slow.append(f"{path.name}: {med:.3f} s > {target} s")
         rows.append((path.name, part.triangles, int(len(r.mesh.faces)), round(len(r.mesh.faces) / part.triangles, 2),
-                     r.facets, r.surfaces, r.boundary_edges, r.shifted_vertices, r.clamped, med))
+                     r.facets, r.surfaces, r.boundary_edges, r.shifted_vertices, r.clamped, med,
+                     f"{med / target:.2f}" if target is not None else "-"))
     print(f"BLM at alpha = {alpha * 1e3:g} mm, gamma = {args.gamma:g} deg, median of {args.runs} runs (cold mesh caches)")
     print(table(rows, header=("part", "tri in", "tri out", "ratio", "facets", "surfaces", "bnd edges",
-                              "new verts", "clamped", "median s")))
+                              "new verts", "clamped", "median s", "median / target")))
+    print(f"peak RSS: {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MiB")
     for s in slow:
         print(f"SLOW: {s}")
     return 1 if slow else 0

@@ -244,8 +244,9 @@ def test_index_search_equals_brute_force(name, blm):
     ok = (dist <= mo + eps) & (miss <= eps)
     ref = set(zip(ids[A[ok]].tolist(), ids[B[ok]].tolist()))
     geo = ap._FaceGeometry.of(np.asarray(mesh.vertices), np.asarray(mesh.faces))
-    i, j = ap._index_pairs(geo, ids, max_opening=mo, beta_deg=BETA, epsilon=eps, tol=part.tol)
-    pre = set(zip(i.tolist(), j.tolist()))
+    chunks = list(ap.stream_pairs(geo.c[ids], geo.n[ids], np.full(len(ids), 0.5 * eps), reach=mo + eps,
+                                  beta_deg=BETA, tol=part.tol))
+    pre = {(int(ids[a]), int(ids[b])) for i, j in chunks for a, b in zip(i.tolist(), j.tolist())}
     assert ref <= pre
     assert set(map(tuple, fast.faces.tolist())) <= ref
 

@@ -168,7 +168,8 @@ def test_paper_part_ok_and_rejected_independently_checked(paper, name, pose_inde
     the next stable pose (leaning, p = 0.069)."""
     from dataclasses import replace
 
-    from grasplan.candidates import CandidateParams, compute_candidates
+    from grasplan.candidates import compute_candidates
+    from grasplan.params import CandidateParams
 
     part = load_part(paper(name))
     cell = replace(load_cell("table"), pose_index=pose_index)
