@@ -22,15 +22,15 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from grasplan.candidates import compute_candidates  # noqa: E402
-from grasplan.cell import load_cell, stable_pose  # noqa: E402
-from grasplan.collision import GripperCollider  # noqa: E402
-from grasplan.frames import grasp_frames  # noqa: E402
-from grasplan.gripper import load_gripper  # noqa: E402
-from grasplan.mesh import load_part  # noqa: E402
-from grasplan.params import CandidateParams, GraspParams  # noqa: E402
-from grasplan.thinning import thin_candidates  # noqa: E402
-from grasplan.units import parse_length  # noqa: E402
+from grasplan.candidates import compute_candidates
+from grasplan.cell import load_cell, stable_pose
+from grasplan.collision import GripperCollider
+from grasplan.frames import grasp_frames
+from grasplan.gripper import load_gripper
+from grasplan.mesh import load_part
+from grasplan.params import CandidateParams, GraspParams
+from grasplan.thinning import thin_candidates
+from grasplan.units import parse_length
 
 PAPER = Path(os.environ.get("GRASPLAN_PAPER_PARTS", ROOT.parent / "shared" / "parts" / "paper"))
 TARGET_PER_S = 20_000

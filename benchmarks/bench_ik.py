@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import resource
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -16,7 +17,6 @@ from grasplan.ik import solve_ik
 from grasplan.mesh import load_part
 from grasplan.robot import load_robot
 from grasplan.scene import CollisionScene
-from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 TARGET_IK_MS = 1.0  #: UR5 closed-form solve, median ms

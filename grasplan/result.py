@@ -398,9 +398,9 @@ def result_from_document(doc: Any, *, where: str = "document", part_mesh=None) -
         raise InputError(f"{where}: $.grasps must be a list")
     if len(grasps) > SCHEMA_SAMPLE:
         step = max(1, len(grasps) // SCHEMA_SAMPLE)
-        sample = [g for i, g in enumerate(grasps) if i % step == 0
+        picked = [i for i, g in enumerate(grasps) if i % step == 0
                   or (isinstance(g, dict) and g.get("status") == "planned")]
-        _validate(validate, {**doc, "grasps": sample}, schema, where)
+        _validate(validate, {**doc, "grasps": [grasps[i] for i in picked]}, schema, where, picked)
     else:
         _validate(validate, doc, schema, where)
     M = len(grasps)
@@ -468,11 +468,16 @@ def result_from_document(doc: Any, *, where: str = "document", part_mesh=None) -
                       part_pose_source=str((doc.get("cell") or {}).get("part_pose", "stable_pose")), part_mesh=part_mesh)
 
 
-def _validate(validate, doc, schema, where):
+def _validate(validate, doc, schema, where, picked=None):
+    import re
+
     try:
         validate(doc, schema)
     except InputError as exc:
-        raise InputError(f"{where}: {exc}") from None
+        msg = str(exc)
+        if picked is not None:  # name the grasp in the file, not its place in the sample
+            msg = re.sub(r"\$\.grasps\[(\d+)\]", lambda m: f"$.grasps[{picked[int(m.group(1))]}]", msg)
+        raise InputError(f"{where}: {msg}") from None
     except RecursionError:
         raise InputError(f"{where}: JSON nested too deeply; not a grasplan result") from None
 

@@ -113,6 +113,6 @@ def distinct_order(T_part_tcp: np.ndarray, order: np.ndarray, *, min_distance: f
         if len(nb):
             # angle of R_k^T R_j: trace = 1 + 2 cos(theta)
             tr = np.einsum("ij,nij->n", R[k], R[nb])
-            close = (tr - 1.0) / 2.0 >= cos_min
+            close = (tr - 1.0) / 2.0 >= cos_min - 1e-9  # a roll of exactly the angle counts as close
             dup[nb[close]] = True
     return np.concatenate([order[chosen], order[dup]])

@@ -23,7 +23,11 @@ from scipy.spatial.transform import Rotation
 
 from grasplan.errors import InputError, PlanningError
 from grasplan.export import FORMATS, render, write
-from grasplan.export.trajectory import densify, joint_trajectory, point_to_polyline_distance
+from grasplan.export.trajectory import (
+    densify,
+    joint_trajectory,
+    point_to_polyline_distance,
+)
 from grasplan.result import PlanResult, load_result
 
 pin = pytest.importorskip("pinocchio")
@@ -109,8 +113,10 @@ def rot_z(angle):
 
 
 def planned_entry(robot, gid, q_grasp, T_world_part, *, width=0.02, score=1.0, rank=0, mid=None,
-                  T_world_base=np.eye(4)):
-    """A planned grasp whose q_grasp reaches its T_part_tcp (FK), pregrasp 5 cm back along -z."""
+                  T_world_base=None):
+    """A planned grasp whose q_grasp reaches its T_part_tcp (FK), pregrasp 5 cm back along -z;
+    ``T_world_base`` (4, 4): the robot's placement (default identity)."""
+    T_world_base = np.eye(4) if T_world_base is None else np.asarray(T_world_base, dtype=float)
     T_base_tcp = fk_tool(robot, q_grasp) @ T_FLANGE_TCP
     T_pre = T_base_tcp @ trans(z=-0.05)
     q_pre = ik_tool(robot, T_pre @ np.linalg.inv(T_FLANGE_TCP), q_grasp)
@@ -149,7 +155,7 @@ def robot_block(name="ur5", T_world_base=None) -> dict:
     return block
 
 
-def synthetic_plan(robot, *, T_world_base=np.eye(4), part=None) -> dict:
+def synthetic_plan(robot, *, T_world_base=None, part=None) -> dict:
     """A ``grasplan.plan/1`` document: grasps 0 and 1 planned (1 is the best), 2 not_tried,
     3 collision_part. Poses by Pinocchio here (``robot``: a MiniRobot); the gripper, cell and robot
     blocks are grasplan's embedded definitions. ``part``: a mesh file to record (default: a
@@ -158,7 +164,7 @@ def synthetic_plan(robot, *, T_world_base=np.eye(4), part=None) -> dict:
     from grasplan.gripper import load_gripper
     from grasplan.io import sha256_file
 
-    T_world_base = np.asarray(T_world_base, dtype=float)
+    T_world_base = np.eye(4) if T_world_base is None else np.asarray(T_world_base, dtype=float)
     T_world_part = T_world_base @ trans(0.45, 0.0, 0.0) @ rot_z(0.4)
     g0 = planned_entry(robot, 0, [0.3, -1.3, 1.8, -2.07, -1.57, 0.5], T_world_part, score=0.7, rank=1,
                        T_world_base=T_world_base)

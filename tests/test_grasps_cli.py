@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from grasplan.cell import load_cell, parse_part_pose, stable_pose
 from grasplan.cli import main
-from grasplan.cell import parse_part_pose, stable_pose, load_cell
 from grasplan.errors import InputError
 from grasplan.grasps import compute_grasps
 from grasplan.mesh import load_part
@@ -138,9 +138,9 @@ def test_candidate_search_follows_the_gripper_opening(tmp_path):
     import trimesh
 
     from grasplan.candidates import compute_candidates
-    from grasplan.params import DEFAULT_MAX_OPENING, CandidateParams
     from grasplan.gripper import GRIPPER_DIR
     from grasplan.mesh import part_from_trimesh
+    from grasplan.params import DEFAULT_MAX_OPENING, CandidateParams
 
     text = (GRIPPER_DIR / "schunk_egp_c_40.yaml").read_text()
     assert "max_opening: 0.05" in text

@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from grasplan.paths import interpolate_path, path_free_fn, plan_joint_path
 
@@ -81,7 +82,7 @@ def test_direct_segment_when_free():
 
 
 def test_invalid_or_unreachable_goal_gives_none():
-    enclosed = lambda q: not (0.5 < np.max(np.abs(q - 1.0)) < 0.6)  # noqa: E731  (a box shell around (1, 1))
+    enclosed = lambda q: not (0.5 < np.max(np.abs(q - 1.0)) < 0.6)
     q0 = np.array([-1.0, -1.0])
     assert plan_joint_path(wall_2d, q0, np.array([0.0, 0.0]), lower=LO2, upper=HI2) is None  # goal in the wall
     assert plan_joint_path(wall_2d, q0, np.array([3.0, 0.0]), lower=LO2, upper=HI2) is None  # outside limits
@@ -104,6 +105,24 @@ def test_interpolate_path_properties(k, n, step, seed):
     np.testing.assert_array_equal(d[-1], path[-1])
     for w in path:  # every waypoint is in the densified path
         assert np.min(np.max(np.abs(d - w), axis=1)) < 1e-12
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.integers(2, 6), st.integers(1, 6), st.floats(0.002, 0.05), st.integers(0, 2**31 - 1))
+def test_interpolate_path_repeated_waypoints_and_index(k, n, step, seed):
+    """The one densifier (planner, trajectory export, viewer): a repeated waypoint adds no point,
+    ``return_index`` maps every waypoint (repeats included) onto its row, and no segment is split
+    more finely than ceil(max |dq| / step)."""
+    rng = np.random.default_rng(seed)
+    base = rng.uniform(-1, 1, size=(k, n))
+    path = np.repeat(base, rng.integers(1, 4, size=k), axis=0)
+    d, idx = interpolate_path(path, step=step, return_index=True)
+    assert idx.shape == (len(path),) and idx[0] == 0 and idx[-1] == len(d) - 1 and np.all(np.diff(idx) >= 0)
+    np.testing.assert_allclose(d[idx], path, atol=1e-12)
+    assert np.all(np.max(np.abs(np.diff(d, axis=0)), axis=1) > 0)  # no repeated row
+    assert np.max(np.abs(np.diff(d, axis=0))) <= step + 1e-12
+    pieces = np.ceil(np.max(np.abs(np.diff(base, axis=0)), axis=1) / step)
+    assert len(d) == 1 + int(pieces.sum())
 
 
 # --------------------------------------------------------------------------------------------------

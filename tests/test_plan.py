@@ -209,6 +209,27 @@ def check_distinct_ranking(ranked: list[dict], plan_params: dict) -> None:
         assert not _near(T, k, np.arange(k), dist * (1 - 1e-6), ang - 1e-6).any()
 
 
+def check_scores(doc: dict, mesh) -> None:
+    """The documented default score, recomputed from the file: (0.4 center + 0.4 top + 0.2 width)
+    with center = 1 - min(1, |TCP - centre of mass| / (half the bounding-box diagonal)),
+    top = max(0, -z_tcp . z_world), width = (max_opening - width) / max_opening."""
+    assert doc["plan_params"]["score_weights"] == [["center", 0.4], ["top", 0.4], ["width", 0.2]]
+    ranked = [g for g in doc["grasps"] if g["rank"] is not None]
+    assert ranked
+    T = np.array([g["T_part_tcp"] for g in ranked])
+    w = np.array([g["width"] for g in ranked])
+    T_world_part = np.asarray(doc["part"]["T_world_part"])
+    assert mesh.is_watertight
+    com = np.asarray(mesh.center_mass)
+    r = 0.5 * np.linalg.norm(mesh.bounds[1] - mesh.bounds[0])
+    center = 1.0 - np.minimum(1.0, np.linalg.norm(T[:, :3, 3] - com, axis=1) / r)
+    top = np.maximum(0.0, -(T[:, :3, 2] @ T_world_part[:3, :3].T)[:, 2])
+    mo = float(doc["gripper"]["max_opening"])
+    width = (mo - w) / mo
+    expected = 0.4 * center + 0.4 * top + 0.2 * width
+    np.testing.assert_allclose([g["score"] for g in ranked], expected, atol=1e-7)
+
+
 def check_plan_doc(doc: dict, top: int):
     assert doc["schema"] == "grasplan.plan/1"
     r = doc["robot"]
@@ -251,6 +272,7 @@ TOP = 5
 @pytest.fixture(scope="module", params=PAPER)
 def paper_plan(request):
     from conftest import paper_part
+
     from grasplan.mesh import load_part
     from grasplan.params import PlanParams
     from grasplan.planning import plan
@@ -348,6 +370,7 @@ def test_cli_plan_bracket_independently_verified(tmp_path, example_part):
     planned = [g for g in doc["grasps"] if g["status"] == "planned"]
     assert len(planned) == 3
     part = load_part(example_part("bracket.stl"), units="mm")
+    check_scores(doc, part.mesh)
     robot = load_robot("ur5")
     chk = IndependentChecker(robot, part.mesh, doc["part"]["T_world_part"], doc["gripper"]["T_flange_tcp"])
     for g in planned:
@@ -359,6 +382,21 @@ def test_cli_plan_bracket_independently_verified(tmp_path, example_part):
     assert r.exit_code == 0, r.output
     doc2 = json.loads(out2.read_text())
     assert [g.get("path") for g in doc2["grasps"]] == [g.get("path") for g in doc["grasps"]]
+
+
+def test_plan_params_are_validated_and_old_keywords_are_gone(example_part):
+    import grasplan
+    from grasplan.errors import InputError
+    from grasplan.params import PlanParams
+
+    with pytest.raises(InputError, match=r"--top \(top\): must be >= 1.*got 0"):
+        PlanParams(top=0)
+    with pytest.raises(InputError, match=r"--time-limit \(time_limit_per_query\).*got -1"):
+        PlanParams(time_limit_per_query=-1.0)
+    with pytest.raises(InputError, match=r"score_weights: unknown term\(s\) \['nope'\]"):
+        PlanParams(score_weights=(("nope", 1.0),))
+    with pytest.raises(TypeError):
+        grasplan.plan(example_part("box.stl"), "ur5", top=3)
 
 
 def test_cli_unknown_robot_exit_3_nothing_written(tmp_path, example_part):
@@ -382,9 +420,6 @@ def test_cli_out_of_reach_exit_4_file_explains(tmp_path, example_part):
     assert tried and all(g["status"] == "unreachable" for g in tried)
 
 
-@pytest.mark.xfail(strict=True, reason="grasplan.scoring.distinct_order compares cos(angle) >= cos(distinct_angle_deg) "
-                   "without tolerance: TCP frames rolled by exactly the roll step (15 deg, the default "
-                   "--distinct-angle too) count as distinct or duplicate by floating-point noise")
 def test_distinct_ranking_at_the_roll_step(example_part):
     """Two rolls of one candidate exactly --distinct-angle (15 deg) apart, same TCP origin, are
     'within' the angle: the second must rank behind a distinct grasp. With the defaults the bracket's

@@ -5,12 +5,17 @@ import copy
 import json
 
 import jsonschema
-import numpy as np
 import pytest
 from click.testing import CliRunner
 
 from grasplan.errors import InputError
-from grasplan.schemas import SCHEMA_FILES, available_schemas, errors, load_schema, validate
+from grasplan.schemas import (
+    SCHEMA_FILES,
+    available_schemas,
+    errors,
+    load_schema,
+    validate,
+)
 
 
 def _run(args):
@@ -22,7 +27,7 @@ def _run(args):
 @pytest.fixture(scope="module")
 def synthetic_plan():
     pytest.importorskip("pinocchio")
-    from test_export import mini_ur5, synthetic_plan  # noqa: E402  (tests/ is on sys.path)
+    from test_export import mini_ur5, synthetic_plan
 
     robot = mini_ur5()
     return synthetic_plan(robot), robot

@@ -24,7 +24,14 @@ import pytest
 from grasplan.errors import InputError
 from grasplan.mesh import load_part
 from grasplan.result import load_result
-from grasplan.viewer import STATUS_COLORS, build_data, build_html, decimate_mesh, densify_path, write_viewer
+from grasplan.viewer import (
+    STATUS_COLORS,
+    build_data,
+    build_html,
+    decimate_mesh,
+    densify_path,
+    write_viewer,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 BRACKET = ROOT / "examples" / "parts" / "bracket.stl"
@@ -371,9 +378,6 @@ def test_malformed_grasp_is_named_small_and_unsampled(bracket_plan):
         load_result({**doc, "grasps": grasps})
 
 
-@pytest.mark.xfail(strict=True, reason="grasplan.result.result_from_document validates a sample of a large "
-                   "document with the JSON Schema and reports the sample's index ($.grasps[1]) instead of the "
-                   "grasp's own index (grasps[7])")
 def test_malformed_grasp_is_named(bracket_plan):
     doc, _ = bracket_plan
     grasps = [dict(g) for g in doc["grasps"]]
