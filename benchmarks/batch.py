@@ -35,7 +35,9 @@ def make_catalogue(folder: Path, n: int, seed: int = 0) -> list[Path]:
     import trimesh
     from scipy.spatial.transform import Rotation
 
-    sources = sorted(p for p in PAPER.glob("*") if p.suffix.lower() in (".stl", ".obj", ".ply")) if PAPER.is_dir() else []
+    sources = []
+    if PAPER.is_dir():
+        sources = sorted(p for p in PAPER.glob("*") if p.suffix.lower() in (".stl", ".obj", ".ply"))
     sources += sorted(EXAMPLES.glob("*.stl"))
     rng = np.random.default_rng(seed)
     meshes = [trimesh.load(str(p), force="mesh", process=False) for p in sources]

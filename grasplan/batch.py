@@ -566,10 +566,6 @@ def _plan_one(payload: dict, local: Path, out: Path, row: dict, log: list[str]) 
 
 
 # ---------------------------------------------------------------------------------------- engines
-class _WorkerDied(Exception):
-    pass
-
-
 def _iter_local(jobs: Sequence[PartJob], *, workers: int, staging: Path, config_dirs: Sequence[str]
                 ) -> Iterator[tuple[PartJob, dict, Path | None]]:
     """Run ``jobs`` on a spawn process pool; yields (job, outcome, folder the files are in).
@@ -774,6 +770,13 @@ def _pending_row(job: PartJob) -> dict:
                       "timing_s": {}, "error": "not run (the batch was interrupted); rerun to finish"})
 
 
+def _file_size(path: str) -> int:
+    try:
+        return os.stat(path).st_size
+    except OSError:
+        return 0
+
+
 @contextlib.contextmanager
 def _lock(out_dir: Path) -> Iterator[None]:
     with open(out_dir / LOCK_FILE, "w") as f:
@@ -843,6 +846,8 @@ def run_batch(parts: Sequence[str | os.PathLike], out_dir: str | os.PathLike, *,
                 rows[i] = {**row, "part": job.path, "resumed": True}
             else:
                 todo.append(job)
+        # largest files first: the long parts do not end up alone at the tail (rows keep input order)
+        todo.sort(key=lambda j: -_file_size(j.path))
         position = {id(j): i for i, j in enumerate(jobs)}
         t0 = time.perf_counter()
         state = {"done": len(rows), "failed": sum(r["status"] in (STATUS_BAD, STATUS_ERROR) for r in rows.values()),
@@ -960,7 +965,8 @@ _INDEX_TEMPLATE = """<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>{title}</title>
 <style>
 body {{ font: 14px system-ui, sans-serif; margin: 1.5em; }}
-table {{ border-collapse: collapse; }} th, td {{ padding: .25em .7em; border-bottom: 1px solid #ddd; text-align: left; }}
+table {{ border-collapse: collapse; }}
+th, td {{ padding: .25em .7em; border-bottom: 1px solid #ddd; text-align: left; }}
 th {{ cursor: pointer; user-select: none; background: #f4f4f4; }} th:after {{ content: " \\2195"; color: #aaa; }}
 tr.planned td:nth-child(2) {{ color: #1a7f37; }} tr.nothing_planned td:nth-child(2) {{ color: #9a6700; }}
 tr.bad_input td:nth-child(2), tr.error td:nth-child(2) {{ color: #cf222e; }}
