@@ -47,7 +47,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from .antipodal import Candidates, _ccw, _clip_edges, stream_pairs
+from .antipodal import Candidates, _clip_edges, stream_pairs
 from .thinning import thin_candidates
 from .tolerance import Tolerance
 

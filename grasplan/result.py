@@ -193,8 +193,8 @@ class PlanResult:
 
     @property
     def retreat_distance(self) -> float:
-        """Straight retreat after closing, m (the cell's, else the approach back-off)."""
-        return float(getattr(self.cell, "retreat_distance", None) or self.params.planning.backoff)
+        """Straight retreat after closing, m: back along the approach, the back-off."""
+        return float(self.params.planning.backoff)
 
     def counts(self) -> dict:
         """Grasps per status (every status of this result's stage) and ``grasps`` (the total)."""
@@ -558,18 +558,12 @@ def load_result(source: str | os.PathLike | dict | PlanResult, *, part: str | os
     ``allow_other_part``."""
     if isinstance(source, PlanResult):
         res = source
-        where = "result"
-        base = None
+    elif isinstance(source, dict):
+        res = result_from_document(source, where="document")
     else:
-        where = str(source) if not isinstance(source, dict) else "document"
-        doc = source if isinstance(source, dict) else read_document(source)
-        base = None if isinstance(source, dict) else Path(source).resolve().parent
-        res = result_from_document(doc, where=where)
-        if base is not None:
-            res = replace(res, origin=Path(source).resolve())
+        res = replace(result_from_document(read_document(source), where=str(source)), origin=Path(source).resolve())
     if load_mesh and (res.part_mesh is None or part is not None):
-        res = replace(res, part_mesh=load_part_mesh(res.part, part=part, search_dirs=(base,) if base else (),
-                                                    allow_other_part=allow_other_part))
+        res = replace(res, part_mesh=res.mesh(part, allow_other_part=allow_other_part))
     return res
 
 

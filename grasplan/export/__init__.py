@@ -26,6 +26,7 @@ from ..errors import InputError
 from .registry import (
     DEFAULT_MAX_ACCEL,
     FORMATS,
+    PROGRAM_NAME,
     ExportFormat,
     ExportOptions,
     get_format,
@@ -55,26 +56,16 @@ def load_builtin_formats() -> dict[str, ExportFormat]:
     return FORMATS
 
 
-def _as_result(plan, part=None):
-    from ..result import PlanResult, load_result
-
-    if isinstance(plan, PlanResult) and part is None:
-        return plan
-    return load_result(plan, part=part)
-
-
 def render(plan, fmt: str, *, grasp_id: int | None = None, part=None, **options) -> dict[str, str]:
     """The export's files as ``{extension: text}`` (nothing written). ``plan``: a
     :class:`~grasplan.result.PlanResult`, a plan file path or a parsed plan document."""
+    from ..result import load_result
+
     f = get_format(fmt)
-    res = _as_result(plan, part)
+    res = load_result(plan, part=part, load_mesh=part is not None)  # a PlanResult is passed through
     if res.robot is None:
         raise InputError("exports need a plan (robot, IK, paths); this is a grasps result: run "
                          "`grasplan plan PART --robot NAME -o plan.json` first")
-    if part is not None and res.part_mesh is None:
-        from ..result import load_result
-
-        res = load_result(res, part=part, load_mesh=True)
     opts = ExportOptions(grasp_id=grasp_id, **options)
     if f.per_grasp:
         res.select(grasp_id)  # a planned grasp, or an error that lists them
@@ -88,8 +79,7 @@ def output_paths(fmt: str, path: str | os.PathLike) -> list[Path]:
     """The files ``write(..., fmt, path)`` creates: ``path`` and, for multi-file formats, its
     siblings with the format's other extensions (e.g. KRL's ``.dat``)."""
     f = get_format(fmt)
-    extra = getattr(f, "extra_extensions", ())
-    return [Path(path)] + [Path(path).with_suffix(e) for e in extra]
+    return [Path(path)] + [Path(path).with_suffix(e) for e in f.extra_extensions]
 
 
 def write(plan, fmt: str, path: str | os.PathLike, *, grasp_id: int | None = None, part=None,
@@ -104,15 +94,16 @@ def write(plan, fmt: str, path: str | os.PathLike, *, grasp_id: int | None = Non
     path = Path(path)
     f = get_format(fmt)
     if f.program_named_by_file and "program_name" not in options:
-        import re
-
-        if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]{0,23}", path.stem):
+        if not PROGRAM_NAME.fullmatch(path.stem):
             raise InputError(f"{path.name}: a {fmt} program is named after its file; use -o NAME{f.extension} with "
                              "NAME a letter then letters, digits or _ (at most 24 characters), e.g. pick_part1"
                              f"{f.extension}")
         options["program_name"] = path.stem
     files = render(plan, fmt, grasp_id=grasp_id, part=part, **options)
-    targets = [(path if k == 0 else path.with_suffix(ext), text) for k, (ext, text) in enumerate(files.items())]
+    paths = output_paths(fmt, path)
+    if len(paths) != len(files):
+        raise AssertionError(f"format {fmt!r} rendered {list(files)}, its registration names {len(paths)} files")
+    targets = list(zip(paths, files.values()))
     written: list[Path] = []
     try:
         for target, text in targets:  # each atomically; a failure removes the ones already written

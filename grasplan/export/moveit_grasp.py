@@ -23,7 +23,7 @@ One message per planned grasp, best first (or only ``--grasp ID``), in the field
     ``min_distance`` = the plan's back-off (the planner verified the whole approach).
 ``post_grasp_retreat``
     direction = the TCP's -z in ``world`` (straight back out), distance = the plan's retreat
-    distance (the cell's ``retreat_distance``, else the back-off).
+    distance (``PlanResult.retreat_distance``: the back-off).
 ``post_place_retreat``
     the same as ``post_grasp_retreat`` (grasplan plans no place).
 ``max_contact_force``

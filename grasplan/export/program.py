@@ -18,6 +18,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
+from .registry import ExportOptions
+
+#: slack (deg) when checking controller angles against the limits: the URDF limits are rad and the
+#: plan's joint values may sit exactly on a limit
+LIMIT_TOL_DEG = 1e-6
 
 _UNSAFE = re.compile(r"[^A-Za-z0-9 _.,:/+=()\-]")
 
@@ -103,8 +108,138 @@ def motion_program(plan, grasp_id: int | None = None, *, source: str = "") -> Mo
         q_home=path[0], q_pregrasp=np.asarray(m.q_pregrasp), q_grasp=np.asarray(m.q_grasp),
         T_world_base=T_world_ctrl, T_flange_tcp=T_flange_tcp, T_base_tcp_pregrasp=T_pre,
         T_base_tcp_grasp=T_ctrl_world @ g.T_world_tcp, T_base_tcp_retreat=T_pre,
-        backoff=float(plan.params.planning.backoff), retreat_distance=float(plan.params.planning.backoff),
+        backoff=float(plan.params.planning.backoff), retreat_distance=plan.retreat_distance,
         pregrasp_opening=float(gripper.pregrasp_opening(width)), width=width,
         gripper_name=safe_text(gripper.name, 40), part_label=safe_text(plan.part.label, 80),
         part_sha256=safe_text(plan.part.sha256, 64), part_scale_to_m=float(plan.part.scale_to_m),
         source=safe_text(source, 80))
+
+
+# -- shared by the program exporters (KRL, RAPID) --------------------------------------------------
+
+def controller_joint_deg(mp: MotionProgram, qs, what: str) -> np.ndarray:
+    """Controller joint angles, degrees ``(k, n)``, of joint vectors ``qs`` ``(k, n)`` or ``(n,)`` rad.
+
+    ``MotionProgram.controller_deg``: ``sign * degrees(q) + offset_deg`` per joint.
+    Raises :class:`InputError` (naming ``what``, the waypoint and the joint) for a wrong shape, a
+    non-finite value or a value outside the URDF limits mapped the same way.
+    """
+    n = len(mp.joint_names)
+    q = np.atleast_2d(np.asarray(qs, dtype=np.float64))
+    sign = np.asarray(mp.joint_sign, dtype=np.float64)
+    offset = np.asarray(mp.joint_offset_deg, dtype=np.float64)
+    lower = np.asarray(mp.lower, dtype=np.float64)
+    upper = np.asarray(mp.upper, dtype=np.float64)
+    for name, a in (("joint_sign", sign), ("joint_offset_deg", offset), ("lower", lower), ("upper", upper)):
+        if a.shape != (n,) or not np.all(np.isfinite(a)):
+            raise InputError(f"robot {mp.robot_name}: {name} must be {n} finite numbers (one per joint); "
+                             "fix controller_joint_map / the joint limits in the robot YAML")
+    if not np.all(np.abs(sign) == 1.0):
+        raise InputError(f"robot {mp.robot_name}: controller_joint_map signs must be +1 or -1, got {sign.tolist()}")
+    if q.ndim != 2 or q.shape[1] != n:
+        raise InputError(f"{what}: expected joint vectors of {n} values, got shape {q.shape}")
+    bad = ~np.isfinite(q)
+    if bad.any():
+        i, j = np.argwhere(bad)[0]
+        raise InputError(f"{what}: waypoint {i} joint {mp.joint_names[j]} is not finite; the plan is corrupt, "
+                         "plan again")
+    deg = mp.controller_deg(q)
+    lo = np.minimum(sign * np.degrees(lower), sign * np.degrees(upper)) + offset
+    hi = np.maximum(sign * np.degrees(lower), sign * np.degrees(upper)) + offset
+    out = (deg < lo - LIMIT_TOL_DEG) | (deg > hi + LIMIT_TOL_DEG)
+    if out.any():
+        i, j = np.argwhere(out)[0]
+        raise InputError(f"{what}: waypoint {i} joint {mp.joint_names[j]} = {deg[i, j]:.4f} deg is outside the "
+                         f"robot's limits [{lo[j]:.4f}, {hi[j]:.4f}] deg; plan again with this robot")
+    return deg + 0.0  # no -0.0
+
+
+def num(x: float, digits: int = 6) -> str:
+    """A finite number as a fixed-point literal (no exponent, no ``-0``): valid in KRL and RAPID."""
+    x = float(x)
+    if not np.isfinite(x):
+        raise InputError(f"refusing to write a non-finite number ({x!r}) into a robot program")
+    s = f"{x:.{digits}f}"
+    return s.lstrip("-") if float(s) == 0.0 else s  # "-0.000" -> "0.000"
+
+
+def redundant_joint_deg(mp: MotionProgram, q_grasp_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Controller degrees of the joints beyond 6 (joint 7 of a 7-joint arm; ``(0,)`` for 6 joints)
+    for the grasp and the retreat target: at the retreat, the pre-grasp value when the retreat ends
+    at the pre-grasp pose (1 um, 1e-6 rad), else the grasp value (held)."""
+    ext_grasp = q_grasp_deg[6:]
+    T_r, T_p = np.asarray(mp.T_base_tcp_retreat), np.asarray(mp.T_base_tcp_pregrasp)
+    if np.allclose(T_r[:3, 3], T_p[:3, 3], rtol=0, atol=1e-6) and np.allclose(T_r[:3, :3], T_p[:3, :3], rtol=0, atol=1e-6):
+        return ext_grasp, controller_joint_deg(mp, mp.q_pregrasp, "q_pregrasp")[0, 6:]
+    return ext_grasp, ext_grasp
+
+
+def header_lines(mp: MotionProgram, comment: str, units: str) -> list[str]:
+    """The header comment lines every robot program starts with (inputs only through ``safe_text``)."""
+    score = "none" if mp.score is None else f"{float(mp.score):.4f}"
+    lines = [
+        f"grasplan: pick program for grasp {int(mp.grasp_id)} (score {score})",
+        f"plan: {safe_text(mp.source) or '(in memory)'}",
+        (f"part: {safe_text(mp.part_label)} (sha256 {safe_text(mp.part_sha256)[:16]}..., "
+        f"scale_to_m {num(mp.part_scale_to_m, 9)})"),
+        f"robot: {safe_text(mp.robot_name)}; gripper: {safe_text(mp.gripper_name)}",
+        f"grasp width {num(mp.width * 1000, 2)} mm, pre-grasp opening {num(mp.pregrasp_opening * 1000, 2)} mm",
+        units,
+        "Joint angles: controller = sign * URDF angle + offset (controller_joint_map in the robot YAML).",
+    ]
+    return [f"{comment} {line}" for line in lines]
+
+
+def check_program_name(name: str) -> str:
+    """``name`` if it is a valid program name (the rule of :class:`ExportOptions`: a letter, then
+    letters, digits or ``_``, at most 24 characters: a KRL name, and a RAPID one with a suffix)."""
+    return ExportOptions(program_name=name).program_name
+
+
+def waypoint_labels(k: int) -> list[str]:
+    """Comments of the ``k`` joint-path waypoints: q_home, waypoint 1, ..., q_pregrasp."""
+    if k == 1:
+        return ["q_home = q_pregrasp"]
+    return ["q_home"] + [f"waypoint {i}" for i in range(1, k - 1)] + ["q_pregrasp"]
+
+
+@dataclass(frozen=True)
+class ProgramTargets:
+    """What a KRL or RAPID program writes, checked once: the program name, controller degrees of
+    the path ``(k, n)`` and the grasp ``(n,)``, the tool, base, grasp and retreat frames (4, 4), and
+    the controller degrees of the joints beyond 6 at the grasp and the retreat."""
+
+    name: str
+    path_deg: np.ndarray
+    q_grasp_deg: np.ndarray
+    T_tool: np.ndarray
+    T_base: np.ndarray
+    T_grasp: np.ndarray
+    T_retreat: np.ndarray
+    ext_grasp: np.ndarray
+    ext_retreat: np.ndarray
+
+
+def program_targets(mp: MotionProgram, program_name: str, language: str, axes: str) -> ProgramTargets:
+    """The checks and conversions every KRL/RAPID program starts with. ``language`` and ``axes``
+    (how 6 and 7 joints are laid out) only word the error for an arm with another joint count.
+    Raises :class:`InputError` for a bad program name, joint count, non-finite value, joint value
+    outside the limits or non-rigid frame."""
+    from ..transforms import check_transform
+
+    name = check_program_name(program_name)
+    n = len(mp.joint_names)
+    if n not in (6, 7):
+        raise InputError(f"{language} export supports arms with 6 joints {axes}; robot "
+                         f"{safe_text(mp.robot_name)} has {n}. Use --format joint-trajectory")
+    q_grasp = controller_joint_deg(mp, mp.q_grasp, "q_grasp")[0]
+    for what, v in (("width", mp.width), ("pregrasp_opening", mp.pregrasp_opening)):
+        if not (np.isfinite(v) and v >= 0):
+            raise InputError(f"{what}: expected a finite length >= 0 m, got {v!r}")
+    ext_grasp, ext_retreat = redundant_joint_deg(mp, q_grasp)  # joint 7; empty for 6 joints
+    return ProgramTargets(name=name, path_deg=controller_joint_deg(mp, mp.path, "path"), q_grasp_deg=q_grasp,
+                          T_tool=check_transform(mp.T_flange_tcp, "T_flange_tcp"),
+                          T_base=check_transform(mp.T_world_base, "T_world_base"),
+                          T_grasp=check_transform(mp.T_base_tcp_grasp, "T_base_tcp_grasp"),
+                          T_retreat=check_transform(mp.T_base_tcp_retreat, "T_base_tcp_retreat"),
+                          ext_grasp=ext_grasp, ext_retreat=ext_retreat)

@@ -31,17 +31,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import InputError
-from ..transforms import check_transform, quaternions
-from .krl import (
-    check_program_name,
-    controller_joint_deg,
-    header_lines,
-    num,
-    redundant_joint_deg,
-    waypoint_labels,
-)
-from .program import MotionProgram, motion_program, safe_text
+from ..transforms import quaternions
+from .program import MotionProgram, header_lines, motion_program, num, program_targets, waypoint_labels
 from .registry import ExportFormat, ExportOptions, register
 
 #: speeddata of the joint moves and of the linear approach/retreat (predefined RAPID data)
@@ -83,21 +74,11 @@ def rapid_module(mp: MotionProgram, program_name: str = "grasplan_pick") -> dict
     Raises :class:`InputError` for a robot with other than 6 or 7 joints, a non-finite value or a
     joint value outside the limits.
     """
-    name = check_program_name(program_name)  # <= 24 characters: + "_main" stays within RAPID's 32
-    n = len(mp.joint_names)
-    if n not in (6, 7):
-        raise InputError(f"RAPID export supports arms with 6 joints (rax_1..rax_6) or 7 (joint 7 as eax_a); robot "
-                         f"{safe_text(mp.robot_name)} has {n}. Use --format joint-trajectory")
-    path = controller_joint_deg(mp, mp.path, "path")
-    q_grasp = controller_joint_deg(mp, mp.q_grasp, "q_grasp")[0]
-    T_tool = check_transform(mp.T_flange_tcp, "T_flange_tcp")
-    T_base = check_transform(mp.T_world_base, "T_world_base")
-    T_grasp = check_transform(mp.T_base_tcp_grasp, "T_base_tcp_grasp")
-    T_retreat = check_transform(mp.T_base_tcp_retreat, "T_base_tcp_retreat")
-    for what, v in (("width", mp.width), ("pregrasp_opening", mp.pregrasp_opening)):
-        if not (np.isfinite(v) and v >= 0):
-            raise InputError(f"{what}: expected a finite length >= 0 m, got {v!r}")
-    ext_grasp, ext_retreat = redundant_joint_deg(mp, q_grasp)
+    # the name is <= 24 characters: + "_main" stays within RAPID's 32
+    t = program_targets(mp, program_name, "RAPID", "(rax_1..rax_6) or 7 (joint 7 as eax_a)")
+    name, n, path, q_grasp = t.name, len(mp.joint_names), t.path_deg, t.q_grasp_deg
+    T_tool, T_base, T_grasp, T_retreat = t.T_tool, t.T_base, t.T_grasp, t.T_retreat
+    ext_grasp, ext_retreat = t.ext_grasp, t.ext_retreat
     cog = 0.5 * T_tool[:3, 3] * 1000.0
     conf = ",".join(str(c) for c in confdata(q_grasp))
     tool, wobj = f"{name}_tool", f"{name}_wobj"

@@ -6,6 +6,8 @@ listed once in :data:`grasplan.export.BUILTIN_MODULES`. ``grasplan export --help
 """
 from __future__ import annotations
 
+import math
+import re
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -15,6 +17,8 @@ from ..errors import InputError
 #: joint acceleration limit of the joint trajectory when none is given, rad/s^2 (all joints): the
 #: URDF has none; 1.4 rad/s^2 is the UR controller's default ``movej`` acceleration
 DEFAULT_MAX_ACCEL = 1.4
+#: a KRL/RAPID program name: a letter, then letters, digits or _, at most 24 characters
+PROGRAM_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,23}")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -28,13 +32,10 @@ class ExportOptions:
     velocity_scale: float = 1.0      #: joint-trajectory: fraction of the URDF velocity limits
 
     def __post_init__(self):
-        import math
-        import re
-
         if self.grasp_id is not None and (isinstance(self.grasp_id, bool) or not isinstance(self.grasp_id, int)
                                           or not 0 <= self.grasp_id < 2**62):
             raise InputError(f"--grasp: expected a grasp id >= 0, got {self.grasp_id!r}")
-        if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]{0,23}", self.program_name):
+        if not PROGRAM_NAME.fullmatch(self.program_name):
             raise InputError(f"program name {self.program_name!r}: use a letter then letters, digits or _ "
                              "(at most 24 characters)")
         if not (isinstance(self.max_accel, (int, float)) and math.isfinite(self.max_accel) and 0 < self.max_accel <= 1000):
