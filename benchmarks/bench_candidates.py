@@ -1,4 +1,4 @@
-"""Candidates speed: medians per stage on TLess22 (target: BLM + convexity + antipodal < 1 s), and the
+"""Candidates speed (the paper method, ``method="paper"``; regions: benchmarks/coverage.py): medians per stage on TLess22 (target: BLM + convexity + antipodal < 1 s), and the
 sub-quadratic antipodal search against the O(m^2) brute force.
 
     .venv/bin/python benchmarks/bench_candidates.py [--repeat 7]
@@ -32,7 +32,7 @@ def stage_medians(path: Path, repeat: int):
         part = load_part(path)
         load = time.perf_counter() - t0
         c0 = time.process_time()
-        r = compute_candidates(part, CandidateParams(), load_s=load)
+        r = compute_candidates(part, CandidateParams(method="paper"), load_s=load)
         cpu.append(time.process_time() - c0)
         runs.append(r.timing_s)
     med = {k: statistics.median(t[k] for t in runs) for k in runs[0]}
@@ -74,7 +74,7 @@ def main(argv=None) -> int:
             ts = []
             for _ in range(3 if search == "index" else 1):
                 t0 = time.perf_counter()
-                out[search] = find_candidates(part.mesh, convex, tol=part.tol, search=search)
+                out[search] = find_candidates(part.mesh, convex, tol=part.tol, search=search, method="paper")
                 ts.append(time.perf_counter() - t0)
             times[search] = statistics.median(ts)
         same = (out["index"].faces == out["brute"].faces).all() and len(out["index"]) == len(out["brute"])

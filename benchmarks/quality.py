@@ -1,14 +1,17 @@
 """Grasp quality vs MuJoCo lift-and-shake (issue 11), on the paper parts and the examples.
 
-Per part: the collision-free grasps of ``compute_grasps`` are scored with the weights of
-``configs/scoring.yaml`` (reachability terms of ``grasplan.scoring`` + ``gravity_margin`` and
-``epsilon`` of ``grasplan.quality``), ranked with the diversity rule (``distinct_order``); the top
-20 and 20 random collision-free grasps (seeded) are simulated. Prints a table: hold rate of the
-top 20 (target >= 90 %), of the random 20, Spearman correlation of gravity_margin with simulated
-slip (expected negative), and seconds per 20 simulations (median of the two batches; target < 10 s,
-CoACD decomposition cached, its first computation reported separately), then peak RSS.
+Per part and density: the collision-free grasps of ``compute_grasps`` get their quality and score
+(``grasplan.quality.quality_and_score``: the grasp stage's own step, weights of
+``configs/scoring.yaml``), are ranked with the diversity rule (``distinct_order``); the top 20 and
+20 random collision-free grasps (seeded) are simulated. One table per density (default steel 7850
+and plastic 1200 kg/m^3): hold rate of the top 20 (target >= 90 %), of the random 20, Spearman
+correlation of gravity_margin with simulated slip (expected negative), how often
+``gravity_margin >= 1`` agrees with the simulation, seconds per 20 simulations (median of the two
+batches; target < 10 s; CoACD decomposition cached, its first computation reported separately),
+the quality step's cost, and per part whether any grasp can hold it at all (gravity_margin >= 1).
 
-    .venv/bin/python benchmarks/quality.py [--parts DIR] [--top 20] [--decomposition coacd|hull]
+    .venv/bin/python benchmarks/quality.py [--parts DIR] [--top 20] [--density 7850 1200]
+                                           [--decomposition coacd|hull] [--only NAME ...]
 """
 from __future__ import annotations
 
@@ -26,11 +29,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from grasplan.grasps import compute_grasps
-from grasplan.mass import mass_properties
 from grasplan.mesh import load_part
 from grasplan.params import CandidateParams
-from grasplan.quality import grasp_quality, load_scoring, score_quality_terms
-from grasplan.scoring import TERMS, ScoreContext, distinct_order
+from grasplan.scoring import distinct_order
 from grasplan.simulate import convex_pieces, simulate_grasps
 
 PAPER = Path(os.environ.get("GRASPLAN_PAPER_PARTS", ROOT.parent / "shared" / "parts" / "paper"))
@@ -38,39 +39,24 @@ PAPER_PARTS = ["IPAGearShaft.stl", "IPARingScrew.stl", "SileaneBunny.obj", "Sile
                "SileanePepper.stl", "TLess20.stl", "TLess22.stl"]
 
 
-def score(res, q, cfg) -> np.ndarray:
-    """Weighted score of the grasps ``res`` restricted to ``ok`` rows (the quality ``q`` is for those)."""
-    ctx = ScoreContext(res["mesh"], res["T_world_part"], res["T"], res["width"], res["max_opening"])
-    phys = score_quality_terms(q, cfg)
-    total = np.zeros(len(res["width"]))
-    wsum = 0.0
-    for name, w in cfg.weights:
-        if w == 0:
-            continue
-        term = phys[name] if name in phys else TERMS[name](ctx)
-        total += w * term
-        wsum += w
-    return total / wsum
+def run_part(path: Path, args, gr, density: float) -> dict:
+    """Quality, score, ranking and the two simulated batches of one part at ``density``."""
+    from dataclasses import replace
 
+    from grasplan.quality import quality_and_score
 
-def run_part(path: Path, args, cfg) -> dict:
-    part = load_part(path)
+    part = gr.cand.part
     mu = float(CandidateParams.default("mu"))
-    gr = compute_grasps(part, gripper="schunk_egp_c_40", cell="table")
-    ok = np.flatnonzero(np.asarray(gr.status) == "ok")
-    c = gr.cand.candidates
-    ci = gr.frames.candidate[ok]
-    T = gr.frames.T_part_tcp[ok]
-    width = c.width[ci]
-    mp = mass_properties(part.mesh)
+    gp = replace(gr.params, density=density)
     t = time.perf_counter()
-    q = grasp_quality(part.mesh, mp, gr.gripper, T, c.contacts[ci], c.normals[ci], width,
-                      T_world_part=gr.T_world_part, mu=mu)
+    q, mp, score_all, _ = quality_and_score(part.mesh, gr.gripper, gr.T_world_part, gr.frames.T_part_tcp,
+                                         gr.frames.candidate, gr.cand.candidates, gr.status, mu, gp)
     t_quality = time.perf_counter() - t
-    res = {"mesh": part.mesh, "T_world_part": gr.T_world_part, "T": T, "width": width,
-           "max_opening": gr.gripper.max_opening}
-    s = score(res, q, cfg)
-    order = distinct_order(T, np.argsort(-s, kind="stable"))
+    ok = np.flatnonzero(np.asarray(gr.status) == "ok")
+    T = gr.frames.T_part_tcp[ok]
+    width = gr.cand.candidates.width[gr.frames.candidate[ok]]
+    s = score_all[ok]
+    order = distinct_order(T, np.lexsort((np.arange(len(ok)), -s)))
     top = order[: args.top]
     rng = np.random.default_rng(args.seed)
     rand = rng.choice(len(ok), size=min(args.top, len(ok)), replace=False)
@@ -86,9 +72,46 @@ def run_part(path: Path, args, cfg) -> dict:
     gm = np.concatenate([q.gravity_margin[top], q.gravity_margin[rand]])
     slip = np.concatenate([sims[0].slip_m, sims[1].slip_m])
     rho = spearmanr(gm, slip).statistic if np.ptp(gm) > 0 and np.ptp(slip) > 0 else float("nan")
+    pred = gm >= 1
+    held = np.concatenate([sims[0].success, sims[1].success])
     return {"part": path.name, "ok": len(ok), "mass_kg": mp.mass, "top_hold": sims[0].success.mean(),
             "rand_hold": sims[1].success.mean(), "spearman": rho, "s_per_20": float(np.median(secs)),
-            "decomp_s": t_decomp, "pieces": sims[0].pieces, "quality_s": t_quality}
+            "decomp_s": t_decomp, "pieces": sims[0].pieces, "quality_ms_per_1000": 1e6 * t_quality / max(len(ok), 1),
+            "gm_max": float(q.gravity_margin.max()) if len(ok) else 0.0,
+            "holdable": int((q.gravity_margin >= 1).sum()), "agree": float((pred == held).mean())}
+
+
+def table(rows, title: str) -> None:
+    hdr = (f"{'part':<20} {'ok':>6} {'kg':>7} {'gm>=1':>6} {'max gm':>7} {'top20 hold':>10} {'rand20 hold':>11} "
+           f"{'spearman(gm,slip)':>17} {'gm>=1 agrees':>12} {'s/20 sims':>9} {'pieces':>6} {'coacd s':>7} "
+           f"{'quality ms/1000':>15}")
+    print()
+    print(title)
+    print(hdr)
+    print("-" * len(hdr))
+    for r in rows:
+        print(f"{r['part']:<20} {r['ok']:>6} {r['mass_kg']:>7.3f} {r['holdable']:>6} {r['gm_max']:>7.2f} "
+              f"{100 * r['top_hold']:>9.0f}% {100 * r['rand_hold']:>10.0f}% {r['spearman']:>17.2f} "
+              f"{100 * r['agree']:>11.0f}% {r['s_per_20']:>9.2f} {r['pieces']:>6} {r['decomp_s']:>7.1f} "
+              f"{r['quality_ms_per_1000']:>15.0f}")
+    top = np.array([r["top_hold"] for r in rows])
+    print("-" * len(hdr))
+    print(f"{'median':<20} {'':>6} {'':>7} {'':>6} {'':>7} {100 * np.median(top):>9.0f}% "
+          f"{100 * np.median([r['rand_hold'] for r in rows]):>10.0f}% {np.nanmedian([r['spearman'] for r in rows]):>17.2f}"
+          f" {100 * np.median([r['agree'] for r in rows]):>11.0f}% {np.median([r['s_per_20'] for r in rows]):>9.2f}")
+    for r in rows:
+        verdict = (f"holdable: {r['holdable']} of {r['ok']} ok grasps have gravity_margin >= 1" if r["holdable"] else
+                   f"NOT holdable: no grasp has gravity_margin >= 1 (best {r['gm_max']:.2f}): {r['mass_kg']:.2f} kg "
+                   "is too heavy for the gripper's force and mu under gravity + 1 g")
+        print(f"  {r['part']:<20} {verdict}")
+    hold = [r for r in rows if r["holdable"] >= args_top(rows)]
+    print(f"parts with top-20 hold rate >= 90 %: {int((top >= 0.9).sum())}/{len(rows)} (target: all); among parts with "
+          f">= 20 holdable grasps: {sum(r['top_hold'] >= 0.9 for r in hold)}/{len(hold)}; "
+          f"s per 20 sims: max {max(r['s_per_20'] for r in rows):.2f} (target < 10)")
+
+
+def args_top(rows) -> int:
+    return 20
 
 
 def main() -> None:
@@ -97,36 +120,31 @@ def main() -> None:
     ap.add_argument("--top", type=int, default=20)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--decomposition", choices=("coacd", "hull"), default="coacd")
+    ap.add_argument("--density", type=float, nargs="*", default=[7850.0, 1200.0],
+                    help="one table per density, kg/m^3 (default: steel 7850 and plastic 1200)")
     ap.add_argument("--only", nargs="*", default=None, help="part file names to run (default: all)")
     args = ap.parse_args()
-    cfg = load_scoring()
     paths = [args.parts / p for p in PAPER_PARTS if (args.parts / p).exists()]
     paths += sorted((ROOT / "examples" / "parts").glob("*.stl"))
     if args.only:
         paths = [p for p in paths if p.name in args.only]
     if not (args.parts / PAPER_PARTS[0]).exists():
         print(f"(paper parts not found in {args.parts}; examples only)")
-    rows = []
+    rows: dict[float, list] = {d: [] for d in args.density}
     for p in paths:
-        row = run_part(p, args, cfg)
-        rows.append(row)
-        print(f"{row['part']:<20} ok {row['ok']:>6}  top {100 * row['top_hold']:5.1f} %  random "
-              f"{100 * row['rand_hold']:5.1f} %  spearman {row['spearman']:+.2f}  {row['s_per_20']:.2f} s/20", flush=True)
-    hdr = f"{'part':<20} {'ok':>6} {'kg':>6} {'top20 hold':>10} {'rand20 hold':>11} {'spearman(gm,slip)':>17} " \
-          f"{'s/20 sims':>9} {'pieces':>6} {'coacd s':>7} {'quality s':>9}"
-    print()
-    print(hdr)
-    print("-" * len(hdr))
-    for r in rows:
-        print(f"{r['part']:<20} {r['ok']:>6} {r['mass_kg']:>6.3f} {100 * r['top_hold']:>9.0f}% {100 * r['rand_hold']:>10.0f}% "
-              f"{r['spearman']:>17.2f} {r['s_per_20']:>9.2f} {r['pieces']:>6} {r['decomp_s']:>7.1f} {r['quality_s']:>9.2f}")
-    top = np.array([r["top_hold"] for r in rows])
-    print("-" * len(hdr))
-    print(f"{'median':<20} {'':>6} {'':>6} {100 * np.median(top):>9.0f}% "
-          f"{100 * np.median([r['rand_hold'] for r in rows]):>10.0f}% {np.nanmedian([r['spearman'] for r in rows]):>17.2f} "
-          f"{np.median([r['s_per_20'] for r in rows]):>9.2f}")
-    print(f"parts with top-20 hold rate >= 90 %: {int((top >= 0.9).sum())}/{len(rows)} (target: all); "
-          f"s per 20 sims: max {max(r['s_per_20'] for r in rows):.2f} (target < 10)")
+        part = load_part(p)
+        t = time.perf_counter()
+        gr = compute_grasps(part, gripper="schunk_egp_c_40", cell="table")
+        print(f"{p.name}: compute_grasps {time.perf_counter() - t:.1f} s, quality step "
+              f"{gr.timing_s.get('quality', float('nan')):.2f} s", flush=True)
+        for d in args.density:
+            row = run_part(p, args, gr, d)
+            rows[d].append(row)
+            print(f"  density {d:g}: {row['part']:<20} ok {row['ok']:>6} {row['mass_kg']:.3f} kg  top "
+                  f"{100 * row['top_hold']:5.1f} %  random {100 * row['rand_hold']:5.1f} %  spearman "
+                  f"{row['spearman']:+.2f}  {row['s_per_20']:.2f} s/20  holdable {row['holdable']}", flush=True)
+    for d in args.density:
+        table(rows[d], f"density {d:g} kg/m^3 (grip_force 140 N = 2 x 70 N, mu 0.3, {args.decomposition})")
     print(f"peak RSS: {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB")
 
 

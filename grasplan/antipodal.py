@@ -58,9 +58,9 @@ class Candidates:
     faces : (n, 2) int64
         Face indices (into the mesh the search ran on) of the two contacts.
     region : (n,) int64
-        Region id of each candidate: ``method="regions"``: index of the pair of convex areas whose
-        overlap it samples (:mod:`grasplan.regions`); ``method="paper"``: -1 (each face pair is its
-        own region). Defaults to -1 when not given.
+        Region id of each candidate: ``method="regions"``: the pair of convex areas whose overlap it
+        samples, numbered among the overlapping area pairs in sorted order (:mod:`grasplan.regions`);
+        ``method="paper"``: -1 (each face pair is its own region). Defaults to -1 when not given.
     """
 
     contacts: np.ndarray

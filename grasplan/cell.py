@@ -1,18 +1,30 @@
-"""The robot cell around the part: a table top and where the part rests on it.
+"""The robot cell around the part: a table top, obstacles, an optional bin, where the part rests,
+and where the part goes after the grasp (retreat, place).
 
 World frame: z up. The table top is the plane ``z = table_z`` (default 0) and the table fills
 ``z < table_z`` (a half-space: it is infinite in x and y). The part rests on the table in a
 stable pose (:func:`stable_pose`: the most probable one unless ``pose_index`` says otherwise),
 its lowest point on the table top and its centre of mass above ``part_xy`` (default (0.45, 0) m).
+With a ``bin`` the part rests on the bin floor's top instead, its centre of mass above the
+floor's centre plus ``part_xy`` (then an offset in the bin frame, default (0, 0)).
 
-YAML schema (``configs/cells/<name>.yaml``; metres)::
+YAML schema (``configs/cells/<name>.yaml``; metres, degrees; full reference in docs/cells.md)::
 
     name: table
     table_z: 0.0
     part_xy: [0.45, 0.0]
     pose_index: 0          # which stable pose, 0 = most probable
+    obstacles:             # R = Rz(yaw) Ry(pitch) Rx(roll); T = the shape's centre (mesh: its file origin)
+      - {name: wall, box: {size: [0.02, 0.40, 0.30]}, T: {xyz: [0.53, 0.0, 0.15], rpy_deg: [0, 0, 0]}}
+      - {name: post, cylinder: {radius: 0.02, length: 0.30}, T: {xyz: [0.40, -0.10, 0.15]}}  # axis = local z
+      - {name: ball, sphere: {radius: 0.03}, T: {xyz: [0.5, 0.1, 0.2]}}
+      - {name: fixture, mesh: {path: fixture.stl, scale: 0.001}, T: {xyz: [0.45, 0, 0]}}     # path relative to the YAML
+    bin: {inner: [0.30, 0.20], wall: 0.01, height: 0.15, T: {xyz: [0.45, 0.0, 0.0]}}       # T = centre of the floor's top
+    retreat: {direction: [0, 0, 1], distance: 0.10}                                         # lift after the grasp (world)
+    place: {T: {xyz: [0.45, 0.3, 0.0], rpy_deg: [0, 0, 0]}}                                 # T_world_part after release
 
-``--part-pose`` overrides the resting pose: :func:`parse_part_pose`.
+``--part-pose`` overrides the resting pose: :func:`parse_part_pose`; ``--place``:
+:func:`parse_place`. :func:`check_part_placement` refuses a part inside the table or an obstacle.
 """
 from __future__ import annotations
 
@@ -20,14 +32,21 @@ import math
 import os
 import re
 import unicodedata
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import trimesh
 import yaml
 
-from .config_files import available, config_number, packaged_file, read_yaml, resolve_yaml
+from .config_files import (
+    available,
+    config_number,
+    config_vector,
+    packaged_file,
+    read_yaml,
+    resolve_yaml,
+)
 from .errors import ConfigError, InputError
 from .gripper import rpy_matrix
 from .params import DEFAULT_CELL
@@ -41,21 +60,198 @@ MAX_CELL_COORD_M = 10.0
 MAX_NAME_CHARS = 100
 #: largest pose_index accepted from a file (a part has far fewer distinct resting poses)
 MAX_POSE_INDEX = 100_000
+#: most obstacles in one cell, and most triangles of one mesh obstacle
+MAX_OBSTACLES = 1000
+MAX_OBSTACLE_FACES = 200_000
+#: longest obstacle dimension (m)
+MAX_OBSTACLE_SIZE_M = 10.0
+#: the part may reach into the table or an obstacle by at most this (m) before planning refuses
+#: it: a part resting on a surface touches it (rounding), a part inside it is an error
+PART_CONTACT_TOL = 1e-4
+#: the obstacle names the bin's boxes get (reserved)
+BIN_NAMES = ("bin_floor", "bin_wall_+x", "bin_wall_-x", "bin_wall_+y", "bin_wall_-y")
+OBSTACLE_KINDS = ("box", "cylinder", "sphere", "mesh")
+_NAME_RE = re.compile(r"^[A-Za-z0-9_+\-.]{1,64}$")
+DEFAULT_RETREAT_DIRECTION = (0.0, 0.0, 1.0)
+DEFAULT_RETREAT_DISTANCE = 0.10
 
 
-@dataclass(frozen=True)
+def _readonly(a) -> np.ndarray:
+    a = np.array(a, dtype=np.float64)
+    a.flags.writeable = False
+    return a
+
+
+@dataclass(frozen=True, eq=False)
+class Obstacle:
+    """One fixed obstacle of the cell (metres). ``kind`` in :data:`OBSTACLE_KINDS`:
+
+    * ``box``: ``size`` (3,) full side lengths, centred on its frame;
+    * ``cylinder``: ``radius``, ``length`` along the local z axis, centred on its frame;
+    * ``sphere``: ``radius``, centred on its frame;
+    * ``mesh``: ``vertices`` (V, 3) (already scaled, in the obstacle frame) and ``faces`` (F, 3).
+
+    ``T_world_obstacle`` (4, 4) places it. Equality compares the geometry and pose."""
+
+    name: str
+    kind: str
+    T_world_obstacle: np.ndarray
+    size: tuple[float, float, float] | None = None
+    radius: float | None = None
+    length: float | None = None
+    vertices: np.ndarray | None = None
+    faces: np.ndarray | None = None
+
+    def _key(self) -> tuple:
+        return (self.name, self.kind, self.size, self.radius, self.length,
+                np.asarray(self.T_world_obstacle).tobytes(),
+                None if self.vertices is None else np.asarray(self.vertices).tobytes(),
+                None if self.faces is None else np.asarray(self.faces).tobytes())
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, Obstacle) and self._key() == other._key()
+
+    def __hash__(self) -> int:
+        return hash(self._key())
+
+    @property
+    def body(self) -> str:
+        """The body name in collision reports: ``obstacle:<name>``."""
+        return f"obstacle:{self.name}"
+
+    def local_mesh(self) -> trimesh.Trimesh:
+        """A triangle mesh of the shape in its own frame (cylinder: 64 sides; sphere: icosphere 3)."""
+        if self.kind == "box":
+            return trimesh.creation.box(extents=self.size)
+        if self.kind == "cylinder":
+            return trimesh.creation.cylinder(radius=self.radius, height=self.length, sections=64)
+        if self.kind == "sphere":
+            return trimesh.creation.icosphere(subdivisions=3, radius=self.radius)
+        return trimesh.Trimesh(np.asarray(self.vertices), np.asarray(self.faces), process=False)
+
+    def world_mesh(self) -> trimesh.Trimesh:
+        """:meth:`local_mesh` placed at ``T_world_obstacle`` (for viewers and exports)."""
+        m = self.local_mesh()
+        m.apply_transform(np.asarray(self.T_world_obstacle))
+        return m
+
+    def aabb(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(lo (3,), hi (3,))`` world axis-aligned bounds (exact for box, cylinder, sphere, mesh)."""
+        T = np.asarray(self.T_world_obstacle)
+        R, t = T[:3, :3], T[:3, 3]
+        if self.kind == "box":
+            h = np.abs(R) @ (0.5 * np.asarray(self.size))
+        elif self.kind == "sphere":
+            h = np.full(3, float(self.radius))
+        elif self.kind == "cylinder":
+            # disc of radius r about local z, extruded by length/2 along local z
+            z = R[:, 2]
+            h = float(self.radius) * np.sqrt(np.clip(1.0 - z * z, 0.0, None)) + 0.5 * float(self.length) * np.abs(z)
+        else:
+            w = np.asarray(self.vertices) @ R.T + t
+            return w.min(axis=0), w.max(axis=0)
+        return t - h, t + h
+
+    def to_json(self) -> dict:
+        shape: dict
+        if self.kind == "box":
+            shape = {"size": [float(x) for x in self.size]}
+        elif self.kind == "cylinder":
+            shape = {"radius": float(self.radius), "length": float(self.length)}
+        elif self.kind == "sphere":
+            shape = {"radius": float(self.radius)}
+        else:
+            shape = {"vertices": np.asarray(self.vertices).tolist(), "faces": np.asarray(self.faces).tolist()}
+        return {"name": self.name, self.kind: shape, "T_world_obstacle": np.asarray(self.T_world_obstacle).tolist()}
+
+
+@dataclass(frozen=True, eq=False)
+class BinSpec:
+    """An open box the part rests in: ``inner`` (x, y) inner floor size, ``wall`` thickness (also
+    the floor's), ``height`` of the walls above the floor's top, ``T_world_bin`` (4, 4) the centre
+    of the floor's top (z up: only a yaw is allowed). Its five boxes are :meth:`obstacles`."""
+
+    inner: tuple[float, float]
+    wall: float
+    height: float
+    T_world_bin: np.ndarray
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, BinSpec) and (self.inner, self.wall, self.height) == (
+            other.inner, other.wall, other.height) and np.array_equal(self.T_world_bin, other.T_world_bin)
+
+    def __hash__(self) -> int:
+        return hash((self.inner, self.wall, self.height, np.asarray(self.T_world_bin).tobytes()))
+
+    def obstacles(self) -> tuple[Obstacle, ...]:
+        """Floor and four walls as boxes named :data:`BIN_NAMES` (walls from the floor's top up)."""
+        ix, iy = self.inner
+        w, h = self.wall, self.height
+        boxes = [  # (size, centre in the bin frame)
+            ((ix + 2 * w, iy + 2 * w, w), (0.0, 0.0, -w / 2)),
+            ((w, iy + 2 * w, h), (ix / 2 + w / 2, 0.0, h / 2)),
+            ((w, iy + 2 * w, h), (-ix / 2 - w / 2, 0.0, h / 2)),
+            ((ix, w, h), (0.0, iy / 2 + w / 2, h / 2)),
+            ((ix, w, h), (0.0, -iy / 2 - w / 2, h / 2)),
+        ]
+        out = []
+        for name, (size, c) in zip(BIN_NAMES, boxes):
+            T = np.eye(4)
+            T[:3, 3] = c
+            out.append(Obstacle(name, "box", _readonly(np.asarray(self.T_world_bin) @ T),
+                                size=tuple(float(x) for x in size)))
+        return tuple(out)
+
+    def to_json(self) -> dict:
+        return {"inner": [float(x) for x in self.inner], "wall": float(self.wall), "height": float(self.height),
+                "T_world_bin": np.asarray(self.T_world_bin).tolist()}
+
+
+@dataclass(frozen=True, eq=False)
 class Cell:
-    """A table cell. ``table_z``: height of the table top (m); ``part_xy``: where the part's centre
-    of mass rests (m); ``pose_index``: which stable pose (0 = most probable)."""
+    """A robot cell (metres). ``table_z``: height of the table top; ``part_xy``: where the part's
+    centre of mass rests, world x, y (with a bin: already the floor centre plus the YAML's
+    offset); ``pose_index``: which stable pose (0 = most probable); ``obstacles``: every fixed
+    obstacle, the bin's five boxes included; ``bin``: the bin (for display and the resting
+    height) or None; ``retreat_direction`` (3,) unit world vector and ``retreat_distance`` (m):
+    the lift after the grasp; ``place``: ``T_world_part`` (4, 4) after release, or None."""
 
     name: str
     table_z: float = 0.0
     part_xy: tuple[float, float] = (0.45, 0.0)
     pose_index: int = 0
     source: str = ""
+    obstacles: tuple[Obstacle, ...] = ()
+    bin: BinSpec | None = None
+    retreat_direction: tuple[float, float, float] = DEFAULT_RETREAT_DIRECTION
+    retreat_distance: float = DEFAULT_RETREAT_DISTANCE
+    place: np.ndarray | None = field(default=None)
+
+    def _key(self) -> tuple:
+        return (self.name, self.table_z, self.part_xy, self.pose_index, self.obstacles, self.bin,
+                self.retreat_direction, self.retreat_distance,
+                None if self.place is None else np.asarray(self.place).tobytes())
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, Cell) and self._key() == other._key()
+
+    def __hash__(self) -> int:
+        return hash(self._key())
+
+    @property
+    def rest_z(self) -> float:
+        """Height (m) of the surface the part rests on: the bin floor's top, else the table top."""
+        return float(self.bin.T_world_bin[2, 3]) if self.bin is not None else float(self.table_z)
+
+    def obstacle(self, name: str) -> Obstacle:
+        for o in self.obstacles:
+            if o.name == name:
+                return o
+        raise KeyError(name)
 
     def to_json(self) -> dict:
-        """The ``cell`` block of the grasps output: the name and what defines the cell."""
+        """The ``cell`` block of the grasps output: the name and what defines the cell (the
+        obstacles with their geometry, so a plan file stands alone)."""
         return {
             "name": self.name,
             "up": [0.0, 0.0, 1.0],
@@ -63,6 +259,11 @@ class Cell:
                       "fills": "z < table_z"},
             "part_xy": [float(self.part_xy[0]), float(self.part_xy[1])],
             "pose_index": int(self.pose_index),
+            "obstacles": [o.to_json() for o in self.obstacles],
+            "bin": None if self.bin is None else self.bin.to_json(),
+            "retreat": {"direction": [float(x) for x in self.retreat_direction],
+                        "distance": float(self.retreat_distance)},
+            "place": None if self.place is None else {"T_world_part": np.asarray(self.place).tolist()},
         }
 
     @classmethod
@@ -81,12 +282,30 @@ class Cell:
             raise ConfigError(f"{where}.table: expected a mapping with 'z', got {str(table)[:60]}")
         if table.get("type", "half_space") != "half_space" or not _is_up(table.get("normal", [0.0, 0.0, 1.0])):
             raise ConfigError(f"{where}.table: only a half-space table with normal [0, 0, 1] is supported")
-        unknown = set(d) - {"name", "up", "table", "part_xy", "pose_index", "source"}
+        allowed = {"name", "up", "table", "part_xy", "pose_index", "source", "obstacles", "bin", "retreat", "place"}
+        unknown = set(d) - allowed
         if unknown:
-            raise ConfigError(f"{where}: unknown fields {sorted(unknown)[:5]}; the file was not written by grasplan")
+            raise ConfigError(f"{where}: unknown fields {sorted(unknown)[:5]}; the file was not written by grasplan "
+                              f"(valid: {sorted(allowed)})")
         data = {"name": d.get("name"), "table_z": table.get("z", 0.0),
                 "part_xy": d.get("part_xy", [0.45, 0.0]), "pose_index": d.get("pose_index", 0)}
-        return cell_from_dict(data, name="cell", source=f"{where} (embedded in the result)")
+        c = cell_from_dict(data, name="cell", source=f"{where} (embedded in the result)")
+        obs = d.get("obstacles", [])
+        if not isinstance(obs, list) or len(obs) > MAX_OBSTACLES:
+            raise ConfigError(f"{where}.obstacles: expected a list of at most {MAX_OBSTACLES} obstacles")
+        obstacles = tuple(_obstacle_from_json(o, f"{where}.obstacles[{i}]") for i, o in enumerate(obs))
+        _check_unique([o.name for o in obstacles], f"{where}.obstacles", reserved=())
+        b = d.get("bin")
+        bin_ = None if b is None else _bin_from_json(b, f"{where}.bin")
+        direction, distance = _retreat(d.get("retreat", {}), f"{where}.retreat")
+        place = d.get("place")
+        if place is not None:
+            if not isinstance(place, dict) or set(place) != {"T_world_part"}:
+                raise ConfigError(f"{where}.place: expected {{T_world_part: 4x4}} or null")
+            place = _readonly(check_transform(place["T_world_part"], f"{where}.place.T_world_part", error=ConfigError))
+        return Cell(name=c.name, table_z=c.table_z, part_xy=c.part_xy, pose_index=c.pose_index, source=c.source,
+                    obstacles=obstacles, bin=bin_, retreat_direction=direction, retreat_distance=distance,
+                    place=place)
 
 
 def _is_up(v) -> bool:
@@ -100,13 +319,216 @@ def available_cells() -> list[str]:
     return available("cell")
 
 
-def cell_from_dict(data, *, name: str, source: str = "") -> Cell:
+# -- obstacles, bin, retreat, place: parsing ------------------------------------------------------
+
+def _check_unique(names: list[str], where: str, reserved: tuple[str, ...]) -> None:
+    seen: set[str] = set()
+    for n in names:
+        if n in reserved:
+            raise ConfigError(f"{where}: the name {n!r} is reserved for the bin's boxes ({', '.join(reserved)}); "
+                              f"rename the obstacle")
+        if n in seen:
+            raise ConfigError(f"{where}: two obstacles are named {n!r}; obstacle names must be unique")
+        seen.add(n)
+
+
+def _obstacle_name(v, where: str) -> str:
+    if not isinstance(v, str) or not _NAME_RE.match(v):
+        raise ConfigError(f"{where}.name: expected 1-64 characters of letters, digits, '_', '-', '+', '.', "
+                          f"got {str(v)[:40]!r}")
+    return v
+
+
+def _pose_yaml(v, where: str) -> np.ndarray:
+    """``T: {xyz: [m], rpy_deg: [deg]}`` -> (4, 4); R = Rz(yaw) Ry(pitch) Rx(roll)."""
+    if not isinstance(v, dict):
+        raise ConfigError(f"{where}: expected {{xyz: [x, y, z] (m), rpy_deg: [roll, pitch, yaw] (deg)}}, "
+                          f"got {str(v)[:60]!r}")
+    unknown = set(v) - {"xyz", "rpy_deg"}
+    if unknown:
+        raise ConfigError(f"{where}: unknown keys {sorted(map(str, unknown))}; valid: ['rpy_deg', 'xyz']")
+    if "xyz" not in v:
+        raise ConfigError(f"{where}.xyz: missing (the position [x, y, z] in metres)")
+    T = np.eye(4)
+    T[:3, 3] = config_vector(v["xyz"], f"{where}.xyz")
+    if np.abs(T[:3, 3]).max() > MAX_CELL_COORD_M:
+        raise ConfigError(f"{where}.xyz: coordinates must be within {MAX_CELL_COORD_M} m of the origin")
+    rpy = config_vector(v.get("rpy_deg", [0, 0, 0]), f"{where}.rpy_deg")
+    if np.abs(rpy).max() > 3600:
+        raise ConfigError(f"{where}.rpy_deg: angles in degrees, at most 3600 in magnitude")
+    T[:3, :3] = rpy_matrix(*np.radians(rpy))
+    return T
+
+
+def _positive(v, where: str) -> float:
+    x = config_number(v, where, positive=True, max_abs=MAX_OBSTACLE_SIZE_M)
+    if not x > 0:
+        raise ConfigError(f"{where}: expected a length > 0 m, got {x}")
+    return x
+
+
+def _shape_fields(kind: str, spec, where: str, *, base: Path | None) -> dict:
+    """The shape's fields (size / radius, length / vertices, faces) from a YAML or JSON mapping."""
+    valid = {"box": ["size"], "cylinder": ["length", "radius"], "sphere": ["radius"],
+             "mesh": ["path", "scale"] if base is not None else ["faces", "vertices"]}[kind]
+    if not isinstance(spec, dict):
+        raise ConfigError(f"{where}: expected a mapping with {', '.join(valid)}, got {str(spec)[:60]!r}")
+    unknown = set(spec) - set(valid)
+    if unknown:
+        raise ConfigError(f"{where}: unknown keys {sorted(map(str, unknown))}; valid: {valid}")
+    required = [k for k in valid if k != "scale"]
+    missing = [k for k in required if k not in spec]
+    if missing:
+        what = {"size": "full side lengths [x, y, z] in metres", "radius": "metres", "length": "metres, along local z",
+                "path": "a mesh file relative to the cell YAML", "vertices": "(V, 3) metres", "faces": "(F, 3) indices"}
+        raise ConfigError(f"{where}.{missing[0]}: missing ({what[missing[0]]})")
+    if kind == "box":
+        size = config_vector(spec["size"], f"{where}.size", positive=True)
+        if size.max() > MAX_OBSTACLE_SIZE_M:
+            raise ConfigError(f"{where}.size: each side at most {MAX_OBSTACLE_SIZE_M} m")
+        return {"size": tuple(float(x) for x in size)}
+    if kind == "cylinder":
+        return {"radius": _positive(spec["radius"], f"{where}.radius"), "length": _positive(spec["length"], f"{where}.length")}
+    if kind == "sphere":
+        return {"radius": _positive(spec["radius"], f"{where}.radius")}
+    if base is not None:  # YAML: a file
+        if not isinstance(spec["path"], str) or not spec["path"]:
+            raise ConfigError(f"{where}.path: expected a mesh file name relative to the cell YAML")
+        path = (base / spec["path"]).resolve()
+        if not path.is_file():
+            raise ConfigError(f"{where}.path: mesh file {path} not found (paths are relative to the cell YAML)")
+        scale = config_number(spec.get("scale", 1.0), f"{where}.scale", positive=True)
+        if not scale > 0:
+            raise ConfigError(f"{where}.scale: expected > 0 (e.g. 0.001 for a file in millimetres)")
+        try:
+            m = trimesh.load(str(path), force="mesh", process=True)
+        except Exception as exc:  # noqa: BLE001 - any reader error is a config error here
+            raise ConfigError(f"{where}.path: cannot read {path}: {str(exc)[:120]}") from None
+        if not isinstance(m, trimesh.Trimesh) or len(m.faces) == 0:
+            raise ConfigError(f"{where}.path: {path} holds no triangles")
+        v, f = np.asarray(m.vertices, dtype=np.float64) * scale, np.asarray(m.faces, dtype=np.int64)
+    else:
+        try:
+            v = np.asarray(spec["vertices"], dtype=np.float64)
+            f = np.asarray(spec["faces"], dtype=np.int64)
+        except (TypeError, ValueError, OverflowError):
+            raise ConfigError(f"{where}: vertices and faces must be lists of numbers") from None
+        if v.ndim != 2 or v.shape[1:] != (3,) or f.ndim != 2 or f.shape[1:] != (3,) or len(f) == 0:
+            raise ConfigError(f"{where}: expected vertices (V, 3) and faces (F, 3), got {v.shape} and {f.shape}")
+        if f.min() < 0 or f.max() >= len(v):
+            raise ConfigError(f"{where}.faces: vertex index out of range 0..{len(v) - 1}")
+    if len(f) > MAX_OBSTACLE_FACES:
+        raise ConfigError(f"{where}: {len(f)} triangles; a mesh obstacle may have at most {MAX_OBSTACLE_FACES} "
+                          f"(simplify it)")
+    if not np.all(np.isfinite(v)) or np.abs(v).max() > MAX_OBSTACLE_SIZE_M:
+        raise ConfigError(f"{where}: non-finite or huge coordinates (|v| <= {MAX_OBSTACLE_SIZE_M} m after scale; "
+                          f"is 'scale' right?)")
+    return {"vertices": _readonly(v), "faces": np.asarray(f, dtype=np.int64)}
+
+
+def _obstacle_from_yaml(item, where: str, base: Path) -> Obstacle:
+    valid = ["name", *OBSTACLE_KINDS, "T"]
+    if not isinstance(item, dict):
+        raise ConfigError(f"{where}: expected a mapping {{name: ..., box|cylinder|sphere|mesh: ..., T: ...}}, "
+                          f"got {str(item)[:60]!r}")
+    unknown = set(item) - set(valid)
+    if unknown:
+        raise ConfigError(f"{where}: unknown keys {sorted(map(str, unknown))}; valid: {valid}")
+    if "name" not in item:
+        raise ConfigError(f"{where}.name: missing (each obstacle needs a unique name)")
+    name = _obstacle_name(item["name"], where)
+    kinds = [k for k in OBSTACLE_KINDS if k in item]
+    if len(kinds) != 1:
+        raise ConfigError(f"{where} ({name}): expected exactly one shape of box, cylinder, sphere, mesh; got "
+                          f"{kinds or 'none'}")
+    if "T" not in item:
+        raise ConfigError(f"{where}.T: missing (the obstacle's pose {{xyz: [x, y, z] m, rpy_deg: [r, p, y] deg}})")
+    kind = kinds[0]
+    fields = _shape_fields(kind, item[kind], f"{where}.{kind}", base=base)
+    return Obstacle(name, kind, _readonly(_pose_yaml(item["T"], f"{where}.T")), **fields)
+
+
+def _obstacle_from_json(item, where: str) -> Obstacle:
+    if not isinstance(item, dict):
+        raise ConfigError(f"{where}: expected a mapping")
+    unknown = set(item) - {"name", *OBSTACLE_KINDS, "T_world_obstacle"}
+    kinds = [k for k in OBSTACLE_KINDS if k in item]
+    if unknown or len(kinds) != 1 or "name" not in item or "T_world_obstacle" not in item:
+        raise ConfigError(f"{where}: expected {{name, one of {list(OBSTACLE_KINDS)}, T_world_obstacle}}")
+    name = _obstacle_name(item["name"], where)
+    T = check_transform(item["T_world_obstacle"], f"{where}.T_world_obstacle", error=ConfigError)
+    if np.abs(T[:3, 3]).max() > MAX_CELL_COORD_M:
+        raise ConfigError(f"{where}.T_world_obstacle: position beyond {MAX_CELL_COORD_M} m")
+    return Obstacle(name, kinds[0], _readonly(T), **_shape_fields(kinds[0], item[kinds[0]], f"{where}.{kinds[0]}",
+                                                                   base=None))
+
+
+def _bin_fields(inner, wall, height, T, where: str) -> BinSpec:
+    ix = config_vector(inner, f"{where}.inner", 2, positive=True)
+    if not np.all(ix > 0) or ix.max() > MAX_OBSTACLE_SIZE_M:
+        raise ConfigError(f"{where}.inner: expected [x, y] inner floor size, each > 0 and <= {MAX_OBSTACLE_SIZE_M} m")
+    w = _positive(wall, f"{where}.wall")
+    h = _positive(height, f"{where}.height")
+    if abs(T[2, 2] - 1.0) > 1e-9:
+        raise ConfigError(f"{where}.T: the bin must stand upright (only a yaw: rpy_deg [0, 0, yaw])")
+    return BinSpec((float(ix[0]), float(ix[1])), w, h, _readonly(T))
+
+
+def _bin_from_yaml(b, where: str) -> BinSpec:
+    valid = ["height", "inner", "T", "wall"]
+    if not isinstance(b, dict):
+        raise ConfigError(f"{where}: expected {{inner: [x, y], wall: m, height: m, T: {{xyz: [...]}}}}, "
+                          f"got {str(b)[:60]!r}")
+    unknown = set(b) - set(valid)
+    if unknown:
+        raise ConfigError(f"{where}: unknown keys {sorted(map(str, unknown))}; valid: {valid}")
+    for k, what in (("inner", "[x, y] inner floor size in metres"), ("wall", "wall and floor thickness in metres"),
+                    ("height", "wall height above the floor's top in metres"),
+                    ("T", "the centre of the floor's top {xyz: [x, y, z], rpy_deg: [0, 0, yaw]}")):
+        if k not in b:
+            raise ConfigError(f"{where}.{k}: missing ({what})")
+    return _bin_fields(b["inner"], b["wall"], b["height"], _pose_yaml(b["T"], f"{where}.T"), where)
+
+
+def _bin_from_json(b, where: str) -> BinSpec:
+    if not isinstance(b, dict) or set(b) != {"inner", "wall", "height", "T_world_bin"}:
+        raise ConfigError(f"{where}: expected {{inner, wall, height, T_world_bin}} or null")
+    T = check_transform(b["T_world_bin"], f"{where}.T_world_bin", error=ConfigError)
+    return _bin_fields(b["inner"], b["wall"], b["height"], T, where)
+
+
+def _retreat(r, where: str) -> tuple[tuple[float, float, float], float]:
+    if not isinstance(r, dict):
+        raise ConfigError(f"{where}: expected {{direction: [x, y, z], distance: m}}, got {str(r)[:60]!r}")
+    unknown = set(r) - {"direction", "distance"}
+    if unknown:
+        raise ConfigError(f"{where}: unknown keys {sorted(map(str, unknown))}; valid: ['direction', 'distance']")
+    d = config_vector(r.get("direction", list(DEFAULT_RETREAT_DIRECTION)), f"{where}.direction")
+    n = float(np.linalg.norm(d))
+    if not n > 1e-9:
+        raise ConfigError(f"{where}.direction: must not be zero (a world direction, e.g. [0, 0, 1] = straight up)")
+    dist = config_number(r.get("distance", DEFAULT_RETREAT_DISTANCE), f"{where}.distance", nonneg=True, max_abs=2.0)
+    if not 0.0 <= dist <= 2.0:
+        raise ConfigError(f"{where}.distance: expected 0..2 m, got {dist}")
+    u = d / n
+    return (float(u[0]), float(u[1]), float(u[2])), float(dist)
+
+
+def _place_yaml(p, where: str) -> np.ndarray:
+    if not isinstance(p, dict) or set(p) != {"T"}:
+        raise ConfigError(f"{where}: expected {{T: {{xyz: [x, y, z], rpy_deg: [r, p, y]}}}} (the part's pose "
+                          f"after release, world frame), got {str(p)[:60]!r}")
+    return _readonly(_pose_yaml(p["T"], f"{where}.T"))
+
+
+def cell_from_dict(data, *, name: str, source: str = "", base: Path | None = None) -> Cell:
+    """Validate a parsed cell YAML (``base``: the folder mesh paths are relative to)."""
     if not isinstance(data, dict):
         raise ConfigError(f"{source}: a cell file must be a YAML mapping")
-    allowed = {"name", "table_z", "part_xy", "pose_index", "description"}
+    allowed = {"name", "table_z", "part_xy", "pose_index", "description", "obstacles", "bin", "retreat", "place"}
     unknown = set(data) - allowed
     if unknown:
-        raise ConfigError(f"{source}: unknown cell fields {sorted(unknown)}; allowed: {sorted(allowed)}")
+        raise ConfigError(f"{source}: unknown cell fields {sorted(map(str, unknown))}; allowed: {sorted(allowed)}")
     cname = data.get("name", name)
     if not isinstance(cname, str) or not cname or len(cname) > MAX_NAME_CHARS:
         raise ConfigError(f"{source}: name: expected a non-empty string of at most {MAX_NAME_CHARS} characters")
@@ -114,15 +536,34 @@ def cell_from_dict(data, *, name: str, source: str = "") -> Cell:
         raise ConfigError(f"{source}: name: {cname[:40]!r} holds control or line-break characters; use letters, "
                           f"digits, spaces and punctuation")
     table_z = config_number(data.get("table_z", 0.0), "table_z", max_abs=MAX_CELL_COORD_M)
-    xy = data.get("part_xy", [0.45, 0.0])
+    bin_ = _bin_from_yaml(data["bin"], "bin") if data.get("bin") is not None else None
+    xy = data.get("part_xy", [0.0, 0.0] if bin_ is not None else [0.45, 0.0])
     if not isinstance(xy, (list, tuple)) or len(xy) != 2:
         raise ConfigError(f"{source}: part_xy: expected [x, y] in metres, got {xy!r}")
     part_xy = (config_number(xy[0], "part_xy[0]", max_abs=MAX_CELL_COORD_M),
                config_number(xy[1], "part_xy[1]", max_abs=MAX_CELL_COORD_M))
+    if bin_ is not None:  # an offset from the floor's centre, in the bin frame
+        off = np.asarray(bin_.T_world_bin) @ [part_xy[0], part_xy[1], 0.0, 1.0]
+        part_xy = (float(off[0]), float(off[1]))
     pi = data.get("pose_index", 0)
     if isinstance(pi, bool) or not isinstance(pi, int) or not 0 <= pi <= MAX_POSE_INDEX:
         raise ConfigError(f"{source}: pose_index: expected an integer in 0..{MAX_POSE_INDEX}, got {str(pi)[:40]}")
-    return Cell(name=cname, table_z=table_z, part_xy=part_xy, pose_index=pi, source=source)
+    obs = data.get("obstacles", []) or []
+    if not isinstance(obs, list):
+        raise ConfigError("obstacles: expected a list of {name, box|cylinder|sphere|mesh, T} mappings")
+    if len(obs) > MAX_OBSTACLES:
+        raise ConfigError(f"obstacles: {len(obs)} obstacles; at most {MAX_OBSTACLES}")
+    if obs and base is None:
+        base = Path(source).parent if source else Path(".")
+    obstacles = [_obstacle_from_yaml(o, f"obstacles[{i}]", base) for i, o in enumerate(obs)]
+    _check_unique([o.name for o in obstacles], "obstacles", reserved=BIN_NAMES if bin_ is not None else ())
+    if bin_ is not None:
+        obstacles = list(bin_.obstacles()) + obstacles
+    direction, distance = _retreat(data.get("retreat", {}) or {}, "retreat")
+    place = _place_yaml(data["place"], "place") if data.get("place") is not None else None
+    return Cell(name=cname, table_z=table_z, part_xy=part_xy, pose_index=pi, source=source,
+                obstacles=tuple(obstacles), bin=bin_, retreat_direction=direction, retreat_distance=distance,
+                place=place)
 
 
 def load_cell(name_or_path: str | os.PathLike = DEFAULT_CELL) -> Cell:
@@ -132,7 +573,7 @@ def load_cell(name_or_path: str | os.PathLike = DEFAULT_CELL) -> Cell:
     p = resolve_yaml("cell", name_or_path)
     data = read_yaml("cell", p)
     try:
-        return cell_from_dict(data, name=p.stem, source=str(p))
+        return cell_from_dict(data, name=p.stem, source=str(p), base=p.parent)
     except ConfigError as exc:
         msg = str(exc)
         raise ConfigError(msg if msg.startswith(str(p)) else f"{p}: {msg}") from None
@@ -323,14 +764,15 @@ def stable_pose(part_mesh: trimesh.Trimesh, cell: Cell | None = None) -> np.ndar
 
 
 def place_on_table(part_mesh: trimesh.Trimesh, R_world_part: np.ndarray, cell: Cell) -> np.ndarray:
-    """``T_world_part`` (4, 4) with rotation ``R_world_part`` (3, 3), lowest point at ``table_z``,
+    """``T_world_part`` (4, 4) with rotation ``R_world_part`` (3, 3), lowest point at ``cell.rest_z``
+    (the table top, or the bin floor's top),
     centre of mass (:func:`centre_of_mass`) above ``part_xy`` (metres)."""
     com = centre_of_mass(part_mesh)
     T = np.eye(4)
     T[:3, :3] = R_world_part
     z_min = float((np.asarray(part_mesh.vertices) @ R_world_part[2]).min())  # lowest point of the turned part
     c = R_world_part @ com
-    T[:3, 3] = [cell.part_xy[0] - c[0], cell.part_xy[1] - c[1], cell.table_z - z_min]
+    T[:3, 3] = [cell.part_xy[0] - c[0], cell.part_xy[1] - c[1], cell.rest_z - z_min]
     return T
 
 
@@ -366,12 +808,75 @@ def parse_part_pose(text: str | os.PathLike) -> np.ndarray:
                 raise InputError(f"--part-pose: {p} has no key 'T_world_part' (a 4x4 row-major matrix)")
             data = data["T_world_part"]
         return check_transform(data, f"--part-pose {p}")
+    return _pose6(s, "--part-pose", "or a JSON/YAML file")
+
+
+def _pose6(s: str, option: str, alt: str = "") -> np.ndarray:
     parts = _POSE_SPLIT.split(s.strip())
     if len(parts) != 6:
-        raise InputError(f"--part-pose: expected 'x,y,z,roll,pitch,yaw' (m or with units; degrees) or a JSON/YAML file, got {s!r}")
-    xyz = [parse_length(v, name=f"--part-pose {n}", allow_negative=True) for v, n in zip(parts[:3], "xyz")]
-    rpy = [math.radians(parse_angle_deg(v, name=f"--part-pose {n}")) for v, n in zip(parts[3:], ("roll", "pitch", "yaw"))]
+        raise InputError(f"{option}: expected 'x,y,z,roll,pitch,yaw' (m or with units; degrees){' ' + alt if alt else ''}, "
+                         f"got {s[:80]!r}")
+    xyz = [parse_length(v, name=f"{option} {n}", allow_negative=True) for v, n in zip(parts[:3], "xyz")]
+    rpy = [math.radians(parse_angle_deg(v, name=f"{option} {n}")) for v, n in zip(parts[3:], ("roll", "pitch", "yaw"))]
+    if max(abs(x) for x in xyz) > MAX_CELL_COORD_M:
+        raise InputError(f"{option}: the position must be within {MAX_CELL_COORD_M} m of the world origin")
     T = np.eye(4)
     T[:3, :3] = rpy_matrix(*rpy)
     T[:3, 3] = xyz
     return T
+
+
+def parse_place(text: str) -> np.ndarray:
+    """``T_world_part`` (4, 4) of the part after release, from ``--place x,y,z,roll,pitch,yaw``
+    (lengths with optional units, bare = metres; angles in degrees; R = Rz(yaw) Ry(pitch) Rx(roll))."""
+    s = str(text)
+    if len(s) > 4096 or "\x00" in s:
+        raise InputError("--place: expected 'x,y,z,roll,pitch,yaw' (m or with units; degrees)")
+    T = _pose6(s, "--place")
+    T.flags.writeable = False
+    return T
+
+
+def check_part_placement(part_mesh: trimesh.Trimesh, T_world_part: np.ndarray, cell: Cell, *,
+                         tol: float = PART_CONTACT_TOL, what: str = "the part") -> None:
+    """Refuse a part pose that reaches into the table or an obstacle by more than ``tol`` (m).
+
+    Raises InputError (exit 3) naming the body, the depth in mm and what to change. The table
+    depth is exact (lowest vertex below ``table_z``); an obstacle's depth is coal's penetration
+    depth (EPA) of the part mesh against the obstacle (box, cylinder, sphere shrunk by ``tol``; a
+    mesh obstacle is not shrunk: touching it counts)."""
+    import coal
+
+    from .geometry import bvh, obstacle_geometry
+
+    T = np.asarray(T_world_part, dtype=np.float64)
+    V = np.asarray(part_mesh.vertices, dtype=np.float64)
+    z = V @ T[2, :3] + T[2, 3]
+    depth = float(cell.table_z - z.min())
+    if depth > tol:
+        raise InputError(f"{what} reaches {depth * 1e3:.1f} mm into the table (lowest point z = {z.min():.4f} m, "
+                         f"table top z = {cell.table_z:g} m): raise the part pose by at least {depth * 1e3:.1f} mm "
+                         f"(--part-pose z) or lower the cell's table_z")
+    if not cell.obstacles:
+        return
+    lo = V @ T[:3, :3].T + T[:3, 3]
+    lo, hi = lo.min(axis=0), lo.max(axis=0)
+    part = None
+    req = coal.CollisionRequest()
+    req.enable_contact = True
+    req.num_max_contacts = 1
+    res = coal.CollisionResult()
+    for o in cell.obstacles:
+        olo, ohi = o.aabb()
+        if np.any(olo > hi + tol) or np.any(ohi < lo - tol):
+            continue
+        if part is None:
+            part = bvh(V, np.asarray(part_mesh.faces))
+            tp = coal.Transform3s(T[:3, :3].copy(), T[:3, 3].copy())
+        geom = obstacle_geometry(o, shrink=tol)  # touching (resting on the bin floor) is not a collision
+        To = np.asarray(o.T_world_obstacle)
+        res.clear()
+        if coal.collide(part, tp, geom, coal.Transform3s(To[:3, :3].copy(), To[:3, 3].copy()), req, res):
+            d = abs(float(res.getContact(0).penetration_depth)) + tol if res.numContacts() else float("nan")
+            raise InputError(f"{what} intersects obstacle {o.name!r} (penetration {d * 1e3:.1f} mm): move the part "
+                             f"(--part-pose, part_xy) or the obstacle in the cell YAML")

@@ -1,4 +1,4 @@
-"""Stage 6: global collision filter of gripper poses against the part and the table.
+"""Stage 6: global collision filter of gripper poses against the part, the table and the obstacles.
 
 Checked geometry per pose (issue 3), all in the TCP frame of the pose:
 
@@ -19,9 +19,21 @@ Against:
   its lowest corner is below ``table_z - TABLE_CONTACT_TOL`` (so touching the table top within
   1 micrometre is not a collision); a mesh iff its lowest vertex is.
 
+* the cell's obstacles (``cell.obstacles``, the bin's floor and walls among them): coal
+  geometry from :func:`grasplan.geometry.obstacle_geometry`, built once per collider; a shape
+  whose oriented bounding box is separated from the obstacle's world axis-aligned box (the same
+  NumPy separating-axis test) is free without calling coal. Touching counts as a collision.
+
 Status per pose: ``collision_part`` when any shape hits the part (checked first, whatever the
-table), else ``collision_table`` when any shape is below the table top, else ``ok``. So
-``collision_part`` is a property of the grasp alone, independent of the cell.
+table), else ``collision_table`` when any shape is below the table top, else
+``collision_obstacle`` when any shape hits an obstacle, else ``ok``. So ``collision_part`` is a
+property of the grasp alone, independent of the cell.
+
+:meth:`GripperCollider.check_detail` also returns, per pose, the first gripper element that hit
+(index into :meth:`GripperCollider.element_names`: ``body_<k>``, ``finger_left``,
+``finger_right``) and the body it hit (index into :meth:`GripperCollider.body_names`: ``part``,
+``table``, ``obstacle:<name>``); :func:`hit_reasons` turns them into the grasp-stage reasons
+("grasp stage: gripper:finger_left hits obstacle:wall at the grasp or while closing").
 """
 from __future__ import annotations
 
@@ -30,7 +42,7 @@ import numpy as np
 import trimesh
 
 from .cell import Cell
-from .geometry import bvh
+from .geometry import bvh, obstacle_geometry
 from .gripper import Box, Gripper
 from .transforms import check_transform
 
@@ -155,6 +167,22 @@ class GripperCollider:
         self._body = [_ShapeSet([b], None) for b in gripper.body]
         self._finger_cache: dict = {}
         self.coal_calls = 0
+        # obstacles: coal geometry, world pose and world axis-aligned box (centre, half extents)
+        self.obstacles = tuple(getattr(cell, "obstacles", ()) or ())
+        self._obs_geom = [obstacle_geometry(o) for o in self.obstacles]
+        self._obs_tf = [coal.Transform3s(np.asarray(o.T_world_obstacle)[:3, :3].copy(),
+                                         np.asarray(o.T_world_obstacle)[:3, 3].copy()) for o in self.obstacles]
+        bounds = [o.aabb() for o in self.obstacles]
+        self._obs_center = [0.5 * (lo + hi) for lo, hi in bounds]
+        self._obs_half = [0.5 * (hi - lo) for lo, hi in bounds]
+
+    def element_names(self) -> list[str]:
+        """Names of the gripper elements the element codes of :meth:`check_detail` index."""
+        return [f"body_{k}" for k in range(len(self._body))] + ["finger_left", "finger_right"]
+
+    def body_names(self) -> list[str]:
+        """Names of the bodies the body codes of :meth:`check_detail` index."""
+        return ["part", "table"] + [f"obstacle:{o.name}" for o in self.obstacles]
 
     # -- geometry per pose -------------------------------------------------------------------
     def shape_sets(self, width: np.ndarray) -> list[_ShapeSet]:
@@ -183,19 +211,22 @@ class GripperCollider:
         return body + [_ShapeSet(left, inv), _ShapeSet(right, inv)]
 
     # -- table ------------------------------------------------------------------------------
-    def _table_hits(self, T_part_tcp: np.ndarray, sets: list[_ShapeSet]) -> np.ndarray:
+    def _table_hits(self, T_part_tcp: np.ndarray, sets: list[_ShapeSet]) -> tuple[np.ndarray, np.ndarray]:
+        """``(hit (M,) bool, first hitting element (M,) int, -1 when free)``."""
         M = len(T_part_tcp)
         hit = np.zeros(M, dtype=bool)
+        elem = np.full(M, -1, dtype=np.int64)
         zrow = self.zrow
         zr_tcp = np.einsum("j,mjk->mk", zrow, T_part_tcp)  # world-z row of T_world_tcp, (M,4)
         limit = self.cell.table_z - TABLE_CONTACT_TOL
-        for s in sets:
+        for si, s in enumerate(sets):
+            h_s = np.zeros(M, dtype=bool)
             if s.is_box:
                 Tg = s.T_tcp_geom[s.index]  # (M,4,4)
                 zr = np.einsum("mj,mjk->mk", zr_tcp, Tg)  # world-z row of T_world_box
                 h = 0.5 * np.array([np.asarray(v.extents) for v in s.variants])[s.index]
                 zmin = zr[:, 3] - np.sum(np.abs(zr[:, :3]) * h, axis=1)
-                hit |= zmin < limit
+                h_s |= zmin < limit
             else:
                 for k, v in enumerate(s.variants):
                     sel = np.flatnonzero(s.index == k)
@@ -203,12 +234,59 @@ class GripperCollider:
                         continue
                     hv = trimesh.convex.convex_hull(v.vertices).vertices if len(v.vertices) > 64 else v.vertices
                     z = zr_tcp[sel, :3] @ hv.T + zr_tcp[sel, 3:4]
-                    hit[sel] |= z.min(axis=1) < limit
-        return hit
+                    h_s[sel] |= z.min(axis=1) < limit
+            elem[h_s & ~hit] = si
+            hit |= h_s
+        return hit, elem
+
+    # -- obstacles --------------------------------------------------------------------------
+    def _obstacle_hits(self, T_part_tcp: np.ndarray, sets: list[_ShapeSet], todo: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(hit (M,), first element (M,), obstacle index (M,))`` for the poses ``todo`` (M,) bool
+        (-1 where free or not checked). Prefilter: each shape's world oriented bounding box against
+        each obstacle's world axis-aligned box; coal for the overlapping ones (first hit decides)."""
+        M = len(T_part_tcp)
+        hit = np.zeros(M, dtype=bool)
+        elem = np.full(M, -1, dtype=np.int64)
+        obs = np.full(M, -1, dtype=np.int64)
+        if not self.obstacles or not todo.any():
+            return hit, elem, obs
+        idx = np.flatnonzero(todo)
+        T_world_tcp = self.T_world_part @ T_part_tcp[idx]  # (m, 4, 4)
+        need = np.zeros((len(sets), len(self.obstacles), len(idx)), dtype=bool)
+        Tgs = []
+        for si, s in enumerate(sets):
+            Tbb = T_world_tcp @ s.T_tcp_bb[s.index[idx]]
+            h = s.half_bb[s.index[idx]]
+            for oi in range(len(self.obstacles)):
+                need[si, oi] = ~obb_aabb_separated(Tbb[:, :3, 3], Tbb[:, :3, :3], h, self._obs_center[oi],
+                                                   self._obs_half[oi])
+            Tgs.append(T_world_tcp @ s.T_tcp_geom[s.index[idx]] if s.is_box else T_world_tcp)
+        collide = coal.collide
+        req, res, tf = self.request, self.result, self._tf
+        calls = 0
+        for k in np.flatnonzero(need.any(axis=(0, 1))):
+            m = idx[k]
+            for si in range(len(sets) - 1, -1, -1):  # jaws first: they reach furthest
+                for oi in np.flatnonzero(need[si, :, k]):
+                    T = Tgs[si][k]
+                    tf.setRotation(T[:3, :3])
+                    tf.setTranslation(T[:3, 3])
+                    res.clear()
+                    calls += 1
+                    if collide(sets[si].geoms[sets[si].index[m]], tf, self._obs_geom[oi], self._obs_tf[oi], req, res):
+                        hit[m], elem[m], obs[m] = True, si, oi
+                        break
+                if hit[m]:
+                    break
+        self.coal_calls += calls
+        return hit, elem, obs
 
     # -- part ------------------------------------------------------------------------------
-    def _part_hits(self, T_part_tcp: np.ndarray, sets: list[_ShapeSet]) -> np.ndarray:
+    def _part_hits(self, T_part_tcp: np.ndarray, sets: list[_ShapeSet]) -> tuple[np.ndarray, np.ndarray]:
+        """``(hit (M,) bool, first hitting element (M,) int, -1 when free)``."""
         M = len(T_part_tcp)
+        elem = np.full(M, -1, dtype=np.int64)
         need = np.zeros((len(sets), M), dtype=bool)
         Tgs = []
         inside_cand = np.zeros((len(sets), M), dtype=bool)
@@ -244,6 +322,7 @@ class GripperCollider:
                 calls += 1
                 if collide(sets[si].geoms[sets[si].index[m]], tf, bvh, I, req, res):
                     hit[m] = True
+                    elem[m] = si
                     first_hits[si] += 1
                     break
         self.coal_calls += calls
@@ -255,33 +334,68 @@ class GripperCollider:
                             for si, m in pts_idx])
             inside = points_inside(self.part_mesh, pts)
             for (si, m), ins in zip(pts_idx, inside):
-                if ins:
+                if ins and not hit[m]:
                     hit[m] = True
-        return hit
+                    elem[m] = si
+        return hit, elem
 
     def check(self, T_part_tcp: np.ndarray, width: np.ndarray) -> np.ndarray:
         """Status per pose: (M,) array of str in ``STATUSES``.
 
         T_part_tcp : (M, 4, 4) TCP poses in the part frame; width : (M,) contact distance (m)."""
+        return self.check_detail(T_part_tcp, width)[0]
+
+    def check_detail(self, T_part_tcp: np.ndarray, width: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(status (M,) str, element (M,) int, body (M,) int)``: the status per pose (see the
+        module docstring), the gripper element that decided it (index into
+        :meth:`element_names`) and the body it hit (index into :meth:`body_names`); -1 for ``ok``."""
         T_part_tcp = check_transform(T_part_tcp, "T_part_tcp", batch=True, error=ValueError)
         width = np.asarray(width, dtype=np.float64).reshape(-1)
         if width.shape != (len(T_part_tcp),):
             raise ValueError(f"width must have shape ({len(T_part_tcp)},), got {width.shape}")
-        status = np.full(len(width), "ok", dtype="<U15")
-        if len(width) == 0:
-            return status
+        M = len(width)
+        status = np.full(M, "ok", dtype="<U18")
+        elem = np.full(M, -1, dtype=np.int64)
+        body = np.full(M, -1, dtype=np.int64)
+        if M == 0:
+            return status, elem, body
         sets = self.shape_sets(width)
-        part = self._part_hits(T_part_tcp, sets)
-        table = self._table_hits(T_part_tcp, sets)
-        status[table] = "collision_table"
-        status[part] = "collision_part"
-        return status
+        part, e_part = self._part_hits(T_part_tcp, sets)
+        table, e_table = self._table_hits(T_part_tcp, sets)
+        obst, e_obst, which = self._obstacle_hits(T_part_tcp, sets, ~(part | table))
+        status[obst], elem[obst], body[obst] = "collision_obstacle", e_obst[obst], 2 + which[obst]
+        status[table], elem[table], body[table] = "collision_table", e_table[table], 1
+        status[part], elem[part], body[part] = "collision_part", e_part[part], 0
+        return status, elem, body
+
+    def reasons(self, status: np.ndarray, element: np.ndarray, body: np.ndarray) -> np.ndarray:
+        """(M,) object array of grasp-stage reasons from :meth:`check_detail` ("" for ``ok``)."""
+        return hit_reasons(status, element, body, self.element_names(), self.body_names())
 
     def part_collision(self, T_part_tcp: np.ndarray, width: np.ndarray) -> np.ndarray:
         """(M,) bool: any shape hits the part (no table check)."""
         T_part_tcp = check_transform(T_part_tcp, "T_part_tcp", batch=True, error=ValueError)
         width = np.asarray(width, dtype=np.float64).reshape(-1)
-        return self._part_hits(T_part_tcp, self.shape_sets(width))
+        return self._part_hits(T_part_tcp, self.shape_sets(width))[0]
+
+
+def hit_reasons(status, element, body, element_names: list[str], body_names: list[str]) -> np.ndarray:
+    """(M,) object array: "grasp stage: gripper:<element> hits <body> at the grasp or while
+    closing" for rejected poses, "" for ``ok`` ones (vectorised over the distinct codes)."""
+    status = np.asarray(status).astype(str)
+    element = np.asarray(element, dtype=np.int64)
+    body = np.asarray(body, dtype=np.int64)
+    out = np.full(len(status), "", dtype=object)
+    bad = np.flatnonzero(status != "ok")
+    if len(bad) == 0:
+        return out
+    codes, inv = np.unique(np.stack([element[bad], body[bad]], axis=1), axis=0, return_inverse=True)
+    texts = np.array([
+        f"grasp stage: gripper:{element_names[e] if 0 <= e < len(element_names) else '?'} hits "
+        f"{body_names[b] if 0 <= b < len(body_names) else '?'} at the grasp or while closing"
+        for e, b in codes], dtype=object)
+    out[bad] = texts[inv.reshape(-1)]
+    return out
 
 
 def check_grasps(
@@ -292,7 +406,7 @@ def check_grasps(
     T_part_tcp: np.ndarray,
     width: np.ndarray,
 ) -> np.ndarray:
-    """Status per pose ``(M,)`` str in {"ok", "collision_part", "collision_table"}.
+    """Status per pose ``(M,)`` str in {"ok", "collision_part", "collision_table", "collision_obstacle"}.
 
     Builds a :class:`GripperCollider` (the part BVH) and checks the ``(M, 4, 4)`` poses; keep a
     collider yourself to check several batches against the same part."""

@@ -52,6 +52,52 @@ Neighbourhood = Literal["edge", "vertex"]
 _BATCH_ELEMS = 4_000_000
 
 
+def edge_adjacency(faces: np.ndarray, *, slots: bool = False):
+    """Pairs of faces sharing an edge (edges with exactly two faces, as ``trimesh.face_adjacency``),
+    by one int64 sort instead of trimesh's row hashing (several times faster at 250k faces).
+
+    Returns ``adj (k, 2)`` face ids, ``edge (k, 2)`` the shared vertex ids and ``unshared (k, 2)`` the
+    vertex of each face opposite the edge, ordered by edge; with ``slots=True`` also ``(k, 2)`` the
+    edge's slot ``3 * face + corner`` in each face (edge ``corner -> corner + 1``)."""
+    F = np.asarray(faces, dtype=np.int64)
+    m = len(F)
+    if m == 0:
+        z = np.zeros((0, 2), dtype=np.int64)
+        return (z, z, z, z) if slots else (z, z, z)
+    a, b = F.ravel(), np.roll(F, -1, axis=1).ravel()            # edge k of face f: corner k -> k+1
+    far = F[:, [2, 0, 1]].ravel()
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    key = lo * (int(F.max()) + 1) + hi
+    o = np.argsort(key, kind="stable")
+    k = key[o]
+    start = np.flatnonzero(np.r_[True, k[1:] != k[:-1]])
+    cnt = np.diff(np.r_[start, len(k)])
+    two = start[cnt == 2]
+    i, j = o[two], o[two + 1]
+    out = (np.stack([i // 3, j // 3], axis=1), np.stack([lo[i], hi[i]], axis=1), np.stack([far[i], far[j]], axis=1))
+    return out + (np.stack([i, j], axis=1),) if slots else out
+
+
+class _Rows:
+    """CSR-like rows of vertex ids (``indptr``, ``indices``), what :func:`classify_convexity` reads."""
+
+    def __init__(self, indptr: np.ndarray, indices: np.ndarray):
+        self.indptr, self.indices = indptr, indices
+
+
+def _edge_rows(faces: np.ndarray) -> _Rows:
+    """Row k: the 3 vertices of face k, then the far vertex of each face sharing an edge with it (the
+    same sets as ``neighbour_vertices(mesh, "edge")``, built without sparse products)."""
+    F = np.asarray(faces, dtype=np.int64)
+    m = len(F)
+    adj, _, far = edge_adjacency(F)
+    owner = np.concatenate([np.repeat(np.arange(m), 3), adj[:, 0], adj[:, 1]])
+    vert = np.concatenate([F.ravel(), far[:, 1], far[:, 0]])
+    o = np.argsort(owner, kind="stable")
+    counts = np.bincount(owner, minlength=m)
+    return _Rows(np.r_[0, np.cumsum(counts)], vert[o])
+
+
 def neighbour_vertices(mesh: trimesh.Trimesh, neighbourhood: Neighbourhood = "edge") -> sp.csr_matrix:
     """``(m, n_vertices)`` boolean CSR: row k marks the vertices of face k and its adjacent faces."""
     faces = np.asarray(mesh.faces, dtype=np.int64)
@@ -116,13 +162,12 @@ def classify_convexity(
     n = np.zeros_like(cr)
     n[ok] = cr[ok] / nrm[ok, None]
 
-    Nb = neighbour_vertices(mesh, neighbourhood)
+    Nb = _edge_rows(F) if neighbourhood == "edge" else neighbour_vertices(mesh, neighbourhood)
     counts = np.diff(Nb.indptr)
     face_of = np.repeat(np.arange(m), counts)
     q = V[Nb.indices] - c[face_of]                        # (nnz, 3) offsets from the centroid
     h = np.einsum("ij,ij->i", q, n[face_of])              # heights above the face plane
-    hmax = np.full(m, -np.inf)
-    np.maximum.at(hmax, face_of, h)
+    hmax = np.maximum.reduceat(h, Nb.indptr[:-1])          # rows are contiguous, >= 3 entries each
 
     convex = hmax <= d_shift + eps                        # w = 0: the face plane supports p
     convex |= ~ok                                         # degenerate face: no normal, call it convex

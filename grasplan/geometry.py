@@ -1,5 +1,5 @@
-"""coal collision geometry, built in one place: the BVH of a triangle mesh and the geometry of a
-gripper shape. The gripper filter (:mod:`grasplan.collision`) and the robot scene
+"""coal collision geometry, built in one place: the BVH of a triangle mesh, the geometry of a
+gripper shape and of a cell obstacle. The gripper filter (:mod:`grasplan.collision`) and the robot scene
 (:mod:`grasplan.scene`) both build theirs here."""
 from __future__ import annotations
 
@@ -38,3 +38,27 @@ def shape_geometry(shape: Any) -> tuple[coal.CollisionGeometry, np.ndarray]:
         return bvh(np.asarray(shape.mesh.vertices), np.asarray(shape.mesh.faces)), np.eye(4)
     raise InputError(f"gripper shape {type(shape).__name__}: expected a box (extents, T_tcp_box) "
                      f"or a mesh (vertices, faces)")
+
+
+def obstacle_geometry(obstacle: Any, *, shrink: float = 0.0) -> coal.CollisionGeometry:
+    """coal geometry of a cell obstacle (:class:`grasplan.cell.Obstacle`) in its own frame: a
+    ``Box``, a ``Cylinder`` (axis = local z, centred), a ``Sphere`` or the mesh's BVH.
+
+    ``shrink`` (m) moves every face of a box, cylinder or sphere inwards by that much (never below
+    a tenth of its size), so that touching it within ``shrink`` is no collision; a mesh is not shrunk."""
+    kind = obstacle.kind
+    s = float(shrink)
+
+    def cut(x: float, by: float) -> float:
+        return max(float(x) - by, 0.1 * float(x))
+
+    if kind == "box":
+        return coal.Box(*(cut(x, 2 * s) for x in obstacle.size))
+    if kind == "cylinder":
+        return coal.Cylinder(cut(obstacle.radius, s), cut(obstacle.length, 2 * s))
+    if kind == "sphere":
+        return coal.Sphere(cut(obstacle.radius, s))
+    if kind == "mesh":
+        return bvh(np.asarray(obstacle.vertices), np.asarray(obstacle.faces))
+    raise InputError(f"obstacle {getattr(obstacle, 'name', '?')}: unknown kind {kind!r}; expected box, cylinder, "
+                     f"sphere or mesh")

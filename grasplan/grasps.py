@@ -31,7 +31,7 @@ class GraspResult:
     """Candidates, the gripper poses built from them and each pose's collision status.
 
     frames.candidate indexes ``cand.candidates``; ``status`` is (M,) str in
-    {"ok", "collision_part", "collision_table"}; ``T_world_part`` (4, 4)."""
+    {"ok", "collision_part", "collision_table", "collision_obstacle"}; ``T_world_part`` (4, 4)."""
 
     cand: CandidateResult
     gripper: Gripper
@@ -42,6 +42,16 @@ class GraspResult:
     params: GraspParams = GraspParams()
     timing_s: dict = field(default_factory=dict)
     part_pose_source: str = "stable_pose"
+    #: grasp quality of the ``ok`` poses (grasplan.quality.Quality, rows = np.flatnonzero(status == "ok"))
+    quality: object = None
+    #: the part's mass properties (grasplan.mass.MassProperties) the quality was computed with
+    mass_props: object = None
+    #: (M,) score of every pose (grasplan.scoring; NaN for poses that collide)
+    score: np.ndarray | None = None
+    #: why there is no quality ("" when there is): e.g. a flat part has no mass
+    quality_note: str = ""
+    #: (M,) grasp-stage reason per pose ("grasp stage: gripper:finger_left hits obstacle:wall ..."; "" for ok)
+    reasons: np.ndarray | None = None
 
     @property
     def width(self) -> np.ndarray:
@@ -76,8 +86,18 @@ class GraspResult:
                           contacts=c.contacts[ci], normals=c.normals[ci], width=c.width[ci],
                           T_part_tcp=np.asarray(self.frames.T_part_tcp, dtype=np.float64).reshape(M, 4, 4),
                           roll=np.asarray(self.frames.roll, dtype=np.float64), status=self.status.astype(object),
-                          score=np.full(M, np.nan), rank=np.full(M, -1, dtype=np.int64),
-                          reason=np.full(M, "", dtype=object))
+                          score=np.full(M, np.nan) if self.score is None else np.asarray(self.score, dtype=np.float64),
+                          rank=np.full(M, -1, dtype=np.int64),
+                          reason=np.full(M, "", dtype=object) if self.reasons is None
+                          else np.asarray(self.reasons, dtype=object), **self._quality_columns(M))
+
+    def _quality_columns(self, M: int) -> dict:
+        """GraspTable quality arrays (M rows; NaN / -1 where a pose has none)."""
+        if self.quality is None:
+            return {}
+        from .quality import quality_columns
+
+        return quality_columns(self.quality, np.flatnonzero(np.asarray(self.status).astype(str) == "ok"), M)
 
     def to_result(self) -> PlanResult:
         """This grasp result as a :class:`grasplan.result.PlanResult` (no robot)."""
@@ -89,7 +109,8 @@ class GraspResult:
         return PlanResult(part=rec, gripper=self.gripper, cell=self.cell, robot=None, grasps=self.table(),
                           params=Params(self.cand.params, self.params), counts_stage=stage,
                           timing_s=dict(self.timing_s), part_pose_source=self.part_pose_source,
-                          grasp_result=self, part_mesh=part.mesh)
+                          grasp_result=self, part_mesh=part.mesh,
+                          mass=None if self.mass_props is None else self.mass_props.record())
 
     def to_json(self, *, only_ok: bool = False) -> dict:
         """``grasplan.grasps/1`` (see :meth:`grasplan.result.PlanResult.to_json`)."""
@@ -113,6 +134,9 @@ def compute_grasps(
     the cell's). Candidates wider than the gripper's ``max_opening`` are not posed; the candidate
     search runs up to the gripper's ``max_opening`` unless ``candidates.max_opening`` says
     otherwise. Swapped duplicate candidates are posed once when the gripper is symmetric.
+    The collision-free (``ok``) poses get their grasp quality (:mod:`grasplan.quality`: contact
+    patches, gravity margin, epsilon at ``grasps.density`` / ``grasps.mass``) and a score
+    (:mod:`grasplan.scoring`, weights ``grasps.score_weights``).
     ``grasps.thin_spacing`` (m; 0 = off) poses one candidate per cluster of
     :func:`grasplan.thinning.thin_candidates`; ``grasps.merge_distance`` (m; 0 = off) additionally
     skips a candidate whose two contacts fall in the same grid cells as an earlier candidate's.
@@ -153,7 +177,17 @@ def compute_grasps(
 
     t = time.perf_counter()
     collider = GripperCollider(part.mesh, g, c, T)
-    status = collider.check(frames.T_part_tcp, cand.candidates.width[frames.candidate])
+    status, hit_elem, hit_body = collider.check_detail(frames.T_part_tcp, cand.candidates.width[frames.candidate])
+    reasons = collider.reasons(status, hit_elem, hit_body)
     timing["collision"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    from .quality import quality_and_score
+
+    quality, mass_props, score, note = quality_and_score(part.mesh, g, T, frames.T_part_tcp, frames.candidate,
+                                                         cand.candidates, status, candidates.mu, grasps)
+    timing["quality"] = time.perf_counter() - t
     return GraspResult(cand=cand, gripper=g, cell=c, T_world_part=T, frames=frames, status=status, params=grasps,
-                       timing_s=timing, part_pose_source=source)
+                       timing_s=timing, part_pose_source=source, quality=quality, mass_props=mass_props, score=score,
+                       quality_note=note,
+                       reasons=reasons)

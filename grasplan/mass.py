@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import trimesh
+from scipy.spatial import QhullError
 
 from .errors import InputError
 from .tolerance import Tolerance
@@ -49,6 +50,12 @@ class MassProperties:
     density: float
     watertight_used: bool
     warnings: tuple[str, ...] = ()
+
+    def record(self) -> dict:
+        """The few numbers a grasps/plan file records under ``part``: ``mass_kg``, ``com`` (m, part
+        frame), ``density`` (kg/m^3) and ``mass_from`` ("mesh" or "convex_hull")."""
+        return {"mass_kg": float(self.mass), "com": [float(x) for x in self.com], "density": float(self.density),
+                "mass_from": "mesh" if self.watertight_used else "convex_hull"}
 
     def to_json(self) -> dict:
         return {"mass": float(self.mass), "com": self.com.tolist(), "inertia": self.inertia.tolist(),
@@ -93,7 +100,11 @@ def mass_properties(mesh: trimesh.Trimesh, *, density: float = DEFAULT_DENSITY,
     body = mesh
     watertight = bool(mesh.is_watertight)
     if not watertight:
-        body = mesh.convex_hull
+        try:
+            body = mesh.convex_hull
+        except (QhullError, ValueError, IndexError):  # flat or degenerate points
+            raise InputError("mass properties: the part is flat or degenerate (its convex hull has no volume); "
+                             "give a closed solid, not a surface") from None
         warnings.append(f"the part mesh is not watertight: its mass properties are those of its convex hull "
                         f"(volume {float(body.volume) * 1e6:.4g} cm^3); repair the mesh for exact values")
     tris = np.asarray(body.triangles, dtype=np.float64)

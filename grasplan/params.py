@@ -28,8 +28,14 @@ DEFAULT_MAX_OPENING = 0.05
 MAX_LENGTH = 10.0
 #: candidate methods: regions (sampled contact regions, the default) or the paper's face pairs
 METHODS = ("regions", "paper")
-#: score terms of :mod:`grasplan.scoring`, with their default weights
-DEFAULT_SCORE_WEIGHTS: tuple[tuple[str, float], ...] = (("center", 0.4), ("top", 0.4), ("width", 0.2))
+#: score terms of :mod:`grasplan.scoring` with their default weights, and the normalisation of the
+#: physical terms: read from the packaged ``configs/scoring.yaml``, their one definition
+from .scoring import DEFAULT_SCORING as _DEFAULT_SCORING
+
+DEFAULT_SCORE_WEIGHTS: tuple[tuple[str, float], ...] = _DEFAULT_SCORING.weights
+DEFAULT_SCORE_REFS: tuple[tuple[str, float], ...] = _DEFAULT_SCORING.refs
+#: default part density, kg/m^3 (steel)
+DEFAULT_DENSITY = 7850.0
 
 
 def spec(default: Any, kind: str, help: str, *, cli: str | None = None, lo: float | None = None,
@@ -150,7 +156,7 @@ class CandidateParams(_Params):
                                      "[default: the gripper's max_opening].", hi=2.0)
     beta_deg: float = spec(2.0, "angle", "Normals anti-parallel within this angle.", cli="--beta", lo=0.0, hi=45.0)
     mu: float = spec(0.3, "float", "Friction coefficient (cone half-angle atan(mu)).", lo=0.0, hi=10.0)
-    method: str = spec("paper", "choice", "Candidates: 'regions' samples opposing contact regions every --spacing "
+    method: str = spec("regions", "choice", "Candidates: 'regions' samples opposing contact regions every --spacing "
                        "(independent of the tessellation); 'paper' is one pair per face pair (Vogt et al. 2021).",
                        choices=METHODS)
     spacing: float = spec(2e-3, "length", "regions: grid spacing of the contact samples.", lo=0.0, hi=0.1, show="2mm")
@@ -162,15 +168,34 @@ class GraspParams(_Params):
 
     roll_step_deg: float = spec(15.0, "float", "Roll step of the TCP about the closing axis, degrees "
                                 "(poses at 0, step, ... < 360).", cli="--roll-step", lo=1.0, hi=360.0)
-    thin_spacing: float = spec(0.003, "length0", "Pose one candidate per cluster (grasp-centre grid of this pitch x "
+    thin_spacing: float = spec(0.0, "length0", "Pose one candidate per cluster (grasp-centre grid of this pitch x "
                                "closing axis in --thin-axis steps); 0 poses every candidate.", cli="--thin",
-                               hi=0.5, show="3mm")
+                               hi=0.5, show="0 (off)")
     thin_axis_deg: float = spec(10.0, "float", "Thinning: closing-axis direction step, degrees.", cli="--thin-axis",
                                 lo=0.5, hi=90.0)
     merge_distance: float = spec(0.0, "length0", "Also skip a candidate whose contacts fall in the same grid cells of "
                                  "this size as an earlier candidate's; 0 = off.", hi=0.5)
     pose_index: int | None = spec(None, "optional_int", "Rest the part in this stable pose (0 = most probable) "
                                   "instead of the cell's pose_index.", lo=0, hi=10000)
+    # grasp quality (issue 11, grasplan.quality): mass properties and the score
+    density: float = spec(DEFAULT_DENSITY, "float", "Part density, kg/m^3 (uniform; 7850 steel, 2700 aluminium, "
+                          "~1200 plastic): mass and centre of mass for the grasp quality.", lo=0.0, lo_open=True,
+                          hi=1e5)
+    mass: float | None = spec(None, "optional_float", "Part mass, kg (overrides --density).", lo=0.0, lo_open=True,
+                              hi=1e4)
+    score_weights: tuple[tuple[str, float], ...] = spec(DEFAULT_SCORE_WEIGHTS, "internal",
+                                                         "Score terms and weights (configs/scoring.yaml or --scoring).")
+    score_refs: tuple[tuple[str, float], ...] = spec(DEFAULT_SCORE_REFS, "internal",
+                                                      "Normalisation of the physical score terms (scoring YAML).")
+
+    def _check(self) -> None:
+        from .scoring import REF_KEYS, check_weights
+
+        check_weights(self.score_weights)
+        refs = dict(self.score_refs)
+        if set(refs) - set(REF_KEYS) or not all(isinstance(v, (int, float)) and math.isfinite(v) and v > 0
+                                                 for v in refs.values()) or refs.get("gravity_margin_ref", 2) <= 1:
+            raise InputError(f"score_refs: expected {', '.join(REF_KEYS)} > 0 (gravity_margin_ref > 1), got {refs!r}")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -195,21 +220,18 @@ class PlanParams(_Params):
                                     "of a better one ranks after every distinct grasp; 0 = off.", hi=0.5, show="5mm")
     distinct_angle_deg: float = spec(15.0, "float", "Ranking: angle for --distinct-distance, degrees.",
                                      cli="--distinct-angle", lo=0.0, hi=180.0)
-    score_weights: tuple[tuple[str, float], ...] = spec(DEFAULT_SCORE_WEIGHTS, "internal",
-                                                         "Score terms and weights (grasplan.scoring).")
+    score_weights: tuple[tuple[str, float], ...] | None = spec(None, "internal",
+                                                                "Re-score the grasps with these weights before "
+                                                                "ranking; None: the grasp stage's score "
+                                                                "(GraspParams.score_weights, the scoring YAML).")
+    simulate: int = spec(0, "int", "After planning, simulate the top N planned grasps (MuJoCo lift and shake, "
+                         "grasplan simulate) and rank those that held first; 0 = off.", lo=0, hi=1000)
 
     def _check(self) -> None:
-        from .scoring import TERMS  # the registry of score terms
+        if self.score_weights is not None:
+            from .scoring import check_weights
 
-        names = [n for n, _ in self.score_weights]
-        unknown = sorted(set(names) - set(TERMS))
-        if unknown:
-            raise InputError(f"score_weights: unknown term(s) {unknown}; available: {', '.join(sorted(TERMS))}")
-        for n, w in self.score_weights:
-            if isinstance(w, bool) or not isinstance(w, (int, float)) or not math.isfinite(w) or w < 0:
-                raise InputError(f"score_weights: weight of {n!r} must be a finite number >= 0, got {w!r}")
-        if not any(w > 0 for _, w in self.score_weights):
-            raise InputError("score_weights: at least one weight must be > 0")
+            check_weights(self.score_weights)
 
 
 PARAM_CLASSES = (CandidateParams, GraspParams, PlanParams)

@@ -4,8 +4,9 @@
 behind ``grasplan plan``:
 
 1. ``compute_grasps`` (candidates, TCP frames, full-jaw collision filter) -> the ``ok`` grasps.
-2. Every ``ok`` grasp gets a **score** in [0, 1] (:mod:`grasplan.scoring`, terms and weights in
-   ``PlanParams.score_weights``); they are ranked by score (ties by grasp id), then reordered so
+2. Every ``ok`` grasp has a **score** in [0, 1] from the grasp stage (:mod:`grasplan.scoring`:
+   reachability terms and the physical quality of :mod:`grasplan.quality`, weights from the scoring
+   YAML; ``PlanParams.score_weights`` re-scores with other weights); they are ranked by score (ties by grasp id), then reordered so
    that no two of the leading grasps are within ``distinct_distance`` and ``distinct_angle_deg``
    of each other while distinct ones remain (:func:`grasplan.scoring.distinct_order`).
 3. In rank order, until ``top`` grasps are planned, the list is exhausted or ``budget_s`` is spent:
@@ -27,6 +28,9 @@ behind ``grasplan plan``:
 
    ``ok`` grasps never tried (beyond the top K, or after the budget) are ``not_tried``; grasps the
    grasp stage rejected keep ``collision_part`` / ``collision_table``.
+4. ``simulate > 0``: the top ``simulate`` planned grasps are closed, lifted and shaken in MuJoCo
+   (:func:`grasplan.simulate.simulate_plan`); each gets ``sim`` and the ranking puts the grasps
+   that held first (stable: otherwise the score order).
 
 Result types and their JSON live in :mod:`grasplan.result`; the score in :mod:`grasplan.scoring`.
 """
@@ -69,9 +73,11 @@ def plan_grasps(grasps, robot, scene, *, params: PlanParams = PlanParams(),
     """
     from .ik import solve_ik
     from .paths import approach_path_reason, plan_joint_path
+    from .pickplace import T_tcp_part_of, assemble_motion, place_candidates, place_poses, plan_lift, transfer_path
+    from .scene import describe_pairs, no_path_reason
 
     t_all = time.perf_counter()
-    timing = {"ik": 0.0, "approach": 0.0, "joint_path": 0.0}
+    timing = {"ik": 0.0, "approach": 0.0, "joint_path": 0.0, "lift": 0.0, "place": 0.0, "transfer": 0.0}
     status_in = np.asarray(grasps.status).astype(str)
     M = len(status_in)
     frames = grasps.frames
@@ -84,9 +90,18 @@ def plan_grasps(grasps, robot, scene, *, params: PlanParams = PlanParams(),
 
     ok = np.flatnonzero(status_in == "ok")
     scores = np.full(M, np.nan)
-    if len(ok):
+    if getattr(grasps, "score", None) is not None and params.score_weights is None:
+        scores[ok] = np.asarray(grasps.score, dtype=np.float64)[ok]  # the grasp stage's score (quality + reach)
+    elif len(ok):
+        from .scoring import ScoringConfig
+
+        q = getattr(grasps, "quality", None)
+        mp = getattr(grasps, "mass_props", None)
+        gp = grasps.params
+        cfg = ScoringConfig.from_params(params.score_weights or gp.score_weights, gp.score_refs)
         scores[ok] = score_grasps(grasps.cand.part.mesh, T_world_part, T_part_tcp[ok], width[ok],
-                                  float(gripper.max_opening), weights=params.score_weights)
+                                  float(gripper.max_opening), weights=cfg.weights, quality=q, scoring=cfg,
+                                  com=None if mp is None else mp.com)
     order = ok[np.lexsort((ok, -scores[ok]))] if len(ok) else ok
     order = distinct_order(T_part_tcp, order, min_distance=params.distinct_distance,
                            min_angle_deg=params.distinct_angle_deg)
@@ -97,9 +112,21 @@ def plan_grasps(grasps, robot, scene, *, params: PlanParams = PlanParams(),
     reason[:] = "not tried: beyond the top K or the planning budget"
     reason[status_in == "collision_part"] = "grasp stage: the gripper hits the part at the grasp or while closing"
     reason[status_in == "collision_table"] = "grasp stage: the gripper hits the table at the grasp or while closing"
+    reason[status_in == "collision_obstacle"] = "grasp stage: the gripper hits an obstacle at the grasp or while closing"
+    stage_reasons = getattr(grasps, "reasons", None)  # per pose, naming the gripper element and the body
+    if stage_reasons is not None:
+        rejected = (status_in != "ok") & (np.asarray(stage_reasons, dtype=object) != "")
+        reason[rejected] = np.asarray(stage_reasons, dtype=object)[rejected]
     motions: dict[int, Motion] = {}
 
     q_home = np.asarray(robot.q_home, dtype=np.float64)
+    # pick-and-place (grasplan.pickplace): the lift always, the place when the cell has one
+    cell = grasps.cell
+    retreat_dir = np.asarray(getattr(cell, "retreat_direction", (0.0, 0.0, 1.0)), dtype=np.float64)
+    retreat_dist = float(getattr(cell, "retreat_distance", 0.10))
+    T_place = getattr(cell, "place", None)
+    T_place = None if T_place is None else np.asarray(T_place, dtype=np.float64)
+    scene_released = scene.with_part_at(T_place) if T_place is not None else None
     planned = tried = 0
     for i in order:
         if planned >= params.top:
@@ -120,9 +147,18 @@ def plan_grasps(grasps, robot, scene, *, params: PlanParams = PlanParams(),
             e["status"], e["reason"] = "unreachable", f"no IK solution within the joint limits ({ik.reason})"
         else:
             n_grasp_coll = n_app_coll = n_app_kin = n_path_fail = 0
+            n_lift_coll = n_lift_kin = n_transfer_fail = 0
+            lift_why = place_why = ""
+            grasp_hit = path_why = ""  # what the best IK branch hits; why the transit failed
+            place_status = None
+            T_tcp_part = T_tcp_part_of(T_part_tcp[i])
+            scene_att = scene.attached(T_tcp_part)
+            place_cands = None  # the place side (IK, descent, release, retreat): once per grasp
             for j, q_grasp in enumerate(sols):
                 if not scene.is_free(q_grasp, opening):
                     n_grasp_coll += 1
+                    grasp_hit = grasp_hit or f"IK solution {j} at the grasp: " + describe_pairs(
+                        scene.colliding_pairs(q_grasp, opening), 2)
                     continue
                 t = time.perf_counter()
                 back, why = approach_path_reason(robot, scene, T_world_tcp, T_world_pre, q_grasp, opening=opening,
@@ -131,11 +167,39 @@ def plan_grasps(grasps, robot, scene, *, params: PlanParams = PlanParams(),
                 if back is None:
                     if why == "collision":
                         n_app_coll += 1
+                        if not grasp_hit:  # re-trace the approach without the scene to name the hit
+                            kin, _ = approach_path_reason(robot, None, T_world_tcp, T_world_pre, q_grasp,
+                                                          opening=opening, max_dev=params.max_dev,
+                                                          T_flange_tcp=T_flange_tcp)
+                            hit = None if kin is None else scene.path_collisions(kin, opening)
+                            grasp_hit = "" if hit is None else (f"IK solution {j} on the approach: "
+                                                                + describe_pairs(hit[1], 2))
                     else:
                         n_app_kin += 1
                     continue
                 approach = back[::-1]  # pre-grasp -> grasp
                 q_pre = approach[0]
+                t = time.perf_counter()
+                lift = plan_lift(robot, scene_att, approach[-1], T_world_tcp, direction=retreat_dir,
+                                 distance=retreat_dist, width=float(width[i]), max_dev=params.max_dev,
+                                 T_flange_tcp=T_flange_tcp)
+                timing["lift"] += time.perf_counter() - t
+                if not lift.ok:
+                    n_lift_coll += lift.status == "ik_collision"
+                    n_lift_kin += lift.status != "ik_collision"
+                    lift_why = lift_why or lift.reason
+                    continue
+                if T_place is not None and place_cands is None:
+                    t = time.perf_counter()
+                    place_cands, place_status, place_why = place_candidates(
+                        robot, scene_att, scene_released,
+                        place_poses(T_place, T_part_tcp[i], retreat_dir, retreat_dist, params.backoff),
+                        width=float(width[i]), opening=opening, max_dev=params.max_dev, T_flange_tcp=T_flange_tcp,
+                        q_ref=lift.path[-1], seed=params.seed, max_solutions=params.max_ik_solutions,
+                        limit=params.max_path_queries)
+                    timing["place"] += time.perf_counter() - t
+                if T_place is not None and not place_cands:
+                    break  # the place side does not depend on the grasp's IK solution
                 t = time.perf_counter()
                 transit = plan_joint_path(scene, q_home, q_pre, lower=robot.lower, upper=robot.upper, opening=opening,
                                           seed=params.seed * 1_000_003 + int(i), time_limit=params.time_limit_per_query,
@@ -143,13 +207,35 @@ def plan_grasps(grasps, robot, scene, *, params: PlanParams = PlanParams(),
                 timing["joint_path"] += time.perf_counter() - t
                 if transit is None:
                     n_path_fail += 1
+                    path_why = path_why or no_path_reason(scene, q_home, q_pre, opening,
+                                                          params.time_limit_per_query, params.path_attempts)
                     if n_path_fail >= params.max_path_queries:
                         break
                     continue
-                path = np.concatenate([transit, approach[1:]], axis=0)
-                e.update(status="planned", reason=f"planned with IK solution {j} of {len(sols)} (closest to q_home first)")
-                motions[int(i)] = Motion(q_grasp=approach[-1].copy(), q_pregrasp=q_pre.copy(), path=path,
-                                         pregrasp_index=int(len(transit) - 1))
+                transfer = cand = None
+                if T_place is not None:
+                    t = time.perf_counter()
+                    for c in place_cands:
+                        if n_transfer_fail >= params.max_path_queries:
+                            break
+                        transfer = transfer_path(scene_att, lift.path[-1], c, lower=robot.lower, upper=robot.upper,
+                                                 width=float(width[i]), seed=params.seed * 1_000_003 + int(i) + 7,
+                                                 time_limit=params.time_limit_per_query,
+                                                 attempts=params.path_attempts)
+                        if transfer is not None:
+                            cand = c
+                            break
+                        n_transfer_fail += 1
+                    timing["transfer"] += time.perf_counter() - t
+                    if cand is None:
+                        if n_transfer_fail >= params.max_path_queries:
+                            break
+                        continue
+                e.update(status="planned", reason=f"planned with IK solution {j} of {len(sols)} (closest to q_home first)"
+                         + ("" if cand is None else " and a place"))
+                motions[int(i)] = assemble_motion(transit, approach, lift.path, width=float(width[i]), opening=opening,
+                                                  T_tcp_part=T_tcp_part, transfer=transfer, place=cand,
+                                                  T_world_part_place=T_place)
                 planned += 1
                 break
             if e["status"] != "planned":
@@ -157,12 +243,22 @@ def plan_grasps(grasps, robot, scene, *, params: PlanParams = PlanParams(),
                 detail = (f"{k} IK solutions: {n_grasp_coll} collide at the grasp, {n_app_coll} collide on the "
                           f"approach, {n_app_kin} cannot follow the straight approach (IK lost, joint limit, "
                           f"jump or > {params.max_dev * 1e3:g} mm off the line)")
-                if n_path_fail:
+                if T_place is not None and place_cands is not None and not place_cands:
+                    e["status"], e["reason"] = place_status, place_why
+                elif n_transfer_fail:
+                    e["status"] = "place_no_path"
+                    e["reason"] = (f"place: RRTConnect found no verified transfer path (part in the jaws) lifted -> "
+                                   f"above the place in {n_transfer_fail} queries")
+                elif n_path_fail:
                     e["status"] = "no_path"
                     e["reason"] = (f"RRTConnect found no verified path home -> pre-grasp in {n_path_fail} "
-                                   f"queries; " + detail)
+                                   f"queries ({path_why}); " + detail)
+                elif n_lift_coll + n_lift_kin > 0:
+                    e["status"] = "ik_collision" if n_lift_coll else "no_path"
+                    e["reason"] = (f"{lift_why}; {n_lift_coll + n_lift_kin} of {len(sols)} IK solutions fail the lift "
+                                   f"({n_lift_coll} collide, {n_lift_kin} cannot follow the line); " + detail)
                 elif n_grasp_coll + n_app_coll > 0:
-                    e["status"], e["reason"] = "ik_collision", detail
+                    e["status"], e["reason"] = "ik_collision", detail + (f"; {grasp_hit}" if grasp_hit else "")
                 else:
                     e["status"], e["reason"] = "unreachable", detail
         status[i], reason[i] = e["status"], e["reason"]
@@ -186,6 +282,7 @@ def plan(
     units: str = "auto",
     progress: Callable[[dict], None] | None = None,
     load_s: float = 0.0,
+    place: np.ndarray | None = None,
 ) -> PlanResult:
     """Grasps of ``part`` that ``robot`` can reach, each with a verified path from ``q_home``.
 
@@ -205,8 +302,15 @@ def plan(
         Called after the grasp stage (``{"stage": "grasps", "counts": ...}``) and after every tried grasp.
     load_s : float
         Seconds the caller spent loading ``part`` (recorded as ``timing_s["load"]``).
+    place : (4, 4), optional
+        ``T_world_part`` after release (pick-and-place, :mod:`grasplan.pickplace`); overrides the
+        cell's ``place``. Every plan lifts the part after the grasp; with a place it is also carried
+        there, released and the gripper retreats. A place reaching into the table or an obstacle
+        raises ``InputError`` before planning.
     """
-    from .cell import load_cell
+    from dataclasses import replace as _replace
+
+    from .cell import check_part_placement, load_cell
     from .grasps import compute_grasps
     from .gripper import load_gripper
     from .robot import Robot, load_robot
@@ -217,10 +321,24 @@ def plan(
     g = load_gripper(gripper)
     c = load_cell(cell)
     t_robot = time.perf_counter() - t
+    if place is not None:
+        from .transforms import check_transform
+
+        c = _replace(c, place=check_transform(place, "place (T_world_part after release)"))
     if not isinstance(part, Part):
         t = time.perf_counter()
         part = load_part(part, units=units)
         load_s = time.perf_counter() - t
+    if c.place is not None:
+        check_part_placement(part.mesh, c.place, c, what="the part at the place (--place or the cell's place)")
+    # checks before planning (exit 3 with what to change): the part inside the table or an
+    # obstacle, the robot's base inside an obstacle, q_home in collision (grasplan.scene.check_start)
+    from .cell import stable_pose
+    from .scene import check_start
+
+    T_start = T_world_part if T_world_part is not None else stable_pose(
+        part.mesh, c if grasps.pose_index is None else _replace(c, pose_index=grasps.pose_index))
+    check_start(CollisionScene(rob, g, part.mesh, T_start, c), part_mesh=part.mesh)
     gr = compute_grasps(part, gripper=g, cell=c, candidates=candidates, grasps=grasps, T_world_part=T_world_part,
                         load_s=load_s)
     if progress is not None:
@@ -230,8 +348,77 @@ def plan(
     t_robot += time.perf_counter() - t
     status, score, rank, reason, motions, timing = plan_grasps(gr, rob, scene, params=planning, progress=progress)
     base = gr.to_result()
-    return PlanResult(part=base.part, gripper=gr.gripper, cell=gr.cell, robot=rob,
-                      grasps=base.grasps.with_plan(status, score, rank, reason), motions=motions,
-                      params=Params(gr.cand.params, grasps, planning), counts_stage=base.counts_stage,
-                      timing_s={**gr.timing_s, "robot": t_robot, **timing}, part_pose_source=gr.part_pose_source,
-                      grasp_result=gr, part_mesh=part.mesh)
+    result = PlanResult(part=base.part, gripper=gr.gripper, cell=gr.cell, robot=rob,
+                        grasps=base.grasps.with_plan(status, score, rank, reason), motions=motions,
+                        params=Params(gr.cand.params, grasps, planning), counts_stage=base.counts_stage,
+                        timing_s={**gr.timing_s, "robot": t_robot, **timing}, part_pose_source=gr.part_pose_source,
+                        grasp_result=gr, part_mesh=part.mesh, mass=base.mass)
+    if planning.simulate > 0:  # MuJoCo lift and shake of the top planned grasps; held ones rank first
+        from .simulate import simulate_plan
+
+        result = simulate_plan(result, planning.simulate, mass_props=gr.mass_props, seed=planning.seed)
+    return result
+
+
+# -- every resting pose (--pose-index all) -----------------------------------------------------------
+#: ``--pose-index all`` plans every stable pose at least this probable
+MIN_POSE_PROBABILITY = 0.02
+
+
+def stable_pose_indices(part_mesh, min_probability: float = MIN_POSE_PROBABILITY) -> list[tuple[int, float]]:
+    """``[(pose_index, probability)]`` of the part's stable poses with probability >= ``min_probability``."""
+    from .cell import stable_poses
+
+    _, prob = stable_poses(part_mesh)
+    return [(int(k), float(p)) for k, p in enumerate(prob) if p >= min_probability]
+
+
+def plan_poses(part: Part | str | os.PathLike, robot=DEFAULT_ROBOT, *, grasps: GraspParams = GraspParams(),
+               min_probability: float = MIN_POSE_PROBABILITY, units: str = "auto",
+               **kwargs) -> list[tuple[int, float, PlanResult | str]]:
+    """:func:`plan` for every stable pose of probability >= ``min_probability`` (``--pose-index
+    all``): ``[(pose_index, probability, PlanResult or the error message)]``, most probable first.
+    A pose whose checks before planning fail (the part inside an obstacle, InputError) gets the
+    message; errors of the cell or robot (q_home in collision, ConfigError) are raised."""
+    from dataclasses import replace as _replace
+
+    from .errors import ConfigError, InputError
+    from .robot import Robot, load_robot
+
+    if "T_world_part" in kwargs and kwargs["T_world_part"] is not None:
+        raise InputError("--pose-index all: the resting poses replace --part-pose; give one or the other")
+    kwargs.pop("T_world_part", None)
+    if not isinstance(part, Part):
+        part = load_part(part, units=units)
+    rob = robot if isinstance(robot, Robot) else load_robot(robot)
+    out: list[tuple[int, float, PlanResult | str]] = []
+    for k, p in stable_pose_indices(part.mesh, min_probability):
+        try:
+            res = plan(part, rob, grasps=_replace(grasps, pose_index=k), **kwargs)
+        except ConfigError:
+            raise
+        except InputError as exc:
+            out.append((k, p, str(exc)))
+            continue
+        out.append((k, p, res))
+    return out
+
+
+def grasp_counts_by_pose(part: Part, *, gripper=DEFAULT_GRIPPER, cell=DEFAULT_CELL,
+                         candidates: CandidateParams = CandidateParams(), grasps: GraspParams = GraspParams(),
+                         min_probability: float = MIN_POSE_PROBABILITY, skip: int | None = None
+                         ) -> list[tuple[int, float, int]]:
+    """``[(pose_index, probability, collision-free grasps)]`` for the stable poses of probability
+    >= ``min_probability`` except ``skip``: the grasp stage only (cheap), for the exit-4 message."""
+    from dataclasses import replace as _replace
+
+    from .grasps import compute_grasps
+
+    out = []
+    for k, p in stable_pose_indices(part.mesh, min_probability):
+        if k == skip:
+            continue
+        gr = compute_grasps(part, gripper=gripper, cell=cell, candidates=candidates,
+                            grasps=_replace(grasps, pose_index=k))
+        out.append((k, p, int(np.count_nonzero(np.asarray(gr.status).astype(str) == "ok"))))
+    return out

@@ -16,7 +16,12 @@ long and ``LINE_ASPECT`` (2) times longer than wide, else ``point``. Widths are 
 Triangles are paired with grasps through a KD-tree of face centroids (radius: pad reach + the
 largest face radius) and processed in chunks of at most ``MAX_PAIRS`` pairs: memory stays bounded.
 
-**Gravity margin** (soft-finger model). Each jaw presses with ``grip_force`` ``F`` (N). A contact
+**Grip force.** ``grip_force`` (gripper YAML, N) is the datasheet gripping force, which Schunk (and
+most makers of parallel grippers) define as the arithmetic sum of the forces of the jaws: each of
+the two contacts is pressed with the normal force ``F = grip_force / 2`` (70 N for the EGP-C 40's
+140 N). ``CONTACTS_PER_GRIP`` is that 2.
+
+**Gravity margin** (soft-finger model). Each contact is pressed with ``F`` (N, above). A contact
 resists a tangential force ``|t| <= mu F`` and a torque about the closing axis
 ``|tau| <= (2/3) mu F a`` (uniform pressure on a disc of radius ``a = sqrt(area / pi)``, at least
 ``MIN_PATCH_RADIUS``), combined elliptically: ``(|t| / (mu F))^2 + (tau / tau_max)^2 <= 1``. The
@@ -34,22 +39,28 @@ force with torsion ``+-(2/3) mu a nu``; torques about the centre of mass divided
 radius ``rho`` (largest distance of the part's vertices from the centre of mass), so wrenches are
 in newtons. ``epsilon`` is the radius of the largest origin-centred ball inside the convex hull
 (scipy ConvexHull, Qhull) of the 20 wrenches; 0 when the origin is outside or the hull is flat.
+For speed the torsion radius of epsilon is rounded down to a 5 % geometric grid
+(``RADIUS_STEP``), so the rolls of one candidate (same contacts) share one hull computation.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import trimesh
-import yaml
-from scipy.spatial import ConvexHull, QhullError, cKDTree
+from scipy.spatial import ConvexHull, QhullError
 
-from .config_files import config_number, packaged_file
 from .errors import ConfigError, InputError
 from .gripper import Gripper
 from .mass import MassProperties
+from .scoring import (  # noqa: F401
+    DEFAULT_SCORING,
+    SCORING_FILE,
+    ScoringConfig,
+    load_score_weights,
+    load_scoring,
+)
 from .transforms import check_transform
 
 #: part surface within this distance of the pad plane touches the pad, m (pad compliance)
@@ -62,6 +73,8 @@ MIN_SIDE = 2e-3
 LINE_ASPECT = 2.0
 #: torsional friction radius of a point or line contact on a compliant pad, m
 MIN_PATCH_RADIUS = 5e-4
+#: epsilon: patch radii are rounded down to a geometric grid of this relative step (shared Qhull calls)
+RADIUS_STEP = 0.05
 #: edges of the linearised friction cone
 CONE_EDGES = 8
 #: load directions sampled for the worst-case 1 g acceleration
@@ -70,10 +83,10 @@ N_DIRECTIONS = 64
 G = 9.81
 #: largest (grasp, face) pairs held at once by the patch computation
 MAX_PAIRS = 400_000
+#: the gripper's ``grip_force`` is the sum over its jaws: each contact gets grip_force / this
+CONTACTS_PER_GRIP = 2
 #: contact type codes of ``Quality.contact_type``
 CONTACT_TYPES = ("point", "line", "surface")
-#: scoring configuration shipped with grasplan
-SCORING_FILE = packaged_file("configs", "scoring.yaml")
 
 
 @dataclass(frozen=True)
@@ -93,7 +106,7 @@ class Quality:
     epsilon : (M,) float64
         Ferrari-Canny L1 quality (wrench units: N per N of normal force), >= 0.
     grip_force : float
-        N per jaw used.
+        The gripping force used, N (sum of both jaws; each contact is pressed with half of it).
     mu : float
         Friction coefficient used.
     """
@@ -112,7 +125,8 @@ class Quality:
     def to_json(self, i: int, *, score: float | None = None) -> dict:
         """The ``quality`` object of grasp ``i`` (areas m^2; ``score`` added when given)."""
         out = {
-            "contact": [{"area": float(self.contact_area[i, j]), "type": CONTACT_TYPES[int(self.contact_type[i, j])]}
+            "contact": [{"area_m2": float(self.contact_area[i, j]),
+                         "type": CONTACT_TYPES[int(self.contact_type[i, j])]}
                         for j in range(2)],
             "gravity_margin": float(self.gravity_margin[i]),
             "epsilon": float(self.epsilon[i]),
@@ -155,6 +169,24 @@ def clip_polygons(P: np.ndarray, n: np.ndarray, axis: int, bound: np.ndarray, ke
     if K == 0 or N == 0:
         return P, n
     sgn = 1.0 if keep_below else -1.0
+    # only polygons with a vertex outside the half-space change (most lie inside the pad's box)
+    valid = np.arange(N)[None, :] < n[:, None]
+    need = np.any(valid & (sgn * (P[..., axis] - bound[:, None]) > 0), axis=1)
+    if not need.all():
+        if not need.any():
+            return P, n
+        Pc, nc = _clip_all(P[need], n[need], axis, bound[need], sgn)
+        out = np.zeros((K, max(N, Pc.shape[1]), P.shape[2]))
+        out[~need, :N] = P[~need]
+        out[need, :Pc.shape[1]] = Pc
+        n_out = n.copy()
+        n_out[need] = nc
+        return out, n_out
+    return _clip_all(P, n, axis, bound, sgn)
+
+
+def _clip_all(P: np.ndarray, n: np.ndarray, axis: int, bound: np.ndarray, sgn: float):
+    K, N, _ = P.shape
     i = np.arange(N)
     valid = i[None, :] < n[:, None]
     nxt = (i[None, :] + 1) % np.maximum(n[:, None], 1)
@@ -211,6 +243,29 @@ def _equivalent_widths(mom: np.ndarray) -> np.ndarray:
 # ------------------------------------------------------------------------------------------------
 # contact patches
 # ------------------------------------------------------------------------------------------------
+def _accumulate(mom, j, tri, nx, o, R, xc, g, depth, rect, cos_flat, M) -> None:
+    """Clip the triangles ``tri`` (K, 3, 3) (part frame) paired with grasps ``g`` (K,) (TCP origin
+    ``o``, rotation ``R``, contact at TCP x ``xc``) to jaw ``j``'s pad box and add their moments."""
+    y_lo, y_hi, z_lo, z_hi = rect
+    P = np.einsum("kvi,kij->kvj", tri - o[:, None], R)  # v_tcp = R^T (v - o)
+    K = len(P)
+    box_lo = np.stack([xc - depth, np.full(K, y_lo), np.full(K, z_lo)], axis=1)
+    box_hi = np.stack([xc + depth, np.full(K, y_hi), np.full(K, z_hi)], axis=1)
+    meets = np.all((P.min(axis=1) <= box_hi) & (P.max(axis=1) >= box_lo), axis=1)  # cull before clipping
+    P, g, nx, box_lo, box_hi = P[meets], g[meets], nx[meets], box_lo[meets], box_hi[meets]
+    n = np.full(len(P), 3)
+    for axis in range(3):
+        P, n = clip_polygons(P, n, axis, box_lo[:, axis], keep_below=False)
+        P, n = clip_polygons(P, n, axis, box_hi[:, axis], keep_below=True)
+    if len(P) == 0 or P.shape[1] == 0:
+        return
+    m6 = polygon_moments(P[..., 1], P[..., 2], n)
+    flat = np.abs(nx) >= cos_flat
+    for k in range(6):
+        mom[:, j, 0, k] += np.bincount(g, weights=m6[:, k], minlength=M)
+        mom[:, j, 1, k] += np.bincount(g, weights=m6[:, k] * flat, minlength=M)
+
+
 def contact_patches(part_mesh: trimesh.Trimesh, gripper: Gripper, T_part_tcp: np.ndarray, contacts: np.ndarray,
                     *, depth: float = CONTACT_DEPTH, flat_deg: float = FLAT_DEG, max_pairs: int = MAX_PAIRS):
     """Patch between each finger pad and the part (see the module docstring).
@@ -226,12 +281,10 @@ def contact_patches(part_mesh: trimesh.Trimesh, gripper: Gripper, T_part_tcp: np
     cent = tris.mean(axis=1)
     face_rad = np.linalg.norm(tris - cent[:, None], axis=2).max(axis=1) if len(tris) else np.zeros(0)
     pad_reach = math.hypot(np.abs(rect[0]).max(), np.abs(rect[1]).max()) + depth
-    # faces no larger than the pad are found by a KD-tree of centroids; larger ones (few on a CAD
-    # mesh: big planar facets) are paired with every grasp
-    small = np.flatnonzero(face_rad <= pad_reach)
-    big = np.flatnonzero(face_rad > pad_reach)
-    reach = pad_reach + (float(face_rad[small].max()) if len(small) else 0.0)
-    tree = cKDTree(cent[small]) if len(small) else None
+    F = len(tris)
+    cent_sq = np.einsum("fi,fi->f", cent, cent)
+    slab_tol = face_rad + depth  # a face meeting the slab has its centroid this close to the contact plane
+    lat_tol = (pad_reach + face_rad) ** 2  # ... and this close (squared) to the contact, laterally
     cos_flat = math.cos(math.radians(flat_deg))
     # moments: [grasp, jaw, (all, flat), 6]
     mom = np.zeros((M, 2, 2, 6))
@@ -241,44 +294,50 @@ def contact_patches(part_mesh: trimesh.Trimesh, gripper: Gripper, T_part_tcp: np
         ysgn = -1.0 if j == 0 else 1.0
         y_lo, y_hi = sorted(ysgn * rect[0])
         z_lo, z_hi = rect[1]
-        x_c = np.einsum("mi,mi->m", C[:, j] - o, R[:, :, 0])  # contact's x in the TCP frame
-        counts = len(big) + (tree.query_ball_point(C[:, j], reach, return_length=True) if tree is not None and M
-                             else np.zeros(M, dtype=np.int64))
-        start = 0
-        while start < M:
-            stop = start + max(1, int(np.searchsorted(np.cumsum(counts[start:]), max_pairs, side="right")))
-            lists = tree.query_ball_point(C[start:stop, j], reach) if tree is not None else [[]] * (stop - start)
-            lens = np.array([len(x) for x in lists], dtype=np.int64)  # one entry per grasp
-            g = np.concatenate([np.repeat(np.arange(start, stop), lens), np.repeat(np.arange(start, stop), len(big))])
-            f = np.concatenate([small[np.concatenate([np.asarray(x, dtype=np.int64) for x in lists])] if lens.sum() else
-                                np.zeros(0, dtype=np.int64), np.tile(big, stop - start)])
-            start = stop
+        # the rolls of one candidate share the contact and the closing axis: the face search and the
+        # slab cull (roll-independent) run once per distinct (contact, closing axis)
+        key = np.concatenate([C[:, j], R[:, :, 0], np.einsum("mi,mi->m", C[:, j] - o, R[:, :, 0])[:, None]], axis=1)
+        _, rep, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
+        inv = inv.reshape(-1)
+        U = len(rep)
+        members = np.argsort(inv, kind="stable")
+        gsize = np.bincount(inv, minlength=U)
+        gstart = np.cumsum(gsize) - gsize
+        cu, axu = C[rep, j], R[rep, :, 0]
+        x_cu = np.einsum("mi,mi->m", cu - o[rep], axu)  # contact's x in the TCP frame
+        # faces near each contact's pad: a dense (faces x contacts) test on centroids, chunked so
+        # that at most max_pairs (face, contact) pairs exist at once
+        step = max(1, max_pairs // max(F, 1))
+        for start in range(0, U if F else 0, step):
+            stop = min(U, start + step)
+            ax, c = axu[start:stop], cu[start:stop]
+            xs = cent @ ax.T - np.einsum("bi,bi->b", c, ax)  # (F, b) centroid height over the contact plane
+            nx_all = fn @ ax.T
+            d2 = cent_sq[:, None] - 2.0 * (cent @ c.T) + np.einsum("bi,bi->b", c, c)  # squared distance
+            near = (np.abs(xs) <= slab_tol[:, None]) & (d2 - xs * xs <= lat_tol[:, None]) & \
+                ((nx_all < 0) if j == 0 else (nx_all > 0))
+            f, b = np.nonzero(near)
             if len(f) == 0:
                 continue
-            nx = np.einsum("ki,ki->k", fn[f], R[g, :, 0])
-            facing = nx < 0 if j == 0 else nx > 0
-            g, f, nx = g[facing], f[facing], nx[facing]
-            # cull on the contact slab first (x only), then bring the survivors into the TCP frame
-            x = np.einsum("kvi,ki->kv", tris[f] - o[g][:, None], R[g, :, 0])
-            xc = x_c[g]
-            near = (x.min(axis=1) <= xc + depth) & (x.max(axis=1) >= xc - depth)
-            g, f, nx, xc = g[near], f[near], nx[near], xc[near]
-            P = np.einsum("kvi,kij->kvj", tris[f] - o[g][:, None], R[g])  # v_tcp = R^T (v - o)
-            box_lo = np.stack([xc - depth, np.full(len(f), y_lo), np.full(len(f), z_lo)], axis=1)
-            box_hi = np.stack([xc + depth, np.full(len(f), y_hi), np.full(len(f), z_hi)], axis=1)
-            meets = np.all((P.min(axis=1) <= box_hi) & (P.max(axis=1) >= box_lo), axis=1)  # cull before clipping
-            P, g, nx, box_lo, box_hi = P[meets], g[meets], nx[meets], box_lo[meets], box_hi[meets]
-            n = np.full(len(P), 3)
-            for axis in range(3):
-                P, n = clip_polygons(P, n, axis, box_lo[:, axis], keep_below=False)
-                P, n = clip_polygons(P, n, axis, box_hi[:, axis], keep_below=True)
-            if len(P) == 0 or P.shape[1] == 0:
-                continue
-            m6 = polygon_moments(P[..., 1], P[..., 2], n)
-            flat = np.abs(nx) >= cos_flat
-            for k in range(6):
-                mom[:, j, 0, k] += np.bincount(g, weights=m6[:, k], minlength=M)
-                mom[:, j, 1, k] += np.bincount(g, weights=m6[:, k] * flat, minlength=M)
+            gu = start + b
+            nx = nx_all[f, b]
+            # exact cull on the contact slab (x only, the same for every roll)
+            x = np.einsum("kvi,ki->kv", tris[f] - cu[gu][:, None], axu[gu])  # x - x_contact
+            keep = (x.min(axis=1) <= depth) & (x.max(axis=1) >= -depth)
+            gu, f, nx = gu[keep], f[keep], nx[keep]
+            # expand the survivors to every roll of their contact, in bounded sub-chunks
+            nrep = gsize[gu]
+            ends = np.cumsum(nrep)
+            s0 = 0
+            while s0 < len(gu):
+                s1 = s0 + max(1, int(np.searchsorted(ends[s0:] - (ends[s0 - 1] if s0 else 0), max_pairs, side="right")))
+                r = nrep[s0:s1]
+                pu = np.repeat(np.arange(s0, s1), r)
+                within = np.arange(len(pu)) - np.repeat(np.cumsum(r) - r, r)
+                g = members[gstart[gu[pu]] + within]
+                _accumulate(mom, j, tris[f[pu]], nx[pu], o[g], R[g], x_cu[gu[pu]], g, depth,
+                            (y_lo, y_hi, z_lo, z_hi), cos_flat, M)
+                s0 = s1
     area = mom[:, :, 0, 0]
     widths = _equivalent_widths(mom[:, :, 0])
     flat_widths = _equivalent_widths(mom[:, :, 1])
@@ -305,10 +364,11 @@ def patch_radius(area: np.ndarray) -> np.ndarray:
 
 
 def gravity_margin(mass_props: MassProperties, T_world_part: np.ndarray, T_part_tcp: np.ndarray,
-                   width: np.ndarray, area: np.ndarray, *, mu: float, grip_force: float,
+                   width: np.ndarray, area: np.ndarray, *, mu: float, normal_force: float,
                    accel_g: float = 1.0) -> np.ndarray:
     """(M,) friction available / needed to hold the part under gravity plus ``accel_g`` g in the
-    worst direction (module docstring). ``area`` (M, 2) m^2, ``width`` (M,) m, ``grip_force`` N."""
+    worst direction (module docstring). ``area`` (M, 2) m^2, ``width`` (M,) m, ``normal_force``: N
+    pressing each contact (``grip_force / CONTACTS_PER_GRIP``)."""
     T = np.asarray(T_part_tcp, dtype=np.float64).reshape(-1, 4, 4)
     R = T[:, :3, :3]
     g_hat = np.einsum("mji,j->mi", R, T_world_part[:3, :3].T @ np.array([0.0, 0.0, -1.0]))  # in TCP
@@ -322,10 +382,10 @@ def gravity_margin(mass_props: MassProperties, T_world_part: np.ndarray, T_part_
     tau_perp[..., 0] = 0.0
     x = np.array([1.0, 0.0, 0.0])
     h = np.cross(tau_perp, x) / np.maximum(np.asarray(width, dtype=np.float64), 1e-9)[:, None, None]
-    t_max = mu * grip_force
+    t_max = mu * normal_force
     if t_max <= 0:  # no friction: nothing holds the part against a tangential load
         return np.zeros(len(T))
-    tors_max = (2.0 / 3.0) * mu * grip_force * patch_radius(area).sum(axis=1)  # both contacts
+    tors_max = (2.0 / 3.0) * mu * normal_force * patch_radius(area).sum(axis=1)  # both contacts
     r_tors = np.abs(tau[..., 0]) / tors_max[:, None]
     r0 = np.hypot(np.linalg.norm(0.5 * f_t - h, axis=2) / t_max, r_tors)
     r1 = np.hypot(np.linalg.norm(0.5 * f_t + h, axis=2) / t_max, r_tors)
@@ -373,6 +433,32 @@ def ferrari_canny(W: np.ndarray) -> np.ndarray:
     return out
 
 
+def quantised_patch_radius(area: np.ndarray) -> np.ndarray:
+    """:func:`patch_radius` rounded down to the geometric grid ``MIN_PATCH_RADIUS * (1 +
+    RADIUS_STEP)^k`` (conservative: less torsion), so that grasps with the same contacts share one
+    epsilon."""
+    r = patch_radius(area)
+    k = np.floor(np.log(r / MIN_PATCH_RADIUS) / math.log1p(RADIUS_STEP) + 1e-9)
+    return MIN_PATCH_RADIUS * np.exp(np.maximum(k, 0.0) * math.log1p(RADIUS_STEP))
+
+
+def epsilon_dedup(contacts: np.ndarray, normals: np.ndarray, area: np.ndarray, com: np.ndarray, rho: float,
+                  mu: float) -> np.ndarray:
+    """(M,) Ferrari-Canny epsilon, one Qhull call per distinct wrench set: the rolls of one
+    candidate share contacts and normals, and their patch radii are quantised
+    (:func:`quantised_patch_radius`), so most of them are computed once."""
+    M = len(contacts)
+    if M == 0:
+        return np.zeros(0)
+    rq = quantised_patch_radius(area)
+    key = np.concatenate([np.asarray(contacts, dtype=np.float64).reshape(M, 6),
+                          np.asarray(normals, dtype=np.float64).reshape(M, 6), rq], axis=1)
+    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    u = first
+    W = contact_wrenches(np.asarray(contacts)[u], np.asarray(normals)[u], com, rho, mu, (2.0 / 3.0) * mu * rq[u])
+    return ferrari_canny(W)[inverse.reshape(-1)]
+
+
 def part_radius(part_mesh: trimesh.Trimesh, com: np.ndarray) -> float:
     """Largest distance of the part's (hull) vertices from ``com``, m: the torque scale of epsilon."""
     v = np.asarray(part_mesh.convex_hull.vertices if len(part_mesh.vertices) > 64 else part_mesh.vertices)
@@ -391,7 +477,7 @@ def grasp_quality(part_mesh: trimesh.Trimesh, mass_props: MassProperties, grippe
     mass_props : MassProperties
         From :func:`grasplan.mass.mass_properties`.
     gripper : Gripper
-        Its finger gives the pad; its ``grip_force`` (N per jaw) is used unless ``grip_force``.
+        Its finger gives the pad; its ``grip_force`` (N, sum of both jaws) is used unless ``grip_force``.
     T_part_tcp : (M, 4, 4)
     contacts, normals : (M, 2, 3)
         Contact points (m) and outward unit surface normals, part frame; contact 0 on the TCP's -x side.
@@ -402,7 +488,8 @@ def grasp_quality(part_mesh: trimesh.Trimesh, mass_props: MassProperties, grippe
     mu : float
         Friction coefficient (>= 0).
     grip_force : float, optional
-        N per jaw; default ``gripper.grip_force``.
+        Gripping force, N (sum of both jaws: each contact is pressed with half); default
+        ``gripper.grip_force``.
     """
     T = check_transform(T_part_tcp, "T_part_tcp", batch=True) if len(np.shape(T_part_tcp)) == 3 else \
         check_transform(T_part_tcp, "T_part_tcp")[None]
@@ -421,11 +508,13 @@ def grasp_quality(part_mesh: trimesh.Trimesh, mass_props: MassProperties, grippe
     F = float(gripper.grip_force if grip_force is None else grip_force)
     if not (math.isfinite(F) and F > 0):
         raise InputError(f"grasp quality: grip_force must be > 0 N, got {grip_force!r} (gripper YAML grip_force)")
+    if M == 0:
+        z2 = np.zeros((0, 2))
+        return Quality(contact_area=z2, contact_type=np.zeros((0, 2), dtype=np.int8), contact_width=np.zeros((0, 2, 2)),
+                       gravity_margin=np.zeros(0), epsilon=np.zeros(0), grip_force=F, mu=float(mu))
     area, kind, widths = contact_patches(part_mesh, gripper, T, C)
-    margin = gravity_margin(mass_props, Twp, T, w, area, mu=mu, grip_force=F)
-    rho = max(part_radius(part_mesh, mass_props.com), 1e-9)
-    torsion = (2.0 / 3.0) * mu * patch_radius(area)
-    eps = ferrari_canny(contact_wrenches(C, N, mass_props.com, rho, mu, torsion)) if M else np.zeros(0)
+    margin = gravity_margin(mass_props, Twp, T, w, area, mu=mu, normal_force=F / CONTACTS_PER_GRIP)
+    eps = epsilon_dedup(C, N, area, mass_props.com, max(part_radius(part_mesh, mass_props.com), 1e-9), mu)
     return Quality(contact_area=area, contact_type=kind, contact_width=widths, gravity_margin=margin,
                    epsilon=eps, grip_force=F, mu=float(mu))
 
@@ -433,45 +522,57 @@ def grasp_quality(part_mesh: trimesh.Trimesh, mass_props: MassProperties, grippe
 # ------------------------------------------------------------------------------------------------
 # scoring configuration
 # ------------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class ScoringConfig:
-    """``configs/scoring.yaml``: ``weights`` ((term, weight), ...) and the normalisation references."""
+def quality_columns(quality: Quality, rows: np.ndarray, M: int) -> dict:
+    """Per-pose arrays of :class:`grasplan.result.GraspTable` for ``M`` poses whose rows ``rows``
+    have ``quality`` (the others NaN, type -1): contact_area (M, 2), contact_type (M, 2) int8,
+    gravity_margin (M,), epsilon (M,)."""
+    rows = np.asarray(rows, dtype=np.int64)
+    area = np.full((M, 2), np.nan)
+    kind = np.full((M, 2), -1, dtype=np.int8)
+    gm = np.full(M, np.nan)
+    eps = np.full(M, np.nan)
+    area[rows], kind[rows], gm[rows], eps[rows] = quality.contact_area, quality.contact_type, \
+        quality.gravity_margin, quality.epsilon
+    return {"contact_area": area, "contact_type": kind, "gravity_margin": gm, "epsilon": eps}
 
-    weights: tuple[tuple[str, float], ...]
-    gravity_margin_ref: float
-    epsilon_ref: float
 
+def quality_and_score(part_mesh: trimesh.Trimesh, gripper: Gripper, T_world_part: np.ndarray, T_part_tcp: np.ndarray,
+                      candidate: np.ndarray, candidates, status: np.ndarray, mu: float, params):
+    """The grasp stage's quality step: mass properties at ``params.density`` / ``params.mass``, the
+    quality of the ``ok`` poses and the score of every pose (NaN where not ``ok``) with the weights
+    ``params.score_weights`` / ``params.score_refs`` (a :class:`grasplan.params.GraspParams`).
 
-def load_scoring(path: str | Path | None = None) -> ScoringConfig:
-    """Read a scoring YAML (default: the packaged ``configs/scoring.yaml``); ConfigError naming the field."""
-    p = Path(path) if path is not None else SCORING_FILE
+    Returns ``(Quality of the ok rows, MassProperties, score (M,), note)``. A part without volume
+    (flat, degenerate: no mass properties) has no quality: ``(None, None, score, note)`` with the
+    score of the other terms and ``note`` saying why; ``note`` is "" otherwise."""
+    from .mass import mass_properties
+    from .scoring import PHYSICAL_TERMS, ScoringConfig, score_grasps
+
+    T = np.asarray(T_part_tcp, dtype=np.float64).reshape(-1, 4, 4)
+    M = len(T)
+    ok = np.flatnonzero(np.asarray(status).astype(str) == "ok")
+    ci = np.asarray(candidate, dtype=np.int64)[ok]
+    width = np.asarray(candidates.width, dtype=np.float64)[ci]
+    cfg = ScoringConfig.from_params(params.score_weights, params.score_refs)
     try:
-        data = yaml.safe_load(p.read_text())
-    except OSError as exc:
-        raise ConfigError(f"scoring file {p}: cannot read it ({exc.strerror}); give an existing YAML file") from None
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"scoring file {p}: not valid YAML: {exc}") from None
-    if not isinstance(data, dict) or not isinstance(data.get("weights"), dict) or not data["weights"]:
-        raise ConfigError(f"scoring file {p}: expected a mapping with 'weights: {{term: weight, ...}}'")
-    unknown = set(data) - {"weights", "normalisation"}
-    if unknown:
-        raise ConfigError(f"scoring file {p}: unknown fields {sorted(unknown)}; allowed: weights, normalisation")
-    weights = tuple((str(k), config_number(v, f"{p}: weights.{k}", nonneg=True)) for k, v in data["weights"].items())
-    if sum(w for _, w in weights) <= 0:
-        raise ConfigError(f"scoring file {p}: weights: at least one weight must be > 0")
-    norm = data.get("normalisation") or {}
-    if not isinstance(norm, dict) or set(norm) - {"gravity_margin_ref", "epsilon_ref"}:
-        raise ConfigError(f"scoring file {p}: normalisation: allowed keys gravity_margin_ref, epsilon_ref")
-    gm = config_number(norm.get("gravity_margin_ref", 10.0), f"{p}: normalisation.gravity_margin_ref", positive=True)
-    if gm <= 1:
-        raise ConfigError(f"scoring file {p}: normalisation.gravity_margin_ref must be > 1, got {gm:g}")
-    eps = config_number(norm.get("epsilon_ref", 0.1), f"{p}: normalisation.epsilon_ref", positive=True)
-    return ScoringConfig(weights=weights, gravity_margin_ref=gm, epsilon_ref=eps)
-
-
-def load_score_weights(path: str | Path | None = None) -> tuple[tuple[str, float], ...]:
-    """``((term, weight), ...)`` from a scoring YAML (default the packaged ``configs/scoring.yaml``)."""
-    return load_scoring(path).weights
+        mp = mass_properties(part_mesh, density=params.density, mass=params.mass)
+    except InputError as exc:
+        if params.mass is not None or params.density != type(params)().density:
+            raise  # the user asked for a mass: say why there is none
+        note = f"no grasp quality: {exc}; the score uses only the other terms"
+        weights = tuple((n, w) for n, w in cfg.weights if n not in PHYSICAL_TERMS)
+        score = np.full(M, np.nan)
+        if len(ok) and sum(w for _, w in weights) > 0:
+            score[ok] = score_grasps(part_mesh, T_world_part, T[ok], width, float(gripper.max_opening), weights,
+                                     scoring=cfg)
+        return None, None, score, note
+    q = grasp_quality(part_mesh, mp, gripper, T[ok], candidates.contacts[ci], candidates.normals[ci], width,
+                      T_world_part=T_world_part, mu=mu)
+    score = np.full(M, np.nan)
+    if len(ok):
+        score[ok] = score_grasps(part_mesh, T_world_part, T[ok], width, float(gripper.max_opening), cfg.weights,
+                                 quality=q, scoring=cfg, com=mp.com)
+    return q, mp, score, ""
 
 
 def score_quality_terms(quality: Quality, config: ScoringConfig | None = None) -> dict[str, np.ndarray]:
@@ -479,7 +580,108 @@ def score_quality_terms(quality: Quality, config: ScoringConfig | None = None) -
 
     ``gravity_margin = clip(log(margin) / log(gravity_margin_ref), 0, 1)`` (0 when it slips, 1 at
     the reference margin and above); ``epsilon = clip(epsilon / epsilon_ref, 0, 1)``."""
-    cfg = config if config is not None else load_scoring()
+    cfg = config if config is not None else DEFAULT_SCORING
     gm = np.clip(np.log(np.maximum(quality.gravity_margin, 1e-300)) / math.log(cfg.gravity_margin_ref), 0.0, 1.0)
     eps = np.clip(quality.epsilon / cfg.epsilon_ref, 0.0, 1.0)
     return {"gravity_margin": gm, "epsilon": eps}
+
+
+# ------------------------------------------------------------------------------------------------
+# JSON of a grasp table's quality and simulation columns (grasplan.result)
+# ------------------------------------------------------------------------------------------------
+def quality_entries(table, ids: np.ndarray) -> list | None:
+    """The ``quality`` object per grasp row ``ids`` of a :class:`grasplan.result.GraspTable`
+    (``{score, gravity_margin, epsilon, contact: [{area_m2, type}] * 2}``, None for grasps without
+    quality), or None when the table has no quality columns."""
+    if table.gravity_margin is None:
+        return None
+    ids = np.asarray(ids, dtype=np.int64)
+    gm = table.gravity_margin[ids]
+    has = np.isfinite(gm)
+    area = np.round(table.contact_area[ids], 12).tolist()
+    kind = table.contact_type[ids].tolist()
+    score = table.score[ids].tolist()
+    gml, eps = gm.tolist(), table.epsilon[ids].tolist()
+    return [{"score": None if score[k] != score[k] else score[k], "gravity_margin": gml[k], "epsilon": eps[k],
+             "contact": [{"area_m2": area[k][j], "type": CONTACT_TYPES[kind[k][j]]} for j in range(2)]}
+            if has[k] else None for k in range(len(ids))]
+
+
+def sim_entries(table, ids: np.ndarray) -> list | None:
+    """The ``sim`` object ``{success, slip_m, turn_deg}`` per grasp row (None: not simulated), or
+    None when the table has no simulation columns."""
+    if table.sim_success is None:
+        return None
+    ids = np.asarray(ids, dtype=np.int64)
+    ok, slip, turn = table.sim_success[ids].tolist(), table.sim_slip_m[ids].tolist(), table.sim_turn_deg[ids].tolist()
+    return [{"success": bool(ok[k]), "slip_m": slip[k], "turn_deg": turn[k]} if ok[k] >= 0 else None
+            for k in range(len(ids))]
+
+
+def _bad(where: str, i: int, g, what: str) -> InputError:
+    gid = g.get("id") if isinstance(g, dict) else None
+    return InputError(f"{where}: grasps[{i}] (id {str(gid)[:20]}): {what}")
+
+
+def parse_quality_sim(grasps: list, where: str) -> dict:
+    """GraspTable quality / sim columns from the grasp dicts of a file (keys absent: no columns);
+    InputError naming the grasp for a malformed ``quality`` or ``sim`` object."""
+    M = len(grasps)
+    out: dict = {}
+    qs = [g.get("quality") if isinstance(g, dict) else None for g in grasps]
+    if any(q is not None for q in qs):
+        cols = {"contact_area": np.full((M, 2), np.nan), "contact_type": np.full((M, 2), -1, dtype=np.int8),
+                "gravity_margin": np.full(M, np.nan), "epsilon": np.full(M, np.nan)}
+        for i, q in enumerate(qs):
+            if q is None:
+                continue
+            try:
+                gm, eps = float(q["gravity_margin"]), float(q["epsilon"])
+                con = q["contact"]
+                area = [float(c["area_m2"]) for c in con]
+                kind = [CONTACT_TYPES.index(c["type"]) for c in con]
+                ok = (len(con) == 2 and math.isfinite(gm) and gm >= 0 and math.isfinite(eps) and eps >= 0
+                      and all(math.isfinite(a) and a >= 0 for a in area)
+                      and not any(isinstance(v, bool) for v in (q["gravity_margin"], q["epsilon"])))
+            except (KeyError, TypeError, ValueError, OverflowError, AttributeError):
+                ok = False
+            if not ok:
+                raise _bad(where, i, grasps[i], "'quality' malformed; expected {score, gravity_margin >= 0, "
+                           "epsilon >= 0, contact: [{area_m2 >= 0, type: point|line|surface}] x 2} or null")
+            cols["gravity_margin"][i], cols["epsilon"][i] = gm, eps
+            cols["contact_area"][i], cols["contact_type"][i] = area, kind
+        out.update(cols)
+    ss = [g.get("sim") if isinstance(g, dict) else None for g in grasps]
+    if any(x is not None for x in ss):
+        succ, slip, turn = np.full(M, -1, dtype=np.int8), np.full(M, np.nan), np.full(M, np.nan)
+        for i, x in enumerate(ss):
+            if x is None:
+                continue
+            try:
+                ok = isinstance(x["success"], bool) and all(
+                    not isinstance(x[k], bool) and math.isfinite(float(x[k])) and float(x[k]) >= 0
+                    for k in ("slip_m", "turn_deg"))
+            except (KeyError, TypeError, ValueError, OverflowError):
+                ok = False
+            if not ok:
+                raise _bad(where, i, grasps[i], "'sim' malformed; expected {success: bool, slip_m >= 0, "
+                           "turn_deg >= 0} or null")
+            succ[i], slip[i], turn[i] = int(x["success"]), float(x["slip_m"]), float(x["turn_deg"])
+        out.update(sim_success=succ, sim_slip_m=slip, sim_turn_deg=turn)
+    return out
+
+
+def parse_mass_record(part: dict, where: str) -> dict | None:
+    """The ``part`` mass record (``mass_kg``, ``com``, ``density``, ``mass_from``) of a file, None
+    when absent; InputError when malformed."""
+    if not isinstance(part, dict) or "mass_kg" not in part:
+        return None
+    try:
+        m, d = float(part["mass_kg"]), float(part.get("density", "nan"))
+        com = np.asarray(part["com"], dtype=np.float64)
+        ok = m > 0 and math.isfinite(m) and com.shape == (3,) and np.all(np.isfinite(com))
+    except (KeyError, TypeError, ValueError, OverflowError):
+        ok = False
+    if not ok:
+        raise InputError(f"{where}: part.mass_kg must be a positive number and part.com three finite numbers (m)")
+    return {"mass_kg": m, "com": com.tolist(), "density": d, "mass_from": str(part.get("mass_from", "mesh"))}

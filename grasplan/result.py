@@ -36,18 +36,22 @@ class Status(str, enum.Enum):
     PLANNED = "planned"
     COLLISION_PART = "collision_part"
     COLLISION_TABLE = "collision_table"
+    COLLISION_OBSTACLE = "collision_obstacle"
     UNREACHABLE = "unreachable"
     IK_COLLISION = "ik_collision"
     NO_PATH = "no_path"
+    PLACE_UNREACHABLE = "place_unreachable"
+    PLACE_NO_PATH = "place_no_path"
     NOT_TRIED = "not_tried"
 
 
 #: statuses of the grasp stage (``grasplan.grasps/1``)
-GRASP_STATUSES: tuple[str, ...] = (Status.OK.value, Status.COLLISION_PART.value, Status.COLLISION_TABLE.value)
+GRASP_STATUSES: tuple[str, ...] = (Status.OK.value, Status.COLLISION_PART.value, Status.COLLISION_TABLE.value,
+                                   Status.COLLISION_OBSTACLE.value)
 #: statuses of the plan stage (``grasplan.plan/1``), in report order
 PLAN_STATUSES: tuple[str, ...] = tuple(s.value for s in (
-    Status.PLANNED, Status.COLLISION_PART, Status.COLLISION_TABLE, Status.UNREACHABLE, Status.IK_COLLISION,
-    Status.NO_PATH, Status.NOT_TRIED))
+    Status.PLANNED, Status.COLLISION_PART, Status.COLLISION_TABLE, Status.COLLISION_OBSTACLE, Status.UNREACHABLE, Status.IK_COLLISION,
+    Status.NO_PATH, Status.PLACE_UNREACHABLE, Status.PLACE_NO_PATH, Status.NOT_TRIED))
 
 
 @dataclass(frozen=True)
@@ -90,6 +94,18 @@ class GraspTable:
     rank: np.ndarray
     reason: np.ndarray
     id_values: np.ndarray | None = None  #: grasp ids when not 0..M-1 (a grasps file written with --only-ok)
+    # grasp quality (issue 11, grasplan.quality; None: not computed): contact_area (M, 2) m^2 and
+    # contact_type (M, 2) int8 into grasplan.quality.CONTACT_TYPES per jaw, gravity_margin (M,),
+    # epsilon (M,); NaN / -1 for grasps without quality (collisions)
+    contact_area: np.ndarray | None = None
+    contact_type: np.ndarray | None = None
+    gravity_margin: np.ndarray | None = None
+    epsilon: np.ndarray | None = None
+    # lift-and-shake simulation (grasplan.simulate; None: none): sim_success (M,) int8 (1 held,
+    # 0 slipped, -1 not simulated), sim_slip_m (M,) m, sim_turn_deg (M,) deg (NaN: not simulated)
+    sim_success: np.ndarray | None = None
+    sim_slip_m: np.ndarray | None = None
+    sim_turn_deg: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(len(self.width))
@@ -110,19 +126,91 @@ class GraspTable:
         return replace(self, status=status, score=score, rank=rank, reason=reason)
 
 
+#: segment labels of a planned motion, in path order (see :class:`Motion`)
+SEGMENT_LABELS: tuple[str, ...] = ("transit", "approach", "lift", "transfer", "descend", "retreat")
+#: the label sequences a motion may have: pick only (old files), pick + lift, pick + lift + place
+SEGMENT_SEQUENCES: tuple[tuple[str, ...], ...] = (SEGMENT_LABELS[:2], SEGMENT_LABELS[:3], SEGMENT_LABELS)
+#: gripper event actions
+GRIPPER_ACTIONS: tuple[str, ...] = ("close", "open")
+
+
+@dataclass(frozen=True)
+class GripperEvent:
+    """The jaws are commanded to ``width`` (m) at path row ``index``: ``close`` at the grasp (width =
+    the contact width), ``open`` at the place (width = the pre-grasp opening)."""
+
+    index: int
+    action: str
+    width: float
+
+    def to_json(self) -> dict:
+        return {"index": int(self.index), "action": str(self.action), "width": float(self.width)}
+
+
 @dataclass(frozen=True)
 class Motion:
-    """A planned grasp's joint motion (rad): ``path`` (k, n) runs q_home -> q_pregrasp (at
-    ``pregrasp_index``) -> q_grasp along the straight approach."""
+    """A planned grasp's joint motion (rad), ``path`` (k, n) with labelled segments.
+
+    ``segments``: ``(label, start, end)`` inclusive path rows; consecutive segments share their
+    boundary row. Labels in order: ``transit`` (q_home -> q_pregrasp at ``pregrasp_index``),
+    ``approach`` (-> q_grasp, straight, jaws at the pre-grasp opening), ``lift`` (the TCP straight
+    along the cell's retreat direction by its retreat distance, part attached), and with a place
+    ``transfer`` (-> above the place, attached), ``descend`` (straight down to the place, attached),
+    ``retreat`` (straight back along the TCP -z by ``backoff``, part released at the place).
+    ``gripper``: the ``close`` event at the grasp row and the ``open`` event at the place row.
+    ``T_tcp_part``: the part in the jaws while attached (= inv(T_part_tcp)); ``T_world_part_place``:
+    the part's pose after release. Old files (``segments`` empty) have only transit + approach.
+    """
 
     q_grasp: np.ndarray
     q_pregrasp: np.ndarray
     path: np.ndarray
     pregrasp_index: int
+    segments: tuple[tuple[str, int, int], ...] = ()
+    gripper: tuple[GripperEvent, ...] = ()
+    T_world_part_place: np.ndarray | None = None
+    T_tcp_part: np.ndarray | None = None
+
+    def segment_list(self) -> list[tuple[str, int, int]]:
+        """The effective segments: ``segments``, or transit + approach for a motion without them."""
+        if self.segments:
+            return [(str(a), int(s), int(e)) for a, s, e in self.segments]
+        k = len(self.path)
+        return [("transit", 0, int(self.pregrasp_index)), ("approach", int(self.pregrasp_index), k - 1)]
+
+    def segment(self, label: str) -> tuple[int, int] | None:
+        """``(start, end)`` rows of segment ``label``, None when the motion has none."""
+        for a, s, e in self.segment_list():
+            if a == label:
+                return s, e
+        return None
+
+    @property
+    def grasp_index(self) -> int:
+        """Row of ``q_grasp`` in ``path`` (the end of the approach)."""
+        return self.segment("approach")[1]
+
+    def event(self, action: str) -> GripperEvent | None:
+        """The first gripper event ``action`` ("close" / "open"), None when there is none."""
+        return next((g for g in self.gripper if g.action == action), None)
+
+    def attached_range(self) -> tuple[int, int]:
+        """``(close row, open row)``: the rows between which the part rides in the jaws. Without a
+        close event (old files) the close row is the grasp row; without an open event the open row
+        is the path's last row."""
+        c, o = self.event("close"), self.event("open")
+        return (c.index if c is not None else self.grasp_index), (o.index if o is not None else len(self.path) - 1)
 
     def to_json(self) -> dict:
-        return {"q_grasp": np.asarray(self.q_grasp).tolist(), "q_pregrasp": np.asarray(self.q_pregrasp).tolist(),
-                "path": np.asarray(self.path).tolist(), "pregrasp_index": int(self.pregrasp_index)}
+        d = {"q_grasp": np.asarray(self.q_grasp).tolist(), "q_pregrasp": np.asarray(self.q_pregrasp).tolist(),
+             "path": np.asarray(self.path).tolist(), "pregrasp_index": int(self.pregrasp_index),
+             "segments": [{"label": a, "start": s, "end": e} for a, s, e in self.segment_list()],
+             "gripper": [g.to_json() for g in self.gripper]}
+        if self.T_tcp_part is not None:
+            d["T_tcp_part"] = np.asarray(self.T_tcp_part, dtype=np.float64).tolist()
+        if self.T_world_part_place is not None:
+            d["T_world_part_place"] = np.asarray(self.T_world_part_place, dtype=np.float64).tolist()
+        return d
 
 
 @dataclass(frozen=True)
@@ -173,6 +261,7 @@ class PlanResult:
     grasp_result: Any = None
     part_mesh: Any = None
     origin: Path | None = None   #: the file this result was loaded from (relative part paths resolve next to it)
+    mass: dict | None = None     #: the part's mass record (grasplan.mass.MassProperties.record), written under part
 
     def mesh(self, part=None, *, allow_other_part: bool = False):
         """The part's trimesh (metres): in memory, else loaded from ``part`` or the recorded path
@@ -267,12 +356,20 @@ class PlanResult:
         plan = self.robot is not None
         score, rank, reason = t.score[ids].tolist(), t.rank[ids].tolist(), t.reason[ids].tolist()
         gid = t.ids[ids].tolist()
+        from .quality import quality_entries, sim_entries
+
+        quality, sim = quality_entries(t, ids), sim_entries(t, ids)
         out = []
         for k, i in enumerate(ids.tolist()):
             e = {"id": gid[k], "candidate": cand[k], "region": region[k], "contacts": contacts[k], "normals": normals[k],
                  "width": width[k], "T_part_tcp": T[k], "roll": roll[k], "status": status[k]}
-            if plan:
+            if plan or score[k] == score[k]:
                 e["score"] = None if score[k] != score[k] else score[k]
+            if quality is not None:
+                e["quality"] = quality[k]
+            if sim is not None and sim[k] is not None:
+                e["sim"] = sim[k]
+            if plan:
                 e["rank"] = None if rank[k] < 0 else rank[k]
                 e["reason"] = reason[k]
                 m = self.motions.get(i)
@@ -285,6 +382,8 @@ class PlanResult:
         """``grasplan.grasps/1`` (no robot) or ``grasplan.plan/1``; self-contained: the gripper's
         resolved shapes, the whole cell and the robot's source are embedded."""
         part = self.part.to_json()
+        if self.mass:
+            part.update(self.mass)
         cell = self.cell.to_json()
         cell["part_pose"] = self.part_pose_source
         params = self.params.candidates.to_json()
@@ -298,7 +397,8 @@ class PlanResult:
         else:
             counts.pop("ok", None)
             counts["collision_free"] = int(np.count_nonzero((st != Status.COLLISION_PART.value)
-                                                            & (st != Status.COLLISION_TABLE.value)))
+                                                            & (st != Status.COLLISION_TABLE.value)
+                                                            & (st != Status.COLLISION_OBSTACLE.value)))
             c = self.counts()
             c.pop("grasps")
             counts.update(c)
@@ -433,13 +533,14 @@ def result_from_document(doc: Any, *, where: str = "document", part_mesh=None) -
         roll=_arr(grasps, "roll", (), np.float64, where),
         status=status,
         score=np.array([np.nan if (s := g.get("score")) is None else s for g in grasps], dtype=np.float64)
-        if schema == PLAN_SCHEMA else np.full(M, np.nan),
+        if M else np.full(M, np.nan),
         rank=np.array([-1 if (r := g.get("rank")) is None else r for g in grasps], dtype=np.int64)
         if schema == PLAN_SCHEMA else np.full(M, -1, dtype=np.int64),
         reason=_arr(grasps, "reason", (), object, where, default="") if M else np.zeros(0, dtype=object),
         id_values=id_values,
+        **_quality_sim(grasps, where),
     )
-    if schema == PLAN_SCHEMA and M and not np.all(np.isfinite(table.score[~np.isnan(table.score)])):
+    if M and not np.all(np.isfinite(table.score[~np.isnan(table.score)])):
         raise InputError(f"{where}: grasp scores must be finite numbers or null")
     p = doc["part"]
     part = PartRecord(path=str(p["path"]), sha256=str(p["sha256"]), scale_to_m=float(p["scale_to_m"]),
@@ -465,7 +566,20 @@ def result_from_document(doc: Any, *, where: str = "document", part_mesh=None) -
               if isinstance(v, (int, float)) and not isinstance(v, bool)}
     return PlanResult(part=part, gripper=gripper, cell=cell, robot=robot, grasps=table, motions=motions,
                       params=Params(cp, gp, pp), counts_stage=counts, timing_s=timing,
-                      part_pose_source=str((doc.get("cell") or {}).get("part_pose", "stable_pose")), part_mesh=part_mesh)
+                      part_pose_source=str((doc.get("cell") or {}).get("part_pose", "stable_pose")), part_mesh=part_mesh,
+                      mass=_mass_record(p, where))
+
+
+def _quality_sim(grasps: list, where: str) -> dict:
+    from .quality import parse_quality_sim
+
+    return parse_quality_sim(grasps, where)
+
+
+def _mass_record(p: dict, where: str) -> dict | None:
+    from .quality import parse_mass_record
+
+    return parse_mass_record(p, where)
 
 
 def _validate(validate, doc, schema, where, picked=None):
@@ -516,14 +630,92 @@ def _motions(grasps: list, status: np.ndarray, robot, where: str) -> dict[int, M
             raise InputError(f"{where}: planned grasp {i}: pregrasp_index must be an index into its path")
         if not np.all(robot.within_limits(path, tol=1e-6)):
             raise InputError(f"{where}: planned grasp {i}: the path leaves the joint limits of robot {robot.name!r}")
+        segments, events, T_place, T_tcp_part = _motion_extras(g, len(path), k, f"{where}: planned grasp {i}")
+        m = Motion(q_grasp=qg, q_pregrasp=qp, path=path, pregrasp_index=int(k), segments=segments, gripper=events,
+                   T_world_part_place=T_place, T_tcp_part=T_tcp_part)
+        gi = m.grasp_index
         for a_name, a, b_name, b in (("path[0]", path[0], "q_home", robot.q_home),
                                      ("path[pregrasp_index]", path[k], "q_pregrasp", qp),
-                                     ("path[-1]", path[-1], "q_grasp", qg)):
+                                     (f"path[{gi}] (the end of the approach)", path[gi], "q_grasp", qg)):
             if np.max(np.abs(a - b)) > 1e-6:
                 raise InputError(f"{where}: planned grasp {i}: {a_name} differs from {b_name} by "
                                  f"{np.max(np.abs(a - b)):.3g} rad; the plan file is inconsistent")
-        out[i] = Motion(q_grasp=qg, q_pregrasp=qp, path=path, pregrasp_index=int(k))
+        out[i] = m
     return out
+
+
+def _index(v, k: int) -> int | None:
+    return int(v) if isinstance(v, int) and not isinstance(v, bool) and 0 <= v < k else None
+
+
+def _motion_extras(g: dict, k: int, pregrasp_index: int, where: str):
+    """Segments, gripper events and the place / attached-part transforms of one planned grasp,
+    validated: labels in their order, consecutive inclusive ranges covering the path, the approach
+    starting at ``pregrasp_index``, a ``close`` event at the end of the approach exactly when there
+    is a lift, an ``open`` event at the end of the descent exactly when there is a place."""
+    from .transforms import check_transform
+
+    segs_in = g.get("segments")
+    ev_in = g.get("gripper", [])
+    if segs_in is None or segs_in == []:
+        segs_in = [{"label": "transit", "start": 0, "end": pregrasp_index},
+                   {"label": "approach", "start": pregrasp_index, "end": k - 1}]
+        explicit = False
+    else:
+        explicit = True
+    if not isinstance(segs_in, list) or not all(isinstance(s, dict) for s in segs_in):
+        raise InputError(f"{where}: segments must be a list of {{label, start, end}}")
+    labels = tuple(s.get("label") for s in segs_in)
+    if labels not in SEGMENT_SEQUENCES:
+        raise InputError(f"{where}: segment labels {list(labels)!s:.120} are not one of "
+                         f"{' | '.join('/'.join(q) for q in SEGMENT_SEQUENCES)}")
+    segs = []
+    prev_end = 0
+    for s in segs_in:
+        a, b = _index(s.get("start"), k), _index(s.get("end"), k)
+        if a is None or b is None or b <= a:
+            raise InputError(f"{where}: segment {s.get('label')!r}: start and end must be path rows 0..{k - 1} "
+                             "with end > start")
+        if a != prev_end:
+            raise InputError(f"{where}: segment {s.get('label')!r} starts at row {a}, not where the previous one "
+                             f"ends ({prev_end}); segments must be consecutive")
+        segs.append((str(s["label"]), a, b))
+        prev_end = b
+    if prev_end != k - 1:
+        raise InputError(f"{where}: the last segment ends at row {prev_end}, not at the path's last row {k - 1}")
+    if segs[1][1] != pregrasp_index:
+        raise InputError(f"{where}: the approach segment starts at row {segs[1][1]}, not at pregrasp_index "
+                         f"{pregrasp_index}")
+    if not isinstance(ev_in, list) or not all(isinstance(e, dict) for e in ev_in):
+        raise InputError(f"{where}: gripper must be a list of {{index, action, width}}")
+    events = []
+    for e in ev_in:
+        idx, act, w = _index(e.get("index"), k), e.get("action"), e.get("width")
+        if idx is None or act not in GRIPPER_ACTIONS or isinstance(w, bool) or not isinstance(w, (int, float)) \
+                or not (math.isfinite(w) and 0 <= w <= 10):
+            raise InputError(f"{where}: gripper event {str(e)[:80]}: needs index (a path row), action "
+                             f"({' | '.join(GRIPPER_ACTIONS)}) and width in [0, 10] m")
+        events.append(GripperEvent(index=idx, action=str(act), width=float(w)))
+    bounds = {lab: (a, b) for lab, a, b in segs}
+    expected = []
+    if "lift" in bounds:
+        expected.append(("close", bounds["approach"][1]))
+    if "descend" in bounds:
+        expected.append(("open", bounds["descend"][1]))
+    got = [(e.action, e.index) for e in events]
+    if got != expected:
+        want = ", ".join(f"{a} at row {r}" for a, r in expected) or "none"
+        raise InputError(f"{where}: gripper events {got!s:.120} must be at the segment boundaries: {want}")
+    T_place = T_tcp = None
+    if "T_tcp_part" in g or "lift" in bounds:
+        if "T_tcp_part" not in g:
+            raise InputError(f"{where}: a motion with a lift needs T_tcp_part (the part in the jaws)")
+        T_tcp = check_transform(g["T_tcp_part"], f"{where}: T_tcp_part")
+    if "T_world_part_place" in g or "descend" in bounds:
+        if "T_world_part_place" not in g or "descend" not in bounds:
+            raise InputError(f"{where}: T_world_part_place and the transfer/descend/retreat segments go together")
+        T_place = check_transform(g["T_world_part_place"], f"{where}: T_world_part_place")
+    return (tuple(segs) if explicit else ()), tuple(events), T_place, T_tcp
 
 
 #: FK check tolerances (m, rad): FK(q_grasp) @ T_flange_tcp must be the recorded grasp TCP
@@ -547,6 +739,29 @@ def _check_fk(robot, gripper, T_world_part, T_part_tcp, motions: dict, where: st
         raise InputError(f"{where}: planned grasp {int(ids[b])}: FK(q_grasp) is {dp[b] * 1000:.1f} mm / {dr[b]:.3f} rad "
                          f"from its recorded TCP with robot {robot.name!r}; the plan was made with another robot or "
                          "gripper, or was edited")
+    # the part in the jaws is the grasp's own inverse, and the jaws open where the part is placed
+    for i in ids.tolist():
+        m = motions[i]
+        if m.T_tcp_part is None:
+            continue
+        d_att = _pose_error(m.T_tcp_part @ T_part_tcp[i], np.eye(4))
+        if d_att[0] > FK_POS_TOL or d_att[1] > FK_ROT_TOL:
+            raise InputError(f"{where}: planned grasp {i}: T_tcp_part is not the inverse of its T_part_tcp "
+                             f"({d_att[0] * 1000:.1f} mm / {d_att[1]:.3f} rad); the plan file was edited")
+        if m.T_world_part_place is not None:
+            o = m.event("open").index
+            T_part = robot.fk_batch(m.path[o][None])[0] @ gripper.T_flange_tcp @ m.T_tcp_part
+            d_pl = _pose_error(T_part, m.T_world_part_place)
+            if d_pl[0] > FK_POS_TOL or d_pl[1] > FK_ROT_TOL:
+                raise InputError(f"{where}: planned grasp {i}: at the open event (row {o}) the part is "
+                                 f"{d_pl[0] * 1000:.1f} mm / {d_pl[1]:.3f} rad from T_world_part_place with robot "
+                                 f"{robot.name!r}; the plan was made with another robot or gripper, or was edited")
+
+
+def _pose_error(A: np.ndarray, B: np.ndarray) -> tuple[float, float]:
+    """(position m, rotation rad) between two 4x4 poses."""
+    cos = np.clip((float(np.trace(A[:3, :3].T @ B[:3, :3])) - 1.0) / 2.0, -1.0, 1.0)
+    return float(np.linalg.norm(A[:3, 3] - B[:3, 3])), float(np.arccos(cos))
 
 
 def load_result(source: str | os.PathLike | dict | PlanResult, *, part: str | os.PathLike | None = None,

@@ -1,4 +1,4 @@
-"""The robot cell's collision scene: robot links, gripper, table and part (Pinocchio + coal).
+"""The robot cell's collision scene: robot links, gripper, table, obstacles and part (Pinocchio + coal).
 
 :class:`CollisionScene` is built ONCE per (robot, gripper, part, part pose, cell) and then queried
 thousands of times (OMPL's state validity checker), so everything is prebuilt: one
@@ -9,24 +9,49 @@ thousands of times (OMPL's state validity checker), so everything is prebuilt: o
   ``T_joint_tool @ T_flange_tcp @ T_tcp_shape`` (fingers moved to the requested jaw opening),
 * the table, a 20 m x 20 m x 2 m coal ``Box`` whose top face is ``z = cell.table_z`` (it fills
   z < table_z within reach: the cell's half-space),
-* the part, a coal BVH (OBBRSS) of ``part_mesh`` placed at ``T_world_part``,
+* the cell's obstacles (``cell.obstacles``: boxes, cylinders, spheres, mesh BVHs; the bin's floor
+  and walls among them), built by :func:`grasplan.geometry.obstacle_geometry`,
+* the part twice: static, a coal BVH (OBBRSS) of ``part_mesh`` at ``T_world_part``, and attached,
+  the same BVH on the tool joint at ``T_tcp_part`` (used by :meth:`CollisionScene.attached`),
 
-one ``pin.Data`` and one ``pin.GeometryData`` (owned by the scene: a scene is not thread-safe) and
-an ordered list of collision pairs (cheap and likely pairs first, early stop at the first hit).
+and an ordered list of collision pairs (cheap and likely pairs first, early stop at the first hit).
+
+Variants share that geometry model and differ in their scratch data (``pin.Data``,
+``pin.GeometryData``: a scene is not thread-safe, its variants are independent objects) and in
+which pairs are active:
+
+* the scene itself: the part is static at ``T_world_part``;
+* :meth:`CollisionScene.with_part_at` ``(T_world_part)``: the part static at another pose (after release);
+* :meth:`CollisionScene.attached` ``(T_tcp_part)``: the part rides in the jaws (its pose =
+  FK(TCP) @ T_tcp_part) and is checked against the table, the obstacles and every robot link not
+  moving with the tool joint; not against the gripper (it is rigidly held). A resting contact of
+  at most :data:`ATTACHED_CONTACT_TOL` between the attached part and the table or a box, cylinder
+  or sphere obstacle is not a collision (the part lies on the table at the grasp and at the place;
+  they are checked against copies shrunk by that much). The static part is gone.
 
 Collision pairs (geometry names are Pinocchio's ``<link>_<k>`` plus ``gripper_body_<k>``,
-``finger_left`` (the -x jaw), ``finger_right`` (the +x jaw), ``table`` and ``part``):
+``finger_left`` (the -x jaw), ``finger_right`` (the +x jaw), ``table``, ``obstacle:<name>``,
+``part`` and ``part_attached``):
 
-* gripper body/fingers vs table and part;
-* every robot link vs the part; every robot link vs the table except ``robot.mounted_links``
-  (for the UR5 base_link and shoulder_link, for the Panda panda_link0 and panda_link1);
+* gripper body/fingers vs static part, table and obstacles;
+* every robot link vs the static part; every robot link vs the table except ``robot.mounted_links``
+  (for the UR5 base_link and shoulder_link, for the Panda panda_link0 and panda_link1); every
+  robot link vs every obstacle;
+* the attached part vs table, obstacles and the robot links not moving with the tool joint;
 * gripper vs every robot link except those moving with the tool joint (the flange link: the
   UR5's wrist_3_link and ee_link, the Panda's panda_link7);
 * robot self-collision: all link pairs except those on the same or adjacent joints and the SRDF's
   ``disable_collisions`` pairs.
 
-All geometry is in the robot model's frame (its URDF root link); the world objects (table, part)
-are placed there through ``inv(robot.T_world_base)``.
+Reports use body names: the robot link name, ``gripper:<element>`` (``gripper:body_0``,
+``gripper:finger_left``, ``gripper:finger_right``), ``part``, ``table``, ``obstacle:<name>``.
+Kinds: ``table``, ``part``, ``obstacle``, ``self``.
+
+All geometry is in the robot model's frame (its URDF root link); the world objects (table, part,
+obstacles) are placed there through ``inv(robot.T_world_base)``.
+
+:func:`check_start` runs the checks before planning (part inside the table or an obstacle, the
+robot's base inside an obstacle, q_home in collision) and raises with what to change.
 """
 from __future__ import annotations
 
@@ -37,14 +62,18 @@ import coal
 import numpy as np
 import pinocchio as pin
 
-from .errors import InputError
-from .geometry import bvh, shape_geometry  # noqa: F401 - shape_geometry is part of this module's API
+from .errors import ConfigError, InputError
+from .geometry import bvh, obstacle_geometry, shape_geometry
 from .robot import Robot
 from .transforms import check_transform
 
 TABLE = "table"
 PART = "part"
+PART_ATTACHED = "part_attached"
 TABLE_SIZE = (20.0, 20.0, 2.0)  # m: the table box (top face at z = table_z, centred under the world origin)
+#: the attached part may touch the table or an obstacle by this much (m) without colliding: it
+#: rests on them at the grasp and at the place (IK error is ~1e-6 m)
+ATTACHED_CONTACT_TOL = 1e-4
 
 
 def _se3(T: np.ndarray) -> pin.SE3:
@@ -58,8 +87,173 @@ def _tx(x: float) -> np.ndarray:
     return T
 
 
+class _SceneModel:
+    """The geometry shared by a scene and its variants (built once)."""
+
+    def __init__(self, robot: Robot, gripper: Any, part_mesh: Any, cell: Any, margin: float):
+        self.robot, self.gripper, self.cell, self.margin = robot, gripper, cell, float(margin)
+        model = robot.model
+        self.model = model
+        self.T_base_world = np.linalg.inv(robot.T_world_base)
+        gm = pin.GeometryModel()
+        self.robot_ids: list[int] = []
+        for g in robot.collision_model.geometryObjects:
+            self.robot_ids.append(gm.addGeometryObject(pin.GeometryObject(g)))
+        self.j_tool = j_tool = robot.tool_joint_id
+        self.f_tool = f_tool = robot.tool_frame_id
+        T_joint_tcp = robot.T_joint_tool @ np.asarray(gripper.T_flange_tcp, dtype=float)
+        self.T_joint_tcp = T_joint_tcp
+        self.body: dict[int, str] = {}
+        for k, shape in enumerate(gripper.body):
+            geom, T_tcp_g = shape_geometry(shape)
+            go = pin.GeometryObject(f"gripper_body_{k}", j_tool, f_tool, _se3(T_joint_tcp @ T_tcp_g), geom)
+            gid = gm.addGeometryObject(go)
+            self.body[gid] = f"gripper:body_{k}"
+        self.gripper_ids = list(self.body)
+        f0 = gripper.fingers(0.0)
+        if len(f0) != 2:
+            raise InputError("gripper.fingers(opening) must return two shapes (-x jaw, +x jaw)")
+        self.finger_ids: list[int] = []
+        self.finger_T0: list[np.ndarray] = []
+        for name, shape in zip(("finger_left", "finger_right"), f0):
+            geom, T_tcp_g = shape_geometry(shape)
+            self.finger_T0.append(T_tcp_g)
+            go = pin.GeometryObject(name, j_tool, f_tool, _se3(T_joint_tcp @ T_tcp_g), geom)
+            gid = gm.addGeometryObject(go)
+            self.finger_ids.append(gid)
+            self.body[gid] = f"gripper:{name}"
+        self.gripper_ids_all = self.gripper_ids + self.finger_ids
+        self.env_ids: dict[str, int] = {}
+        self.obstacle_ids: list[int] = []
+        if cell is not None:
+            z = float(getattr(cell, "table_z", 0.0))
+            # a coal Halfspace would be exact, but coal cannot prune BVH nodes against it (every
+            # triangle of every link gets tested, ~150 us per link); a box TABLE_SIZE wide and deep
+            # with its top face on the table plane is the same solid within reach of any arm
+            T_world_table = np.eye(4)
+            T_world_table[2, 3] = z - TABLE_SIZE[2] / 2
+            gid = gm.addGeometryObject(pin.GeometryObject(TABLE, 0, 0, _se3(self.T_base_world @ T_world_table),
+                                                          coal.Box(*TABLE_SIZE)))
+            self.env_ids[TABLE] = gid
+            self.body[gid] = TABLE
+            for o in getattr(cell, "obstacles", ()) or ():
+                gid = gm.addGeometryObject(pin.GeometryObject(
+                    f"obstacle:{o.name}", 0, 0, _se3(self.T_base_world @ np.asarray(o.T_world_obstacle)),
+                    obstacle_geometry(o)))
+                self.obstacle_ids.append(gid)
+                self.body[gid] = f"obstacle:{o.name}"
+        self.has_part = part_mesh is not None
+        if self.has_part:
+            part_bvh = bvh(np.asarray(part_mesh.vertices), np.asarray(part_mesh.faces))
+            gid = gm.addGeometryObject(pin.GeometryObject(PART, 0, 0, pin.SE3.Identity(), part_bvh))
+            self.env_ids[PART] = gid
+            self.body[gid] = PART
+            gid = gm.addGeometryObject(pin.GeometryObject(PART_ATTACHED, j_tool, f_tool, _se3(T_joint_tcp), part_bvh))
+            self.env_ids[PART_ATTACHED] = gid
+            self.body[gid] = PART
+            # what the attached part is checked against: the table and the obstacles shrunk by
+            # ATTACHED_CONTACT_TOL (coal has no negative security margin for BVHs)
+            self.attached_env: list[int] = []
+            if cell is not None:
+                tol = ATTACHED_CONTACT_TOL
+                T_world_table[2, 3] -= tol
+                gid = gm.addGeometryObject(pin.GeometryObject(
+                    "table_shrunk", 0, 0, _se3(self.T_base_world @ T_world_table), coal.Box(*TABLE_SIZE)))
+                self.attached_env.append(gid)
+                self.body[gid] = TABLE
+                for o in getattr(cell, "obstacles", ()) or ():
+                    gid = gm.addGeometryObject(pin.GeometryObject(
+                        f"obstacle_shrunk:{o.name}", 0, 0, _se3(self.T_base_world @ np.asarray(o.T_world_obstacle)),
+                        obstacle_geometry(o, shrink=tol)))
+                    self.attached_env.append(gid)
+                    self.body[gid] = f"obstacle:{o.name}"
+        self.gm = gm
+        for r in self.robot_ids:
+            self.body[r] = self.link(r)
+        self._build_pairs()
+        self.opening: float | None = None
+        self.owner: Any = None  # the variant whose part placements the model holds
+
+    def link(self, gid: int) -> str:
+        return self.model.frames[self.gm.geometryObjects[gid].parentFrame].name
+
+    def _build_pairs(self) -> None:
+        gm, model, robot = self.gm, self.model, self.robot
+        disabled = set(robot.disabled_pairs)
+        mounted = set(robot.mounted_links)
+        parents = model.parents
+        env = self.env_ids
+        pairs: list[tuple[int, int]] = []
+        kinds: list[str] = []
+        group: list[str] = []  # "static" (static part), "attached" (attached part), "" (always)
+
+        def add(a, b, kind, grp=""):
+            pairs.append((a, b))
+            kinds.append(kind)
+            group.append(grp)
+
+        # 1. gripper vs environment (most likely hits near a grasp)
+        if PART in env:
+            for g in self.gripper_ids_all:
+                add(g, env[PART], PART, "static")
+        if TABLE in env:
+            for g in self.gripper_ids_all:
+                add(g, env[TABLE], TABLE)
+        for o in self.obstacle_ids:
+            for g in self.gripper_ids_all:
+                add(g, o, "obstacle")
+        # 2. the attached part vs table, obstacles
+        if PART_ATTACHED in env:
+            for o in self.attached_env:
+                add(env[PART_ATTACHED], o, TABLE if self.body[o] == TABLE else "obstacle", "attached")
+        # 3. robot links vs table, obstacles, then vs the part
+        if TABLE in env:
+            for r in self.robot_ids:
+                if self.link(r) not in mounted:
+                    add(r, env[TABLE], TABLE)
+        for o in self.obstacle_ids:
+            for r in self.robot_ids:
+                add(r, o, "obstacle")
+        if PART in env:
+            for r in self.robot_ids:
+                add(r, env[PART], PART, "static")
+            for r in self.robot_ids:
+                if gm.geometryObjects[r].parentJoint != self.j_tool:
+                    add(r, env[PART_ATTACHED], PART, "attached")
+        # 4. gripper vs robot links (not those moving with the tool joint)
+        for r in self.robot_ids:
+            if gm.geometryObjects[r].parentJoint != self.j_tool:
+                for g in self.gripper_ids_all:
+                    add(r, g, "self")
+        # 5. robot self-collision
+        ids = self.robot_ids
+        for i, a in enumerate(ids):
+            ja = gm.geometryObjects[a].parentJoint
+            for b in ids[i + 1:]:
+                jb = gm.geometryObjects[b].parentJoint
+                if ja == jb or parents[ja] == jb or parents[jb] == ja:
+                    continue
+                if tuple(sorted((self.link(a), self.link(b)))) in disabled:
+                    continue
+                add(a, b, "self")
+        for a, b in pairs:
+            gm.addCollisionPair(pin.CollisionPair(a, b))
+        self.pairs = pairs
+        self.kinds = kinds
+        self.group = np.array(group)
+        self.geom_names = [(gm.geometryObjects[a].name, gm.geometryObjects[b].name) for a, b in pairs]
+        self.body_names = [(self.body[a], self.body[b]) for a, b in pairs]
+
+    def set_opening(self, o: float) -> None:
+        if o == self.opening:
+            return
+        for sign, gid, T0 in zip((-1.0, 1.0), self.finger_ids, self.finger_T0):
+            self.gm.geometryObjects[gid].placement = _se3(self.T_joint_tcp @ _tx(sign * o / 2) @ T0)
+        self.opening = o
+
+
 class CollisionScene:
-    """Robot + gripper + table + part collision checks. Build once, query many times.
+    """Robot + gripper + table + obstacles + part collision checks. Build once, query many times.
 
     Parameters
     ----------
@@ -68,80 +262,76 @@ class CollisionScene:
         ``T_flange_tcp`` (4, 4) and ``max_opening`` (m) (see :mod:`grasplan.gripper`).
     part_mesh : trimesh.Trimesh in the part frame (m), or None for no part.
     T_world_part : (4, 4) part pose in the world.
-    cell : object with ``table_z`` (m), or None for no table.
+    cell : object with ``table_z`` (m) and ``obstacles`` (a :class:`grasplan.cell.Cell`), or None
+        for no table.
     margin : security margin (m) applied to every pair (0: exact contact).
     """
 
     def __init__(self, robot: Robot, gripper: Any, part_mesh: Any = None, T_world_part=None,
                  cell: Any = None, *, margin: float = 0.0):
-        self.robot = robot
-        self.gripper = gripper
-        self.cell = cell
-        self.margin = float(margin)
-        model = robot.model
-        self.model = model
-        self.data = model.createData()
-        T_base_world = np.linalg.inv(robot.T_world_base)
-        gm = pin.GeometryModel()
-        self._robot_ids: list[int] = []
-        for g in robot.collision_model.geometryObjects:
-            self._robot_ids.append(gm.addGeometryObject(pin.GeometryObject(g)))
-        j_tool = robot.tool_joint_id
-        f_tool = robot.tool_frame_id
-        T_joint_tcp = robot.T_joint_tool @ np.asarray(gripper.T_flange_tcp, dtype=float)
-        self.T_joint_tcp = T_joint_tcp
-        # gripper body
-        self._gripper_ids: list[int] = []
-        for k, shape in enumerate(gripper.body):
-            geom, T_tcp_g = shape_geometry(shape)
-            go = pin.GeometryObject(f"gripper_body_{k}", j_tool, f_tool, _se3(T_joint_tcp @ T_tcp_g), geom)
-            self._gripper_ids.append(gm.addGeometryObject(go))
-        # fingers: geometry at opening 0, moved along x by -+ opening/2
-        f0 = gripper.fingers(0.0)
-        if len(f0) != 2:
-            raise InputError("gripper.fingers(opening) must return two shapes (-x jaw, +x jaw)")
-        self._finger_ids: list[int] = []
-        self._finger_T0: list[np.ndarray] = []
-        for name, shape in zip(("finger_left", "finger_right"), f0):
-            geom, T_tcp_g = shape_geometry(shape)
-            self._finger_T0.append(T_tcp_g)
-            go = pin.GeometryObject(name, j_tool, f_tool, _se3(T_joint_tcp @ T_tcp_g), geom)
-            self._finger_ids.append(gm.addGeometryObject(go))
+        if part_mesh is not None and T_world_part is None:
+            raise InputError("T_world_part (4, 4) is required with a part mesh")
+        shared = _SceneModel(robot, gripper, part_mesh, cell, margin)
         self._check_finger_model(gripper)
-        self._gripper_ids_all = self._gripper_ids + self._finger_ids
-        # world objects on the universe joint
-        self._env_ids: dict[str, int] = {}
-        if cell is not None:
-            z = float(getattr(cell, "table_z", 0.0))
-            # a coal Halfspace would be exact, but coal cannot prune BVH nodes against it (every
-            # triangle of every link gets tested, ~150 us per link); a box TABLE_SIZE wide and deep
-            # with its top face on the table plane is the same solid within reach of any arm
-            T_world_table = np.eye(4)
-            T_world_table[2, 3] = z - TABLE_SIZE[2] / 2
-            box = coal.Box(*TABLE_SIZE)
-            self._env_ids[TABLE] = gm.addGeometryObject(
-                pin.GeometryObject(TABLE, 0, 0, _se3(T_base_world @ T_world_table), box))
-        if part_mesh is not None:
-            if T_world_part is None:
-                raise InputError("T_world_part (4, 4) is required with a part mesh")
-            T_wp = check_transform(T_world_part, "T_world_part")
-            self.T_world_part = T_wp
-            part_bvh = bvh(np.asarray(part_mesh.vertices), np.asarray(part_mesh.faces))
-            self._env_ids[PART] = gm.addGeometryObject(
-                pin.GeometryObject(PART, 0, 0, _se3(T_base_world @ T_wp), part_bvh))
-        else:
-            self.T_world_part = None
-        self.geom_model = gm
-        self._build_pairs()
-        self.geom_data = pin.GeometryData(gm)
-        for req in self.geom_data.collisionRequests:
-            req.security_margin = self.margin
+        T_wp = check_transform(T_world_part, "T_world_part") if part_mesh is not None else None
+        self._init_variant(shared, "static" if part_mesh is not None else "none", T_wp, None)
+
+    def _init_variant(self, shared: _SceneModel, mode: str, T_world_part, T_tcp_part) -> None:
+        self._shared = shared
+        self.robot, self.gripper, self.cell, self.margin = shared.robot, shared.gripper, shared.cell, shared.margin
+        self.model = shared.model
+        self.geom_model = shared.gm
+        self.T_joint_tcp = shared.T_joint_tcp
+        self.mode = mode
+        self.T_world_part = None if T_world_part is None else np.array(T_world_part, dtype=np.float64)
+        self.T_tcp_part = None if T_tcp_part is None else np.array(T_tcp_part, dtype=np.float64)
+        self.data = shared.model.createData()
+        gd = pin.GeometryData(shared.gm)
+        active = np.ones(len(shared.pairs), dtype=bool)
+        if mode != "static":
+            active &= shared.group != "static"
+        if mode != "attached":
+            active &= shared.group != "attached"
+        for k, on in enumerate(active):
+            if not on:
+                gd.deactivateCollisionPair(k)
+        for req in gd.collisionRequests:
+            req.security_margin = shared.margin
             # contacts on, as in grasplan.collision: coal 3.0 with enable_contact = False missed a
             # 51 micrometre box-into-mesh penetration; EPA only runs on pairs already in collision
             req.enable_contact = True
             req.num_max_contacts = 1
-        self._opening: float | None = None
-        self.set_opening(float(gripper.max_opening))
+        self.geom_data = gd
+        self._active = active
+        self._placements: dict[int, pin.SE3] = {}
+        env = shared.env_ids
+        if self.T_world_part is not None and PART in env:
+            self._placements[env[PART]] = _se3(shared.T_base_world @ self.T_world_part)
+        if self.T_tcp_part is not None and PART_ATTACHED in env:
+            self._placements[env[PART_ATTACHED]] = _se3(shared.T_joint_tcp @ self.T_tcp_part)
+        self._apply()
+        self.set_opening(float(shared.gripper.max_opening))
+
+    # -- variants ---------------------------------------------------------------------------------
+    def _variant(self, mode: str, T_world_part, T_tcp_part) -> CollisionScene:
+        other = CollisionScene.__new__(CollisionScene)
+        other._init_variant(self._shared, mode, T_world_part, T_tcp_part)
+        return other
+
+    def attached(self, T_tcp_part) -> CollisionScene:
+        """This scene with the part in the jaws: part pose = FK(TCP) @ ``T_tcp_part`` (4, 4),
+        checked against the table, the obstacles and the robot links; the static part is gone.
+        Shares the geometry (cheap); has its own scratch data."""
+        if not self._shared.has_part:
+            raise InputError("attached(): the scene has no part mesh to attach")
+        return self._variant("attached", None, check_transform(T_tcp_part, "T_tcp_part"))
+
+    def with_part_at(self, T_world_part) -> CollisionScene:
+        """This scene with the part static at ``T_world_part`` (4, 4) (e.g. after release at the
+        place). Shares the geometry (cheap); has its own scratch data."""
+        if not self._shared.has_part:
+            raise InputError("with_part_at(): the scene has no part mesh")
+        return self._variant("static", check_transform(T_world_part, "T_world_part"), None)
 
     # ------------------------------------------------------------------------------------------
     def _check_finger_model(self, gripper) -> None:
@@ -158,72 +348,34 @@ class CollisionScene:
                 raise InputError("gripper.fingers(opening): the jaws must move along the TCP x axis by "
                                  "-opening/2 (first jaw) and +opening/2 (second jaw)")
 
-    def _link(self, gid: int) -> str:
-        return self.model.frames[self.geom_model.geometryObjects[gid].parentFrame].name
-
-    def _build_pairs(self) -> None:
-        gm, model, robot = self.geom_model, self.model, self.robot
-        disabled = set(robot.disabled_pairs)
-        mounted = set(robot.mounted_links)
-        j_tool = robot.tool_joint_id
-        parents = model.parents
-        env = self._env_ids
-        pairs: list[tuple[int, int]] = []
-        kinds: list[str] = []
-
-        def add(a, b, kind):
-            pairs.append((a, b))
-            kinds.append(kind)
-
-        # 1. gripper vs environment (most likely hits near a grasp)
-        for name in (PART, TABLE):
-            if name in env:
-                for g in self._gripper_ids_all:
-                    add(g, env[name], name)
-        # 2. robot links vs table, then vs part
-        if TABLE in env:
-            for r in self._robot_ids:
-                if self._link(r) not in mounted:
-                    add(r, env[TABLE], TABLE)
-        if PART in env:
-            for r in self._robot_ids:
-                add(r, env[PART], PART)
-        # 3. gripper vs robot links (not those moving with the tool joint)
-        for r in self._robot_ids:
-            if gm.geometryObjects[r].parentJoint != j_tool:
-                for g in self._gripper_ids_all:
-                    add(r, g, "self")
-        # 4. robot self-collision
-        ids = self._robot_ids
-        for i, a in enumerate(ids):
-            ja = gm.geometryObjects[a].parentJoint
-            for b in ids[i + 1:]:
-                jb = gm.geometryObjects[b].parentJoint
-                if ja == jb or parents[ja] == jb or parents[jb] == ja:
-                    continue
-                if tuple(sorted((self._link(a), self._link(b)))) in disabled:
-                    continue
-                add(a, b, "self")
-        for a, b in pairs:
-            gm.addCollisionPair(pin.CollisionPair(a, b))
-        self._pair_kinds = kinds
-        self._pair_names = [(gm.geometryObjects[a].name, gm.geometryObjects[b].name) for a, b in pairs]
+    def _apply(self) -> None:
+        """Put this variant's part placements into the shared geometry model (when another variant
+        was queried last)."""
+        sh = self._shared
+        if sh.owner is self:
+            return
+        for gid, M in self._placements.items():
+            sh.gm.geometryObjects[gid].placement = M
+        sh.owner = self
 
     @property
     def pair_names(self) -> list[tuple[str, str]]:
-        """The checked pairs, in checking order: (geometry name, geometry name)."""
-        return list(self._pair_names)
+        """The checked pairs of this variant, in checking order: (geometry name, geometry name)."""
+        return [n for n, on in zip(self._shared.geom_names, self._active) if on]
+
+    @property
+    def obstacle_names(self) -> list[str]:
+        """The cell's obstacle names, in the cell's order."""
+        return [self._shared.body[g][len("obstacle:"):] for g in self._shared.obstacle_ids]
 
     def set_opening(self, opening: float) -> None:
         """Move the finger geometry to jaw ``opening`` (m); cheap, cached for repeated calls."""
         o = float(opening)
-        if o == self._opening:
+        if o == self._shared.opening:
             return
         if not (math.isfinite(o) and 0.0 <= o <= float(self.gripper.max_opening) + 1e-9):
             raise InputError(f"opening: {o!r} m is outside [0, {self.gripper.max_opening}]")
-        for sign, gid, T0 in zip((-1.0, 1.0), self._finger_ids, self._finger_T0):
-            self.geom_model.geometryObjects[gid].placement = _se3(self.T_joint_tcp @ _tx(sign * o / 2) @ T0)
-        self._opening = o
+        self._shared.set_opening(o)
 
     # ------------------------------------------------------------------------------------------
     def _prep(self, q, opening) -> np.ndarray:
@@ -231,7 +383,14 @@ class CollisionScene:
         if q.shape != (self.model.nq,):
             raise InputError(f"q: expected shape ({self.model.nq},), got {q.shape}")
         self.set_opening(self.gripper.max_opening if opening is None else opening)
+        self._apply()
         return q
+
+    def _hits(self, q, opening, stop: bool) -> list[int]:
+        q = self._prep(q, opening)
+        if not pin.computeCollisions(self.model, self.data, self.geom_model, self.geom_data, q, stop):
+            return []
+        return [k for k, res in enumerate(self.geom_data.collisionResults) if self._active[k] and res.isCollision()]
 
     def is_free(self, q, opening: float | None = None) -> bool:
         """True when configuration q (n,) with the jaws at ``opening`` (m; default max_opening)
@@ -240,33 +399,31 @@ class CollisionScene:
         return not pin.computeCollisions(self.model, self.data, self.geom_model, self.geom_data, q, True)
 
     def first_collision(self, q, opening: float | None = None) -> str | None:
-        """``"<geom> vs <geom>"`` of the first colliding pair in checking order, or None."""
-        q = self._prep(q, opening)
-        if not pin.computeCollisions(self.model, self.data, self.geom_model, self.geom_data, q, True):
+        """``"<body> vs <body>"`` of the first colliding pair in checking order, or None."""
+        hits = self._hits(q, opening, True)
+        if not hits:
             return None
-        for k, res in enumerate(self.geom_data.collisionResults):
-            if res.isCollision():
-                a, b = self._pair_names[k]
-                return f"{a} vs {b}"
-        return "unknown"  # not reached: computeCollisions reported a hit
+        a, b = self._shared.body_names[hits[0]]
+        return f"{a} vs {b}"
 
     def colliding_pairs(self, q, opening: float | None = None) -> list[tuple[str, str, str]]:
-        """All colliding pairs (no early stop): [(geom, geom, kind)], kind in
-        {"table", "part", "self"}."""
-        q = self._prep(q, opening)
-        pin.computeCollisions(self.model, self.data, self.geom_model, self.geom_data, q, False)
-        return [(*self._pair_names[k], self._pair_kinds[k])
-                for k, res in enumerate(self.geom_data.collisionResults) if res.isCollision()]
+        """All colliding pairs (no early stop), by body: [(body, body, kind)], kind in
+        {"table", "part", "obstacle", "self"}; a body hit by several of its geometries is listed once."""
+        out: list[tuple[str, str, str]] = []
+        for k in self._hits(q, opening, False):
+            row = (*self._shared.body_names[k], self._shared.kinds[k])
+            if row not in out:
+                out.append(row)
+        return out
+
+    def colliding_geometries(self, q, opening: float | None = None) -> list[tuple[str, str, str]]:
+        """As :meth:`colliding_pairs` but with Pinocchio's geometry names (``<link>_<k>``)."""
+        return [(*self._shared.geom_names[k], self._shared.kinds[k]) for k in self._hits(q, opening, False)]
 
     def collision_kind(self, q, opening: float | None = None) -> str | None:
-        """None when free, else the kind of the first hit: "table", "part" or "self"."""
-        q = self._prep(q, opening)
-        if not pin.computeCollisions(self.model, self.data, self.geom_model, self.geom_data, q, True):
-            return None
-        for k, res in enumerate(self.geom_data.collisionResults):
-            if res.isCollision():
-                return self._pair_kinds[k]
-        return "self"
+        """None when free, else the kind of the first hit: "table", "part", "obstacle" or "self"."""
+        hits = self._hits(q, opening, True)
+        return self._shared.kinds[hits[0]] if hits else None
 
     def path_free(self, qs, opening: float | None = None, *, step: float = 0.01) -> bool:
         """True when the piecewise-linear joint path qs (k, n) is collision-free, checked at every
@@ -278,6 +435,7 @@ class CollisionScene:
         if not step > 0:
             raise InputError(f"step: expected > 0 rad, got {step}")
         self.set_opening(self.gripper.max_opening if opening is None else opening)
+        self._apply()
         m, d, gm, gd = self.model, self.data, self.geom_model, self.geom_data
         for q in qs:  # waypoints first: cheap rejection
             if pin.computeCollisions(m, d, gm, gd, q, True):
@@ -292,6 +450,76 @@ class CollisionScene:
                 if pin.computeCollisions(m, d, gm, gd, q, True):
                     return False
         return True
+
+    def path_collisions(self, qs, opening: float | None = None, *, step: float = 0.01
+                        ) -> tuple[int, list[tuple[str, str, str]]] | None:
+        """The first colliding configuration of the path qs (k, n) densified at ``step`` rad, as
+        ``(row in the densified path, colliding_pairs)``; None when the path is free. For reasons;
+        use :meth:`path_free` to decide."""
+        from .paths import interpolate_path
+
+        dense = interpolate_path(np.asarray(qs, dtype=float), step=step)
+        for k, q in enumerate(dense):
+            if not self.is_free(q, opening):
+                return k, self.colliding_pairs(q, opening)
+        return None
+
+
+def describe_pairs(pairs: list[tuple[str, str, str]], limit: int = 3) -> str:
+    """``"upper_arm_link collides with table; ..."`` for :meth:`CollisionScene.colliding_pairs` rows."""
+    rows = [f"{a} collides with {b}" for a, b, _ in pairs[:limit]]
+    more = f" (+{len(pairs) - limit} more)" if len(pairs) > limit else ""
+    return "; ".join(rows) + more
+
+
+def no_path_reason(scene: CollisionScene, q_start, q_goal, opening: float, time_limit: float, attempts: int,
+                   *, start: str = "start (q_home)", goal: str = "goal (pre-grasp)") -> str:
+    """Why a joint-path query failed: the start or the goal in collision (naming the bodies), or
+    RRTConnect's time ran out with both valid."""
+    for what, q in ((start, q_start), (goal, q_goal)):
+        pairs = scene.colliding_pairs(np.asarray(q, dtype=float), opening)
+        if pairs:
+            return f"{what} invalid: {describe_pairs(pairs, 2)}"
+    return (f"start and goal valid; RRTConnect ran out of time ({time_limit:g} s x {attempts} attempts per query) "
+            f"or its path failed the 0.01 rad re-check")
+
+
+def check_start(scene: CollisionScene, q_home=None, *, part_mesh: Any = None) -> None:
+    """The checks before planning; each raises (exit 3) with what to change.
+
+    1. the part (``part_mesh`` at ``scene.T_world_part``) reaches into the table or an obstacle by
+       more than :data:`grasplan.cell.PART_CONTACT_TOL` (:func:`grasplan.cell.check_part_placement`,
+       InputError with the depth in mm);
+    2. the robot's base (its mounted links) inside an obstacle (ConfigError);
+    3. ``q_home`` (default ``robot.q_home``) in collision with the jaws fully open (ConfigError
+       naming the two bodies).
+    """
+    from .cell import check_part_placement
+
+    robot, cell = scene.robot, scene.cell
+    if part_mesh is not None and cell is not None and scene.T_world_part is not None:
+        check_part_placement(part_mesh, scene.T_world_part, cell)
+    q = np.asarray(robot.q_home if q_home is None else q_home, dtype=np.float64)
+    pairs = scene.colliding_pairs(q, float(scene.gripper.max_opening))
+    if not pairs:
+        return
+    mounted = set(robot.mounted_links)
+    base = [(a, b) for a, b, k in pairs if k == "obstacle" and (a in mounted or b in mounted)]
+    if base:
+        a, b = base[0]
+        link, obst = (a, b) if a in mounted else (b, a)
+        raise ConfigError(f"the robot's base is inside {obst} ({link} collides with it): move or shrink the "
+                          f"obstacle in the cell YAML, or move the robot base (T_world_base)")
+    a, b, kind = pairs[0]
+    if kind == "table":
+        fix = "raise the robot base or lower the cell's table_z, or change q_home in the robot YAML"
+    elif kind == "obstacle":
+        fix = "move the obstacle in the cell YAML or change q_home in the robot YAML"
+    elif kind == "part":
+        fix = "move the part (part_xy, --part-pose) or change q_home in the robot YAML"
+    else:
+        fix = "change q_home in the robot YAML"
+    raise ConfigError(f"q_home: {describe_pairs(pairs)}: {fix}; every path starts at q_home")
 
 
 def _bisection_order(n: int) -> list[int]:

@@ -1,39 +1,86 @@
 """The grasp score: a weighted sum of registered terms, each in [0, 1] (higher is better).
 
-``score = sum_k w_k * term_k / sum_k w_k`` with the weights of ``PlanParams.score_weights``
-(default ``center 0.4, top 0.4, width 0.2``). A term is a function
-``term(ctx: ScoreContext) -> (M,) float in [0, 1]`` registered with :func:`register_term`;
-adding one is a function plus one registration.
+``score = sum_k w_k * term_k / sum_k w_k``. The weights and the normalisation of the physical
+terms are defined in exactly one place, the scoring YAML ``configs/scoring.yaml`` (packaged; a user
+file replaces it with ``--scoring FILE``; :func:`load_scoring`). ``DEFAULT_SCORING`` is that file,
+read once; ``GraspParams.score_weights`` / ``score_refs`` default to it and are recorded in every
+output. A term is a function ``term(ctx: ScoreContext) -> (M,) float in [0, 1]`` registered with
+:func:`register_term`; adding one is a function plus one registration (and a weight in the YAML).
 
-Default terms::
+Terms::
 
     center = 1 - min(1, |c_grasp - c_mass| / r_part)   grasp centre (TCP origin) close to the centre
              of mass (of the watertight part, else its mesh centroid); r_part = half the part's
              bounding-box diagonal
     top    = max(0, -z_tcp . z_world)                  approach from above (1: TCP z straight down)
     width  = (max_opening - width) / max_opening       margin to the gripper's maximum opening
+    gravity_margin = clip(log(margin) / log(gravity_margin_ref), 0, 1)   0 when the part slips
+             (margin <= 1), 1 at the reference margin and above (grasplan.quality)
+    epsilon = clip(epsilon / epsilon_ref, 0, 1)        Ferrari-Canny L1 quality (grasplan.quality)
+
+The physical terms read ``ScoreContext.quality`` (a :class:`grasplan.quality.Quality` of the same
+grasps); scoring with a non-zero weight on them and no quality is an InputError.
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
+import yaml
+
+from .config_files import config_number, packaged_file
+from .errors import ConfigError, InputError
+
+#: scoring configuration shipped with grasplan (the one definition of the default weights)
+SCORING_FILE = packaged_file("configs", "scoring.yaml")
+#: normalisation keys of the scoring YAML and their fallbacks when a user file omits them
+REF_KEYS = ("gravity_margin_ref", "epsilon_ref")
+_REF_FALLBACK = {"gravity_margin_ref": 10.0, "epsilon_ref": 0.1}
+
+
+@dataclass(frozen=True)
+class ScoringConfig:
+    """A scoring YAML: ``weights`` ((term, weight), ...), the normalisation references and the file."""
+
+    weights: tuple[tuple[str, float], ...]
+    gravity_margin_ref: float
+    epsilon_ref: float
+    source: str = ""
+
+    @property
+    def refs(self) -> tuple[tuple[str, float], ...]:
+        return (("gravity_margin_ref", self.gravity_margin_ref), ("epsilon_ref", self.epsilon_ref))
+
+    @classmethod
+    def from_params(cls, weights, refs) -> ScoringConfig:
+        r = {**_REF_FALLBACK, **dict(refs)}
+        return cls(weights=tuple((str(n), float(w)) for n, w in weights),
+                   gravity_margin_ref=float(r["gravity_margin_ref"]), epsilon_ref=float(r["epsilon_ref"]))
 
 
 @dataclass(frozen=True)
 class ScoreContext:
     """What a score term may read: ``T_part_tcp`` (M, 4, 4), ``width`` (M,) m, the part's mesh (part
-    frame, metres), ``T_world_part`` (4, 4), the gripper's ``max_opening`` (m)."""
+    frame, metres), ``T_world_part`` (4, 4), the gripper's ``max_opening`` (m), and optionally the
+    grasps' ``quality`` (:class:`grasplan.quality.Quality`, M rows) with the ``scoring`` config
+    (normalisation references) and the part's centre of mass ``com`` (3,) m."""
 
     part_mesh: object
     T_world_part: np.ndarray
     T_part_tcp: np.ndarray
     width: np.ndarray
     max_opening: float
+    quality: object = None
+    scoring: ScoringConfig | None = None
+    com: np.ndarray | None = None
 
 
 TERMS: dict[str, Callable[[ScoreContext], np.ndarray]] = {}
+#: terms that read ``ScoreContext.quality``
+PHYSICAL_TERMS = ("gravity_margin", "epsilon")
 
 
 def register_term(name: str):
@@ -47,7 +94,10 @@ def register_term(name: str):
 @register_term("center")
 def _center(ctx: ScoreContext) -> np.ndarray:
     m = ctx.part_mesh
-    com = np.asarray(m.center_mass if m.is_watertight else m.centroid, dtype=np.float64)
+    if ctx.com is not None:
+        com = np.asarray(ctx.com, dtype=np.float64)
+    else:
+        com = np.asarray(m.center_mass if m.is_watertight else m.centroid, dtype=np.float64)
     r = 0.5 * float(np.linalg.norm(m.extents))
     d = np.linalg.norm(ctx.T_part_tcp[:, :3, 3] - com, axis=1)
     return 1.0 - np.minimum(1.0, d / max(r, 1e-12))
@@ -64,19 +114,105 @@ def _width(ctx: ScoreContext) -> np.ndarray:
     return np.clip((ctx.max_opening - ctx.width) / ctx.max_opening, 0.0, 1.0)
 
 
+def _quality_of(ctx: ScoreContext, term: str):
+    q = ctx.quality
+    if q is None or len(q) != len(ctx.width):
+        raise InputError(f"score term {term!r} needs the grasps' quality (grasplan.quality.grasp_quality); "
+                         f"compute it, or give the term weight 0 in the scoring YAML")
+    return q, ctx.scoring if ctx.scoring is not None else DEFAULT_SCORING
+
+
+@register_term("gravity_margin")
+def _gravity_margin(ctx: ScoreContext) -> np.ndarray:
+    q, cfg = _quality_of(ctx, "gravity_margin")
+    gm = np.maximum(np.asarray(q.gravity_margin, dtype=np.float64), 1e-300)
+    return np.clip(np.log(gm) / math.log(cfg.gravity_margin_ref), 0.0, 1.0)
+
+
+@register_term("epsilon")
+def _epsilon(ctx: ScoreContext) -> np.ndarray:
+    q, cfg = _quality_of(ctx, "epsilon")
+    return np.clip(np.asarray(q.epsilon, dtype=np.float64) / cfg.epsilon_ref, 0.0, 1.0)
+
+
+# ------------------------------------------------------------------------------------------------
+# the scoring YAML
+# ------------------------------------------------------------------------------------------------
+def load_scoring(path: str | Path | None = None) -> ScoringConfig:
+    """Read a scoring YAML (default: the packaged ``configs/scoring.yaml``); ConfigError naming the
+    field and the fix."""
+    p = Path(path) if path is not None else SCORING_FILE
+    try:
+        data = yaml.safe_load(p.read_text())
+    except OSError as exc:
+        raise ConfigError(f"scoring file {p}: cannot read it ({exc.strerror}); give an existing YAML file") from None
+    except UnicodeDecodeError:
+        raise ConfigError(f"scoring file {p}: not a text file; give a YAML file like configs/scoring.yaml") from None
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"scoring file {p}: not valid YAML: {exc}") from None
+    if not isinstance(data, dict) or not isinstance(data.get("weights"), dict) or not data["weights"]:
+        raise ConfigError(f"scoring file {p}: expected a mapping with 'weights: {{term: weight, ...}}'")
+    unknown = set(data) - {"weights", "normalisation"}
+    if unknown:
+        raise ConfigError(f"scoring file {p}: unknown fields {sorted(map(str, unknown))}; allowed: weights, normalisation")
+    bad = sorted(str(k) for k in data["weights"] if k not in TERMS)
+    if bad:
+        raise ConfigError(f"scoring file {p}: weights: unknown term(s) {bad}; available: {', '.join(sorted(TERMS))}")
+    weights = tuple((str(k), config_number(v, f"{p}: weights.{k}", nonneg=True)) for k, v in data["weights"].items())
+    if sum(w for _, w in weights) <= 0:
+        raise ConfigError(f"scoring file {p}: weights: at least one weight must be > 0")
+    norm = data.get("normalisation") or {}
+    if not isinstance(norm, dict) or set(norm) - set(REF_KEYS):
+        raise ConfigError(f"scoring file {p}: normalisation: allowed keys {', '.join(REF_KEYS)}")
+    gm = config_number(norm.get("gravity_margin_ref", _REF_FALLBACK["gravity_margin_ref"]),
+                       f"{p}: normalisation.gravity_margin_ref", positive=True)
+    if gm <= 1:
+        raise ConfigError(f"scoring file {p}: normalisation.gravity_margin_ref must be > 1, got {gm:g}")
+    eps = config_number(norm.get("epsilon_ref", _REF_FALLBACK["epsilon_ref"]), f"{p}: normalisation.epsilon_ref",
+                        positive=True)
+    return ScoringConfig(weights=weights, gravity_margin_ref=gm, epsilon_ref=eps, source=str(p))
+
+
+def load_score_weights(path: str | Path | None = None) -> tuple[tuple[str, float], ...]:
+    """``((term, weight), ...)`` from a scoring YAML (default the packaged ``configs/scoring.yaml``)."""
+    return load_scoring(path).weights
+
+
+#: the packaged scoring YAML, read once at import: the default weights and references
+DEFAULT_SCORING = load_scoring()
+
+
+def check_weights(weights, where: str = "score_weights") -> None:
+    """InputError unless ``weights`` is ((known term, finite weight >= 0), ...) with a positive one."""
+    try:
+        names = [n for n, _ in weights]
+    except (TypeError, ValueError):
+        raise InputError(f"{where}: expected ((term, weight), ...), got {weights!r}") from None
+    unknown = sorted(set(map(str, names)) - set(TERMS))
+    if unknown:
+        raise InputError(f"{where}: unknown term(s) {unknown}; available: {', '.join(sorted(TERMS))}")
+    for n, w in weights:
+        if isinstance(w, bool) or not isinstance(w, (int, float)) or not math.isfinite(w) or w < 0:
+            raise InputError(f"{where}: weight of {n!r} must be a finite number >= 0, got {w!r}")
+    if not any(w > 0 for _, w in weights):
+        raise InputError(f"{where}: at least one weight must be > 0")
+
+
 def score_grasps(part_mesh, T_world_part, T_part_tcp, width, max_opening: float,
-                 weights=None) -> np.ndarray:
+                 weights=None, *, quality=None, scoring: ScoringConfig | None = None, com=None) -> np.ndarray:
     """Score in [0, 1] per grasp (higher is better). ``T_part_tcp`` (M, 4, 4), ``width`` (M,) m.
 
-    ``weights``: ``((term, weight), ...)``; default ``PlanParams().score_weights``."""
-    from .params import DEFAULT_SCORE_WEIGHTS
-
+    ``weights``: ``((term, weight), ...)``; default those of ``scoring`` (default: the packaged
+    ``configs/scoring.yaml``). ``quality`` (:class:`grasplan.quality.Quality` of the M grasps) is
+    needed by the physical terms; ``com`` (3,) m: the part's centre of mass for ``center``."""
     T_part_tcp = np.asarray(T_part_tcp, dtype=np.float64).reshape(-1, 4, 4)
     width = np.asarray(width, dtype=np.float64).reshape(-1)
     if len(width) != len(T_part_tcp):
         raise ValueError("T_part_tcp (M, 4, 4) and width (M,) disagree")
-    ctx = ScoreContext(part_mesh, np.asarray(T_world_part, dtype=np.float64), T_part_tcp, width, float(max_opening))
-    weights = tuple(weights if weights is not None else DEFAULT_SCORE_WEIGHTS)
+    cfg = scoring if scoring is not None else DEFAULT_SCORING
+    ctx = ScoreContext(part_mesh, np.asarray(T_world_part, dtype=np.float64), T_part_tcp, width, float(max_opening),
+                       quality=quality, scoring=cfg, com=com)
+    weights = tuple(weights if weights is not None else cfg.weights)
     total = sum(w for _, w in weights)
     out = np.zeros(len(width))
     for name, w in weights:
@@ -116,3 +252,19 @@ def distinct_order(T_part_tcp: np.ndarray, order: np.ndarray, *, min_distance: f
             close = (tr - 1.0) / 2.0 >= cos_min - 1e-9  # a roll of exactly the angle counts as close
             dup[nb[close]] = True
     return np.concatenate([order[chosen], order[dup]])
+
+
+def with_scoring_file(grasp_params, path):
+    """``grasp_params`` (a :class:`grasplan.params.GraspParams`) with the weights and references of
+    the scoring YAML ``path`` (``--scoring FILE``); unchanged when ``path`` is None."""
+    if path is None:
+        return grasp_params
+    from dataclasses import replace
+
+    cfg = load_scoring(path)
+    return replace(grasp_params, score_weights=cfg.weights, score_refs=cfg.refs)
+
+
+#: help of the ``--scoring FILE`` option of grasps, plan and batch
+SCORING_HELP = ("Score weights and normalisation: a YAML file like the packaged configs/scoring.yaml "
+                "(docs/quality.md) [default: the packaged one].")

@@ -9,7 +9,9 @@ Model (one per part and gripper, reused for every grasp):
   tests);
 - the **gripper**: its body shapes fixed, its two jaws (the gripper's own finger shapes) on
   prismatic joints along the closing axis, coupled (centric, as the real gripper) and each pushed
-  by a motor of at most ``grip_force`` N, with damping so they close at about 5 cm/s;
+  by a motor of at most ``grip_force / 2`` N (``grip_force`` is the datasheet gripping force, the
+  sum of both jaws' forces, as in :mod:`grasplan.quality`), with damping so they close at about
+  5 cm/s;
 - the **table**: a box whose top is the cell's table plane, touching only the part.
 
 The simulation runs in the gripper's (TCP) frame, which only translates: lifting and shaking the
@@ -42,6 +44,7 @@ from .errors import InputError
 from .gripper import Box, Gripper
 from .io import write_atomic_bytes
 from .mass import DEFAULT_DENSITY, MassProperties, mass_properties
+from .quality import CONTACTS_PER_GRIP
 from .transforms import check_transform, quaternions
 
 #: lift height (m) and duration (s)
@@ -174,7 +177,8 @@ def build_model_xml(pieces: list[np.ndarray], mass_props: MassProperties, grippe
     I = mass_props.inertia
     full = [I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]]
     half = 0.5 * gripper.max_opening
-    damping = grip_force / CLOSE_SPEED
+    jaw_force = grip_force / CONTACTS_PER_GRIP  # grip_force is the sum over both jaws
+    damping = jaw_force / CLOSE_SPEED
     jaw_inertia = _fmt([JAW_MASS * 1e-4] * 3)
     return f"""<mujoco model="grasplan_lift_shake">
   <compiler angle="radian" inertiafromgeom="false" boundmass="1e-6" boundinertia="1e-12"/>
@@ -203,8 +207,8 @@ def build_model_xml(pieces: list[np.ndarray], mass_props: MassProperties, grippe
   </worldbody>
   <equality><joint joint1="jaw0" joint2="jaw1" polycoef="0 1 0 0 0" solref="{SOLREF_TIMECONST:.6g} 1"/></equality>
   <actuator>
-    <motor name="close0" joint="jaw0" gear="-1" ctrlrange="0 {grip_force:.9g}" ctrllimited="true"/>
-    <motor name="close1" joint="jaw1" gear="-1" ctrlrange="0 {grip_force:.9g}" ctrllimited="true"/>
+    <motor name="close0" joint="jaw0" gear="-1" ctrlrange="0 {jaw_force:.9g}" ctrllimited="true"/>
+    <motor name="close1" joint="jaw1" gear="-1" ctrlrange="0 {jaw_force:.9g}" ctrllimited="true"/>
   </actuator>
 </mujoco>"""
 
@@ -262,7 +266,7 @@ def simulate_grasps(part_mesh: trimesh.Trimesh, gripper: Gripper, T_world_part: 
     density, mass, mass_props
         Uniform density (kg/m^3) or total mass (kg), or precomputed mass properties.
     grip_force : float, optional
-        N per jaw; default ``gripper.grip_force``.
+        Gripping force, N, the sum of both jaws (each pushes with half); default ``gripper.grip_force``.
     mu : float
         Friction coefficient of every contact.
     seed : int
@@ -326,7 +330,7 @@ def simulate_grasps(part_mesh: trimesh.Trimesh, gripper: Gripper, T_world_part: 
         for p in range(len(acc)):
             model.opt.gravity[:] = gravity[p]
             data.mocap_pos[0] = T_tcp_table0[:3, 3] + lift_z[p] * down_tcp
-            data.ctrl[:] = F if close[p] else 0.0
+            data.ctrl[:] = F / CONTACTS_PER_GRIP if close[p] else 0.0
             mujoco.mj_step(model, data, nstep=nstep)
             if p + 1 == i_closed:
                 ref = (data.xpos[part_body].copy(), data.xmat[part_body].reshape(3, 3).copy(),
@@ -340,3 +344,95 @@ def simulate_grasps(part_mesh: trimesh.Trimesh, gripper: Gripper, T_world_part: 
         success[i] = slip[i] < SLIP_TOL and turn[i] < TURN_TOL_DEG
     return SimResult(success=success, slip_m=slip, turn_deg=turn, seconds=time.perf_counter() - t_start,
                      pieces=len(pieces))
+
+
+# ------------------------------------------------------------------------------------------------
+# results: simulate the best grasps of a grasps/plan result and rank those that held first
+# ------------------------------------------------------------------------------------------------
+#: statuses a grasp must have to be simulated (collision-free; in a plan, also the reachable ones)
+SIMULATED_STATUSES = ("ok", "planned", "not_tried", "unreachable", "ik_collision", "no_path")
+
+
+def select_grasps(status: np.ndarray, score: np.ndarray, top: int, rank: np.ndarray | None = None) -> np.ndarray:
+    """Rows of the ``top`` grasps to simulate: in a plan (``rank`` given and some grasp planned)
+    the planned grasps in rank order; else the collision-free ones (``SIMULATED_STATUSES``) by
+    score (NaN last, ties by row)."""
+    st = np.asarray(status).astype(str)
+    planned = np.flatnonzero(st == "planned")
+    if rank is not None and len(planned):
+        r = np.where(rank[planned] < 0, np.iinfo(np.int64).max, rank[planned])
+        return planned[np.lexsort((planned, r))][:top]
+    ok = np.flatnonzero(np.isin(st, SIMULATED_STATUSES))
+    s = np.where(np.isnan(score[ok]), -np.inf, score[ok])
+    return ok[np.lexsort((ok, -s))][:top]
+
+
+def rank_held_first(rank: np.ndarray, success: np.ndarray) -> np.ndarray:
+    """New ranks: ranked grasps (rank >= 0) that held (``success`` == 1) first, then the others,
+    each group keeping its previous (score and diversity) order; unranked stay -1."""
+    rank = np.asarray(rank, dtype=np.int64)
+    ranked = np.flatnonzero(rank >= 0)
+    order = ranked[np.argsort(rank[ranked], kind="stable")]
+    held = np.asarray(success)[order] == 1
+    new = np.full(len(rank), -1, dtype=np.int64)
+    new[np.concatenate([order[held], order[~held]])] = np.arange(len(order))
+    return new
+
+
+def simulate_result(result, top: int, *, mass_props: MassProperties | None = None, grip_force: float | None = None,
+                    seed: int = 0, decomposition: str = "coacd", cache: bool = True):
+    """Simulate the ``top`` best grasps of a :class:`grasplan.result.PlanResult` (a plan: its planned
+    grasps in rank order; a grasps result: the collision-free ones by score with the diversity
+    rule of the plan's ranking, ``distinct_order``).
+
+    Returns ``(rows, SimResult, MassProperties, mu)``. Mass properties default to the result's
+    recorded density/mass (``params.grasps``); ``mu`` is the candidates' friction coefficient."""
+    mesh = result.part_mesh if result.part_mesh is not None else result.mesh()
+    gp = result.params.grasps
+    mp = mass_props if mass_props is not None else mass_properties(mesh, density=gp.density, mass=gp.mass)
+    mu = float(result.params.candidates.mu)
+    g = result.grasps
+    if result.robot is not None:
+        rows = select_grasps(g.status, np.asarray(g.score, dtype=np.float64), top, rank=g.rank)
+    else:  # a grasps result: by score with the plan's diversity rule (grasplan.scoring.distinct_order)
+        from .scoring import distinct_order
+
+        pp = result.params.planning
+        rows = select_grasps(g.status, np.asarray(g.score, dtype=np.float64), len(g))
+        rows = distinct_order(g.T_part_tcp, rows, min_distance=pp.distinct_distance,
+                              min_angle_deg=pp.distinct_angle_deg)[:top]
+    if len(rows) == 0:
+        st = sorted(set(np.asarray(g.status).astype(str)))
+        raise InputError(f"simulate: no collision-free or planned grasp to simulate (statuses: {', '.join(st) or 'none'})")
+    sim = simulate_grasps(mesh, result.gripper, result.T_world_part, g.T_part_tcp[rows], g.width[rows],
+                          table_z=float(result.cell.table_z), mass_props=mp, grip_force=grip_force, mu=mu, seed=seed,
+                          decomposition=decomposition, cache=cache)
+    return rows, sim, mp, mu
+
+
+def with_sim(result, rows: np.ndarray, sim: SimResult, *, rerank: bool = True):
+    """``result`` with the ``sim`` columns of ``rows`` set (others not simulated) and, for a plan
+    (``rerank``), the grasps that held ranked first."""
+    from dataclasses import replace
+
+    g = result.grasps
+    M = len(g)
+    succ = np.full(M, -1, dtype=np.int8) if g.sim_success is None else g.sim_success.copy()
+    slip = np.full(M, np.nan) if g.sim_slip_m is None else g.sim_slip_m.copy()
+    turn = np.full(M, np.nan) if g.sim_turn_deg is None else g.sim_turn_deg.copy()
+    succ[rows], slip[rows], turn[rows] = sim.success.astype(np.int8), sim.slip_m, sim.turn_deg
+    table = replace(g, sim_success=succ, sim_slip_m=slip, sim_turn_deg=turn)
+    if rerank and result.robot is not None:
+        table = replace(table, rank=rank_held_first(g.rank, succ))
+    timing = {**result.timing_s, "simulate": float(sim.seconds)}
+    return replace(result, grasps=table, timing_s=timing)
+
+
+def simulate_plan(result, top: int, *, mass_props: MassProperties | None = None, seed: int = 0,
+                  decomposition: str = "coacd"):
+    """``plan --simulate N``: simulate the top ``N`` planned grasps of a plan result, record ``sim``
+    per grasp and rank the grasps that held first (a plan without planned grasps is returned as is)."""
+    if not np.any(np.asarray(result.grasps.status).astype(str) == "planned"):
+        return result
+    rows, sim, _, _ = simulate_result(result, top, mass_props=mass_props, seed=seed, decomposition=decomposition)
+    return with_sim(result, rows, sim)

@@ -6,7 +6,7 @@ import fcl
 import numpy as np
 import pytest
 import trimesh
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
@@ -236,6 +236,7 @@ def test_mesh_gripper_coal_agrees_with_fcl(example_part):
 
 @settings(max_examples=15, deadline=None)
 @given(st.integers(0, 2**32 - 1))
+@example(37994)  # a pose that touches the part to within float noise
 def test_part_status_invariant_under_rigid_motion(seed):
     """Moving the part and the poses together changes no part-collision result."""
     box = trimesh.creation.box([0.03, 0.02, 0.012])
@@ -249,5 +250,18 @@ def test_part_status_invariant_under_rigid_motion(seed):
     g = load_gripper()
     a = GripperCollider(box, g, Cell("table"), np.eye(4)).part_collision(T, w)
     b = GripperCollider(moved, g, Cell("table"), np.eye(4)).part_collision(M @ T, w)
-    assert np.array_equal(a, b)
+    # a pose may only differ where it touches the part to within float noise: there an independent
+    # python-fcl check flips between the jaws inflated and shrunk by 2 um
+    ref = FclPart(box).obj
+
+    def hits(i, pad):
+        for half, centre in issue_boxes(w[i]):
+            R, t = T[i][:3, :3], T[i][:3, :3] @ centre + T[i][:3, 3]
+            obj = fcl.CollisionObject(fcl.Box(*(2 * half + 2 * pad)), fcl.Transform(R, t))
+            if fcl.collide(obj, ref, fcl.CollisionRequest(), fcl.CollisionResult()):
+                return True
+        return False
+
+    for i in np.flatnonzero(a != b):
+        assert hits(i, 2e-6) and not hits(i, -2e-6), f"pose {i} differs under rigid motion and is not a touching contact"
 

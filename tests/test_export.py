@@ -264,9 +264,17 @@ def check_urscript(text, plan, g, robot):
     T_base_tool = data.oMf[robot.model.getFrameId("base")].actInv(data.oMf[robot.model.getFrameId("tool0")]).homogeneous
     T_fk = T_base_tool @ np.array(plan["gripper"]["T_flange_tcp"])
     assert np.linalg.norm(T_movel[:3, 3] - T_fk[:3, 3]) < 1e-3 and rot_angle(T_movel[:3, :3], T_fk[:3, :3]) < 0.01
-    # retreat = the pre-grasp pose: 5 cm back along the TCP's -z
     T_retreat = pose_to_T(movel[1])
-    np.testing.assert_allclose(T_retreat[:3, 3], (T_expected @ trans(z=-0.05))[:3, 3], atol=1e-3)
+    if any(s_["label"] == "lift" for s_ in g.get("segments", [])):
+        # a pick sequence: the part is lifted along the cell's retreat direction (world) by its distance
+        lift = np.eye(4)
+        lift[:3, 3] = np.array(plan["cell"]["retreat"]["direction"]) * plan["cell"]["retreat"]["distance"]
+        T_lift = np.linalg.inv(T_world_urbase) @ lift @ np.array(plan["part"]["T_world_part"]) @ np.array(g["T_part_tcp"])
+        np.testing.assert_allclose(T_retreat[:3, 3], T_lift[:3, 3], atol=1e-3)
+        assert rot_angle(T_retreat[:3, :3], T_lift[:3, :3]) < 0.01
+    else:
+        # retreat = the pre-grasp pose: 5 cm back along the TCP's -z
+        np.testing.assert_allclose(T_retreat[:3, 3], (T_expected @ trans(z=-0.05))[:3, 3], atol=1e-3)
     # order: set_tcp, open, movej..., movel grasp, close, movel retreat
     i_close = text.index("  grasplan_close_gripper(")
     i_movel = [m.start() for m in MOVEL.finditer(text)]
@@ -284,7 +292,7 @@ def check_trajectory(traj, plan, g, robot, amax):
     qdd = np.array([p["accelerations"] for p in pts])
     assert np.all(np.diff(t) > 0), "times strictly increasing"
     np.testing.assert_allclose(q[0], plan["robot"]["q_home"], atol=1e-9)
-    np.testing.assert_allclose(q[-1], g["q_grasp"], atol=1e-9)
+    np.testing.assert_allclose(q[-1], np.array(g["path"])[-1], atol=1e-9)  # the motion's last waypoint
     assert np.all(qd[0] == 0) and np.all(qd[-1] == 0)
     assert np.max(np.abs(np.diff(q, axis=0))) <= 0.01 + 1e-12
     vlim = np.asarray(robot.velocity_limit)
@@ -459,8 +467,9 @@ def test_csv_rows(plan_doc):
     rows = list(csv.DictReader(io.StringIO(text)))
     assert len(rows) == len(plan_doc["grasps"])
     header = text.splitlines()[0].split(",")
-    assert header[:4] == ["id", "status", "width", "score"] and header[-7:-1] == [f"q_{j}" for j in UR_JOINTS]
-    assert header[-1] == "part_scale_to_m" and "-0," not in text
+    assert header[:4] == ["id", "status", "width", "score"]
+    j0 = header.index("q_" + UR_JOINTS[0])  # joints, then the part's scale (issue 11's quality columns may follow)
+    assert header[j0:j0 + 7] == [f"q_{j}" for j in UR_JOINTS] + ["part_scale_to_m"] and "-0," not in text
     T_world_part = np.array(plan_doc["part"]["T_world_part"])
     for row, g in zip(rows, plan_doc["grasps"]):
         assert int(row["id"]) == g["id"] and row["status"] == g["status"]

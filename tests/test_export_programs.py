@@ -256,6 +256,41 @@ def rapid_pose(pose) -> np.ndarray:
 
 # -- KRL ----------------------------------------------------------------------------------------
 
+def sequence_moves(m) -> list[tuple[str, int]]:
+    """(kind, path row) of the moves a pick(-and-place) program must make, from the motion's
+    segments: joint moves through transit (from row 0) / transfer (after its start), one linear
+    move to the end of every other segment."""
+    out = []
+    for lab, s, e in m.segment_list():
+        if lab in ("transit", "transfer"):
+            out += [("joint", r) for r in range(0 if s == 0 else s + 1, e + 1)]
+        else:
+            out.append(("linear", e))
+    return out
+
+
+def check_sequence_targets(plan, m, kinds_targets, T_base, T_tool, joint_deg, pose_of, ext_of) -> None:
+    """Joint targets equal the path rows; linear targets composed with base and tool equal FK of
+    the path rows (Pinocchio directly); joint 7 (E1 / eax_a) at each linear target is the row's."""
+    robot = plan.robot
+    want = sequence_moves(m)
+    assert [kd for kd, _ in kinds_targets] == [kd for kd, _ in want]
+    lo, hi = controller_limits_deg(robot)
+    for (kd, tgt), (_, row) in zip(kinds_targets, want):
+        q = m.path[row]
+        if kd == "joint":
+            deg = joint_deg(tgt)
+            assert np.all(deg >= lo - 1e-6) and np.all(deg <= hi + 1e-6)
+            np.testing.assert_allclose(to_rad(robot, deg), q, atol=1e-7)
+        else:
+            T = T_base @ pose_of(tgt)
+            T_fk = fk_flange(robot, q) @ T_tool
+            np.testing.assert_allclose(T[:3, 3], T_fk[:3, 3], atol=1e-6)
+            assert np.linalg.norm(T[:3, :3] - T_fk[:3, :3]) < 1e-6
+            if robot.nq == 7:
+                assert ext_of(tgt) == pytest.approx(np.degrees(q[6]), abs=1e-5)
+
+
 def check_krl(plan, files: dict, grasp_id: int) -> None:
     robot = plan.robot
     n = robot.nq
@@ -263,6 +298,18 @@ def check_krl(plan, files: dict, grasp_id: int) -> None:
     m = g.motion
     k = m.pregrasp_index
     P = parse_krl(files[".src"], files[".dat"])
+    if len(m.segment_list()) > 2:  # a pick(-and-place) sequence
+        decl = P["decl"]
+        assert set(decl) == {t for _, t in P["moves"]} | set(P["frames"].values())
+        keys = [f"A{i}" for i in range(1, 7)] + (["E1"] if n == 7 else [])
+        check_sequence_targets(
+            plan, m, [({"PTP": "joint", "LIN": "linear"}[kd], decl[t]) for kd, t in P["moves"]],
+            krl_pose(decl[P["frames"]["BASE"]][1]), krl_pose(decl[P["frames"]["TOOL"]][1]),
+            joint_deg=lambda d: np.array([d[1][c] for c in keys]), pose_of=lambda d: krl_pose(d[1]),
+            ext_of=lambda d: d[1]["E1"])
+        assert P["gripper"] == pytest.approx([1000 * float(plan.gripper.pregrasp_opening(g.width))]
+                                             + [1000 * e.width for e in m.gripper], abs=1e-3)
+        return
     assert P["names"] == ["grasplan_pick", "grasplan_pick"]  # DEFDAT and DEF: KUKA needs them equal
     decl, moves = P["decl"], P["moves"]
     used = {t for _, t in moves} | set(P["frames"].values())
@@ -319,6 +366,17 @@ def check_rapid(plan, text: str, grasp_id: int) -> None:
     k = m.pregrasp_index
     P = parse_rapid(text)
     assert P["names"] == ["grasplan_pick"]
+    if len(m.segment_list()) > 2:  # a pick(-and-place) sequence
+        consts = P["consts"]
+        assert set(consts) == {t for _, t, _, _ in P["moves"]}
+        (tool,) = P["tools"].values()
+        (wobj,) = P["wobjs"].values()
+        check_sequence_targets(
+            plan, m, [({"absj": "joint", "movel": "linear"}[kd], consts[t][1]) for kd, t, _, _ in P["moves"]],
+            rapid_pose(wobj[3]) @ rapid_pose(wobj[4]), rapid_pose(tool[1]),
+            joint_deg=lambda c: np.array(c[0] + c[1][: n - 6]), pose_of=lambda c: rapid_pose(c[:2]),
+            ext_of=lambda c: c[3][0])
+        return
     consts, moves = P["consts"], P["moves"]
     used = {t for _, t, _, _ in moves}
     assert set(consts) == used, f"declared but unused: {set(consts) - used}; used but undeclared: {used - set(consts)}"
@@ -388,8 +446,17 @@ def test_moveit_grasps_on_plans(plan):
         np.testing.assert_allclose([ap["direction"]["vector"][c] for c in "xyz"], g.T_world_tcp[:3, 2], atol=1e-12)
         assert ap["desired_distance"] == pytest.approx(plan.params.planning.backoff)
         rt = d["post_grasp_retreat"]
-        np.testing.assert_allclose([rt["direction"]["vector"][c] for c in "xyz"], -g.T_world_tcp[:3, 2], atol=1e-12)
-        assert rt["desired_distance"] == pytest.approx(plan.retreat_distance)
+        if len(g.motion.segment_list()) > 2:  # the planned lift: the cell's retreat (world)
+            np.testing.assert_allclose([rt["direction"]["vector"][c] for c in "xyz"], plan.cell.retreat_direction,
+                                       atol=1e-12)
+            assert rt["desired_distance"] == pytest.approx(plan.cell.retreat_distance)
+            s, e = g.motion.segment("lift")
+            dp = (fk_flange(plan.robot, g.motion.path[e]) - fk_flange(plan.robot, g.motion.path[s]))[:3, 3]
+            np.testing.assert_allclose(dp, np.asarray(plan.cell.retreat_direction) * plan.cell.retreat_distance,
+                                       atol=1e-3)
+        else:
+            np.testing.assert_allclose([rt["direction"]["vector"][c] for c in "xyz"], -g.T_world_tcp[:3, 2], atol=1e-12)
+            assert rt["desired_distance"] == pytest.approx(plan.retreat_distance)
         opening = float(plan.gripper.pregrasp_opening(g.width))
         for key, o_m in (("pre_grasp_posture", opening), ("grasp_posture", g.width)):
             post = d[key]

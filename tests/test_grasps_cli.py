@@ -101,7 +101,7 @@ def test_part_pose_parsing(tmp_path):
     "args, needle",
     [
         (["--gripper", "nope"], "available: round_mesh_jaws, schunk_egp_c_40"),
-        (["--cell", "nope"], "available: table"),
+        (["--cell", "nope"], "available: bin, table, wall"),
         (["--part-pose", "1,2"], "--part-pose"),
     ],
 )

@@ -78,3 +78,24 @@ def test_flat_mesh_is_input_error():
     flat = trimesh.Trimesh([[0, 0, 0], [0.1, 0, 0], [0, 0.1, 0], [0.1, 0.1, 0]], [[0, 1, 2], [1, 3, 2]])
     with pytest.raises(InputError, match="no volume|volume"):
         mass_properties(flat)
+
+
+def test_single_triangle_is_input_error_and_the_grasp_stage_goes_on_without_quality():
+    tri = trimesh.Trimesh([[0, 0, 0], [0.03, 0, 0], [0, 0.02, 0]], [[0, 1, 2]], process=False)
+    with pytest.raises(InputError, match="flat or degenerate|no volume"):
+        mass_properties(tri)
+    from types import SimpleNamespace
+
+    from grasplan.gripper import load_gripper
+    from grasplan.params import GraspParams
+    from grasplan.quality import quality_and_score
+
+    cands = SimpleNamespace(width=np.array([0.02]), contacts=np.zeros((1, 2, 3)), normals=np.zeros((1, 2, 3)))
+    T = np.eye(4)[None]
+    q, mp, score, note = quality_and_score(tri, load_gripper("schunk_egp_c_40"), np.eye(4), T, [0], cands,
+                                           np.array(["ok"]), 0.3, GraspParams())
+    assert q is None and mp is None and "no grasp quality" in note
+    assert np.isfinite(score[0]) and 0 <= score[0] <= 1  # the reachability terms still score it
+    with pytest.raises(InputError, match="flat or degenerate"):  # a mass asked for: the reason, not silence
+        quality_and_score(tri, load_gripper("schunk_egp_c_40"), np.eye(4), T, [0], cands, np.array(["ok"]), 0.3,
+                          GraspParams(mass=0.1))

@@ -140,8 +140,9 @@ def test_gravity_margin_centre_matches_hand_calculation(gripper, box):
     mp = mass_properties(box, mass=0.2)
     T, C, N, w = grasps([0.0])
     q = grasp_quality(box, mp, gripper, T, C, N, w, T_world_part=on_table(0.015), mu=MU)
-    # through the centre of mass from above: worst load 2 m g straight down, half per contact, no torque
-    assert q.gravity_margin[0] == pytest.approx(MU * gripper.grip_force / (0.2 * G), rel=1e-9)
+    # through the centre of mass from above: worst load 2 m g straight down, half per contact, no
+    # torque; each contact is pressed with half the gripping force (grip_force = sum of the jaws)
+    assert q.gravity_margin[0] == pytest.approx(MU * (gripper.grip_force / 2) / (0.2 * G), rel=1e-9)
     q2 = grasp_quality(box, mp, gripper, T, C, N, w, T_world_part=on_table(0.015), mu=MU, grip_force=10.0)
     assert q2.gravity_margin[0] == pytest.approx(q.gravity_margin[0] * 10.0 / gripper.grip_force, rel=1e-9)
 
@@ -170,7 +171,7 @@ def test_quality_json_and_bad_input(gripper, box):
     j = q.to_json(1, score=0.5)
     assert set(j) == {"contact", "gravity_margin", "epsilon", "score"}
     assert [c["type"] for c in j["contact"]] == ["surface", "surface"]
-    assert j["contact"][0]["area"] == pytest.approx(q.contact_area[1, 0])
+    assert j["contact"][0]["area_m2"] == pytest.approx(q.contact_area[1, 0])
     with pytest.raises(InputError, match="contacts and normals"):
         grasp_quality(box, mp, gripper, T, C[:1], N, w, T_world_part=on_table(0.015), mu=MU)
     with pytest.raises(InputError, match="mu"):

@@ -220,7 +220,7 @@ def test_scene_agrees_with_python_fcl(robot_name, cellparts, gripper):
     n_part = n_table = 0
     for i, q in enumerate(qs):
         opening = float(rng.uniform(0.0, gripper.max_opening))
-        mine = {(a, b) for a, b, kind in scene.colliding_pairs(q, opening) if kind in ("table", "part")}
+        mine = {(a, b) for a, b, kind in scene.colliding_geometries(q, opening) if kind in ("table", "part")}
         theirs = ref.collisions(q, opening)
         assert mine == theirs, f"config {i} q={q.tolist()} opening={opening}"
         n_part += any(b == "part" for _, b in mine)

@@ -628,3 +628,115 @@ def test_browser_tless20_plan(paper, tmp_path):
     run_chromium(page, tmp_path, f"--screenshot={png}", "--window-size=1280,800")
     colours, std = _canvas_stats(_canvas(png))
     assert colours > 200 and std > 10, (colours, std)
+
+
+# ----------------------------------------------------------------------------- pick-and-place, obstacles
+def sequence_result_with_obstacles() -> dict:
+    """The bracket plan above with its planned grasps extended to pick-and-place sequences (lift,
+    transfer, descend, release, retreat; tests/test_export_sequence.py) and a cell with one
+    obstacle of each kind."""
+    from test_export import mini_ur5
+    from test_export_sequence import add_sequence
+
+    from grasplan.gripper import load_gripper
+
+    doc = synthetic_result(BRACKET, n_planned=2)
+    ur5, gr = mini_ur5(), load_gripper("schunk_egp_c_40")
+    T = np.asarray(doc["part"]["T_world_part"])
+    doc["grasps"] = [add_sequence(ur5, g, T, float(gr.pregrasp_opening(g["width"]))) if g["status"] == "planned" else g
+                     for g in doc["grasps"]]
+
+    def at(x, y, z):
+        M = np.eye(4)
+        M[:3, 3] = (x, y, z)
+        return M.tolist()
+
+    doc["cell"]["obstacles"] = [
+        {"name": "wall", "box": {"size": [0.02, 0.4, 0.3]}, "T_world_obstacle": at(0.6, 0.0, 0.15)},
+        {"name": "post", "cylinder": {"radius": 0.02, "length": 0.3}, "T_world_obstacle": at(0.4, 0.2, 0.15)},
+        {"name": "ball", "sphere": {"radius": 0.03}, "T_world_obstacle": at(0.3, 0.25, 0.2)},
+        {"name": "tet", "mesh": {"vertices": [[0, 0, 0], [0.1, 0, 0], [0, 0.1, 0], [0, 0, 0.1]],
+                                 "faces": [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]}, "T_world_obstacle": at(0.3, -0.35, 0)},
+    ]
+    return doc
+
+
+@pytest.fixture(scope="module")
+def sequence_page(tmp_path_factory) -> tuple[dict, Path, dict]:
+    doc = sequence_result_with_obstacles()
+    folder = tmp_path_factory.mktemp("viewer-seq")
+    p = folder / "plan.json"
+    p.write_text(json.dumps(doc))
+    data, _ = build_data(load_result(p), part_path=BRACKET)
+    return doc, write_viewer(p, folder / "view.html", part_path=BRACKET), data
+
+
+def test_page_data_has_obstacles_and_sequence(sequence_page):
+    doc, _, data = sequence_page
+    obs = data["cell"]["obstacles"]
+    assert [(o["name"], o["kind"]) for o in obs] == [("wall", "box"), ("post", "cylinder"), ("ball", "sphere"),
+                                                     ("tet", "mesh")]
+    for o, src in zip(obs, doc["cell"]["obstacles"]):
+        np.testing.assert_allclose(np.reshape(o["T"], (4, 4)), src["T_world_obstacle"])
+    assert obs[0]["box"] == [0.02, 0.4, 0.3] and obs[1]["cylinder"] == [0.02, 0.3] and obs[3]["mesh"]["nf"] == 4
+    for g in (x for x in doc["grasps"] if x["status"] == "planned"):
+        P = data["robot"]["paths"][str(g["id"])]
+        assert [s["label"] for s in P["segments"]] == [s["label"] for s in g["segments"]]
+        starts = [s["start"] for s in P["segments"]]
+        assert starts[0] == 0 and P["segments"][-1]["end"] == P["count"] - 1
+        assert all(a["end"] == b["start"] for a, b in zip(P["segments"], P["segments"][1:]))
+        ev = {e["action"]: e for e in P["events"]}
+        seg = {s["label"]: s for s in P["segments"]}
+        assert ev["close"]["sample"] == seg["approach"]["end"] and ev["open"]["sample"] == seg["descend"]["end"]
+        assert P["attached"] == [ev["close"]["sample"], ev["open"]["sample"]]
+        np.testing.assert_allclose(np.reshape(P["T_tcp_part"], (4, 4)), g["T_tcp_part"])
+        np.testing.assert_allclose(np.reshape(P["T_world_part_place"], (4, 4)), g["T_world_part_place"])
+
+
+@pytest.mark.browser
+@needs_chromium
+def test_browser_sequence_obstacles_and_part_in_the_jaws(sequence_page, tmp_path):
+    """The page draws the 4 obstacles, labels the segments on the timeline in order, and moves the
+    part: attached in the transfer, at the place after the release; no script error."""
+    doc, page, data = sequence_page
+    best = min((x for x in doc["grasps"] if x["status"] == "planned"), key=lambda x: x["rank"])
+    P = data["robot"]["paths"][str(best["id"])]
+    seg = {s["label"]: s for s in P["segments"]}
+    for sample, phase, part in ((0, "transit", "static"),
+                                ((seg["transfer"]["start"] + seg["transfer"]["end"]) // 2, "transfer", "attached"),
+                                (P["count"] - 1, "retreat", "placed")):
+        r = run_chromium(page, tmp_path, "--dump-dom", "--enable-logging=stderr", "--v=0",
+                         fragment=f"#grasp={best['id']}&sample={sample}")
+        g = _check_rendered(r.stdout, doc)
+        st = g.status
+        assert "data-error" not in st, st.get("data-error")
+        assert "Uncaught" not in r.stderr, r.stderr[-2000:]
+        assert st["data-obstacles"] == "4"
+        assert st["data-segments"] == ",".join(s["label"] for s in best["segments"])
+        labels = [a["data-segment"] for t, a in g.tags if "data-segment" in a]
+        assert labels == [s["label"] for s in best["segments"]]
+        assert [a["data-event"] for t, a in g.tags if "data-event" in a] == ["close", "open"]
+        assert (st["data-phase"], st["data-part"]) == (phase, part)
+
+
+@pytest.mark.browser
+@needs_chromium
+def test_browser_shows_quality_and_sim(tmp_path):
+    """quality and sim of a grasp (issue 11 keys) appear in the grasp panel when the plan has them."""
+    doc = synthetic_result(BRACKET, n_planned=2)
+    best = min((x for x in doc["grasps"] if x["status"] == "planned"), key=lambda x: x["rank"])
+    for g in doc["grasps"]:
+        if g["status"] not in ("collision_part", "collision_table"):
+            g["quality"] = {"score": g["score"], "gravity_margin": 1.75, "epsilon": 0.0123,
+                            "contact": [{"area_m2": 2.5e-5, "type": "surface"}, {"area_m2": 1e-6, "type": "line"}]}
+    best["sim"] = {"success": True, "slip_m": 0.0004, "turn_deg": 1.5}
+    res = load_result(doc)
+    if getattr(res.grasps, "gravity_margin", None) is None:
+        pytest.skip("this grasplan's result loader does not read grasp quality (issue 11) yet")
+    page = write_viewer(doc, tmp_path / "q.html", part_path=BRACKET)
+    r = run_chromium(page, tmp_path, "--dump-dom", fragment=f"#grasp={best['id']}")
+    _check_rendered(r.stdout, doc)
+    panel = re.search(r'<div id="selected">(.*?)</div>', r.stdout, re.S).group(1)
+    assert "gravity margin 1.75" in panel and "epsilon 0.0123" in panel, panel
+    assert "surface 25.0 mm" in panel and "line 1.0 mm" in panel, panel
+    assert "sim: held" in panel and "slip 0.4 mm" in panel and "turn 1.5" in panel, panel

@@ -46,9 +46,30 @@ class AngleType(click.ParamType):
             self.fail(str(exc), param, ctx)
 
 
+class PoseIndexType(click.ParamType):
+    """``--pose-index``: a stable pose (0 = most probable) or ``all`` (every pose of probability >= 2 %)."""
+
+    name = "INDEX|all"
+
+    def convert(self, value, param, ctx):
+        if value is None or (isinstance(value, int) and not isinstance(value, bool)):
+            return value
+        text = str(value).strip()
+        if text.lower() == "all":
+            return "all"
+        try:
+            v = int(text)
+        except ValueError:
+            self.fail(f"{value!r} is neither a whole number nor 'all'", param, ctx)
+        if not 0 <= v <= 10000:
+            self.fail(f"{value!r}: expected 0..10000 (0 = most probable) or 'all'", param, ctx)
+        return v
+
+
 LENGTH = LengthType()
 LENGTH_OR_ZERO = LengthType(allow_zero=True)
 ANGLE = AngleType()
+POSE_INDEX = PoseIndexType()
 
 units_option = click.option(
     "--units",

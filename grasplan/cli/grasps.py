@@ -7,6 +7,7 @@ import click
 
 from ..errors import PlanningError
 from ..params import CandidateParams, GraspParams
+from ..scoring import SCORING_HELP, with_scoring_file
 from .common import check_output, info, table, warn_all
 from .options import (
     apply_config_dirs,
@@ -22,10 +23,11 @@ from .options import (
 @output_option("Output JSON file (grasplan.grasps/1), written atomically.")
 @cell_options
 @param_options(GraspParams, CandidateParams)
+@click.option("--scoring", type=click.Path(dir_okay=False), default=None, help=SCORING_HELP)
 @click.option("--only-ok", is_flag=True,
               help="Write only the ok grasps (counts still cover every pose); keeps files small.")
 @click.option("--indent", type=click.IntRange(0, 8), default=None, help="Indent the JSON (default: compact).")
-def command(part, output, gripper, cell, part_pose, units, only_ok, indent, **kwargs):
+def command(part, output, gripper, cell, part_pose, units, only_ok, indent, scoring, **kwargs):
     """Gripper poses for PART's antipodal candidates, rolled about each closing axis, each checked
     for collisions of the gripper body and the closing jaws against the part and the table.
 
@@ -41,6 +43,7 @@ def command(part, output, gripper, cell, part_pose, units, only_ok, indent, **kw
     output = check_output(output, part)
     apply_config_dirs(kwargs)
     prm = params_from_kwargs(kwargs, (CandidateParams, GraspParams))
+    prm["grasps"] = with_scoring_file(prm["grasps"], scoring)
     g = load_gripper(gripper)
     c = load_cell(cell)
     T_world_part = parse_part_pose(part_pose) if part_pose is not None else None
@@ -53,6 +56,7 @@ def command(part, output, gripper, cell, part_pose, units, only_ok, indent, **kw
     warn_all(p.warnings)
     res = compute_grasps(p, gripper=g, cell=c, candidates=prm["candidates"], grasps=prm["grasps"],
                          T_world_part=T_world_part, load_s=load_s)
+    warn_all(res.mass_props.warnings if res.mass_props is not None else [res.quality_note] if res.quality_note else [])
     t = time.perf_counter()
     res.to_result().write(output, only_ok=only_ok, indent=indent)
     info(f"  wrote {output} in {time.perf_counter() - t:.2f} s")
@@ -65,7 +69,12 @@ def command(part, output, gripper, cell, part_pose, units, only_ok, indent, **kw
         ("kept (ok)", n["ok"]),
         ("rejected: collision_part", n["collision_part"]),
         ("rejected: collision_table", n["collision_table"]),
+        ("rejected: collision_obstacle", n["collision_obstacle"]),
     ]
+    if res.mass_props is not None:  # grasp quality (docs/quality.md)
+        rows.append(("part mass, kg", float(res.mass_props.mass)))
+        if n["ok"] and res.quality is not None:
+            rows.append(("ok grasps holding under gravity + 1 g", int((res.quality.gravity_margin >= 1).sum())))
     rows += [(f"seconds: {k}", float(v)) for k, v in res.timing_s.items()]
     rows.append(("seconds: total", time.perf_counter() - t_all))
     click.echo(table(rows))

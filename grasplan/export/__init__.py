@@ -34,7 +34,7 @@ from .registry import (
 )
 
 #: the shipped formats, imported (and so registered) on first use of the registry
-BUILTIN_MODULES = ("urscript", "trajectory", "csvfile", "krl", "rapid", "moveit_grasp")
+BUILTIN_MODULES = ("urscript", "trajectory", "csvfile", "pathcsv", "krl", "rapid", "moveit_grasp")
 
 __all__ = ["write", "render", "FORMATS", "ExportFormat", "ExportOptions", "register", "get_format",
            "load_builtin_formats", "DEFAULT_MAX_ACCEL", "output_paths"]

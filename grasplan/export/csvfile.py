@@ -5,13 +5,21 @@ Columns (header row, in this order; lengths in metres, angles in radians):
 ``id, status, width, score, rank,
 part_x, part_y, part_z, part_qw, part_qx, part_qy, part_qz,
 world_x, world_y, world_z, world_qw, world_qx, world_qy, world_qz,
-q_<joint name> ... (one column per robot joint)``
+q_<joint name> ... (one column per robot joint), part_scale_to_m,
+gravity_margin, epsilon, contact0_area_m2, contact0_type, contact1_area_m2, contact1_type,
+sim_success, sim_slip_m, sim_turn_deg``
+
+(the quality columns are appended after every earlier column: no column moves)
 
 - ``part_*``: the TCP pose in the part frame (``T_part_tcp``); ``world_*``: in the world frame
   (``T_world_part @ T_part_tcp``). Orientation as a unit quaternion (w first), sign chosen so
   ``qw >= 0``.
 - ``q_<joint>``: ``q_grasp``; empty when the grasp is not planned. ``score``/``rank`` are empty
   when the plan has none for that grasp.
+- Grasp quality (docs/quality.md): ``gravity_margin`` (< 1 slips), ``epsilon`` (Ferrari-Canny),
+  per jaw the contact patch area (m^2) and type (point, line, surface); empty for grasps without
+  quality (collisions). ``sim_*``: the MuJoCo lift-and-shake result (``success`` 1 held / 0
+  slipped, ``slip_m`` m, ``turn_deg`` deg), empty when the grasp was not simulated.
 - Rows in the plan's grasp order. Numbers are written with up to 9 significant digits.
 """
 from __future__ import annotations
@@ -32,7 +40,37 @@ def header(joint_names) -> list[str]:
     # issue 5's columns in its order; the part's scale last (a constant column: "record the part's
     # scale in every output", without moving any contracted column)
     return (["id", "status", "width", "score"] + [f"part_{c}" for c in POSE_COLS]
-            + [f"world_{c}" for c in POSE_COLS] + [f"q_{j}" for j in joint_names] + ["part_scale_to_m"])
+            + [f"world_{c}" for c in POSE_COLS] + [f"q_{j}" for j in joint_names] + ["part_scale_to_m"]
+            + list(QUALITY_COLS))
+
+
+#: grasp quality and simulation columns (issue 11), after every earlier column
+QUALITY_COLS = ("gravity_margin", "epsilon", "contact0_area_m2", "contact0_type", "contact1_area_m2", "contact1_type",
+                "sim_success", "sim_slip_m", "sim_turn_deg")
+
+
+def _quality_text(t, ids) -> list[str]:
+    """The QUALITY_COLS cells (comma-joined, no leading comma) of grasp rows ``ids``."""
+    from ..quality import CONTACT_TYPES
+
+    n = len(ids)
+    gm = t.gravity_margin[ids] if t.gravity_margin is not None else np.full(n, np.nan)
+    eps = t.epsilon[ids] if t.epsilon is not None else np.full(n, np.nan)
+    area = t.contact_area[ids] if t.contact_area is not None else np.full((n, 2), np.nan)
+    kind = t.contact_type[ids] if t.contact_type is not None else np.full((n, 2), -1)
+    succ = t.sim_success[ids] if t.sim_success is not None else np.full(n, -1)
+    slip = t.sim_slip_m[ids] if t.sim_slip_m is not None else np.full(n, np.nan)
+    turn = t.sim_turn_deg[ids] if t.sim_turn_deg is not None else np.full(n, np.nan)
+
+    def num(a):
+        return ["" if v != v else f"{v + 0.0:.9g}" for v in np.asarray(a, dtype=np.float64).tolist()]
+
+    def typ(a):
+        return ["" if v < 0 else CONTACT_TYPES[v] for v in np.asarray(a).tolist()]
+
+    cols = [num(gm), num(eps), num(area[:, 0]), typ(kind[:, 0]), num(area[:, 1]), typ(kind[:, 1]),
+            ["" if v < 0 else str(v) for v in np.asarray(succ).tolist()], num(slip), num(turn)]
+    return [",".join(c) for c in zip(*cols)]
 
 
 def _num(v) -> str:
@@ -60,11 +98,13 @@ def grasps_csv(plan, *, grasp_id: int | None = None) -> str:
     status = t.status[ids].astype(str).tolist()
     width = t.width[ids].tolist()
     score = t.score[ids].tolist()
+    quality = _quality_text(t, ids)
     for k, (i, p) in enumerate(zip(ids.tolist(), poses.tolist())):
         m = plan.motions.get(i)
         qtxt = ",".join(_num(v) for v in m.q_grasp) if m is not None else empty_q
         sc = None if score[k] != score[k] else score[k]
-        lines.append(f"{i},{_csv_text(status[k])},{_num(width[k])},{_num(sc)},{fmt.format(*p)},{qtxt},{scale}")
+        lines.append(f"{i},{_csv_text(status[k])},{_num(width[k])},{_num(sc)},{fmt.format(*p)},{qtxt},{scale},"
+                     f"{quality[k]}")
     return "\n".join(lines) + "\n"
 
 

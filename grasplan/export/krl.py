@@ -31,7 +31,18 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .program import MotionProgram, header_lines, motion_program, num, program_targets, waypoint_labels
+from .program import (
+    SEGMENT_TEXT,
+    MotionProgram,
+    ProgramTargets,
+    header_lines,
+    motion_program,
+    num,
+    program_steps,
+    program_targets,
+    row_label,
+    waypoint_labels,
+)
 from .registry import ExportFormat, ExportOptions, register
 
 #: PTP joint speed, percent of each axis' maximum ($VEL_AXIS) and acceleration ($ACC_AXIS)
@@ -83,6 +94,8 @@ def krl_program(mp: MotionProgram, program_name: str = "grasplan_pick") -> dict[
 
     k = len(path)
     targets = [f"XP{i + 1}" for i in range(k)]
+    if mp.sequence:
+        seq_dat, seq_src = _sequence(mp, t)
     dat = [
         "&ACCESS RVP",
         "&REL 1",
@@ -92,11 +105,12 @@ def krl_program(mp: MotionProgram, program_name: str = "grasplan_pick") -> dict[
         f"DECL FRAME TOOL_GL={_frame(T_tool)}",
         "; $BASE: the robot's base frame in the world (T_world_base); Cartesian targets are in it",
         f"DECL FRAME BASE_GL={_frame(T_base)}",
-        f"; joint path q_home -> q_pregrasp ({k} waypoints)" + ("; joint 7 is E1" if n == 7 else ""),
-        *(f"DECL E6AXIS {t}={_e6axis(q)}" for t, q in zip(targets, path)),
-        "; straight approach and retreat targets (TCP in $BASE)",
-        f"DECL E6POS XGRASP={_e6pos(T_grasp, ext_grasp)}",
-        f"DECL E6POS XRETREAT={_e6pos(T_retreat, ext_retreat)}",
+        *(seq_dat if mp.sequence else [
+            f"; joint path q_home -> q_pregrasp ({k} waypoints)" + ("; joint 7 is E1" if n == 7 else ""),
+            *(f"DECL E6AXIS {t}={_e6axis(q)}" for t, q in zip(targets, path)),
+            "; straight approach and retreat targets (TCP in $BASE)",
+            f"DECL E6POS XGRASP={_e6pos(T_grasp, ext_grasp)}",
+            f"DECL E6POS XRETREAT={_e6pos(T_retreat, ext_retreat)}"]),
         "ENDDAT",
     ]
     src = [
@@ -119,13 +133,14 @@ def krl_program(mp: MotionProgram, program_name: str = "grasplan_pick") -> dict[
         f"$ACC.CP={num(LIN_ACC, 3)}",
         "; open the jaws to the pre-grasp opening (mm)",
         f"GRASPLAN_GRIPPER({num(mp.pregrasp_opening * 1000, 3)})",
-        *(f"PTP {t} ; {lab}" for t, lab in zip(targets, waypoint_labels(k))),
-        "; straight approach to the grasp TCP (jaws open)",
-        "LIN XGRASP",
-        "; close on the part (width between the contacts, mm)",
-        f"GRASPLAN_GRIPPER({num(mp.width * 1000, 3)})",
-        f"; straight retreat ({num(mp.retreat_distance * 1000, 1)} mm)",
-        "LIN XRETREAT",
+        *(seq_src if mp.sequence else [
+            *(f"PTP {t} ; {lab}" for t, lab in zip(targets, waypoint_labels(k))),
+            "; straight approach to the grasp TCP (jaws open)",
+            "LIN XGRASP",
+            "; close on the part (width between the contacts, mm)",
+            f"GRASPLAN_GRIPPER({num(mp.width * 1000, 3)})",
+            f"; straight retreat ({num(mp.retreat_distance * 1000, 1)} mm)",
+            "LIN XRETREAT"]),
         "END",
         "",
         "DEF GRASPLAN_GRIPPER(OPENING_MM:IN)",
@@ -136,6 +151,43 @@ def krl_program(mp: MotionProgram, program_name: str = "grasplan_pick") -> dict[
         "END",
     ]
     return {".src": "\n".join(src) + "\n", ".dat": "\n".join(dat) + "\n"}
+
+
+#: KRL target of each linear segment's end (XGRASP as in the pick-only program)
+LINEAR_TARGETS = {"approach": "XGRASP", "lift": "XLIFT", "descend": "XPLACE", "retreat": "XRETREAT"}
+
+
+def _sequence(mp: MotionProgram, t: ProgramTargets) -> tuple[list[str], list[str]]:
+    """``.dat`` declarations and ``.src`` motion lines of a pick(-and-place) sequence: ``PTP XPi``
+    (E6AXIS) per joint-move row, ``LIN X<TARGET>`` (E6POS, joint 7 as E1 at the segment's end) per
+    straight segment, ``GRASPLAN_GRIPPER(mm)`` at the events."""
+    from ..transforms import check_transform
+
+    dat: list[str] = ["; sequence targets in path order (joint 7 is E1)" if len(mp.joint_names) == 7
+                      else "; sequence targets in path order"]
+    src: list[str] = []
+    p = 0
+    for step in program_steps(mp):
+        kind = step[0]
+        if kind == "segment":
+            seg = step[1]
+            src.append(f"; segment {seg.label} (path rows {seg.start}-{seg.end}): {SEGMENT_TEXT[seg.label]}")
+            dat.append(f"; segment {seg.label}")
+        elif kind == "joint":
+            p += 1
+            dat.append(f"DECL E6AXIS XP{p}={_e6axis(t.full_deg[step[1]])}")
+            src.append(f"PTP XP{p} ; {row_label(mp, step[1])}")
+        elif kind == "linear":
+            seg = step[2]
+            name = LINEAR_TARGETS[seg.label]
+            T = check_transform(seg.T_base_tcp_end, f"{seg.label} target")
+            dat.append(f"DECL E6POS {name}={_e6pos(T, t.full_deg[seg.end, 6:])}")
+            src.append(f"LIN {name} ; {row_label(mp, seg.end)}")
+        else:
+            ev = step[1]
+            src.append(f"; {ev.action} the jaws ({'width between the contacts' if ev.action == 'close' else 'release'}, mm)")
+            src.append(f"GRASPLAN_GRIPPER({num(ev.width * 1000, 3)})")
+    return dat, src
 
 
 def render(plan, options: ExportOptions) -> dict[str, str]:

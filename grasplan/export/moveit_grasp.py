@@ -22,10 +22,14 @@ One message per planned grasp, best first (or only ``--grasp ID``), in the field
     direction = the TCP's +z in ``world`` (the fingers point along it), ``desired_distance`` =
     ``min_distance`` = the plan's back-off (the planner verified the whole approach).
 ``post_grasp_retreat``
-    direction = the TCP's -z in ``world`` (straight back out), distance = the plan's retreat
-    distance (``PlanResult.retreat_distance``: the back-off).
+    a plan with a lift (pick-and-place plans): direction and distance of the planned lift in
+    ``world`` (the cell's ``retreat: {direction, distance}``, measured on the plan's path by FK and
+    cross-checked against the cell). An old pick-only plan: the TCP's -z in ``world`` (straight back
+    out), distance = the plan's retreat distance (``PlanResult.retreat_distance``: the back-off).
 ``post_place_retreat``
-    the same as ``post_grasp_retreat`` (grasplan plans no place).
+    a plan with a place: direction and distance of the planned retreat after the release (the TCP's
+    -z at the place, by the back-off), in ``world``. Otherwise: the TCP's -z at the grasp by the
+    plan's retreat distance (what a place would do).
 ``max_contact_force``
     the gripper's ``grip_force`` (N).
 ``allowed_touch_objects``
@@ -44,7 +48,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..transforms import check_transform, quaternions
-from .program import safe_text
+from .program import is_sequence, motion_program, safe_text
 from .registry import ExportFormat, ExportOptions, register
 
 #: seconds after which a finger posture is reached (time_from_start of its single point)
@@ -121,6 +125,9 @@ def moveit_grasps(plan, grasp_id: int | None = None) -> list[dict]:
         score = 0.0 if g.score is None else _finite(g.score, f"grasp {g.id}: score")
         z = T[:3, 2]
         q = quaternions(T[:3, :3], order="xyzw")
+        grasp_retreat, place_retreat = _translation(-z, retreat), _translation(-z, retreat)
+        if is_sequence(g.motion):
+            grasp_retreat, place_retreat = _sequence_retreats(plan, g.id, grasp_retreat, place_retreat)
         out.append({
             "id": f"grasp_{int(g.id)}",
             "pre_grasp_posture": _posture(joints, opening),
@@ -131,12 +138,53 @@ def moveit_grasps(plan, grasp_id: int | None = None) -> list[dict]:
                                                     "w": float(q[3])}}},
             "grasp_quality": score,
             "pre_grasp_approach": _translation(z, backoff),
-            "post_grasp_retreat": _translation(-z, retreat),
-            "post_place_retreat": _translation(-z, retreat),
+            "post_grasp_retreat": grasp_retreat,
+            "post_place_retreat": place_retreat,
             "max_contact_force": force,
             "allowed_touch_objects": [part],
         })
     return out
+
+
+def _sequence_retreats(plan, grasp_id: int, grasp_retreat: dict, place_retreat: dict) -> tuple[dict, dict]:
+    """``post_grasp_retreat`` = the cell's retreat (direction, distance; world) that the plan's lift
+    follows and, with a place, ``post_place_retreat`` = the TCP's -z at the place by the plan's
+    back-off (the planned retreat after the release). Both are cross-checked against the planned
+    segment's TCP displacement (FK, 1 mm); a plan without the cell's retreat fields uses the
+    measured displacement."""
+    mp = motion_program(plan, grasp_id)  # checks: straight segments, the lift vs the cell, the place pose
+    T_world_ctrl = np.asarray(mp.T_world_base, dtype=np.float64)
+    segs = {s.label: s for s in mp.segments}
+
+    def measured(label: str) -> np.ndarray:
+        s = segs[label]
+        prev = [x for x in mp.segments if x.end == s.start]
+        p0 = (T_world_ctrl @ (prev[0].T_base_tcp_end if prev else mp.T_base_tcp_pregrasp))[:3, 3]
+        return (T_world_ctrl @ s.T_base_tcp_end)[:3, 3] - p0
+
+    def translation(label: str, direction, distance) -> dict:
+        d = measured(label)
+        if direction is None or distance is None:
+            distance = float(np.linalg.norm(d))
+            direction = d / distance if distance > 0 else d
+        direction = np.asarray(direction, dtype=np.float64)
+        distance = _finite(distance, f"grasp {grasp_id}: {label} distance")
+        if not (distance > 0 and abs(np.linalg.norm(direction) - 1.0) < 1e-6):
+            raise InputError(f"grasp {grasp_id}: the {label} has no direction (distance {distance}); the plan is corrupt")
+        if np.linalg.norm(d - distance * direction) > 1e-3:
+            raise InputError(f"grasp {grasp_id}: the planned {label} moves the TCP by {np.round(d, 4).tolist()} m, "
+                             f"not {distance:.4f} m along {np.round(direction, 4).tolist()}; the plan is inconsistent")
+        return _translation(direction, distance)
+
+    cell = plan.cell
+    lift = translation("lift", getattr(cell, "retreat_direction", None), getattr(cell, "retreat_distance", None))
+    if "retreat" not in segs:
+        return lift, place_retreat
+    m = plan.grasp(grasp_id).motion
+    T_place = check_transform(np.asarray(m.T_world_part_place) @ np.linalg.inv(np.asarray(m.T_tcp_part)),
+                              f"grasp {grasp_id}: place TCP")
+    backoff = _finite(plan.params.planning.backoff, "plan back-off")
+    return lift, translation("retreat", -T_place[:3, 2], backoff)
 
 
 def render(plan, options: ExportOptions) -> dict[str, str]:

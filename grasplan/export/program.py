@@ -33,6 +33,48 @@ def safe_text(s, max_len: int = 80) -> str:
     return s if len(s) <= max_len else s[: max_len - 3] + "..."
 
 
+#: how each segment label is driven: joint moves (verified with straight joint interpolation) or
+#: one straight Cartesian move of the TCP to the segment's end
+JOINT_SEGMENTS = ("transit", "transfer")
+LINEAR_SEGMENTS = ("approach", "lift", "descend", "retreat")
+#: what each segment does, for the comments / labels of the programs
+SEGMENT_TEXT = {
+    "transit": "q_home -> pre-grasp (joint moves, jaws open)",
+    "approach": "straight approach to the grasp (jaws at the pre-grasp opening)",
+    "lift": "straight lift along the retreat direction, part in the jaws",
+    "transfer": "lifted pose -> above the place (joint moves, part in the jaws)",
+    "descend": "straight descent to the place, part in the jaws",
+    "retreat": "straight retreat along the TCP -z, part released",
+}
+#: FK tolerances of the sequence checks (m, rad): place pose, lift displacement
+SEQ_POS_TOL = 1e-3
+SEQ_ROT_TOL = 1e-2
+
+
+@dataclass(frozen=True)
+class ProgramSegment:
+    """One labelled segment of the path: rows ``start..end`` (inclusive; consecutive segments share
+    their boundary row). ``linear``: driven as ONE straight TCP move to ``T_base_tcp_end`` (the
+    planned samples were checked to lie within the plan's ``max_dev`` of that line); else joint
+    moves to every row after ``start``. ``attached``: the part rides in the jaws."""
+
+    label: str
+    start: int
+    end: int
+    linear: bool
+    attached: bool
+    T_base_tcp_end: np.ndarray
+
+
+@dataclass(frozen=True)
+class ProgramEvent:
+    """The jaws are commanded to ``width`` (m) once the robot stands at path row ``index``."""
+
+    index: int
+    action: str
+    width: float
+
+
 @dataclass(frozen=True)
 class MotionProgram:
     """Everything one planned grasp's robot program needs, checked: finite, within the joint
@@ -72,6 +114,21 @@ class MotionProgram:
     part_sha256: str
     part_scale_to_m: float
     source: str
+    #: the whole planned path (k, n) and its segments / gripper events (pick-and-place plans); an
+    #: old pick-only plan has ``sequence`` False and is exported as before (path, approach, retreat)
+    full_path: np.ndarray | None = None
+    segments: tuple[ProgramSegment, ...] = ()
+    events: tuple[ProgramEvent, ...] = ()
+    sequence: bool = False
+
+    @property
+    def placed(self) -> bool:
+        """True for a pick-and-place sequence (it has a place and an ``open`` event)."""
+        return any(s.label == "descend" for s in self.segments)
+
+    def events_at(self, row: int) -> list[ProgramEvent]:
+        """The gripper events at path row ``row``, in order."""
+        return [e for e in self.events if e.index == row]
 
     def controller_deg(self, q: np.ndarray) -> np.ndarray:
         """Joint angles (rad, (..., n)) as the controller counts them, degrees."""
@@ -100,6 +157,7 @@ def motion_program(plan, grasp_id: int | None = None, *, source: str = "") -> Mo
     sign = robot.joint_sign if robot.joint_sign is not None else np.ones(robot.nq)
     offset = robot.joint_offset_deg if robot.joint_offset_deg is not None else np.zeros(robot.nq)
     width = float(g.width)
+    seq = _sequence(plan, g, m, path, T_ctrl_world, T_flange_tcp)
     return MotionProgram(
         grasp_id=int(g.id), score=g.score, robot_name=safe_text(robot.name, 40),
         joint_names=tuple(safe_text(j, 40) for j in robot.joint_names), lower=np.asarray(robot.lower),
@@ -112,7 +170,134 @@ def motion_program(plan, grasp_id: int | None = None, *, source: str = "") -> Mo
         pregrasp_opening=float(gripper.pregrasp_opening(width)), width=width,
         gripper_name=safe_text(gripper.name, 40), part_label=safe_text(plan.part.label, 80),
         part_sha256=safe_text(plan.part.sha256, 64), part_scale_to_m=float(plan.part.scale_to_m),
-        source=safe_text(source, 80))
+        source=safe_text(source, 80), full_path=path, **seq)
+
+
+def motion_segments(m) -> list[tuple[str, int, int]]:
+    """``(label, start, end)`` of a :class:`~grasplan.result.Motion` (transit + approach for a
+    motion without segments)."""
+    if hasattr(m, "segment_list"):
+        return m.segment_list()
+    k = int(m.pregrasp_index)
+    return [("transit", 0, k), ("approach", k, len(m.path) - 1)]
+
+
+def is_sequence(m) -> bool:
+    """True when a motion goes beyond the pick (it has a lift: the part is lifted in the jaws)."""
+    return len(motion_segments(m)) > 2
+
+
+def _line_deviation(p: np.ndarray) -> float:
+    """Largest distance (m) of the points (s, 3) from the segment p[0] -> p[-1]."""
+    a, b = p[0], p[-1]
+    ab = b - a
+    L2 = float(ab @ ab)
+    t = np.clip(((p - a) @ ab) / L2, 0.0, 1.0) if L2 > 0 else np.zeros(len(p))
+    return float(np.max(np.linalg.norm(p - (a + t[:, None] * ab), axis=1)))
+
+
+def _rot_angle(Ra: np.ndarray, Rb: np.ndarray) -> np.ndarray:
+    """Rotation angles (rad) between rotation matrices (..., 3, 3)."""
+    c = (np.einsum("...ij,...ij->...", Ra, Rb) - 1.0) / 2.0
+    return np.arccos(np.clip(c, -1.0, 1.0))
+
+
+def _sequence(plan, g, m, path: np.ndarray, T_ctrl_world: np.ndarray, T_flange_tcp: np.ndarray) -> dict:
+    """The segments and gripper events of a pick(-and-place) motion, checked: every linear
+    segment's samples within ``max_dev`` (+0.1 mm) of the straight line and at a constant
+    orientation (0.01 rad), the lift along the cell's retreat direction by its distance and the
+    place TCP at ``T_world_part_place`` (1 mm, 0.01 rad). ``{}`` for an old pick-only motion."""
+    if not is_sequence(m):
+        return {}
+    robot = plan.robot
+    segs = motion_segments(m)
+    where = f"grasp {g.id}"
+    labels = [s[0] for s in segs]
+    unknown = [lab for lab in labels if lab not in JOINT_SEGMENTS + LINEAR_SEGMENTS]
+    if unknown:
+        raise InputError(f"{where}: unknown segment label(s) {unknown}; this grasplan exports "
+                         f"{', '.join(JOINT_SEGMENTS + LINEAR_SEGMENTS)}. Update grasplan or plan again")
+    T_tcp = robot.fk_batch(path) @ T_flange_tcp  # (k, 4, 4) world
+    tol = float(getattr(plan.params.planning, "max_dev", 0.002)) + 1e-4
+    c0, c1 = m.attached_range() if hasattr(m, "attached_range") else (len(path) - 1, len(path) - 1)
+    out = []
+    for lab, s, e in segs:
+        linear = lab in LINEAR_SEGMENTS
+        if linear:
+            dev = _line_deviation(T_tcp[s:e + 1, :3, 3])
+            rot = float(np.max(_rot_angle(T_tcp[s:e + 1, :3, :3], T_tcp[s, :3, :3][None])))
+            if dev > tol or rot > SEQ_ROT_TOL:
+                raise InputError(f"{where}: the {lab} segment (rows {s}..{e}) is not one straight TCP move: "
+                                 f"{dev * 1e3:.2f} mm from the line (max {tol * 1e3:.2f}), {rot:.4f} rad turn; "
+                                 "the controller's linear move would leave the verified path. Plan again")
+        out.append(ProgramSegment(label=lab, start=int(s), end=int(e), linear=linear,
+                                  attached=bool(c0 <= s and e <= c1),
+                                  T_base_tcp_end=T_ctrl_world @ T_tcp[e]))
+    cell = plan.cell
+    lift = next((x for x in out if x.label == "lift"), None)
+    direction = getattr(cell, "retreat_direction", None)
+    distance = getattr(cell, "retreat_distance", None)
+    if lift is not None and direction is not None and distance is not None:
+        d = T_tcp[lift.end, :3, 3] - T_tcp[lift.start, :3, 3]
+        want = float(distance) * np.asarray(direction, dtype=np.float64)
+        if np.linalg.norm(d - want) > SEQ_POS_TOL:
+            raise InputError(f"{where}: the lift moves the TCP by {np.round(d, 4).tolist()} m, the cell's retreat is "
+                             f"{np.round(want, 4).tolist()} m; the plan was made with another cell. Plan again")
+    T_place = getattr(m, "T_world_part_place", None)
+    T_tcp_part = getattr(m, "T_tcp_part", None)
+    if T_place is not None and T_tcp_part is not None and hasattr(m, "event") and m.event("open") is not None:
+        i = m.event("open").index
+        T_fk_part = T_tcp[i] @ np.asarray(T_tcp_part, dtype=np.float64)
+        dp = float(np.linalg.norm(T_fk_part[:3, 3] - np.asarray(T_place)[:3, 3]))
+        dr = float(_rot_angle(T_fk_part[:3, :3], np.asarray(T_place)[:3, :3]))
+        if dp > SEQ_POS_TOL or dr > SEQ_ROT_TOL:
+            raise InputError(f"{where}: at the release (row {i}) the part would be {dp * 1e3:.1f} mm / {dr:.3f} rad "
+                             "from the plan's place pose; the plan is inconsistent. Plan again")
+    events = tuple(ProgramEvent(index=int(ev.index), action=str(ev.action), width=float(ev.width))
+                   for ev in getattr(m, "gripper", ()))
+    for ev in events:
+        if ev.action not in ("close", "open") or not (np.isfinite(ev.width) and 0 <= ev.width <= 10):
+            raise InputError(f"{where}: gripper event {ev}: expected close/open with a width in [0, 10] m")
+        if ev.index not in {x.end for x in out}:
+            raise InputError(f"{where}: gripper {ev.action} at row {ev.index} is not at a segment boundary")
+    return {"segments": tuple(out), "events": events, "sequence": True}
+
+
+def program_steps(mp: MotionProgram) -> list[tuple]:
+    """The robot program of a sequence, format-neutral, in order:
+
+    - ``("segment", ProgramSegment)``: a segment begins (a comment / label);
+    - ``("joint", row, q)``: a joint move to path row ``row`` (transit: every row from ``q_home``;
+      transfer: every row after its start);
+    - ``("linear", row, ProgramSegment)``: one straight TCP move to the segment's end;
+    - ``("gripper", ProgramEvent)``: command the jaws, once the robot stands at the event's row.
+
+    The program starts by opening the jaws to the pre-grasp opening (not a step)."""
+    steps: list[tuple] = []
+    path = mp.full_path
+    for seg in mp.segments:
+        steps.append(("segment", seg))
+        if seg.linear:
+            steps.append(("linear", seg.end, seg))
+        else:
+            first = 0 if seg.start == 0 else seg.start + 1
+            steps += [("joint", r, path[r]) for r in range(first, seg.end + 1)]
+        steps += [("gripper", ev) for ev in mp.events_at(seg.end)]
+    return steps
+
+
+def row_label(mp: MotionProgram, row: int) -> str:
+    """A comment for path row ``row`` of a sequence: q_home, q_pregrasp, q_grasp, a segment's end
+    or ``<segment> waypoint i``."""
+    if row == 0:
+        return "q_home"
+    for seg in mp.segments:
+        if row == seg.end:
+            return {"transit": "q_pregrasp", "approach": "q_grasp", "lift": "lifted", "transfer": "above place",
+                    "descend": "place", "retreat": "retreated"}.get(seg.label, f"{seg.label} end")
+        if seg.start < row < seg.end:
+            return f"{seg.label} waypoint {row - seg.start}"
+    return f"row {row}"
 
 
 # -- shared by the program exporters (KRL, RAPID) --------------------------------------------------
@@ -178,7 +363,7 @@ def header_lines(mp: MotionProgram, comment: str, units: str) -> list[str]:
     """The header comment lines every robot program starts with (inputs only through ``safe_text``)."""
     score = "none" if mp.score is None else f"{float(mp.score):.4f}"
     lines = [
-        f"grasplan: pick program for grasp {int(mp.grasp_id)} (score {score})",
+        f"grasplan: {program_kind(mp)} program for grasp {int(mp.grasp_id)} (score {score})",
         f"plan: {safe_text(mp.source) or '(in memory)'}",
         (f"part: {safe_text(mp.part_label)} (sha256 {safe_text(mp.part_sha256)[:16]}..., "
         f"scale_to_m {num(mp.part_scale_to_m, 9)})"),
@@ -186,8 +371,23 @@ def header_lines(mp: MotionProgram, comment: str, units: str) -> list[str]:
         f"grasp width {num(mp.width * 1000, 2)} mm, pre-grasp opening {num(mp.pregrasp_opening * 1000, 2)} mm",
         units,
         "Joint angles: controller = sign * URDF angle + offset (controller_joint_map in the robot YAML).",
+        *sequence_lines(mp),
     ]
     return [f"{comment} {line}" for line in lines]
+
+
+def program_kind(mp: MotionProgram) -> str:
+    """``pick`` (old plans), ``pick-and-lift`` or ``pick-and-place``."""
+    return "pick" if not mp.sequence else ("pick-and-place" if mp.placed else "pick-and-lift")
+
+
+def sequence_lines(mp: MotionProgram) -> list[str]:
+    """Comment lines (no comment marker) that summarise a sequence: its segments and gripper events."""
+    if not mp.sequence:
+        return []
+    out = ["Sequence: " + ", ".join(f"{s.label} (rows {s.start}-{s.end})" for s in mp.segments) + "."]
+    out += [f"Gripper: {e.action} to {e.width * 1000:.2f} mm at row {e.index}." for e in mp.events]
+    return out
 
 
 def check_program_name(name: str) -> str:
@@ -218,6 +418,8 @@ class ProgramTargets:
     T_retreat: np.ndarray
     ext_grasp: np.ndarray
     ext_retreat: np.ndarray
+    #: sequences: controller degrees of every path row (k, n), checked; None for an old plan
+    full_deg: np.ndarray | None = None
 
 
 def program_targets(mp: MotionProgram, program_name: str, language: str, axes: str) -> ProgramTargets:
@@ -242,4 +444,5 @@ def program_targets(mp: MotionProgram, program_name: str, language: str, axes: s
                           T_base=check_transform(mp.T_world_base, "T_world_base"),
                           T_grasp=check_transform(mp.T_base_tcp_grasp, "T_base_tcp_grasp"),
                           T_retreat=check_transform(mp.T_base_tcp_retreat, "T_base_tcp_retreat"),
-                          ext_grasp=ext_grasp, ext_retreat=ext_retreat)
+                          ext_grasp=ext_grasp, ext_retreat=ext_retreat,
+                          full_deg=(controller_joint_deg(mp, mp.full_path, "path") if mp.sequence else None))

@@ -32,7 +32,18 @@ from __future__ import annotations
 import numpy as np
 
 from ..transforms import quaternions
-from .program import MotionProgram, header_lines, motion_program, num, program_targets, waypoint_labels
+from .program import (
+    SEGMENT_TEXT,
+    MotionProgram,
+    ProgramTargets,
+    header_lines,
+    motion_program,
+    num,
+    program_steps,
+    program_targets,
+    row_label,
+    waypoint_labels,
+)
 from .registry import ExportFormat, ExportOptions, register
 
 #: speeddata of the joint moves and of the linear approach/retreat (predefined RAPID data)
@@ -87,6 +98,8 @@ def rapid_module(mp: MotionProgram, program_name: str = "grasplan_pick") -> dict
     k = len(path)
     jts = [f"jt_{i + 1}" for i in range(k)]
     labels = waypoint_labels(k)
+    if mp.sequence:
+        seq_decl, seq_proc = _sequence(mp, t, move)
     L = [
         f"MODULE {name}",
         *header_lines(mp, "  !", "Units: mm, degrees; quaternions [q1,q2,q3,q4] = w, x, y, z."),
@@ -97,24 +110,26 @@ def rapid_module(mp: MotionProgram, program_name: str = "grasplan_pick") -> dict
         f"[{','.join(num(c) for c in cog)}],[1,0,0,0],0,0,0]];"),
         "  ! wobjdata: uframe = the robot's base frame in the world (T_world_base)",
         f"  PERS wobjdata {wobj}:=[FALSE,TRUE,\"\",{_pose(T_base)},[[0,0,0],[1,0,0,0]]];",
-        f"  ! joint path q_home -> q_pregrasp ({k} waypoints)",
-        *(f"  LOCAL CONST jointtarget {t}:=[[{','.join(num(v) for v in q[:6])}],{_extax(q[6:])}];"
-          for t, q in zip(jts, path)),
-        "  ! straight approach and retreat: TCP in the work object",
-        f"  LOCAL CONST robtarget rt_grasp:=[{_pose(T_grasp)[1:-1]},[{conf}],{_extax(ext_grasp)}];",
-        f"  LOCAL CONST robtarget rt_retreat:=[{_pose(T_retreat)[1:-1]},[{conf}],{_extax(ext_retreat)}];",
+        *(seq_decl if mp.sequence else [
+            f"  ! joint path q_home -> q_pregrasp ({k} waypoints)",
+            *(f"  LOCAL CONST jointtarget {t}:=[[{','.join(num(v) for v in q[:6])}],{_extax(q[6:])}];"
+              for t, q in zip(jts, path)),
+            "  ! straight approach and retreat: TCP in the work object",
+            f"  LOCAL CONST robtarget rt_grasp:=[{_pose(T_grasp)[1:-1]},[{conf}],{_extax(ext_grasp)}];",
+            f"  LOCAL CONST robtarget rt_retreat:=[{_pose(T_retreat)[1:-1]},[{conf}],{_extax(ext_retreat)}];"]),
         "",
         f"  PROC {name}_main()",
         "    ! The joint path was verified collision-free with straight joint interpolation between",
         "    ! waypoints: keep the MoveAbsJ moves at zone fine.",
         f"    grasplan_gripper_open {num(mp.pregrasp_opening * 1000, 3)};",
-        *(f"    MoveAbsJ {t}\\NoEOffs,{JOINT_SPEED},fine,{move}  ! {lab}" for t, lab in zip(jts, labels)),
-        "    ConfL\\Off;",
-        "    ! straight approach to the grasp TCP (jaws open)",
-        f"    MoveL rt_grasp,{LINEAR_SPEED},fine,{move}",
-        f"    grasplan_gripper_close {num(mp.width * 1000, 3)};",
-        f"    ! straight retreat ({num(mp.retreat_distance * 1000, 1)} mm)",
-        f"    MoveL rt_retreat,{LINEAR_SPEED},fine,{move}",
+        *(seq_proc if mp.sequence else [
+            *(f"    MoveAbsJ {t}\\NoEOffs,{JOINT_SPEED},fine,{move}  ! {lab}" for t, lab in zip(jts, labels)),
+            "    ConfL\\Off;",
+            "    ! straight approach to the grasp TCP (jaws open)",
+            f"    MoveL rt_grasp,{LINEAR_SPEED},fine,{move}",
+            f"    grasplan_gripper_close {num(mp.width * 1000, 3)};",
+            f"    ! straight retreat ({num(mp.retreat_distance * 1000, 1)} mm)",
+            f"    MoveL rt_retreat,{LINEAR_SPEED},fine,{move}"]),
         "    ConfL\\On;",
         "  ENDPROC",
         "",
@@ -131,6 +146,43 @@ def rapid_module(mp: MotionProgram, program_name: str = "grasplan_pick") -> dict
         "ENDMODULE",
     ]
     return {".mod": "\n".join(L) + "\n"}
+
+
+#: RAPID robtarget of each linear segment's end (rt_grasp as in the pick-only module)
+LINEAR_TARGETS = {"approach": "rt_grasp", "lift": "rt_lift", "descend": "rt_place", "retreat": "rt_retreat"}
+
+
+def _sequence(mp: MotionProgram, t: ProgramTargets, move: str) -> tuple[list[str], list[str]]:
+    """Declarations and procedure lines of a pick(-and-place) sequence: ``MoveAbsJ jt_i`` per
+    joint-move row, ``MoveL rt_<target>`` per straight segment (confdata of the segment's end row),
+    the gripper calls at the events. ``ConfL\\Off`` for the linear moves, as in the pick program."""
+    from ..transforms import check_transform
+
+    decl: list[str] = ["  ! sequence targets in path order (TCP in the work object)"]
+    proc: list[str] = ["    ConfL\\Off;"]
+    p = 0
+    for step in program_steps(mp):
+        kind = step[0]
+        if kind == "segment":
+            seg = step[1]
+            proc.append(f"    ! segment {seg.label} (path rows {seg.start}-{seg.end}): {SEGMENT_TEXT[seg.label]}")
+        elif kind == "joint":
+            p += 1
+            q = t.full_deg[step[1]]
+            decl.append(f"  LOCAL CONST jointtarget jt_{p}:=[[{','.join(num(v) for v in q[:6])}],{_extax(q[6:])}];")
+            proc.append(f"    MoveAbsJ jt_{p}\\NoEOffs,{JOINT_SPEED},fine,{move}  ! {row_label(mp, step[1])}")
+        elif kind == "linear":
+            seg = step[2]
+            name = LINEAR_TARGETS[seg.label]
+            T = check_transform(seg.T_base_tcp_end, f"{seg.label} target")
+            q = t.full_deg[seg.end]
+            conf = ",".join(str(c) for c in confdata(q))
+            decl.append(f"  LOCAL CONST robtarget {name}:=[{_pose(T)[1:-1]},[{conf}],{_extax(q[6:])}];")
+            proc.append(f"    MoveL {name},{LINEAR_SPEED},fine,{move}  ! {row_label(mp, seg.end)}")
+        else:
+            ev = step[1]
+            proc.append(f"    grasplan_gripper_{ev.action} {num(ev.width * 1000, 3)};")
+    return decl, proc
 
 
 def render(plan, options: ExportOptions) -> dict[str, str]:

@@ -70,12 +70,15 @@ def time_parameterize(path: np.ndarray, vmax: np.ndarray, amax: np.ndarray) -> d
     import toppra.algorithm as algo
     import toppra.constraint as constraint
 
-    knots = densify(path, KNOT_STEP)
+    from ..paths import interpolate_path
+
+    knots, kidx = interpolate_path(path, step=KNOT_STEP, return_index=True)
     if len(knots) < 2:
         raise InputError("the path has no motion (all waypoints equal)")
     # the spline needs >= 4 knots for not-a-knot; a very short path gets a few extra
     if len(knots) < 4:
-        knots = densify(path, float(np.max(np.abs(knots[-1] - knots[0]))) / 4.0)
+        knots, kidx = interpolate_path(path, step=float(np.max(np.abs(knots[-1] - knots[0]))) / 4.0,
+                                       return_index=True)
     ss = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(knots, axis=0), axis=1))])
     spline = toppra.SplineInterpolator(ss, knots)
     # grid: every knot and the midpoints between knots
@@ -114,7 +117,10 @@ def time_parameterize(path: np.ndarray, vmax: np.ndarray, amax: np.ndarray) -> d
     qd[-1] = 0.0
     q[0] = knots[0]
     q[-1] = knots[-1]
-    return {"t": t, "q": q, "qd": qd, "qdd": qdd, "knots": knots, "sd": sd, "duration": float(t[-1])}
+    # the sample at each waypoint of ``path``: knot j is grid point 2j, and every grid time is a sample
+    wp = np.searchsorted(t, t_grid[2 * np.asarray(kidx)])
+    return {"t": t, "q": q, "qd": qd, "qdd": qdd, "knots": knots, "sd": sd, "duration": float(t[-1]),
+            "waypoint_samples": np.minimum(wp, len(t) - 1)}
 
 
 def _limits(robot, max_accel, velocity_scale) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -153,26 +159,15 @@ def joint_trajectory(plan, *, grasp_id: int | None = None, max_accel=DEFAULT_MAX
     path = np.asarray(m.path, dtype=np.float64)
     if np.any(path < lower - 1e-9) or np.any(path > upper + 1e-9):
         raise InputError(f"grasp {g.id}: the planned path leaves the joint limits of {robot.name!r}")
+    from .program import is_sequence
+
+    if is_sequence(m):
+        return sequence_trajectory(plan, g, vmax=vmax, amax=amax, lower=lower, upper=upper, scene=scene)
     res = time_parameterize(path, vmax, amax)
     t, q, qd, qdd = res["t"], res["q"], res["qd"], res["qdd"]
     # ---- checks (fatal) ----
-    dt = np.diff(t)
-    problems = []
-    if np.any(dt <= 0):
-        problems.append("times not strictly increasing")
-    step = float(np.max(np.abs(np.diff(q, axis=0))))
-    if step > SAMPLE_STEP + 1e-12:
-        problems.append(f"points {step:.4f} rad apart (> {SAMPLE_STEP})")
-    v_ratio = float(np.max(np.abs(qd) / vmax))
-    v_fd_ratio = float(np.max(np.abs(np.diff(q, axis=0)) / dt[:, None] / vmax))
-    if v_ratio > 1.0 + 1e-9 or v_fd_ratio > 1.0 + 1e-9:
-        problems.append(f"velocity {max(v_ratio, v_fd_ratio):.3f} x the limit")
-    if np.any(q < lower - 1e-9) or np.any(q > upper + 1e-9):
-        problems.append("joint limits exceeded")
-    if np.max(np.abs(q[0] - path[0])) > 1e-9 or np.max(np.abs(q[-1] - m.q_grasp)) > 1e-9:
-        problems.append("does not run from q_home to q_grasp")
-    if problems:
-        raise PlanningError(f"grasp {g.id}: the timed trajectory fails its checks: {'; '.join(problems)}")
+    step, v_ratio, v_fd_ratio = _check_timed(g.id, t, q, qd, vmax, lower, upper, path[0], m.q_grasp,
+                                             "q_home to q_grasp")
     a_ratio = float(np.max(np.abs(qdd) / amax))
     deviation = float(np.max(point_to_polyline_distance(q, path)))
     opening = float(plan.gripper.pregrasp_opening(g.width))
@@ -223,6 +218,178 @@ def joint_trajectory(plan, *, grasp_id: int | None = None, max_accel=DEFAULT_MAX
             "collision_checked_step_rad": CHECK_STEP,
             "method": "cubic spline through the path densified at 0.005 rad; TOPP-RA (constant-acceleration "
                       "parameterisation), rest to rest",
+        },
+    }
+
+
+def _check_timed(gid, t, q, qd, vmax, lower, upper, q_start, q_end, what: str) -> tuple[float, float, float]:
+    """The fatal checks of a timed piece: times increasing, steps <= SAMPLE_STEP, velocities
+    (analytic and finite differences) within the limits, joint limits, start and end points.
+    Returns ``(max step, velocity ratio, finite-difference velocity ratio)``."""
+    dt = np.diff(t)
+    problems = []
+    if np.any(dt <= 0):
+        problems.append("times not strictly increasing")
+    step = float(np.max(np.abs(np.diff(q, axis=0))))
+    if step > SAMPLE_STEP + 1e-12:
+        problems.append(f"points {step:.4f} rad apart (> {SAMPLE_STEP})")
+    v_ratio = float(np.max(np.abs(qd) / vmax))
+    v_fd_ratio = float(np.max(np.abs(np.diff(q, axis=0)) / dt[:, None] / vmax))
+    if v_ratio > 1.0 + 1e-9 or v_fd_ratio > 1.0 + 1e-9:
+        problems.append(f"velocity {max(v_ratio, v_fd_ratio):.3f} x the limit")
+    if np.any(q < lower - 1e-9) or np.any(q > upper + 1e-9):
+        problems.append("joint limits exceeded")
+    if np.max(np.abs(q[0] - q_start)) > 1e-9 or np.max(np.abs(q[-1] - q_end)) > 1e-9:
+        problems.append(f"does not run from {what}")
+    if problems:
+        raise PlanningError(f"grasp {gid}: the timed trajectory fails its checks: {'; '.join(problems)}")
+    return step, v_ratio, v_fd_ratio
+
+
+#: s, the robot stands still at a gripper event for this long (the trajectory repeats the point)
+GRIPPER_DWELL_S = 0.5
+
+
+def _duration(ti: float) -> dict:
+    sec = int(math.floor(ti))
+    ns = int(round((ti - sec) * 1e9))
+    if ns >= 1_000_000_000:
+        sec, ns = sec + 1, ns - 1_000_000_000
+    return {"sec": sec, "nanosec": ns}
+
+
+def segment_scenes(plan, mp, scene):
+    """For each segment of a sequence (:class:`~grasplan.export.program.MotionProgram`): the scene
+    and jaw opening its samples are checked with, and a label of the check. Before the close: the
+    plan's scene, jaws at the pre-grasp opening; while attached: ``scene.attached(T_tcp_part)``,
+    jaws at the close width; after the open: ``scene.with_part_at(T_world_part_place)``, jaws at
+    the open width."""
+    g = plan.select(mp.grasp_id)
+    m = g.motion
+    close = next((e for e in mp.events if e.action == "close"), None)
+    opened = next((e for e in mp.events if e.action == "open"), None)
+    out = []
+    for seg in mp.segments:
+        if close is None or seg.end <= close.index:
+            out.append((scene, mp.pregrasp_opening, "part static at its pick pose, jaws at the pre-grasp opening"))
+            continue
+        if opened is None or seg.end <= opened.index:
+            attached = getattr(scene, "attached", None)
+            T_tcp_part = getattr(m, "T_tcp_part", None)
+            if attached is None or T_tcp_part is None:
+                raise InputError(f"grasp {g.id}: the {seg.label} segment carries the part, but the collision scene "
+                                 "cannot attach it (update grasplan) or the plan lacks T_tcp_part (plan again)")
+            out.append((attached(np.asarray(T_tcp_part, dtype=np.float64)), close.width,
+                        "part in the jaws"))
+            continue
+        placed = getattr(scene, "with_part_at", None)
+        T_place = getattr(m, "T_world_part_place", None)
+        if placed is None or T_place is None:
+            raise InputError(f"grasp {g.id}: the {seg.label} segment follows the release, but the collision scene "
+                             "cannot move the part (update grasplan) or the plan lacks T_world_part_place")
+        out.append((placed(np.asarray(T_place, dtype=np.float64)), opened.width, "part released at the place"))
+    return out
+
+
+def sequence_trajectory(plan, g, *, vmax, amax, lower, upper, scene=None) -> dict:
+    """The joint trajectory of a pick(-and-place) sequence: one rest-to-rest TOPP-RA piece between
+    gripper events (the robot stops at each event and stands still for :data:`GRIPPER_DWELL_S`:
+    the point is repeated), every segment re-checked for collisions with its own scene (see
+    :func:`segment_scenes`). Adds ``segments`` (point ranges) and ``gripper`` (point and time of
+    each event) to the document."""
+    from .program import SEGMENT_TEXT, motion_program
+
+    mp = motion_program(plan, g.id)
+    m = g.motion
+    path = np.asarray(m.path, dtype=np.float64)
+    k = len(path)
+    cuts = sorted({0, k - 1} | {e.index for e in mp.events if 0 < e.index < k - 1})
+    ts, qs, qds, qdds, rows = [], [], [], [], {}
+    t0, steps, v_ratios, deviations, a_ratios = 0.0, [], [], [], []
+    n_points = 0
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        piece = path[a:b + 1]
+        res = time_parameterize(piece, vmax, amax)
+        t, q, qd, qdd = res["t"], res["q"], res["qd"], res["qdd"]
+        step, v1, v2 = _check_timed(g.id, t, q, qd, vmax, lower, upper, piece[0], piece[-1],
+                                    f"path row {a} to row {b}")
+        steps.append(step)
+        v_ratios.append(max(v1, v2))
+        a_ratios.append(float(np.max(np.abs(qdd) / amax)))
+        deviations.append(float(np.max(point_to_polyline_distance(q, piece))))
+        if n_points:  # the event's dwell: the piece's first point (= the previous end) repeated later
+            t0 += GRIPPER_DWELL_S
+        wp = res["waypoint_samples"]
+        for r, w in zip(range(a, b + 1), wp):
+            if r not in rows or r == a:  # a boundary row: the first of its two points (the arrival)
+                rows.setdefault(r, n_points + int(w))
+        ts.append(t + t0)
+        qs.append(q)
+        qds.append(qd)
+        qdds.append(qdd)
+        t0 += float(t[-1])
+        n_points += len(t)
+    t = np.concatenate(ts)
+    q = np.concatenate(qs)
+    qd = np.concatenate(qds)
+    qdd = np.concatenate(qdds)
+    if np.any(np.diff(t) <= 0):
+        raise PlanningError(f"grasp {g.id}: the timed trajectory fails its checks: times not strictly increasing")
+    for r in range(k):  # every waypoint is a point of the trajectory
+        if np.max(np.abs(q[rows[r]] - path[r])) > 1e-9:
+            raise PlanningError(f"grasp {g.id}: the timed trajectory misses path row {r}")
+    if scene is None:
+        scene = build_scene(plan)
+    checked = []
+    for seg, (sc, opening, what) in zip(mp.segments, segment_scenes(plan, mp, scene)):
+        lo, hi = rows[seg.start], rows[seg.end]
+        if seg.start in [e.index for e in mp.events]:  # start after the dwell (same position)
+            lo += 1
+        if not sc.path_free(q[lo:hi + 1], opening, step=CHECK_STEP):
+            raise PlanningError(f"grasp {g.id}: the timed trajectory collides in the {seg.label} segment ({what}) "
+                                f"when interpolated at {CHECK_STEP} rad; it deviates up to {max(deviations):.4f} rad "
+                                "from the planned path. Export another grasp with --grasp, or re-plan.")
+        checked.append({"segment": seg.label, "opening": float(opening), "scene": what})
+    points = [{"positions": qi.tolist(), "velocities": vi.tolist(), "accelerations": ai.tolist(),
+               "time_from_start": _duration(ti)} for ti, qi, vi, ai in zip(t, q, qd, qdd)]
+    ns_all = [p["time_from_start"]["sec"] * 1_000_000_000 + p["time_from_start"]["nanosec"] for p in points]
+    if any(b <= a_ for a_, b in zip(ns_all, ns_all[1:])):
+        raise PlanningError(f"grasp {g.id}: two points share a time_from_start after rounding to nanoseconds")
+    seg_doc = []
+    for seg in mp.segments:
+        lo, hi = rows[seg.start], rows[seg.end]
+        if seg.start in [e.index for e in mp.events]:
+            lo += 1
+        seg_doc.append({"label": seg.label, "start": lo, "end": hi, "path_start": seg.start, "path_end": seg.end,
+                        "linear": seg.linear, "attached": seg.attached, "description": SEGMENT_TEXT[seg.label]})
+    grip_doc = [{"action": e.action, "width": e.width, "path_index": e.index, "point": rows[e.index],
+                 "time_from_start": points[rows[e.index]]["time_from_start"], "dwell_s": GRIPPER_DWELL_S}
+                for e in mp.events]
+    return {
+        "schema": SCHEMA,
+        "joint_names": list(plan.robot.joint_names),
+        "grasp_id": int(g.id),
+        "points": points,
+        "segments": seg_doc,
+        "gripper": grip_doc,
+        "grasplan": {
+            "robot": plan.robot.name,
+            "part_sha256": plan.part.sha256,
+            "part_scale_to_m": plan.part.scale_to_m,
+            "duration_s": float(t[-1]),
+            "velocity_limit": vmax.tolist(),
+            "acceleration_limit": amax.tolist(),
+            "max_velocity_ratio": max(v_ratios),
+            "max_acceleration_ratio": max(a_ratios),
+            "max_step_rad": max(steps),
+            "max_deviation_rad": max(deviations),
+            "pregrasp_opening": mp.pregrasp_opening,
+            "gripper_dwell_s": GRIPPER_DWELL_S,
+            "collision_checked_step_rad": CHECK_STEP,
+            "collision_checks": checked,
+            "method": "per piece between gripper events: cubic spline through the path densified at 0.005 rad; "
+                      "TOPP-RA (constant-acceleration parameterisation), rest to rest; the robot stands still "
+                      f"{GRIPPER_DWELL_S} s at each gripper event (the point is repeated)",
         },
     }
 

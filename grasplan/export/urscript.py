@@ -24,7 +24,15 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..errors import InputError
-from .program import MotionProgram, motion_program
+from .program import (
+    SEGMENT_TEXT,
+    MotionProgram,
+    motion_program,
+    program_kind,
+    program_steps,
+    row_label,
+    sequence_lines,
+)
 from .registry import ExportFormat, ExportOptions, register
 
 #: joint order of every UR arm (URScript's joint vector order)
@@ -72,7 +80,7 @@ def urscript_program(prog: MotionProgram, *, joint_speed: float = JOINT_SPEED, j
     la, lv = f"{linear_accel:g}", f"{linear_speed:g}"
     score = "none" if prog.score is None else f"{prog.score:.4f}"
     L: list[str] = [
-        f"# grasplan: pick program for grasp {prog.grasp_id} (status planned, score {score})",
+        f"# grasplan: {program_kind(prog)} program for grasp {prog.grasp_id} (status planned, score {score})",
         f"# plan: {prog.source or '(in memory)'}; part: {prog.part_label} (sha256 {prog.part_sha256[:16]}..., "
         f"scale_to_m {prog.part_scale_to_m:g}: file units -> metres)",
         f"# robot: {prog.robot_name}; gripper: {prog.gripper_name}; "
@@ -82,6 +90,7 @@ def urscript_program(prog: MotionProgram, *, joint_speed: float = JOINT_SPEED, j
         "# wrist 1, wrist 2, wrist 3.",
         "# The joint path was verified collision-free with straight-line joint interpolation between",
         "# waypoints: keep the movej calls unblended (no r=) so the robot stays on it.",
+        *(f"# {line}" for line in sequence_lines(prog)),
         "def grasplan_pick():",
         "  # ---- Gripper I/O: FILL THESE IN for your gripper --------------------------------------",
         "  # grasplan cannot know how your gripper is wired. Replace each body with your gripper's",
@@ -101,8 +110,11 @@ def urscript_program(prog: MotionProgram, *, joint_speed: float = JOINT_SPEED, j
         f"  # TCP = flange (URDF tool0) * T_flange_tcp of gripper {prog.gripper_name}",
         f"  set_tcp({fmt_pose(prog.T_flange_tcp)})",
         f"  grasplan_open_gripper({prog.pregrasp_opening:.6f})",
-        f"  # joint path: q_home -> q_pregrasp ({len(moves)} waypoints)",
     ]
+    if prog.sequence:
+        L += _sequence_lines(prog, f"a={a}, v={v}", f"a={la}, v={lv}")
+        return _finish(prog, L)
+    L.append(f"  # joint path: q_home -> q_pregrasp ({len(moves)} waypoints)")
     for i, q in enumerate(moves):
         tag = "q_home" if i == 0 else ("q_pregrasp" if i == len(moves) - 1 else f"waypoint {i}")
         L.append(f"  movej({fmt_list(q)}, a={a}, v={v})  # {tag}")
@@ -114,10 +126,36 @@ def urscript_program(prog: MotionProgram, *, joint_speed: float = JOINT_SPEED, j
         f"  movel({fmt_pose(prog.T_base_tcp_retreat)}, a={la}, v={lv})  # pre-grasp",
         "end",
     ]
+    return _finish(prog, L)
+
+
+def _finish(prog: MotionProgram, L: list[str]) -> str:
     text = "\n".join(L) + "\n"
     if "nan" in text or "inf" in text:
         raise InputError(f"grasp {prog.grasp_id}: the program would contain non-finite numbers; the plan is corrupt")
     return text
+
+
+def _sequence_lines(prog: MotionProgram, joint_av: str, linear_av: str) -> list[str]:
+    """The body of a pick(-and-place) sequence: per segment a comment, then ``movej`` to each of
+    its rows (transit, transfer) or one ``movel`` to its end (approach, lift, descend, retreat);
+    the gripper calls at their events' rows."""
+    L: list[str] = []
+    for step in program_steps(prog):
+        kind = step[0]
+        if kind == "segment":
+            seg = step[1]
+            L.append(f"  # segment {seg.label} (path rows {seg.start}-{seg.end}): {SEGMENT_TEXT[seg.label]}")
+        elif kind == "joint":
+            L.append(f"  movej({fmt_list(step[2])}, {joint_av})  # {row_label(prog, step[1])}")
+        elif kind == "linear":
+            L.append(f"  movel({fmt_pose(step[2].T_base_tcp_end)}, {linear_av})  # {row_label(prog, step[1])}")
+        else:
+            ev = step[1]
+            fn = "grasplan_close_gripper" if ev.action == "close" else "grasplan_open_gripper"
+            L.append(f"  {fn}({ev.width:.6f})  # {ev.action} at path row {ev.index}")
+    L.append("end")
+    return L
 
 
 def _render(plan, opts: ExportOptions) -> dict[str, str]:

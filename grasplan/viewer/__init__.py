@@ -14,7 +14,12 @@ What is computed here (Python), not in the browser:
 - the gripper boxes in the TCP frame (body, and the fingers at the pre-grasp opening of each grasp);
 - for a plan: the robot's collision meshes (each embedded once, decimated when big) and the pose of
   every link, computed with Pinocchio, at q_home and along each planned path densified to at most
-  :data:`PATH_STEP_RAD` per sample, so the browser only plays back poses (no FK in JavaScript).
+  :data:`PATH_STEP_RAD` per sample, so the browser only plays back poses (no FK in JavaScript);
+- a pick(-and-place) path's segments and gripper events in samples, and the part's pose rule: at
+  ``T_world_part`` until the close, ``TCP @ T_tcp_part`` while attached, ``T_world_part_place``
+  after the release (see :func:`_sequence_data`);
+- the cell's obstacles and bin (from the cell JSON embedded in the plan), drawn semi-transparent;
+- per-grasp quality / simulation values when the result has them (issue 11).
 """
 from __future__ import annotations
 
@@ -227,7 +232,7 @@ def build_data(res, *, part_path=None, allow_other_part: bool = False) -> tuple[
         "title": res.part.label,
         "part": {**_mesh_block(V, F), "T_world_part": T_world_part.reshape(-1).tolist(), "path": res.part.path,
                  "scale_to_m": float(res.part.scale_to_m), "sha256": res.part.sha256},
-        "cell": {"name": res.cell.name, "table_z": float(res.cell.table_z)},
+        "cell": {"name": res.cell.name, "table_z": float(res.cell.table_z), **_cell_data(res.cell, notes)},
         "statuses": [{"name": s, "color": STATUS_COLORS.get(s, OTHER_COLOR)} for s in status_names],
         "grasps": {
             "n": n,
@@ -246,10 +251,72 @@ def build_data(res, *, part_path=None, allow_other_part: bool = False) -> tuple[
         "list_full": list(LIST_FULL),
     }
 
+    q = _quality_data(t)
+    if q:
+        data["grasps"]["quality"] = q
     if res.robot is not None:
         data["robot"] = _robot_data(res, T_flange_tcp, notes)
     data["notes"] = notes
     return data, notes
+
+
+#: obstacle kinds the page draws (the cell JSON's shape keys)
+OBSTACLE_KINDS = ("box", "cylinder", "sphere", "mesh")
+
+
+def _cell_data(cell, notes: list[str]) -> dict:
+    """The cell's obstacles (from its JSON, so the page draws what the plan file holds) and bin:
+    ``{"obstacles": [{"name", "kind", "box": [sx, sy, sz] | "cylinder": [r, length] | "sphere": [r] |
+    "mesh": {v, f, nv, nf}, "T": 16 row-major (T_world_obstacle)}], "bin": {...} | None}``."""
+    doc = cell.to_json()
+    out = []
+    for i, ob in enumerate(doc.get("obstacles") or []):
+        name = str(ob.get("name", f"obstacle {i}"))
+        kind = next((k for k in OBSTACLE_KINDS if k in ob), None)
+        T = np.asarray(ob.get("T_world_obstacle", np.eye(4)), dtype=np.float64)
+        if kind is None or T.shape != (4, 4) or not np.all(np.isfinite(T)):
+            notes.append(f"obstacle {name}: no drawable shape or pose; not shown")
+            continue
+        sh = ob[kind]
+        e: dict[str, Any] = {"name": name, "kind": kind, "T": T.reshape(-1).tolist()}
+        if kind == "box":
+            e["box"] = [float(x) for x in sh["size"]]
+        elif kind == "cylinder":
+            e["cylinder"] = [float(sh["radius"]), float(sh["length"])]
+        elif kind == "sphere":
+            e["sphere"] = [float(sh["radius"])]
+        else:
+            V, F = decimate_mesh(np.asarray(sh["vertices"], dtype=np.float64), np.asarray(sh["faces"], dtype=np.int64),
+                                 MAX_LINK_TRIANGLES)
+            e["mesh"] = _mesh_block(V, F)
+        out.append(e)
+    return {"obstacles": out, "bin": doc.get("bin")}
+
+
+def _quality_data(t) -> dict:
+    """Per-grasp quality / simulation arrays of the grasp table (issue 11) when the result has
+    them: ``gravity_margin``, ``epsilon`` (NaN: none), contact area (m^2) and type per jaw,
+    simulation ``success`` (1 held, 0 slipped, -1 not simulated), slip (m), turn (deg)."""
+    out: dict[str, Any] = {}
+    n = len(t)
+    for key in ("gravity_margin", "epsilon", "sim_slip_m", "sim_turn_deg"):
+        a = getattr(t, key, None)
+        if a is not None and len(a) == n:
+            out[key] = _enc(np.asarray(a, dtype=np.float64), "<f4")
+    area = getattr(t, "contact_area", None)
+    ctype = getattr(t, "contact_type", None)
+    if area is not None and ctype is not None and len(area) == n:
+        try:
+            from ..quality import CONTACT_TYPES
+        except ImportError:  # pragma: no cover - quality module without the names
+            CONTACT_TYPES = ("point", "line", "surface")
+        out["contact_area"] = _enc(np.asarray(area, dtype=np.float64).reshape(n, 2), "<f4")
+        out["contact_type"] = _enc(np.asarray(ctype, dtype=np.int8).reshape(n, 2), "i1")
+        out["contact_types"] = list(CONTACT_TYPES)
+    succ = getattr(t, "sim_success", None)
+    if succ is not None and len(succ) == n:
+        out["sim_success"] = _enc(np.asarray(succ, dtype=np.int8), "i1")
+    return out
 
 
 def _robot_data(res, T_flange_tcp: np.ndarray, notes: list[str]) -> dict:
@@ -291,7 +358,8 @@ def _robot_data(res, T_flange_tcp: np.ndarray, notes: list[str]) -> dict:
         S, idx = densify_path(P)
         frames = frames_of(S)
         pre_s = int(idx[int(m.pregrasp_index)])
-        paths[str(gid)] = {"start": offset, "count": int(len(S)), "pregrasp": pre_s, "waypoints": int(len(P))}
+        paths[str(gid)] = {"start": offset, "count": int(len(S)), "pregrasp": pre_s, "waypoints": int(len(P)),
+                           **_sequence_data(res, gid, m, idx)}
         chunks.append(frames.reshape(-1))
         offset += len(S)
     return {
@@ -303,6 +371,32 @@ def _robot_data(res, T_flange_tcp: np.ndarray, notes: list[str]) -> dict:
         "frames": _enc(np.concatenate(chunks), "<f4"),
         "paths": paths,
     }
+
+
+def _sequence_data(res, gid: int, m, idx: np.ndarray) -> dict:
+    """A path's segments and gripper events in played-back samples (``idx``: the sample of each
+    path row), the jaw opening per phase and, for a pick(-and-place) plan, what the part does:
+    ``attached`` = [close sample, open sample or null], ``T_tcp_part`` (part pose while attached =
+    TCP @ T_tcp_part) and ``T_world_part_place`` (its pose after the release), 16 row-major."""
+    from ..export.program import motion_segments
+
+    g = res.grasp(gid)
+    idx = np.asarray(idx, dtype=np.int64)
+    segs = [{"label": str(a), "start": int(idx[s]), "end": int(idx[e])} for a, s, e in motion_segments(m)]
+    events = [{"action": str(e.action), "width": float(e.width), "sample": int(idx[int(e.index)])}
+              for e in getattr(m, "gripper", ())]
+    out: dict[str, Any] = {"segments": segs, "events": events,
+                           "opening": float(res.gripper.pregrasp_opening(g.width))}
+    T_tcp_part = getattr(m, "T_tcp_part", None)
+    close = next((e for e in events if e["action"] == "close"), None)
+    if T_tcp_part is not None and close is not None:
+        opened = next((e for e in events if e["action"] == "open"), None)
+        out["attached"] = [close["sample"], None if opened is None else opened["sample"]]
+        out["T_tcp_part"] = np.asarray(T_tcp_part, dtype=np.float64).reshape(-1).tolist()
+        T_place = getattr(m, "T_world_part_place", None)
+        if T_place is not None:
+            out["T_world_part_place"] = np.asarray(T_place, dtype=np.float64).reshape(-1).tolist()
+    return out
 
 
 # --------------------------------------------------------------------------- HTML

@@ -13,6 +13,7 @@
     errorEl.textContent = 'grasplan viewer error: ' + msg;
   }
   window.addEventListener('error', (e) => fail(String(e.message || e)));
+  window.addEventListener('unhandledrejection', (e) => fail(String((e.reason && e.reason.stack) || e.reason)));
 
   // arrays arrive as base64 of zlib-deflated little-endian bytes
   async function dec(s, Type) {
@@ -41,6 +42,11 @@
       dec(G.id, Int32Array), dec(G.status, Uint8Array), dec(G.score, Float32Array), dec(G.pair, Uint32Array),
       dec(G.pairs, Float32Array), dec(G.width, Float32Array), dec(G.opening, Float32Array),
       dec(G.marker_status, Uint8Array), dec(G.marker_pair, Uint32Array), dec(G.tcp_p, Float32Array), dec(G.tcp_q, Int16Array)]);
+    const GQ = G.quality || {};
+    const qa = {};
+    await Promise.all([['gravity_margin', Float32Array], ['epsilon', Float32Array], ['sim_slip_m', Float32Array],
+      ['sim_turn_deg', Float32Array], ['contact_area', Float32Array], ['contact_type', Int8Array], ['sim_success', Int8Array]]
+      .filter(([k]) => GQ[k]).map(async ([k, T]) => { qa[k] = await dec(GQ[k], T); }));
     const grank = new Int32Array(n);
     for (let i = 0; i < n; i++) { const r = G.rank[String(gid[i])]; grank[i] = r === undefined ? -1 : r; }
     const gwidth = (i) => pwidth[gpair[i]];
@@ -96,6 +102,11 @@
     matFromRowMajor(D.part.T_world_part).decompose(partMesh.position, partMesh.quaternion, partMesh.scale);
     scene.add(partMesh);
     partMesh.updateMatrixWorld(true);
+    const partHome = matFromRowMajor(D.part.T_world_part);
+    const placeGhost = new THREE.Mesh(partGeom, new THREE.MeshBasicMaterial({ color: 0x00897b, wireframe: true, transparent: true, opacity: 0.25 }));
+    placeGhost.visible = false;
+    scene.add(placeGhost);
+    function setPartMatrix(M) { M.decompose(partMesh.position, partMesh.quaternion, partMesh.scale); }
     const partBox = new THREE.Box3().setFromObject(partMesh);
     const partCenter = partBox.getCenter(new THREE.Vector3());
     const partSize = Math.max(1e-3, partBox.getSize(new THREE.Vector3()).length());
@@ -115,6 +126,29 @@
     const axes = new THREE.AxesHelper(D.robot ? 0.15 : partSize * 0.5);
     axes.position.set(0, 0, tz + 3e-4);
     scene.add(axes);
+
+    // ------------------------------------------------------------------ obstacles and bin (semi-transparent)
+    const obstacles = new THREE.Group();
+    const obstacleList = D.cell.obstacles || [];
+    for (const ob of obstacleList) {
+      let geom;
+      if (ob.box) geom = new THREE.BoxGeometry(ob.box[0], ob.box[1], ob.box[2]);
+      else if (ob.cylinder) { geom = new THREE.CylinderGeometry(ob.cylinder[0], ob.cylinder[0], ob.cylinder[1], 32); geom.rotateX(Math.PI / 2); } // axis = local z
+      else if (ob.sphere) geom = new THREE.SphereGeometry(ob.sphere[0], 24, 16);
+      else if (ob.mesh) geom = await geometryOf(ob.mesh);
+      else continue;
+      const isBin = /^bin_/.test(ob.name);
+      const mat = new THREE.MeshStandardMaterial({ color: isBin ? 0x8d6e63 : 0xc62828, roughness: 0.8, transparent: true,
+        opacity: isBin ? 0.45 : 0.35, depthWrite: false, side: THREE.DoubleSide });
+      const m = new THREE.Mesh(geom, mat);
+      matFromRowMajor(ob.T).decompose(m.position, m.quaternion, m.scale);
+      m.userData.name = ob.name;
+      const edges = new THREE.LineSegments(new THREE.EdgesGeometry(geom, 30), new THREE.LineBasicMaterial({ color: isBin ? 0x5d4037 : 0x8e0000 }));
+      m.add(edges);
+      obstacles.add(m);
+    }
+    scene.add(obstacles);
+    statusEl.dataset.obstacles = String(obstacles.children.length);
 
     // ------------------------------------------------------------------ contact points per status
     const visibleStatus = statuses.map(() => true);
@@ -254,7 +288,8 @@
     document.getElementById('title').textContent = D.title;
     document.getElementById('summary').textContent =
       `${D.schema} · ${D.part.nf} triangles (file scale ${D.part.scale_to_m} m/unit) · ${n} grasps` +
-      ` · gripper ${D.gripper.name} · cell ${D.cell.name}` + (R ? ` · ${planned} planned · robot ${R.name}` : '') +
+      ` · gripper ${D.gripper.name} · cell ${D.cell.name}` + (obstacleList.length ? ` (${obstacleList.length} obstacles${D.cell.bin ? ', bin' : ''})` : '') +
+      (R ? ` · ${planned} planned · robot ${R.name}` : '') +
       (D.notes && D.notes.length ? `\n${D.notes.join('\n')}` : '');
     const legend = document.getElementById('legend');
     statuses.forEach((s, si) => {
@@ -347,6 +382,31 @@
     showPart.addEventListener('change', () => { partMesh.visible = showPart.checked; requestRender(); });
 
     function pathOf(i) { return R && i >= 0 ? R.paths[String(gid[i])] : undefined; }
+    // a pick(-and-place) path: the segment a sample belongs to (a boundary sample: the segment it ends)
+    function segmentAt(P, k) {
+      const S = P.segments || [];
+      for (let j = 0; j < S.length; j++) if (k <= S[j].end) return S[j];
+      return S[S.length - 1];
+    }
+    const tcpM = new THREE.Matrix4(), tcpPos = new THREE.Vector3(), tcpQuat = new THREE.Quaternion(), unit = new THREE.Vector3(1, 1, 1);
+    // the part: at its pick pose until the close, TCP @ T_tcp_part while attached, at the place after the release
+    function partState(P, k) {
+      if (!P.attached || k < P.attached[0]) return 'static';
+      if (P.attached[1] === null || k <= P.attached[1]) return 'attached';
+      return 'placed';
+    }
+    function placePart(P, k) {
+      const st = partState(P, k);
+      if (st === 'attached') {
+        const o = tcpOfFrame(P.start + k);
+        tcpPos.set(rframes[o], rframes[o + 1], rframes[o + 2]);
+        tcpQuat.set(rframes[o + 3], rframes[o + 4], rframes[o + 5], rframes[o + 6]).normalize();
+        tcpM.compose(tcpPos, tcpQuat, unit).multiply(matFromRowMajor(P.T_tcp_part));
+        setPartMatrix(tcpM);
+      } else if (st === 'placed' && P.T_world_part_place) setPartMatrix(matFromRowMajor(P.T_world_part_place));
+      else setPartMatrix(partHome);
+      return st;
+    }
     function setSample(k) {
       const P = pathOf(selected);
       if (!P) return;
@@ -355,8 +415,68 @@
       showFrame(f);
       setPose(gripper, rframes, tcpOfFrame(f));
       scrub.value = String(k);
-      phase.textContent = k === 0 ? 'home' : k === P.count - 1 ? 'grasp' : (P.pregrasp !== null && k < P.pregrasp ? 'to pre-grasp' : (P.pregrasp !== null && k === P.pregrasp ? 'pre-grasp' : 'approach'));
+      let opening = P.opening;
+      let event = '';
+      (P.events || []).forEach((e) => { if (k >= e.sample) opening = e.width; if (k === e.sample) event = e.action; });
+      setOpening(opening);
+      const st = placePart(P, k);
+      const seg = segmentAt(P, k);
+      if ((P.segments || []).length > 2) {
+        phase.textContent = k === 0 ? 'home' : seg.label + (event ? ' · ' + event : '');
+      } else {
+        phase.textContent = k === 0 ? 'home' : k === P.count - 1 ? 'grasp' : (P.pregrasp !== null && k < P.pregrasp ? 'to pre-grasp' : (P.pregrasp !== null && k === P.pregrasp ? 'pre-grasp' : 'approach'));
+      }
+      statusEl.dataset.phase = seg ? seg.label : '';
+      statusEl.dataset.part = st;
+      timeline.querySelectorAll('[data-segment]').forEach((el) => el.classList.toggle('cur', seg !== undefined && el.dataset.segment === seg.label));
       requestRender();
+    }
+    // the timeline under the slider: one labelled block per segment, ticks at the gripper events
+    const timeline = document.getElementById('timeline');
+    function buildTimeline(P) {
+      timeline.textContent = '';
+      if (!P || !P.segments) { timeline.hidden = true; statusEl.dataset.segments = ''; return; }
+      timeline.hidden = false;
+      const span = Math.max(1, P.count - 1);
+      P.segments.forEach((sg) => {
+        const el = document.createElement('span');
+        el.className = 'seg';
+        el.dataset.segment = sg.label;
+        el.style.flexGrow = String(Math.max(1, sg.end - sg.start));
+        el.textContent = sg.label;
+        el.title = `${sg.label}: samples ${sg.start}-${sg.end}`;
+        el.addEventListener('click', () => { playing = false; setSample(sg.start); });
+        timeline.appendChild(el);
+      });
+      (P.events || []).forEach((e) => {
+        const t = document.createElement('span');
+        t.className = 'ev ev-' + e.action;
+        t.dataset.event = e.action;
+        t.style.left = (100 * e.sample / span) + '%';
+        t.title = `${e.action} to ${(e.width * 1000).toFixed(1)} mm`;
+        timeline.appendChild(t);
+      });
+      statusEl.dataset.segments = P.segments.map((sg) => sg.label).join(',');
+    }
+    function qualityText(i) {
+      const lines = [];
+      const num = (a) => (a && !isNaN(a[i]) ? a[i] : null);
+      const gm = num(qa.gravity_margin), ep = num(qa.epsilon);
+      if (gm !== null || ep !== null) {
+        lines.push(`quality: score ${fmtScore(gscore[i])}` + (gm !== null ? `  gravity margin ${gm.toFixed(2)}` : '') +
+          (ep !== null ? `  epsilon ${ep.toFixed(4)}` : ''));
+      }
+      if (qa.contact_type && qa.contact_type[2 * i] >= 0) {
+        const names = GQ.contact_types || [];
+        const c = [0, 1].map((j) => `${esc(names[qa.contact_type[2 * i + j]] || '?')} ${(qa.contact_area[2 * i + j] * 1e6).toFixed(1)} mm\u00b2`);
+        lines.push(`contacts: ${c.join(', ')}`);
+      }
+      if (qa.sim_success && qa.sim_success[i] >= 0) {
+        lines.push(`sim: ${qa.sim_success[i] ? 'held' : 'slipped'}` +
+          (num(qa.sim_slip_m) !== null ? `  slip ${(qa.sim_slip_m[i] * 1000).toFixed(1)} mm` : '') +
+          (num(qa.sim_turn_deg) !== null ? `  turn ${qa.sim_turn_deg[i].toFixed(1)}\u00b0` : ''));
+      }
+      return lines.length ? '\n' + lines.join('\n') : '';
     }
     function select(i) {
       if (i === undefined || i < 0 || i >= n) return;
@@ -380,13 +500,23 @@
       selGroup.visible = true;
       const P = pathOf(i);
       let txt = `grasp #${gid[i]}  ${s}\nwidth ${(gwidth(i) * 1000).toFixed(2)} mm   pre-grasp opening ${(gopen(i) * 1000).toFixed(1)} mm\nscore ${fmtScore(gscore[i])}` + (grank[i] >= 0 ? `   rank ${grank[i]}` : '');
+      txt += qualityText(i);
+      buildTimeline(P);
+      setPartMatrix(partHome);
+      placeGhost.visible = false;
       if (P) {
         robotMaterial(true);
         scrub.max = String(P.count - 1);
         scrub.disabled = false;
         playBtn.disabled = false;
-        setSample(P.count - 1); // robot at q_grasp
+        const appr = (P.segments || []).find((sg) => sg.label === 'approach');
+        setSample(appr ? appr.end : P.count - 1); // robot at q_grasp
         txt += `\npath: ${P.waypoints} waypoints, ${P.count} samples`;
+        if (P.segments && P.segments.length > 2) txt += `\nsequence: ${P.segments.map((sg) => sg.label).join(' \u2192 ')}`;
+        if (P.T_world_part_place) {
+          matFromRowMajor(P.T_world_part_place).decompose(placeGhost.position, placeGhost.quaternion, placeGhost.scale);
+          placeGhost.visible = true;
+        }
       } else {
         if (R) { robotMaterial(false); showFrame(0); }
         scrub.disabled = true;
