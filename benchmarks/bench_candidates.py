@@ -1,14 +1,25 @@
-"""Candidates speed (the paper method, ``method="paper"``; regions: benchmarks/coverage.py): medians per stage on TLess22 (target: BLM + convexity + antipodal < 1 s), and the
-sub-quadratic antipodal search against the O(m^2) brute force.
+"""Candidates speed and memory.
 
-    .venv/bin/python benchmarks/bench_candidates.py [--repeat 7]
+    .venv/bin/python benchmarks/bench_candidates.py [--repeat 7] [--runs 3]
+
+1. Issue 10's sizes with the default ``method="regions"``: ``grasplan candidates PART -o OUT`` on
+   the 60 x 45 x 14 mm box subdivided to 0.5 mm (``trimesh.remesh.subdivide_to_size``, ~213k
+   triangles), TLess22 subdivided to 250k triangles and SileaneGear; each run in a fresh process
+   (wall time and that process's peak RSS via ``wait4``), medians of ``--runs``, plus the stage
+   seconds of an in-process run (imports, load, BLM, convexity, antipodal, JSON). Targets: < 2 s
+   and < 1.5 GB peak RSS up to 250k triangles; SileaneGear < 1 s.
+2. The paper method (``method="paper"``): medians per stage on TLess22 (target: BLM + convexity +
+   antipodal < 1 s), and the sub-quadratic antipodal search against the O(m^2) brute force.
 """
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import statistics
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -23,6 +34,114 @@ from grasplan.mesh import load_part  # noqa: E402
 
 PAPER_DIR = Path(os.environ.get("GRASPLAN_PAPER_PARTS", ROOT.parent / "shared" / "parts" / "paper"))
 TARGET_S = 1.0
+#: issue 10: (wall s, peak RSS MiB) of ``grasplan candidates`` up to 250k triangles; SileaneGear < 1 s
+TARGET_LARGE_S, TARGET_RSS_MIB, TARGET_GEAR_S = 2.0, 1.5 * 1024, 1.0
+BOX_MM, BOX_EDGE_MM, TLESS22_TRIANGLES = (60.0, 45.0, 14.0), 0.5, 250_000
+
+
+def issue_parts(folder: Path) -> list[tuple[str, Path, float]]:
+    """``[(name, STL path, target s)]``: the subdivided box, TLess22 at 250k triangles (written
+    to ``folder``), SileaneGear; the paper parts only when present."""
+    import trimesh
+
+    out = []
+    box = folder / "box_60x45x14_0.5mm.stl"
+    m = trimesh.creation.box(extents=BOX_MM)
+    V, F = trimesh.remesh.subdivide_to_size(m.vertices, m.faces, BOX_EDGE_MM)
+    trimesh.Trimesh(V, F, process=False).export(box)
+    out.append((f"box 0.5 mm ({len(F) // 1000}k)", box, TARGET_LARGE_S))
+    t22 = PAPER_DIR / "TLess22.stl"
+    if t22.exists():
+        m = trimesh.load(t22, force="mesh")
+        lo, hi = 0.1, float(m.extents.max())  # edge length (file units) giving at most 250k triangles
+        for _ in range(20):
+            mid = (lo * hi) ** 0.5
+            n = len(trimesh.remesh.subdivide_to_size(m.vertices, m.faces, mid)[1])
+            lo, hi = (mid, hi) if n > TLESS22_TRIANGLES else (lo, mid)
+        V, F = trimesh.remesh.subdivide_to_size(m.vertices, m.faces, hi)
+        path = folder / "TLess22_250k.stl"
+        trimesh.Trimesh(V, F, process=False).export(path)
+        out.append((f"TLess22 ({len(F) // 1000}k)", path, TARGET_LARGE_S))
+    gear = PAPER_DIR / "SileaneGear.stl"
+    if gear.exists():
+        out.append(("SileaneGear", gear, TARGET_GEAR_S))
+    return out
+
+
+_WORKER = r"""
+import json, sys, time
+t0 = time.perf_counter()
+from grasplan.candidates import compute_candidates
+from grasplan.io import write_json
+from grasplan.mesh import load_part
+from grasplan.params import CandidateParams
+t_import = time.perf_counter() - t0
+t = time.perf_counter()
+part = load_part(sys.argv[1])
+t_load = time.perf_counter() - t
+r = compute_candidates(part, CandidateParams(), load_s=t_load)
+t = time.perf_counter()
+write_json(sys.argv[2], r.to_json())
+t_json = time.perf_counter() - t
+print(json.dumps({"imports": t_import, "load": t_load, **{k: r.timing_s[k] for k in ("blm", "convexity", "antipodal")},
+                  "json": t_json, "triangles": part.triangles, "candidates": len(r.candidates)}))
+"""
+
+
+#: runs the command line in this interpreter and reports the process's own peak RSS last on stderr
+#: (``wait4`` of a forked child would count the parent's pages copied before exec)
+_CLI = r"""
+import resource, sys
+from grasplan.cli import main
+try:
+    main(sys.argv[1:], prog_name="grasplan")
+    rc = 0
+except SystemExit as e:
+    rc = e.code if isinstance(e.code, int) else (0 if e.code is None else 1)
+sys.stderr.write("\nRSS_KIB %d\n" % resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+sys.exit(rc)
+"""
+
+
+def _wall_rss(args: list[str]) -> tuple[float, int, float]:
+    """(wall s, exit code, peak RSS MiB) of ``grasplan *args`` in a fresh interpreter."""
+    t = time.perf_counter()
+    p = subprocess.run([sys.executable, "-c", _CLI, *args], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                       text=True, cwd=ROOT)
+    dt = time.perf_counter() - t
+    rss = [ln for ln in p.stderr.splitlines() if ln.startswith("RSS_KIB ")]
+    return dt, p.returncode, (int(rss[-1].split()[1]) / 1024 if rss else float("nan"))
+
+
+def bench_issue_sizes(runs: int) -> bool:
+    cmd: list[str] = []
+    rows, stage_rows, ok = [], [], True
+    stages = ("imports", "load", "blm", "convexity", "antipodal", "json")
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        for name, path, target in issue_parts(folder):
+            out = folder / "out.json"
+            res = [_wall_rss(cmd + ["candidates", str(path), "-o", str(out)]) for _ in range(runs)]
+            wall = statistics.median(r[0] for r in res)
+            rss = max(r[2] for r in res)
+            w = subprocess.run([sys.executable, "-c", _WORKER, str(path), str(out)], capture_output=True, text=True,
+                               cwd=ROOT)
+            info = json.loads(w.stdout.strip().splitlines()[-1]) if w.returncode == 0 else {}
+            met = wall < target and rss < TARGET_RSS_MIB and all(r[1] == 0 for r in res)
+            ok &= met
+            rows.append((name, info.get("triangles", "?"), info.get("candidates", "?"), wall, wall / target,
+                         rss, rss / TARGET_RSS_MIB, "met" if met else "MISSED"))
+            stage_rows.append((name, *[float(info.get(k, float("nan"))) for k in stages]))
+            print(f"  {name}: {wall:.2f} s, {rss:.0f} MiB", file=sys.stderr)
+    print(f"grasplan candidates PART -o OUT (method regions), fresh process per run, median of {runs} runs; "
+          f"targets < {TARGET_LARGE_S:g} s (SileaneGear < {TARGET_GEAR_S:g} s) and < {TARGET_RSS_MIB:.0f} MiB")
+    print(table(rows, header=("part", "triangles", "candidates", "wall s", "ratio", "peak RSS MiB", "RSS ratio",
+                              "target")))
+    print("\nthe same in-process, one run, seconds per stage")
+    print(table(stage_rows, header=("part", *stages)))
+    if os.getloadavg()[0] > (os.cpu_count() or 1):
+        print(f"note: load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores; wall times are inflated")
+    return ok
 
 
 def stage_medians(path: Path, repeat: int):
@@ -43,7 +162,10 @@ def stage_medians(path: Path, repeat: int):
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--repeat", type=int, default=7)
+    ap.add_argument("--runs", type=int, default=3, help="fresh-process runs per issue-10 size (medians; >= 3)")
     args = ap.parse_args(argv)
+    issue_ok = bench_issue_sizes(max(3, args.runs))
+    print()
     path = PAPER_DIR / "TLess22.stl"
     ok = True
     if path.exists():
@@ -82,7 +204,8 @@ def main(argv=None) -> int:
                      times["brute"] / times["index"], "yes" if same else "NO"))
     print("\nantipodal search, no BLM: KD-tree index vs all pairs")
     print(table(rows, header=("part", "convex faces", "candidates", "index s", "brute s", "speed-up", "same")))
-    return 0 if ok else 1
+    print("\nissue 10 sizes: target " + ("met" if issue_ok else "MISSED"))
+    return 0 if ok and issue_ok else 1
 
 
 if __name__ == "__main__":

@@ -53,6 +53,11 @@ def run_part(path: Path, args, gr, density: float) -> dict:
                                          gr.frames.candidate, gr.cand.candidates, gr.status, mu, gp)
     t_quality = time.perf_counter() - t
     ok = np.flatnonzero(np.asarray(gr.status) == "ok")
+    if len(ok) == 0:  # nothing to rank or simulate (e.g. the part is wider than the gripper opens)
+        nan = float("nan")
+        return {"part": path.name, "ok": 0, "mass_kg": mp.mass if mp is not None else nan, "top_hold": nan,
+                "rand_hold": nan, "spearman": nan, "s_per_20": nan, "decomp_s": nan, "pieces": 0,
+                "quality_ms_per_1000": nan, "gm_max": 0.0, "holdable": 0, "agree": nan}
     T = gr.frames.T_part_tcp[ok]
     width = gr.cand.candidates.width[gr.frames.candidate[ok]]
     s = score_all[ok]
@@ -94,12 +99,16 @@ def table(rows, title: str) -> None:
               f"{100 * r['top_hold']:>9.0f}% {100 * r['rand_hold']:>10.0f}% {r['spearman']:>17.2f} "
               f"{100 * r['agree']:>11.0f}% {r['s_per_20']:>9.2f} {r['pieces']:>6} {r['decomp_s']:>7.1f} "
               f"{r['quality_ms_per_1000']:>15.0f}")
+    all_rows, rows = rows, [r for r in rows if r["ok"] > 0] or rows
     top = np.array([r["top_hold"] for r in rows])
     print("-" * len(hdr))
     print(f"{'median':<20} {'':>6} {'':>7} {'':>6} {'':>7} {100 * np.median(top):>9.0f}% "
           f"{100 * np.median([r['rand_hold'] for r in rows]):>10.0f}% {np.nanmedian([r['spearman'] for r in rows]):>17.2f}"
           f" {100 * np.median([r['agree'] for r in rows]):>11.0f}% {np.median([r['s_per_20'] for r in rows]):>9.2f}")
-    for r in rows:
+    for r in all_rows:
+        if r["ok"] == 0:
+            print(f"  {r['part']:<20} no collision-free grasp with this gripper: nothing to rank or simulate")
+            continue
         verdict = (f"holdable: {r['holdable']} of {r['ok']} ok grasps have gravity_margin >= 1" if r["holdable"] else
                    f"NOT holdable: no grasp has gravity_margin >= 1 (best {r['gm_max']:.2f}): {r['mass_kg']:.2f} kg "
                    "is too heavy for the gripper's force and mu under gravity + 1 g")
@@ -111,7 +120,7 @@ def table(rows, title: str) -> None:
 
 
 def args_top(rows) -> int:
-    return 20
+    return 20  # "holdable" parts: at least as many grasps with gravity_margin >= 1 as the top-N simulated
 
 
 def main() -> None:

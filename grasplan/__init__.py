@@ -27,12 +27,13 @@ from __future__ import annotations
 import importlib
 
 from .errors import ConfigError, GrasplanError, InputError, MeshError, PlanningError
-from .mesh import Part, load_part
 
 __version__ = "0.1.0"
 
 # public name -> (module, attribute), imported on first use
 _LAZY = {
+    "Part": ("grasplan.mesh", "Part"),
+    "load_part": ("grasplan.mesh", "load_part"),
     "CandidateParams": ("grasplan.params", "CandidateParams"),
     "GraspParams": ("grasplan.params", "GraspParams"),
     "PlanParams": ("grasplan.params", "PlanParams"),
@@ -50,8 +51,7 @@ _LAZY = {
     "write_viewer": ("grasplan.viewer", "write_viewer"),
 }
 
-__all__ = ["GrasplanError", "InputError", "MeshError", "ConfigError", "PlanningError", "Part", "load_part",
-           "__version__", *_LAZY]
+__all__ = ["GrasplanError", "InputError", "MeshError", "ConfigError", "PlanningError", "__version__", *_LAZY]
 
 
 def __getattr__(name: str):

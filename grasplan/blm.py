@@ -65,6 +65,7 @@ import trimesh
 from scipy.sparse import coo_matrix, csr_matrix
 from scipy.sparse.csgraph import connected_components
 
+from .convexity import edge_adjacency
 from .errors import InputError, MeshError
 from .tolerance import Tolerance
 
@@ -152,8 +153,10 @@ def _renumber_by_first(labels: np.ndarray) -> np.ndarray:
     return rank[inv.ravel()]
 
 
-def cluster_surfaces(mesh: trimesh.Trimesh, *, gamma_deg: float = 135.0, tol: Tolerance | None = None):
-    """Facets and surfaces of ``mesh`` (see the module docstring).
+def cluster_surfaces(mesh: trimesh.Trimesh, *, gamma_deg: float = 135.0, tol: Tolerance | None = None,
+                     adjacency: np.ndarray | None = None):
+    """Facets and surfaces of ``mesh`` (see the module docstring). ``adjacency`` (k, 2): the
+    mesh's face pairs sharing an edge when the caller has them (:func:`grasplan.convexity.edge_adjacency`).
 
     Returns ``(facet (m,) int64, surface (m,) int64, n_facets, n_surfaces)``; ids are numbered by
     their lowest face index.
@@ -162,7 +165,7 @@ def cluster_surfaces(mesh: trimesh.Trimesh, *, gamma_deg: float = 135.0, tol: To
     m = len(mesh.faces)
     thr = np.radians(180.0 - gamma_deg)
     cos_thr = np.cos(thr)
-    adj = np.asarray(mesh.face_adjacency, dtype=np.int64).reshape(-1, 2)
+    adj = edge_adjacency(mesh.faces)[0] if adjacency is None else adjacency  # trimesh's face_adjacency pairs
     normals = np.asarray(mesh.face_normals, dtype=np.float64)
     areas = np.asarray(mesh.area_faces, dtype=np.float64)
     dots = np.einsum("ij,ij->i", normals[adj[:, 0]], normals[adj[:, 1]]) if len(adj) else np.zeros(0)
@@ -281,12 +284,11 @@ def boundary_layer(
         )
     m = len(F)
 
-    facet, surface, n_facets, n_surfaces = cluster_surfaces(mesh, gamma_deg=gamma_deg, tol=tol)
+    adj, _, unshared = edge_adjacency(F)  # face pairs and the vertex of each opposite the shared edge
+    facet, surface, n_facets, n_surfaces = cluster_surfaces(mesh, gamma_deg=gamma_deg, tol=tol, adjacency=adj)
     normals = np.asarray(mesh.face_normals, dtype=np.float64)
 
     # --- surface-boundary edges, as (face, local edge k) with k = edge (p_k, p_k+1) ---
-    adj = np.asarray(mesh.face_adjacency, dtype=np.int64).reshape(-1, 2)
-    unshared = np.asarray(mesh.face_adjacency_unshared, dtype=np.int64).reshape(-1, 2)
     is_b = surface[adj[:, 0]] != surface[adj[:, 1]]
     badj, bun = adj[is_b], unshared[is_b]
     n_boundary_edges = int(len(badj))

@@ -14,7 +14,13 @@ Against:
   ``distance <= 0`` within its GJK tolerance, ~1e-6 m). A shape whose oriented box is separated
   from the part's axis-aligned box (exact 15-axis separating-axis test in NumPy) is free without
   calling coal. coal tests surfaces: a shape that crosses no triangle is also tested for lying
-  wholly inside a watertight part (one of its points, ``part_mesh.contains``).
+  wholly inside a watertight part (one of its points, :func:`points_inside_tree`: signed ray
+  crossings, the winding number of a closed mesh, exact; near-ties by the generalised winding
+  number). Two exact certificates decide box-part hits in NumPy before coal, each only while it
+  keeps finding hits: a box whose centre is inside a watertight part hits it; a box containing a
+  sample of the part's surface (:func:`surface_samples`: convex combinations of a triangle's
+  corners) deeper than ``SAMPLE_DEPTH`` hits it. Shapes are tried in blocks of poses, those that
+  hit most often first; the first hit names the pose's element.
 * the table, the half-space ``z < table_z`` of the world: exactly, in NumPy: a box collides iff
   its lowest corner is below ``table_z - TABLE_CONTACT_TOL`` (so touching the table top within
   1 micrometre is not a collision); a mesh iff its lowest vertex is.
@@ -53,7 +59,10 @@ TABLE_CONTACT_TOL = 1e-6
 def obb_aabb_separated(c: np.ndarray, R: np.ndarray, h: np.ndarray, a: np.ndarray, e: np.ndarray) -> np.ndarray:
     """(M,) bool: oriented boxes (centre ``c`` (M,3), rotation ``R`` (M,3,3) whose columns are the
     box axes, half extents ``h`` (M,3)) strictly separated from the axis-aligned box with centre
-    ``a`` (3,) and half extents ``e`` (3,). Exact separating-axis test (15 axes)."""
+    ``a`` (3,) and half extents ``e`` (3,) (or one box per oriented box, (M,3) each). Exact
+    separating-axis test (15 axes)."""
+    a = np.asarray(a, dtype=np.float64)
+    e = np.broadcast_to(np.asarray(e, dtype=np.float64), np.shape(c))
     d = c - a  # (M,3)
     absR = np.abs(R) + 1e-12  # robust for near-parallel edge axes
     sep = np.zeros(len(c), dtype=bool)
@@ -61,7 +70,7 @@ def obb_aabb_separated(c: np.ndarray, R: np.ndarray, h: np.ndarray, a: np.ndarra
     rb = np.einsum("mij,mj->mi", absR, h)  # projection radius of the OBB on each world axis
     sep |= np.any(np.abs(d) > e + rb, axis=1)
     # OBB face axes (columns of R)
-    ra = np.einsum("i,mij->mj", e, absR)
+    ra = np.einsum("mi,mij->mj", e, absR)
     sep |= np.any(np.abs(np.einsum("mi,mij->mj", d, R)) > ra + h, axis=1)
     # cross products world_i x box_j
     for i in range(3):
@@ -70,11 +79,15 @@ def obb_aabb_separated(c: np.ndarray, R: np.ndarray, h: np.ndarray, a: np.ndarra
             j1, j2 = (j + 1) % 3, (j + 2) % 3
             # axis = e_i x R[:, j]; projections follow the standard OBB-OBB table with A = I
             dist = np.abs(d[:, i2] * R[:, i1, j] - d[:, i1] * R[:, i2, j])
-            r_a = e[i1] * absR[:, i2, j] + e[i2] * absR[:, i1, j]
+            r_a = e[:, i1] * absR[:, i2, j] + e[:, i2] * absR[:, i1, j]
             r_b = h[:, j1] * absR[:, i, j2] + h[:, j2] * absR[:, i, j1]
             sep |= dist > r_a + r_b
     return sep
 
+
+def inside_box(p: np.ndarray, center: np.ndarray, half: np.ndarray) -> np.ndarray:
+    """(M,) bool: points ``p`` (M,3) within the axis-aligned box (centre, half extents)."""
+    return np.all(np.abs(p - center) <= half, axis=1)
 
 def points_inside(mesh: trimesh.Trimesh, points: np.ndarray, *, chunk: int = 2_000_000) -> np.ndarray:
     """(k,) bool: generalised winding number > 1/2 for a closed mesh (exact, no ray casting).
@@ -95,6 +108,151 @@ def points_inside(mesh: trimesh.Trimesh, points: np.ndarray, *, chunk: int = 2_0
         out[s0:s0 + step] = np.abs(w) > 0.5
     return out
 
+
+# -- inside a closed mesh: signed ray crossings, binned -----------------------------------------------
+class RayGrid:
+    """The triangles of a mesh binned by their (y, z) bounding box into a uniform 2D grid: the
+    triangles a ray along +x from a point can cross are those of the point's cell. Each triangle is
+    listed in every cell its box overlaps (cells per triangle bounded by ``max_cells``)."""
+
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray, *, per_cell: float = 1.0, max_cells: int = 1 << 21):
+        # rays along a generic direction (a fixed rotation of the mesh), so that CAD edges and
+        # vertices on round coordinates are not met exactly by rays from points on round coordinates
+        self.Q = _rotation_generic()
+        tri = np.asarray(vertices, dtype=np.float64)[np.asarray(faces, dtype=np.int64)] @ self.Q.T
+        self.tri = tri
+        self.xmax = tri[:, :, 0].max(axis=1)
+        F = len(tri)
+        lo, hi = tri[:, :, 1:].min(axis=1), tri[:, :, 1:].max(axis=1)  # (F,2) y, z
+        self.lo = lo.min(axis=0) if F else np.zeros(2)
+        span = np.maximum((hi.max(axis=0) - self.lo) if F else np.ones(2), 1e-12)
+        G = int(np.clip(np.sqrt(max(F, 1) / per_cell), 1, 1024))
+        self.G = G
+        self.cell = span / G * (1 + 1e-9)
+        i0 = np.clip(((lo - self.lo) / self.cell).astype(np.int64), 0, G - 1)
+        i1 = np.clip(((hi - self.lo) / self.cell).astype(np.int64), 0, G - 1)
+        n = (i1 - i0 + 1).prod(axis=1)
+        while n.sum() > max_cells and self.G > 1:  # coarser grid until the listing is bounded
+            G = self.G = max(1, self.G // 2)
+            self.cell = span / G * (1 + 1e-9)
+            i0 = np.clip(((lo - self.lo) / self.cell).astype(np.int64), 0, G - 1)
+            i1 = np.clip(((hi - self.lo) / self.cell).astype(np.int64), 0, G - 1)
+            n = (i1 - i0 + 1).prod(axis=1)
+        t = np.repeat(np.arange(F), n)
+        off = np.arange(len(t)) - np.repeat(np.cumsum(n) - n, n)
+        ny = (i1 - i0 + 1)[:, 0]
+        cy = i0[t, 0] + off % ny[t]
+        cz = i0[t, 1] + off // ny[t]
+        key = cy * G + cz
+        o = np.argsort(key, kind="stable")
+        self.tris = t[o]
+        self.start = np.searchsorted(key[o], np.arange(G * G + 1))
+
+    def pairs(self, pts: np.ndarray, *, max_pairs: int = 1 << 20):
+        """Yield ``(point, triangle)`` index arrays: the triangles listed in each point's cell
+        (``pts`` already rotated by ``self.Q``)."""
+        yz = (pts[:, 1:] - self.lo) / self.cell
+        inside = np.all((yz >= 0) & (yz < self.G), axis=1)
+        idx = np.flatnonzero(inside)
+        c = yz[idx].astype(np.int64)
+        key = c[:, 0] * self.G + c[:, 1]
+        s0, cnt = self.start[key], self.start[key + 1] - self.start[key]
+        csum = np.cumsum(cnt)
+        b = 0
+        while b < len(idx):
+            e = int(np.searchsorted(csum, (csum[b - 1] if b else 0) + max_pairs, side="right"))
+            e = max(e, b + 1)
+            q = np.repeat(idx[b:e], cnt[b:e])
+            off = np.arange(len(q)) - np.repeat(np.cumsum(cnt[b:e]) - cnt[b:e], cnt[b:e])
+            t = self.tris[np.repeat(s0[b:e], cnt[b:e]) + off]
+            if len(q):
+                yield q, t
+            b = e
+
+
+def points_inside_tree(grid: RayGrid, mesh: trimesh.Trimesh, points: np.ndarray) -> np.ndarray:
+    """(k,) bool: inside a closed mesh, by the signed count of crossings of the ray from each point
+    along +x (= the winding number of a closed mesh). Points whose ray passes within rounding of an
+    edge, a vertex or a triangle seen edge-on, or that lie on the surface, are decided by the
+    generalised winding number (:func:`points_inside`) instead."""
+    pts0 = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    pts = pts0 @ grid.Q.T
+    k = len(pts)
+    wind = np.zeros(k, dtype=np.int64)
+    tie = np.zeros(k, dtype=bool)
+    if k == 0:
+        return np.zeros(0, dtype=bool)
+    scale = float(np.abs(grid.tri).max()) if len(grid.tri) else 1.0
+    eps = 1e-12 * scale * scale
+    for q, t in grid.pairs(pts):
+        ahead = grid.xmax[t] >= pts[q, 0]  # triangles wholly behind the point are not crossed
+        q, t = q[ahead], t[ahead]
+        tri = grid.tri[t]  # (P,3,3)
+        y, z = pts[q, 1:2], pts[q, 2:3]
+        # 2D edge functions in the (y, z) plane of the point against each edge
+        ay, az = tri[:, :, 1] - y, tri[:, :, 2] - z
+        by, bz = np.roll(ay, -1, axis=1), np.roll(az, -1, axis=1)
+        ef = ay * bz - az * by  # (P,3): twice the signed area of (point, v_k, v_k+1)
+        near = np.any(np.abs(ef) <= eps, axis=1)
+        clear_out = np.any(ef > eps, axis=1) & np.any(ef < -eps, axis=1)
+        cand = ~clear_out
+        if not cand.any():
+            continue
+        q, tri, ef, near = q[cand], tri[cand], ef[cand], near[cand]
+        area = ef.sum(axis=1)  # twice the projected signed area
+        flat = np.abs(area) <= eps
+        w = ef / np.where(flat, 1.0, area)[:, None]  # barycentric weight of vertex k+2
+        xh = np.einsum("pk,pk->p", np.roll(w, -1, axis=1), tri[:, :, 0])
+        ahead = xh - pts[q, 0]
+        on = np.abs(ahead) <= 1e-12 * scale
+        cross = ~near & ~flat & ~on & (ahead > 0)
+        np.add.at(wind, q[cross], np.where(area[cross] > 0, 1, -1))
+        tie[q[near | flat | on]] = True
+    out = wind != 0
+    if tie.any():
+        out[tie] = points_inside(mesh, pts0[tie])
+    return out
+
+
+def _rotation_generic() -> np.ndarray:
+    """A fixed rotation about an axis and by an angle of no special value (Rodrigues)."""
+    k = np.array([0.2718281828, 0.5772156649, 0.7071067812])
+    k = k / np.linalg.norm(k)
+    a = 0.6180339887
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + np.sin(a) * K + (1 - np.cos(a)) * (K @ K)
+
+
+#: a part surface sample deeper than this (m) inside a box proves a collision without coal
+SAMPLE_DEPTH = 1e-5
+
+
+def surface_samples(mesh: trimesh.Trimesh, *, spacing: float = 0.006, max_samples: int = 50_000) -> np.ndarray:
+    """(k, 3) points on the surface of ``mesh``: its vertices, and on each triangle longer than
+    ``spacing`` a barycentric grid of about ``spacing`` (coarser when there would be more than
+    ``max_samples`` grid points). Each point is a convex combination of one triangle's corners."""
+    V = np.asarray(mesh.vertices, dtype=np.float64)
+    tri = V[np.asarray(mesh.faces, dtype=np.int64)]
+    area = float(np.asarray(mesh.area_faces).sum())
+    spacing = max(spacing, np.sqrt(2.0 * area / max(max_samples, 1)))
+    edge = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max(axis=1)
+    while True:
+        n = np.minimum(np.ceil(edge / spacing).astype(np.int64), 64)  # subdivisions per edge
+        total = int(np.sum(np.where(n > 1, (n + 1) * (n + 2) // 2, 0)))
+        if total <= max_samples:
+            break
+        spacing *= 1.05 * np.sqrt(total / max_samples)
+    out = [V]
+    for k in np.unique(n[n > 1]):
+        ii, jj = np.meshgrid(np.arange(k + 1), np.arange(k + 1), indexing="ij")
+        m = ii + jj <= k
+        w = np.stack([ii[m], jj[m], k - ii[m] - jj[m]], axis=1).astype(np.float64) / k  # (g, 3)
+        w = w[(w < 1.0).all(axis=1)]  # corners are vertices already
+        sel = np.flatnonzero(n == k)
+        for s0 in range(0, len(sel), max(1, 1_000_000 // max(len(w), 1))):
+            t = tri[sel[s0:s0 + 1_000_000 // max(len(w), 1)]]
+            out.append(np.einsum("gk,tkx->tgx", w, t).reshape(-1, 3))
+    return np.concatenate(out)
 
 class _ShapeSet:
     """One gripper shape per pose: coal geometry per unique variant, ``T_tcp_shape`` per pose."""
@@ -128,6 +286,8 @@ class _ShapeSet:
 
 
 class GripperCollider:
+    #: poses per block of the coal loop (the shape order adapts to the hit counts between blocks)
+    block = 1024
     """Collision checks of one gripper against one part in one cell.
 
     The part's BVH, the body geometry and the coal request/result objects are built once; call
@@ -148,6 +308,7 @@ class GripperCollider:
         self.cell = cell
         self.T_world_part = T_world_part
         self.part_bvh = bvh(part_mesh.vertices, part_mesh.faces)
+        self._grid = self._samples = None
         lo, hi = part_mesh.bounds
         self.aabb_center = 0.5 * (lo + hi)
         self.aabb_half = 0.5 * (hi - lo)
@@ -167,6 +328,9 @@ class GripperCollider:
         self._body = [_ShapeSet([b], None) for b in gripper.body]
         self._finger_cache: dict = {}
         self.coal_calls = 0
+        #: poses decided as hits without coal: "centre" (box centre inside the closed part),
+        #: "sample" (a part surface sample inside the box)
+        self.certified = {"centre": 0, "sample": 0}
         # obstacles: coal geometry, world pose and world axis-aligned box (centre, half extents)
         self.obstacles = tuple(getattr(cell, "obstacles", ()) or ())
         self._obs_geom = [obstacle_geometry(o) for o in self.obstacles]
@@ -175,6 +339,22 @@ class GripperCollider:
         bounds = [o.aabb() for o in self.obstacles]
         self._obs_center = [0.5 * (lo + hi) for lo, hi in bounds]
         self._obs_half = [0.5 * (hi - lo) for lo, hi in bounds]
+
+    @property
+    def sample_tree(self):
+        """k-d tree of :func:`surface_samples` of the part (built on first use)."""
+        if self._samples is None:
+            from scipy.spatial import cKDTree
+
+            self._samples = cKDTree(surface_samples(self.part_mesh))
+        return self._samples
+
+    @property
+    def ray_grid(self) -> RayGrid:
+        """Ray-crossing grid of the part's triangles for the inside test (built on first use)."""
+        if self._grid is None:
+            self._grid = RayGrid(self.part_mesh.vertices, self.part_mesh.faces)
+        return self._grid
 
     def element_names(self) -> list[str]:
         """Names of the gripper elements the element codes of :meth:`check_detail` index."""
@@ -287,44 +467,79 @@ class GripperCollider:
         """``(hit (M,) bool, first hitting element (M,) int, -1 when free)``."""
         M = len(T_part_tcp)
         elem = np.full(M, -1, dtype=np.int64)
-        need = np.zeros((len(sets), M), dtype=bool)
+        hit = np.zeros(M, dtype=bool)
         Tgs = []
+        need = np.zeros((len(sets), M), dtype=bool)
         inside_cand = np.zeros((len(sets), M), dtype=bool)
         for si, s in enumerate(sets):
             Tbb = T_part_tcp @ s.T_tcp_bb[s.index]
             h = s.half_bb[s.index]
-            sep = obb_aabb_separated(Tbb[:, :3, 3], Tbb[:, :3, :3], h, self.aabb_center, self.aabb_half)
-            need[si] = ~sep
+            need[si] = ~obb_aabb_separated(Tbb[:, :3, 3], Tbb[:, :3, :3], h, self.aabb_center, self.aabb_half)
             if self.watertight:
                 # bounding box of the shape's box wholly within the part's box: might be inside the part
                 ext = np.einsum("mij,mj->mi", np.abs(Tbb[:, :3, :3]), h)
                 inside_cand[si] = np.all(np.abs(Tbb[:, :3, 3] - self.aabb_center) + ext <= self.aabb_half, axis=1)
             Tgs.append(T_part_tcp @ s.T_tcp_geom[s.index] if s.is_box else T_part_tcp)
-        hit = np.zeros(M, dtype=bool)
-        poses = np.flatnonzero(need.any(axis=0))
         collide = coal.collide
-        req, res, tf, I, bvh = self.request, self.result, self._tf, self._identity, self.part_bvh
+        req, res, tf, I, part_bvh = self.request, self.result, self._tf, self._identity, self.part_bvh
         calls = 0
-        # shapes that hit most often are tried first (jaws first to begin with; the order adapts
-        # every 512 poses to the hit counts so far); the first hit decides the pose
+
+        def coal_hit(si: int, m: int) -> bool:
+            T = Tgs[si][m]
+            tf.setRotation(T[:3, :3])
+            tf.setTranslation(T[:3, 3])
+            res.clear()
+            return bool(collide(sets[si].geoms[sets[si].index[m]], tf, part_bvh, I, req, res))
+
+        # in blocks of poses, per shape: shapes that hit most often so far are tried first (jaws
+        # first to begin with); the first shape that hits decides the pose. On a closed part a box
+        # whose centre is inside it hits it (it crosses the surface or lies inside): that exact
+        # ray-crossing test runs before coal while it finds enough hits to pay for itself.
         order = list(range(len(sets)))[::-1]
-        first_hits = [0] * len(sets)
-        for k, m in enumerate(poses):
-            if k and k % 512 == 0:
-                order = sorted(order, key=lambda i: -first_hits[i])
+        first_hits = np.zeros(len(sets), dtype=np.int64)
+        centre_rate = np.ones(len(sets))
+        sample_rate = np.ones(len(sets))
+        half = [0.5 * np.array([np.asarray(v.extents, dtype=np.float64) for v in s.variants]) if s.is_box else None
+                for s in sets]
+        for b0 in range(0, M, self.block):
+            blk = np.arange(b0, min(M, b0 + self.block))
             for si in order:
-                if not need[si, m]:
+                s = sets[si]
+                todo = blk[need[si, blk] & ~hit[blk]]
+                if len(todo) == 0:
                     continue
-                T = Tgs[si][m]
-                tf.setRotation(T[:3, :3])
-                tf.setTranslation(T[:3, 3])
-                res.clear()
-                calls += 1
-                if collide(sets[si].geoms[sets[si].index[m]], tf, bvh, I, req, res):
-                    hit[m] = True
-                    elem[m] = si
-                    first_hits[si] += 1
-                    break
+                if self.watertight and s.is_box and centre_rate[si] >= 0.2:
+                    cand = todo[inside_box(Tgs[si][todo, :3, 3], self.aabb_center, self.aabb_half)]
+                    ins = cand[points_inside_tree(self.ray_grid, self.part_mesh, Tgs[si][cand, :3, 3])]
+                    centre_rate[si] = 0.5 * centre_rate[si] + 0.5 * len(ins) / max(len(todo), 1)
+                    self.certified["centre"] += len(ins)
+                    hit[ins] = True
+                    elem[ins] = si
+                    first_hits[si] += len(ins)
+                    todo = todo[~hit[todo]]
+                if s.is_box and sample_rate[si] >= 0.1 and len(todo):
+                    # the part's surface sample nearest the box centre lies inside the box: a hit
+                    T = Tgs[si][todo]
+                    _, j = self.sample_tree.query(T[:, :3, 3])
+                    local = np.einsum("mji,mj->mi", T[:, :3, :3], self.sample_tree.data[j] - T[:, :3, 3])
+                    h = half[si][s.index[todo]]
+                    ins = todo[np.all(np.abs(local) < h - SAMPLE_DEPTH, axis=1)]
+                    sample_rate[si] = 0.5 * sample_rate[si] + 0.5 * len(ins) / len(todo)
+                    self.certified["sample"] += len(ins)
+                    hit[ins] = True
+                    elem[ins] = si
+                    first_hits[si] += len(ins)
+                    todo = todo[~hit[todo]]
+                hl = []
+                for m in todo:
+                    calls += 1
+                    if coal_hit(si, m):
+                        hl.append(m)
+                hits = np.asarray(hl, dtype=np.int64)
+                hit[hits] = True
+                elem[hits] = si
+                first_hits[si] += len(hits)
+            order = sorted(order, key=lambda i: -first_hits[i])
         self.coal_calls += calls
         # a shape crossing no triangle may still lie wholly inside a closed part
         pts_idx = [(si, m) for si in range(len(sets)) for m in np.flatnonzero(inside_cand[si] & ~hit)]
@@ -332,7 +547,7 @@ class GripperCollider:
             pts = np.array([Tgs[si][m][:3, 3] if sets[si].is_box else
                             (sets[si].variants[sets[si].index[m]].vertices[0] @ Tgs[si][m][:3, :3].T + Tgs[si][m][:3, 3])
                             for si, m in pts_idx])
-            inside = points_inside(self.part_mesh, pts)
+            inside = points_inside_tree(self.ray_grid, self.part_mesh, pts)
             for (si, m), ins in zip(pts_idx, inside):
                 if ins and not hit[m]:
                     hit[m] = True

@@ -114,7 +114,7 @@ class Gripper:
     finger: Shape
     symmetric: bool = True
     source: str = ""
-    grip_force: float = DEFAULT_GRIP_FORCE  #: N, the force each jaw presses with (gripper YAML ``grip_force``)
+    grip_force: float = DEFAULT_GRIP_FORCE  #: N, datasheet gripping force = sum of both jaws (each contact: half)
 
     # -- finger geometry -------------------------------------------------------------------
     def fingers(self, opening: float) -> tuple[Shape, Shape]:

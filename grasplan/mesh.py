@@ -21,15 +21,17 @@ import stat
 import warnings as _warnings
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
-import trimesh
 
 from .errors import MeshError
 from .io import NAME_MAX_BYTES, show_path
 from .tolerance import Tolerance
 from .units import LENGTH_UNITS
+
+if TYPE_CHECKING:  # trimesh (with scipy) is imported when a mesh is first built: --help stays fast
+    import trimesh
 
 Units = Literal["auto", "m", "cm", "mm", "um", "in", "ft"]
 UNIT_CHOICES: tuple[str, ...] = ("auto", *LENGTH_UNITS)
@@ -239,6 +241,8 @@ def _read_other(path: Path, data: bytes, src: str) -> tuple[np.ndarray, np.ndarr
     if declared > MAX_TRIANGLES:
         raise _too_many(src, declared, "faces")
     kind = suffix.lstrip(".").upper()
+    import trimesh
+
     log = logging.getLogger("trimesh")
     was_disabled, log.disabled = log.disabled, True
     try:
@@ -351,6 +355,75 @@ def _quiet(fn):
     return wrapper
 
 
+def _first_unique_rows(rows: np.ndarray, bound: int) -> np.ndarray:
+    """Index of the first occurrence of each distinct row of a non-negative (n, 3) int array whose
+    entries are < ``bound`` (= ``np.unique(rows, axis=0, return_index=True)[1]``, as a set)."""
+    if bound < (1 << 21):  # pack a row into one int64: a 1D sort instead of a row sort
+        key = (rows[:, 0] << 42) | (rows[:, 1] << 21) | rows[:, 2]
+        return np.unique(key, return_index=True)[1]
+    return np.unique(rows, axis=0, return_index=True)[1]
+
+
+def _row_hash(q: np.ndarray) -> np.ndarray:
+    """(n,) uint64 hash of the rows of an (n, 3) int64 array (splitmix64 finaliser, chained)."""
+    u = q.astype(np.uint64)
+
+    def mix(z):
+        z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+        z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+        return z ^ (z >> np.uint64(31))
+
+    with np.errstate(over="ignore"):
+        h = mix(u[:, 0] + np.uint64(0x9E3779B97F4A7C15))
+        h = mix(h ^ u[:, 1])
+        return mix(h ^ u[:, 2])
+
+
+def _group_rows(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(first, inverse)`` of the distinct rows of an (n, 3) int64 array: ``first`` (u,) the index
+    of each distinct row's first occurrence, in order of first occurrence; ``inverse`` (n,) the
+    position of each row's value in ``first``. Rows are sorted by a 64-bit hash (one 1D sort);
+    rows sharing a hash are verified equal (a hash collision falls back to a row sort)."""
+    n = len(q)
+    h = _row_hash(q)
+    perm = np.argsort(h, kind="stable")
+    hs = h[perm]
+    start = np.flatnonzero(np.r_[True, hs[1:] != hs[:-1]])
+    gid_sorted = np.cumsum(np.r_[False, hs[1:] != hs[:-1]])
+    qs = q[perm]
+    if not np.array_equal(qs, qs[start[gid_sorted]]):  # a hash collision: exact row sort instead
+        _, first, inv = np.unique(q, axis=0, return_index=True, return_inverse=True)
+        inv = inv.reshape(-1)
+    else:
+        first = perm[start]  # stable sort: the first member of a group is its first occurrence
+        inv = np.empty(n, dtype=np.int64)
+        inv[perm] = gid_sorted
+    order = np.argsort(first, kind="stable")  # distinct rows in order of first occurrence
+    rank = np.empty(len(order), dtype=np.int64)
+    rank[order] = np.arange(len(order))
+    return first[order], rank[inv]
+
+
+def merge_vertices(vertices: np.ndarray, faces: np.ndarray, referenced: np.ndarray, digits: int
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """``(vertices, faces)`` with the referenced vertices that are equal when rounded to ``digits``
+    decimals merged into their first occurrence; unreferenced vertices dropped; vertex order = order
+    of first occurrence (identical to ``trimesh.Trimesh.merge_vertices(merge_tex=True,
+    merge_norm=True, digits_vertex=digits)`` on a mesh without normals or texture)."""
+    ref = np.flatnonzero(referenced)
+    q = np.round(vertices[ref] * (10 ** digits)).astype(np.int64)
+    first, inv = _group_rows(q)
+    inverse = np.zeros(len(vertices), dtype=np.int64)
+    inverse[ref] = inv
+    return vertices[ref[first]], inverse[faces]
+
+
+def signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
+    """Signed volume of a closed triangle mesh (positive for outward normals)."""
+    t = vertices[faces]
+    return float(np.einsum("fi,fi->", t[:, 0], np.cross(t[:, 1], t[:, 2]))) / 6.0
+
+
 @_quiet
 def part_from_arrays(
     vertices: np.ndarray,
@@ -383,7 +456,9 @@ def part_from_arrays(
     if f.min() < 0 or f.max() >= len(v):
         raise MeshError(f"{src}: faces reference vertices that do not exist; the file is corrupt")
     f = f.astype(np.int64)
-    used = np.unique(f)
+    referenced = np.zeros(len(v), dtype=bool)
+    referenced[f.reshape(-1)] = True
+    used = np.flatnonzero(referenced)  # = np.unique(f), in O(n)
     vu = v[used]
     if not np.all(np.isfinite(vu)):
         bad = int((~np.isfinite(vu)).any(axis=1).sum())
@@ -411,12 +486,15 @@ def part_from_arrays(
     v_m = v * scale_to_m
     tol = Tolerance.for_mesh(v_m[used])
 
-    mesh = trimesh.Trimesh(vertices=v_m, faces=f, process=False, validate=False)
+    import trimesh
+
     n_faces_in, n_verts_in = len(f), len(v)
 
-    # 1. merge duplicate vertices (STL writes every vertex once per face)
+    # 1. merge duplicate vertices (STL writes every vertex once per face): vertices equal when
+    # rounded to ``digits`` decimals, kept in order of first use (as trimesh's merge_vertices)
     digits = int(max(0, np.floor(-np.log10(tol.merge))))
-    mesh.merge_vertices(merge_tex=True, merge_norm=True, digits_vertex=digits)
+    v_keep, f_merged = merge_vertices(v_m, f, referenced, digits)
+    mesh = trimesh.Trimesh(vertices=v_keep, faces=f_merged, process=False, validate=False)
     merged = n_verts_in - len(mesh.vertices)
 
     # 2. drop degenerate faces: repeated vertex index or (near) zero area
@@ -426,8 +504,7 @@ def part_from_arrays(
     degenerate = repeated | tiny
     # 3. drop duplicate faces (same three vertices, either winding)
     keep = ~degenerate
-    sorted_f = np.sort(fv, axis=1)
-    _, first = np.unique(sorted_f, axis=0, return_index=True)
+    first = _first_unique_rows(np.sort(fv, axis=1), len(mesh.vertices))
     unique_mask = np.zeros(len(fv), dtype=bool)
     unique_mask[first] = True
     duplicate = ~unique_mask & keep
@@ -449,7 +526,7 @@ def part_from_arrays(
     winding_fixed = not np.array_equal(before, mesh.faces)
     watertight = bool(mesh.is_watertight)
     inverted = False
-    if watertight and mesh.volume < 0:
+    if watertight and signed_volume(mesh.vertices, mesh.faces) < 0:
         mesh.invert()
         inverted = True
     bodies = int(mesh.body_count)

@@ -41,12 +41,12 @@ def thin_candidates(candidates: Candidates, *, spacing: float = GraspParams.defa
     (k,) int64, k <= n
     """
     n = len(candidates)
-    if n == 0 or spacing <= 0:
-        return np.arange(n, dtype=np.int64)
-    if not np.isfinite(spacing):
-        raise ValueError(f"spacing must be a finite length in metres, got {spacing!r}")
+    if not (np.isfinite(spacing) and spacing >= 0):
+        raise ValueError(f"spacing must be a finite length >= 0 in metres, got {spacing!r}")
     if not 0 < axis_step_deg <= 90:
         raise ValueError(f"axis_step_deg must be in (0, 90], got {axis_step_deg!r}")
+    if n == 0 or spacing == 0:
+        return np.arange(n, dtype=np.int64)
     centre = candidates.contacts.mean(axis=1)
     axis = candidates.contacts[:, 1] - candidates.contacts[:, 0]
     axis /= np.linalg.norm(axis, axis=1, keepdims=True)

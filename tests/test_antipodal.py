@@ -27,7 +27,7 @@ def _paper_result(name: str, blm: bool):
     key = (name, blm)
     if key not in _cache:
         part = load_part(paper_part(name))
-        _cache[key] = compute_candidates(part, CandidateParams(blm=blm))
+        _cache[key] = compute_candidates(part, CandidateParams(blm=blm, method="paper"))
     return _cache[key]
 
 
@@ -135,7 +135,7 @@ def test_blm_gain_on_sharp_paper_parts():
 
 def _box_result(blm=True):
     part = part_from_trimesh(trimesh.creation.box(extents=[0.030, 0.020, 0.010]))
-    return compute_candidates(part, CandidateParams(blm=blm))
+    return compute_candidates(part, CandidateParams(blm=blm, method="paper"))
 
 
 def test_box_candidates_across_every_face_pair():
@@ -193,14 +193,14 @@ def test_contact_placement_disjoint_triangles_friction_decides():
 @pytest.mark.parametrize("blm", [True, False], ids=["blm", "noblm"])
 def test_example_part_candidates(name, blm, example_part):
     part = load_part(example_part(name), units="mm")
-    check_candidates(compute_candidates(part, CandidateParams(blm=blm)))
+    check_candidates(compute_candidates(part, CandidateParams(blm=blm, method="paper")))
 
 
 def test_tless20_without_blm_fast(paper):
     # fast regression on a real part: touching projections of sliver triangles once gave an
     # "overlap centroid" outside one triangle (contacts 18 um off the surface)
     part = load_part(paper("TLess20.stl"))
-    check_candidates(compute_candidates(part, CandidateParams(blm=False)), sample=1294)
+    check_candidates(compute_candidates(part, CandidateParams(blm=False, method="paper")), sample=1294)
 
 
 def test_facing_each_other_is_rejected():

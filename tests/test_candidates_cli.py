@@ -40,8 +40,8 @@ def test_json_layout_and_values(tmp_path, example_part):
     contacts, normals = np.array(c["contacts"]), np.array(c["normals"])
     assert contacts.shape == (n, 2, 3) and normals.shape == (n, 2, 3) and len(c["width"]) == n
     assert np.array(c["faces"]).shape == (n, 2)
-    # the default method is the paper's face pairs: each face pair is its own region (-1)
-    assert d["params"]["method"] == "paper" and np.array_equal(c["region"], np.full(n, -1))
+    # the default method samples contact regions: every candidate names its region
+    assert d["params"]["method"] == "regions" and np.min(c["region"]) >= 0
     assert np.allclose(np.linalg.norm(contacts[:, 1] - contacts[:, 0], axis=1), c["width"])
     assert np.allclose(np.linalg.norm(normals, axis=2), 1.0)
     assert np.abs(contacts).max() < 0.1          # metres, not millimetres

@@ -213,10 +213,14 @@ def check_distinct_ranking(ranked: list[dict], plan_params: dict) -> None:
 
 
 def check_scores(doc: dict, mesh) -> None:
-    """The documented default score, recomputed from the file: (0.4 center + 0.4 top + 0.2 width)
-    with center = 1 - min(1, |TCP - centre of mass| / (half the bounding-box diagonal)),
-    top = max(0, -z_tcp . z_world), width = (max_opening - width) / max_opening."""
-    assert doc["plan_params"]["score_weights"] == [["center", 0.4], ["top", 0.4], ["width", 0.2]]
+    """The documented score (docs/quality.md), recomputed from the file: the weights
+    params.score_weights (from the packaged configs/scoring.yaml) over center = 1 - min(1, |TCP -
+    centre of mass| / (half the bounding-box diagonal)), top = max(0, -z_tcp . z_world),
+    width = (max_opening - width) / max_opening and the normalised gravity_margin / epsilon of each
+    grasp's quality object."""
+    assert doc["plan_params"]["score_weights"] is None  # the plan uses the grasp stage's score
+    weights = dict(doc["params"]["score_weights"])
+    refs = dict(doc["params"]["score_refs"])
     ranked = [g for g in doc["grasps"] if g["rank"] is not None]
     assert ranked
     T = np.array([g["T_part_tcp"] for g in ranked])
@@ -224,12 +228,17 @@ def check_scores(doc: dict, mesh) -> None:
     T_world_part = np.asarray(doc["part"]["T_world_part"])
     assert mesh.is_watertight
     com = np.asarray(mesh.center_mass)
+    np.testing.assert_allclose(doc["part"]["com"], com, atol=1e-9)
     r = 0.5 * np.linalg.norm(mesh.bounds[1] - mesh.bounds[0])
-    center = 1.0 - np.minimum(1.0, np.linalg.norm(T[:, :3, 3] - com, axis=1) / r)
-    top = np.maximum(0.0, -(T[:, :3, 2] @ T_world_part[:3, :3].T)[:, 2])
     mo = float(doc["gripper"]["max_opening"])
-    width = (mo - w) / mo
-    expected = 0.4 * center + 0.4 * top + 0.2 * width
+    gm = np.array([g["quality"]["gravity_margin"] for g in ranked])
+    eps = np.array([g["quality"]["epsilon"] for g in ranked])
+    terms = {"center": 1.0 - np.minimum(1.0, np.linalg.norm(T[:, :3, 3] - com, axis=1) / r),
+             "top": np.maximum(0.0, -(T[:, :3, 2] @ T_world_part[:3, :3].T)[:, 2]),
+             "width": (mo - w) / mo,
+             "gravity_margin": np.clip(np.log(gm) / np.log(refs["gravity_margin_ref"]), 0.0, 1.0),
+             "epsilon": np.clip(eps / refs["epsilon_ref"], 0.0, 1.0)}
+    expected = sum(v * terms[k] for k, v in weights.items()) / sum(weights.values())
     np.testing.assert_allclose([g["score"] for g in ranked], expected, atol=1e-7)
 
 
