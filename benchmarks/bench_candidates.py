@@ -88,17 +88,18 @@ print(json.dumps({"imports": t_import, "load": t_load, **{k: r.timing_s[k] for k
 """
 
 
-#: runs the command line in this interpreter and reports the process's own peak RSS last on stderr
-#: (``wait4`` of a forked child would count the parent's pages copied before exec)
+#: runs the command line in a fresh interpreter and reports its peak RSS (VmHWM of its own address
+#: space) last on stderr; ru_maxrss would also count the parent's pages from before exec
 _CLI = r"""
-import resource, sys
+import sys
 from grasplan.cli import main
 try:
     main(sys.argv[1:], prog_name="grasplan")
     rc = 0
 except SystemExit as e:
     rc = e.code if isinstance(e.code, int) else (0 if e.code is None else 1)
-sys.stderr.write("\nRSS_KIB %d\n" % resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+hwm = [ln.split()[1] for ln in open("/proc/self/status") if ln.startswith("VmHWM:")]
+sys.stderr.write("\nRSS_KIB %s\n" % (hwm[0] if hwm else "nan"))
 sys.exit(rc)
 """
 
@@ -107,10 +108,10 @@ def _wall_rss(args: list[str]) -> tuple[float, int, float]:
     """(wall s, exit code, peak RSS MiB) of ``grasplan *args`` in a fresh interpreter."""
     t = time.perf_counter()
     p = subprocess.run([sys.executable, "-c", _CLI, *args], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                       text=True, cwd=ROOT)
+                       text=True, cwd=ROOT, check=False)
     dt = time.perf_counter() - t
     rss = [ln for ln in p.stderr.splitlines() if ln.startswith("RSS_KIB ")]
-    return dt, p.returncode, (int(rss[-1].split()[1]) / 1024 if rss else float("nan"))
+    return dt, p.returncode, float(rss[-1].split()[1]) / 1024 if rss else float("nan")
 
 
 def bench_issue_sizes(runs: int) -> bool:
@@ -125,7 +126,7 @@ def bench_issue_sizes(runs: int) -> bool:
             wall = statistics.median(r[0] for r in res)
             rss = max(r[2] for r in res)
             w = subprocess.run([sys.executable, "-c", _WORKER, str(path), str(out)], capture_output=True, text=True,
-                               cwd=ROOT)
+                               cwd=ROOT, check=False)
             info = json.loads(w.stdout.strip().splitlines()[-1]) if w.returncode == 0 else {}
             met = wall < target and rss < TARGET_RSS_MIB and all(r[1] == 0 for r in res)
             ok &= met

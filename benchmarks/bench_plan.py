@@ -50,7 +50,7 @@ def _table(rows, header):
 
 # -- 1. in-process plan(), one fresh process per run ------------------------------------------------
 _WORKER = r"""
-import json, resource, sys, time
+import json, sys, time
 t0 = time.perf_counter()
 from grasplan.planning import plan
 from grasplan.mesh import load_part
@@ -70,7 +70,8 @@ timing = dict(res.timing_s)
 timing["load"] = t_load
 print(json.dumps({"import": t_import, "plan": t_plan, "plan_again": t_plan2, "timing": timing,
                   "planned": int((st == "planned").sum()), "poses": int(len(st)),
-                  "rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+                  "rss_mib": float([ln.split()[1] for ln in open("/proc/self/status")
+                                    if ln.startswith("VmHWM:")][0]) / 1024}))
 """
 
 
@@ -79,7 +80,8 @@ def bench_inprocess(parts: list[Path], runs: int) -> list[tuple]:
     for path in parts:
         out = []
         for _ in range(runs):
-            p = subprocess.run([sys.executable, "-c", _WORKER, str(path)], capture_output=True, text=True, cwd=ROOT)
+            p = subprocess.run([sys.executable, "-c", _WORKER, str(path)], capture_output=True, text=True, cwd=ROOT,
+                               check=False)
             if p.returncode:
                 print(f"  {path.name}: worker failed: {p.stderr.strip().splitlines()[-1:]}", file=sys.stderr)
                 break
@@ -101,17 +103,18 @@ def bench_inprocess(parts: list[Path], runs: int) -> list[tuple]:
 
 
 # -- 2. the command line, wall time --------------------------------------------------------------------
-#: runs the command line in this interpreter and reports the process's own peak RSS last on stderr
-#: (``wait4`` of a forked child would count the parent's pages copied before exec)
+#: runs the command line in a fresh interpreter and reports its peak RSS (VmHWM of its own address
+#: space) last on stderr; ru_maxrss would also count the parent's pages from before exec
 _CLI = r"""
-import resource, sys
+import sys
 from grasplan.cli import main
 try:
     main(sys.argv[1:], prog_name="grasplan")
     rc = 0
 except SystemExit as e:
     rc = e.code if isinstance(e.code, int) else (0 if e.code is None else 1)
-sys.stderr.write("\nRSS_KIB %d\n" % resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+hwm = [ln.split()[1] for ln in open("/proc/self/status") if ln.startswith("VmHWM:")]
+sys.stderr.write("\nRSS_KIB %s\n" % (hwm[0] if hwm else "nan"))
 sys.exit(rc)
 """
 
@@ -120,10 +123,10 @@ def _run_cli(args: list[str]) -> tuple[float, int, float]:
     """(wall s, exit code, peak RSS MiB) of ``grasplan *args`` in a fresh interpreter."""
     t = time.perf_counter()
     p = subprocess.run([sys.executable, "-c", _CLI, *args], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                       text=True, cwd=ROOT)
+                       text=True, cwd=ROOT, check=False)
     dt = time.perf_counter() - t
     rss = [ln for ln in p.stderr.splitlines() if ln.startswith("RSS_KIB ")]
-    return dt, p.returncode, (int(rss[-1].split()[1]) / 1024 if rss else float("nan"))
+    return dt, p.returncode, float(rss[-1].split()[1]) / 1024 if rss else float("nan")
 
 
 def bench_cli(parts: list[Path], runs: int) -> tuple[list[tuple], bool]:
