@@ -52,6 +52,9 @@ class GraspResult:
     quality_note: str = ""
     #: (M,) grasp-stage reason per pose ("grasp stage: gripper:finger_left hits obstacle:wall ..."; "" for ok)
     reasons: np.ndarray | None = None
+    #: rank-order evaluation (``compute_grasps(..., lazy=True)``): the :class:`LazyGrasps` that checks
+    #: poses on demand; ``status`` is ``not_checked`` for the poses it has not checked
+    lazy: object = None
 
     @property
     def width(self) -> np.ndarray:
@@ -74,6 +77,10 @@ class GraspResult:
         if region is not None and len(region):
             out["regions"] = int(len(np.unique(region[region >= 0])))
         out.update({s: int(np.count_nonzero(st == s)) for s in STATUSES})
+        n_unchecked = int(np.count_nonzero(st == "not_checked"))
+        if n_unchecked:
+            out["checked"] = int(len(st)) - n_unchecked
+            out["not_checked"] = n_unchecked
         return out
 
     def table(self) -> GraspTable:
@@ -105,7 +112,8 @@ class GraspResult:
         rec = PartRecord(path=part.path, sha256=part.sha256, scale_to_m=part.scale_to_m, triangles=part.triangles,
                          T_world_part=np.asarray(self.T_world_part, dtype=np.float64))
         counts = self.counts()
-        stage = {k: counts[k] for k in ("candidates", "posed_candidates", "poses", "regions") if k in counts}
+        stage = {k: counts[k] for k in ("candidates", "posed_candidates", "poses", "regions", "checked")
+                 if k in counts}
         return PlanResult(part=rec, gripper=self.gripper, cell=self.cell, robot=None, grasps=self.table(),
                           params=Params(self.cand.params, self.params), counts_stage=stage,
                           timing_s=dict(self.timing_s), part_pose_source=self.part_pose_source,
@@ -117,6 +125,12 @@ class GraspResult:
         return self.to_result().to_json(only_ok=only_ok)
 
 
+#: poses collision-checked and scored per step of the rank-order evaluation
+LAZY_CHUNK = 2000
+#: added to every score upper bound (float rounding of the two ways of summing the terms)
+_BOUND_SLACK = 1e-9
+
+
 def compute_grasps(
     part: Part,
     *,
@@ -126,6 +140,8 @@ def compute_grasps(
     grasps: GraspParams = GraspParams(),
     T_world_part: np.ndarray | None = None,
     load_s: float = 0.0,
+    lazy: bool = False,
+    chunk: int = LAZY_CHUNK,
 ) -> GraspResult:
     """Candidates, TCP poses every ``grasps.roll_step_deg`` about each closing axis, and the
     collision status of each pose against the part and the cell's table.
@@ -140,6 +156,10 @@ def compute_grasps(
     ``grasps.thin_spacing`` (m; 0 = off) poses one candidate per cluster of
     :func:`grasplan.thinning.thin_candidates`; ``grasps.merge_distance`` (m; 0 = off) additionally
     skips a candidate whose two contacts fall in the same grid cells as an earlier candidate's.
+
+    ``lazy=True`` (``grasplan plan`` without ``--check-all``) checks nothing yet: every pose is
+    ``not_checked`` and ``result.lazy`` (a :class:`LazyGrasps`) collision-checks and scores them in
+    chunks of ``chunk`` poses in the order of their score bound as the planner asks for grasps.
     """
     g = load_gripper(gripper)
     c = load_cell(cell)
@@ -177,6 +197,11 @@ def compute_grasps(
 
     t = time.perf_counter()
     collider = GripperCollider(part.mesh, g, c, T)
+    if lazy:
+        timing["collision"] = time.perf_counter() - t
+        ev = LazyGrasps(part=part, gripper=g, cell=c, T_world_part=T, cand=cand, frames=frames, params=grasps,
+                        mu=candidates.mu, collider=collider, timing=timing, source=source, chunk=chunk)
+        return ev.result()
     status, hit_elem, hit_body = collider.check_detail(frames.T_part_tcp, cand.candidates.width[frames.candidate])
     reasons = collider.reasons(status, hit_elem, hit_body)
     timing["collision"] = time.perf_counter() - t
@@ -191,3 +216,154 @@ def compute_grasps(
                        timing_s=timing, part_pose_source=source, quality=quality, mass_props=mass_props, score=score,
                        quality_note=note,
                        reasons=reasons)
+
+
+def _concat_quality(parts: list, order: np.ndarray):
+    """One :class:`grasplan.quality.Quality` of the rows of ``parts`` (in order), permuted by ``order``."""
+    from .quality import Quality
+
+    if not parts:
+        return None
+    cat = {k: np.concatenate([getattr(q, k) for q in parts])[order]
+           for k in ("contact_area", "contact_type", "contact_width", "gravity_margin", "epsilon")}
+    return Quality(**cat, grip_force=parts[0].grip_force, mu=parts[0].mu)
+
+
+class LazyGrasps:
+    """Rank-order, chunked evaluation of the grasp stage (``grasplan plan`` without ``--check-all``).
+
+    The cheap score terms (every term but :data:`grasplan.scoring.PHYSICAL_TERMS`) are computed for
+    every pose; the physical terms lie in [0, 1], so ``(cheap + sum of the physical weights) /
+    sum of the weights`` is an upper bound ``ub`` of each pose's score (also of the score without
+    quality when the part has no mass). Poses are collision-checked and their quality computed in
+    chunks of ``chunk`` in order of ``ub`` (ties by id). :meth:`ranked` yields the collision-free
+    poses in the order of the full computation's distinct ranking, checking the next chunk whenever
+    the next exact candidate is not certainly ahead of every unchecked pose. Mutable: one per plan.
+    """
+
+    def __init__(self, *, part, gripper, cell, T_world_part, cand, frames, params, mu, collider, timing, source,
+                 chunk: int = LAZY_CHUNK):
+        from .scoring import PHYSICAL_TERMS, ScoringConfig, score_grasps
+
+        self.part, self.gripper, self.cell, self.T = part, gripper, cell, T_world_part
+        self.cand, self.frames, self.params, self.mu = cand, frames, params, float(mu)
+        self.collider, self.timing, self.source, self.chunk = collider, timing, source, max(1, int(chunk))
+        M = len(frames.candidate)
+        self.M = M
+        self.width = np.asarray(cand.candidates.width, dtype=np.float64)[frames.candidate]
+        self.T_part_tcp = np.asarray(frames.T_part_tcp, dtype=np.float64).reshape(M, 4, 4)
+        cfg = ScoringConfig.from_params(params.score_weights, params.score_refs)
+        total = sum(w for _, w in cfg.weights)
+        cheap_w = tuple((n, w) for n, w in cfg.weights if n not in PHYSICAL_TERMS and w)
+        phys = sum(w for n, w in cfg.weights if n in PHYSICAL_TERMS)
+        cheap_total = sum(w for _, w in cheap_w)
+        t = time.perf_counter()
+        cheap = (score_grasps(part.mesh, T_world_part, self.T_part_tcp, self.width, float(gripper.max_opening),
+                              cheap_w, scoring=cfg) * (cheap_total / total) if cheap_total > 0 and M
+                 else np.zeros(M))
+        #: (M,) upper bound of each pose's score
+        self.ub = cheap + phys / total + _BOUND_SLACK if total > 0 else np.full(M, np.inf)
+        self.timing["score_bound"] = time.perf_counter() - t
+        self.queue = np.lexsort((np.arange(M), -self.ub)).astype(np.int64)  # check order
+        self.pos = 0
+        self.status = np.full(M, "not_checked", dtype="<U18")
+        self.reasons = np.full(M, "", dtype=object)
+        self.score = np.full(M, np.nan)
+        self._q_parts: list = []
+        self._q_rows: list = []
+        self.mass_props = None
+        self.note = ""
+        self.timing.setdefault("collision", 0.0)
+        self.timing["quality"] = 0.0
+        self._order = np.zeros(0, dtype=np.int64)
+        self._order_key = None
+        self._n_distinct = 0
+
+    # -- state -------------------------------------------------------------------------------------
+    @property
+    def checked(self) -> int:
+        return self.pos
+
+    @property
+    def done(self) -> bool:
+        return self.pos >= self.M
+
+    def bound(self) -> float:
+        """The best upper bound among the unchecked poses (-inf when every pose is checked)."""
+        return float(self.ub[self.queue[self.pos]]) if self.pos < self.M else -np.inf
+
+    def check_next(self) -> int:
+        """Collision-check and score the next chunk in bound order; returns how many were checked."""
+        from .quality import quality_and_score
+
+        idx = self.queue[self.pos: self.pos + self.chunk]
+        if not len(idx):
+            return 0
+        t = time.perf_counter()
+        st, elem, body = self.collider.check_detail(self.T_part_tcp[idx], self.width[idx])
+        self.status[idx] = st
+        self.reasons[idx] = self.collider.reasons(st, elem, body)
+        self.timing["collision"] += time.perf_counter() - t
+        t = time.perf_counter()
+        q, mp, sc, note = quality_and_score(self.part.mesh, self.gripper, self.T, self.T_part_tcp[idx],
+                                            self.frames.candidate[idx], self.cand.candidates, st, self.mu, self.params)
+        self.score[idx] = sc
+        if q is not None:
+            self._q_parts.append(q)
+            self._q_rows.append(idx[np.asarray(st).astype(str) == "ok"])
+        self.mass_props = mp if mp is not None else self.mass_props
+        self.note = note or self.note
+        self.timing["quality"] += time.perf_counter() - t
+        self.pos += len(idx)
+        return len(idx)
+
+    def check_all(self) -> None:
+        while not self.done:
+            self.check_next()
+
+    # -- ranking -----------------------------------------------------------------------------------
+    def order(self, min_distance: float, min_angle_deg: float) -> tuple[np.ndarray, int]:
+        """``(order, n_certain)``: the distinct ranking of the checked ``ok`` poses (as
+        :func:`grasplan.scoring.distinct_order`) and how many of its leading entries are certainly
+        the full computation's (their score is above every unchecked pose's bound; all of them
+        once every pose is checked)."""
+        from .scoring import distinct_order
+
+        key = (self.pos, min_distance, min_angle_deg)
+        if key != self._order_key:
+            ok = np.flatnonzero(self.status == "ok")
+            order = ok[np.lexsort((ok, -self.score[ok]))] if len(ok) else ok
+            self._order, self._n_distinct = distinct_order(self.T_part_tcp, order, min_distance=min_distance,
+                                                           min_angle_deg=min_angle_deg, return_count=True)
+            self._order_key = key
+        order = self._order
+        if self.done:
+            return order, len(order)
+        # certain: the leading distinct grasps (score order) with a score above every unchecked
+        # pose's bound; duplicates go behind every distinct grasp, so they wait for the last chunk
+        s = self.score[order[: self._n_distinct]]
+        return order, int(np.count_nonzero(s > self.bound()))
+
+    def ranked(self, min_distance: float = 0.005, min_angle_deg: float = 15.0):
+        """Generator of pose indices in the full computation's rank order (checking chunks as needed)."""
+        k = 0
+        while True:
+            order, n = self.order(min_distance, min_angle_deg)
+            if k < n:
+                yield int(order[k])
+                k += 1
+                continue
+            if self.done:
+                return
+            self.check_next()
+
+    # -- the grasp result ----------------------------------------------------------------------------
+    def result(self) -> GraspResult:
+        """The :class:`GraspResult` of the poses checked so far (``not_checked`` for the others)."""
+        rows = np.concatenate(self._q_rows) if self._q_rows else np.zeros(0, dtype=np.int64)
+        perm = np.argsort(rows, kind="stable")
+        return GraspResult(cand=self.cand, gripper=self.gripper, cell=self.cell, T_world_part=self.T,
+                           frames=self.frames, status=self.status.copy(), params=self.params,
+                           timing_s=dict(self.timing), part_pose_source=self.source,
+                           quality=_concat_quality(self._q_parts, perm), mass_props=self.mass_props,
+                           score=self.score.copy(), quality_note=self.note, reasons=self.reasons.copy(), lazy=self)

@@ -226,6 +226,9 @@ class PlanParams(_Params):
                                                                 "(GraspParams.score_weights, the scoring YAML).")
     simulate: int = spec(0, "int", "After planning, simulate the top N planned grasps (MuJoCo lift and shake, "
                          "grasplan simulate) and rank those that held first; 0 = off.", lo=0, hi=1000)
+    check_all: bool = spec(True, "bool", "Collision-check and score every pose before planning; --no-check-all: "
+                           "only the poses whose score bound can reach the planned ranks, the rest are not_checked "
+                           "(docs/plan.md).", flag="--check-all/--no-check-all")
 
     def _check(self) -> None:
         if self.score_weights is not None:

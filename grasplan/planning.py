@@ -64,7 +64,7 @@ def _translate_z(d: float) -> np.ndarray:
 
 
 def plan_grasps(grasps, robot, scene, *, params: PlanParams = PlanParams(),
-                progress: Callable[[dict], None] | None = None):
+                progress: Callable[[dict], None] | None = None, ranked=None):
     """Plan the ranked ``ok`` grasps of ``grasps`` (a GraspResult) for ``robot`` in ``scene``.
 
     Returns ``(status, score, rank, reason, motions, timing_s)``: (M,) arrays, ``{id: Motion}``
@@ -78,6 +78,12 @@ def plan_grasps(grasps, robot, scene, *, params: PlanParams = PlanParams(),
 
     t_all = time.perf_counter()
     timing = {"ik": 0.0, "approach": 0.0, "joint_path": 0.0, "lift": 0.0, "place": 0.0, "transfer": 0.0}
+    lazy = getattr(grasps, "lazy", None)
+    if lazy is not None and params.score_weights is None and not params.check_all:
+        return _plan_lazy(grasps, robot, scene, params=params, progress=progress, timing=timing, t_all=t_all)
+    if lazy is not None:  # other weights or --check-all: check every pose first
+        lazy.check_all()
+        grasps = lazy.result()
     status_in = np.asarray(grasps.status).astype(str)
     M = len(status_in)
     frames = grasps.frames
@@ -128,7 +134,8 @@ def plan_grasps(grasps, robot, scene, *, params: PlanParams = PlanParams(),
     T_place = None if T_place is None else np.asarray(T_place, dtype=np.float64)
     scene_released = scene.with_part_at(T_place) if T_place is not None else None
     planned = tried = 0
-    for i in order:
+    n_candidates = len(order)
+    for i in (order if ranked is None else ranked):
         if planned >= params.top:
             break
         if params.budget_s is not None and time.perf_counter() - t_all > params.budget_s:
@@ -263,10 +270,58 @@ def plan_grasps(grasps, robot, scene, *, params: PlanParams = PlanParams(),
                     e["status"], e["reason"] = "unreachable", detail
         status[i], reason[i] = e["status"], e["reason"]
         if progress is not None:
-            progress({"tried": tried, "planned": planned, "top": params.top, "candidates": len(order),
+            progress({"tried": tried, "planned": planned, "top": params.top, "candidates": n_candidates,
                       "id": int(i), "status": e["status"]})
     timing["plan"] = time.perf_counter() - t_all
     return status, scores, rank, reason, motions, timing
+
+
+def _plan_lazy(grasps, robot, scene, *, params: PlanParams, progress, timing: dict, t_all: float):
+    """:func:`plan_grasps` with the rank-order evaluation of :class:`grasplan.grasps.LazyGrasps`:
+    the planning loop takes the grasps in the full ranking's order, checking chunks of poses only
+    while an unchecked pose could still rank ahead. Returns what :func:`plan_grasps` returns plus
+    the final :class:`grasplan.grasps.GraspResult` (unchecked poses ``not_checked``)."""
+    lazy = grasps.lazy
+    it = lazy.ranked(params.distinct_distance, params.distinct_angle_deg)
+    tried: list[int] = []
+
+    def gen():
+        for i in it:
+            tried.append(i)
+            yield i
+
+    # the loop below writes into the arrays of plan_grasps; run it on a placeholder and re-apply
+    from dataclasses import replace
+
+    sub = plan_grasps(replace(lazy.result(), lazy=None), robot, scene, params=params, progress=progress,
+                      ranked=gen())
+    st_t, _, _, reason_t, motions, timing_t = sub
+    timing.update(timing_t)
+    final = lazy.result()
+    status_in = np.asarray(final.status).astype(str)
+    M = len(status_in)
+    scores = np.where(status_in == "ok", np.asarray(final.score, dtype=np.float64), np.nan)
+    order, n = lazy.order(params.distinct_distance, params.distinct_angle_deg)
+    rank = np.full(M, -1, dtype=np.int64)
+    rank[order[:n]] = np.arange(n)
+    status = np.where(status_in == "ok", "not_tried", status_in).astype(object)
+    reason = np.asarray(final.reasons, dtype=object).copy()
+    ok = status_in == "ok"
+    reason[ok] = "not tried: beyond the top K or the planning budget"
+    bound = lazy.bound()
+    unchecked = status_in == "not_checked"
+    best = np.nanmax(scores[order[:n]]) if n else float("nan")
+    floor = float(scores[order[n - 1]]) if n else float("nan")
+    reason[unchecked] = (f"not checked: ranked below the planned grasps (the upper bound of its score is below "
+                         f"{bound:.6g}, the best unchecked bound, <= the ranked grasps' scores {floor:.6g}..{best:.6g}); "
+                         f"--check-all checks every pose")
+    tried_a = np.asarray(tried, dtype=np.int64)  # pulled from the ranking; the last one may not be tried
+    tried_a = tried_a[np.asarray(st_t, dtype=object)[tried_a] != "not_checked"] if len(tried_a) else tried_a
+    status[tried_a] = st_t[tried_a]
+    reason[tried_a] = reason_t[tried_a]
+    timing["plan"] = time.perf_counter() - t_all
+    return status, scores, rank, reason, motions, timing, final
+
 
 
 def plan(
@@ -339,14 +394,18 @@ def plan(
     T_start = T_world_part if T_world_part is not None else stable_pose(
         part.mesh, c if grasps.pose_index is None else _replace(c, pose_index=grasps.pose_index))
     check_start(CollisionScene(rob, g, part.mesh, T_start, c), part_mesh=part.mesh)
+    lazy = not planning.check_all and planning.score_weights is None
     gr = compute_grasps(part, gripper=g, cell=c, candidates=candidates, grasps=grasps, T_world_part=T_world_part,
-                        load_s=load_s)
+                        load_s=load_s, lazy=lazy)
     if progress is not None:
         progress({"stage": "grasps", "counts": gr.counts()})
     t = time.perf_counter()
     scene = CollisionScene(rob, gr.gripper, part.mesh, gr.T_world_part, gr.cell)
     t_robot += time.perf_counter() - t
-    status, score, rank, reason, motions, timing = plan_grasps(gr, rob, scene, params=planning, progress=progress)
+    out = plan_grasps(gr, rob, scene, params=planning, progress=progress)
+    status, score, rank, reason, motions, timing = out[:6]
+    if len(out) > 6:  # rank-order evaluation: the poses checked while planning
+        gr = out[6]
     base = gr.to_result()
     result = PlanResult(part=base.part, gripper=gr.gripper, cell=gr.cell, robot=rob,
                         grasps=base.grasps.with_plan(status, score, rank, reason), motions=motions,

@@ -30,7 +30,9 @@ SCHEMAS = (GRASPS_SCHEMA, PLAN_SCHEMA)
 
 class Status(str, enum.Enum):
     """Per-grasp status: the grasp stage gives ``ok`` / ``collision_*``; the plan stage splits
-    ``ok`` into ``planned``, ``unreachable``, ``ik_collision``, ``no_path`` and ``not_tried``."""
+    ``ok`` into ``planned``, ``unreachable``, ``ik_collision``, ``no_path`` and ``not_tried``;
+    ``not_checked``: the plan's rank-order evaluation never collision-checked the pose (its score
+    bound is below the planned ranks; ``--check-all`` checks every pose)."""
 
     OK = "ok"
     PLANNED = "planned"
@@ -43,6 +45,7 @@ class Status(str, enum.Enum):
     PLACE_UNREACHABLE = "place_unreachable"
     PLACE_NO_PATH = "place_no_path"
     NOT_TRIED = "not_tried"
+    NOT_CHECKED = "not_checked"
 
 
 #: statuses of the grasp stage (``grasplan.grasps/1``)
@@ -51,7 +54,7 @@ GRASP_STATUSES: tuple[str, ...] = (Status.OK.value, Status.COLLISION_PART.value,
 #: statuses of the plan stage (``grasplan.plan/1``), in report order
 PLAN_STATUSES: tuple[str, ...] = tuple(s.value for s in (
     Status.PLANNED, Status.COLLISION_PART, Status.COLLISION_TABLE, Status.COLLISION_OBSTACLE, Status.UNREACHABLE, Status.IK_COLLISION,
-    Status.NO_PATH, Status.PLACE_UNREACHABLE, Status.PLACE_NO_PATH, Status.NOT_TRIED))
+    Status.NO_PATH, Status.PLACE_UNREACHABLE, Status.PLACE_NO_PATH, Status.NOT_TRIED, Status.NOT_CHECKED))
 
 
 @dataclass(frozen=True)

@@ -222,14 +222,15 @@ def score_grasps(part_mesh, T_world_part, T_part_tcp, width, max_opening: float,
 
 
 def distinct_order(T_part_tcp: np.ndarray, order: np.ndarray, *, min_distance: float = 0.005,
-                   min_angle_deg: float = 15.0) -> np.ndarray:
+                   min_angle_deg: float = 15.0, return_count: bool = False):
     """Reorder ``order`` (best first) so that no two of the leading grasps are within
     ``min_distance`` (TCP origins) **and** ``min_angle_deg`` (relative rotation of the TCP frames)
     of each other while distinct grasps remain: a near-duplicate of an already chosen grasp moves
-    behind every distinct one (keeping its relative order). ``min_distance = 0`` keeps ``order``."""
+    behind every distinct one (keeping its relative order). ``min_distance = 0`` keeps ``order``.
+    ``return_count``: return ``(order, number of distinct grasps)`` (they lead the order)."""
     order = np.asarray(order, dtype=np.int64)
     if min_distance <= 0 or len(order) < 2:
-        return order
+        return (order, len(order)) if return_count else order
     from scipy.spatial import cKDTree
 
     T = np.asarray(T_part_tcp, dtype=np.float64)[order]
@@ -251,7 +252,8 @@ def distinct_order(T_part_tcp: np.ndarray, order: np.ndarray, *, min_distance: f
             tr = np.einsum("ij,nij->n", R[k], R[nb])
             close = (tr - 1.0) / 2.0 >= cos_min - 1e-9  # a roll of exactly the angle counts as close
             dup[nb[close]] = True
-    return np.concatenate([order[chosen], order[dup]])
+    out = np.concatenate([order[chosen], order[dup]])
+    return (out, int(np.count_nonzero(chosen))) if return_count else out
 
 
 def with_scoring_file(grasp_params, path):

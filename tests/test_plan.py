@@ -17,7 +17,7 @@ STEP = 0.01
 BACKOFF = 0.05
 MAX_DEV = 0.002
 STATUSES = {"planned", "collision_part", "collision_table", "collision_obstacle", "unreachable", "ik_collision",
-            "no_path", "place_unreachable", "place_no_path", "not_tried"}
+            "no_path", "place_unreachable", "place_no_path", "not_tried", "not_checked"}
 
 
 def test_plan_statuses_are_the_documented_ones():

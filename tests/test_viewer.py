@@ -25,6 +25,7 @@ from grasplan.errors import InputError
 from grasplan.mesh import load_part
 from grasplan.result import load_result
 from grasplan.viewer import (
+    OTHER_COLOR,
     STATUS_COLORS,
     build_data,
     build_html,
@@ -740,3 +741,13 @@ def test_browser_shows_quality_and_sim(tmp_path):
     assert "gravity margin 1.75" in panel and "epsilon 0.0123" in panel, panel
     assert "surface 25.0 mm" in panel and "line 1.0 mm" in panel, panel
     assert "sim: held" in panel and "slip 0.4 mm" in panel and "turn 1.5" in panel, panel
+
+
+def test_every_status_has_its_own_colour():
+    """Each grasp status the pipeline can write is drawn in a colour of its own."""
+    from grasplan.result import GRASP_STATUSES, PLAN_STATUSES
+
+    statuses = set(PLAN_STATUSES) | set(GRASP_STATUSES)
+    assert statuses <= set(STATUS_COLORS), sorted(statuses - set(STATUS_COLORS))
+    colours = [STATUS_COLORS[s] for s in statuses]
+    assert len(set(colours)) == len(colours) and OTHER_COLOR not in colours

@@ -47,11 +47,15 @@ STATUS_COLORS: dict[str, str] = {
     "planned": "#00c853",
     "ok": "#2e9d3a",
     "not_tried": "#9e9e9e",
+    "not_checked": "#cfd8dc",
     "no_path": "#ab47bc",
     "ik_collision": "#ffb300",
     "unreachable": "#fb8c00",
     "collision_part": "#e53935",
     "collision_table": "#1e88e5",
+    "collision_obstacle": "#6d4c41",
+    "place_unreachable": "#f4511e",
+    "place_no_path": "#8e24aa",
 }
 STATUS_ORDER = tuple(STATUS_COLORS)
 OTHER_COLOR = "#607d8b"
