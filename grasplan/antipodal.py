@@ -34,13 +34,14 @@ then run vectorised on those pairs only. The cost is ``O(m log m + k)`` for k pr
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
-import trimesh
-from scipy.spatial import cKDTree
 
 from .tolerance import Tolerance
+
+if TYPE_CHECKING:  # trimesh (and scipy) load with the first mesh; importing this module stays cheap
+    import trimesh
 
 
 @dataclass(frozen=True)
@@ -266,6 +267,8 @@ def stream_pairs(c: np.ndarray, n: np.ndarray, lateral: np.ndarray, *, reach: fl
     nh = n @ h
     delta = cb * 1.01
     inA, inB = nh >= -delta, nh <= delta
+    from scipy.spatial import cKDTree
+
     band = ~(inA ^ inB)
     classes = np.unique(cls)
     lat_max = {int(q): float(lat[cls == q].max()) for q in classes}

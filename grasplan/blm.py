@@ -59,15 +59,16 @@ Everything per face is NumPy array work; there is no Python loop over faces.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
-import trimesh
-from scipy.sparse import coo_matrix, csr_matrix
-from scipy.sparse.csgraph import connected_components
 
 from .convexity import edge_adjacency
 from .errors import InputError, MeshError
 from .tolerance import Tolerance
+
+if TYPE_CHECKING:  # trimesh (and scipy) load with the first mesh; importing this module stays cheap
+    import trimesh
 
 #: sin(theta) floor for the shift s = alpha / sin(theta): s <= 2 alpha at near-tangent/knife edges
 SIN_FLOOR = 0.5
@@ -141,6 +142,9 @@ def _components(n: int, pairs: np.ndarray) -> np.ndarray:
     """Connected-component label (n,) of an undirected graph given as (k, 2) pairs."""
     if len(pairs) == 0:
         return np.arange(n, dtype=np.int64)
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
     g = coo_matrix((np.ones(len(pairs), dtype=np.int8), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
     return connected_components(g, directed=False)[1].astype(np.int64)
 
@@ -210,6 +214,8 @@ def cluster_surfaces(mesh: trimesh.Trimesh, *, gamma_deg: float = 135.0, tol: To
         # facet graph over smooth edges, restricted to wide regions
         fa = facet[adj[smooth]]
         fa = fa[(fa[:, 0] != fa[:, 1]) & ~nar[fa[:, 0]]]
+        from scipy.sparse import csr_matrix
+
         g = csr_matrix(
             (np.ones(2 * len(fa), dtype=np.int8), (np.r_[fa[:, 0], fa[:, 1]], np.r_[fa[:, 1], fa[:, 0]])),
             shape=(nf, nf),
@@ -372,6 +378,8 @@ def boundary_layer(
     out_V = np.concatenate([V, new_V])
     parent = np.concatenate([kept, sub_parent]).astype(np.int64)
     strip = np.concatenate([kept_strip[kept], sub_strip])
+    import trimesh
+
     out = trimesh.Trimesh(vertices=out_V, faces=out_F, face_normals=normals[parent], process=False, validate=False)
     return BLMResult(
         mesh=out,

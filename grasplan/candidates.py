@@ -7,15 +7,18 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
-import trimesh
 
 from .antipodal import Candidates, find_candidates
 from .blm import BLMResult, boundary_layer
 from .convexity import classify_convexity
 from .mesh import Part
 from .params import DEFAULT_MAX_OPENING, CandidateParams
+
+if TYPE_CHECKING:  # trimesh (and scipy) load with the first mesh; importing this module stays cheap
+    import trimesh
 
 SCHEMA = "grasplan.candidates/1"
 @dataclass(frozen=True)

@@ -38,13 +38,16 @@ contributes the partners trimesh reports (none for a boundary edge).
 """
 from __future__ import annotations
 
-from typing import Literal
+import hashlib
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
-import scipy.sparse as sp
-import trimesh
 
 from .tolerance import Tolerance
+
+if TYPE_CHECKING:  # trimesh (and scipy) load with the first mesh; importing this module stays cheap
+    import scipy.sparse as sp
+    import trimesh
 
 Neighbourhood = Literal["edge", "vertex"]
 
@@ -59,11 +62,26 @@ def edge_adjacency(faces: np.ndarray, *, slots: bool = False):
     Returns ``adj (k, 2)`` face ids, ``edge (k, 2)`` the shared vertex ids and ``unshared (k, 2)`` the
     vertex of each face opposite the edge, ordered by edge; with ``slots=True`` also ``(k, 2)`` the
     edge's slot ``3 * face + corner`` in each face (edge ``corner -> corner + 1``)."""
-    F = np.asarray(faces, dtype=np.int64)
+    F = np.ascontiguousarray(faces, dtype=np.int64)
     m = len(F)
     if m == 0:
         z = np.zeros((0, 2), dtype=np.int64)
         return (z, z, z, z) if slots else (z, z, z)
+    # the convexity and region stages ask for the same mesh's adjacency: one entry, keyed by content
+    key = (F.shape, hashlib.blake2b(memoryview(F).cast("B"), digest_size=16).digest())
+    if _ADJ_CACHE.get("key") != key:
+        _ADJ_CACHE.clear()
+        _ADJ_CACHE.update(key=key, val=_edge_adjacency(F))
+    out = _ADJ_CACHE["val"]
+    return out if slots else out[:3]
+
+
+#: the last :func:`edge_adjacency` result (read-only arrays), keyed by the faces' shape and digest
+_ADJ_CACHE: dict = {}
+
+
+def _edge_adjacency(F: np.ndarray):
+    """:func:`edge_adjacency` with slots, uncached; the arrays are read-only (they are shared)."""
     a, b = F.ravel(), np.roll(F, -1, axis=1).ravel()            # edge k of face f: corner k -> k+1
     far = F[:, [2, 0, 1]].ravel()
     lo, hi = np.minimum(a, b), np.maximum(a, b)
@@ -74,8 +92,11 @@ def edge_adjacency(faces: np.ndarray, *, slots: bool = False):
     cnt = np.diff(np.r_[start, len(k)])
     two = start[cnt == 2]
     i, j = o[two], o[two + 1]
-    out = (np.stack([i // 3, j // 3], axis=1), np.stack([lo[i], hi[i]], axis=1), np.stack([far[i], far[j]], axis=1))
-    return out + (np.stack([i, j], axis=1),) if slots else out
+    out = (np.stack([i // 3, j // 3], axis=1), np.stack([lo[i], hi[i]], axis=1), np.stack([far[i], far[j]], axis=1),
+           np.stack([i, j], axis=1))
+    for arr in out:
+        arr.flags.writeable = False
+    return out
 
 
 class _Rows:
@@ -100,6 +121,8 @@ def _edge_rows(faces: np.ndarray) -> _Rows:
 
 def neighbour_vertices(mesh: trimesh.Trimesh, neighbourhood: Neighbourhood = "edge") -> sp.csr_matrix:
     """``(m, n_vertices)`` boolean CSR: row k marks the vertices of face k and its adjacent faces."""
+    import scipy.sparse as sp
+
     faces = np.asarray(mesh.faces, dtype=np.int64)
     m, nv = len(faces), len(mesh.vertices)
     rows = np.repeat(np.arange(m), 3)

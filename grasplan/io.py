@@ -169,6 +169,14 @@ def write_atomic_bytes(path: str | os.PathLike, payload: bytes) -> Path:
     path. Missing parent folders are created. The file gets the permissions a plain ``open()``
     would (umask applied). On any error, KeyboardInterrupt or SIGTERM the temporary file is removed
     and an existing ``path`` is left untouched; operating-system errors become InputError."""
+    return write_atomic_chunks(path, (payload,))
+
+
+def write_atomic_chunks(path: str | os.PathLike, chunks: Iterable[bytes | str]) -> Path:
+    """Like :func:`write_atomic_bytes`, with the content streamed from ``chunks`` (bytes, or str
+    written as UTF-8) so a large document never has to be held in memory whole. An exception raised
+    while producing a chunk (e.g. an encoding error) removes the temporary file and leaves an
+    existing ``path`` untouched: nothing is written unless every chunk was."""
     path = Path(path)
     parent = path.parent if str(path.parent) else Path(".")
     with _sigterm_raises():
@@ -181,7 +189,8 @@ def write_atomic_bytes(path: str | os.PathLike, payload: bytes) -> Path:
             os.umask(umask)
             os.fchmod(fd, 0o666 & ~umask)
             with os.fdopen(fd, "wb") as f:
-                f.write(payload)
+                for chunk in chunks:
+                    f.write(chunk.encode("utf-8") if isinstance(chunk, str) else chunk)
                 f.flush()
                 os.fsync(f.fileno())
             os.replace(tmp, path)

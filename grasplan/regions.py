@@ -51,17 +51,17 @@ Unlike the paper's rule, regions need the projections to overlap (contacts exact
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import trimesh
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
-from scipy.spatial import cKDTree
 
 from .antipodal import Candidates, _clip_edges, stream_pairs
 from .convexity import edge_adjacency
 from .thinning import thin_candidates
 from .tolerance import Tolerance
+
+if TYPE_CHECKING:  # trimesh (and scipy) load with the first mesh; importing this module stays cheap
+    import trimesh
 
 #: closing-axis quantisation of the curved-surface deduplication, degrees
 CURVED_AXIS_STEP_DEG = 10.0
@@ -104,6 +104,9 @@ def convex_areas(mesh: trimesh.Trimesh, convex: np.ndarray, tol: Tolerance, adja
     adj = adj[ok]
     cosang = np.einsum("ij,ij->i", n[adj[:, 0]], n[adj[:, 1]])
     adj = adj[cosang >= np.cos(np.radians(tol.planar_deg))]
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
     g = coo_matrix((np.ones(len(adj)), (adj[:, 0], adj[:, 1])), shape=(m, m))
     _, comp = connected_components(g, directed=False)
     label = np.full(m, -1, dtype=np.int64)
@@ -218,6 +221,20 @@ def _row_ids(*cols) -> np.ndarray:
     return inv.ravel().astype(np.int64)
 
 
+def _row_keys(*cols) -> np.ndarray:
+    """(k,) int64 keys of the rows of integer columns, ordered as the rows lexicographically (equal
+    rows, equal keys): the flat index when the ranges fit, else :func:`_row_ids`. Enough for sorting
+    and matching (:func:`_group_pairs`) without the dense renumbering's extra sort."""
+    cols = [np.asarray(c, dtype=np.int64) for c in cols]
+    if len(cols[0]) == 0:
+        return np.zeros(0, dtype=np.int64)
+    lo = [c.min() for c in cols]
+    dims = [int(c.max() - m) + 1 for c, m in zip(cols, lo)]
+    if np.prod(np.array(dims, dtype=np.float64)) < 2.0**62:
+        return np.ravel_multi_index([c - m for c, m in zip(cols, lo)], dims)
+    return _row_ids(*cols)
+
+
 def area_boundary_edges(F: np.ndarray, label: np.ndarray) -> np.ndarray:
     """(m, 3) bool: edge k (corner k -> k+1) of face i is on the boundary of its area (no other face
     of the same area shares it)."""
@@ -252,6 +269,8 @@ def _face_pairs_of_regions(P, Q, a, areas, start, count, members, geo, rad):
         out_i.append(members[start[P[owner]] + t // nQ[owner]])
         out_j.append(members[start[Q[owner]] + t % nQ[owner]])
         out_k.append(owner)
+    from scipy.spatial import cKDTree
+
     for k in np.flatnonzero(prod > 256):
         fi = members[start[P[k]]:start[P[k]] + nP[k]]
         fj = members[start[Q[k]]:start[Q[k]] + nQ[k]]
@@ -550,7 +569,7 @@ def _group_pairs(key_a, key_b):
 
 def _cell_key(reg, cx, cy):
     """One int64 per (region, cell) (cells of one region are within a few million of each other)."""
-    return _row_ids(reg, cx, cy)
+    return _row_keys(reg, cx, cy)
 
 
 def _green(x0, y0, x1, y1):
@@ -598,7 +617,7 @@ def _inside_parts(reg, poly, x0, y0, x1, y1, h):
     hi = np.floor(np.maximum(x0, x1) / h + pad).astype(np.int64)
     er, k = _expand(hi - lo + 1)
     col = lo[er] + k
-    inv = _row_ids(np.concatenate([reg, reg[er]]), np.concatenate([1 - poly, poly[er]]), np.concatenate([cxs, col]))
+    inv = _row_keys(np.concatenate([reg, reg[er]]), np.concatenate([1 - poly, poly[er]]), np.concatenate([cxs, col]))
     qi, ej = _group_pairs(inv[:n], inv[n:])
     e = er[ej]
     px, py = x0[qi], y0[qi]
@@ -681,8 +700,8 @@ def _locate(qreg, q, face_rows, tri2):
     c0 = np.floor(lo[:, 0] / cw[fr_reg] - 1e-9).astype(np.int64)
     c1 = np.floor(hi[:, 0] / cw[fr_reg] + 1e-9).astype(np.int64)
     row, k = _expand(c1 - c0 + 1)
-    inv = _row_ids(np.concatenate([qreg, fr_reg[row]]),
-                   np.concatenate([np.floor(q[:, 0] / cw[qreg]).astype(np.int64), c0[row] + k]))
+    inv = _row_keys(np.concatenate([qreg, fr_reg[row]]),
+                    np.concatenate([np.floor(q[:, 0] / cw[qreg]).astype(np.int64), c0[row] + k]))
     qi, fj = _group_pairs(inv[:len(q)], inv[len(q):])
     f = row[fj]
     ok = (q[qi, 1] >= lo[f, 1] - 1e-9 * cw[qreg[qi]]) & (q[qi, 1] <= hi[f, 1] + 1e-9 * cw[qreg[qi]])
@@ -959,7 +978,16 @@ def _near_creases(p0, p1, creases) -> np.ndarray:
 def _near_segments(p: np.ndarray, a: np.ndarray, b: np.ndarray, r: float) -> np.ndarray:
     """(k,) bool: points ``p`` (k, 3) within about ``r`` of any segment ``a -> b`` (s, 3) (segments
     sampled every r / 2; error below r / 4)."""
+    from scipy.spatial import cKDTree
+
     L = np.linalg.norm(b - a, axis=1)
+    # segments whose midpoint lies further than L/2 + r from every point cannot be within r of one
+    # (margin 1.5 r): dropped before they are sampled (the result is the same)
+    dm, _ = cKDTree(p).query(0.5 * (a + b), k=1)
+    near = dm <= 0.5 * L + 1.5 * r
+    if not near.any():
+        return np.zeros(len(p), dtype=bool)
+    a, b, L = a[near], b[near], L[near]
     n = np.ceil(L / (0.5 * r)).astype(np.int64) + 1
     row, k = _expand(n)
     t = k / np.maximum(n[row] - 1, 1)

@@ -384,6 +384,12 @@ class PlanResult:
     def to_json(self, *, only_ok: bool = False) -> dict:
         """``grasplan.grasps/1`` (no robot) or ``grasplan.plan/1``; self-contained: the gripper's
         resolved shapes, the whole cell and the robot's source are embedded."""
+        doc, ids = self._document_head(only_ok)
+        doc["grasps"] = self._entries(ids)
+        return doc
+
+    def _document_head(self, only_ok: bool) -> tuple[dict, np.ndarray]:
+        """The document without its ``grasps`` list (which comes last), and the rows it lists."""
         part = self.part.to_json()
         if self.mass:
             part.update(self.mass)
@@ -412,20 +418,199 @@ class PlanResult:
         ids = np.flatnonzero(st == "ok") if only_ok else np.arange(len(self.grasps))
         if only_ok:
             doc["only_ok"] = True
-        doc["grasps"] = self._entries(ids)
-        return doc
+        return doc, ids
 
-    def write(self, path, *, only_ok: bool = False, indent: int | None = None) -> Path:
-        """Write the result's JSON atomically."""
-        from .io import write_json
+    def write(self, path, *, only_ok: bool = False, indent: int | None = None, extra: dict | None = None) -> Path:
+        """Write the result's JSON atomically: the text of ``json.dumps(to_json(only_ok))`` (with
+        ``extra``'s keys appended after ``grasps``), streamed in chunks by :func:`_stream_document`
+        (``indent`` given: through the dict)."""
+        from .io import write_atomic_chunks, write_json
 
-        return write_json(path, self.to_json(only_ok=only_ok), indent=indent)
+        chunks = None if indent is not None else _stream_document(self, only_ok=only_ok, extra=extra)
+        if chunks is None:
+            doc = self.to_json(only_ok=only_ok)
+            doc.update(extra or {})
+            return write_json(path, doc, indent=indent)
+        return write_atomic_chunks(path, chunks)
 
     def export(self, fmt: str, path, grasp_id: int | None = None, **options) -> Path:
         """Write ``fmt`` (a name in :data:`grasplan.export.FORMATS`) to ``path``."""
         from .export import write
 
         return write(self, fmt, path, grasp_id=grasp_id, **options)
+
+
+# ------------------------------------------------------------------------------------------------
+# fast writing: the text json.dumps(to_json()) gives, built column by column
+# ------------------------------------------------------------------------------------------------
+#: grasps serialised per chunk by :func:`_stream_document` (bounds the writer's memory)
+WRITE_CHUNK = 4096
+
+
+def _reprs(a) -> np.ndarray:
+    """Object array (a's shape) of the text json writes for each element: ``float.__repr__`` /
+    ``int.__repr__`` of the Python number ``tolist`` gives."""
+    a = np.asarray(a)
+    flat = a.ravel()
+    if flat.dtype.kind == "f":
+        flat = flat.astype(np.float64)  # tolist would give these Python floats too
+    if not flat.size:
+        return np.zeros(a.shape, dtype=object)
+    # poses repeat few distinct numbers: format each distinct bit pattern once (bits, not values:
+    # -0.0 and 0.0 are written differently)
+    key = flat.view(np.int64) if flat.dtype == np.float64 else flat
+    _, first, inv = np.unique(key, return_index=True, return_inverse=True)
+    texts = np.array(list(map(repr, flat[first].tolist())), dtype=object)
+    return texts[inv.reshape(-1)].reshape(a.shape)
+
+
+def _nested(cols: list, texts: np.ndarray) -> None:
+    """Append to ``cols`` the pieces of the JSON lists of ``texts`` (n, *shape) row by row."""
+    if texts.ndim == 1:
+        cols.append(texts)
+        return
+    cols.append("[")
+    for j in range(texts.shape[1]):
+        if j:
+            cols.append(", ")
+        _nested(cols, texts[:, j])
+    cols.append("]")
+
+
+def _encoded(values: np.ndarray) -> np.ndarray:
+    """Object array of the JSON text of each value, encoded once per distinct value."""
+    from .io import to_json_text
+
+    u, inv = np.unique(values, return_inverse=True)
+    if not len(values):
+        return np.zeros(0, dtype=object)
+    return np.array([to_json_text(v) for v in u.tolist()], dtype=object)[inv.reshape(-1)]
+
+
+def _masked(mask: np.ndarray):
+    """``f(x)``: x (a constant or an (n,) array) where ``mask``, "" elsewhere, as an object array."""
+    return lambda x: np.where(mask, x, "").astype(object)
+
+
+def _join(cols: list, n: int) -> str:
+    """The n rows' text: column pieces (str constants or (n,) object arrays) concatenated per row,
+    rows separated by ", "."""
+    merged: list = []
+    for c in cols:  # adjacent constants become one piece
+        if isinstance(c, str) and merged and isinstance(merged[-1], str):
+            merged[-1] += c
+        else:
+            merged.append(c)
+    merged[-1] = merged[-1] + ", " if isinstance(merged[-1], str) else merged[-1]
+    P = np.empty((n, len(merged)), dtype=object)
+    for j, c in enumerate(merged):
+        P[:, j] = c
+    return "".join(P.ravel().tolist())[:-2]
+
+
+def _stream_document(res: PlanResult, *, only_ok: bool = False, extra: dict | None = None):
+    """Chunks (str) whose concatenation is byte-identical to ``json.dumps(doc)`` for ``doc =
+    res.to_json(only_ok)`` updated with ``extra`` (what :func:`grasplan.io.write_json` writes), the
+    grasps serialised :data:`WRITE_CHUNK` at a time from the table's columns; None when the
+    document must go through the dict (a value json refuses (NaN / inf), ``extra`` repeating a key),
+    so that path raises exactly what it raised before."""
+    from .io import to_json_text
+    from .quality import CONTACT_TYPES
+
+    head, ids = res._document_head(only_ok)
+    if extra and (set(extra) & (set(head) | {"grasps"})):
+        return None
+    t = res.grasps
+    plan = res.robot is not None
+    def fin(a):
+        return bool(np.all(np.isfinite(a)))
+
+    def r10(a):  # as PlanResult._entries
+        return np.round(a, 10)
+
+    def sel(a):
+        return a if len(ids) == len(t) else a[ids]
+
+    if not all(fin(r10(sel(a))) for a in (t.contacts, t.normals, t.width, t.T_part_tcp, t.roll)):
+        return None
+    if np.any(np.isinf(sel(t.score))):
+        return None
+    has_q = t.gravity_margin is not None
+    if has_q:
+        has = np.isfinite(sel(t.gravity_margin))
+        if not (fin(sel(t.epsilon)[has]) and fin(np.round(sel(t.contact_area)[has], 12))):
+            return None
+        ct = sel(t.contact_type)[has]
+        if ct.size and (ct.min() < -len(CONTACT_TYPES) or ct.max() >= len(CONTACT_TYPES)):
+            return None
+    has_s = t.sim_success is not None
+    if has_s:
+        on = sel(t.sim_success) >= 0
+        if not (fin(sel(t.sim_slip_m)[on]) and fin(sel(t.sim_turn_deg)[on])):
+            return None
+    try:
+        status_all = _encoded(sel(t.status).astype(str))
+        reason_all = _encoded(sel(t.reason)) if plan else None
+    except TypeError:  # values np.unique cannot order: not plain strings
+        return None
+    mkeys = np.fromiter((int(k) for k in res.motions), dtype=np.int64, count=len(res.motions)) if plan else None
+    types = np.array([to_json_text(k) for k in CONTACT_TYPES], dtype=object)
+
+    def chunks():
+        text = to_json_text(head)
+        yield text[:-1] + (", " if len(head) else "") + '"grasps": ['
+        gid_all = t.ids
+        for c0 in range(0, len(ids), WRITE_CHUNK):
+            rows = ids[c0:c0 + WRITE_CHUNK]
+            n = len(rows)
+            sc = t.score[rows]
+            nan = np.isnan(sc)
+            sc_txt = np.where(nan, "null", _reprs(sc)).astype(object)
+            cols: list = ['{"id": ', _reprs(gid_all[rows]), ', "candidate": ', _reprs(t.candidate[rows]),
+                          ', "region": ', _reprs(t.region[rows]), ', "contacts": ']
+            _nested(cols, _reprs(r10(t.contacts[rows])))
+            cols.append(', "normals": ')
+            _nested(cols, _reprs(r10(t.normals[rows])))
+            cols += [', "width": ', _reprs(r10(t.width[rows])), ', "T_part_tcp": ']
+            _nested(cols, _reprs(r10(t.T_part_tcp[rows])))
+            cols += [', "roll": ', _reprs(r10(t.roll[rows])), ', "status": ', status_all[c0:c0 + n]]
+            if plan:
+                cols += [', "score": ', sc_txt]
+            else:
+                cols += [np.where(nan, "", ', "score": ').astype(object), np.where(nan, "", sc_txt).astype(object)]
+            if has_q:
+                h = np.isfinite(t.gravity_margin[rows])
+                on_q = _masked(h)
+                area = _reprs(np.round(t.contact_area[rows], 12))
+                kind = types[np.where(h[:, None], t.contact_type[rows], 0).astype(np.int64)]
+                cols += [', "quality": ', np.where(h, '{"score": ', "null").astype(object), on_q(sc_txt),
+                         on_q(', "gravity_margin": '), on_q(_reprs(t.gravity_margin[rows])),
+                         on_q(', "epsilon": '), on_q(_reprs(t.epsilon[rows])),
+                         on_q(', "contact": [{"area_m2": '), on_q(area[:, 0]), on_q(', "type": '), on_q(kind[:, 0]),
+                         on_q('}, {"area_m2": '), on_q(area[:, 1]), on_q(', "type": '), on_q(kind[:, 1]),
+                         on_q("}]}")]
+            if has_s:
+                s_on = t.sim_success[rows] >= 0
+                on_s = _masked(s_on)
+                cols += [on_s(', "sim": {"success": '), on_s(np.where(t.sim_success[rows] != 0, "true", "false")),
+                         on_s(', "slip_m": '), on_s(_reprs(t.sim_slip_m[rows])),
+                         on_s(', "turn_deg": '), on_s(_reprs(t.sim_turn_deg[rows])), on_s("}")]
+            if plan:
+                rk = t.rank[rows]
+                cols += [', "rank": ', np.where(rk < 0, "null", _reprs(rk)).astype(object),
+                         ', "reason": ', reason_all[c0:c0 + n]]
+                mot = np.full(n, "", dtype=object)
+                for k in np.flatnonzero(np.isin(rows, mkeys)).tolist():
+                    mot[k] = ", " + to_json_text(res.motions[int(rows[k])].to_json())[1:-1]
+                cols.append(mot)
+            cols.append("}")
+            yield ("" if c0 == 0 else ", ") + _join(cols, n)
+        tail = "]"
+        if extra:
+            tail += ", " + to_json_text(extra)[1:-1]
+        yield tail + "}"
+
+    return chunks()
 
 
 # ------------------------------------------------------------------------------------------------

@@ -8,7 +8,6 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from .errors import InputError
 
@@ -47,6 +46,8 @@ def check_transform(T, name: str = "T", *, batch: bool = False, error: type[Exce
 
 def quaternions(R: np.ndarray, *, order: Literal["wxyz", "xyzw"] = "wxyz") -> np.ndarray:
     """Unit quaternions ``(..., 4)`` of rotation matrices ``(..., 3, 3)``, scalar part >= 0."""
+    from scipy.spatial.transform import Rotation  # scipy loads on first use: importing stays cheap
+
     R = np.asarray(R, dtype=np.float64)
     xyzw = Rotation.from_matrix(R.reshape(-1, 3, 3)).as_quat().reshape(-1, 4)
     xyzw[xyzw[:, 3] < 0] *= -1.0

@@ -138,7 +138,6 @@ def _other_poses_hint(p, g, c, prm, result) -> str:
 def _plan_all_poses(p, part, rob, g, c, T_world_part, T_place, output, prm, t0) -> None:
     """``--pose-index all``: one standalone plan file per pose (OUT.pose<k>.json), OUT.json = the
     pose with the most planned grasps (ties: the more probable) plus a ``poses`` block."""
-    from ..io import write_json
     from ..planning import MIN_POSE_PROBABILITY, plan_poses
 
     info(f"planning every stable pose of probability >= {MIN_POSE_PROBABILITY * 100:g} % ...")
@@ -164,9 +163,8 @@ def _plan_all_poses(p, part, rob, g, c, T_world_part, T_place, output, prm, t0) 
     if best is None:
         raise PlanningError(f"no resting pose of {part} could be planned: "
                             + "; ".join(f"pose {b['pose_index']}: {b.get('error', '')}" for b in block))
-    doc = best[2].to_json()
-    doc["poses"] = {"chosen": best[0], "min_probability": MIN_POSE_PROBABILITY, "poses": block}
-    write_json(output, doc)
+    best[2].write(output, extra={"poses": {"chosen": best[0], "min_probability": MIN_POSE_PROBABILITY,
+                                           "poses": block}})
     click.echo(f"{part}: {len(block)} resting poses planned; wrote {output} (pose {best[0]}, {best[1]} planned) and "
                f"one file per pose; total {time.perf_counter() - t0:.1f} s")
     if best[1] == 0:
