@@ -838,10 +838,12 @@ def parse_place(text: str) -> np.ndarray:
 
 
 def check_part_placement(part_mesh: trimesh.Trimesh, T_world_part: np.ndarray, cell: Cell, *,
-                         tol: float = PART_CONTACT_TOL, what: str = "the part") -> None:
+                         tol: float = PART_CONTACT_TOL, what: str = "the part",
+                         pose_option: str = "--part-pose") -> None:
     """Refuse a part pose that reaches into the table or an obstacle by more than ``tol`` (m).
 
-    Raises InputError (exit 3) naming the body, the depth in mm and what to change. The table
+    Raises InputError (exit 3) naming the body, the depth in mm and what to change (``pose_option``:
+    the option that sets this pose, e.g. ``--part-pose`` or ``--place``). The table
     depth is exact (lowest vertex below ``table_z``); an obstacle's depth is coal's penetration
     depth (EPA) of the part mesh against the obstacle (box, cylinder, sphere shrunk by ``tol``; a
     mesh obstacle is not shrunk: touching it counts)."""
@@ -855,8 +857,9 @@ def check_part_placement(part_mesh: trimesh.Trimesh, T_world_part: np.ndarray, c
     depth = float(cell.table_z - z.min())
     if depth > tol:
         raise InputError(f"{what} reaches {depth * 1e3:.1f} mm into the table (lowest point z = {z.min():.4f} m, "
-                         f"table top z = {cell.table_z:g} m): raise the part pose by at least {depth * 1e3:.1f} mm "
-                         f"(--part-pose z) or lower the cell's table_z")
+                         f"table top z = {cell.table_z:g} m): raise the pose by at least {depth * 1e3:.1f} mm "
+                         f"(z of {pose_option}: {T[2, 3] + depth:.4f} m would rest it on the table) or lower the "
+                         f"cell's table_z")
     if not cell.obstacles:
         return
     lo = V @ T[:3, :3].T + T[:3, 3]
@@ -879,4 +882,4 @@ def check_part_placement(part_mesh: trimesh.Trimesh, T_world_part: np.ndarray, c
         if coal.collide(part, tp, geom, coal.Transform3s(To[:3, :3].copy(), To[:3, 3].copy()), req, res):
             d = abs(float(res.getContact(0).penetration_depth)) + tol if res.numContacts() else float("nan")
             raise InputError(f"{what} intersects obstacle {o.name!r} (penetration {d * 1e3:.1f} mm): move the part "
-                             f"(--part-pose, part_xy) or the obstacle in the cell YAML")
+                             f"({pose_option}, part_xy) or the obstacle in the cell YAML")

@@ -38,7 +38,6 @@ contributes the partners trimesh reports (none for a boundary edge).
 """
 from __future__ import annotations
 
-import hashlib
 from typing import TYPE_CHECKING, Literal
 
 import numpy as np
@@ -67,21 +66,12 @@ def edge_adjacency(faces: np.ndarray, *, slots: bool = False):
     if m == 0:
         z = np.zeros((0, 2), dtype=np.int64)
         return (z, z, z, z) if slots else (z, z, z)
-    # the convexity and region stages ask for the same mesh's adjacency: one entry, keyed by content
-    key = (F.shape, hashlib.blake2b(memoryview(F).cast("B"), digest_size=16).digest())
-    if _ADJ_CACHE.get("key") != key:
-        _ADJ_CACHE.clear()
-        _ADJ_CACHE.update(key=key, val=_edge_adjacency(F))
-    out = _ADJ_CACHE["val"]
+    out = _edge_adjacency(F)
     return out if slots else out[:3]
 
 
-#: the last :func:`edge_adjacency` result (read-only arrays), keyed by the faces' shape and digest
-_ADJ_CACHE: dict = {}
-
-
 def _edge_adjacency(F: np.ndarray):
-    """:func:`edge_adjacency` with slots, uncached; the arrays are read-only (they are shared)."""
+    """:func:`edge_adjacency` with slots."""
     a, b = F.ravel(), np.roll(F, -1, axis=1).ravel()            # edge k of face f: corner k -> k+1
     far = F[:, [2, 0, 1]].ravel()
     lo, hi = np.minimum(a, b), np.maximum(a, b)

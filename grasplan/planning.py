@@ -385,7 +385,8 @@ def plan(
         part = load_part(part, units=units)
         load_s = time.perf_counter() - t
     if c.place is not None:
-        check_part_placement(part.mesh, c.place, c, what="the part at the place (--place or the cell's place)")
+        check_part_placement(part.mesh, c.place, c, what="the part at the place (--place or the cell's place)",
+                             pose_option="--place or the cell's place.T")
     # checks before planning (exit 3 with what to change): the part inside the table or an
     # obstacle, the robot's base inside an obstacle, q_home in collision (grasplan.scene.check_start)
     from .cell import stable_pose

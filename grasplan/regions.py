@@ -87,13 +87,13 @@ class Areas:
     area: np.ndarray
 
 
-def convex_areas(mesh: trimesh.Trimesh, convex: np.ndarray, tol: Tolerance, adjacency=None) -> Areas:
+def convex_areas(mesh: trimesh.Trimesh, convex: np.ndarray, tol: Tolerance, adjacency=None, geo=None) -> Areas:
     """Group convex faces into coplanar, edge-connected areas (no loop over faces). ``adjacency``: the
-    mesh's :func:`grasplan.convexity.edge_adjacency`, if already known."""
-    V = np.asarray(mesh.vertices, dtype=np.float64)
+    mesh's :func:`grasplan.convexity.edge_adjacency`, if already known; ``geo``: its
+    :class:`grasplan.antipodal._FaceGeometry`, if already known (its triangles are reused)."""
     F = np.asarray(mesh.faces, dtype=np.int64)
     m = len(F)
-    tri = V[F]
+    tri = geo.tri if geo is not None else np.asarray(mesh.vertices, dtype=np.float64)[F]
     cr = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     dbl = np.linalg.norm(cr, axis=1)
     use = np.asarray(convex, dtype=bool) & (dbl > 0)
@@ -123,7 +123,7 @@ def convex_areas(mesh: trimesh.Trimesh, convex: np.ndarray, tol: Tolerance, adja
     vec = np.column_stack([np.bincount(lab, weights=cr[ids, d], minlength=k) for d in range(3)])
     normal = vec / np.linalg.norm(vec, axis=1, keepdims=True)
     area = 0.5 * np.bincount(lab, weights=dbl[ids], minlength=k)
-    c = tri[ids].mean(axis=1)
+    c = geo.c[ids] if geo is not None else tri[ids].mean(axis=1)
     centroid = np.column_stack([np.bincount(lab, weights=0.5 * dbl[ids] * c[:, d], minlength=k)
                                 for d in range(3)]) / area[:, None]
     return Areas(label, normal, centroid, area)
@@ -513,6 +513,16 @@ _SHIFT_DIR = (np.cos(1.0), np.sin(1.0))
 _EDGE_CHUNK = 400_000
 
 
+def _max3(a: np.ndarray) -> np.ndarray:
+    """``a.max(axis=1)`` for ``a`` (k, 3, ...) by two elementwise maxima (NumPy reduces a length-3 axis slowly)."""
+    return np.maximum(np.maximum(a[:, 0], a[:, 1]), a[:, 2])
+
+
+def _min3(a: np.ndarray) -> np.ndarray:
+    """``a.min(axis=1)`` for ``a`` (k, 3, ...), see :func:`_max3`."""
+    return np.minimum(np.minimum(a[:, 0], a[:, 1]), a[:, 2])
+
+
 def _group_max(key: np.ndarray, val: np.ndarray, n: int) -> np.ndarray:
     """(n,) max of ``val`` per ``key`` (0 where a key has none), by one sort (``np.maximum.at`` is slow)."""
     out = np.zeros(n)
@@ -691,7 +701,7 @@ def _locate(qreg, q, face_rows, tri2):
     ``face_rows`` = (region, face) rows with 2D triangles ``tri2`` (r, 3, 2) in the same frames. Picks
     the most interior candidate (largest smallest barycentric), so a point on a shared edge gets one."""
     fr_reg = face_rows
-    lo, hi = tri2.min(axis=1), tri2.max(axis=1)
+    lo, hi = _min3(tri2), _max3(tri2)
     # columns of width = the region's mean triangle width
     w = hi[:, 0] - lo[:, 0]
     nreg = int(max(fr_reg.max(initial=-1), qreg.max(initial=-1))) + 1
@@ -714,7 +724,7 @@ def _locate(qreg, q, face_rows, tri2):
     area2 = ex[:, 0] * ey[:, 2] * -1 + ey[:, 0] * ex[:, 2]          # cross(e0, -e2) sign = orientation
     sgn = np.where(area2 >= 0, 1.0, -1.0)
     side = sgn[:, None] * (ex * (py[:, None] - y) - ey * (px[:, None] - x)) / L
-    score = side.min(axis=1)
+    score = _min3(side)
     best = np.full(len(q), -np.inf)
     np.maximum.at(best, qi, score)
     pick = np.full(len(q), -1, dtype=np.int64)
@@ -761,7 +771,7 @@ def find_regions(mesh, convex, geo, *, max_opening, beta_deg, mu, spacing, tol):
     ``geo``: the mesh's :class:`grasplan.antipodal._FaceGeometry`; lengths in metres."""
     adjacency = edge_adjacency(mesh.faces, slots=True)
     admit, creases = _admitted(mesh, convex, geo, tol, adjacency)
-    areas = convex_areas(mesh, admit, tol, adjacency)
+    areas = convex_areas(mesh, admit, tol, adjacency, geo=geo)
     lab = areas.label
     ids = np.flatnonzero(lab >= 0)
     empty = (np.zeros((0, 2, 3)), np.zeros((0, 2, 3)), np.zeros(0), np.zeros((0, 2), np.int64), np.zeros(0, np.int64))
@@ -773,7 +783,7 @@ def find_regions(mesh, convex, geo, *, max_opening, beta_deg, mu, spacing, tol):
     cosb = np.cos(np.radians(beta_deg))
     sin_half = np.sin(np.radians(beta_deg) / 2.0)
     eps = tol.distance
-    far = np.linalg.norm(geo.tri[ids] - areas.centroid[lab[ids]][:, None], axis=2).max(axis=1)
+    far = _max3(np.linalg.norm(geo.tri[ids] - areas.centroid[lab[ids]][:, None], axis=2))
     arad = _group_max(lab[ids], far, nA)
     # ---- candidate regions: area pairs anti-parallel within beta whose discs can overlap ----
     keys = []

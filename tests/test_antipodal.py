@@ -15,7 +15,6 @@ from grasplan.blm import boundary_layer
 from grasplan.candidates import CandidateParams, compute_candidates
 from grasplan.convexity import classify_convexity
 from grasplan.mesh import load_part, part_from_trimesh
-from grasplan.tolerance import Tolerance
 
 MU = 0.3
 BETA = 2.0

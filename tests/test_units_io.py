@@ -1,7 +1,6 @@
 """Length/angle parsing and atomic output."""
 from __future__ import annotations
 
-import json
 import os
 
 import numpy as np
