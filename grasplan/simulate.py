@@ -11,7 +11,8 @@ Model (one per part and gripper, reused for every grasp):
   prismatic joints along the closing axis, coupled (centric, as the real gripper) and each pushed
   by a motor of at most ``grip_force / 2`` N (``grip_force`` is the datasheet gripping force, the
   sum of both jaws' forces, as in :mod:`grasplan.quality`), with damping so they close at about
-  5 cm/s;
+  5 cm/s and the drive's reflected inertia (``armature``) so they reach that speed in
+  ``DRIVE_TAU`` (2 ms; without it the jaws rang against many-piece parts, issue 11);
 - the **table**: a box whose top is the cell's table plane, touching only the part.
 
 The simulation runs in the gripper's (TCP) frame, which only translates: lifting and shaking the
@@ -61,6 +62,15 @@ ABORT_SLIP = 0.03
 TIMESTEP, CONTROL_DT = 0.001, 0.005
 #: jaw closing speed under full force (m/s) -> joint damping grip_force / speed; jaw mass (kg)
 CLOSE_SPEED, JAW_MASS = 0.05, 0.2
+#: time constant (s) in which a jaw reaches its closing speed: the jaw's effective mass is
+#: ``DRIVE_TAU * damping``, the rest of it over ``JAW_MASS`` added as ``armature`` (the drive's
+#: reflected inertia: a motor through a spindle reflects kilograms onto the jaw). Issue 11: with a
+#: bare 0.2 kg jaw and 1400 N s/m of damping, ``m / b`` = 0.14 ms, 7x below the 1 ms timestep, the
+#: jaws and a part touching them at many points (CoACD pieces) rang at ~50 Hz (0.2 mm, the contact
+#: breaking every 20 ms), ratcheting a light part out by ~0.05 mm per cycle (SileaneGear at
+#: 1200 kg/m^3: 6 of the top 20 "slipped" 5.0-5.8 mm while the steel one held). ``DRIVE_TAU`` >= 2
+#: timesteps removes the ringing (slip < 0.05 mm), as do a 0.5 ms timestep or a 0.5 kg jaw.
+DRIVE_TAU = 0.002
 #: contact time constant (s, >= 2 timesteps): stiff enough that grip_force indents well below 1 mm
 SOLREF_TIMECONST = 0.002
 #: torsional friction length of MuJoCo's soft contacts (m): torque <= mu * this * normal force
@@ -162,6 +172,13 @@ def _shape_xml(shape, name: str, assets: list, attrs: str) -> str:
     return f'<geom name="{name}" type="mesh" mesh="{name}" {attrs}/>'
 
 
+def _arena(n_pieces: int) -> str:
+    """MuJoCo arena size (``<size memory=...>``) for a part of ``n_pieces`` convex pieces: contacts
+    and constraints grow with the pieces touching the jaws and the table, and a full arena silently
+    drops them (:func:`simulate_grasps` refuses such a run)."""
+    return f"{32 + n_pieces // 2}M"
+
+
 def build_model_xml(pieces: list[np.ndarray], mass_props: MassProperties, gripper: Gripper, *, mu: float,
                     grip_force: float) -> str:
     """MJCF text of the part (free body, convex ``pieces``), the gripper (world = TCP frame) and a
@@ -182,21 +199,25 @@ def build_model_xml(pieces: list[np.ndarray], mass_props: MassProperties, grippe
     half = 0.5 * gripper.max_opening
     jaw_force = grip_force / CONTACTS_PER_GRIP  # grip_force is the sum over both jaws
     damping = jaw_force / CLOSE_SPEED
+    armature = max(DRIVE_TAU * damping - JAW_MASS, 0.0)
     jaw_inertia = _fmt([JAW_MASS * 1e-4] * 3)
     return f"""<mujoco model="grasplan_lift_shake">
   <compiler angle="radian" inertiafromgeom="false" boundmass="1e-6" boundinertia="1e-12"/>
   <option timestep="{TIMESTEP}" cone="elliptic" impratio="10" integrator="implicitfast"/>
+  <size memory="{_arena(len(pieces))}"/>
   <asset>{''.join(assets)}</asset>
   <worldbody>
     {grip_geoms}
     <body name="jaw0" pos="0 0 0">
       <inertial pos="0 0 0" mass="{JAW_MASS}" diaginertia="{jaw_inertia}"/>
-      <joint name="jaw0" type="slide" axis="-1 0 0" range="0 {half:.9g}" limited="true" damping="{damping:.6g}"/>
+      <joint name="jaw0" type="slide" axis="-1 0 0" range="0 {half:.9g}" limited="true" damping="{damping:.6g}"
+             armature="{armature:.6g}"/>
       {jaw0}
     </body>
     <body name="jaw1" pos="0 0 0">
       <inertial pos="0 0 0" mass="{JAW_MASS}" diaginertia="{jaw_inertia}"/>
-      <joint name="jaw1" type="slide" axis="1 0 0" range="0 {half:.9g}" limited="true" damping="{damping:.6g}"/>
+      <joint name="jaw1" type="slide" axis="1 0 0" range="0 {half:.9g}" limited="true" damping="{damping:.6g}"
+             armature="{armature:.6g}"/>
       {jaw1}
     </body>
     <body name="part">
@@ -303,14 +324,29 @@ def simulate_grasps(part_mesh: trimesh.Trimesh, gripper: Gripper, T_world_part: 
     q_part = model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "part")]
     q_jaw = [model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"jaw{j}")] for j in range(2)]
     part_body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "part")
-    acc, lift_z, close, i_closed = _profile()
-    nstep = round(CONTROL_DT / TIMESTEP)
-    g_world = np.array([0.0, 0.0, -G])
     # table box centre in the world: under the part, top face on table_z
     T_world_table = np.eye(4)
     T_world_table[:3, 3] = [Twp[0, 3], Twp[1, 3], table_z - TABLE_HALF[2]]
 
     k = len(T)
+    # MuJoCo writes its warnings to MUJOCO_LOG.TXT in the current folder: silence them while we run
+    # (the only one that matters, a full arena, is read from data.warning and refused)
+    previous_handler = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(lambda msg: None)
+    try:
+        return _run_grasps(model, data, pieces, Twp, T, w, gripper, F, q_part, q_jaw, part_body, T_world_table,
+                           t_start, k)
+    finally:
+        mujoco.set_mju_user_warning(previous_handler)
+
+
+def _run_grasps(model, data, pieces, Twp, T, w, gripper, F, q_part, q_jaw, part_body, T_world_table, t_start, k):
+    """The lift-and-shake of :func:`simulate_grasps` for each of the ``k`` poses ``T``."""
+    import mujoco
+
+    acc, lift_z, close, i_closed = _profile()
+    nstep = round(CONTROL_DT / TIMESTEP)
+    g_world = np.array([0.0, 0.0, -G])
     success = np.zeros(k, dtype=bool)
     slip = np.zeros(k)
     turn = np.zeros(k)
@@ -334,12 +370,22 @@ def simulate_grasps(part_mesh: trimesh.Trimesh, gripper: Gripper, T_world_part: 
             model.opt.gravity[:] = gravity[p]
             data.mocap_pos[0] = T_tcp_table0[:3, 3] + lift_z[p] * down_tcp
             data.ctrl[:] = F / CONTACTS_PER_GRIP if close[p] else 0.0
-            mujoco.mj_step(model, data, nstep=nstep)
+            try:
+                mujoco.mj_step(model, data, nstep=nstep)
+            except mujoco.FatalError as e:  # the arena overflowed outright
+                raise RuntimeError(f"MuJoCo ran out of contact/constraint memory simulating grasp {i} with "
+                                   f"{len(pieces)} convex pieces (arena {_arena(len(pieces))}): {e}") from e
             if p + 1 == i_closed:
                 ref = (data.xpos[part_body].copy(), data.xmat[part_body].reshape(3, 3).copy(),
                        data.xipos[part_body].copy())
             elif ref is not None and p % 10 == 0 and np.linalg.norm(data.xipos[part_body] - ref[2]) > ABORT_SLIP:
                 break
+        full = [w for w in (mujoco.mjtWarning.mjWARN_CNSTRFULL, mujoco.mjtWarning.mjWARN_CONTACTFULL)
+                if data.warning[w].number > 0]
+        if full:
+            raise RuntimeError(f"MuJoCo ran out of contact/constraint memory simulating grasp {i} with "
+                               f"{len(pieces)} convex pieces (arena {_arena(len(pieces))}): the result "
+                               f"would be wrong; use --decomposition hull or a coarser decomposition")
         com_now = data.xipos[part_body]
         R_now = data.xmat[part_body].reshape(3, 3)
         slip[i] = float(np.linalg.norm(com_now - ref[2]))

@@ -132,3 +132,61 @@ def test_simulate_cli_writes_sim_per_grasp(tmp_path, example_part):
     bad.write_text("{not json")
     r = runner.invoke(main, ["simulate", str(bad), "-o", str(tmp_path / "x.json")])
     assert r.exit_code == 3 and not (tmp_path / "x.json").exists()
+
+
+def _slabs(n: int) -> list[np.ndarray]:
+    """BLOCK cut into n x 1 x n box pieces (vertices, part frame): a decomposition whose many pieces
+    each touch the jaw pad, as CoACD's pieces of a real part do (SileaneGear: 24-31 contacts per jaw)."""
+    ext = np.asarray(BLOCK)
+    d = ext / [n, 1, n]
+    corners = np.array([[a, b, c] for a in (0, 1) for b in (0, 1) for c in (0, 1)], dtype=np.float64) * d
+    return [corners + (-ext / 2 + d * [i, 0, k]) for i in range(n) for k in range(n)]
+
+
+def test_many_piece_contact_does_not_ring_the_jaws_out(setup, monkeypatch):
+    """Issue 11: a 0.2 kg jaw with 1400 N s/m of damping (m/b 7x below the timestep) rang against a
+    part of many convex pieces and ratcheted it out of a centred grasp; the drive's reflected inertia
+    (``DRIVE_TAU``) keeps it still. The bare-jaw model is run too, to show the test can fail."""
+    import grasplan.simulate as S
+
+    block, g, Twp = setup
+    monkeypatch.setattr(S, "convex_pieces", lambda mesh, **kw: _slabs(8))
+    T = top_grasp(0.0)[None]
+    held = S.simulate_grasps(block, g, Twp, T, [BLOCK[1]], mass=0.3, decomposition="hull")
+    assert held.success.tolist() == [True]
+    assert held.slip_m[0] < 1e-4 and held.turn_deg[0] < 0.1
+    monkeypatch.setattr(S, "DRIVE_TAU", 0.0)
+    bare = S.simulate_grasps(block, g, Twp, T, [BLOCK[1]], mass=0.3, decomposition="hull")
+    assert bare.slip_m[0] > 5 * max(held.slip_m[0], 2e-5)
+
+
+def test_drive_inertia_sets_the_jaw_time_constant():
+    """The jaws' effective mass (JAW_MASS + armature) over their damping is DRIVE_TAU, at least two
+    timesteps, for any grip force."""
+    import re
+
+    import grasplan.simulate as S
+
+    assert S.DRIVE_TAU >= 2 * S.TIMESTEP
+    block = trimesh.creation.box(BLOCK)
+    g = load_gripper("schunk_egp_c_40")
+    for force in (20.0, 140.0, 1000.0):
+        xml = S.build_model_xml(S.convex_pieces(block, decomposition="hull"), mass_properties(block, mass=0.2), g,
+                                mu=0.3, grip_force=force)
+        joints = re.findall(r'<joint name="jaw\d"[^>]*damping="([^"]+)"\s+armature="([^"]+)"', xml)
+        assert len(joints) == 2
+        for b, a in joints:
+            tau = (S.JAW_MASS + float(a)) / float(b)
+            assert tau >= S.DRIVE_TAU - 1e-9
+
+
+def test_an_arena_too_small_for_the_contacts_is_an_error_not_a_result(setup, monkeypatch):
+    """MuJoCo drops contacts silently when its arena is full: the simulation must refuse to report
+    such a run (here with a 60 kB arena and a part of 64 pieces) instead of scoring it."""
+    import grasplan.simulate as S
+
+    block, g, Twp = setup
+    monkeypatch.setattr(S, "convex_pieces", lambda mesh, **kw: _slabs(8))
+    monkeypatch.setattr(S, "_arena", lambda n: "60K")
+    with pytest.raises(RuntimeError, match="ran out of contact/constraint memory"):
+        S.simulate_grasps(block, g, Twp, top_grasp(0.0)[None], [BLOCK[1]], mass=0.3, decomposition="hull")
