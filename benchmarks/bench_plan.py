@@ -34,6 +34,10 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from fresh import run_cli  # noqa: E402
+
 PAPER = Path(os.environ.get("GRASPLAN_PAPER_PARTS", ROOT.parent / "shared" / "parts" / "paper"))
 TARGET_CLI_S = 1.0  #: issue 10: whole ``grasplan plan --robot ur5`` median
 MIN_PLANNED = 20
@@ -103,30 +107,7 @@ def bench_inprocess(parts: list[Path], runs: int) -> list[tuple]:
 
 
 # -- 2. the command line, wall time --------------------------------------------------------------------
-#: runs the command line in a fresh interpreter and reports its peak RSS (VmHWM of its own address
-#: space) last on stderr; ru_maxrss would also count the parent's pages from before exec
-_CLI = r"""
-import sys
-from grasplan.cli import main
-try:
-    main(sys.argv[1:], prog_name="grasplan")
-    rc = 0
-except SystemExit as e:
-    rc = e.code if isinstance(e.code, int) else (0 if e.code is None else 1)
-hwm = [ln.split()[1] for ln in open("/proc/self/status") if ln.startswith("VmHWM:")]
-sys.stderr.write("\nRSS_KIB %s\n" % (hwm[0] if hwm else "nan"))
-sys.exit(rc)
-"""
-
-
-def _run_cli(args: list[str]) -> tuple[float, int, float]:
-    """(wall s, exit code, peak RSS MiB) of ``grasplan *args`` in a fresh interpreter."""
-    t = time.perf_counter()
-    p = subprocess.run([sys.executable, "-c", _CLI, *args], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                       text=True, cwd=ROOT, check=False)
-    dt = time.perf_counter() - t
-    rss = [ln for ln in p.stderr.splitlines() if ln.startswith("RSS_KIB ")]
-    return dt, p.returncode, float(rss[-1].split()[1]) / 1024 if rss else float("nan")
+_run_cli = run_cli  # grasplan in a fresh interpreter: (wall s, exit code, peak RSS MiB)
 
 
 def bench_cli(parts: list[Path], runs: int) -> tuple[list[tuple], bool]:
