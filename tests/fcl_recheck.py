@@ -57,6 +57,27 @@ def _bvh(vertices, faces) -> fcl.BVHModel:
     return m
 
 
+#: the same helper under its public name, for other test modules
+bvh = _bvh
+
+
+def fcl_tf(T) -> fcl.Transform:
+    """An fcl transform of a 4x4 ``T``."""
+    T = np.asarray(T, dtype=np.float64)
+    return fcl.Transform(T[:3, :3], T[:3, 3])
+
+
+def dense(path, step: float = 0.01) -> np.ndarray:
+    """``path`` (k, n) with straight-line joint samples no more than ``step`` rad apart (every
+    waypoint kept; written independently of grasplan's densifier)."""
+    pts = [path[0]]
+    for a, b in zip(path[:-1], path[1:]):
+        k = max(1, int(np.ceil(np.max(np.abs(b - a)) / step)))
+        for i in range(1, k + 1):
+            pts.append(a + (b - a) * (i / k))
+    return np.array(pts)
+
+
 def _obj(geom, T) -> fcl.CollisionObject:
     T = np.asarray(T, dtype=np.float64)
     return fcl.CollisionObject(geom, fcl.Transform(T[:3, :3], T[:3, 3]))

@@ -24,29 +24,9 @@ PLACE_DY = 0.3  # m: the place is the resting pose moved this far along world y
 FAST_WEIGHTS = (("center", 0.1), ("top", 0.15), ("width", 0.05))
 
 
-def dense(path, step=STEP):
-    pts = [path[0]]
-    for a, b in itertools.pairwise(path):
-        k = max(1, int(np.ceil(np.max(np.abs(b - a)) / step)))
-        for i in range(1, k + 1):
-            pts.append(a + (b - a) * (i / k))
-    return np.array(pts)
-
-
-def _fcl_tf(T):
-    import fcl
-
-    return fcl.Transform(np.asarray(T[:3, :3], dtype=np.float64), np.asarray(T[:3, 3], dtype=np.float64))
-
-
-def _bvh(vertices, faces):
-    import fcl
-
-    m = fcl.BVHModel()
-    m.beginModel(len(vertices), len(faces))
-    m.addSubModel(np.asarray(vertices, dtype=np.float64), np.asarray(faces, dtype=np.int32))
-    m.endModel()
-    return m
+from fcl_recheck import bvh as _bvh  # noqa: E402  (independent python-fcl helpers)
+from fcl_recheck import dense  # noqa: E402
+from fcl_recheck import fcl_tf as _fcl_tf  # noqa: E402
 
 
 def _shape_objects(shape):
