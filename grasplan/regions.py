@@ -479,28 +479,7 @@ def find_regions_pairs(mesh, convex, geo, *, max_opening, beta_deg, mu, spacing,
     p1 = x + (np.einsum("ij,ij->i", geo.n[sj], geo.tri[sj, 0] - x) / np.einsum("ij,ij->i", geo.n[sj], ax))[:, None] * ax
     ok = ~_near_creases(p0, p1, creases)
     reg, si, sj, p0, p1 = reg[ok], si[ok], sj[ok], p0[ok], p1[ok]
-    d = p1 - p0
-    w = np.linalg.norm(d, axis=1)
-    dn = d / np.maximum(w, 1e-300)[:, None]
-    cosf = np.cos(np.arctan(mu)) - 1e-12
-    ok = ((np.einsum("ij,ij->i", geo.n[si], -d) > 0) & (np.einsum("ij,ij->i", geo.n[sj], d) > 0) & (w > eps)
-          & (np.einsum("ij,ij->i", -geo.n[si], dn) >= cosf) & (np.einsum("ij,ij->i", geo.n[sj], dn) >= cosf)
-          & (w <= max_opening))
-    reg, si, sj, p0, p1, w = reg[ok], si[ok], sj[ok], p0[ok], p1[ok], w[ok]
-    contacts = np.stack([p0, p1], axis=1)
-    normals = np.stack([geo.n[si], geo.n[sj]], axis=1)
-    faces = np.stack([si, sj], axis=1).astype(np.int64)
-    # curved surfaces: deduplicate the single samples of sub-cell regions on the spacing grid
-    sm = small[reg]
-    if sm.any():
-        idx = np.flatnonzero(sm)
-        sub = Candidates(contacts[idx], normals[idx], w[idx], faces[idx])
-        drop = np.ones(len(idx), dtype=bool)
-        drop[thin_candidates(sub, spacing=spacing, axis_step_deg=CURVED_AXIS_STEP_DEG)] = False
-        keep = np.ones(len(reg), dtype=bool)
-        keep[idx[drop]] = False
-        contacts, normals, w, faces, reg = contacts[keep], normals[keep], w[keep], faces[keep], reg[keep]
-    return contacts, normals, w, faces, reg.astype(np.int64)
+    return _finish(reg, reg, si, sj, p0, p1, small, geo, mu, eps, max_opening, spacing)
 
 
 # ============================================================ boundary-edge method (the default)
