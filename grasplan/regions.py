@@ -308,30 +308,13 @@ def find_regions_pairs(mesh, convex, geo, *, max_opening, beta_deg, mu, spacing,
     if len(ids) < 2:
         return empty
     nA = len(areas.area)
-    cosb = np.cos(np.radians(beta_deg))
-    sin_half = np.sin(np.radians(beta_deg) / 2.0)
     eps = tol.distance
     rad = np.linalg.norm(geo.tri - geo.c[:, None], axis=2).max(axis=1)        # face circumradius about its centroid
     members = ids[np.argsort(lab[ids], kind="stable")]                          # faces grouped by area
     count = np.bincount(lab[ids], minlength=nA)
     start = np.cumsum(count) - count
-    # area radius: largest distance of its faces' corners from the area centroid
-    far = np.linalg.norm(geo.tri[ids] - areas.centroid[lab[ids]][:, None], axis=2).max(axis=1)
-    arad = np.zeros(nA)
-    np.maximum.at(arad, lab[ids], far)
-
     def face_pairs():
-        for P, Q in stream_pairs(areas.centroid, areas.normal, arad, reach=max_opening, beta_deg=beta_deg, tol=tol):
-            ok = np.einsum("ij,ij->i", areas.normal[P], areas.normal[Q]) <= -cosb + 1e-12
-            P, Q = P[ok], Q[ok]
-            a = areas.normal[P] - areas.normal[Q]
-            a /= np.linalg.norm(a, axis=1, keepdims=True)
-            d = areas.centroid[Q] - areas.centroid[P]
-            ax = -np.einsum("ij,ij->i", d, a)                   # closing distance of the centroids
-            rr = arad[P] + arad[Q]
-            lateral = np.linalg.norm(d + ax[:, None] * a, axis=1)
-            ok = (lateral <= rr + 4 * eps) & (ax >= -rr * sin_half - 4 * eps) & (ax <= max_opening + rr * sin_half + 4 * eps)
-            P, Q, a = P[ok], Q[ok], a[ok]
+        for P, Q, a in _area_pairs(areas, geo, ids, max_opening=max_opening, beta_deg=beta_deg, tol=tol):
             if len(P):
                 i, j, k = _face_pairs_of_regions(P, Q, a, areas, start, count, members, geo, rad)
                 for s in range(0, len(i), _CHUNK):
@@ -490,6 +473,31 @@ _SHIFT = 1e-10
 _SHIFT_DIR = (np.cos(1.0), np.sin(1.0))
 #: boundary-edge rows per region batch (bounds every temporary array)
 _EDGE_CHUNK = 400_000
+
+
+def _area_pairs(areas: Areas, geo, ids: np.ndarray, *, max_opening: float, beta_deg: float, tol):
+    """Chunks ``(P, Q, a)`` of area pairs that can form a region: normals anti-parallel within beta
+    and the two areas' discs (centroid, radius = farthest face corner) able to overlap along the
+    closing axis ``a = (n_P - n_Q) / |n_P - n_Q|`` within ``max_opening``. ``ids``: the faces that
+    belong to an area. Streams the 6D line search (:func:`grasplan.antipodal.stream_pairs`)."""
+    nA = len(areas.area)
+    lab = areas.label
+    cosb = np.cos(np.radians(beta_deg))
+    sin_half = np.sin(np.radians(beta_deg) / 2.0)
+    eps = tol.distance
+    # area radius: largest distance of its faces' corners from the area centroid
+    arad = _group_max(lab[ids], _max3(np.linalg.norm(geo.tri[ids] - areas.centroid[lab[ids]][:, None], axis=2)), nA)
+    for P, Q in stream_pairs(areas.centroid, areas.normal, arad, reach=max_opening, beta_deg=beta_deg, tol=tol):
+        ok = np.einsum("ij,ij->i", areas.normal[P], areas.normal[Q]) <= -cosb + 1e-12
+        P, Q = P[ok], Q[ok]
+        a = areas.normal[P] - areas.normal[Q]
+        a /= np.linalg.norm(a, axis=1, keepdims=True)
+        d = areas.centroid[Q] - areas.centroid[P]
+        ax = -np.einsum("ij,ij->i", d, a)                   # closing distance of the centroids
+        rr = arad[P] + arad[Q]
+        lateral = np.linalg.norm(d + ax[:, None] * a, axis=1)
+        ok = (lateral <= rr + 4 * eps) & (ax >= -rr * sin_half - 4 * eps) & (ax <= max_opening + rr * sin_half + 4 * eps)
+        yield P[ok], Q[ok], a[ok]
 
 
 def _max3(a: np.ndarray) -> np.ndarray:
@@ -759,24 +767,10 @@ def find_regions(mesh, convex, geo, *, max_opening, beta_deg, mu, spacing, tol):
     V = np.asarray(mesh.vertices, dtype=np.float64)
     F = np.asarray(mesh.faces, dtype=np.int64)
     nA = len(areas.area)
-    cosb = np.cos(np.radians(beta_deg))
-    sin_half = np.sin(np.radians(beta_deg) / 2.0)
     eps = tol.distance
-    far = _max3(np.linalg.norm(geo.tri[ids] - areas.centroid[lab[ids]][:, None], axis=2))
-    arad = _group_max(lab[ids], far, nA)
     # ---- candidate regions: area pairs anti-parallel within beta whose discs can overlap ----
-    keys = []
-    for P, Q in stream_pairs(areas.centroid, areas.normal, arad, reach=max_opening, beta_deg=beta_deg, tol=tol):
-        ok = np.einsum("ij,ij->i", areas.normal[P], areas.normal[Q]) <= -cosb + 1e-12
-        P, Q = P[ok], Q[ok]
-        a = areas.normal[P] - areas.normal[Q]
-        a /= np.linalg.norm(a, axis=1, keepdims=True)
-        d = areas.centroid[Q] - areas.centroid[P]
-        ax = -np.einsum("ij,ij->i", d, a)                   # closing distance of the centroids
-        rr = arad[P] + arad[Q]
-        lateral = np.linalg.norm(d + ax[:, None] * a, axis=1)
-        ok = (lateral <= rr + 4 * eps) & (ax >= -rr * sin_half - 4 * eps) & (ax <= max_opening + rr * sin_half + 4 * eps)
-        keys.append(P[ok] * nA + Q[ok])
+    keys = [P * nA + Q for P, Q, _ in _area_pairs(areas, geo, ids, max_opening=max_opening, beta_deg=beta_deg,
+                                                 tol=tol)]
     key = np.unique(np.concatenate(keys)) if keys else np.zeros(0, np.int64)
     if len(key) == 0:
         return empty
