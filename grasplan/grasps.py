@@ -306,7 +306,8 @@ class LazyGrasps:
         self.timing["collision"] += time.perf_counter() - t
         t = time.perf_counter()
         q, mp, sc, note = quality_and_score(self.part.mesh, self.gripper, self.T, self.T_part_tcp[idx],
-                                            self.frames.candidate[idx], self.cand.candidates, st, self.mu, self.params)
+                                            self.frames.candidate[idx], self.cand.candidates, st, self.mu, self.params,
+                                            mass_props=self.mass_props)  # computed once, by the first chunk
         self.score[idx] = sc
         if q is not None:
             self._q_parts.append(q)

@@ -894,14 +894,16 @@ def quality_columns(quality: Quality, rows: np.ndarray, M: int) -> dict:
 
 
 def quality_and_score(part_mesh: trimesh.Trimesh, gripper: Gripper, T_world_part: np.ndarray, T_part_tcp: np.ndarray,
-                      candidate: np.ndarray, candidates, status: np.ndarray, mu: float, params):
+                      candidate: np.ndarray, candidates, status: np.ndarray, mu: float, params, *,
+                      mass_props: MassProperties | None = None):
     """The grasp stage's quality step: mass properties at ``params.density`` / ``params.mass``, the
     quality of the ``ok`` poses and the score of every pose (NaN where not ``ok``) with the weights
     ``params.score_weights`` / ``params.score_refs`` (a :class:`grasplan.params.GraspParams`).
 
     Returns ``(Quality of the ok rows, MassProperties, score (M,), note)``. A part without volume
     (flat, degenerate: no mass properties) has no quality: ``(None, None, score, note)`` with the
-    score of the other terms and ``note`` saying why; ``note`` is "" otherwise."""
+    score of the other terms and ``note`` saying why; ``note`` is "" otherwise. ``mass_props``: the
+    part's mass properties at ``params`` when the caller already has them (chunked callers)."""
     from .mass import mass_properties
     from .scoring import PHYSICAL_TERMS, ScoringConfig, score_grasps
 
@@ -912,7 +914,8 @@ def quality_and_score(part_mesh: trimesh.Trimesh, gripper: Gripper, T_world_part
     width = np.asarray(candidates.width, dtype=np.float64)[ci]
     cfg = ScoringConfig.from_params(params.score_weights, params.score_refs)
     try:
-        mp = mass_properties(part_mesh, density=params.density, mass=params.mass)
+        mp = mass_props if mass_props is not None else mass_properties(part_mesh, density=params.density,
+                                                                        mass=params.mass)
     except InputError as exc:
         if params.mass is not None or params.density != type(params)().density:
             raise  # the user asked for a mass: say why there is none
