@@ -78,6 +78,23 @@ def dense(path, step: float = 0.01) -> np.ndarray:
     return np.array(pts)
 
 
+def robot_link_objects(robot, mounted=("base_link", "shoulder_link")) -> list:
+    """``[(geometry index, link name, fcl object, mounted)]`` of ``robot``'s collision geometry
+    (Pinocchio's geometry model gives the mesh files; the shapes are built in python-fcl here)."""
+    import trimesh
+
+    out = []
+    for gi, g in enumerate(robot.collision_model.geometryObjects):
+        name = robot.model.frames[g.parentFrame].name
+        if g.meshPath and g.meshPath.lower().endswith((".stl", ".dae", ".obj")):
+            tm = trimesh.load(g.meshPath, force="mesh")
+            geom = _bvh(np.asarray(tm.vertices) * np.asarray(g.meshScale), tm.faces)
+        else:
+            geom = fcl.Box(*(2 * np.asarray(g.geometry.halfSide)))
+        out.append((gi, name, fcl.CollisionObject(geom, fcl.Transform()), name in mounted))
+    return out
+
+
 def _obj(geom, T) -> fcl.CollisionObject:
     T = np.asarray(T, dtype=np.float64)
     return fcl.CollisionObject(geom, fcl.Transform(T[:3, :3], T[:3, 3]))

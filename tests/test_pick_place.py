@@ -27,6 +27,7 @@ FAST_WEIGHTS = (("center", 0.1), ("top", 0.15), ("width", 0.05))
 from fcl_recheck import bvh as _bvh  # noqa: E402  (independent python-fcl helpers)
 from fcl_recheck import dense  # noqa: E402
 from fcl_recheck import fcl_tf as _fcl_tf  # noqa: E402
+from fcl_recheck import robot_link_objects  # noqa: E402
 
 
 def _shape_objects(shape):
@@ -44,7 +45,6 @@ class PickPlaceChecker:
     def __init__(self, robot, gripper, part_mesh, table_z=0.0, mounted=("base_link", "shoulder_link")):
         import fcl
         import pinocchio as pin
-        import trimesh
 
         self.pin, self.fcl = pin, fcl
         self.model = robot.model
@@ -55,15 +55,7 @@ class PickPlaceChecker:
         self.tool_id = robot.model.getFrameId(robot.tool_frame)
         self.T_flange_tcp = np.asarray(gripper.T_flange_tcp)
         self.gripper = gripper
-        self.links = []
-        for gi, g in enumerate(self.gmodel.geometryObjects):
-            name = robot.model.frames[g.parentFrame].name
-            if g.meshPath and g.meshPath.lower().endswith((".stl", ".dae", ".obj")):
-                tm = trimesh.load(g.meshPath, force="mesh")
-                geom = _bvh(np.asarray(tm.vertices) * np.asarray(g.meshScale), tm.faces)
-            else:
-                geom = fcl.Box(*(2 * np.asarray(g.geometry.halfSide)))
-            self.links.append((gi, name, fcl.CollisionObject(geom, fcl.Transform()), name in mounted))
+        self.links = robot_link_objects(robot, mounted)  # (geometry index, name, fcl object, exempt from table)
         self.part_V = np.asarray(part_mesh.vertices, dtype=np.float64)
         self.part = fcl.CollisionObject(_bvh(part_mesh.vertices, part_mesh.faces), fcl.Transform())
         self.table_z = float(table_z)

@@ -33,6 +33,7 @@ def test_plan_statuses_are_the_documented_ones():
 from fcl_recheck import bvh as _bvh  # noqa: E402  (independent python-fcl helpers)
 from fcl_recheck import dense  # noqa: E402
 from fcl_recheck import fcl_tf as _fcl_tf  # noqa: E402
+from fcl_recheck import robot_link_objects  # noqa: E402
 
 
 def _schunk_boxes(opening):
@@ -51,7 +52,6 @@ class IndependentChecker:
                  mounted=("base_link", "shoulder_link")):
         import fcl
         import pinocchio as pin
-        import trimesh
 
         self.pin, self.fcl = pin, fcl
         self.model = robot.model
@@ -61,15 +61,7 @@ class IndependentChecker:
         self.T_world_base = np.asarray(robot.T_world_base)
         self.tool_id = robot.model.getFrameId("tool0")
         self.T_flange_tcp = np.asarray(T_flange_tcp)
-        self.links = []  # (geometry index, name, fcl object, exempt from table)
-        for gi, g in enumerate(self.gmodel.geometryObjects):
-            name = robot.model.frames[g.parentFrame].name
-            if g.meshPath and g.meshPath.lower().endswith((".stl", ".dae", ".obj")):
-                tm = trimesh.load(g.meshPath, force="mesh")
-                geom = _bvh(np.asarray(tm.vertices) * np.asarray(g.meshScale), tm.faces)
-            else:
-                geom = fcl.Box(*(2 * np.asarray(g.geometry.halfSide)))
-            self.links.append((gi, name, fcl.CollisionObject(geom, fcl.Transform()), name in mounted))
+        self.links = robot_link_objects(robot, mounted)  # (geometry index, name, fcl object, exempt from table)
         part_geom = _bvh(part_mesh.vertices, part_mesh.faces)
         self.part = fcl.CollisionObject(part_geom, _fcl_tf(np.asarray(T_world_part)))
         table_T = np.eye(4)
