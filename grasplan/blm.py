@@ -65,6 +65,7 @@ import numpy as np
 
 from .convexity import edge_adjacency
 from .errors import InputError, MeshError
+from .meshdata import MeshData
 from .tolerance import Tolerance
 
 if TYPE_CHECKING:  # trimesh (and scipy) load with the first mesh; importing this module stays cheap
@@ -96,7 +97,7 @@ _ONE_EDGE_ROT = np.stack([_rotate_labels(_ONE_EDGE, k) for k in range(3)])  # (3
 class BLMResult:
     """The remeshed part and what the BLM found.
 
-    mesh : trimesh.Trimesh, metres, same geometry as the input (original vertices keep their
+    mesh : MeshData, metres, same geometry as the input (original vertices keep their
         indices; new vertices are appended)
     surface : (m_out,) int64, surface id of each output face (0 .. surfaces-1)
     facets : int, surfaces : int
@@ -110,7 +111,7 @@ class BLMResult:
     tiny_kept : int, faces left whole because a sub-triangle would be degenerate
     """
 
-    mesh: trimesh.Trimesh
+    mesh: MeshData
     surface: np.ndarray
     facets: int
     surfaces: int
@@ -378,9 +379,7 @@ def boundary_layer(
     out_V = np.concatenate([V, new_V])
     parent = np.concatenate([kept, sub_parent]).astype(np.int64)
     strip = np.concatenate([kept_strip[kept], sub_strip])
-    import trimesh
-
-    out = trimesh.Trimesh(vertices=out_V, faces=out_F, face_normals=normals[parent], process=False, validate=False)
+    out = MeshData(out_V, out_F, face_normals=normals[parent])
     return BLMResult(
         mesh=out,
         surface=surface[parent],

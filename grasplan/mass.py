@@ -94,7 +94,7 @@ def mass_properties(mesh: trimesh.Trimesh, *, density: float = DEFAULT_DENSITY,
     density = _positive(density, "density", "give kg/m^3, e.g. 7850 for steel, 2700 for aluminium")
     if mass is not None:
         mass = _positive(mass, "mass", "give the part's mass in kg")
-    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+    if not hasattr(mesh, "faces") or len(mesh.faces) == 0:
         raise InputError("mass properties: the part mesh has no triangles; give a closed triangle mesh")
     warnings: list[str] = []
     body = mesh

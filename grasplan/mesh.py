@@ -27,6 +27,7 @@ import numpy as np
 
 from .errors import MeshError
 from .io import NAME_MAX_BYTES, show_path
+from .meshdata import MeshData
 from .tolerance import Tolerance
 from .units import LENGTH_UNITS
 
@@ -71,7 +72,8 @@ class MeshReport:
 class Part:
     """A loaded, cleaned part in metres (part frame = file coordinates times ``scale_to_m``).
 
-    ``mesh`` is a :class:`trimesh.Trimesh` in metres; treat it as read-only (stages copy it).
+    ``mesh`` is a :class:`grasplan.meshdata.MeshData` in metres (plain arrays, no trimesh import;
+    anything trimesh-only is read from an equal ``trimesh.Trimesh`` built on first use): read-only.
     """
 
     path: str
@@ -79,7 +81,7 @@ class Part:
     scale_to_m: float
     units: str
     units_note: str
-    mesh: trimesh.Trimesh
+    mesh: MeshData
     report: MeshReport
     tol: Tolerance
     warnings: tuple[str, ...] = field(default=())
@@ -486,48 +488,54 @@ def part_from_arrays(
     v_m = v * scale_to_m
     tol = Tolerance.for_mesh(v_m[used])
 
-    import trimesh
-
     n_faces_in, n_verts_in = len(f), len(v)
 
     # 1. merge duplicate vertices (STL writes every vertex once per face): vertices equal when
     # rounded to ``digits`` decimals, kept in order of first use (as trimesh's merge_vertices)
     digits = int(max(0, np.floor(-np.log10(tol.merge))))
-    v_keep, f_merged = merge_vertices(v_m, f, referenced, digits)
-    mesh = trimesh.Trimesh(vertices=v_keep, faces=f_merged, process=False, validate=False)
-    merged = n_verts_in - len(mesh.vertices)
+    v_keep, fv = merge_vertices(v_m, f, referenced, digits)
+    merged = n_verts_in - len(v_keep)
 
     # 2. drop degenerate faces: repeated vertex index or (near) zero area
-    fv = mesh.faces
     repeated = (fv[:, 0] == fv[:, 1]) | (fv[:, 1] == fv[:, 2]) | (fv[:, 0] == fv[:, 2])
-    tiny = mesh.area_faces <= tol.area
+    tiny = MeshData(v_keep, fv).area_faces <= tol.area
     degenerate = repeated | tiny
     # 3. drop duplicate faces (same three vertices, either winding)
     keep = ~degenerate
-    first = _first_unique_rows(np.sort(fv, axis=1), len(mesh.vertices))
+    first = _first_unique_rows(np.sort(fv, axis=1), len(v_keep))
     unique_mask = np.zeros(len(fv), dtype=bool)
     unique_mask[first] = True
     duplicate = ~unique_mask & keep
     keep &= unique_mask
     if not keep.any():
         raise MeshError(f"{src}: the mesh has no area (all {n_faces_in} triangles are degenerate)")
-    mesh.update_faces(keep)
-    mesh.remove_unreferenced_vertices()
+    fk = fv[keep]
+    used_v = np.zeros(len(v_keep), dtype=bool)
+    used_v[fk.ravel()] = True
+    remap = np.cumsum(used_v) - 1  # unreferenced vertices dropped, order kept
+    mesh = MeshData(v_keep[used_v], remap[fk])
     if mesh.area <= tol.area:
         raise MeshError(f"{src}: the mesh has no area")
 
-    # 4. consistent winding, outward normals (only meaningful on a closed mesh)
+    # 4. consistent winding, outward normals (only meaningful on a closed mesh); trimesh's
+    # fix_winding (and its import) only for a mesh whose winding is inconsistent
     warn: list[str] = []
     hint = units_hint(extent, unit)
     if hint:
         warn.append(f"{src}: {hint}")
-    before = mesh.faces.copy()
-    trimesh.repair.fix_winding(mesh)
-    winding_fixed = not np.array_equal(before, mesh.faces)
+    winding_fixed = False
+    if not mesh.is_winding_consistent:
+        import trimesh
+
+        tm = trimesh.Trimesh(vertices=mesh.vertices.copy(), faces=mesh.faces.copy(), process=False, validate=False)
+        trimesh.repair.fix_winding(tm)
+        winding_fixed = not np.array_equal(np.asarray(tm.faces), mesh.faces)
+        if winding_fixed:
+            mesh = MeshData(mesh.vertices, np.asarray(tm.faces, dtype=np.int64))
     watertight = bool(mesh.is_watertight)
     inverted = False
     if watertight and signed_volume(mesh.vertices, mesh.faces) < 0:
-        mesh.invert()
+        mesh = MeshData(mesh.vertices, mesh.faces[:, ::-1])
         inverted = True
     bodies = int(mesh.body_count)
     if not watertight:

@@ -1,0 +1,248 @@
+"""A triangle mesh as plain NumPy arrays: what the load and candidate stages need, without trimesh.
+
+Importing trimesh costs 0.5-0.9 s on this project's machines (it pulls in ``scipy.spatial`` and
+``networkx``), more than loading a part and computing its candidates (issue 10: ``grasplan
+candidates`` on SileaneGear must take < 1 s in all). :class:`MeshData` computes the part of
+``trimesh.Trimesh``'s interface those stages read (``vertices``, ``faces``, ``face_normals``,
+``area_faces``, ``area``, ``triangles``, ``triangles_center``, ``bounds``, ``extents``,
+``is_watertight``, ``is_winding_consistent``, ``body_count``) with NumPy alone,
+each once and cached. Everything else (``convex_hull``, ``volume``, ``face_adjacency``, ``ray``, ...) is
+read from an equal ``trimesh.Trimesh`` built on first use (:attr:`MeshData.trimesh`), so a
+``MeshData`` can stand wherever a read-only trimesh was used.
+
+A ``MeshData`` is immutable by contract: its arrays are shared, never written (stages that change
+geometry build a new one). Lengths are whatever the caller's are (the pipeline's are metres).
+"""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    import trimesh
+
+
+#: trimesh's zero threshold of a cross product's length (``trimesh.util.TOL_ZERO``)
+_TOL_ZERO = float(np.finfo(np.float64).resolution * 100)
+
+
+def _sorted_edge_keys(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per directed face edge (3 m): undirected key, and the (from, to) vertex ids."""
+    a = faces.ravel()
+    b = np.roll(faces, -1, axis=1).ravel()
+    n = int(faces.max()) + 1 if len(faces) else 1
+    return np.minimum(a, b) * n + np.maximum(a, b), a, b
+
+
+def edge_counts(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(order, start, count, keys)``: face edges sorted by their undirected key (``order`` into
+    the 3 m directed edges, edge ``k`` of face ``f`` at ``3 f + k``), where each group of equal
+    keys starts and how many face edges it has."""
+    key, _, _ = _sorted_edge_keys(faces)
+    order = np.argsort(key, kind="stable")
+    k = key[order]
+    start = np.flatnonzero(np.r_[True, k[1:] != k[:-1]]) if len(k) else np.zeros(0, dtype=np.int64)
+    count = np.diff(np.r_[start, len(k)])
+    return order, start, count, k
+
+
+def winding_consistent(faces: np.ndarray) -> bool:
+    """Every edge shared by exactly two faces is walked in opposite directions by them (the
+    definition of ``trimesh.Trimesh.is_winding_consistent``; edges with one or 3+ faces are not
+    judged)."""
+    F = np.asarray(faces, dtype=np.int64)
+    if len(F) == 0:
+        return True
+    order, start, count, _ = edge_counts(F)
+    two = start[count == 2]
+    a = F.ravel()
+    i, j = order[two], order[two + 1]
+    return bool(np.all(a[i] != a[j]))  # opposite directions start at different vertices
+
+
+def connected_components(n: int, edges: np.ndarray) -> tuple[int, np.ndarray]:
+    """``(count, label (n,))`` of the graph on ``n`` nodes with undirected ``edges (k, 2)``: min-label
+    hooking with pointer jumping (O(log n) rounds of vectorised work), labels renumbered 0.."""
+    parent = np.arange(n, dtype=np.int64)
+    e = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    while len(e):
+        pa, pb = parent[e[:, 0]], parent[e[:, 1]]
+        diff = pa != pb
+        if not diff.any():
+            break
+        lo, hi = np.minimum(pa[diff], pb[diff]), np.maximum(pa[diff], pb[diff])
+        np.minimum.at(parent, hi, lo)
+        while True:  # pointer jumping: every node points at its root
+            nxt = parent[parent]
+            if np.array_equal(nxt, parent):
+                break
+            parent = nxt
+        e = e[diff]
+    _, label = np.unique(parent, return_inverse=True)
+    return int(label.max()) + 1 if n else 0, label.reshape(-1)
+
+
+class MeshData:
+    """An immutable triangle mesh; see the module docstring.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float64
+    faces : (m, 3) int64
+    face_normals : (m, 3) float64, optional
+        Unit normals to record instead of computing them from the winding (the BLM keeps each new
+        triangle's parent normal).
+    """
+
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray, face_normals: np.ndarray | None = None):
+        self._vertices = np.ascontiguousarray(vertices, dtype=np.float64).reshape(-1, 3)
+        self._faces = np.ascontiguousarray(faces, dtype=np.int64).reshape(-1, 3)
+        self._cache: dict = {}
+        if face_normals is not None:
+            fn = np.ascontiguousarray(face_normals, dtype=np.float64).reshape(-1, 3)
+            if len(fn) != len(self._faces):
+                raise ValueError(f"MeshData: {len(fn)} face normals for {len(self._faces)} faces")
+            self._cache["face_normals"] = fn
+
+    # -- pickling (Ray workers, multiprocessing): arrays and recorded normals, not the caches ---
+    def __getstate__(self) -> dict:
+        return {"vertices": self._vertices, "faces": self._faces,
+                "face_normals": self._cache.get("face_normals")}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(state["vertices"], state["faces"], state["face_normals"])
+
+    def __repr__(self) -> str:
+        return f"MeshData(vertices={len(self._vertices)}, faces={len(self._faces)})"
+
+    def _cached(self, name: str, compute):
+        c = self._cache
+        if name not in c:
+            c[name] = compute()
+        return c[name]
+
+    @property
+    def vertices(self) -> np.ndarray:
+        """(n, 3) float64."""
+        return self._vertices
+
+    @property
+    def faces(self) -> np.ndarray:
+        """(m, 3) int64."""
+        return self._faces
+
+    @property
+    def triangles(self) -> np.ndarray:
+        """(m, 3, 3) float64: the corners of each face."""
+        return self._cached("triangles", lambda: self._vertices[self._faces])
+
+    @property
+    def triangles_cross(self) -> np.ndarray:
+        """(m, 3) float64: (b - a) x (c - b) per face (trimesh's operands, bit-identical results)."""
+        def f():
+            t = self.triangles
+            d = t[:, 1:, :] - t[:, :2, :]
+            return np.cross(d[:, 0], d[:, 1])
+        return self._cached("triangles_cross", f)
+
+    @property
+    def area_faces(self) -> np.ndarray:
+        """(m,) float64."""
+        return self._cached("area_faces", lambda: np.sqrt((self.triangles_cross ** 2).sum(axis=1)) / 2.0)
+
+    @property
+    def area(self) -> float:
+        return self._cached("area", lambda: float(self.area_faces.sum()))
+
+    @property
+    def face_normals(self) -> np.ndarray:
+        """(m, 3) float64 unit normals by the right-hand rule (zero for a face without area), computed
+        as trimesh does (same operations, so the same bits)."""
+        def f():
+            c = self.triangles_cross
+            norm = np.sqrt(np.dot(c * c, [1.0, 1.0, 1.0]))
+            valid = norm > _TOL_ZERO
+            norm[valid] **= -1
+            return np.where(valid[:, None], c * norm.reshape((-1, 1)), 0.0)
+        return self._cached("face_normals", f)
+
+    @property
+    def triangles_center(self) -> np.ndarray:
+        """(m, 3) float64: face centroids."""
+        return self._cached("triangles_center", lambda: self.triangles.mean(axis=1))
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """(2, 3) float64: min and max corner of the referenced vertices' box."""
+        def f():
+            v = self._vertices[np.unique(self._faces)] if len(self._faces) else self._vertices
+            return np.array([v.min(axis=0), v.max(axis=0)])
+        return self._cached("bounds", f)
+
+    @property
+    def extents(self) -> np.ndarray:
+        """(3,) float64: size of :attr:`bounds`."""
+        return np.ptp(self.bounds, axis=0)
+
+    @property
+    def is_watertight(self) -> bool:
+        """Every edge belongs to exactly two faces (as trimesh's ``is_watertight``)."""
+        def f():
+            if len(self._faces) == 0:
+                return False
+            _, _, count, _ = edge_counts(self._faces)
+            return bool(np.all(count == 2))
+        return self._cached("is_watertight", f)
+
+    @property
+    def is_winding_consistent(self) -> bool:
+        return self._cached("is_winding_consistent", lambda: winding_consistent(self._faces))
+
+    @property
+    def body_count(self) -> int:
+        """Connected groups of vertices (joined by face edges), as trimesh's ``body_count``."""
+        def f():
+            F = self._faces
+            e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]]]) if len(F) else np.zeros((0, 2), dtype=np.int64)
+            return connected_components(len(self._vertices), e)[0]
+        return self._cached("body_count", f)
+
+    @property
+    def trimesh(self) -> trimesh.Trimesh:
+        """An equal ``trimesh.Trimesh`` (built once, on first use; imports trimesh). Read-only."""
+        def f():
+            import trimesh
+
+            return trimesh.Trimesh(vertices=self._vertices, faces=self._faces,
+                                   face_normals=self._cache.get("face_normals"), process=False, validate=False)
+        return self._cached("trimesh", f)
+
+    def copy(self) -> trimesh.Trimesh:
+        """A mutable ``trimesh.Trimesh`` copy (what a copy is for: changing the geometry)."""
+        return self.trimesh.copy()
+
+    def __getattr__(self, name: str):
+        # only called for what the class does not define: read it from the equal trimesh, but never
+        # change it in place (the arrays are shared)
+        if name.startswith("_"):
+            raise AttributeError(name)
+        if name.startswith(_MUTATING_PREFIXES) or name in _MUTATING:
+            raise AttributeError(f"MeshData.{name}: a MeshData is immutable (its arrays are shared); "
+                                 f"change a copy instead: mesh.copy().{name}(...) (a trimesh.Trimesh)")
+        return getattr(self.trimesh, name)
+
+
+#: trimesh methods that change a mesh in place: refused on a MeshData (use ``copy()``)
+_MUTATING_PREFIXES = ("apply_", "update_", "remove_", "fix_", "merge_", "fill_", "unmerge_")
+_MUTATING = frozenset({"invert", "process", "rezero", "subdivide_to_size", "fix_normals"})
+
+
+def as_meshdata(mesh) -> MeshData:
+    """``mesh`` if it is a :class:`MeshData`, else one over its ``vertices`` and ``faces`` (and its
+    face normals when it is a trimesh, whose normals may have been recorded, e.g. by the BLM)."""
+    if isinstance(mesh, MeshData):
+        return mesh
+    fn = getattr(mesh, "face_normals", None)
+    return MeshData(np.asarray(mesh.vertices), np.asarray(mesh.faces),
+                    None if fn is None else np.asarray(fn, dtype=np.float64))
