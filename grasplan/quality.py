@@ -557,6 +557,18 @@ def patch_radius(area: np.ndarray) -> np.ndarray:
     return np.maximum(np.sqrt(np.maximum(area, 0.0) / math.pi), MIN_PATCH_RADIUS)
 
 
+#: soft-finger torsion: the largest friction torque about a contact normal is ``mu * N * SOFT_FINGER
+#: * radius`` (uniform pressure on a disc of that radius: the integral of ``r dF`` gives 2/3)
+SOFT_FINGER = 2.0 / 3.0
+
+
+def torsion_length(area: np.ndarray) -> np.ndarray:
+    """Torsional friction per unit ``mu`` and newton of normal force (m) of patches of ``area``
+    (m^2): ``SOFT_FINGER * patch_radius(area)``. The one definition used by
+    :func:`gravity_margin`, epsilon and the MuJoCo check (:mod:`grasplan.simulate`)."""
+    return SOFT_FINGER * patch_radius(area)
+
+
 def gravity_margin(mass_props: MassProperties, T_world_part: np.ndarray, T_part_tcp: np.ndarray,
                    width: np.ndarray, area: np.ndarray, *, mu: float, normal_force: float,
                    accel_g: float = 1.0) -> np.ndarray:
@@ -580,7 +592,7 @@ def gravity_margin(mass_props: MassProperties, T_world_part: np.ndarray, T_part_
     inv_w = 1.0 / np.maximum(np.asarray(width, dtype=np.float64), 1e-9)[:, None]
     # the couple h = (tau_perp x x_hat) / width = (0, tau_z, -tau_y) / width at the two contacts
     hy, hz = tau_z * inv_w, -tau_y * inv_w
-    tors_max = (2.0 / 3.0) * mu * normal_force * patch_radius(area).sum(axis=1)  # both contacts
+    tors_max = mu * normal_force * torsion_length(area).sum(axis=1)  # both contacts
     r_tors2 = (tau_x / tors_max[:, None]) ** 2
     a0 = (0.5 * fy - hy) ** 2 + (0.5 * fz - hz) ** 2
     a1 = (0.5 * fy + hy) ** 2 + (0.5 * fz + hz) ** 2
@@ -808,7 +820,7 @@ def epsilon_dedup(contacts: np.ndarray, normals: np.ndarray, area: np.ndarray, c
                           np.asarray(normals, dtype=np.float64).reshape(M, 6), rq], axis=1)
     _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
     u = first
-    Cu, Nu, tors = np.asarray(contacts)[u], np.asarray(normals)[u], (2.0 / 3.0) * mu * rq[u]
+    Cu, Nu, tors = np.asarray(contacts)[u], np.asarray(normals)[u], SOFT_FINGER * mu * rq[u]
     eps, exact = ferrari_canny_pair(Cu, Nu, com, rho, mu, tors)
     if not exact.all():  # degenerate wrench sets: Qhull
         bad = np.flatnonzero(~exact)

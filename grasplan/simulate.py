@@ -15,6 +15,14 @@ Model (one per part and gripper, reused for every grasp):
   ``DRIVE_TAU`` (2 ms; without it the jaws rang against many-piece parts, issue 11);
 - the **table**: a box whose top is the cell's table plane, touching only the part.
 
+Contacts: friction ``mu`` (elliptic cones) and soft-finger torsion (``condim`` 4). MuJoCo gives a
+pair of convex shapes one contact point, so a pad pressed flat on a face would resist no twist
+about the closing axis beyond what the spread of the part's pieces gives; each jaw's torsional
+friction is therefore set per grasp from the patch between its pad and the part
+(:func:`grasplan.quality.contact_patches`, :func:`grasplan.quality.torsion_length`: ``mu * 2/3 *
+radius`` per newton, uniform pressure on a disc of the patch's area), the soft-finger model that
+``gravity_margin`` uses (issue 11). Part against table: ``TORSION_LENGTH``.
+
 The simulation runs in the gripper's (TCP) frame, which only translates: lifting and shaking the
 gripper is exactly a change of the effective gravity ``R_world_tcp^T (g - a_gripper(t))`` and a
 table moving away. Protocol: settle ``SETTLE_S``, close ``CLOSE_S`` (pre-grasp opening
@@ -73,7 +81,8 @@ CLOSE_SPEED, JAW_MASS = 0.05, 0.2
 DRIVE_TAU = 0.002
 #: contact time constant (s, >= 2 timesteps): stiff enough that grip_force indents well below 1 mm
 SOLREF_TIMECONST = 0.002
-#: torsional friction length of MuJoCo's soft contacts (m): torque <= mu * this * normal force
+#: torsional friction length of MuJoCo's soft contacts (m): torque <= mu * this * normal force; the
+#: part against the table. Jaw contacts use each grasp's own patch (``quality.torsion_length``).
 TORSION_LENGTH = 1e-3
 #: table half extents (m)
 TABLE_HALF = (0.5, 0.5, 0.025)
@@ -271,7 +280,8 @@ def simulate_grasps(part_mesh: trimesh.Trimesh, gripper: Gripper, T_world_part: 
                     width: np.ndarray, *, table_z: float = 0.0, density: float = DEFAULT_DENSITY,
                     mass: float | None = None, mass_props: MassProperties | None = None,
                     grip_force: float | None = None, mu: float = 0.3, seed: int = 0,
-                    decomposition: str = "coacd", cache: bool = True) -> SimResult:
+                    decomposition: str = "coacd", cache: bool = True,
+                    contact_area: np.ndarray | None = None) -> SimResult:
     """Close, lift and shake each grasp; see the module docstring.
 
     Parameters
@@ -299,8 +309,14 @@ def simulate_grasps(part_mesh: trimesh.Trimesh, gripper: Gripper, T_world_part: 
         The part's collision shape (``"hull"``: its convex hull; cheap, for tests or convex parts).
     cache : bool
         Read and write the CoACD cache.
+    contact_area : (k, 2), optional
+        Patch area (m^2) of each jaw (jaw 0 on the TCP's -x side), e.g. a grasp's recorded
+        ``quality.contact``; computed here (:func:`grasplan.quality.contact_patches`) when not
+        given or not finite. Sets each jaw's torsional friction (module docstring).
     """
     import mujoco
+
+    from .quality import contact_patches, torsion_length
 
     t_start = time.perf_counter()
     Twp = check_transform(T_world_part, "T_world_part")
@@ -318,6 +334,15 @@ def simulate_grasps(part_mesh: trimesh.Trimesh, gripper: Gripper, T_world_part: 
     if not (math.isfinite(F) and F > 0):
         raise InputError(f"simulate: grip_force must be > 0 N, got {grip_force!r}")
     mp = mass_props if mass_props is not None else mass_properties(part_mesh, density=density, mass=mass)
+    area = None if contact_area is None else np.asarray(contact_area, dtype=np.float64)
+    if area is not None and area.shape != (len(T), 2):
+        raise InputError(f"simulate: expected contact areas (k, 2) for k = {len(T)} grasps, got {area.shape}")
+    if area is None or not np.all(np.isfinite(area)):
+        x = T[:, :3, 0] * (0.5 * w)[:, None]
+        C = np.stack([T[:, :3, 3] - x, T[:, :3, 3] + x], axis=1)
+        computed = contact_patches(part_mesh, gripper, T, C)[0]
+        area = computed if area is None else np.where(np.isfinite(area), area, computed)
+    jaw_torsion = float(mu) * torsion_length(area)  # (k, 2) m: MuJoCo's torsional friction per jaw
     pieces = convex_pieces(part_mesh, decomposition=decomposition, seed=seed, cache=cache)
     model = mujoco.MjModel.from_xml_string(build_model_xml(pieces, mp, gripper, mu=mu, grip_force=F))
     data = mujoco.MjData(model)
@@ -335,14 +360,18 @@ def simulate_grasps(part_mesh: trimesh.Trimesh, gripper: Gripper, T_world_part: 
     mujoco.set_mju_user_warning(lambda msg: None)
     try:
         return _run_grasps(model, data, pieces, Twp, T, w, gripper, F, q_part, q_jaw, part_body, T_world_table,
-                           t_start, k)
+                           t_start, k, jaw_torsion)
     finally:
         mujoco.set_mju_user_warning(previous_handler)
 
 
-def _run_grasps(model, data, pieces, Twp, T, w, gripper, F, q_part, q_jaw, part_body, T_world_table, t_start, k):
-    """The lift-and-shake of :func:`simulate_grasps` for each of the ``k`` poses ``T``."""
+def _run_grasps(model, data, pieces, Twp, T, w, gripper, F, q_part, q_jaw, part_body, T_world_table, t_start, k,
+                jaw_torsion):
+    """The lift-and-shake of :func:`simulate_grasps` for each of the ``k`` poses ``T``;
+    ``jaw_torsion`` (k, 2): each jaw's torsional friction coefficient (m) per grasp."""
     import mujoco
+
+    jaw_geom = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f"jaw{j}") for j in range(2)]
 
     acc, lift_z, close, i_closed = _profile()
     nstep = round(CONTROL_DT / TIMESTEP)
@@ -354,6 +383,8 @@ def _run_grasps(model, data, pieces, Twp, T, w, gripper, F, q_part, q_jaw, part_
         T_world_tcp = Twp @ T[i]
         R_wt = T_world_tcp[:3, :3]
         T_tcp_part = np.linalg.inv(T[i])
+        for j in range(2):  # friction combines by the larger value: the jaw's patch torsion counts
+            model.geom_friction[jaw_geom[j], 1] = jaw_torsion[i, j]
         mujoco.mj_resetData(model, data)
         data.qpos[q_part:q_part + 3] = T_tcp_part[:3, 3]
         data.qpos[q_part + 3:q_part + 7] = quaternions(T_tcp_part[:3, :3])
