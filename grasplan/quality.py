@@ -66,6 +66,8 @@ from .scoring import (  # noqa: F401
     DEFAULT_SCORING,
     SCORING_FILE,
     ScoringConfig,
+    epsilon_term,
+    gravity_margin_term,
     load_score_weights,
     load_scoring,
 )
@@ -948,14 +950,11 @@ def quality_and_score(part_mesh: trimesh.Trimesh, gripper: Gripper, T_world_part
 
 
 def score_quality_terms(quality: Quality, config: ScoringConfig | None = None) -> dict[str, np.ndarray]:
-    """Normalised quality terms, each (M,) in [0, 1], higher is better:
-
-    ``gravity_margin = clip(log(margin) / log(gravity_margin_ref), 0, 1)`` (0 when it slips, 1 at
-    the reference margin and above); ``epsilon = clip(epsilon / epsilon_ref, 0, 1)``."""
+    """Normalised quality terms, each (M,) in [0, 1], higher is better: the score's own
+    :func:`grasplan.scoring.gravity_margin_term` and :func:`grasplan.scoring.epsilon_term`."""
     cfg = config if config is not None else DEFAULT_SCORING
-    gm = np.clip(np.log(np.maximum(quality.gravity_margin, 1e-300)) / math.log(cfg.gravity_margin_ref), 0.0, 1.0)
-    eps = np.clip(quality.epsilon / cfg.epsilon_ref, 0.0, 1.0)
-    return {"gravity_margin": gm, "epsilon": eps}
+    return {"gravity_margin": gravity_margin_term(quality.gravity_margin, cfg.gravity_margin_ref),
+            "epsilon": epsilon_term(quality.epsilon, cfg.epsilon_ref)}
 
 
 # ------------------------------------------------------------------------------------------------

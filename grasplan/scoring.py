@@ -14,8 +14,10 @@ Terms::
              bounding-box diagonal
     top    = max(0, -z_tcp . z_world)                  approach from above (1: TCP z straight down)
     width  = (max_opening - width) / max_opening       margin to the gripper's maximum opening
-    gravity_margin = clip(log(margin) / log(gravity_margin_ref), 0, 1)   0 when the part slips
-             (margin <= 1), 1 at the reference margin and above (grasplan.quality)
+    gravity_margin = clip((1 + log(margin) / log(gravity_margin_ref)) / 2, 0, 1)   1/2 at the
+             slipping threshold (margin 1), 1 at the reference margin and above, 0 at its inverse
+             and below: grasps that hold come first, and where none does (a part too heavy for
+             the gripper) the ones closest to holding lead (grasplan.quality)
     epsilon = clip(epsilon / epsilon_ref, 0, 1)        Ferrari-Canny L1 quality (grasplan.quality)
 
 The physical terms read ``ScoreContext.quality`` (a :class:`grasplan.quality.Quality` of the same
@@ -36,9 +38,14 @@ from .errors import ConfigError, InputError
 
 #: scoring configuration shipped with grasplan (the one definition of the default weights)
 SCORING_FILE = packaged_file("configs", "scoring.yaml")
-#: normalisation keys of the scoring YAML and their fallbacks when a user file omits them
+#: normalisation keys of the scoring YAML (a user file that omits one gets the packaged file's)
 REF_KEYS = ("gravity_margin_ref", "epsilon_ref")
-_REF_FALLBACK = {"gravity_margin_ref": 10.0, "epsilon_ref": 0.1}
+
+
+def _ref_fallback() -> dict:
+    """The references a scoring YAML may omit: the packaged file's (none while that one loads)."""
+    d = globals().get("DEFAULT_SCORING")
+    return dict(d.refs) if d is not None else {}
 
 
 @dataclass(frozen=True)
@@ -56,7 +63,7 @@ class ScoringConfig:
 
     @classmethod
     def from_params(cls, weights, refs) -> ScoringConfig:
-        r = {**_REF_FALLBACK, **dict(refs)}
+        r = {**_ref_fallback(), **dict(refs)}
         return cls(weights=tuple((str(n), float(w)) for n, w in weights),
                    gravity_margin_ref=float(r["gravity_margin_ref"]), epsilon_ref=float(r["epsilon_ref"]))
 
@@ -122,17 +129,29 @@ def _quality_of(ctx: ScoreContext, term: str):
     return q, ctx.scoring if ctx.scoring is not None else DEFAULT_SCORING
 
 
+def gravity_margin_term(margin: np.ndarray, ref: float) -> np.ndarray:
+    """The normalised gravity_margin term (module docstring), (M,) in [0, 1]: log-symmetric about
+    the slipping threshold, so that margins below 1 still rank (issue 11: with a steel part no
+    grasp may reach 1, and a term flat at 0 left their order to the geometric terms)."""
+    gm = np.maximum(np.asarray(margin, dtype=np.float64), 1e-300)
+    return np.clip(0.5 * (1.0 + np.log(gm) / math.log(ref)), 0.0, 1.0)
+
+
+def epsilon_term(epsilon: np.ndarray, ref: float) -> np.ndarray:
+    """The normalised epsilon term, ``clip(epsilon / ref, 0, 1)``."""
+    return np.clip(np.asarray(epsilon, dtype=np.float64) / ref, 0.0, 1.0)
+
+
 @register_term("gravity_margin")
 def _gravity_margin(ctx: ScoreContext) -> np.ndarray:
     q, cfg = _quality_of(ctx, "gravity_margin")
-    gm = np.maximum(np.asarray(q.gravity_margin, dtype=np.float64), 1e-300)
-    return np.clip(np.log(gm) / math.log(cfg.gravity_margin_ref), 0.0, 1.0)
+    return gravity_margin_term(q.gravity_margin, cfg.gravity_margin_ref)
 
 
 @register_term("epsilon")
 def _epsilon(ctx: ScoreContext) -> np.ndarray:
     q, cfg = _quality_of(ctx, "epsilon")
-    return np.clip(np.asarray(q.epsilon, dtype=np.float64) / cfg.epsilon_ref, 0.0, 1.0)
+    return epsilon_term(q.epsilon, cfg.epsilon_ref)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -164,11 +183,15 @@ def load_scoring(path: str | Path | None = None) -> ScoringConfig:
     norm = data.get("normalisation") or {}
     if not isinstance(norm, dict) or set(norm) - set(REF_KEYS):
         raise ConfigError(f"scoring file {p}: normalisation: allowed keys {', '.join(REF_KEYS)}")
-    gm = config_number(norm.get("gravity_margin_ref", _REF_FALLBACK["gravity_margin_ref"]),
+    fallback = _ref_fallback()
+    missing = [k for k in REF_KEYS if k not in norm and k not in fallback]
+    if missing:
+        raise ConfigError(f"scoring file {p}: normalisation: {', '.join(missing)} missing")
+    gm = config_number(norm.get("gravity_margin_ref", fallback.get("gravity_margin_ref")),
                        f"{p}: normalisation.gravity_margin_ref", positive=True)
     if gm <= 1:
         raise ConfigError(f"scoring file {p}: normalisation.gravity_margin_ref must be > 1, got {gm:g}")
-    eps = config_number(norm.get("epsilon_ref", _REF_FALLBACK["epsilon_ref"]), f"{p}: normalisation.epsilon_ref",
+    eps = config_number(norm.get("epsilon_ref", fallback.get("epsilon_ref")), f"{p}: normalisation.epsilon_ref",
                         positive=True)
     return ScoringConfig(weights=weights, gravity_margin_ref=gm, epsilon_ref=eps, source=str(p))
 

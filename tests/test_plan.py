@@ -208,7 +208,7 @@ def check_scores(doc: dict, mesh) -> None:
     terms = {"center": 1.0 - np.minimum(1.0, np.linalg.norm(T[:, :3, 3] - com, axis=1) / r),
              "top": np.maximum(0.0, -(T[:, :3, 2] @ T_world_part[:3, :3].T)[:, 2]),
              "width": (mo - w) / mo,
-             "gravity_margin": np.clip(np.log(gm) / np.log(refs["gravity_margin_ref"]), 0.0, 1.0),
+             "gravity_margin": np.clip(0.5 + 0.5 * np.log(gm) / np.log(refs["gravity_margin_ref"]), 0.0, 1.0),
              "epsilon": np.clip(eps / refs["epsilon_ref"], 0.0, 1.0)}
     expected = sum(v * terms[k] for k, v in weights.items()) / sum(weights.values())
     np.testing.assert_allclose([g["score"] for g in ranked], expected, atol=1e-7)

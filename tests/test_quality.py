@@ -13,6 +13,7 @@ from grasplan.mass import mass_properties
 from grasplan.quality import (
     CONTACT_TYPES,
     G,
+    Quality,
     clip_polygons,
     contact_patches,
     grasp_quality,
@@ -196,7 +197,22 @@ def test_score_terms_are_normalised_and_monotonic(gripper, box):
         assert v.shape == (6,) and np.all((v >= 0) & (v <= 1))
     assert np.all(np.diff(terms["gravity_margin"]) <= 0) and terms["gravity_margin"][0] > terms["gravity_margin"][-1]
     cfg = load_scoring()
-    assert terms["gravity_margin"][0] == pytest.approx(min(1.0, math.log(q.gravity_margin[0]) / math.log(cfg.gravity_margin_ref)))
+    assert terms["gravity_margin"][0] == pytest.approx(
+        min(1.0, 0.5 + 0.5 * math.log(q.gravity_margin[0]) / math.log(cfg.gravity_margin_ref)))
+
+
+def test_gravity_margin_term_ranks_grasps_that_slip():
+    """Issue 11: a part too heavy for the gripper has no grasp with margin >= 1; the term still
+    orders those (1/2 at the threshold, 0 at the reference's inverse), so the score leads with the
+    grasps closest to holding instead of leaving them to the geometric terms."""
+    cfg = load_scoring()
+    ref = cfg.gravity_margin_ref
+    m = np.array([1.0 / (2 * ref), 1.0 / ref, ref ** -0.5, ref ** -0.1, 1.0, math.sqrt(ref), ref, 2 * ref])
+    t = score_quality_terms(Quality(contact_area=np.ones((8, 2)), contact_type=np.zeros((8, 2), dtype=np.int8),
+                                    contact_width=np.ones((8, 2, 2)), gravity_margin=m, epsilon=np.zeros(8),
+                                    grip_force=140.0, mu=0.3), cfg)["gravity_margin"]
+    np.testing.assert_allclose(t, [0.0, 0.0, 0.25, 0.45, 0.5, 0.75, 1.0, 1.0], atol=1e-12)
+    assert np.all(np.diff(t[1:7]) > 0)
 
 
 @pytest.mark.parametrize("text, match", [

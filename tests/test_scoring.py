@@ -57,10 +57,13 @@ def test_defaults_are_read_from_the_packaged_yaml(tmp_path):
     assert PlanParams().score_weights is None  # the plan uses the grasp stage's score unless told otherwise
     assert {"center", "top", "width", "gravity_margin", "epsilon"} <= set(dict(cfg.weights)) <= set(TERMS)
     user = tmp_path / "s.yaml"
-    user.write_text("weights: {top: 2, gravity_margin: 1}\nnormalisation: {gravity_margin_ref: 4}\n")
+    user.write_text("weights: {top: 2, gravity_margin: 1}\nnormalisation: {gravity_margin_ref: 7}\n")
     gp = with_scoring_file(GraspParams(), user)
     assert gp.score_weights == (("top", 2.0), ("gravity_margin", 1.0))
-    assert dict(gp.score_refs)["gravity_margin_ref"] == 4.0
+    assert dict(gp.score_refs)["gravity_margin_ref"] == 7.0
+    assert dict(gp.score_refs)["epsilon_ref"] == cfg.epsilon_ref  # omitted: the packaged file's
+    user.write_text("weights: {top: 1}\n")
+    assert load_scoring(user).refs == cfg.refs
     assert GraspParams.from_json(json.loads(json.dumps(gp.to_json()))) == gp
 
 
@@ -89,7 +92,8 @@ def test_gravity_margin_and_epsilon_terms_follow_the_yaml_normalisation():
     q = _fake_quality([0.5, 1.0, 3.0, 100.0], [0.0, 0.02, 0.05, 0.3])
     cfg = ScoringConfig(weights=(("gravity_margin", 1.0),), gravity_margin_ref=9.0, epsilon_ref=0.1)
     s = score_grasps(box, np.eye(4), T, np.full(4, 0.03), 0.05, cfg.weights, quality=q, scoring=cfg)
-    np.testing.assert_allclose(s, [0.0, 0.0, math.log(3) / math.log(9), 1.0])
+    # 1/2 at the threshold (margin 1), log-symmetric: 0.5 -> 1/2 - log 2 / (2 log 9), 3 -> 3/4
+    np.testing.assert_allclose(s, [0.5 - 0.5 * math.log(2) / math.log(9), 0.5, 0.75, 1.0])
     s = score_grasps(box, np.eye(4), T, np.full(4, 0.03), 0.05, (("epsilon", 1.0),), quality=q, scoring=cfg)
     np.testing.assert_allclose(s, [0.0, 0.2, 0.5, 1.0])
     with pytest.raises(InputError, match="needs the grasps' quality"):
