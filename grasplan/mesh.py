@@ -495,10 +495,11 @@ def part_from_arrays(
     digits = int(max(0, np.floor(-np.log10(tol.merge))))
     v_keep, fv = merge_vertices(v_m, f, referenced, digits)
     merged = n_verts_in - len(v_keep)
+    full = MeshData(v_keep, fv)
 
     # 2. drop degenerate faces: repeated vertex index or (near) zero area
     repeated = (fv[:, 0] == fv[:, 1]) | (fv[:, 1] == fv[:, 2]) | (fv[:, 0] == fv[:, 2])
-    tiny = MeshData(v_keep, fv).area_faces <= tol.area
+    tiny = full.area_faces <= tol.area
     degenerate = repeated | tiny
     # 3. drop duplicate faces (same three vertices, either winding)
     keep = ~degenerate
@@ -509,11 +510,7 @@ def part_from_arrays(
     keep &= unique_mask
     if not keep.any():
         raise MeshError(f"{src}: the mesh has no area (all {n_faces_in} triangles are degenerate)")
-    fk = fv[keep]
-    used_v = np.zeros(len(v_keep), dtype=bool)
-    used_v[fk.ravel()] = True
-    remap = np.cumsum(used_v) - 1  # unreferenced vertices dropped, order kept
-    mesh = MeshData(v_keep[used_v], remap[fk])
+    mesh = full.with_faces(keep)  # unreferenced vertices dropped, order kept
     if mesh.area <= tol.area:
         raise MeshError(f"{src}: the mesh has no area")
 

@@ -51,14 +51,7 @@ def winding_consistent(faces: np.ndarray) -> bool:
     """Every edge shared by exactly two faces is walked in opposite directions by them (the
     definition of ``trimesh.Trimesh.is_winding_consistent``; edges with one or 3+ faces are not
     judged)."""
-    F = np.asarray(faces, dtype=np.int64)
-    if len(F) == 0:
-        return True
-    order, start, count, _ = edge_counts(F)
-    two = start[count == 2]
-    a = F.ravel()
-    i, j = order[two], order[two + 1]
-    return bool(np.all(a[i] != a[j]))  # opposite directions start at different vertices
+    return MeshData(np.zeros((0, 3)), faces).is_winding_consistent
 
 
 def connected_components(n: int, edges: np.ndarray) -> tuple[int, np.ndarray]:
@@ -186,18 +179,44 @@ class MeshData:
         return np.ptp(self.bounds, axis=0)
 
     @property
+    def edge_groups(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:func:`edge_counts` of the faces (cached: watertightness and winding share one sort)."""
+        return self._cached("edge_groups", lambda: edge_counts(self._faces))
+
+    @property
     def is_watertight(self) -> bool:
         """Every edge belongs to exactly two faces (as trimesh's ``is_watertight``)."""
         def f():
             if len(self._faces) == 0:
                 return False
-            _, _, count, _ = edge_counts(self._faces)
-            return bool(np.all(count == 2))
+            return bool(np.all(self.edge_groups[2] == 2))
         return self._cached("is_watertight", f)
 
     @property
     def is_winding_consistent(self) -> bool:
-        return self._cached("is_winding_consistent", lambda: winding_consistent(self._faces))
+        """Every edge with exactly two faces is walked in opposite directions by them."""
+        def f():
+            if len(self._faces) == 0:
+                return True
+            order, start, count, _ = self.edge_groups
+            two = start[count == 2]
+            a = self._faces.ravel()  # opposite directions start at different vertices
+            return bool(np.all(a[order[two]] != a[order[two + 1]]))
+        return self._cached("is_winding_consistent", f)
+
+    def with_faces(self, keep: np.ndarray) -> MeshData:
+        """The mesh of the faces ``keep`` (bool mask) with unreferenced vertices dropped (order
+        kept); the kept faces' cross products, areas and normals carry over (same bits)."""
+        keep = np.asarray(keep, dtype=bool)
+        fk = self._faces[keep]
+        used = np.zeros(len(self._vertices), dtype=bool)
+        used[fk.ravel()] = True
+        remap = np.cumsum(used) - 1
+        out = MeshData(self._vertices[used], remap[fk])
+        for name in ("triangles_cross", "area_faces", "face_normals"):
+            if name in self._cache:
+                out._cache[name] = self._cache[name][keep]
+        return out
 
     @property
     def body_count(self) -> int:
