@@ -71,7 +71,7 @@ def run_part(path: Path, args, gr, density: float) -> dict:
     sims, secs = [], []
     for sel in (top, rand):
         r = simulate_grasps(part.mesh, gr.gripper, gr.T_world_part, T[sel], width[sel], table_z=gr.cell.table_z,
-                            mass_props=mp, mu=mu, decomposition=args.decomposition)
+                            mass_props=mp, mu=mu, decomposition=args.decomposition, contact_area=q.contact_area[sel])
         sims.append(r)
         secs.append(r.seconds * 20.0 / max(len(sel), 1))
     gm = np.concatenate([q.gravity_margin[top], q.gravity_margin[rand]])

@@ -8,6 +8,7 @@ the pure function behind ``grasplan grasps``; the plan pipeline starts from its
 from __future__ import annotations
 
 import time
+from pathlib import Path
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -55,6 +56,16 @@ class GraspResult:
     #: rank-order evaluation (``compute_grasps(..., lazy=True)``): the :class:`LazyGrasps` that checks
     #: poses on demand; ``status`` is ``not_checked`` for the poses it has not checked
     lazy: object = None
+
+    def quality_warnings(self) -> list[str]:
+        """What to tell the user about the quality step: the mass properties' warnings (or why
+        there is no quality) and :func:`grasplan.quality.holding_warning`."""
+        from .quality import holding_warning
+
+        out = list(self.mass_props.warnings) if self.mass_props is not None else \
+            [self.quality_note] if self.quality_note else []
+        w = holding_warning(self.quality, self.mass_props, part=Path(self.cand.part.path).name)
+        return out + [w] if w else out
 
     @property
     def width(self) -> np.ndarray:

@@ -890,6 +890,24 @@ def grasp_quality(part_mesh: trimesh.Trimesh, mass_props: MassProperties, grippe
                    epsilon=eps, grip_force=F, mu=float(mu))
 
 
+def holding_warning(quality: Quality | None, mass_props: MassProperties | None, *, part: str = "the part") -> str:
+    """A warning when no grasp of ``quality`` reaches ``gravity_margin >= 1`` ("" otherwise): the
+    best margin, the grip force that would reach 1 (the margin is proportional to the gripping
+    force: friction and soft-finger torsion both scale with it) and what to change."""
+    if quality is None or mass_props is None or len(quality) == 0:
+        return ""
+    best = float(np.max(quality.gravity_margin))
+    if not np.isfinite(best) or best >= 1.0:
+        return ""
+    need = quality.grip_force / max(best, 1e-12)
+    return (f"no collision-free grasp is predicted to hold {part} ({mass_props.mass:.3g} kg, "
+            f"{mass_props.density:.4g} kg/m^3) under gravity "
+            f"+ 1 g: the best gravity_margin is {best:.2f} (< 1: it slips); it would take about {need:.0f} N of "
+            f"grip force at mu {quality.mu:g} (the gripper gives {quality.grip_force:g} N). The ranking leads with the "
+            f"grasps closest to holding; give the real material (--density, --mass), a stronger gripper "
+            f"(grip_force in its YAML), or check them in simulation (grasplan simulate)")
+
+
 # ------------------------------------------------------------------------------------------------
 # scoring configuration
 # ------------------------------------------------------------------------------------------------

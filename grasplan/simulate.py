@@ -99,13 +99,16 @@ DECOMPOSITIONS = ("coacd", "hull")
 @dataclass(frozen=True)
 class SimResult:
     """Outcome per simulated grasp: ``success`` (k,) bool, ``slip_m`` (k,) m, ``turn_deg`` (k,) deg,
-    and the whole run's wall time ``seconds``; ``pieces``: convex pieces of the part's collision."""
+    and the whole run's wall time ``seconds``; ``pieces``: convex pieces of the part's collision;
+    ``jaw_torsion_m`` (k, 2): each jaw's torsional friction coefficient (m: torque per newton of
+    normal force) in that grasp's run."""
 
     success: np.ndarray
     slip_m: np.ndarray
     turn_deg: np.ndarray
     seconds: float
     pieces: int
+    jaw_torsion_m: np.ndarray | None = None
 
     def to_json(self, i: int) -> dict:
         """The ``sim`` object of grasp ``i``."""
@@ -379,12 +382,14 @@ def _run_grasps(model, data, pieces, Twp, T, w, gripper, F, q_part, q_jaw, part_
     success = np.zeros(k, dtype=bool)
     slip = np.zeros(k)
     turn = np.zeros(k)
+    torsion_used = np.zeros((k, 2))
     for i in range(k):
         T_world_tcp = Twp @ T[i]
         R_wt = T_world_tcp[:3, :3]
         T_tcp_part = np.linalg.inv(T[i])
         for j in range(2):  # friction combines by the larger value: the jaw's patch torsion counts
             model.geom_friction[jaw_geom[j], 1] = jaw_torsion[i, j]
+            torsion_used[i, j] = model.geom_friction[jaw_geom[j], 1]  # what MuJoCo reads
         mujoco.mj_resetData(model, data)
         data.qpos[q_part:q_part + 3] = T_tcp_part[:3, 3]
         data.qpos[q_part + 3:q_part + 7] = quaternions(T_tcp_part[:3, :3])
@@ -423,7 +428,7 @@ def _run_grasps(model, data, pieces, Twp, T, w, gripper, F, q_part, q_jaw, part_
         turn[i] = _rotation_angle_deg(R_now @ ref[1].T)
         success[i] = slip[i] < SLIP_TOL and turn[i] < TURN_TOL_DEG
     return SimResult(success=success, slip_m=slip, turn_deg=turn, seconds=time.perf_counter() - t_start,
-                     pieces=len(pieces))
+                     pieces=len(pieces), jaw_torsion_m=torsion_used)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -484,9 +489,11 @@ def simulate_result(result, top: int, *, mass_props: MassProperties | None = Non
     if len(rows) == 0:
         st = sorted(set(np.asarray(g.status).astype(str)))
         raise InputError(f"simulate: no collision-free or planned grasp to simulate (statuses: {', '.join(st) or 'none'})")
+    area = getattr(g, "contact_area", None)  # the recorded patches (NaN rows are computed)
     sim = simulate_grasps(mesh, result.gripper, result.T_world_part, g.T_part_tcp[rows], g.width[rows],
                           table_z=float(result.cell.table_z), mass_props=mp, grip_force=grip_force, mu=mu, seed=seed,
-                          decomposition=decomposition, cache=cache)
+                          decomposition=decomposition, cache=cache,
+                          contact_area=None if area is None else np.asarray(area, dtype=np.float64)[rows])
     return rows, sim, mp, mu
 
 

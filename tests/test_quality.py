@@ -227,3 +227,24 @@ def test_bad_scoring_file_is_config_error(tmp_path, text, match):
     p.write_text(text)
     with pytest.raises(ConfigError, match=match):
         load_scoring(p)
+
+
+def test_holding_warning_names_the_grip_force_that_would_hold(gripper, box):
+    """The margin is proportional to the gripping force, so the force the warning names brings the
+    best grasp to exactly 1 (recomputed here, not assumed); a part that is held gets no warning."""
+    from grasplan.quality import holding_warning
+
+    heavy = mass_properties(box, density=60000.0)  # far too heavy for 140 N
+    T, C, N, w = grasps(np.linspace(0.0, 0.05, 6))
+    q = grasp_quality(box, heavy, gripper, T, C, N, w, T_world_part=on_table(0.015), mu=MU)
+    best = float(q.gravity_margin.max())
+    assert best < 1
+    msg = holding_warning(q, heavy, part="box.stl")
+    need = q.grip_force / best
+    assert f"best gravity_margin is {best:.2f}" in msg and f"about {need:.0f} N" in msg and "--density" in msg
+    q2 = grasp_quality(box, heavy, gripper, T, C, N, w, T_world_part=on_table(0.015), mu=MU, grip_force=need)
+    assert float(q2.gravity_margin.max()) == pytest.approx(1.0, rel=1e-9)
+    light = mass_properties(box)
+    q3 = grasp_quality(box, light, gripper, T, C, N, w, T_world_part=on_table(0.015), mu=MU)
+    assert q3.gravity_margin.max() >= 1 and holding_warning(q3, light) == ""
+    assert holding_warning(None, heavy) == "" and holding_warning(q, None) == ""

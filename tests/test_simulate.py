@@ -190,3 +190,23 @@ def test_an_arena_too_small_for_the_contacts_is_an_error_not_a_result(setup, mon
     monkeypatch.setattr(S, "_arena", lambda n: "60K")
     with pytest.raises(RuntimeError, match="ran out of contact/constraint memory"):
         S.simulate_grasps(block, g, Twp, top_grasp(0.0)[None], [BLOCK[1]], mass=0.3, decomposition="hull")
+
+
+def test_jaw_torsion_is_the_soft_finger_torsion_of_each_grasps_patch(setup):
+    """Issue 11: MuJoCo gives a pair of convex shapes one contact point, so each jaw's torsional
+    friction is set per grasp from its own contact patch (the model gravity_margin uses), not a
+    constant. Checked against the patch computed independently here, and an explicit area wins."""
+    from grasplan.quality import contact_patches
+
+    block, g, Twp = setup
+    T = np.array([top_grasp(0.0), top_grasp(0.05)])
+    C = np.array([[[x, -0.015, 0], [x, 0.015, 0]] for x in (0.0, 0.05)])
+    area = contact_patches(block, g, T, C)[0]
+    assert np.all(area > 1e-4)  # flat pad on a flat face: a surface patch
+    r = simulate_grasps(block, g, Twp, T, [BLOCK[1]] * 2, mass=0.2, decomposition="hull")
+    np.testing.assert_allclose(r.jaw_torsion_m, 0.3 * (2.0 / 3.0) * np.sqrt(area / np.pi), rtol=1e-12)
+    tiny = np.full((2, 2), 1e-12)  # a point contact: the 0.5 mm floor of the patch radius
+    r2 = simulate_grasps(block, g, Twp, T, [BLOCK[1]] * 2, mass=0.2, decomposition="hull", contact_area=tiny)
+    np.testing.assert_allclose(r2.jaw_torsion_m, 0.3 * (2.0 / 3.0) * 5e-4, rtol=1e-12)
+    with pytest.raises(InputError, match="contact areas"):
+        simulate_grasps(block, g, Twp, T, [BLOCK[1]] * 2, mass=0.2, decomposition="hull", contact_area=np.ones(2))

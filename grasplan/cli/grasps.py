@@ -56,7 +56,7 @@ def command(part, output, gripper, cell, part_pose, units, only_ok, indent, scor
     warn_all(p.warnings)
     res = compute_grasps(p, gripper=g, cell=c, candidates=prm["candidates"], grasps=prm["grasps"],
                          T_world_part=T_world_part, load_s=load_s)
-    warn_all(res.mass_props.warnings if res.mass_props is not None else [res.quality_note] if res.quality_note else [])
+    warn_all(res.quality_warnings())
     t = time.perf_counter()
     res.to_result().write(output, only_ok=only_ok, indent=indent)
     info(f"  wrote {output} in {time.perf_counter() - t:.2f} s")

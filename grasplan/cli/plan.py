@@ -95,7 +95,7 @@ def command(part, robot, output, gripper, cell, part_pose, units, place, scoring
             bar_state["ctx"].__exit__(None, None, None)
     gr = result.grasp_result
     if gr is not None:
-        warn_all(gr.mass_props.warnings if gr.mass_props is not None else [gr.quality_note] if gr.quality_note else [])
+        warn_all(gr.quality_warnings())
     result.write(output)
 
     counts = result.counts()
