@@ -26,10 +26,12 @@ friction-cone test (5.) decides whether the pair is kept.
 Search: every face is the oriented line through its centroid along its normal, written in
 Pluecker-like 6D coordinates ``x = (K n, (c - o) x n)``. An antipodal pair has ``x_i ~ -x_j``:
 the direction parts differ by at most the chord of beta, the moment parts by the lateral offset
-(<= epsilon + ...). One ``scipy.spatial.cKDTree`` range query over ``x`` against ``-x`` with a
-radius derived from beta, epsilon, max_opening and the part radius returns a superset of the
-pairs that can pass 1.-3. (no pair is lost; brute force agrees in the tests); the exact filters
-then run vectorised on those pairs only. The cost is ``O(m log m + k)`` for k prefiltered pairs.
+(<= epsilon + ...). One fixed-radius range query over ``x`` against ``-x``
+(:func:`grasplan.gridsearch.pairs_within`, a uniform grid on three of the six coordinates; a
+``scipy.spatial.cKDTree`` until issue 10's import-time work) with a radius derived from beta,
+epsilon, max_opening and the part radius returns a superset of the pairs that can pass 1.-3. (no
+pair is lost; brute force agrees in the tests); the exact filters then run vectorised on those
+pairs only. The cost is ``O(m log m + c)`` for c candidate pairs of neighbouring cells.
 """
 from __future__ import annotations
 
@@ -38,6 +40,7 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
+from .gridsearch import pairs_within
 from .tolerance import Tolerance
 
 if TYPE_CHECKING:  # trimesh (and scipy) load with the first mesh; importing this module stays cheap
@@ -157,7 +160,7 @@ def find_candidates(
     tol : Tolerance, optional
         Part tolerance (default: from the mesh).
     search : {"index", "brute"}
-        ``method="paper"`` only. ``"index"``: the sub-quadratic 6D KD-tree search, streamed in
+        ``method="paper"`` only. ``"index"``: the sub-quadratic 6D grid search, streamed in
         bounded chunks; ``"brute"``: every pair of convex faces (O(m^2) time, chunked; reference
         for tests and benchmarks).
     method : {"regions", "paper"}
@@ -228,7 +231,7 @@ def find_candidates(
     return Candidates(contacts[order], normals, width[order], faces)
 
 
-#: rows of the query side per KD-tree call of :func:`stream_pairs` (bounds each call's output)
+#: rows of the query side per range query of :func:`stream_pairs` (bounds each call's output)
 _QUERY_ROWS = 4096
 #: size classes of :func:`stream_pairs`: lateral bounds within a class differ by at most this factor
 _CLASS_RATIO = 4.0
@@ -246,7 +249,7 @@ def stream_pairs(c: np.ndarray, n: np.ndarray, lateral: np.ndarray, *, reach: fl
     ``x = (K n, (c - o) x n)``; a pair that can pass has ``|x_a + x_b| <= sqrt(2) M`` with ``M`` the
     lateral bound plus ``reach sin(beta/2)`` plus ``R |n_a + n_b|``. Elements are split into size
     classes (``lateral`` within a factor :data:`_CLASS_RATIO`), so one large piece does not widen the
-    radius for all small ones, and each KD-tree call queries at most :data:`_QUERY_ROWS` elements:
+    radius for all small ones, and each range query holds at most :data:`_QUERY_ROWS` elements:
     no array grows with k^2. Every qualifying pair is yielded exactly once (a superset of the
     pairs passing the exact tests; the tests check it against brute force)."""
     k = len(c)
@@ -267,8 +270,6 @@ def stream_pairs(c: np.ndarray, n: np.ndarray, lateral: np.ndarray, *, reach: fl
     nh = n @ h
     delta = cb * 1.01
     inA, inB = nh >= -delta, nh <= delta
-    from scipy.spatial import cKDTree
-
     band = ~(inA ^ inB)
     classes = np.unique(cls)
     lat_max = {int(q): float(lat[cls == q].max()) for q in classes}
@@ -283,16 +284,15 @@ def stream_pairs(c: np.ndarray, n: np.ndarray, lateral: np.ndarray, *, reach: fl
             M = lat_max[int(qa)] + lat_max[int(qb)] + reach * np.sin(half) + R * cb + 4 * tol.distance
             K = M / cb
             rho = np.sqrt(2.0) * M * (1.0 + 1e-9)
-            treeB = cKDTree(-np.hstack([K * n[B], mom[B]]))
+            YB = -np.hstack([K * n[B], mom[B]])
             for s in range(0, len(A), _QUERY_ROWS):
                 As = A[s:s + _QUERY_ROWS]
-                res = cKDTree(np.hstack([K * n[As], mom[As]])).sparse_distance_matrix(
-                    treeB, rho, output_type="ndarray")
-                a, b = As[res["i"]], B[res["j"]]
-                keep = (a != b) & ~(band[a] & band[b] & (a > b))
-                a, b = a[keep], b[keep]
-                if len(a):
-                    yield np.minimum(a, b), np.maximum(a, b)
+                for i, j in pairs_within(np.hstack([K * n[As], mom[As]]), YB, rho):
+                    a, b = As[i], B[j]
+                    keep = (a != b) & ~(band[a] & band[b] & (a > b))
+                    a, b = a[keep], b[keep]
+                    if len(a):
+                        yield np.minimum(a, b), np.maximum(a, b)
 
 
 def _all_pairs(ids: np.ndarray):

@@ -65,7 +65,7 @@ import numpy as np
 
 from .convexity import edge_adjacency
 from .errors import InputError, MeshError
-from .meshdata import MeshData
+from .meshdata import MeshData, connected_components
 from .tolerance import Tolerance
 
 if TYPE_CHECKING:  # trimesh (and scipy) load with the first mesh; importing this module stays cheap
@@ -143,11 +143,7 @@ def _components(n: int, pairs: np.ndarray) -> np.ndarray:
     """Connected-component label (n,) of an undirected graph given as (k, 2) pairs."""
     if len(pairs) == 0:
         return np.arange(n, dtype=np.int64)
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    g = coo_matrix((np.ones(len(pairs), dtype=np.int8), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
-    return connected_components(g, directed=False)[1].astype(np.int64)
+    return connected_components(n, pairs)[1]
 
 
 def _renumber_by_first(labels: np.ndarray) -> np.ndarray:
@@ -215,13 +211,10 @@ def cluster_surfaces(mesh: trimesh.Trimesh, *, gamma_deg: float = 135.0, tol: To
         # facet graph over smooth edges, restricted to wide regions
         fa = facet[adj[smooth]]
         fa = fa[(fa[:, 0] != fa[:, 1]) & ~nar[fa[:, 0]]]
-        from scipy.sparse import csr_matrix
-
-        g = csr_matrix(
-            (np.ones(2 * len(fa), dtype=np.int8), (np.r_[fa[:, 0], fa[:, 1]], np.r_[fa[:, 1], fa[:, 0]])),
-            shape=(nf, nf),
-        )
-        indptr, indices = g.indptr, g.indices
+        # neighbours of each facet as CSR rows (sorted, no duplicates)
+        key = np.unique(np.r_[fa[:, 0], fa[:, 1]] * nf + np.r_[fa[:, 1], fa[:, 0]])
+        indices = key % nf
+        indptr = np.r_[0, np.cumsum(np.bincount(key // nf, minlength=nf))]
         wide_order = order[~nar[order]]
         for s in wide_order.tolist():
             if f_surf[s] >= 0:

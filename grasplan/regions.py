@@ -13,7 +13,7 @@ the count grows with the square of the tessellation. Here a candidate is a sampl
 2. **Candidate regions, streamed.** Pairs of areas ``(P, Q)`` (``P < Q``, contact 0 on P) whose
    normals are anti-parallel within beta and whose discs (centroid, largest corner distance) can
    overlap along the closing axis ``a = (n_P - n_Q)/|n_P - n_Q|`` within ``max_opening``: the 6D
-   line KD-tree of :func:`grasplan.antipodal.stream_pairs` over *areas*, in bounded chunks.
+   line search of :func:`grasplan.antipodal.stream_pairs` over *areas*, in bounded chunks.
 3. **Exact overlap from the outlines.** A region is ``proj(P) & proj(Q)`` along ``a``. Only the
    areas' boundary edges are used: the parts of P's outline inside Q and of Q's outline inside P
    (crossings found on a grid, inside/outside by the parity of a vertical ray) give the overlap's
@@ -57,6 +57,8 @@ import numpy as np
 
 from .antipodal import Candidates, _clip_edges, stream_pairs
 from .convexity import edge_adjacency
+from .gridsearch import all_pairs_within, any_within
+from .meshdata import connected_components
 from .thinning import thin_candidates
 from .tolerance import Tolerance
 
@@ -104,11 +106,7 @@ def convex_areas(mesh: trimesh.Trimesh, convex: np.ndarray, tol: Tolerance, adja
     adj = adj[ok]
     cosang = np.einsum("ij,ij->i", n[adj[:, 0]], n[adj[:, 1]])
     adj = adj[cosang >= np.cos(np.radians(tol.planar_deg))]
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    g = coo_matrix((np.ones(len(adj)), (adj[:, 0], adj[:, 1])), shape=(m, m))
-    _, comp = connected_components(g, directed=False)
+    _, comp = connected_components(m, adj)
     label = np.full(m, -1, dtype=np.int64)
     ids = np.flatnonzero(use)
     if len(ids) == 0:
@@ -256,7 +254,7 @@ def _face_pairs_of_regions(P, Q, a, areas, start, count, members, geo, rad):
     """Face pairs ``(i, j)`` of areas ``P[k]``, ``Q[k]`` whose projections along ``a[k]`` may overlap.
 
     Small area pairs (``count[P] * count[Q] <= 256``) give every combination (vectorised); larger
-    ones a 2D KD-tree search per area pair, per size class of the faces (one loop step per region,
+    ones a 2D fixed-radius grid search per area pair, per size class of the faces (one loop step per region,
     not per face). Returns ``(i, j, k)`` int64 arrays."""
     nP, nQ = count[P], count[Q]
     prod = nP * nQ
@@ -269,8 +267,6 @@ def _face_pairs_of_regions(P, Q, a, areas, start, count, members, geo, rad):
         out_i.append(members[start[P[owner]] + t // nQ[owner]])
         out_j.append(members[start[Q[owner]] + t % nQ[owner]])
         out_k.append(owner)
-    from scipy.spatial import cKDTree
-
     for k in np.flatnonzero(prod > 256):
         fi = members[start[P[k]]:start[P[k]] + nP[k]]
         fj = members[start[Q[k]]:start[Q[k]] + nQ[k]]
@@ -280,14 +276,13 @@ def _face_pairs_of_regions(P, Q, a, areas, start, count, members, geo, rad):
         ci, cj = _size_classes(rad[fi]), _size_classes(rad[fj])
         for qa in np.unique(ci):
             sa = np.flatnonzero(ci == qa)
-            ta = cKDTree(xi[sa])
             for qb in np.unique(cj):
                 sb = np.flatnonzero(cj == qb)
                 r = (rad[fi[sa]].max() + rad[fj[sb]].max()) * (1 + 1e-9)
-                res = ta.sparse_distance_matrix(cKDTree(xj[sb]), r, output_type="ndarray")
-                out_i.append(fi[sa[res["i"]]])
-                out_j.append(fj[sb[res["j"]]])
-                out_k.append(np.full(len(res), k, dtype=np.int64))
+                ii, jj = all_pairs_within(xi[sa], xj[sb], r)
+                out_i.append(fi[sa[ii]])
+                out_j.append(fj[sb[jj]])
+                out_k.append(np.full(len(ii), k, dtype=np.int64))
     if not out_i:
         z = np.zeros(0, dtype=np.int64)
         return z, z, z
@@ -961,13 +956,10 @@ def _near_creases(p0, p1, creases) -> np.ndarray:
 def _near_segments(p: np.ndarray, a: np.ndarray, b: np.ndarray, r: float) -> np.ndarray:
     """(k,) bool: points ``p`` (k, 3) within about ``r`` of any segment ``a -> b`` (s, 3) (segments
     sampled every r / 2; error below r / 4)."""
-    from scipy.spatial import cKDTree
-
     L = np.linalg.norm(b - a, axis=1)
     # segments whose midpoint lies further than L/2 + r from every point cannot be within r of one
     # (margin 1.5 r): dropped before they are sampled (the result is the same)
-    dm, _ = cKDTree(p).query(0.5 * (a + b), k=1)
-    near = dm <= 0.5 * L + 1.5 * r
+    near = any_within(0.5 * (a + b), p, 0.5 * L + 1.5 * r)
     if not near.any():
         return np.zeros(len(p), dtype=bool)
     a, b, L = a[near], b[near], L[near]
@@ -975,8 +967,7 @@ def _near_segments(p: np.ndarray, a: np.ndarray, b: np.ndarray, r: float) -> np.
     row, k = _expand(n)
     t = k / np.maximum(n[row] - 1, 1)
     pts = a[row] + t[:, None] * (b[row] - a[row])
-    d, _ = cKDTree(pts).query(p, k=1, distance_upper_bound=r)
-    return np.isfinite(d)
+    return any_within(p, pts, r)
 
 
 def _finish(reg, rid, si, sj, p0, p1, small, geo, mu, eps, max_opening, spacing):
