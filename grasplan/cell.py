@@ -28,6 +28,8 @@ YAML schema (``configs/cells/<name>.yaml``; metres, degrees; full reference in d
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import math
 import os
 import re
@@ -36,7 +38,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import trimesh
+
+if TYPE_CHECKING:  # imported where a trimesh is built (obstacle primitives, mesh files)
+    import trimesh
 import yaml
 
 from .config_files import (
@@ -121,6 +125,8 @@ class Obstacle:
 
     def local_mesh(self) -> trimesh.Trimesh:
         """A triangle mesh of the shape in its own frame (cylinder: 64 sides; sphere: icosphere 3)."""
+        import trimesh
+
         if self.kind == "box":
             return trimesh.creation.box(extents=self.size)
         if self.kind == "cylinder":
@@ -401,6 +407,8 @@ def _shape_fields(kind: str, spec, where: str, *, base: Path | None) -> dict:
         if not scale > 0:
             raise ConfigError(f"{where}.scale: expected > 0 (e.g. 0.001 for a file in millimetres)")
         try:
+            import trimesh
+
             m = trimesh.load(str(path), force="mesh", process=True)
         except Exception as exc:  # noqa: BLE001 - any reader error is a config error here
             raise ConfigError(f"{where}.path: cannot read {path}: {str(exc)[:120]}") from None

@@ -43,13 +43,18 @@ property of the grasp alone, independent of the cell.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import coal
 import numpy as np
-import trimesh
+
+if TYPE_CHECKING:  # imported where a trimesh is built (obstacle primitives, mesh files)
+    import trimesh
 
 from .cell import Cell
 from .geometry import bvh, obstacle_geometry
 from .gripper import Box, Gripper
+from .meshdata import convex_hull
 from .transforms import check_transform
 
 #: a shape reaching below the table top by less than this (m) only touches it
@@ -412,7 +417,7 @@ class GripperCollider:
                     sel = np.flatnonzero(s.index == k)
                     if len(sel) == 0:
                         continue
-                    hv = trimesh.convex.convex_hull(v.vertices).vertices if len(v.vertices) > 64 else v.vertices
+                    hv = convex_hull(v.vertices).vertices if len(v.vertices) > 64 else v.vertices
                     z = zr_tcp[sel, :3] @ hv.T + zr_tcp[sel, 3:4]
                     h_s[sel] |= z.min(axis=1) < limit
             elem[h_s & ~hit] = si

@@ -35,7 +35,6 @@ from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
-import trimesh
 
 from .config_files import (
     available,
@@ -45,6 +44,7 @@ from .config_files import (
     read_yaml,
     resolve_yaml,
 )
+from .meshdata import convex_hull
 from .errors import ConfigError
 from .params import DEFAULT_GRIPPER
 from .transforms import check_transform
@@ -146,7 +146,7 @@ class Gripper:
     def _hull_sweep(self, lo: float, hi: float) -> tuple[Shape, Shape]:
         a = self.fingers(lo)[1].corners()
         b = self.fingers(hi)[1].corners()
-        hull = trimesh.convex.convex_hull(np.vstack([a, b]))
+        hull = convex_hull(np.vstack([a, b]))
         right = MeshShape(np.asarray(hull.vertices, dtype=np.float64), np.asarray(hull.faces, dtype=np.int64), "finger sweep hull")
         return right.moved(_rz180()), right
 
@@ -299,6 +299,8 @@ def _mesh(spec, field_: str, base: Path) -> MeshShape:
         raise ConfigError(f"{field_}.path: mesh file {path} not found (paths are relative to the gripper YAML)")
     scale = config_number(spec.get("scale", 1.0), f"{field_}.scale", positive=True)
     T = parse_transform(spec["T"], f"{field_}.T") if "T" in spec else np.eye(4)
+    import trimesh
+
     try:
         m = trimesh.load(str(path), force="mesh", process=True)
     except Exception as exc:  # noqa: BLE001 - any reader error is a config error here

@@ -228,6 +228,27 @@ class MeshData:
         return self._cached("body_count", f)
 
     @property
+    def convex_hull(self) -> MeshData:
+        """The convex hull of the vertices (:func:`convex_hull`; raises scipy's ``QhullError`` for
+        flat or degenerate points)."""
+        return self._cached("convex_hull", lambda: convex_hull(self._vertices))
+
+    def _integrals(self):
+        from .mass import polyhedron_integrals
+
+        return self._cached("integrals", lambda: polyhedron_integrals(self.triangles))
+
+    @property
+    def volume(self) -> float:
+        """Signed volume enclosed (divergence theorem; positive for outward normals)."""
+        return self._integrals()[0]
+
+    @property
+    def center_mass(self) -> np.ndarray:
+        """(3,) centre of mass of the enclosed solid at uniform density."""
+        return self._integrals()[1]
+
+    @property
     def trimesh(self) -> trimesh.Trimesh:
         """An equal ``trimesh.Trimesh`` (built once, on first use; imports trimesh). Read-only."""
         def f():
@@ -255,6 +276,41 @@ class MeshData:
 #: trimesh methods that change a mesh in place: refused on a MeshData (use ``copy()``)
 _MUTATING_PREFIXES = ("apply_", "update_", "remove_", "fix_", "merge_", "fill_", "unmerge_")
 _MUTATING = frozenset({"invert", "process", "rezero", "subdivide_to_size", "fix_normals"})
+
+
+#: Qhull options of :func:`convex_hull` (trimesh's: scale to the unit box, keep coplanar, triangulate)
+QHULL_OPTIONS = "QbB Pp Qt"
+
+
+def convex_hull(points: np.ndarray) -> MeshData:
+    """Convex hull of ``points (n, 3)`` as a :class:`MeshData` with outward-wound faces: the
+    construction of ``trimesh.convex.convex_hull`` (Qhull ``QbB Pp Qt``, retried with ``QJ``;
+    vertices in input order; zero-area faces dropped; a face whose normal points towards the
+    area-weighted centroid is flipped), same faces and bits, without importing trimesh."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    P = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+    try:
+        hull = ConvexHull(P, qhull_options=QHULL_OPTIONS)
+    except QhullError:
+        hull = ConvexHull(P, qhull_options="QJ")
+    vid = np.sort(hull.vertices)
+    mask = np.zeros(len(hull.points), dtype=np.int64)
+    mask[vid] = np.arange(len(vid))
+    faces = mask[hull.simplices].copy()
+    vertices = hull.points[vid].copy()
+    probe = MeshData(vertices, faces)
+    cr = probe.triangles_cross
+    norm = np.sqrt(np.dot(cr * cr, [1.0, 1.0, 1.0]))
+    valid = norm > _TOL_ZERO
+    faces, cr, norm = faces[valid], cr[valid], norm[valid]
+    normals = cr / norm[:, None]
+    area = np.sqrt((cr ** 2).sum(axis=1)) / 2.0
+    centre = vertices[faces].mean(axis=1)
+    centroid = np.average(centre, weights=area, axis=0) if area.sum() > 0 else vertices.mean(axis=0)
+    back = np.einsum("ij,ij->i", normals, centre - centroid) < 0.0
+    faces[back] = np.fliplr(faces[back])
+    return MeshData(vertices, faces)  # normals from the (now outward) winding, as trimesh ends with
 
 
 def as_meshdata(mesh) -> MeshData:

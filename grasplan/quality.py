@@ -54,9 +54,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import trimesh
 from scipy.spatial import ConvexHull, QhullError
 
 from .errors import ConfigError, InputError
@@ -72,6 +72,9 @@ from .scoring import (  # noqa: F401
     load_scoring,
 )
 from .transforms import check_transform
+
+if TYPE_CHECKING:
+    import trimesh
 
 #: part surface within this distance of the pad plane touches the pad, m (pad compliance)
 CONTACT_DEPTH = 1e-4

@@ -119,3 +119,33 @@ def test_loaded_part_equals_trimesh_processing():
     b = {tuple(sorted(map(tuple, np.round(t, 12)))) for t in raw.triangles}
     assert a == b
     assert part.mesh.is_watertight == raw.is_watertight and part.mesh.body_count == raw.body_count
+
+
+@pytest.mark.parametrize("name", ["box", "cylinder", "two bodies"])
+def test_convex_hull_and_mass_integrals_equal_trimesh(name):
+    """The NumPy/scipy hull and the polyhedron integrals reproduce trimesh's, bit for bit."""
+    from grasplan.mass import polyhedron_integrals
+    from grasplan.meshdata import convex_hull
+
+    tm = _meshes()[name]
+    h, ref = convex_hull(tm.vertices), tm.convex_hull
+    assert np.array_equal(h.vertices, ref.vertices) and np.array_equal(h.faces, ref.faces)
+    assert np.array_equal(h.face_normals, ref.face_normals) and h.is_watertight and h.is_winding_consistent
+    mp = trimesh.triangles.mass_properties(tm.triangles, density=1.0)
+    v, c, inertia = polyhedron_integrals(tm.triangles)
+    assert v == mp["volume"] and np.array_equal(c, mp["center_mass"]) and np.array_equal(inertia, mp["inertia"])
+    md = MeshData(tm.vertices, tm.faces)
+    assert md.volume == tm.volume and np.array_equal(md.center_mass, tm.center_mass)
+    assert md.convex_hull.volume == pytest.approx(ref.volume, rel=1e-14)
+
+
+def test_grasps_do_not_import_trimesh(tmp_path):
+    """Stable pose, collision filter, quality and score run on MeshData: ``grasplan grasps``
+    (whose steps ``plan`` repeats) never imports trimesh (0.5 s of every command)."""
+    code = ("import sys\nfrom grasplan.cli import main\nsys.argv = ['grasplan', 'grasps', sys.argv[1], '--units', 'mm',"
+            " '-o', sys.argv[2]]\ntry:\n    main()\nexcept SystemExit as e:\n    assert e.code in (0, None), e.code\n"
+            "print('trimesh' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", code, str(EXAMPLE_PARTS / "bracket.stl"), str(tmp_path / "g.json")],
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip().splitlines()[-1] == "False"
