@@ -195,3 +195,26 @@ def test_link_poses_for_viewer(name):
     link = gname.rsplit("_", 1)[0]
     np.testing.assert_allclose(T, urdf_fk(r.urdf_path, dict(zip(r.joint_names, q)), link), atol=1e-10)
     assert len(r.link_poses(q, which="visual")) >= 7
+
+
+@pytest.mark.parametrize("name", ["ur5", "panda"])
+def test_visual_geometry_is_built_on_first_use_and_equals_the_eager_build(name):
+    """Loading a robot builds the collision geometry only (the visual meshes took 95 % of it);
+    the visual geometry, built when asked for, equals pinocchio's eager build reduced the same way."""
+    import pinocchio as pin
+
+    from grasplan.robot import _build_robot, _resolve
+
+    r = _build_robot(_resolve(name)[1])  # a fresh build (load_robot's cache may hold a used one)
+    assert r._visual == []  # not built by loading
+    v = r.visual_model
+    assert r.visual_model is v  # built once
+    full, _, vfull = pin.buildModelsFromUrdf(str(r.urdf_path), list(r.package_dirs))
+    kept = {str(f.name) for f in r.model.frames}
+    names = sorted(str(g.name) for g in vfull.geometryObjects if str(full.frames[g.parentFrame].name) in kept)
+    assert sorted(str(g.name) for g in v.geometryObjects) == [n for n in names if n in {str(g.name) for g in v.geometryObjects}]
+    assert len(v.geometryObjects) > 0
+    # every visual object hangs off a frame of the (reduced) model the planner uses
+    assert all(0 <= g.parentFrame < r.model.nframes for g in v.geometryObjects)
+    lp = r.link_poses(r.q_home, which="visual")
+    assert len(lp) == len(v.geometryObjects) and all(np.all(np.isfinite(T)) for _, T, _, _ in lp)
