@@ -16,6 +16,7 @@ import numpy as np
 from .candidates import CandidateResult, compute_candidates
 from .cell import Cell, load_cell, stable_pose
 from .collision import GripperCollider
+from .errors import InputError
 from .frames import GraspFrames, grasp_frames
 from .gripper import Gripper, load_gripper
 from .mesh import Part
@@ -272,8 +273,12 @@ class LazyGrasps:
         cheap = (score_grasps(part.mesh, T_world_part, self.T_part_tcp, self.width, float(gripper.max_opening),
                               cheap_w, scoring=cfg) * (cheap_total / total) if cheap_total > 0 and M
                  else np.zeros(M))
+        self.mass_props = None
+        phys_ub = phys / total if total > 0 else 0.0  # every physical term at most 1
+        if phys > 0 and M:
+            phys_ub = self._physical_bound(cfg, total, phys_ub)
         #: (M,) upper bound of each pose's score
-        self.ub = cheap + phys / total + _BOUND_SLACK if total > 0 else np.full(M, np.inf)
+        self.ub = cheap + phys_ub + _BOUND_SLACK if total > 0 else np.full(M, np.inf)
         self.timing["score_bound"] = time.perf_counter() - t
         self.queue = np.lexsort((np.arange(M), -self.ub)).astype(np.int64)  # check order
         self.pos = 0
@@ -282,13 +287,32 @@ class LazyGrasps:
         self.score = np.full(M, np.nan)
         self._q_parts: list = []
         self._q_rows: list = []
-        self.mass_props = None
         self.note = ""
         self.timing.setdefault("collision", 0.0)
         self.timing["quality"] = 0.0
         self._order = np.zeros(0, dtype=np.int64)
         self._order_key = None
         self._n_distinct = 0
+
+    def _physical_bound(self, cfg, total: float, fallback):
+        """``sum_k w_k term_k(bound_k) / total`` over the physical terms (:func:`grasplan.quality.
+        physical_bounds`: the pad's whole area, the load straight down), or ``fallback`` for a part
+        without mass properties (its score has no physical terms)."""
+        from .mass import mass_properties
+        from .quality import physical_bounds
+        from .scoring import PHYSICAL_TERMS, epsilon_term, gravity_margin_term
+
+        try:
+            mp = mass_properties(self.part.mesh, density=self.params.density, mass=self.params.mass)
+        except InputError:
+            return fallback  # quality_and_score says why, with the first chunk
+        ci = self.frames.candidate
+        b = physical_bounds(self.part.mesh, mp, self.gripper, self.T_part_tcp, ci, self.cand.candidates.contacts,
+                            self.cand.candidates.normals, self.width, T_world_part=self.T, mu=self.mu)
+        term = {"gravity_margin": gravity_margin_term(b["gravity_margin"], cfg.gravity_margin_ref),
+                "epsilon": epsilon_term(b["epsilon"], cfg.epsilon_ref)}
+        self.mass_props = mp
+        return sum(w * term[n] for n, w in cfg.weights if n in PHYSICAL_TERMS and w) / total
 
     # -- state -------------------------------------------------------------------------------------
     @property

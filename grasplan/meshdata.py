@@ -258,6 +258,12 @@ class MeshData:
                                    face_normals=self._cache.get("face_normals"), process=False, validate=False)
         return self._cached("trimesh", f)
 
+    def derived(self, key: str, compute):
+        """``compute()`` once per mesh: a stage's per-part data that depends on nothing but the
+        geometry (e.g. the quality step's merged flat faces), cached with the mesh; treat the
+        result as read-only."""
+        return self._cached(f"derived:{key}", compute)
+
     def copy(self) -> trimesh.Trimesh:
         """A mutable ``trimesh.Trimesh`` copy (what a copy is for: changing the geometry)."""
         return self.trimesh.copy()

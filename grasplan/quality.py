@@ -484,7 +484,10 @@ def contact_patches(part_mesh: trimesh.Trimesh, gripper: Gripper, T_part_tcp: np
     C = np.asarray(contacts, dtype=np.float64).reshape(-1, 2, 3)
     M = len(T)
     rect = pad_rectangle(gripper)
-    pts, first, count, fn, weight = patch_elements(part_mesh)  # triangles; coplanar areas as loops
+    # triangles; coplanar areas as loops (once per part: the rank-order evaluation calls this per chunk)
+    derived = getattr(part_mesh, "derived", None)
+    pts, first, count, fn, weight = derived("patch_elements", lambda: patch_elements(part_mesh)) if derived \
+        else patch_elements(part_mesh)
     F = len(count)
     eid = np.repeat(np.arange(F), count)
     cent = np.stack([np.bincount(eid, weights=pts[:, d], minlength=F) for d in range(3)], axis=1) / \
@@ -576,15 +579,18 @@ def torsion_length(area: np.ndarray) -> np.ndarray:
 
 def gravity_margin(mass_props: MassProperties, T_world_part: np.ndarray, T_part_tcp: np.ndarray,
                    width: np.ndarray, area: np.ndarray, *, mu: float, normal_force: float,
-                   accel_g: float = 1.0) -> np.ndarray:
+                   accel_g: float = 1.0, straight_down_only: bool = False) -> np.ndarray:
     """(M,) friction available / needed to hold the part under gravity plus ``accel_g`` g in the
     worst direction (module docstring). ``area`` (M, 2) m^2, ``width`` (M,) m, ``normal_force``: N
-    pressing each contact (``grip_force / CONTACTS_PER_GRIP``)."""
+    pressing each contact (``grip_force / CONTACTS_PER_GRIP``). ``straight_down_only``: the
+    acceleration straight down only, one of the directions the margin takes the worst of, so the
+    result is >= the margin (an upper bound, :func:`physical_bounds`)."""
     T = np.asarray(T_part_tcp, dtype=np.float64).reshape(-1, 4, 4)
     R = T[:, :3, :3]
     g_hat = np.einsum("mji,j->mi", R, T_world_part[:3, :3].T @ np.array([0.0, 0.0, -1.0]))  # in TCP
     com = np.einsum("mji,mj->mi", R, mass_props.com - T[:, :3, 3])  # centre of mass in TCP
-    u = np.concatenate([g_hat[:, None], np.broadcast_to(fibonacci_directions(N_DIRECTIONS), (len(T), N_DIRECTIONS, 3))], 1)
+    u = g_hat[:, None] if straight_down_only else \
+        np.concatenate([g_hat[:, None], np.broadcast_to(fibonacci_directions(N_DIRECTIONS), (len(T), N_DIRECTIONS, 3))], 1)
     f = mass_props.mass * G * (g_hat[:, None] + accel_g * u)  # (M, D, 3) load on the part, TCP frame
     t_max = mu * normal_force
     if t_max <= 0:  # no friction: nothing holds the part against a tangential load
@@ -831,6 +837,36 @@ def epsilon_dedup(contacts: np.ndarray, normals: np.ndarray, area: np.ndarray, c
         bad = np.flatnonzero(~exact)
         eps[bad] = ferrari_canny(contact_wrenches(Cu[bad], Nu[bad], com, rho, mu, tors[bad]))
     return eps[inverse.reshape(-1)]
+
+
+def physical_bounds(part_mesh, mass_props: MassProperties, gripper: Gripper, T_part_tcp: np.ndarray,
+                    candidate: np.ndarray, contacts: np.ndarray, normals: np.ndarray, width: np.ndarray, *,
+                    T_world_part: np.ndarray, mu: float, grip_force: float | None = None) -> dict[str, np.ndarray]:
+    """Upper bounds of ``gravity_margin`` and ``epsilon`` of ``M`` poses without their contact
+    patches or collision status (the rank-order evaluation checks poses in the order of their
+    score's upper bound, :class:`grasplan.grasps.LazyGrasps`). Both grow with the patch area (more
+    torsional friction: the wrench set grows, the demand falls), and a patch is never larger than
+    the finger's pad: each is computed with the pad's whole area on both jaws; the margin also
+    with the load straight down only (it takes the worst of several directions), the epsilon once
+    per candidate (its rolls share the contacts). ``T_part_tcp`` (M, 4, 4), ``candidate`` (M,)
+    into ``contacts``/``normals`` (K, 2, 3); ``width`` (M,). Returns ``(M,)`` arrays."""
+    T = np.asarray(T_part_tcp, dtype=np.float64).reshape(-1, 4, 4)
+    M = len(T)
+    ci = np.asarray(candidate, dtype=np.int64).reshape(-1)
+    rect = pad_rectangle(gripper)
+    pad = float(np.prod(rect[:, 1] - rect[:, 0]))
+    F = float(gripper.grip_force if grip_force is None else grip_force)
+    Twp = np.asarray(T_world_part, dtype=np.float64)
+    gm = np.empty(M)
+    for s in range(0, M, 65536):  # (chunk, 1, 3) temporaries
+        e = min(M, s + 65536)
+        gm[s:e] = gravity_margin(mass_props, Twp, T[s:e], width[s:e], np.full((e - s, 2), pad), mu=mu,
+                                 normal_force=F / CONTACTS_PER_GRIP, straight_down_only=True)
+    used, inv = np.unique(ci, return_inverse=True)
+    eps_c = epsilon_dedup(np.asarray(contacts, dtype=np.float64)[used], np.asarray(normals, dtype=np.float64)[used],
+                          np.full((len(used), 2), pad), mass_props.com,
+                          max(part_radius(part_mesh, mass_props.com), 1e-9), mu)
+    return {"gravity_margin": gm, "epsilon": eps_c[inv.reshape(-1)]}
 
 
 def part_radius(part_mesh: trimesh.Trimesh, com: np.ndarray) -> float:
