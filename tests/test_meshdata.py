@@ -91,17 +91,24 @@ def test_with_faces_drops_unreferenced_vertices_and_keeps_per_face_values():
     assert sub.body_count == 1 and sub.is_watertight
 
 
+def _modules_after(command: str, tmp_path) -> tuple[bool, bool]:
+    """Run ``grasplan COMMAND bracket.stl --units mm -o OUT`` in a fresh interpreter: were trimesh
+    and scipy imported?"""
+    code = ("import sys\nfrom grasplan.cli import main\nsys.argv = ['grasplan', sys.argv[1], sys.argv[2], '--units', "
+            "'mm', '-o', sys.argv[3]]\ntry:\n    main()\nexcept SystemExit as e:\n    assert e.code in (0, None), e.code\n"
+            "print('trimesh' in sys.modules, 'scipy' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", code, command, str(EXAMPLE_PARTS / "bracket.stl"),
+                          str(tmp_path / f"{command}.json")], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert (tmp_path / f"{command}.json").is_file()
+    trimesh_used, scipy_used = out.stdout.strip().splitlines()[-1].split()
+    return trimesh_used == "True", scipy_used == "True"
+
+
 def test_loading_a_part_and_candidates_do_not_import_trimesh_or_scipy(tmp_path):
     """The point of MeshData and grasplan.gridsearch: a fresh ``grasplan candidates`` imports
     neither trimesh nor scipy (0.5-0.9 s and 0.3 s of a command that must take < 1 s)."""
-    code = ("import sys\nfrom grasplan.cli import main\nsys.argv = ['grasplan', 'candidates', sys.argv[1], '--units', 'mm',"
-            " '-o', sys.argv[2]]\ntry:\n    main()\nexcept SystemExit as e:\n    assert e.code in (0, None), e.code\n"
-            "print('trimesh' in sys.modules, 'scipy' in sys.modules)\n")
-    out = subprocess.run([sys.executable, "-c", code, str(EXAMPLE_PARTS / "bracket.stl"), str(tmp_path / "c.json")],
-                         capture_output=True, text=True, timeout=120)
-    assert out.returncode == 0, out.stderr
-    assert out.stdout.strip().splitlines()[-1] == "False False"
-    assert (tmp_path / "c.json").is_file()
+    assert _modules_after("candidates", tmp_path) == (False, False)
 
 
 def test_loaded_part_equals_trimesh_processing():
@@ -142,10 +149,4 @@ def test_convex_hull_and_mass_integrals_equal_trimesh(name):
 def test_grasps_do_not_import_trimesh(tmp_path):
     """Stable pose, collision filter, quality and score run on MeshData: ``grasplan grasps``
     (whose steps ``plan`` repeats) never imports trimesh (0.5 s of every command)."""
-    code = ("import sys\nfrom grasplan.cli import main\nsys.argv = ['grasplan', 'grasps', sys.argv[1], '--units', 'mm',"
-            " '-o', sys.argv[2]]\ntry:\n    main()\nexcept SystemExit as e:\n    assert e.code in (0, None), e.code\n"
-            "print('trimesh' in sys.modules)\n")
-    out = subprocess.run([sys.executable, "-c", code, str(EXAMPLE_PARTS / "bracket.stl"), str(tmp_path / "g.json")],
-                         capture_output=True, text=True, timeout=300)
-    assert out.returncode == 0, out.stderr
-    assert out.stdout.strip().splitlines()[-1] == "False"
+    assert _modules_after("grasps", tmp_path)[0] is False
