@@ -70,6 +70,15 @@ def edge_adjacency(faces: np.ndarray, *, slots: bool = False):
     return out if slots else out[:3]
 
 
+def mesh_edge_adjacency(mesh):
+    """``edge_adjacency(mesh.faces, slots=True)``, computed once per :class:`grasplan.meshdata.
+    MeshData` (cached with it: convexity and the regions both need the BLM mesh's), else each call."""
+    derived = getattr(mesh, "derived", None)
+    if derived is None:
+        return edge_adjacency(mesh.faces, slots=True)
+    return derived("edge_adjacency", lambda: edge_adjacency(mesh.faces, slots=True))
+
+
 def _edge_adjacency(F: np.ndarray):
     """:func:`edge_adjacency` with slots."""
     a, b = F.ravel(), np.roll(F, -1, axis=1).ravel()            # edge k of face f: corner k -> k+1
@@ -96,12 +105,13 @@ class _Rows:
         self.indptr, self.indices = indptr, indices
 
 
-def _edge_rows(faces: np.ndarray) -> _Rows:
+def _edge_rows(faces: np.ndarray, adjacency=None) -> _Rows:
     """Row k: the 3 vertices of face k, then the far vertex of each face sharing an edge with it (the
-    same sets as ``neighbour_vertices(mesh, "edge")``, built without sparse products)."""
+    same sets as ``neighbour_vertices(mesh, "edge")``, built without sparse products);
+    ``adjacency``: the faces' :func:`edge_adjacency` when known."""
     F = np.asarray(faces, dtype=np.int64)
     m = len(F)
-    adj, _, far = edge_adjacency(F)
+    adj, _, far = (edge_adjacency(F) if adjacency is None else adjacency)[:3]
     owner = np.concatenate([np.repeat(np.arange(m), 3), adj[:, 0], adj[:, 1]])
     vert = np.concatenate([F.ravel(), far[:, 1], far[:, 0]])
     o = np.argsort(owner, kind="stable")
@@ -175,7 +185,7 @@ def classify_convexity(
     n = np.zeros_like(cr)
     n[ok] = cr[ok] / nrm[ok, None]
 
-    Nb = _edge_rows(F) if neighbourhood == "edge" else neighbour_vertices(mesh, neighbourhood)
+    Nb = _edge_rows(F, mesh_edge_adjacency(mesh)) if neighbourhood == "edge" else neighbour_vertices(mesh, neighbourhood)
     counts = np.diff(Nb.indptr)
     face_of = np.repeat(np.arange(m), counts)
     q = V[Nb.indices] - c[face_of]                        # (nnz, 3) offsets from the centroid

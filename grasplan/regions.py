@@ -56,7 +56,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .antipodal import Candidates, _clip_edges, stream_pairs
-from .convexity import edge_adjacency
+from .convexity import edge_adjacency, mesh_edge_adjacency
 from .gridsearch import all_pairs_within, any_within
 from .meshdata import connected_components
 from .thinning import thin_candidates
@@ -751,7 +751,7 @@ def find_regions(mesh, convex, geo, *, max_opening, beta_deg, mu, spacing, tol):
     Works on the areas' boundary edges only (exact overlap moments by Green's theorem, lattice by
     scanlines), so the cost follows the length of the areas' outlines, not their triangle count.
     ``geo``: the mesh's :class:`grasplan.antipodal._FaceGeometry`; lengths in metres."""
-    adjacency = edge_adjacency(mesh.faces, slots=True)
+    adjacency = mesh_edge_adjacency(mesh)
     admit, creases = _admitted(mesh, convex, geo, tol, adjacency)
     areas = convex_areas(mesh, admit, tol, adjacency, geo=geo)
     lab = areas.label
