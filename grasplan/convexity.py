@@ -185,18 +185,34 @@ def classify_convexity(
     n = np.zeros_like(cr)
     n[ok] = cr[ok] / nrm[ok, None]
 
-    Nb = _edge_rows(F, mesh_edge_adjacency(mesh)) if neighbourhood == "edge" else neighbour_vertices(mesh, neighbourhood)
-    counts = np.diff(Nb.indptr)
-    face_of = np.repeat(np.arange(m), counts)
-    q = V[Nb.indices] - c[face_of]                        # (nnz, 3) offsets from the centroid
-    h = np.einsum("ij,ij->i", q, n[face_of])              # heights above the face plane
-    hmax = np.maximum.reduceat(h, Nb.indptr[:-1])          # rows are contiguous, >= 3 entries each
-
-    convex = hmax <= d_shift + eps                        # w = 0: the face plane supports p
+    if neighbourhood == "edge":
+        # w = 0 (the face plane supports p) unless a neighbour's far vertex rises above the plane by
+        # more than d_shift + eps (the face's own vertices lie in it): one height per (face, edge
+        # neighbour), no per-face rows (the same heights, operation for operation, as the rows give)
+        adjacency = mesh_edge_adjacency(mesh)
+        adj, far = adjacency[0], adjacency[2]
+        above = np.zeros(m, dtype=bool)
+        for mine, theirs in ((0, 1), (1, 0)):
+            f = adj[:, mine]
+            h = np.einsum("ij,ij->i", V[far[:, theirs]] - c[f], n[f])
+            above[f[h > d_shift + eps]] = True
+        convex = ~above
+        Nb = None
+    else:
+        Nb = neighbour_vertices(mesh, neighbourhood)
+        counts = np.diff(Nb.indptr)
+        face_of = np.repeat(np.arange(m), counts)
+        q = V[Nb.indices] - c[face_of]                    # (nnz, 3) offsets from the centroid
+        h = np.einsum("ij,ij->i", q, n[face_of])          # heights above the face plane
+        hmax = np.maximum.reduceat(h, Nb.indptr[:-1])      # rows are contiguous, >= 3 entries each
+        convex = hmax <= d_shift + eps                    # w = 0: the face plane supports p
     convex |= ~ok                                         # degenerate face: no normal, call it convex
     slow = np.flatnonzero(~convex)
     if len(slow) == 0:
         return convex
+    if Nb is None:  # the undecided faces' hull points: own vertices and the neighbours' far ones
+        Nb = _edge_rows(F, adjacency)
+        counts = np.diff(Nb.indptr)
 
     # In-plane 2D coordinates for the undecided faces, padded to K constraints per face.
     e1 = tri[:, 1] - tri[:, 0]
