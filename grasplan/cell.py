@@ -48,6 +48,7 @@ from .config_files import (
     config_number,
     config_vector,
     packaged_file,
+    read_config_mesh,
     read_yaml,
     resolve_yaml,
 )
@@ -398,23 +399,7 @@ def _shape_fields(kind: str, spec, where: str, *, base: Path | None) -> dict:
     if kind == "sphere":
         return {"radius": _positive(spec["radius"], f"{where}.radius")}
     if base is not None:  # YAML: a file
-        if not isinstance(spec["path"], str) or not spec["path"]:
-            raise ConfigError(f"{where}.path: expected a mesh file name relative to the cell YAML")
-        path = (base / spec["path"]).resolve()
-        if not path.is_file():
-            raise ConfigError(f"{where}.path: mesh file {path} not found (paths are relative to the cell YAML)")
-        scale = config_number(spec.get("scale", 1.0), f"{where}.scale", positive=True)
-        if not scale > 0:
-            raise ConfigError(f"{where}.scale: expected > 0 (e.g. 0.001 for a file in millimetres)")
-        try:
-            import trimesh
-
-            m = trimesh.load(str(path), force="mesh", process=True)
-        except Exception as exc:  # noqa: BLE001 - any reader error is a config error here
-            raise ConfigError(f"{where}.path: cannot read {path}: {str(exc)[:120]}") from None
-        if not isinstance(m, trimesh.Trimesh) or len(m.faces) == 0:
-            raise ConfigError(f"{where}.path: {path} holds no triangles")
-        v, f = np.asarray(m.vertices, dtype=np.float64) * scale, np.asarray(m.faces, dtype=np.int64)
+        v, f, _ = read_config_mesh(spec, base, where, "cell")
     else:
         try:
             v = np.asarray(spec["vertices"], dtype=np.float64)

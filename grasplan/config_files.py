@@ -296,3 +296,25 @@ def config_vector(value: Any, where: str, n: int | None = 3, *, positive: bool =
         raise ConfigError(f"{where}: list too long ({len(value)})")
     return np.array([config_number(v, f"{where}[{i}]", positive=positive) for i, v in enumerate(value)],
                     dtype=np.float64)
+
+
+def read_config_mesh(spec: dict, base: Path, where: str, owner: str) -> tuple[np.ndarray, np.ndarray, Path]:
+    """``(vertices (n, 3) m, faces (m, 3), path)`` of the mesh file a config YAML names in ``spec``
+    (``path`` relative to ``base``, the YAML's folder; ``scale``, default 1, to metres). ``where``
+    names the field in errors, ``owner`` the YAML ("gripper", "cell"). Any reader error, a missing
+    file or a file without triangles is a ConfigError naming the field and the file."""
+    if not isinstance(spec.get("path"), str) or not spec["path"]:
+        raise ConfigError(f"{where}.path: expected a mesh file name relative to the {owner} YAML")
+    path = (base / spec["path"]).resolve()
+    if not path.is_file():
+        raise ConfigError(f"{where}.path: mesh file {path} not found (paths are relative to the {owner} YAML)")
+    scale = config_number(spec.get("scale", 1.0), f"{where}.scale", positive=True)
+    import trimesh
+
+    try:
+        m = trimesh.load(str(path), force="mesh", process=True)
+    except Exception as exc:  # noqa: BLE001 - any reader error is a config error here
+        raise ConfigError(f"{where}.path: cannot read {path}: {str(exc)[:120]}") from None
+    if not isinstance(m, trimesh.Trimesh) or len(m.faces) == 0:
+        raise ConfigError(f"{where}.path: {path} holds no triangles")
+    return np.asarray(m.vertices, dtype=np.float64) * scale, np.asarray(m.faces, dtype=np.int64), path

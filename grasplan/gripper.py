@@ -41,6 +41,7 @@ from .config_files import (
     config_number,
     config_vector,
     packaged_file,
+    read_config_mesh,
     read_yaml,
     resolve_yaml,
 )
@@ -292,26 +293,12 @@ def _mesh(spec, field_: str, base: Path) -> MeshShape:
     unknown = set(spec) - {"path", "scale", "T"}
     if unknown:
         raise ConfigError(f"{field_}: unknown keys {sorted(unknown)}; allowed: path, scale, T")
-    if not isinstance(spec["path"], str):
-        raise ConfigError(f"{field_}.path: expected a file name relative to the gripper YAML")
-    path = (base / spec["path"]).resolve()
-    if not path.is_file():
-        raise ConfigError(f"{field_}.path: mesh file {path} not found (paths are relative to the gripper YAML)")
-    scale = config_number(spec.get("scale", 1.0), f"{field_}.scale", positive=True)
     T = parse_transform(spec["T"], f"{field_}.T") if "T" in spec else np.eye(4)
-    import trimesh
-
-    try:
-        m = trimesh.load(str(path), force="mesh", process=True)
-    except Exception as exc:  # noqa: BLE001 - any reader error is a config error here
-        raise ConfigError(f"{field_}.path: cannot read {path}: {exc}") from exc
-    if not isinstance(m, trimesh.Trimesh) or len(m.faces) == 0:
-        raise ConfigError(f"{field_}.path: {path} holds no triangles")
-    v = np.asarray(m.vertices, dtype=np.float64) * scale
+    v, f, path = read_config_mesh(spec, base, field_, "gripper")
     if not np.all(np.isfinite(v)) or np.abs(v).max() > 10.0:
         raise ConfigError(f"{field_}.path: {path} has non-finite or huge coordinates (|v| <= 10 m after scale)")
     v = v @ T[:3, :3].T + T[:3, 3]
-    return MeshShape(v, np.asarray(m.faces, dtype=np.int64), str(path))
+    return MeshShape(v, f, str(path))
 
 
 def _box_body_symmetric(body: tuple) -> bool:
