@@ -203,16 +203,24 @@ def _probe_bits(C: np.ndarray, q: np.ndarray, eps: float, tiny: float) -> np.nda
     return bits
 
 
+def _flat_keys(cols: list) -> np.ndarray | None:
+    """The rows' flat index in the box of their ranges (lexicographic order; equal rows, equal
+    keys), or None when that box does not fit an int64. ``cols``: non-empty int64 columns."""
+    lo = [c.min() for c in cols]
+    dims = [int(c.max() - m) + 1 for c, m in zip(cols, lo)]
+    if np.prod(np.array(dims, dtype=np.float64)) >= 2.0**62:
+        return None
+    return np.ravel_multi_index([c - m for c, m in zip(cols, lo)], dims)
+
+
 def _row_ids(*cols) -> np.ndarray:
     """(k,) int64 dense ids of the distinct rows of integer columns (equal rows, equal ids): one flat
     int64 key when the ranges fit (a 1D unique is ~10x faster than ``unique(axis=0)``)."""
     cols = [np.asarray(c, dtype=np.int64) for c in cols]
     if len(cols[0]) == 0:
         return np.zeros(0, dtype=np.int64)
-    lo = [c.min() for c in cols]
-    dims = [int(c.max() - m) + 1 for c, m in zip(cols, lo)]
-    if np.prod(np.array(dims, dtype=np.float64)) < 2.0**62:
-        flat = np.ravel_multi_index([c - m for c, m in zip(cols, lo)], dims)
+    flat = _flat_keys(cols)
+    if flat is not None:
         _, inv = np.unique(flat, return_inverse=True)
     else:
         _, inv = np.unique(np.column_stack(cols), axis=0, return_inverse=True)
@@ -226,11 +234,8 @@ def _row_keys(*cols) -> np.ndarray:
     cols = [np.asarray(c, dtype=np.int64) for c in cols]
     if len(cols[0]) == 0:
         return np.zeros(0, dtype=np.int64)
-    lo = [c.min() for c in cols]
-    dims = [int(c.max() - m) + 1 for c, m in zip(cols, lo)]
-    if np.prod(np.array(dims, dtype=np.float64)) < 2.0**62:
-        return np.ravel_multi_index([c - m for c, m in zip(cols, lo)], dims)
-    return _row_ids(*cols)
+    flat = _flat_keys(cols)
+    return flat if flat is not None else _row_ids(*cols)
 
 
 def area_boundary_edges(F: np.ndarray, label: np.ndarray) -> np.ndarray:
