@@ -95,6 +95,45 @@ def robot_link_objects(robot, mounted=("base_link", "shoulder_link")) -> list:
     return out
 
 
+class RobotLinks:
+    """The robot's links as python-fcl objects (:func:`robot_link_objects`), posed by Pinocchio's
+    forward kinematics only, and the TCP: what the plan and pick-and-place checkers share."""
+
+    def __init__(self, robot, T_flange_tcp, mounted=("base_link", "shoulder_link")):
+        self.model = robot.model
+        self.data = robot.model.createData()
+        self.gmodel = robot.collision_model
+        self.gdata = pin.GeometryData(self.gmodel)
+        self.T_world_base = np.asarray(robot.T_world_base)
+        self.tool_id = robot.model.getFrameId(robot.tool_frame)
+        self.T_flange_tcp = np.asarray(T_flange_tcp, dtype=np.float64)
+        self.links = robot_link_objects(robot, mounted)  # (geometry index, name, fcl object, exempt from table)
+
+    def posed(self, q) -> list:
+        """``[(link name, fcl object at q, exempt from table)]``."""
+        q = np.asarray(q, dtype=np.float64)
+        pin.forwardKinematics(self.model, self.data, q)
+        pin.updateGeometryPlacements(self.model, self.data, self.gmodel, self.gdata)
+        for gi, _, obj, _ in self.links:
+            obj.setTransform(fcl_tf(self.T_world_base @ self.gdata.oMg[gi].homogeneous))
+        return [(name, obj, exempt) for _, name, obj, exempt in self.links]
+
+    def hits(self, q, part, table, hit) -> list[tuple[str, str]]:
+        """``[(link, "part" | "table")]`` the links at ``q`` touch (``hit(a, b)`` decides; links
+        exempt from the table are not checked against it)."""
+        out = []
+        for name, obj, exempt in self.posed(q):
+            if hit(obj, part):
+                out.append((name, "part"))
+            if not exempt and hit(obj, table):
+                out.append((name, "table"))
+        return out
+
+    def fk_tcp(self, q) -> np.ndarray:
+        pin.framesForwardKinematics(self.model, self.data, np.asarray(q, dtype=np.float64))
+        return self.T_world_base @ self.data.oMf[self.tool_id].homogeneous @ self.T_flange_tcp
+
+
 def _obj(geom, T) -> fcl.CollisionObject:
     T = np.asarray(T, dtype=np.float64)
     return fcl.CollisionObject(geom, fcl.Transform(T[:3, :3], T[:3, 3]))

@@ -27,7 +27,7 @@ FAST_WEIGHTS = (("center", 0.1), ("top", 0.15), ("width", 0.05))
 from fcl_recheck import bvh as _bvh  # noqa: E402  (independent python-fcl helpers)
 from fcl_recheck import dense  # noqa: E402
 from fcl_recheck import fcl_tf as _fcl_tf  # noqa: E402
-from fcl_recheck import robot_link_objects  # noqa: E402
+from fcl_recheck import RobotLinks  # noqa: E402
 
 
 def _shape_objects(shape):
@@ -44,18 +44,10 @@ class PickPlaceChecker:
 
     def __init__(self, robot, gripper, part_mesh, table_z=0.0, mounted=("base_link", "shoulder_link")):
         import fcl
-        import pinocchio as pin
 
-        self.pin, self.fcl = pin, fcl
-        self.model = robot.model
-        self.data = robot.model.createData()
-        self.gmodel = robot.collision_model
-        self.gdata = pin.GeometryData(self.gmodel)
-        self.T_world_base = np.asarray(robot.T_world_base)
-        self.tool_id = robot.model.getFrameId(robot.tool_frame)
-        self.T_flange_tcp = np.asarray(gripper.T_flange_tcp)
+        self.fcl = fcl
         self.gripper = gripper
-        self.links = robot_link_objects(robot, mounted)  # (geometry index, name, fcl object, exempt from table)
+        self.robot_links = RobotLinks(robot, gripper.T_flange_tcp, mounted)
         self.part_V = np.asarray(part_mesh.vertices, dtype=np.float64)
         self.part = fcl.CollisionObject(_bvh(part_mesh.vertices, part_mesh.faces), fcl.Transform())
         self.table_z = float(table_z)
@@ -68,8 +60,7 @@ class PickPlaceChecker:
         return self.fcl.collide(a, b, self.fcl.CollisionRequest(), self.fcl.CollisionResult()) > 0
 
     def fk_tcp(self, q):
-        self.pin.framesForwardKinematics(self.model, self.data, np.asarray(q, dtype=np.float64))
-        return self.T_world_base @ self.data.oMf[self.tool_id].homogeneous @ self.T_flange_tcp
+        return self.robot_links.fk_tcp(q)
 
     def part_lowest_z(self, T_world_part):
         return float((self.part_V @ T_world_part[2, :3] + T_world_part[2, 3]).min())
@@ -77,18 +68,9 @@ class PickPlaceChecker:
     def collisions(self, q, opening, T_world_part, attached: bool):
         """Colliding (body, body) pairs at ``q``; the part at ``T_world_part``; ``attached``: the part is
         in the jaws (only the jaws may touch it; it is checked against the table exactly)."""
-        pin, fcl = self.pin, self.fcl
-        q = np.asarray(q, dtype=np.float64)
-        pin.forwardKinematics(self.model, self.data, q)
-        pin.updateGeometryPlacements(self.model, self.data, self.gmodel, self.gdata)
+        fcl = self.fcl
         self.part.setTransform(_fcl_tf(T_world_part))
-        hits = []
-        for gi, name, obj, exempt in self.links:
-            obj.setTransform(_fcl_tf(self.T_world_base @ self.gdata.oMg[gi].homogeneous))
-            if self._hit(obj, self.part):
-                hits.append((name, "part"))
-            if not exempt and self._hit(obj, self.table):
-                hits.append((name, "table"))
+        hits = self.robot_links.hits(q, self.part, self.table, self._hit)
         T_tcp = self.fk_tcp(q)
         shapes = [("body", g, T) for g, T in self.body]
         if not attached:

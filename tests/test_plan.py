@@ -33,7 +33,7 @@ def test_plan_statuses_are_the_documented_ones():
 from fcl_recheck import bvh as _bvh  # noqa: E402  (independent python-fcl helpers)
 from fcl_recheck import dense  # noqa: E402
 from fcl_recheck import fcl_tf as _fcl_tf  # noqa: E402
-from fcl_recheck import robot_link_objects  # noqa: E402
+from fcl_recheck import RobotLinks  # noqa: E402
 
 
 def _schunk_boxes(opening):
@@ -51,17 +51,9 @@ class IndependentChecker:
     def __init__(self, robot, part_mesh, T_world_part, T_flange_tcp, table_z=0.0,
                  mounted=("base_link", "shoulder_link")):
         import fcl
-        import pinocchio as pin
 
-        self.pin, self.fcl = pin, fcl
-        self.model = robot.model
-        self.data = robot.model.createData()
-        self.gmodel = robot.collision_model
-        self.gdata = pin.GeometryData(self.gmodel)
-        self.T_world_base = np.asarray(robot.T_world_base)
-        self.tool_id = robot.model.getFrameId("tool0")
-        self.T_flange_tcp = np.asarray(T_flange_tcp)
-        self.links = robot_link_objects(robot, mounted)  # (geometry index, name, fcl object, exempt from table)
+        self.fcl = fcl
+        self.robot_links = RobotLinks(robot, T_flange_tcp, mounted)
         part_geom = _bvh(part_mesh.vertices, part_mesh.faces)
         self.part = fcl.CollisionObject(part_geom, _fcl_tf(np.asarray(T_world_part)))
         table_T = np.eye(4)
@@ -72,26 +64,13 @@ class IndependentChecker:
     def _hit(self, a, b):
         return self.fcl.collide(a, b, self.req, self.fcl.CollisionResult()) > 0
 
-    def fk_tool(self, q):
-        self.pin.framesForwardKinematics(self.model, self.data, q)
-        return self.T_world_base @ self.data.oMf[self.tool_id].homogeneous
-
     def fk_tcp(self, q):
-        return self.fk_tool(q) @ self.T_flange_tcp
+        return self.robot_links.fk_tcp(q)
 
     def collisions(self, q, opening):
         """List of colliding (object, obstacle) names at q with the jaws at ``opening``."""
-        pin, fcl = self.pin, self.fcl
-        q = np.asarray(q, dtype=np.float64)
-        pin.forwardKinematics(self.model, self.data, q)
-        pin.updateGeometryPlacements(self.model, self.data, self.gmodel, self.gdata)
-        hits = []
-        for gi, name, obj, exempt in self.links:
-            obj.setTransform(_fcl_tf(self.T_world_base @ self.gdata.oMg[gi].homogeneous))
-            if self._hit(obj, self.part):
-                hits.append((name, "part"))
-            if not exempt and self._hit(obj, self.table):
-                hits.append((name, "table"))
+        fcl = self.fcl
+        hits = self.robot_links.hits(q, self.part, self.table, self._hit)
         T_world_tcp = self.fk_tcp(q)
         for k, (ext, c) in enumerate(_schunk_boxes(opening)):
             T = np.eye(4)
