@@ -63,7 +63,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .convexity import edge_adjacency
+from .convexity import edge_adjacency, mesh_edge_adjacency
 from .errors import InputError, MeshError
 from .meshdata import MeshData, connected_components
 from .tolerance import Tolerance
@@ -284,7 +284,7 @@ def boundary_layer(
         )
     m = len(F)
 
-    adj, _, unshared = edge_adjacency(F)  # face pairs and the vertex of each opposite the shared edge
+    adj, _, unshared = mesh_edge_adjacency(mesh)[:3]  # face pairs, the vertex of each opposite the shared edge
     facet, surface, n_facets, n_surfaces = cluster_surfaces(mesh, gamma_deg=gamma_deg, tol=tol, adjacency=adj)
     normals = np.asarray(mesh.face_normals, dtype=np.float64)
 

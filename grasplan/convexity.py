@@ -72,11 +72,11 @@ def edge_adjacency(faces: np.ndarray, *, slots: bool = False):
 
 def mesh_edge_adjacency(mesh):
     """``edge_adjacency(mesh.faces, slots=True)``, computed once per :class:`grasplan.meshdata.
-    MeshData` (cached with it: convexity and the regions both need the BLM mesh's), else each call."""
-    derived = getattr(mesh, "derived", None)
-    if derived is None:
-        return edge_adjacency(mesh.faces, slots=True)
-    return derived("edge_adjacency", lambda: edge_adjacency(mesh.faces, slots=True))
+    MeshData` (:attr:`~grasplan.meshdata.MeshData.edge_adjacency`: loading, the BLM, convexity
+    and the regions share it), else on each call."""
+    if hasattr(mesh, "derived"):
+        return mesh.edge_adjacency
+    return edge_adjacency(mesh.faces, slots=True)
 
 
 def _edge_adjacency(F: np.ndarray):

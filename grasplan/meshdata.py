@@ -27,33 +27,6 @@ if TYPE_CHECKING:
 _TOL_ZERO = float(np.finfo(np.float64).resolution * 100)
 
 
-def _sorted_edge_keys(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per directed face edge (3 m): undirected key, and the (from, to) vertex ids."""
-    a = faces.ravel()
-    b = np.roll(faces, -1, axis=1).ravel()
-    n = int(faces.max()) + 1 if len(faces) else 1
-    return np.minimum(a, b) * n + np.maximum(a, b), a, b
-
-
-def edge_counts(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``(order, start, count, keys)``: face edges sorted by their undirected key (``order`` into
-    the 3 m directed edges, edge ``k`` of face ``f`` at ``3 f + k``), where each group of equal
-    keys starts and how many face edges it has."""
-    key, _, _ = _sorted_edge_keys(faces)
-    order = np.argsort(key, kind="stable")
-    k = key[order]
-    start = np.flatnonzero(np.r_[True, k[1:] != k[:-1]]) if len(k) else np.zeros(0, dtype=np.int64)
-    count = np.diff(np.r_[start, len(k)])
-    return order, start, count, k
-
-
-def winding_consistent(faces: np.ndarray) -> bool:
-    """Every edge shared by exactly two faces is walked in opposite directions by them (the
-    definition of ``trimesh.Trimesh.is_winding_consistent``; edges with one or 3+ faces are not
-    judged)."""
-    return MeshData(np.zeros((0, 3)), faces).is_winding_consistent
-
-
 def connected_components(n: int, edges: np.ndarray) -> tuple[int, np.ndarray]:
     """``(count, label (n,))`` of the graph on ``n`` nodes with undirected ``edges (k, 2)``: min-label
     hooking with pointer jumping (O(log n) rounds of vectorised work), labels renumbered 0.."""
@@ -179,29 +152,28 @@ class MeshData:
         return np.ptp(self.bounds, axis=0)
 
     @property
-    def edge_groups(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """:func:`edge_counts` of the faces (cached: watertightness and winding share one sort)."""
-        return self._cached("edge_groups", lambda: edge_counts(self._faces))
+    def edge_adjacency(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:func:`grasplan.convexity.edge_adjacency` of the faces with slots, once (watertightness,
+        winding, the BLM and convexity share it)."""
+        from .convexity import edge_adjacency
+
+        return self.derived("edge_adjacency", lambda: edge_adjacency(self._faces, slots=True))
 
     @property
     def is_watertight(self) -> bool:
-        """Every edge belongs to exactly two faces (as trimesh's ``is_watertight``)."""
-        def f():
-            if len(self._faces) == 0:
-                return False
-            return bool(np.all(self.edge_groups[2] == 2))
-        return self._cached("is_watertight", f)
+        """Every edge belongs to exactly two faces (as trimesh's ``is_watertight``): the edges with
+        exactly two faces pair up all ``3 m`` face edges."""
+        return self._cached("is_watertight",
+                            lambda: len(self._faces) > 0 and 2 * len(self.edge_adjacency[0]) == 3 * len(self._faces))
 
     @property
     def is_winding_consistent(self) -> bool:
-        """Every edge with exactly two faces is walked in opposite directions by them."""
+        """Every edge with exactly two faces is walked in opposite directions by them (the two
+        directed edges start at different vertices)."""
         def f():
-            if len(self._faces) == 0:
-                return True
-            order, start, count, _ = self.edge_groups
-            two = start[count == 2]
-            a = self._faces.ravel()  # opposite directions start at different vertices
-            return bool(np.all(a[order[two]] != a[order[two + 1]]))
+            slot = self.edge_adjacency[3]
+            a = self._faces.ravel()
+            return bool(np.all(a[slot[:, 0]] != a[slot[:, 1]]))
         return self._cached("is_winding_consistent", f)
 
     def with_faces(self, keep: np.ndarray) -> MeshData:
@@ -317,13 +289,3 @@ def convex_hull(points: np.ndarray) -> MeshData:
     back = np.einsum("ij,ij->i", normals, centre - centroid) < 0.0
     faces[back] = np.fliplr(faces[back])
     return MeshData(vertices, faces)  # normals from the (now outward) winding, as trimesh ends with
-
-
-def as_meshdata(mesh) -> MeshData:
-    """``mesh`` if it is a :class:`MeshData`, else one over its ``vertices`` and ``faces`` (and its
-    face normals when it is a trimesh, whose normals may have been recorded, e.g. by the BLM)."""
-    if isinstance(mesh, MeshData):
-        return mesh
-    fn = getattr(mesh, "face_normals", None)
-    return MeshData(np.asarray(mesh.vertices), np.asarray(mesh.faces),
-                    None if fn is None else np.asarray(fn, dtype=np.float64))
