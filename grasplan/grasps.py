@@ -8,8 +8,8 @@ the pure function behind ``grasplan grasps``; the plan pipeline starts from its
 from __future__ import annotations
 
 import time
-from pathlib import Path
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 

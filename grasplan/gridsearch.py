@@ -137,6 +137,7 @@ def any_within(X: np.ndarray, Y: np.ndarray, r: np.ndarray | float) -> np.ndarra
     """(n,) bool: some ``Y`` point lies within ``r`` (a radius, or one per ``X`` row) of ``X[i]``.
     Per-row radii are searched in classes within a factor 2 of each other."""
     X = np.ascontiguousarray(X, dtype=np.float64)
+    Y = np.ascontiguousarray(Y, dtype=np.float64)
     out = np.zeros(len(X), dtype=bool)
     rad = np.broadcast_to(np.asarray(r, dtype=np.float64), (len(X),))
     if len(X) == 0 or len(Y) == 0:
@@ -148,7 +149,7 @@ def any_within(X: np.ndarray, Y: np.ndarray, r: np.ndarray | float) -> np.ndarra
         rows = np.flatnonzero(cls == c)
         rmax = float(rad[rows].max())
         for i, j in pairs_within(X[rows], Y, rmax):
-            d = X[rows[i]] - np.asarray(Y, dtype=np.float64)[j]
+            d = X[rows[i]] - Y[j]
             ok = np.einsum("ij,ij->i", d, d) <= rad[rows[i]] ** 2
             out[rows[i[ok]]] = True
     return out
