@@ -274,7 +274,7 @@ def _entry_from_mapping(row: dict, base_dir: Path, where: str) -> PartEntry:
                 raise InputError(f"{where}: units {text!r}; use one of {', '.join(UNIT_CHOICES)}")
             overrides[key] = text
         elif key == "part_pose":
-            from .cell import parse_part_pose
+            from .transforms import parse_part_pose
 
             pose = str(value).strip()
             pp = Path(pose).expanduser()

@@ -30,7 +30,6 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-import math
 import os
 import re
 import unicodedata
@@ -41,7 +40,6 @@ import numpy as np
 
 if TYPE_CHECKING:  # imported where a trimesh is built (obstacle primitives, mesh files)
     import trimesh
-import yaml
 
 from .config_files import (
     available,
@@ -53,14 +51,11 @@ from .config_files import (
     resolve_yaml,
 )
 from .errors import ConfigError, InputError
-from .gripper import rpy_matrix
 from .params import DEFAULT_CELL
-from .transforms import check_transform
-from .units import parse_angle_deg, parse_length
+from .transforms import MAX_CELL_COORD_M, check_transform, parse_pose
 
 CELL_DIR = packaged_file("configs", "cells")  # the packaged cells
 #: |table_z| and |part_xy| at most this (metres): a robot cell is a few metres across
-MAX_CELL_COORD_M = 10.0
 #: longest cell name (characters)
 MAX_NAME_CHARS = 100
 #: largest pose_index accepted from a file (a part has far fewer distinct resting poses)
@@ -339,32 +334,16 @@ def _check_unique(names: list[str], where: str, reserved: tuple[str, ...]) -> No
         seen.add(n)
 
 
+def _pose_yaml(v, where: str) -> np.ndarray:
+    """``T: {xyz: [m], rpy_deg: [deg]}`` of a cell YAML -> (4, 4) (:func:`grasplan.transforms.parse_pose`)."""
+    return parse_pose(v, where, matrix=False, require_xyz=True, max_coord=MAX_CELL_COORD_M, max_deg=3600)
+
+
 def _obstacle_name(v, where: str) -> str:
     if not isinstance(v, str) or not _NAME_RE.match(v):
         raise ConfigError(f"{where}.name: expected 1-64 characters of letters, digits, '_', '-', '+', '.', "
                           f"got {str(v)[:40]!r}")
     return v
-
-
-def _pose_yaml(v, where: str) -> np.ndarray:
-    """``T: {xyz: [m], rpy_deg: [deg]}`` -> (4, 4); R = Rz(yaw) Ry(pitch) Rx(roll)."""
-    if not isinstance(v, dict):
-        raise ConfigError(f"{where}: expected {{xyz: [x, y, z] (m), rpy_deg: [roll, pitch, yaw] (deg)}}, "
-                          f"got {str(v)[:60]!r}")
-    unknown = set(v) - {"xyz", "rpy_deg"}
-    if unknown:
-        raise ConfigError(f"{where}: unknown keys {sorted(map(str, unknown))}; valid: ['rpy_deg', 'xyz']")
-    if "xyz" not in v:
-        raise ConfigError(f"{where}.xyz: missing (the position [x, y, z] in metres)")
-    T = np.eye(4)
-    T[:3, 3] = config_vector(v["xyz"], f"{where}.xyz")
-    if np.abs(T[:3, 3]).max() > MAX_CELL_COORD_M:
-        raise ConfigError(f"{where}.xyz: coordinates must be within {MAX_CELL_COORD_M} m of the origin")
-    rpy = config_vector(v.get("rpy_deg", [0, 0, 0]), f"{where}.rpy_deg")
-    if np.abs(rpy).max() > 3600:
-        raise ConfigError(f"{where}.rpy_deg: angles in degrees, at most 3600 in magnitude")
-    T[:3, :3] = rpy_matrix(*np.radians(rpy))
-    return T
 
 
 def _positive(v, where: str) -> float:
@@ -766,67 +745,6 @@ def place_on_table(part_mesh: trimesh.Trimesh, R_world_part: np.ndarray, cell: C
     z_min = float((np.asarray(part_mesh.vertices) @ R_world_part[2]).min())  # lowest point of the turned part
     c = R_world_part @ com
     T[:3, 3] = [cell.part_xy[0] - c[0], cell.part_xy[1] - c[1], cell.rest_z - z_min]
-    return T
-
-
-_POSE_SPLIT = re.compile(r"\s*,\s*")
-
-
-def parse_part_pose(text: str | os.PathLike) -> np.ndarray:
-    """``T_world_part`` from ``--part-pose``.
-
-    Either ``"x,y,z,roll,pitch,yaw"`` (lengths with optional units, bare = metres; angles in
-    degrees; R = R_z(yaw) R_y(pitch) R_x(roll)) or a JSON/YAML file holding a 4x4 row-major
-    matrix (top level, or under the key ``T_world_part``). The pose is used as given: the part
-    may float above or sink into the table (the collision check does not move it)."""
-    s = str(text)
-    if len(s) > 4096 or "\x00" in s:
-        raise InputError("--part-pose: expected 'x,y,z,roll,pitch,yaw' or a JSON/YAML file with T_world_part")
-    p = Path(s)
-    try:
-        is_file = p.is_file()
-    except OSError:  # e.g. a name too long for the file system: not a file
-        is_file = False
-    if p.suffix.lower() in (".json", ".yaml", ".yml") or is_file:
-        if not is_file:
-            raise InputError(f"--part-pose: file {p} not found")
-        try:
-            if p.stat().st_size > 1_000_000:
-                raise InputError(f"--part-pose: {p} is too large for a pose file")
-            data = yaml.safe_load(p.read_text())  # YAML is a superset of JSON
-        except (yaml.YAMLError, UnicodeDecodeError, OSError) as exc:
-            raise InputError(f"--part-pose: {p} is not a readable JSON/YAML file ({str(exc).splitlines()[0][:80]})") from None
-        if isinstance(data, dict):
-            if "T_world_part" not in data:
-                raise InputError(f"--part-pose: {p} has no key 'T_world_part' (a 4x4 row-major matrix)")
-            data = data["T_world_part"]
-        return check_transform(data, f"--part-pose {p}")
-    return _pose6(s, "--part-pose", "or a JSON/YAML file")
-
-
-def _pose6(s: str, option: str, alt: str = "") -> np.ndarray:
-    parts = _POSE_SPLIT.split(s.strip())
-    if len(parts) != 6:
-        raise InputError(f"{option}: expected 'x,y,z,roll,pitch,yaw' (m or with units; degrees){' ' + alt if alt else ''}, "
-                         f"got {s[:80]!r}")
-    xyz = [parse_length(v, name=f"{option} {n}", allow_negative=True) for v, n in zip(parts[:3], "xyz")]
-    rpy = [math.radians(parse_angle_deg(v, name=f"{option} {n}")) for v, n in zip(parts[3:], ("roll", "pitch", "yaw"))]
-    if max(abs(x) for x in xyz) > MAX_CELL_COORD_M:
-        raise InputError(f"{option}: the position must be within {MAX_CELL_COORD_M} m of the world origin")
-    T = np.eye(4)
-    T[:3, :3] = rpy_matrix(*rpy)
-    T[:3, 3] = xyz
-    return T
-
-
-def parse_place(text: str) -> np.ndarray:
-    """``T_world_part`` (4, 4) of the part after release, from ``--place x,y,z,roll,pitch,yaw``
-    (lengths with optional units, bare = metres; angles in degrees; R = Rz(yaw) Ry(pitch) Rx(roll))."""
-    s = str(text)
-    if len(s) > 4096 or "\x00" in s:
-        raise InputError("--place: expected 'x,y,z,roll,pitch,yaw' (m or with units; degrees)")
-    T = _pose6(s, "--place")
-    T.flags.writeable = False
     return T
 
 

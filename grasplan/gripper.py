@@ -28,7 +28,6 @@ otherwise).
 """
 from __future__ import annotations
 
-import math
 import os
 from dataclasses import dataclass
 from functools import lru_cache
@@ -48,7 +47,7 @@ from .config_files import (
 from .meshdata import convex_hull
 from .errors import ConfigError
 from .params import DEFAULT_GRIPPER
-from .transforms import check_transform
+from .transforms import parse_pose, rpy_matrix
 
 #: the ``configs`` folder at the repository root (next to the ``grasplan`` package)
 GRIPPER_DIR = packaged_file("configs", "grippers")  # the packaged grippers
@@ -188,7 +187,7 @@ def _shape_from_json(d, where: str) -> Shape:
         raise ConfigError(f"{where}.{kind}: expected a mapping")
     if kind == "box":
         ext = config_vector(spec.get("extents"), f"{where}.box.extents", positive=True)
-        T = parse_transform(spec.get("T"), f"{where}.box.T")
+        T = parse_pose(spec.get("T"), f"{where}.box.T")
         return Box(ext, T)
     try:
         V = np.asarray(spec.get("vertices"), dtype=np.float64)
@@ -220,7 +219,7 @@ def gripper_from_json(d, *, where: str = "gripper") -> Gripper:
     if not isinstance(sym, bool):
         raise ConfigError(f"{where}.definition.symmetric: expected true or false")
     return Gripper(name=name, max_opening=config_number(d.get("max_opening"), f"{where}.max_opening", positive=True, max_abs=2.0),
-                   T_flange_tcp=parse_transform(d.get("T_flange_tcp"), f"{where}.T_flange_tcp"), body=shapes,
+                   T_flange_tcp=parse_pose(d.get("T_flange_tcp"), f"{where}.T_flange_tcp"), body=shapes,
                    finger=finger, symmetric=sym, source="embedded",
                    grip_force=config_number(d.get("grip_force", DEFAULT_GRIP_FORCE), f"{where}.grip_force",
                                             positive=True, max_abs=1e5))
@@ -229,33 +228,6 @@ def gripper_from_json(d, *, where: str = "gripper") -> Gripper:
 def available_grippers() -> list[str]:
     """Names of the grippers shipped in ``configs/grippers/*.yaml``."""
     return available("gripper")
-
-
-def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    """(3, 3) rotation R_z(yaw) R_y(pitch) R_x(roll), angles in radians."""
-    cr, sr, cp, sp, cy, sy = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch), math.cos(yaw), math.sin(yaw)
-    return np.array([
-        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-        [-sp, cp * sr, cp * cr],
-    ])
-
-
-def parse_transform(value, field_: str) -> np.ndarray:
-    """A 4x4 rigid transform from a nested 4x4 list or ``{xyz: [..], rpy_deg: [..]}``."""
-    if isinstance(value, dict):
-        unknown = set(value) - {"xyz", "rpy_deg"}
-        if unknown:
-            raise ConfigError(f"{field_}: unknown keys {sorted(unknown)}; use xyz (m) and rpy_deg (deg)")
-        T = np.eye(4)
-        T[:3, 3] = config_vector(value.get("xyz", [0, 0, 0]), f"{field_}.xyz")
-        rpy = np.radians(config_vector(value.get("rpy_deg", [0, 0, 0]), f"{field_}.rpy_deg"))
-        T[:3, :3] = rpy_matrix(*rpy)
-        return T
-    if isinstance(value, (list, tuple)) and len(value) == 4:
-        T = np.array([config_vector(r, f"{field_}[{i}]", 4) for i, r in enumerate(value)])
-        return check_transform(T, field_, error=ConfigError)
-    raise ConfigError(f"{field_}: expected a 4x4 matrix (list of 4 rows) or {{xyz: [x,y,z], rpy_deg: [r,p,y]}}, got {value!r}")
 
 
 def _box(spec, field_: str, *, finger: bool) -> Box:
@@ -293,7 +265,7 @@ def _mesh(spec, field_: str, base: Path) -> MeshShape:
     unknown = set(spec) - {"path", "scale", "T"}
     if unknown:
         raise ConfigError(f"{field_}: unknown keys {sorted(unknown)}; allowed: path, scale, T")
-    T = parse_transform(spec["T"], f"{field_}.T") if "T" in spec else np.eye(4)
+    T = parse_pose(spec["T"], f"{field_}.T") if "T" in spec else np.eye(4)
     v, f, path = read_config_mesh(spec, base, field_, "gripper")
     if not np.all(np.isfinite(v)) or np.abs(v).max() > 10.0:
         raise ConfigError(f"{field_}.path: {path} has non-finite or huge coordinates (|v| <= 10 m after scale)")
@@ -324,7 +296,7 @@ def gripper_from_dict(data: dict, *, base: Path, name: str, source: str = "") ->
     if not isinstance(gname, str) or not gname:
         raise ConfigError(f"{source}: name: expected a non-empty string")
     max_opening = config_number(data["max_opening"], "max_opening", positive=True)
-    T_flange_tcp = parse_transform(data["T_flange_tcp"], "T_flange_tcp")
+    T_flange_tcp = parse_pose(data["T_flange_tcp"], "T_flange_tcp")
     if not isinstance(data["body"], list) or not data["body"]:
         raise ConfigError(f"{source}: body: expected a non-empty list of {{box: ...}} or {{mesh: ...}}")
     body = []

@@ -33,7 +33,7 @@ import pinocchio as pin
 
 from .errors import InputError
 from .robot import Robot
-from .transforms import check_transform
+from .transforms import check_transform, inv_rigid, pose_error
 
 TWO_PI = 2.0 * math.pi
 
@@ -68,17 +68,6 @@ class IKResult:
 # --------------------------------------------------------------------------------------------
 # helpers
 # --------------------------------------------------------------------------------------------
-def pose_error(T_a: np.ndarray, T_b: np.ndarray) -> tuple[float, float]:
-    """(position error m, rotation angle rad) between two (4, 4) poses."""
-    dp = float(np.linalg.norm(T_a[:3, 3] - T_b[:3, 3]))
-    c = (np.trace(T_a[:3, :3].T @ T_b[:3, :3]) - 1.0) / 2.0
-    # acos is ill-conditioned near 0: use the skew part for small angles
-    Rr = T_a[:3, :3].T @ T_b[:3, :3]
-    s = 0.5 * np.linalg.norm([Rr[2, 1] - Rr[1, 2], Rr[0, 2] - Rr[2, 0], Rr[1, 0] - Rr[0, 1]])
-    ang = float(math.atan2(s, min(1.0, max(-1.0, c))))
-    return dp, ang
-
-
 def wrap_to_limits(q: np.ndarray, lower: np.ndarray, upper: np.ndarray, q_ref: np.ndarray
                    ) -> np.ndarray | None:
     """Shift each joint by multiples of 2 pi to the value within [lower, upper] closest to q_ref.
@@ -118,13 +107,6 @@ def _dh(theta, d, a, alpha) -> np.ndarray:
                      [st, ct * ca, -ct * sa, a * st],
                      [0.0, sa, ca, d],
                      [0.0, 0.0, 0.0, 1.0]])
-
-
-def _inv(T: np.ndarray) -> np.ndarray:
-    Ti = np.eye(4)
-    Ti[:3, :3] = T[:3, :3].T
-    Ti[:3, 3] = -T[:3, :3].T @ T[:3, 3]
-    return Ti
 
 
 _ALPHA = (math.pi / 2, 0.0, 0.0, math.pi / 2, -math.pi / 2, 0.0)
@@ -170,8 +152,8 @@ class URAnalytic:
         q0 = np.zeros(6)
         pin.forwardKinematics(m, data, q0)
         T_tool0 = pin.updateFramePlacement(m, data, robot.tool_frame_id).homogeneous
-        self.T_dh6_tool = _inv(self.fk_dh(q0)) @ _inv(self.T_urdf_dh0) @ T_tool0
-        self.T_tool_dh6 = _inv(self.T_dh6_tool)
+        self.T_dh6_tool = inv_rigid(self.fk_dh(q0)) @ inv_rigid(self.T_urdf_dh0) @ T_tool0
+        self.T_tool_dh6 = inv_rigid(self.T_dh6_tool)
         # prove the chain against Pinocchio on random configurations
         rng = np.random.default_rng(12345)
         for q in rng.uniform(-math.pi, math.pi, size=(20, 6)):
@@ -195,7 +177,7 @@ class URAnalytic:
     def solve(self, T_base_tool: np.ndarray) -> tuple[list[np.ndarray], str]:
         """Up to eight raw solutions (angles in (-pi, pi]) for T_base_tool (the robot's model
         frame, i.e. base_link) and a reason when there are none."""
-        T = _inv(self.T_urdf_dh0) @ T_base_tool @ self.T_tool_dh6  # DH0 -> DH6
+        T = inv_rigid(self.T_urdf_dh0) @ T_base_tool @ self.T_tool_dh6  # DH0 -> DH6
         d1, a2, a3, d4, d5, d6 = self.d1, self.a2, self.a3, self.d4, self.d5, self.d6
         R, p = T[:3, :3], T[:3, 3]
         p05 = p - d6 * R[:, 2]
@@ -221,7 +203,7 @@ class URAnalytic:
                 T01 = _dh(th1, d1, 0.0, _ALPHA[0])
                 T45 = _dh(th5, d5, 0.0, _ALPHA[4])
                 T56 = _dh(th6, d6, 0.0, _ALPHA[5])
-                T14 = _inv(T01) @ T @ _inv(T45 @ T56)
+                T14 = inv_rigid(T01) @ T @ inv_rigid(T45 @ T56)
                 x, y = T14[0, 3], T14[1, 3]
                 c3 = (x * x + y * y - a2 * a2 - a3 * a3) / (2.0 * a2 * a3)
                 if c3 > 1.0 + 1e-9 or c3 < -1.0 - 1e-9:
@@ -284,7 +266,7 @@ class CLIK:
         """Newton / damped least squares from ``q_seed`` without joint clipping, for following a
         Cartesian path in small steps (the caller checks limits and jumps); q (n,) or None."""
         m, d, fid = self.robot.model, self.data, self.robot.tool_frame_id
-        target = pin.SE3(_inv(self.robot.T_world_base) @ np.asarray(T_world_tool, dtype=np.float64))
+        target = pin.SE3(inv_rigid(self.robot.T_world_base) @ np.asarray(T_world_tool, dtype=np.float64))
         q = np.array(q_seed, dtype=np.float64)
         eye6 = np.eye(6)
         for _ in range(iters):
@@ -331,7 +313,7 @@ class IKSolver:
         q_ref = r.q_home.copy() if q_ref is None else r.check_q(q_ref, where="q_ref")
         if method not in ("auto", "analytic", "clik"):
             raise InputError(f"method: expected 'auto', 'analytic' or 'clik', got {method!r}")
-        T_base_tool = _inv(r.T_world_base) @ T_world_tool
+        T_base_tool = inv_rigid(r.T_world_base) @ T_world_tool
         sols: list[np.ndarray] = []
         reason = ""
         used = []

@@ -53,14 +53,9 @@ from .params import (
 )
 from .result import Motion, Params, PlanResult
 from .scoring import distinct_order, score_grasps
+from .transforms import translation
 
 SCHEMA = "grasplan.plan/1"
-
-
-def _translate_z(d: float) -> np.ndarray:
-    T = np.eye(4)
-    T[2, 3] = d
-    return T
 
 
 def plan_grasps(grasps, robot, scene, *, params: PlanParams = PlanParams(),
@@ -143,7 +138,7 @@ def plan_grasps(grasps, robot, scene, *, params: PlanParams = PlanParams(),
         tried += 1
         e = {"status": "not_tried", "reason": ""}
         T_world_tcp = T_world_part @ T_part_tcp[i]
-        T_world_pre = T_world_tcp @ _translate_z(-params.backoff)
+        T_world_pre = T_world_tcp @ translation(z=-params.backoff)
         opening = float(gripper.pregrasp_opening(width[i]))
 
         t = time.perf_counter()

@@ -52,6 +52,7 @@ import yaml
 from .config_files import available, config_number, config_vector, resolve_yaml
 from .errors import ConfigError, InputError, unknown_name
 from .params import DEFAULT_ROBOT
+from .transforms import to_se3, xyz_rpy
 
 _PKG_SHARE = "cmeel.prefix/share"
 
@@ -92,10 +93,6 @@ def _frozen(a: np.ndarray) -> np.ndarray:
     a = np.array(a, dtype=float)
     a.setflags(write=False)
     return a
-
-
-def se3_from_xyz_rpy(xyz, rpy) -> pin.SE3:
-    return pin.SE3(pin.rpy.rpyToMatrix(*np.asarray(rpy, float)), np.asarray(xyz, float))
 
 
 def parse_srdf_disabled_pairs(srdf_path: Path) -> tuple[tuple[str, str], ...]:
@@ -470,8 +467,8 @@ def _build_robot_text(text: str, path: Path | str, yaml_dir: Path | None, urdf_f
             raise ConfigError(f"{w}.name: frame {fr['name']!r} already exists in the URDF")
         pid = model.getFrameId(fr["parent"])
         parent = model.frames[pid]
-        local = se3_from_xyz_rpy(config_vector(fr.get("xyz", [0, 0, 0]), f"{w}.xyz", 3),
-                                 config_vector(fr.get("rpy", [0, 0, 0]), f"{w}.rpy", 3))
+        local = to_se3(xyz_rpy(config_vector(fr.get("xyz", [0, 0, 0]), f"{w}.xyz", 3),
+                                 config_vector(fr.get("rpy", [0, 0, 0]), f"{w}.rpy", 3)))
         model.addFrame(pin.Frame(fr["name"], parent.parentJoint, pid, parent.placement * local,
                                  pin.FrameType.OP_FRAME))
 

@@ -65,7 +65,7 @@ import pinocchio as pin
 from .errors import ConfigError, InputError
 from .geometry import bvh, obstacle_geometry, shape_geometry
 from .robot import Robot
-from .transforms import check_transform
+from .transforms import check_transform, to_se3, translation
 
 TABLE = "table"
 PART = "part"
@@ -74,17 +74,6 @@ TABLE_SIZE = (20.0, 20.0, 2.0)  # m: the table box (top face at z = table_z, cen
 #: the attached part may touch the table or an obstacle by this much (m) without colliding: it
 #: rests on them at the grasp and at the place (IK error is ~1e-6 m)
 ATTACHED_CONTACT_TOL = 1e-4
-
-
-def _se3(T: np.ndarray) -> pin.SE3:
-    T = np.asarray(T, dtype=float)
-    return pin.SE3(T[:3, :3].copy(), T[:3, 3].copy())
-
-
-def _tx(x: float) -> np.ndarray:
-    T = np.eye(4)
-    T[0, 3] = x
-    return T
 
 
 class _SceneModel:
@@ -106,7 +95,7 @@ class _SceneModel:
         self.body: dict[int, str] = {}
         for k, shape in enumerate(gripper.body):
             geom, T_tcp_g = shape_geometry(shape)
-            go = pin.GeometryObject(f"gripper_body_{k}", j_tool, f_tool, _se3(T_joint_tcp @ T_tcp_g), geom)
+            go = pin.GeometryObject(f"gripper_body_{k}", j_tool, f_tool, to_se3(T_joint_tcp @ T_tcp_g), geom)
             gid = gm.addGeometryObject(go)
             self.body[gid] = f"gripper:body_{k}"
         self.gripper_ids = list(self.body)
@@ -118,7 +107,7 @@ class _SceneModel:
         for name, shape in zip(("finger_left", "finger_right"), f0):
             geom, T_tcp_g = shape_geometry(shape)
             self.finger_T0.append(T_tcp_g)
-            go = pin.GeometryObject(name, j_tool, f_tool, _se3(T_joint_tcp @ T_tcp_g), geom)
+            go = pin.GeometryObject(name, j_tool, f_tool, to_se3(T_joint_tcp @ T_tcp_g), geom)
             gid = gm.addGeometryObject(go)
             self.finger_ids.append(gid)
             self.body[gid] = f"gripper:{name}"
@@ -132,13 +121,13 @@ class _SceneModel:
             # with its top face on the table plane is the same solid within reach of any arm
             T_world_table = np.eye(4)
             T_world_table[2, 3] = z - TABLE_SIZE[2] / 2
-            gid = gm.addGeometryObject(pin.GeometryObject(TABLE, 0, 0, _se3(self.T_base_world @ T_world_table),
+            gid = gm.addGeometryObject(pin.GeometryObject(TABLE, 0, 0, to_se3(self.T_base_world @ T_world_table),
                                                           coal.Box(*TABLE_SIZE)))
             self.env_ids[TABLE] = gid
             self.body[gid] = TABLE
             for o in getattr(cell, "obstacles", ()) or ():
                 gid = gm.addGeometryObject(pin.GeometryObject(
-                    f"obstacle:{o.name}", 0, 0, _se3(self.T_base_world @ np.asarray(o.T_world_obstacle)),
+                    f"obstacle:{o.name}", 0, 0, to_se3(self.T_base_world @ np.asarray(o.T_world_obstacle)),
                     obstacle_geometry(o)))
                 self.obstacle_ids.append(gid)
                 self.body[gid] = f"obstacle:{o.name}"
@@ -148,7 +137,7 @@ class _SceneModel:
             gid = gm.addGeometryObject(pin.GeometryObject(PART, 0, 0, pin.SE3.Identity(), part_bvh))
             self.env_ids[PART] = gid
             self.body[gid] = PART
-            gid = gm.addGeometryObject(pin.GeometryObject(PART_ATTACHED, j_tool, f_tool, _se3(T_joint_tcp), part_bvh))
+            gid = gm.addGeometryObject(pin.GeometryObject(PART_ATTACHED, j_tool, f_tool, to_se3(T_joint_tcp), part_bvh))
             self.env_ids[PART_ATTACHED] = gid
             self.body[gid] = PART
             # what the attached part is checked against: the table and the obstacles shrunk by
@@ -158,12 +147,12 @@ class _SceneModel:
                 tol = ATTACHED_CONTACT_TOL
                 T_world_table[2, 3] -= tol
                 gid = gm.addGeometryObject(pin.GeometryObject(
-                    "table_shrunk", 0, 0, _se3(self.T_base_world @ T_world_table), coal.Box(*TABLE_SIZE)))
+                    "table_shrunk", 0, 0, to_se3(self.T_base_world @ T_world_table), coal.Box(*TABLE_SIZE)))
                 self.attached_env.append(gid)
                 self.body[gid] = TABLE
                 for o in getattr(cell, "obstacles", ()) or ():
                     gid = gm.addGeometryObject(pin.GeometryObject(
-                        f"obstacle_shrunk:{o.name}", 0, 0, _se3(self.T_base_world @ np.asarray(o.T_world_obstacle)),
+                        f"obstacle_shrunk:{o.name}", 0, 0, to_se3(self.T_base_world @ np.asarray(o.T_world_obstacle)),
                         obstacle_geometry(o, shrink=tol)))
                     self.attached_env.append(gid)
                     self.body[gid] = f"obstacle:{o.name}"
@@ -248,7 +237,7 @@ class _SceneModel:
         if o == self.opening:
             return
         for sign, gid, T0 in zip((-1.0, 1.0), self.finger_ids, self.finger_T0):
-            self.gm.geometryObjects[gid].placement = _se3(self.T_joint_tcp @ _tx(sign * o / 2) @ T0)
+            self.gm.geometryObjects[gid].placement = to_se3(self.T_joint_tcp @ translation(sign * o / 2) @ T0)
         self.opening = o
 
 
@@ -306,9 +295,9 @@ class CollisionScene:
         self._placements: dict[int, pin.SE3] = {}
         env = shared.env_ids
         if self.T_world_part is not None and PART in env:
-            self._placements[env[PART]] = _se3(shared.T_base_world @ self.T_world_part)
+            self._placements[env[PART]] = to_se3(shared.T_base_world @ self.T_world_part)
         if self.T_tcp_part is not None and PART_ATTACHED in env:
-            self._placements[env[PART_ATTACHED]] = _se3(shared.T_joint_tcp @ self.T_tcp_part)
+            self._placements[env[PART_ATTACHED]] = to_se3(shared.T_joint_tcp @ self.T_tcp_part)
         self._apply()
         self.set_opening(float(shared.gripper.max_opening))
 
@@ -339,7 +328,7 @@ class CollisionScene:
         o = float(gripper.max_opening)
         for sign, shape0, shape in zip((-1.0, 1.0), gripper.fingers(0.0), gripper.fingers(o)):
             if hasattr(shape, "T_tcp_box"):
-                exp = _tx(sign * o / 2) @ np.asarray(shape0.T_tcp_box, dtype=float)
+                exp = translation(sign * o / 2) @ np.asarray(shape0.T_tcp_box, dtype=float)
                 ok = np.allclose(exp, np.asarray(shape.T_tcp_box, dtype=float), atol=1e-9)
             else:
                 v0 = np.asarray(shape0.vertices, dtype=float)

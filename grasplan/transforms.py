@@ -1,15 +1,34 @@
-"""Homogeneous transforms: the one boundary check, and quaternion poses for the file formats.
+"""Homogeneous transforms: every pose helper of grasplan lives here.
 
-Every public function that takes a ``T_<parent>_<child>`` from outside checks it here (in the
-spirit of pytransform3d's ``check_transform``), with the error type its caller's contract wants.
+- the one boundary check (:func:`check_transform`, in the spirit of pytransform3d's): every
+  public function that takes a ``T_<parent>_<child>`` from outside checks it here, with the error
+  type its caller's contract wants;
+- construction: :func:`rpy_matrix` (R = Rz(yaw) Ry(pitch) Rx(roll)), :func:`xyz_rpy`,
+  :func:`translation`; :func:`inv_rigid` (the inverse of a rigid transform);
+- comparison: :func:`pose_error` (position m, rotation rad), the one definition;
+- conversion: :func:`to_se3` (Pinocchio), :func:`quaternions` and :func:`pose7` for file formats;
+- parsing: :func:`parse_pose` (a YAML/JSON field: ``{xyz, rpy_deg}`` or a 4x4 matrix),
+  :func:`parse_pose_text` (``x,y,z,roll,pitch,yaw`` on a command line, lengths with units),
+  :func:`parse_part_pose` (``--part-pose``: that text or a file) and :func:`parse_place`.
+
+NumPy only at import; SciPy and Pinocchio load inside the functions that need them.
 """
 from __future__ import annotations
 
-from typing import Literal
+import math
+import os
+import re
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
-from .errors import InputError
+from .config_files import config_vector
+from .errors import ConfigError, InputError
+from .units import parse_angle_deg, parse_length
+
+if TYPE_CHECKING:
+    import pinocchio as pin
 
 #: rotation/last-row tolerance for transforms read from files (JSON/YAML keep about 16 digits)
 RIGID_TOL = 1e-6
@@ -59,3 +78,155 @@ def pose7(T: np.ndarray, *, order: Literal["wxyz", "xyzw"] = "wxyz") -> np.ndarr
     """``(x, y, z, quaternion)`` of transforms ``(..., 4, 4)`` -> ``(..., 7)``."""
     T = np.asarray(T, dtype=np.float64)
     return np.concatenate([T[..., :3, 3], quaternions(T[..., :3, :3], order=order)], axis=-1)
+
+
+def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """(3, 3) rotation R_z(yaw) R_y(pitch) R_x(roll), angles in radians."""
+    cr, sr, cp, sp, cy, sy = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch), math.cos(yaw), math.sin(yaw)
+    return np.array([
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ])
+
+
+def xyz_rpy(xyz, rpy) -> np.ndarray:
+    """(4, 4) transform with translation ``xyz`` (m) and rotation :func:`rpy_matrix` of ``rpy`` (rad)."""
+    T = np.eye(4)
+    T[:3, :3] = rpy_matrix(*(float(a) for a in rpy))
+    T[:3, 3] = np.asarray(xyz, dtype=np.float64)
+    return T
+
+
+def translation(x: float = 0.0, y: float = 0.0, z: float = 0.0) -> np.ndarray:
+    """(4, 4) pure translation."""
+    T = np.eye(4)
+    T[:3, 3] = (x, y, z)
+    return T
+
+
+def inv_rigid(T: np.ndarray) -> np.ndarray:
+    """Inverse of a rigid (4, 4) transform: ``[R^T, -R^T p]``."""
+    Ti = np.eye(4)
+    Ti[:3, :3] = T[:3, :3].T
+    Ti[:3, 3] = -T[:3, :3].T @ T[:3, 3]
+    return Ti
+
+
+def pose_error(T_a: np.ndarray, T_b: np.ndarray) -> tuple[float, float]:
+    """(position error m, rotation angle rad) between two (4, 4) poses.
+
+    The angle is ``atan2(|skew part|, (trace - 1) / 2)`` of ``R_a^T R_b``: accurate near 0 and pi,
+    where ``arccos`` of the trace alone loses half the digits."""
+    dp = float(np.linalg.norm(T_a[:3, 3] - T_b[:3, 3]))
+    Rr = T_a[:3, :3].T @ T_b[:3, :3]
+    c = (np.trace(Rr) - 1.0) / 2.0
+    s = 0.5 * np.linalg.norm([Rr[2, 1] - Rr[1, 2], Rr[0, 2] - Rr[2, 0], Rr[1, 0] - Rr[0, 1]])
+    return dp, float(math.atan2(s, min(1.0, max(-1.0, c))))
+
+
+def to_se3(T: np.ndarray) -> pin.SE3:
+    """A Pinocchio ``SE3`` of a (4, 4) transform (copies: the SE3 owns its arrays)."""
+    import pinocchio as pin  # loads with the robot; importing this module stays cheap
+
+    T = np.asarray(T, dtype=float)
+    return pin.SE3(T[:3, :3].copy(), T[:3, 3].copy())
+
+
+#: positions in cell YAMLs and on the command line lie within this distance of the world origin (m)
+MAX_CELL_COORD_M = 10.0
+#: angles in degrees in YAMLs and on the command line: at most this magnitude
+MAX_ANGLE_DEG = 3600.0
+
+
+def parse_pose(v: Any, where: str, *, matrix: bool = True, require_xyz: bool = False,
+               max_coord: float | None = None, max_deg: float | None = None) -> np.ndarray:
+    """A (4, 4) rigid transform from a config field: ``{xyz: [m], rpy_deg: [deg]}`` (R = Rz(yaw)
+    Ry(pitch) Rx(roll); missing keys are zeros unless ``require_xyz``) or, with ``matrix``, a
+    nested 4x4 row-major list. ``max_coord`` (m) / ``max_deg`` bound the position and the angles.
+    ConfigError naming ``where`` and what would pass."""
+    if matrix and isinstance(v, (list, tuple)) and len(v) == 4:
+        T = np.array([config_vector(r, f"{where}[{i}]", 4) for i, r in enumerate(v)])
+        return check_transform(T, where, error=ConfigError)
+    if not isinstance(v, dict):
+        forms = "a 4x4 matrix (list of 4 rows) or " if matrix else ""
+        raise ConfigError(f"{where}: expected {forms}{{xyz: [x, y, z] (m), rpy_deg: [roll, pitch, yaw] (deg)}}, "
+                          f"got {str(v)[:60]!r}")
+    unknown = set(v) - {"xyz", "rpy_deg"}
+    if unknown:
+        raise ConfigError(f"{where}: unknown keys {sorted(map(str, unknown))}; valid: ['rpy_deg', 'xyz']")
+    if require_xyz and "xyz" not in v:
+        raise ConfigError(f"{where}.xyz: missing (the position [x, y, z] in metres)")
+    T = np.eye(4)
+    T[:3, 3] = config_vector(v.get("xyz", [0, 0, 0]), f"{where}.xyz")
+    if max_coord is not None and np.abs(T[:3, 3]).max() > max_coord:
+        raise ConfigError(f"{where}.xyz: coordinates must be within {max_coord} m of the origin")
+    rpy = config_vector(v.get("rpy_deg", [0, 0, 0]), f"{where}.rpy_deg")
+    if max_deg is not None and np.abs(rpy).max() > max_deg:
+        raise ConfigError(f"{where}.rpy_deg: angles in degrees, at most {max_deg:g} in magnitude")
+    T[:3, :3] = rpy_matrix(*np.radians(rpy))
+    return T
+
+
+_POSE_SPLIT = re.compile(r"\s*,\s*")
+
+
+def parse_pose_text(s: str, option: str, alt: str = "") -> np.ndarray:
+    """(4, 4) from ``"x,y,z,roll,pitch,yaw"`` (lengths with optional units, bare = metres; angles in
+    degrees; R = Rz(yaw) Ry(pitch) Rx(roll)); InputError naming ``option`` (``alt``: other forms it takes)."""
+    parts = _POSE_SPLIT.split(s.strip())
+    if len(parts) != 6:
+        raise InputError(f"{option}: expected 'x,y,z,roll,pitch,yaw' (m or with units; degrees){' ' + alt if alt else ''}, "
+                         f"got {s[:80]!r}")
+    xyz = [parse_length(v, name=f"{option} {n}", allow_negative=True) for v, n in zip(parts[:3], "xyz")]
+    rpy = [math.radians(parse_angle_deg(v, name=f"{option} {n}")) for v, n in zip(parts[3:], ("roll", "pitch", "yaw"))]
+    if max(abs(x) for x in xyz) > MAX_CELL_COORD_M:
+        raise InputError(f"{option}: the position must be within {MAX_CELL_COORD_M} m of the world origin")
+    T = np.eye(4)
+    T[:3, :3] = rpy_matrix(*rpy)
+    T[:3, 3] = xyz
+    return T
+
+
+def parse_part_pose(text: str | os.PathLike) -> np.ndarray:
+    """``T_world_part`` from ``--part-pose``.
+
+    Either ``"x,y,z,roll,pitch,yaw"`` (:func:`parse_pose_text`) or a JSON/YAML file holding a 4x4
+    row-major matrix (top level, or under the key ``T_world_part``). The pose is used as given: the
+    part may float above or sink into the table (the collision check does not move it)."""
+    import yaml
+
+    s = str(text)
+    if len(s) > 4096 or "\x00" in s:
+        raise InputError("--part-pose: expected 'x,y,z,roll,pitch,yaw' or a JSON/YAML file with T_world_part")
+    p = Path(s)
+    try:
+        is_file = p.is_file()
+    except OSError:  # e.g. a name too long for the file system: not a file
+        is_file = False
+    if p.suffix.lower() in (".json", ".yaml", ".yml") or is_file:
+        if not is_file:
+            raise InputError(f"--part-pose: file {p} not found")
+        try:
+            if p.stat().st_size > 1_000_000:
+                raise InputError(f"--part-pose: {p} is too large for a pose file")
+            data = yaml.safe_load(p.read_text())  # YAML is a superset of JSON
+        except (yaml.YAMLError, UnicodeDecodeError, OSError) as exc:
+            raise InputError(f"--part-pose: {p} is not a readable JSON/YAML file ({str(exc).splitlines()[0][:80]})") from None
+        if isinstance(data, dict):
+            if "T_world_part" not in data:
+                raise InputError(f"--part-pose: {p} has no key 'T_world_part' (a 4x4 row-major matrix)")
+            data = data["T_world_part"]
+        return check_transform(data, f"--part-pose {p}")
+    return parse_pose_text(s, "--part-pose", "or a JSON/YAML file")
+
+
+def parse_place(text: str) -> np.ndarray:
+    """``T_world_part`` (4, 4) of the part after release, from ``--place x,y,z,roll,pitch,yaw``
+    (:func:`parse_pose_text`); read-only."""
+    s = str(text)
+    if len(s) > 4096 or "\x00" in s:
+        raise InputError("--place: expected 'x,y,z,roll,pitch,yaw' (m or with units; degrees)")
+    T = parse_pose_text(s, "--place")
+    T.flags.writeable = False
+    return T

@@ -7,11 +7,12 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from grasplan.cell import load_cell, parse_part_pose, stable_pose
+from grasplan.cell import load_cell, stable_pose
 from grasplan.cli import main
 from grasplan.errors import InputError
 from grasplan.grasps import compute_grasps
 from grasplan.mesh import load_part
+from grasplan.transforms import parse_part_pose
 from grasplan.params import GraspParams
 
 

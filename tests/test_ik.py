@@ -8,7 +8,8 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from grasplan.errors import InputError
-from grasplan.ik import IKResult, get_solver, pose_error, solve_ik, wrap_to_limits
+from grasplan.ik import IKResult, get_solver, solve_ik, wrap_to_limits
+from grasplan.transforms import pose_error
 from grasplan.robot import load_robot
 
 

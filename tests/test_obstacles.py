@@ -20,7 +20,6 @@ from grasplan.cell import (
     cell_from_dict,
     check_part_placement,
     load_cell,
-    parse_place,
     stable_pose,
 )
 from grasplan.cli import main
@@ -28,6 +27,7 @@ from grasplan.collision import GripperCollider
 from grasplan.errors import ConfigError, InputError
 from grasplan.gripper import load_gripper
 from grasplan.params import PlanParams
+from grasplan.transforms import parse_place
 from grasplan.planning import plan
 from grasplan.robot import load_robot
 from grasplan.scene import CollisionScene, check_start

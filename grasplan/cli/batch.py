@@ -47,7 +47,7 @@ def command(parts, out_dir, workers, engine, ray_address, exports, no_view, **kw
     part_pose = kwargs.pop("part_pose")
     T_world_part = None
     if part_pose is not None:
-        from ..cell import parse_part_pose
+        from ..transforms import parse_part_pose
 
         T_world_part = parse_part_pose(part_pose).tolist()
     options = BatchOptions(robot=kwargs.pop("robot"), gripper=kwargs.pop("gripper"), cell=kwargs.pop("cell"),

@@ -34,7 +34,8 @@ def command(part, output, gripper, cell, part_pose, units, only_ok, indent, scor
     Prints a summary (candidates, poses, kept, rejected by reason, seconds) and writes
     grasplan.grasps/1 JSON (docs/grasps.md). Exit 4 (file still written) when no pose is
     collision-free."""
-    from ..cell import load_cell, parse_part_pose
+    from ..cell import load_cell
+    from ..transforms import parse_part_pose
     from ..grasps import compute_grasps
     from ..gripper import load_gripper
     from ..mesh import load_part

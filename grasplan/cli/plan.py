@@ -42,7 +42,8 @@ def command(part, robot, output, gripper, cell, part_pose, units, place, scoring
     when planned, q_grasp, q_pregrasp, path, pregrasp_index). Exit code 4 (file still written)
     when no grasp could be planned: the per-grasp statuses say why.
     """
-    from ..cell import load_cell, parse_part_pose, parse_place
+    from ..cell import load_cell
+    from ..transforms import parse_part_pose, parse_place
     from ..gripper import load_gripper
     from ..mesh import load_part
     from ..planning import plan
