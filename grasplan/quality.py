@@ -71,6 +71,7 @@ from .scoring import (  # noqa: F401
     load_score_weights,
     load_scoring,
 )
+from .quality_json import CONTACT_TYPES
 from .transforms import check_transform
 
 if TYPE_CHECKING:
@@ -103,8 +104,6 @@ G = 9.81
 MAX_PAIRS = 400_000
 #: the gripper's ``grip_force`` is the sum over its jaws: each contact gets grip_force / this
 CONTACTS_PER_GRIP = 2
-#: contact type codes of ``Quality.contact_type``
-CONTACT_TYPES = ("point", "line", "surface")
 
 
 @dataclass(frozen=True)
@@ -1012,104 +1011,3 @@ def score_quality_terms(quality: Quality, config: ScoringConfig | None = None) -
     cfg = config if config is not None else DEFAULT_SCORING
     return {"gravity_margin": gravity_margin_term(quality.gravity_margin, cfg.gravity_margin_ref),
             "epsilon": epsilon_term(quality.epsilon, cfg.epsilon_ref)}
-
-
-# ------------------------------------------------------------------------------------------------
-# JSON of a grasp table's quality and simulation columns (grasplan.result)
-# ------------------------------------------------------------------------------------------------
-def quality_entries(table, ids: np.ndarray) -> list | None:
-    """The ``quality`` object per grasp row ``ids`` of a :class:`grasplan.result.GraspTable`
-    (``{score, gravity_margin, epsilon, contact: [{area_m2, type}] * 2}``, None for grasps without
-    quality), or None when the table has no quality columns."""
-    if table.gravity_margin is None:
-        return None
-    ids = np.asarray(ids, dtype=np.int64)
-    gm = table.gravity_margin[ids]
-    has = np.isfinite(gm)
-    area = np.round(table.contact_area[ids], 12).tolist()
-    kind = table.contact_type[ids].tolist()
-    score = table.score[ids].tolist()
-    gml, eps = gm.tolist(), table.epsilon[ids].tolist()
-    return [{"score": None if score[k] != score[k] else score[k], "gravity_margin": gml[k], "epsilon": eps[k],
-             "contact": [{"area_m2": area[k][j], "type": CONTACT_TYPES[kind[k][j]]} for j in range(2)]}
-            if has[k] else None for k in range(len(ids))]
-
-
-def sim_entries(table, ids: np.ndarray) -> list | None:
-    """The ``sim`` object ``{success, slip_m, turn_deg}`` per grasp row (None: not simulated), or
-    None when the table has no simulation columns."""
-    if table.sim_success is None:
-        return None
-    ids = np.asarray(ids, dtype=np.int64)
-    ok, slip, turn = table.sim_success[ids].tolist(), table.sim_slip_m[ids].tolist(), table.sim_turn_deg[ids].tolist()
-    return [{"success": bool(ok[k]), "slip_m": slip[k], "turn_deg": turn[k]} if ok[k] >= 0 else None
-            for k in range(len(ids))]
-
-
-def _bad(where: str, i: int, g, what: str) -> InputError:
-    gid = g.get("id") if isinstance(g, dict) else None
-    return InputError(f"{where}: grasps[{i}] (id {str(gid)[:20]}): {what}")
-
-
-def parse_quality_sim(grasps: list, where: str) -> dict:
-    """GraspTable quality / sim columns from the grasp dicts of a file (keys absent: no columns);
-    InputError naming the grasp for a malformed ``quality`` or ``sim`` object."""
-    M = len(grasps)
-    out: dict = {}
-    qs = [g.get("quality") if isinstance(g, dict) else None for g in grasps]
-    if any(q is not None for q in qs):
-        cols = {"contact_area": np.full((M, 2), np.nan), "contact_type": np.full((M, 2), -1, dtype=np.int8),
-                "gravity_margin": np.full(M, np.nan), "epsilon": np.full(M, np.nan)}
-        for i, q in enumerate(qs):
-            if q is None:
-                continue
-            try:
-                gm, eps = float(q["gravity_margin"]), float(q["epsilon"])
-                con = q["contact"]
-                area = [float(c["area_m2"]) for c in con]
-                kind = [CONTACT_TYPES.index(c["type"]) for c in con]
-                ok = (len(con) == 2 and math.isfinite(gm) and gm >= 0 and math.isfinite(eps) and eps >= 0
-                      and all(math.isfinite(a) and a >= 0 for a in area)
-                      and not any(isinstance(v, bool) for v in (q["gravity_margin"], q["epsilon"])))
-            except (KeyError, TypeError, ValueError, OverflowError, AttributeError):
-                ok = False
-            if not ok:
-                raise _bad(where, i, grasps[i], "'quality' malformed; expected {score, gravity_margin >= 0, "
-                           "epsilon >= 0, contact: [{area_m2 >= 0, type: point|line|surface}] x 2} or null")
-            cols["gravity_margin"][i], cols["epsilon"][i] = gm, eps
-            cols["contact_area"][i], cols["contact_type"][i] = area, kind
-        out.update(cols)
-    ss = [g.get("sim") if isinstance(g, dict) else None for g in grasps]
-    if any(x is not None for x in ss):
-        succ, slip, turn = np.full(M, -1, dtype=np.int8), np.full(M, np.nan), np.full(M, np.nan)
-        for i, x in enumerate(ss):
-            if x is None:
-                continue
-            try:
-                ok = isinstance(x["success"], bool) and all(
-                    not isinstance(x[k], bool) and math.isfinite(float(x[k])) and float(x[k]) >= 0
-                    for k in ("slip_m", "turn_deg"))
-            except (KeyError, TypeError, ValueError, OverflowError):
-                ok = False
-            if not ok:
-                raise _bad(where, i, grasps[i], "'sim' malformed; expected {success: bool, slip_m >= 0, "
-                           "turn_deg >= 0} or null")
-            succ[i], slip[i], turn[i] = int(x["success"]), float(x["slip_m"]), float(x["turn_deg"])
-        out.update(sim_success=succ, sim_slip_m=slip, sim_turn_deg=turn)
-    return out
-
-
-def parse_mass_record(part: dict, where: str) -> dict | None:
-    """The ``part`` mass record (``mass_kg``, ``com``, ``density``, ``mass_from``) of a file, None
-    when absent; InputError when malformed."""
-    if not isinstance(part, dict) or "mass_kg" not in part:
-        return None
-    try:
-        m, d = float(part["mass_kg"]), float(part.get("density", "nan"))
-        com = np.asarray(part["com"], dtype=np.float64)
-        ok = m > 0 and math.isfinite(m) and com.shape == (3,) and np.all(np.isfinite(com))
-    except (KeyError, TypeError, ValueError, OverflowError):
-        ok = False
-    if not ok:
-        raise InputError(f"{where}: part.mass_kg must be a positive number and part.com three finite numbers (m)")
-    return {"mass_kg": m, "com": com.tolist(), "density": d, "mass_from": str(part.get("mass_from", "mesh"))}

@@ -11,7 +11,6 @@ Per-grasp data are arrays (:class:`GraspTable`; TLess20 has ~1e5 poses), indexed
 """
 from __future__ import annotations
 
-import enum
 import math
 import os
 from dataclasses import dataclass, field, replace
@@ -22,39 +21,19 @@ import numpy as np
 
 from .errors import InputError
 from .params import CandidateParams, GraspParams, PlanParams
+from .quality_json import (
+    CONTACT_TYPES,
+    parse_mass_record,
+    parse_quality_sim,
+    quality_entries,
+    sim_entries,
+)
+from .status import GRASP_STATUSES, PLAN_STATUSES, Status
+from .transforms import check_transform, pose_error
 
 GRASPS_SCHEMA = "grasplan.grasps/1"
 PLAN_SCHEMA = "grasplan.plan/1"
 SCHEMAS = (GRASPS_SCHEMA, PLAN_SCHEMA)
-
-
-class Status(str, enum.Enum):
-    """Per-grasp status: the grasp stage gives ``ok`` / ``collision_*``; the plan stage splits
-    ``ok`` into ``planned``, ``unreachable``, ``ik_collision``, ``no_path`` and ``not_tried``;
-    ``not_checked``: the plan's rank-order evaluation never collision-checked the pose (its score
-    bound is below the planned ranks; ``--check-all`` checks every pose)."""
-
-    OK = "ok"
-    PLANNED = "planned"
-    COLLISION_PART = "collision_part"
-    COLLISION_TABLE = "collision_table"
-    COLLISION_OBSTACLE = "collision_obstacle"
-    UNREACHABLE = "unreachable"
-    IK_COLLISION = "ik_collision"
-    NO_PATH = "no_path"
-    PLACE_UNREACHABLE = "place_unreachable"
-    PLACE_NO_PATH = "place_no_path"
-    NOT_TRIED = "not_tried"
-    NOT_CHECKED = "not_checked"
-
-
-#: statuses of the grasp stage (``grasplan.grasps/1``)
-GRASP_STATUSES: tuple[str, ...] = (Status.OK.value, Status.COLLISION_PART.value, Status.COLLISION_TABLE.value,
-                                   Status.COLLISION_OBSTACLE.value)
-#: statuses of the plan stage (``grasplan.plan/1``), in report order
-PLAN_STATUSES: tuple[str, ...] = tuple(s.value for s in (
-    Status.PLANNED, Status.COLLISION_PART, Status.COLLISION_TABLE, Status.COLLISION_OBSTACLE, Status.UNREACHABLE, Status.IK_COLLISION,
-    Status.NO_PATH, Status.PLACE_UNREACHABLE, Status.PLACE_NO_PATH, Status.NOT_TRIED, Status.NOT_CHECKED))
 
 
 @dataclass(frozen=True)
@@ -98,7 +77,7 @@ class GraspTable:
     reason: np.ndarray
     id_values: np.ndarray | None = None  #: grasp ids when not 0..M-1 (a grasps file written with --only-ok)
     # grasp quality (issue 11, grasplan.quality; None: not computed): contact_area (M, 2) m^2 and
-    # contact_type (M, 2) int8 into grasplan.quality.CONTACT_TYPES per jaw, gravity_margin (M,),
+    # contact_type (M, 2) int8 into grasplan.quality_json.CONTACT_TYPES per jaw, gravity_margin (M,),
     # epsilon (M,); NaN / -1 for grasps without quality (collisions)
     contact_area: np.ndarray | None = None
     contact_type: np.ndarray | None = None
@@ -359,8 +338,6 @@ class PlanResult:
         plan = self.robot is not None
         score, rank, reason = t.score[ids].tolist(), t.rank[ids].tolist(), t.reason[ids].tolist()
         gid = t.ids[ids].tolist()
-        from .quality import quality_entries, sim_entries
-
         quality, sim = quality_entries(t, ids), sim_entries(t, ids)
         out = []
         for k, i in enumerate(ids.tolist()):
@@ -515,7 +492,6 @@ def _stream_document(res: PlanResult, *, only_ok: bool = False, extra: dict | No
     document must go through the dict (a value json refuses (NaN / inf), ``extra`` repeating a key),
     so that path raises exactly what it raised before."""
     from .io import to_json_text
-    from .quality import CONTACT_TYPES
 
     head, ids = res._document_head(only_ok)
     if extra and (set(extra) & (set(head) | {"grasps"})):
@@ -674,7 +650,6 @@ def result_from_document(doc: Any, *, where: str = "document", part_mesh=None) -
     from .cell import Cell
     from .gripper import gripper_from_json
     from .schemas import validate
-    from .transforms import check_transform
 
     if not isinstance(doc, dict) or doc.get("schema") not in SCHEMAS:
         found = doc.get("schema") if isinstance(doc, dict) else type(doc).__name__
@@ -726,7 +701,7 @@ def result_from_document(doc: Any, *, where: str = "document", part_mesh=None) -
         if schema == PLAN_SCHEMA else np.full(M, -1, dtype=np.int64),
         reason=_arr(grasps, "reason", (), object, where, default="") if M else np.zeros(0, dtype=object),
         id_values=id_values,
-        **_quality_sim(grasps, where),
+        **parse_quality_sim(grasps, where),
     )
     if M and not np.all(np.isfinite(table.score[~np.isnan(table.score)])):
         raise InputError(f"{where}: grasp scores must be finite numbers or null")
@@ -755,19 +730,7 @@ def result_from_document(doc: Any, *, where: str = "document", part_mesh=None) -
     return PlanResult(part=part, gripper=gripper, cell=cell, robot=robot, grasps=table, motions=motions,
                       params=Params(cp, gp, pp), counts_stage=counts, timing_s=timing,
                       part_pose_source=str((doc.get("cell") or {}).get("part_pose", "stable_pose")), part_mesh=part_mesh,
-                      mass=_mass_record(p, where))
-
-
-def _quality_sim(grasps: list, where: str) -> dict:
-    from .quality import parse_quality_sim
-
-    return parse_quality_sim(grasps, where)
-
-
-def _mass_record(p: dict, where: str) -> dict | None:
-    from .quality import parse_mass_record
-
-    return parse_mass_record(p, where)
+                      mass=parse_mass_record(p, where))
 
 
 def _validate(validate, doc, schema, where, picked=None):
@@ -841,8 +804,6 @@ def _motion_extras(g: dict, k: int, pregrasp_index: int, where: str):
     validated: labels in their order, consecutive inclusive ranges covering the path, the approach
     starting at ``pregrasp_index``, a ``close`` event at the end of the approach exactly when there
     is a lift, an ``open`` event at the end of the descent exactly when there is a place."""
-    from .transforms import check_transform
-
     segs_in = g.get("segments")
     ev_in = g.get("gripper", [])
     if segs_in is None or segs_in == []:
@@ -932,24 +893,18 @@ def _check_fk(robot, gripper, T_world_part, T_part_tcp, motions: dict, where: st
         m = motions[i]
         if m.T_tcp_part is None:
             continue
-        d_att = _pose_error(m.T_tcp_part @ T_part_tcp[i], np.eye(4))
+        d_att = pose_error(m.T_tcp_part @ T_part_tcp[i], np.eye(4))
         if d_att[0] > FK_POS_TOL or d_att[1] > FK_ROT_TOL:
             raise InputError(f"{where}: planned grasp {i}: T_tcp_part is not the inverse of its T_part_tcp "
                              f"({d_att[0] * 1000:.1f} mm / {d_att[1]:.3f} rad); the plan file was edited")
         if m.T_world_part_place is not None:
             o = m.event("open").index
             T_part = robot.fk_batch(m.path[o][None])[0] @ gripper.T_flange_tcp @ m.T_tcp_part
-            d_pl = _pose_error(T_part, m.T_world_part_place)
+            d_pl = pose_error(T_part, m.T_world_part_place)
             if d_pl[0] > FK_POS_TOL or d_pl[1] > FK_ROT_TOL:
                 raise InputError(f"{where}: planned grasp {i}: at the open event (row {o}) the part is "
                                  f"{d_pl[0] * 1000:.1f} mm / {d_pl[1]:.3f} rad from T_world_part_place with robot "
                                  f"{robot.name!r}; the plan was made with another robot or gripper, or was edited")
-
-
-def _pose_error(A: np.ndarray, B: np.ndarray) -> tuple[float, float]:
-    """(position m, rotation rad) between two 4x4 poses."""
-    cos = np.clip((float(np.trace(A[:3, :3].T @ B[:3, :3])) - 1.0) / 2.0, -1.0, 1.0)
-    return float(np.linalg.norm(A[:3, 3] - B[:3, 3])), float(np.arccos(cos))
 
 
 def load_result(source: str | os.PathLike | dict | PlanResult, *, part: str | os.PathLike | None = None,

@@ -51,7 +51,7 @@ QUALITY_COLS = ("gravity_margin", "epsilon", "contact0_area_m2", "contact0_type"
 
 def _quality_text(t, ids) -> list[str]:
     """The QUALITY_COLS cells (comma-joined, no leading comma) of grasp rows ``ids``."""
-    from ..quality import CONTACT_TYPES
+    from ..quality_json import CONTACT_TYPES
 
     n = len(ids)
     gm = t.gravity_margin[ids] if t.gravity_margin is not None else np.full(n, np.nan)

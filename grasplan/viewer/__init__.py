@@ -310,10 +310,8 @@ def _quality_data(t) -> dict:
     area = getattr(t, "contact_area", None)
     ctype = getattr(t, "contact_type", None)
     if area is not None and ctype is not None and len(area) == n:
-        try:
-            from ..quality import CONTACT_TYPES
-        except ImportError:  # pragma: no cover - quality module without the names
-            CONTACT_TYPES = ("point", "line", "surface")
+        from ..quality_json import CONTACT_TYPES
+
         out["contact_area"] = _enc(np.asarray(area, dtype=np.float64).reshape(n, 2), "<f4")
         out["contact_type"] = _enc(np.asarray(ctype, dtype=np.int8).reshape(n, 2), "i1")
         out["contact_types"] = list(CONTACT_TYPES)
