@@ -7,7 +7,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 OUT    ?= out
 
-.PHONY: install demo test bench parts wheel fuzz clean
+.PHONY: install demo test typecheck bench parts wheel fuzz clean
 
 install: $(STAMP)
 
@@ -28,7 +28,11 @@ demo: install
 	@echo "Viewer: $(abspath $(OUT)/bracket_view.html)"
 
 test: install
+	$(VENV)/bin/mypy
 	$(PY) -m pytest -n 2 -q
+
+typecheck: install
+	$(VENV)/bin/mypy
 
 wheel: install
 	$(PY) -m build --wheel --outdir dist .

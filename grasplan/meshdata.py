@@ -15,7 +15,7 @@ geometry build a new one). Lengths are whatever the caller's are (the pipeline's
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
@@ -47,6 +47,32 @@ def connected_components(n: int, edges: np.ndarray) -> tuple[int, np.ndarray]:
         e = e[diff]
     _, label = np.unique(parent, return_inverse=True)
     return int(label.max()) + 1 if n else 0, label.reshape(-1)
+
+
+class TriangleMesh(Protocol):
+    """What the pipeline's stages read of a triangle mesh (metres). :class:`MeshData` satisfies it,
+    and so does a ``trimesh.Trimesh``; annotate a stage's mesh argument with this, not with either."""
+
+    @property
+    def vertices(self) -> np.ndarray: ...          # (n, 3) float64
+
+    @property
+    def faces(self) -> np.ndarray: ...             # (m, 3) int
+
+    @property
+    def face_normals(self) -> np.ndarray: ...      # (m, 3) unit
+
+    @property
+    def area_faces(self) -> np.ndarray: ...        # (m,)
+
+    @property
+    def triangles(self) -> np.ndarray: ...         # (m, 3, 3)
+
+    @property
+    def bounds(self) -> np.ndarray: ...            # (2, 3)
+
+    @property
+    def extents(self) -> np.ndarray: ...           # (3,)
 
 
 class MeshData:
