@@ -63,9 +63,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .convexity import edge_adjacency, mesh_edge_adjacency
+from .convexity import mesh_edge_adjacency
 from .errors import InputError, MeshError
-from .meshdata import MeshData, connected_components
+from .meshdata import MeshData, connected_components, edge_adjacency
 from .tolerance import Tolerance
 
 if TYPE_CHECKING:  # trimesh (and scipy) load with the first mesh; importing this module stays cheap

@@ -42,6 +42,7 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
+from .meshdata import edge_adjacency
 from .tolerance import Tolerance
 
 if TYPE_CHECKING:  # trimesh (and scipy) load with the first mesh; importing this module stays cheap
@@ -54,22 +55,6 @@ Neighbourhood = Literal["edge", "vertex"]
 _BATCH_ELEMS = 4_000_000
 
 
-def edge_adjacency(faces: np.ndarray, *, slots: bool = False):
-    """Pairs of faces sharing an edge (edges with exactly two faces, as ``trimesh.face_adjacency``),
-    by one int64 sort instead of trimesh's row hashing (several times faster at 250k faces).
-
-    Returns ``adj (k, 2)`` face ids, ``edge (k, 2)`` the shared vertex ids and ``unshared (k, 2)`` the
-    vertex of each face opposite the edge, ordered by edge; with ``slots=True`` also ``(k, 2)`` the
-    edge's slot ``3 * face + corner`` in each face (edge ``corner -> corner + 1``)."""
-    F = np.ascontiguousarray(faces, dtype=np.int64)
-    m = len(F)
-    if m == 0:
-        z = np.zeros((0, 2), dtype=np.int64)
-        return (z, z, z, z) if slots else (z, z, z)
-    out = _edge_adjacency(F)
-    return out if slots else out[:3]
-
-
 def mesh_edge_adjacency(mesh):
     """``edge_adjacency(mesh.faces, slots=True)``, computed once per :class:`grasplan.meshdata.
     MeshData` (:attr:`~grasplan.meshdata.MeshData.edge_adjacency`: loading, the BLM, convexity
@@ -77,25 +62,6 @@ def mesh_edge_adjacency(mesh):
     if hasattr(mesh, "derived"):
         return mesh.edge_adjacency
     return edge_adjacency(mesh.faces, slots=True)
-
-
-def _edge_adjacency(F: np.ndarray):
-    """:func:`edge_adjacency` with slots."""
-    a, b = F.ravel(), np.roll(F, -1, axis=1).ravel()            # edge k of face f: corner k -> k+1
-    far = F[:, [2, 0, 1]].ravel()
-    lo, hi = np.minimum(a, b), np.maximum(a, b)
-    key = lo * (int(F.max()) + 1) + hi
-    o = np.argsort(key, kind="stable")
-    k = key[o]
-    start = np.flatnonzero(np.r_[True, k[1:] != k[:-1]])
-    cnt = np.diff(np.r_[start, len(k)])
-    two = start[cnt == 2]
-    i, j = o[two], o[two + 1]
-    out = (np.stack([i // 3, j // 3], axis=1), np.stack([lo[i], hi[i]], axis=1), np.stack([far[i], far[j]], axis=1),
-           np.stack([i, j], axis=1))
-    for arr in out:
-        arr.flags.writeable = False
-    return out
 
 
 class _Rows:

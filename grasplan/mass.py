@@ -1,9 +1,9 @@
 """Mass properties of a part: uniform density, centre of mass and inertia from its closed mesh.
 
 A watertight mesh is integrated as it is (divergence theorem over its triangles,
-:func:`polyhedron_integrals`); a mesh
-that is not watertight has no defined volume, so its convex hull is used instead and a warning
-says so (the hull over-estimates the volume of a concave part and moves the centre of mass).
+:func:`grasplan.meshdata.polyhedron_integrals`); a mesh that is not watertight has no defined
+volume, so its convex hull is used instead and a warning says so (the hull over-estimates the
+volume of a concave part and moves the centre of mass).
 
 Units: kg, m, kg/m^3, kg m^2. The inertia is about the centre of mass, in the part frame's axes.
 """
@@ -11,55 +11,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .errors import InputError
-from .meshdata import MeshData, convex_hull
+from .meshdata import TriangleMesh, convex_hull, polyhedron_integrals
 from .tolerance import Tolerance
-
-if TYPE_CHECKING:
-    import trimesh
 
 #: default density, kg/m^3 (steel)
 DEFAULT_DENSITY = 7850.0
-
-
-def polyhedron_integrals(triangles: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-    """``(volume, centre of mass (3,), inertia (3, 3) about it)`` at unit density of the solid
-    bounded by ``triangles (n, 3, 3)`` (outward winding; signed: inward gives negative volume and
-    inertia), by the divergence theorem: D. Eberly, "Polyhedral mass properties (revisited)",
-    2002 (the formulation of ``trimesh.triangles.mass_properties``, whose operations this repeats)."""
-    t = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
-    t0, t1, t2 = t[:, 0, :], t[:, 1, :], t[:, 2, :]
-    d = t[:, 1:, :] - t[:, :2, :]
-    crosses = np.cross(d[:, 0], d[:, 1])
-    f1 = t0 + t1 + t2
-    f2 = t0 ** 2 + t1 ** 2 + t0 * t1 + t2 * f1
-    f3 = t0 ** 3 + t0 ** 2 * t1 + t0 * t1 ** 2 + t1 ** 3 + t2 * f2
-    g0 = f2 + (t0 + f1) * t0
-    g1 = f2 + (t1 + f1) * t1
-    g2 = f2 + (t2 + f1) * t2
-    integral = np.zeros((10, len(f1)))
-    integral[0] = crosses[:, 0] * f1[:, 0]
-    integral[1:4] = (crosses * f2).T
-    integral[4:7] = (crosses * f3).T
-    for i in range(3):
-        j = (i + 1) % 3
-        integral[i + 7] = crosses[:, i] * (t0[:, j] * g0[:, i] + t1[:, j] * g1[:, i] + t2[:, j] * g2[:, i])
-    s = integral.sum(axis=1) / np.array([6, 24, 24, 24, 60, 60, 60, 120, 120, 120], dtype=np.float64)
-    volume = float(s[0])
-    with np.errstate(invalid="ignore", divide="ignore"):
-        com = s[1:4] / volume
-    inertia = np.zeros((3, 3))
-    inertia[0, 0] = s[5] + s[6] - volume * (com[[1, 2]] ** 2).sum()
-    inertia[1, 1] = s[4] + s[6] - volume * (com[[0, 2]] ** 2).sum()
-    inertia[2, 2] = s[4] + s[5] - volume * (com[[0, 1]] ** 2).sum()
-    inertia[0, 1] = inertia[1, 0] = -(s[7] - volume * np.prod(com[[0, 1]]))
-    inertia[1, 2] = inertia[2, 1] = -(s[8] - volume * np.prod(com[[1, 2]]))
-    inertia[0, 2] = inertia[2, 0] = -(s[9] - volume * np.prod(com[[0, 2]]))
-    return volume, com, inertia
 
 
 @dataclass(frozen=True)
@@ -113,13 +73,13 @@ def _positive(value, name: str, fix: str) -> float:
     return v
 
 
-def mass_properties(mesh: MeshData | trimesh.Trimesh, *, density: float = DEFAULT_DENSITY,
+def mass_properties(mesh: TriangleMesh, *, density: float = DEFAULT_DENSITY,
                     mass: float | None = None) -> MassProperties:
     """Mass, centre of mass and inertia of ``mesh`` (part frame, metres) at uniform density.
 
     Parameters
     ----------
-    mesh : MeshData or trimesh.Trimesh
+    mesh : TriangleMesh
         The part, metres. Not watertight: its convex hull is used, with a warning.
     density : float
         kg/m^3 (default 7850, steel). Ignored when ``mass`` is given.
@@ -143,12 +103,13 @@ def mass_properties(mesh: MeshData | trimesh.Trimesh, *, density: float = DEFAUL
         from scipy.spatial import QhullError
 
         try:
-            body = convex_hull(mesh.vertices)
+            hull = convex_hull(mesh.vertices)
         except (QhullError, ValueError, IndexError):  # flat or degenerate points
             raise InputError("mass properties: the part is flat or degenerate (its convex hull has no volume); "
                              "give a closed solid, not a surface") from None
         warnings.append(f"the part mesh is not watertight: its mass properties are those of its convex hull "
-                        f"(volume {float(body.volume) * 1e6:.4g} cm^3); repair the mesh for exact values")
+                        f"(volume {float(hull.volume) * 1e6:.4g} cm^3); repair the mesh for exact values")
+        body = hull
     tris = np.asarray(body.triangles, dtype=np.float64)
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):  # zero volume is reported below
         volume, com_b, inertia_b = polyhedron_integrals(tris)

@@ -56,9 +56,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .antipodal import Candidates, _clip_edges, stream_pairs
-from .convexity import edge_adjacency, mesh_edge_adjacency
+from .convexity import mesh_edge_adjacency
 from .gridsearch import all_pairs_within, any_within
-from .meshdata import connected_components
+from .meshdata import connected_components, edge_adjacency
 from .thinning import thin_candidates
 from .tolerance import Tolerance
 

@@ -131,8 +131,7 @@ def test_loaded_part_equals_trimesh_processing():
 @pytest.mark.parametrize("name", ["box", "cylinder", "two bodies"])
 def test_convex_hull_and_mass_integrals_equal_trimesh(name):
     """The NumPy/scipy hull and the polyhedron integrals reproduce trimesh's, bit for bit."""
-    from grasplan.mass import polyhedron_integrals
-    from grasplan.meshdata import convex_hull
+    from grasplan.meshdata import convex_hull, polyhedron_integrals
 
     tm = _meshes()[name]
     h, ref = convex_hull(tm.vertices), tm.convex_hull

@@ -276,7 +276,8 @@ def test_square_faces_invariant_under_rotation():
 
 
 def test_fast_edge_adjacency_matches_trimesh_and_sparse_neighbourhood(example_part):
-    from grasplan.convexity import _edge_rows, edge_adjacency, neighbour_vertices
+    from grasplan.convexity import _edge_rows, neighbour_vertices
+    from grasplan.meshdata import edge_adjacency
     from grasplan.mesh import load_part
 
     mesh = load_part(example_part("gear.stl"), units="mm").mesh
