@@ -10,7 +10,7 @@ Model (one per part and gripper, reused for every grasp):
 - the **gripper**: its body shapes fixed, its two jaws (the gripper's own finger shapes) on
   prismatic joints along the closing axis, coupled (centric, as the real gripper) and each pushed
   by a motor of at most ``grip_force / 2`` N (``grip_force`` is the datasheet gripping force, the
-  sum of both jaws' forces, as in :mod:`grasplan.quality`), with damping so they close at about
+  sum of both jaws' forces, as in :mod:`grasplan.wrench`), with damping so they close at about
   5 cm/s and the drive's reflected inertia (``armature``) so they reach that speed in
   ``DRIVE_TAU`` (2 ms; without it the jaws rang against many-piece parts, issue 11);
 - the **table**: a box whose top is the cell's table plane, touching only the part.
@@ -19,7 +19,7 @@ Contacts: friction ``mu`` (elliptic cones) and soft-finger torsion (``condim`` 4
 pair of convex shapes one contact point, so a pad pressed flat on a face would resist no twist
 about the closing axis beyond what the spread of the part's pieces gives; each jaw's torsional
 friction is therefore set per grasp from the patch between its pad and the part
-(:func:`grasplan.quality.contact_patches`, :func:`grasplan.quality.torsion_length`: ``mu * 2/3 *
+(:func:`grasplan.patches.contact_patches`, :func:`grasplan.wrench.torsion_length`: ``mu * 2/3 *
 radius`` per newton, uniform pressure on a disc of the patch's area), the soft-finger model that
 ``gravity_margin`` uses (issue 11). Part against table: ``TORSION_LENGTH``.
 
@@ -43,18 +43,21 @@ import itertools
 import math
 import os
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
-import trimesh
 
 from .errors import InputError
 from .gripper import Box, Gripper
 from .io import write_atomic_bytes
 from .mass import DEFAULT_DENSITY, MassProperties, mass_properties
-from .quality import CONTACTS_PER_GRIP
+from .meshdata import TriangleMesh
+from .patches import contact_patches
+from .scoring import distinct_order
+from .status import Status
 from .transforms import check_transform, quaternions
+from .wrench import CONTACTS_PER_GRIP, torsion_length
 
 #: lift height (m) and duration (s)
 LIFT_HEIGHT, LIFT_S = 0.10, 0.5
@@ -82,7 +85,7 @@ DRIVE_TAU = 0.002
 #: contact time constant (s, >= 2 timesteps): stiff enough that grip_force indents well below 1 mm
 SOLREF_TIMECONST = 0.002
 #: torsional friction length of MuJoCo's soft contacts (m): torque <= mu * this * normal force; the
-#: part against the table. Jaw contacts use each grasp's own patch (``quality.torsion_length``).
+#: part against the table. Jaw contacts use each grasp's own patch (``wrench.torsion_length``).
 TORSION_LENGTH = 1e-3
 #: table half extents (m)
 TABLE_HALF = (0.5, 0.5, 0.025)
@@ -124,7 +127,7 @@ def cache_dir() -> Path:
     return Path(env).expanduser() if env else Path.home() / ".cache" / "grasplan"
 
 
-def _mesh_key(mesh: trimesh.Trimesh, extra: str) -> str:
+def _mesh_key(mesh: TriangleMesh, extra: str) -> str:
     h = hashlib.sha256()
     h.update(np.ascontiguousarray(mesh.vertices, dtype=np.float64).tobytes())
     h.update(np.ascontiguousarray(mesh.faces, dtype=np.int64).tobytes())
@@ -132,7 +135,7 @@ def _mesh_key(mesh: trimesh.Trimesh, extra: str) -> str:
     return h.hexdigest()
 
 
-def convex_pieces(mesh: trimesh.Trimesh, *, decomposition: str = "coacd", seed: int = 0,
+def convex_pieces(mesh: TriangleMesh, *, decomposition: str = "coacd", seed: int = 0,
                   cache: bool = True) -> list[np.ndarray]:
     """Vertices ``(n_i, 3)`` (m, part frame) of the convex pieces the part collides with.
 
@@ -279,7 +282,7 @@ def _rotation_angle_deg(R: np.ndarray) -> float:
     return math.degrees(math.acos(float(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0))))
 
 
-def simulate_grasps(part_mesh: trimesh.Trimesh, gripper: Gripper, T_world_part: np.ndarray, T_part_tcp: np.ndarray,
+def simulate_grasps(part_mesh: TriangleMesh, gripper: Gripper, T_world_part: np.ndarray, T_part_tcp: np.ndarray,
                     width: np.ndarray, *, table_z: float = 0.0, density: float = DEFAULT_DENSITY,
                     mass: float | None = None, mass_props: MassProperties | None = None,
                     grip_force: float | None = None, mu: float = 0.3, seed: int = 0,
@@ -289,7 +292,7 @@ def simulate_grasps(part_mesh: trimesh.Trimesh, gripper: Gripper, T_world_part: 
 
     Parameters
     ----------
-    part_mesh : trimesh.Trimesh
+    part_mesh : TriangleMesh
         Part frame, metres.
     gripper : Gripper
     T_world_part : (4, 4)
@@ -314,12 +317,10 @@ def simulate_grasps(part_mesh: trimesh.Trimesh, gripper: Gripper, T_world_part: 
         Read and write the CoACD cache.
     contact_area : (k, 2), optional
         Patch area (m^2) of each jaw (jaw 0 on the TCP's -x side), e.g. a grasp's recorded
-        ``quality.contact``; computed here (:func:`grasplan.quality.contact_patches`) when not
+        ``quality.contact``; computed here (:func:`grasplan.patches.contact_patches`) when not
         given or not finite. Sets each jaw's torsional friction (module docstring).
     """
     import mujoco
-
-    from .quality import contact_patches, torsion_length
 
     t_start = time.perf_counter()
     Twp = check_transform(T_world_part, "T_world_part")
@@ -422,6 +423,7 @@ def _run_grasps(model, data, pieces, Twp, T, w, gripper, F, q_part, q_jaw, part_
             raise RuntimeError(f"MuJoCo ran out of contact/constraint memory simulating grasp {i} with "
                                f"{len(pieces)} convex pieces (arena {_arena(len(pieces))}): the result "
                                f"would be wrong; use --decomposition hull or a coarser decomposition")
+        assert ref is not None  # the jaws closed: the run breaks off only after recording ref
         com_now = data.xipos[part_body]
         R_now = data.xmat[part_body].reshape(3, 3)
         slip[i] = float(np.linalg.norm(com_now - ref[2]))
@@ -435,7 +437,8 @@ def _run_grasps(model, data, pieces, Twp, T, w, gripper, F, q_part, q_jaw, part_
 # results: simulate the best grasps of a grasps/plan result and rank those that held first
 # ------------------------------------------------------------------------------------------------
 #: statuses a grasp must have to be simulated (collision-free; in a plan, also the reachable ones)
-SIMULATED_STATUSES = ("ok", "planned", "not_tried", "unreachable", "ik_collision", "no_path")
+SIMULATED_STATUSES: tuple[str, ...] = tuple(s.value for s in (
+    Status.OK, Status.PLANNED, Status.NOT_TRIED, Status.UNREACHABLE, Status.IK_COLLISION, Status.NO_PATH))
 
 
 def select_grasps(status: np.ndarray, score: np.ndarray, top: int, rank: np.ndarray | None = None) -> np.ndarray:
@@ -443,7 +446,7 @@ def select_grasps(status: np.ndarray, score: np.ndarray, top: int, rank: np.ndar
     the planned grasps in rank order; else the collision-free ones (``SIMULATED_STATUSES``) by
     score (NaN last, ties by row)."""
     st = np.asarray(status).astype(str)
-    planned = np.flatnonzero(st == "planned")
+    planned = np.flatnonzero(st == Status.PLANNED.value)
     if rank is not None and len(planned):
         r = np.where(rank[planned] < 0, np.iinfo(np.int64).max, rank[planned])
         return planned[np.lexsort((planned, r))][:top]
@@ -480,8 +483,6 @@ def simulate_result(result, top: int, *, mass_props: MassProperties | None = Non
     if result.robot is not None:
         rows = select_grasps(g.status, np.asarray(g.score, dtype=np.float64), top, rank=g.rank)
     else:  # a grasps result: by score with the plan's diversity rule (grasplan.scoring.distinct_order)
-        from .scoring import distinct_order
-
         pp = result.params.planning
         rows = select_grasps(g.status, np.asarray(g.score, dtype=np.float64), len(g))
         rows = distinct_order(g.T_part_tcp, rows, min_distance=pp.distinct_distance,
@@ -500,8 +501,6 @@ def simulate_result(result, top: int, *, mass_props: MassProperties | None = Non
 def with_sim(result, rows: np.ndarray, sim: SimResult, *, rerank: bool = True):
     """``result`` with the ``sim`` columns of ``rows`` set (others not simulated) and, for a plan
     (``rerank``), the grasps that held ranked first."""
-    from dataclasses import replace
-
     g = result.grasps
     M = len(g)
     succ = np.full(M, -1, dtype=np.int8) if g.sim_success is None else g.sim_success.copy()
@@ -519,7 +518,7 @@ def simulate_plan(result, top: int, *, mass_props: MassProperties | None = None,
                   decomposition: str = "coacd"):
     """``plan --simulate N``: simulate the top ``N`` planned grasps of a plan result, record ``sim``
     per grasp and rank the grasps that held first (a plan without planned grasps is returned as is)."""
-    if not np.any(np.asarray(result.grasps.status).astype(str) == "planned"):
+    if not np.any(np.asarray(result.grasps.status).astype(str) == Status.PLANNED.value):
         return result
     rows, sim, _, _ = simulate_result(result, top, mass_props=mass_props, seed=seed, decomposition=decomposition)
     return with_sim(result, rows, sim)

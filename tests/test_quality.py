@@ -10,19 +10,12 @@ import trimesh
 from grasplan.errors import ConfigError, InputError
 from grasplan.gripper import load_gripper
 from grasplan.mass import mass_properties
-from grasplan.quality import (
-    CONTACT_TYPES,
-    G,
-    Quality,
-    clip_polygons,
-    contact_patches,
-    grasp_quality,
-    load_score_weights,
-    load_scoring,
-    pad_rectangle,
-    polygon_moments,
-    score_quality_terms,
-)
+from grasplan.patches import contact_patches, pad_rectangle
+from grasplan.polygons import clip_polygons, polygon_moments
+from grasplan.quality import Quality, grasp_quality, score_quality_terms
+from grasplan.quality_json import CONTACT_TYPES
+from grasplan.scoring import load_score_weights, load_scoring
+from grasplan.wrench import G
 
 MU = 0.3
 BOX = (0.12, 0.03, 0.03)

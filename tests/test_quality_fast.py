@@ -1,8 +1,9 @@
-"""The closed-form Ferrari-Canny epsilon (grasplan.quality.ferrari_canny_pair) against Qhull."""
+"""The closed-form Ferrari-Canny epsilon (grasplan.wrench.ferrari_canny_pair) against Qhull; merged patch
+elements (grasplan.patches.patch_elements) against raw triangles."""
 import numpy as np
 import pytest
 
-from grasplan import quality as Q
+from grasplan import patches, wrench
 
 #: Qhull's joggle (QJ) moves facet offsets by ~1e-11 absolute on these wrench sets
 ABS_TOL = 1e-10
@@ -36,7 +37,7 @@ def _support_at_qhull_facet(W):
 
     out = []
     for w in W:
-        eq = ConvexHull(w, qhull_options=Q.QHULL_OPTIONS).equations
+        eq = ConvexHull(w, qhull_options=wrench.QHULL_OPTIONS).equations
         out.append(float((w @ eq[np.argmin(-eq[:, -1]), :6]).max()))
     return np.array(out)
 
@@ -46,7 +47,7 @@ def _check(fast, exact, W):
     (up to ~3e-10 x the largest coordinate) makes them differ more, the closed form is at most the
     support value at Qhull's nearest facet normal on the unjoggled set (an upper bound of the exact
     epsilon), so it is the more exact one."""
-    ref = Q.ferrari_canny(W)
+    ref = wrench.ferrari_canny(W)
     scale = np.abs(W).max(axis=(1, 2))  # the joggle is relative to the largest coordinate
     loose = exact & ~_agree(fast, ref)
     assert np.all(np.abs(fast[loose] - ref[loose]) <= 3e-10 * scale[loose])
@@ -62,9 +63,9 @@ def test_pair_matches_qhull_on_random_grasps(mu):
     C, N, tors = _random_grasps(rng, 1500)
     com = rng.normal(size=3) * 0.005
     rho = 0.05
-    eps, exact = Q.ferrari_canny_pair(C, N, com, rho, mu, tors)
+    eps, exact = wrench.ferrari_canny_pair(C, N, com, rho, mu, tors)
     assert exact.mean() > 0.95  # the closed form decides almost all of them itself
-    ref = _check(eps, exact, Q.contact_wrenches(C, N, com, rho, mu, tors))
+    ref = _check(eps, exact, wrench.contact_wrenches(C, N, com, rho, mu, tors))
     # both zero and positive values occur, so the comparison covers inside and outside cases
     assert (ref[exact] > 0).sum() > 100 and (ref[exact] == 0).sum() > 100
 
@@ -81,8 +82,8 @@ def test_pair_matches_qhull_on_exact_parallel_jaw_grasps():
     C = np.stack([mid - half * axis, mid + half * axis], axis=1)
     N = np.stack([-axis, axis], axis=1)
     tors = np.repeat(rng.uniform(3e-4, 3e-3, size=(m, 1)), 2, axis=1)
-    eps, exact = Q.ferrari_canny_pair(C, N, np.zeros(3), 0.04, 0.5, tors)
-    ref = _check(eps, exact, Q.contact_wrenches(C, N, np.zeros(3), 0.04, 0.5, tors))
+    eps, exact = wrench.ferrari_canny_pair(C, N, np.zeros(3), 0.04, 0.5, tors)
+    ref = _check(eps, exact, wrench.contact_wrenches(C, N, np.zeros(3), 0.04, 0.5, tors))
     assert (ref > 0).all()  # antipodal soft-finger grasps with friction resist every wrench
 
 
@@ -94,19 +95,19 @@ def test_epsilon_dedup_equals_qhull_including_degenerate_sets():
     N[:10, 1] = -N[:10, 0]
     area = rng.uniform(0, 4e-5, size=(300, 2))
     com, rho, mu = np.zeros(3), 0.05, 0.4
-    got = Q.epsilon_dedup(C, N, area, com, rho, mu)
-    tors = (2.0 / 3.0) * mu * Q.quantised_patch_radius(area)
-    _, exact = Q.ferrari_canny_pair(C, N, com, rho, mu, tors)
-    _check(got, np.ones(len(got), dtype=bool), Q.contact_wrenches(C, N, com, rho, mu, tors))
+    got = wrench.epsilon_dedup(C, N, area, com, rho, mu)
+    tors = (2.0 / 3.0) * mu * wrench.quantised_patch_radius(area)
+    _, exact = wrench.ferrari_canny_pair(C, N, com, rho, mu, tors)
+    _check(got, np.ones(len(got), dtype=bool), wrench.contact_wrenches(C, N, com, rho, mu, tors))
     assert not exact[:10].any()  # the flat sets went to Qhull
 
 
 def test_pair_without_friction_is_zero_and_defers():
     rng = np.random.default_rng(1)
     C, N, tors = _random_grasps(rng, 20)
-    eps, exact = Q.ferrari_canny_pair(C, N, np.zeros(3), 0.05, 0.0, tors)
+    eps, exact = wrench.ferrari_canny_pair(C, N, np.zeros(3), 0.05, 0.0, tors)
     assert np.all(eps == 0) and not exact.any()
-    assert np.all(Q.ferrari_canny(Q.contact_wrenches(C, N, np.zeros(3), 0.05, 0.0, tors)) == 0)
+    assert np.all(wrench.ferrari_canny(wrench.contact_wrenches(C, N, np.zeros(3), 0.05, 0.0, tors)) == 0)
 
 
 def test_pair_invariant_under_rigid_motion_of_the_grasp():
@@ -116,9 +117,9 @@ def test_pair_invariant_under_rigid_motion_of_the_grasp():
     C, N, tors = _random_grasps(rng, 200, antipodal_share=1.0)
     q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
     com = np.array([0.001, -0.002, 0.0005])
-    e0, x0 = Q.ferrari_canny_pair(C, N, com, 0.05, 0.5, tors)
-    e1, x1 = Q.ferrari_canny_pair(C @ q.T + 0.1, N @ q.T, com @ q.T + 0.1, 0.05, 0.5, tors)
-    _check(e1, x1, Q.contact_wrenches(C @ q.T + 0.1, N @ q.T, com @ q.T + 0.1, 0.05, 0.5, tors))
+    e0, x0 = wrench.ferrari_canny_pair(C, N, com, 0.05, 0.5, tors)
+    e1, x1 = wrench.ferrari_canny_pair(C @ q.T + 0.1, N @ q.T, com @ q.T + 0.1, 0.05, 0.5, tors)
+    _check(e1, x1, wrench.contact_wrenches(C @ q.T + 0.1, N @ q.T, com @ q.T + 0.1, 0.05, 0.5, tors))
     # the 8-edge cone's phase changes with the frame: epsilon moves by well under 10 %
     both = x0 & x1 & (e0 > 0)
     assert both.sum() > 150
@@ -129,7 +130,7 @@ def test_pair_invariant_under_rigid_motion_of_the_grasp():
 # contact patches: coplanar areas merged into boundary loops
 # ------------------------------------------------------------------------------------------------
 def _loop_areas(pts, first, count, normal, weight):
-    P = Q.gather_polygons(pts, first, count, np.arange(len(count)))
+    P = patches.gather_polygons(pts, first, count, np.arange(len(count)))
     V = P.shape[1]
     nxt = (np.arange(V)[None] + 1) % count[:, None]
     Pn = np.take_along_axis(P, nxt[..., None].repeat(3, 2), 1)
@@ -148,7 +149,7 @@ def _fine_box(size):
 
 def test_elements_of_a_subdivided_box_are_its_six_faces():
     mesh = _fine_box(0.002)
-    pts, first, count, normal, weight = Q.patch_elements(mesh)
+    pts, first, count, normal, weight = patches.patch_elements(mesh)
     assert len(count) == 6 and np.all(count == 4) and np.all(weight == 1)
     assert _loop_areas(pts, first, count, normal, weight).sum() == pytest.approx(mesh.area, rel=1e-12)
 
@@ -157,7 +158,7 @@ def test_elements_keep_holes_with_negative_weight():
     import trimesh
 
     ring = trimesh.creation.annulus(r_min=0.01, r_max=0.02, height=0.005, sections=48)
-    pts, first, count, normal, weight = Q.patch_elements(ring)
+    pts, first, count, normal, weight = patches.patch_elements(ring)
     assert (weight < 0).sum() == 2  # the bore of each flat end
     assert _loop_areas(pts, first, count, normal, weight).sum() == pytest.approx(ring.area, rel=1e-12)
     assert len(count) < len(ring.faces)
@@ -185,9 +186,9 @@ def test_merged_patches_equal_triangle_patches(monkeypatch):
         off = rng.uniform(-0.012, 0.012, size=(m, 2))
         T[:, :3, 3] = off[:, :1] * e1 + off[:, 1:] * e2
         C = T[:, None, :3, 3] + np.array([-half, half])[None, :, None] * ax
-        merged = Q.contact_patches(mesh, g, T, C)
-        monkeypatch.setattr(Q, "MERGE_MIN_FACES", 10 ** 9)
-        raw = Q.contact_patches(mesh, g, T, C)
+        merged = patches.contact_patches(mesh, g, T, C)
+        monkeypatch.setattr(patches, "MERGE_MIN_FACES", 10 ** 9)
+        raw = patches.contact_patches(mesh, g, T, C)
         monkeypatch.undo()
         assert np.all(raw[0] > 0)  # the test touches the faces
         np.testing.assert_allclose(merged[0], raw[0], rtol=1e-9, atol=1e-15)

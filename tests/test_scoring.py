@@ -14,7 +14,8 @@ from click.testing import CliRunner
 from grasplan.cli import main
 from grasplan.errors import ConfigError, InputError
 from grasplan.params import DEFAULT_SCORE_WEIGHTS, GraspParams, PlanParams
-from grasplan.quality import CONTACT_TYPES, Quality
+from grasplan.quality import Quality
+from grasplan.quality_json import CONTACT_TYPES
 from grasplan.scoring import (
     TERMS,
     ScoringConfig,

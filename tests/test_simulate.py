@@ -196,7 +196,7 @@ def test_jaw_torsion_is_the_soft_finger_torsion_of_each_grasps_patch(setup):
     """Issue 11: MuJoCo gives a pair of convex shapes one contact point, so each jaw's torsional
     friction is set per grasp from its own contact patch (the model gravity_margin uses), not a
     constant. Checked against the patch computed independently here, and an explicit area wins."""
-    from grasplan.quality import contact_patches
+    from grasplan.patches import contact_patches
 
     block, g, Twp = setup
     T = np.array([top_grasp(0.0), top_grasp(0.05)])
