@@ -29,12 +29,14 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 import yaml
 
 from .config_files import config_number, packaged_file
 from .errors import ConfigError, InputError
+from .meshdata import TriangleMesh
 
 #: scoring configuration shipped with grasplan (the one definition of the default weights)
 SCORING_FILE = packaged_file("configs", "scoring.yaml")
@@ -68,6 +70,19 @@ class ScoringConfig:
                    gravity_margin_ref=float(r["gravity_margin_ref"]), epsilon_ref=float(r["epsilon_ref"]))
 
 
+class GraspQualities(Protocol):
+    """What the physical terms read of a :class:`grasplan.quality.Quality` of ``M`` grasps (a
+    Protocol: scoring sits below the quality computations and does not import them)."""
+
+    @property
+    def gravity_margin(self) -> np.ndarray: ...    # (M,)
+
+    @property
+    def epsilon(self) -> np.ndarray: ...           # (M,)
+
+    def __len__(self) -> int: ...
+
+
 @dataclass(frozen=True)
 class ScoreContext:
     """What a score term may read: ``T_part_tcp`` (M, 4, 4), ``width`` (M,) m, the part's mesh (part
@@ -75,12 +90,12 @@ class ScoreContext:
     grasps' ``quality`` (:class:`grasplan.quality.Quality`, M rows) with the ``scoring`` config
     (normalisation references) and the part's centre of mass ``com`` (3,) m."""
 
-    part_mesh: object
+    part_mesh: TriangleMesh
     T_world_part: np.ndarray
     T_part_tcp: np.ndarray
     width: np.ndarray
     max_opening: float
-    quality: object = None
+    quality: GraspQualities | None = None
     scoring: ScoringConfig | None = None
     com: np.ndarray | None = None
 
@@ -121,7 +136,7 @@ def _width(ctx: ScoreContext) -> np.ndarray:
     return np.clip((ctx.max_opening - ctx.width) / ctx.max_opening, 0.0, 1.0)
 
 
-def _quality_of(ctx: ScoreContext, term: str):
+def _quality_of(ctx: ScoreContext, term: str) -> tuple[GraspQualities, ScoringConfig]:
     q = ctx.quality
     if q is None or len(q) != len(ctx.width):
         raise InputError(f"score term {term!r} needs the grasps' quality (grasplan.quality.grasp_quality); "
@@ -221,8 +236,9 @@ def check_weights(weights, where: str = "score_weights") -> None:
         raise InputError(f"{where}: at least one weight must be > 0")
 
 
-def score_grasps(part_mesh, T_world_part, T_part_tcp, width, max_opening: float,
-                 weights=None, *, quality=None, scoring: ScoringConfig | None = None, com=None) -> np.ndarray:
+def score_grasps(part_mesh: TriangleMesh, T_world_part: np.ndarray, T_part_tcp: np.ndarray, width: np.ndarray,
+                 max_opening: float, weights=None, *, quality: GraspQualities | None = None,
+                 scoring: ScoringConfig | None = None, com: np.ndarray | None = None) -> np.ndarray:
     """Score in [0, 1] per grasp (higher is better). ``T_part_tcp`` (M, 4, 4), ``width`` (M,) m.
 
     ``weights``: ``((term, weight), ...)``; default those of ``scoring`` (default: the packaged
