@@ -158,7 +158,7 @@ def densify_path(path: np.ndarray, *, step: float = PATH_STEP_RAD, max_samples: 
     The planner's densifier (:func:`grasplan.paths.interpolate_path`) at ``step`` rad per joint,
     the step grown so that s <= max_samples (when k <= max_samples).
     """
-    from ..paths import interpolate_path
+    from ..interpolation import interpolate_path
 
     P = np.asarray(path, dtype=np.float64)
     if P.ndim != 2 or len(P) == 0:
