@@ -40,7 +40,7 @@ CHECK_STEP = 0.01      #: rad, collision check interpolation step
 
 
 def densify(path: np.ndarray, step: float) -> np.ndarray:
-    """The planner's densifier (:func:`grasplan.paths.interpolate_path`)."""
+    """The planner's densifier (:func:`grasplan.interpolation.interpolate_path`)."""
     from ..interpolation import interpolate_path
 
     return interpolate_path(path, step=step)
