@@ -23,12 +23,13 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from grasplan.candidates import compute_candidates
-from grasplan.cell import load_cell, stable_pose
+from grasplan.cell import load_cell
 from grasplan.collision import GripperCollider
 from grasplan.frames import grasp_frames
 from grasplan.gripper import load_gripper
 from grasplan.mesh import load_part
 from grasplan.params import CandidateParams, GraspParams
+from grasplan.stable_poses import stable_pose
 from grasplan.thinning import thin_candidates
 from grasplan.units import parse_length
 

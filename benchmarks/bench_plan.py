@@ -141,7 +141,8 @@ def bench_cli(parts: list[Path], runs: int) -> tuple[list[tuple], bool]:
 
 # -- 3. RRTConnect per query ----------------------------------------------------------------------------
 def bench_rrt(n_queries: int, seed: int = 0):
-    from grasplan.cell import load_cell, stable_pose
+    from grasplan.cell import load_cell
+    from grasplan.stable_poses import stable_pose
     from grasplan.gripper import load_gripper
     from grasplan.ik import solve_ik
     from grasplan.mesh import load_part

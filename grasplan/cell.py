@@ -1,9 +1,11 @@
-"""The robot cell around the part: a table top, obstacles, an optional bin, where the part rests,
-and where the part goes after the grasp (retreat, place).
+"""The cell model: the robot cell around the part (a table top, obstacles, an optional bin, where
+the part rests, and where the part goes after the grasp: retreat, place), read from its YAML and
+from the ``cell`` block of a result file.
 
 World frame: z up. The table top is the plane ``z = table_z`` (default 0) and the table fills
 ``z < table_z`` (a half-space: it is infinite in x and y). The part rests on the table in a
-stable pose (:func:`stable_pose`: the most probable one unless ``pose_index`` says otherwise),
+stable pose (:func:`grasplan.stable_poses.stable_pose`: the most probable one unless
+``pose_index`` says otherwise),
 its lowest point on the table top and its centre of mass above ``part_xy`` (default (0.45, 0) m).
 With a ``bin`` the part rests on the bin floor's top instead, its centre of mass above the
 floor's centre plus ``part_xy`` (then an offset in the bin frame, default (0, 0)).
@@ -23,8 +25,9 @@ YAML schema (``configs/cells/<name>.yaml``; metres, degrees; full reference in d
     retreat: {direction: [0, 0, 1], distance: 0.10}                                         # lift after the grasp (world)
     place: {T: {xyz: [0.45, 0.3, 0.0], rpy_deg: [0, 0, 0]}}                                 # T_world_part after release
 
-``--part-pose`` overrides the resting pose: :func:`parse_part_pose`; ``--place``:
-:func:`parse_place`. :func:`check_part_placement` refuses a part inside the table or an obstacle.
+``--part-pose`` overrides the resting pose: :func:`grasplan.transforms.parse_part_pose`; ``--place``:
+:func:`grasplan.transforms.parse_place`. :func:`grasplan.start_checks.check_part_placement`
+refuses a part inside the table or an obstacle.
 """
 from __future__ import annotations
 
@@ -50,12 +53,11 @@ from .config_files import (
     read_yaml,
     resolve_yaml,
 )
-from .errors import ConfigError, InputError
+from .errors import ConfigError
 from .params import DEFAULT_CELL
 from .transforms import MAX_CELL_COORD_M, check_transform, parse_pose
 
 CELL_DIR = packaged_file("configs", "cells")  # the packaged cells
-#: |table_z| and |part_xy| at most this (metres): a robot cell is a few metres across
 #: longest cell name (characters)
 MAX_NAME_CHARS = 100
 #: largest pose_index accepted from a file (a part has far fewer distinct resting poses)
@@ -65,9 +67,6 @@ MAX_OBSTACLES = 1000
 MAX_OBSTACLE_FACES = 200_000
 #: longest obstacle dimension (m)
 MAX_OBSTACLE_SIZE_M = 10.0
-#: the part may reach into the table or an obstacle by at most this (m) before planning refuses
-#: it: a part resting on a surface touches it (rounding), a part inside it is an error
-PART_CONTACT_TOL = 1e-4
 #: the obstacle names the bin's boxes get (reserved)
 BIN_NAMES = ("bin_floor", "bin_wall_+x", "bin_wall_-x", "bin_wall_+y", "bin_wall_-y")
 OBSTACLE_KINDS = ("box", "cylinder", "sphere", "mesh")
@@ -119,17 +118,41 @@ class Obstacle:
         """The body name in collision reports: ``obstacle:<name>``."""
         return f"obstacle:{self.name}"
 
+    def _missing(self, what: str) -> ValueError:
+        return ValueError(f"obstacle {self.name!r} ({self.kind}): {what} is not set; build obstacles with "
+                          f"load_cell or cell_from_dict")
+
+    def box_size(self) -> tuple[float, float, float]:
+        """A box's full side lengths (m)."""
+        if self.size is None:
+            raise self._missing("size")
+        return self.size
+
+    def dimension(self, name: str) -> float:
+        """A cylinder's or sphere's ``radius`` or a cylinder's ``length`` (m)."""
+        v = {"radius": self.radius, "length": self.length}[name]
+        if v is None:
+            raise self._missing(name)
+        return float(v)
+
+    def mesh_arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """A mesh obstacle's ``(vertices (V, 3) m, faces (F, 3))`` in its own frame."""
+        if self.vertices is None or self.faces is None:
+            raise self._missing("vertices and faces")
+        return np.asarray(self.vertices), np.asarray(self.faces)
+
     def local_mesh(self) -> trimesh.Trimesh:
         """A triangle mesh of the shape in its own frame (cylinder: 64 sides; sphere: icosphere 3)."""
         import trimesh
 
         if self.kind == "box":
-            return trimesh.creation.box(extents=self.size)
+            return trimesh.creation.box(extents=self.box_size())
         if self.kind == "cylinder":
-            return trimesh.creation.cylinder(radius=self.radius, height=self.length, sections=64)
+            return trimesh.creation.cylinder(radius=self.dimension("radius"), height=self.dimension("length"),
+                                             sections=64)
         if self.kind == "sphere":
-            return trimesh.creation.icosphere(subdivisions=3, radius=self.radius)
-        return trimesh.Trimesh(np.asarray(self.vertices), np.asarray(self.faces), process=False)
+            return trimesh.creation.icosphere(subdivisions=3, radius=self.dimension("radius"))
+        return trimesh.Trimesh(*self.mesh_arrays(), process=False)
 
     def world_mesh(self) -> trimesh.Trimesh:
         """:meth:`local_mesh` placed at ``T_world_obstacle`` (for viewers and exports)."""
@@ -142,28 +165,30 @@ class Obstacle:
         T = np.asarray(self.T_world_obstacle)
         R, t = T[:3, :3], T[:3, 3]
         if self.kind == "box":
-            h = np.abs(R) @ (0.5 * np.asarray(self.size))
+            h = np.abs(R) @ (0.5 * np.asarray(self.box_size()))
         elif self.kind == "sphere":
-            h = np.full(3, float(self.radius))
+            h = np.full(3, self.dimension("radius"))
         elif self.kind == "cylinder":
             # disc of radius r about local z, extruded by length/2 along local z
             z = R[:, 2]
-            h = float(self.radius) * np.sqrt(np.clip(1.0 - z * z, 0.0, None)) + 0.5 * float(self.length) * np.abs(z)
+            h = (self.dimension("radius") * np.sqrt(np.clip(1.0 - z * z, 0.0, None))
+                 + 0.5 * self.dimension("length") * np.abs(z))
         else:
-            w = np.asarray(self.vertices) @ R.T + t
+            w = self.mesh_arrays()[0] @ R.T + t
             return w.min(axis=0), w.max(axis=0)
         return t - h, t + h
 
     def to_json(self) -> dict:
         shape: dict
         if self.kind == "box":
-            shape = {"size": [float(x) for x in self.size]}
+            shape = {"size": [float(x) for x in self.box_size()]}
         elif self.kind == "cylinder":
-            shape = {"radius": float(self.radius), "length": float(self.length)}
+            shape = {"radius": self.dimension("radius"), "length": self.dimension("length")}
         elif self.kind == "sphere":
-            shape = {"radius": float(self.radius)}
+            shape = {"radius": self.dimension("radius")}
         else:
-            shape = {"vertices": np.asarray(self.vertices).tolist(), "faces": np.asarray(self.faces).tolist()}
+            v, f = self.mesh_arrays()
+            shape = {"vertices": v.tolist(), "faces": f.tolist()}
         return {"name": self.name, self.kind: shape, "T_world_obstacle": np.asarray(self.T_world_obstacle).tolist()}
 
 
@@ -201,7 +226,7 @@ class BinSpec:
             T = np.eye(4)
             T[:3, 3] = c
             out.append(Obstacle(name, "box", _readonly(np.asarray(self.T_world_bin) @ T),
-                                size=tuple(float(x) for x in size)))
+                                size=(float(size[0]), float(size[1]), float(size[2]))))
         return tuple(out)
 
     def to_json(self) -> dict:
@@ -525,9 +550,8 @@ def cell_from_dict(data, *, name: str, source: str = "", base: Path | None = Non
         raise ConfigError("obstacles: expected a list of {name, box|cylinder|sphere|mesh, T} mappings")
     if len(obs) > MAX_OBSTACLES:
         raise ConfigError(f"obstacles: {len(obs)} obstacles; at most {MAX_OBSTACLES}")
-    if obs and base is None:
-        base = Path(source).parent if source else Path(".")
-    obstacles = [_obstacle_from_yaml(o, f"obstacles[{i}]", base) for i, o in enumerate(obs)]
+    folder = base if base is not None else Path(source).parent if source else Path(".")
+    obstacles = [_obstacle_from_yaml(o, f"obstacles[{i}]", folder) for i, o in enumerate(obs)]
     _check_unique([o.name for o in obstacles], "obstacles", reserved=BIN_NAMES if bin_ is not None else ())
     if bin_ is not None:
         obstacles = list(bin_.obstacles()) + obstacles
@@ -549,248 +573,3 @@ def load_cell(name_or_path: str | os.PathLike = DEFAULT_CELL) -> Cell:
     except ConfigError as exc:
         msg = str(exc)
         raise ConfigError(msg if msg.startswith(str(p)) else f"{p}: {msg}") from None
-
-
-# -- stable poses ----------------------------------------------------------------------------
-
-#: a part whose thickness along its thinnest principal axis is at most this fraction of its
-#: bounding-box diagonal is flat (a plane, an n-gon, a flattened box): it lies on either side
-FLAT_RELATIVE_THICKNESS = 1e-6
-
-
-def _principal_axes(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    """``(axes (3, 3) rows, thickness along each axis (3,), bounding-box diagonal)`` of ``(n, 3)``
-    vertices; axes sorted from the widest to the thinnest spread."""
-    V = np.asarray(vertices, dtype=np.float64)
-    c = V - V.mean(axis=0)
-    _, _, axes = np.linalg.svd(c, full_matrices=False)
-    axes = np.vstack([axes, np.zeros((3 - len(axes), 3))]) if len(axes) < 3 else axes
-    spread = np.ptp(c @ axes.T, axis=0)
-    diag = float(np.linalg.norm(np.ptp(V, axis=0)))
-    return axes, spread, diag
-
-
-def _flatness(mesh: trimesh.Trimesh) -> tuple[np.ndarray | None, float]:
-    """``(unit plane normal (3,) or None, diagonal)``: the normal when the part is flat."""
-    axes, spread, diag = _principal_axes(mesh.vertices)
-    if diag <= 0 or spread[1] <= FLAT_RELATIVE_THICKNESS * diag:
-        raise InputError("the part is a line or a point (all its vertices are collinear): it has no resting pose "
-                         "on a table; check the mesh")
-    if spread[2] > FLAT_RELATIVE_THICKNESS * diag:
-        return None, diag
-    n = axes[2] / np.linalg.norm(axes[2])
-    n = n if n[np.argmax(np.abs(n))] > 0 else -n  # deterministic sign
-    return n + 0.0, diag
-
-
-def centre_of_mass(mesh: trimesh.Trimesh) -> np.ndarray:
-    """``(3,)`` the part's centre of mass, part frame (m): of the solid when the mesh is closed
-    with positive volume, else of its convex hull, and of the surface (area-weighted) when the
-    part is flat (a hull with no volume)."""
-    if mesh.is_watertight and mesh.volume > 0:
-        return np.asarray(mesh.center_mass, dtype=np.float64)
-    normal, _ = _flatness(mesh)
-    if normal is None:
-        hull = mesh.convex_hull
-        if hull.volume > 0:
-            return np.asarray(hull.center_mass, dtype=np.float64)
-    w = np.asarray(mesh.area_faces, dtype=np.float64)
-    return (np.asarray(mesh.triangles_center) * w[:, None]).sum(axis=0) / w.sum()
-
-
-def _resting_rotation(down: np.ndarray) -> np.ndarray:
-    """``R_world_part (k, 3, 3)`` turning the part-frame unit normals ``down (k, 3)`` to -z (the
-    construction of ``trimesh.poses.compute_stable_poses``)."""
-    z = -np.asarray(down, dtype=np.float64)
-    x = np.stack([-z[:, 1], z[:, 0], np.zeros(len(z))], axis=1)
-    nx = np.linalg.norm(x, axis=1)
-    x = np.where(nx[:, None] > 0, x / np.where(nx > 0, nx, 1.0)[:, None], [1.0, 0.0, 0.0])
-    y = np.cross(z, x)
-    y /= np.linalg.norm(y, axis=1)[:, None]
-    return np.stack([x, y, z], axis=1)
-
-
-def _solid_angle(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """Solid angle (sr) of triangles seen from the origin; ``a, b, c (k, 3)`` (Van Oosterom and
-    Strackee 1983)."""
-    la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
-    num = np.abs(np.einsum("ij,ij->i", a, np.cross(b, c)))
-    den = (la * lb * lc + np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", a, c) * lb
-           + np.einsum("ij,ij->i", b, c) * la)
-    return 2.0 * np.arctan2(num, den)
-
-
-#: the com projected within this fraction of the part's diagonal of a hull face's edge is on it
-_ON_EDGE = 1e-9
-
-
-def _topple(hull: trimesh.Trimesh, com: np.ndarray, diag: float) -> tuple[np.ndarray, np.ndarray]:
-    """The quasi-static toppling model of Goldberg et al. (1999) on a convex hull, vectorised.
-
-    Each hull face ``i`` gets the probability that the part dropped at a uniformly random
-    orientation lands on it (solid angle of the face seen from ``com`` / 4 pi). A face is stable
-    when ``com`` projects inside it; otherwise the part topples across the edge the projected
-    ``com`` lies beyond, onto the neighbouring face. Following the toppling pointers (pointer
-    jumping: ceil(log2 k) + 1 rounds, so bounded even if rounding made a cycle) gives each face's
-    resting face. ``com`` (3,) and ``diag`` (the part's bounding-box diagonal) in metres.
-    Returns ``(rest (k,) int, prob (k,))``.
-    """
-    T = np.asarray(hull.triangles, dtype=np.float64)          # (k, 3, 3)
-    N = np.asarray(hull.face_normals, dtype=np.float64)       # (k, 3)
-    F = np.asarray(hull.faces, dtype=np.int64)
-    k = len(F)
-    prob = _solid_angle(T[:, 0] - com, T[:, 1] - com, T[:, 2] - com) / (4.0 * np.pi)
-    p = com - np.einsum("ij,ij->i", N, com - T[:, 0])[:, None] * N  # com projected on each face's plane
-    # signed areas of (v_k, v_k+1, p) against the face normal: all >= 0 <=> p inside the face
-    vk, vk1 = T, np.roll(T, -1, axis=1)
-    edge_side = np.einsum("ikj,ij->ik", np.cross(vk1 - vk, p[:, None, :] - vk), N)
-    edge_len = np.linalg.norm(vk1 - vk, axis=2)
-    stable = (edge_side >= -_ON_EDGE * diag * edge_len).all(axis=1)  # on an edge (rounding) counts as inside
-    # wedge of local edge j seen from the face centroid: p between the rays centroid->v_j and
-    # centroid->v_j+1 (the faces are counter-clockwise about their outward normal)
-    ctr = T.mean(axis=1)
-    left = np.einsum("ikj,ij->ik", np.cross(vk - ctr[:, None], (p - ctr)[:, None, :]), N)
-    right = np.einsum("ikj,ij->ik", np.cross(vk1 - ctr[:, None], (p - ctr)[:, None, :]), N)
-    edge = np.argmax(np.minimum(left, -right), axis=1)        # the edge the com lies beyond
-    # neighbour across each (face, local edge): the other face holding the same undirected edge
-    a, b = F, np.roll(F, -1, axis=1)
-    key = (np.minimum(a, b) * (F.max() + 1) + np.maximum(a, b)).ravel()
-    order = np.argsort(key, kind="stable")
-    neighbour = np.full(3 * k, -1, dtype=np.int64)
-    pair = key[order[:-1]] == key[order[1:]]
-    i0, i1 = order[:-1][pair], order[1:][pair]
-    neighbour[i0], neighbour[i1] = i1 // 3, i0 // 3
-    succ = np.where(stable, np.arange(k), neighbour.reshape(k, 3)[np.arange(k), edge])
-    succ = np.where(succ < 0, np.arange(k), succ)            # an open hull edge: stays (never for qhull)
-    for _ in range(int(np.ceil(np.log2(max(k, 2)))) + 1):
-        succ = succ[succ]
-    # a face not reaching a stable one is in a toppling cycle, which only rounding makes (the com
-    # projected onto the edge between coplanar faces): it rests on the face it reached
-    return succ, prob
-
-
-def stable_poses(mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray]:
-    """Quasi-static resting poses of ``mesh`` on a plane: the toppling model of Goldberg et al.
-    (the model of ``trimesh.poses.compute_stable_poses`` with ``sigma = 0``: no random
-    perturbation of the centre of mass), vectorised and bounded (:func:`_topple`): deterministic.
-
-    A flat part (thinner than :data:`FLAT_RELATIVE_THICKNESS` of its size: a plane, an n-gon, a
-    flattened box) lies on either side of its plane (its largest face), probability 1/2 each. A
-    part whose vertices are collinear is refused (InputError).
-
-    Returns ``(R (k, 3, 3), prob (k,))``, most probable first (ties: by the resting normal in the
-    part frame, so the order is deterministic). ``R`` is ``R_world_part``: it turns the part so
-    that it rests on its face; the translation is left to :func:`stable_pose`.
-    """
-    with np.errstate(all="ignore"):
-        normal, diag = _flatness(mesh)
-        if normal is not None:
-            downs, probs = np.stack([normal, -normal]), np.array([0.5, 0.5])
-        else:
-            downs, probs = _hull_poses(mesh, diag)
-    R = _resting_rotation(downs)
-    down = np.round(np.einsum("kji,j->ki", R, [0.0, 0.0, -1.0]), 6) + 0.0  # resting normal, part frame
-    order = np.lexsort((down[:, 2], down[:, 1], down[:, 0], -np.round(probs, 9)))
-    return R[order], probs[order] / probs.sum()
-
-
-def _hull_poses(mesh: trimesh.Trimesh, diag: float) -> tuple[np.ndarray, np.ndarray]:
-    """``(resting normals (k, 3), prob (k,))`` of a part with volume, from its convex hull."""
-    try:
-        hull = mesh.convex_hull
-    except Exception:  # qhull refuses (near-)degenerate input; the flatness test should have caught it
-        raise InputError("the part is too thin to compute its resting poses (its convex hull is degenerate); "
-                         "give the pose with --part-pose x,y,z,roll,pitch,yaw") from None
-    com = centre_of_mass(mesh)
-    inside = np.einsum("ij,ij->i", com - hull.triangles_center, hull.face_normals)
-    if len(hull.faces) < 4 or not np.all(inside < -FLAT_RELATIVE_THICKNESS * diag):
-        raise InputError("the part's centre of mass is not inside its convex hull (the mesh is too thin or "
-                         "degenerate) so it has no defined resting pose; give the pose with --part-pose "
-                         "x,y,z,roll,pitch,yaw")
-    rest, prob = _topple(hull, com, diag)
-    ok = np.isfinite(prob) & (prob > 0)
-    # faces of one hull facet (same normal to 3 decimals) are one pose; sum their probabilities
-    N = np.asarray(hull.face_normals, dtype=np.float64)
-    sinks = rest[ok]
-    total = np.bincount(sinks, weights=prob[ok], minlength=len(N))
-    faces = np.flatnonzero(total > 0)
-    keys = np.round(N[faces], 3) + 0.0
-    _, first, group = np.unique(keys, axis=0, return_index=True, return_inverse=True)
-    group = group.ravel()
-    p = np.bincount(group, weights=total[faces])
-    normals = N[faces[first]]
-    keep = p > 0
-    return normals[keep], p[keep]
-
-
-def stable_pose(part_mesh: trimesh.Trimesh, cell: Cell | None = None) -> np.ndarray:
-    """``T_world_part`` (4, 4): the part resting on the table in stable pose ``cell.pose_index``
-    (0 = most probable), lowest point on ``z = table_z``, centre of mass above ``cell.part_xy``."""
-    cell = cell or Cell("table")
-    R, prob = stable_poses(part_mesh)
-    if len(R) == 0:
-        raise InputError("the part has no stable resting pose on a plane (is the mesh degenerate?)")
-    if cell.pose_index >= len(R):
-        raise ConfigError(f"pose_index {cell.pose_index}: the part has only {len(R)} stable poses (0..{len(R) - 1})")
-    return place_on_table(part_mesh, R[cell.pose_index], cell)
-
-
-def place_on_table(part_mesh: trimesh.Trimesh, R_world_part: np.ndarray, cell: Cell) -> np.ndarray:
-    """``T_world_part`` (4, 4) with rotation ``R_world_part`` (3, 3), lowest point at ``cell.rest_z``
-    (the table top, or the bin floor's top),
-    centre of mass (:func:`centre_of_mass`) above ``part_xy`` (metres)."""
-    com = centre_of_mass(part_mesh)
-    T = np.eye(4)
-    T[:3, :3] = R_world_part
-    z_min = float((np.asarray(part_mesh.vertices) @ R_world_part[2]).min())  # lowest point of the turned part
-    c = R_world_part @ com
-    T[:3, 3] = [cell.part_xy[0] - c[0], cell.part_xy[1] - c[1], cell.rest_z - z_min]
-    return T
-
-
-def check_part_placement(part_mesh: trimesh.Trimesh, T_world_part: np.ndarray, cell: Cell, *,
-                         tol: float = PART_CONTACT_TOL, what: str = "the part",
-                         pose_option: str = "--part-pose") -> None:
-    """Refuse a part pose that reaches into the table or an obstacle by more than ``tol`` (m).
-
-    Raises InputError (exit 3) naming the body, the depth in mm and what to change (``pose_option``:
-    the option that sets this pose, e.g. ``--part-pose`` or ``--place``). The table
-    depth is exact (lowest vertex below ``table_z``); an obstacle's depth is coal's penetration
-    depth (EPA) of the part mesh against the obstacle (box, cylinder, sphere shrunk by ``tol``; a
-    mesh obstacle is not shrunk: touching it counts)."""
-    import coal
-
-    from .geometry import bvh, obstacle_geometry
-
-    T = np.asarray(T_world_part, dtype=np.float64)
-    V = np.asarray(part_mesh.vertices, dtype=np.float64)
-    z = V @ T[2, :3] + T[2, 3]
-    depth = float(cell.table_z - z.min())
-    if depth > tol:
-        raise InputError(f"{what} reaches {depth * 1e3:.1f} mm into the table (lowest point z = {z.min():.4f} m, "
-                         f"table top z = {cell.table_z:g} m): raise the pose by at least {depth * 1e3:.1f} mm "
-                         f"(z of {pose_option}: {T[2, 3] + depth:.4f} m would rest it on the table) or lower the "
-                         f"cell's table_z")
-    if not cell.obstacles:
-        return
-    lo = V @ T[:3, :3].T + T[:3, 3]
-    lo, hi = lo.min(axis=0), lo.max(axis=0)
-    part = None
-    req = coal.CollisionRequest()
-    req.enable_contact = True
-    req.num_max_contacts = 1
-    res = coal.CollisionResult()
-    for o in cell.obstacles:
-        olo, ohi = o.aabb()
-        if np.any(olo > hi + tol) or np.any(ohi < lo - tol):
-            continue
-        if part is None:
-            part = bvh(V, np.asarray(part_mesh.faces))
-            tp = coal.Transform3s(T[:3, :3].copy(), T[:3, 3].copy())
-        geom = obstacle_geometry(o, shrink=tol)  # touching (resting on the bin floor) is not a collision
-        To = np.asarray(o.T_world_obstacle)
-        res.clear()
-        if coal.collide(part, tp, geom, coal.Transform3s(To[:3, :3].copy(), To[:3, 3].copy()), req, res):
-            d = abs(float(res.getContact(0).penetration_depth)) + tol if res.numContacts() else float("nan")
-            raise InputError(f"{what} intersects obstacle {o.name!r} (penetration {d * 1e3:.1f} mm): move the part "
-                             f"({pose_option}, part_xy) or the obstacle in the cell YAML")

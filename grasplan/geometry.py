@@ -3,12 +3,12 @@ gripper shape and of a cell obstacle. The gripper filter (:mod:`grasplan.collisi
 (:mod:`grasplan.scene`) both build theirs here."""
 from __future__ import annotations
 
-from typing import Any
-
 import coal
 import numpy as np
 
+from .cell import Obstacle
 from .errors import InputError
+from .gripper import Box, MeshShape, Shape
 
 
 def bvh(vertices: np.ndarray, faces: np.ndarray) -> coal.BVHModelOBBRSS:
@@ -23,24 +23,21 @@ def bvh(vertices: np.ndarray, faces: np.ndarray) -> coal.BVHModelOBBRSS:
     return m
 
 
-def shape_geometry(shape: Any) -> tuple[coal.CollisionGeometry, np.ndarray]:
-    """(coal geometry, T_tcp_geom (4, 4)) for a gripper shape.
-
-    Duck-typed: a box has ``extents`` (3,) and ``T_tcp_box`` (4, 4); a mesh has ``vertices``
-    (V, 3) and ``faces`` (F, 3) in the TCP frame (or ``.mesh``, a trimesh).
+def shape_geometry(shape: Shape) -> tuple[coal.CollisionGeometry, np.ndarray]:
+    """(coal geometry, T_tcp_geom (4, 4)) for a gripper shape (:mod:`grasplan.gripper`): a
+    :class:`~grasplan.gripper.Box` (``extents`` (3,), ``T_tcp_box`` (4, 4)) or a
+    :class:`~grasplan.gripper.MeshShape` (``vertices`` (V, 3) and ``faces`` (F, 3) in the TCP frame).
     """
-    if hasattr(shape, "extents") and hasattr(shape, "T_tcp_box"):
+    if isinstance(shape, Box):
         e = np.asarray(shape.extents, dtype=float)
         return coal.Box(float(e[0]), float(e[1]), float(e[2])), np.asarray(shape.T_tcp_box, dtype=float)
-    if hasattr(shape, "vertices") and hasattr(shape, "faces"):
+    if isinstance(shape, MeshShape):
         return bvh(np.asarray(shape.vertices), np.asarray(shape.faces)), np.eye(4)
-    if hasattr(shape, "mesh"):
-        return bvh(np.asarray(shape.mesh.vertices), np.asarray(shape.mesh.faces)), np.eye(4)
     raise InputError(f"gripper shape {type(shape).__name__}: expected a box (extents, T_tcp_box) "
                      f"or a mesh (vertices, faces)")
 
 
-def obstacle_geometry(obstacle: Any, *, shrink: float = 0.0) -> coal.CollisionGeometry:
+def obstacle_geometry(obstacle: Obstacle, *, shrink: float = 0.0) -> coal.CollisionGeometry:
     """coal geometry of a cell obstacle (:class:`grasplan.cell.Obstacle`) in its own frame: a
     ``Box``, a ``Cylinder`` (axis = local z, centred), a ``Sphere`` or the mesh's BVH.
 
@@ -53,12 +50,11 @@ def obstacle_geometry(obstacle: Any, *, shrink: float = 0.0) -> coal.CollisionGe
         return max(float(x) - by, 0.1 * float(x))
 
     if kind == "box":
-        return coal.Box(*(cut(x, 2 * s) for x in obstacle.size))
+        return coal.Box(*(cut(x, 2 * s) for x in obstacle.box_size()))
     if kind == "cylinder":
-        return coal.Cylinder(cut(obstacle.radius, s), cut(obstacle.length, 2 * s))
+        return coal.Cylinder(cut(obstacle.dimension("radius"), s), cut(obstacle.dimension("length"), 2 * s))
     if kind == "sphere":
-        return coal.Sphere(cut(obstacle.radius, s))
+        return coal.Sphere(cut(obstacle.dimension("radius"), s))
     if kind == "mesh":
-        return bvh(np.asarray(obstacle.vertices), np.asarray(obstacle.faces))
-    raise InputError(f"obstacle {getattr(obstacle, 'name', '?')}: unknown kind {kind!r}; expected box, cylinder, "
-                     f"sphere or mesh")
+        return bvh(*obstacle.mesh_arrays())
+    raise InputError(f"obstacle {obstacle.name}: unknown kind {kind!r}; expected box, cylinder, sphere or mesh")

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from .candidates import CandidateResult, compute_candidates
-from .cell import Cell, load_cell, stable_pose
+from .cell import Cell, load_cell
 from .collision import GripperCollider
 from .errors import InputError
 from .frames import GraspFrames, grasp_frames
@@ -23,6 +23,7 @@ from .mesh import Part
 from .params import DEFAULT_CELL, DEFAULT_GRIPPER, CandidateParams, GraspParams
 from .result import GRASP_STATUSES as STATUSES
 from .result import GraspTable, Params, PartRecord, PlanResult
+from .stable_poses import stable_pose
 from .transforms import check_transform
 
 SCHEMA = "grasplan.grasps/1"

@@ -30,66 +30,37 @@ is the start and whose last row is the goal. Transforms are 4x4 ``T_<parent>_<ch
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
 
 import numpy as np
 
+from .ik import get_solver
+from .interpolation import STEP, interpolate_path
+from .robot import Robot
+from .scene import CollisionScene
 from .transforms import check_transform
-
-#: default interpolation resolution (rad, per joint) of every path check
-STEP = 0.01
 
 Validity = Callable[[np.ndarray], bool]
 
 
 # --------------------------------------------------------------------------------------------------
-# interpolation and independent path checking
+# independent path checking (densified by grasplan.interpolation.interpolate_path)
 # --------------------------------------------------------------------------------------------------
-def interpolate_path(path: np.ndarray, *, step: float = STEP, return_index: bool = False):
-    """The one joint-path densifier: every segment of a ``(k, n)`` path split into
-    ``ceil(max|dq| / step)`` equal parts (a repeated waypoint adds no point).
-
-    Returns ``(m, n)`` with the original waypoints included (first and last rows unchanged); the
-    largest per-joint change between consecutive rows is ``<= step``. With ``return_index`` also
-    the row of each original waypoint in the output, ``(k,)``.
-    """
-    path = np.asarray(path, dtype=np.float64)
-    if path.ndim != 2 or len(path) == 0:
-        raise ValueError(f"path must have shape (k, n) with k >= 1, got {path.shape}")
-    if not step > 0:
-        raise ValueError(f"step must be > 0 rad, got {step!r}")
-    keep = np.concatenate([[True], np.max(np.abs(np.diff(path, axis=0)), axis=1) > 1e-12]) if len(path) > 1 \
-        else np.ones(1, dtype=bool)
-    kept = path[keep]
-    if len(kept) < 2:
-        out = kept.copy()
-        return (out, np.zeros(len(path), dtype=np.int64)) if return_index else out
-    d = np.diff(kept, axis=0)
-    pieces = np.maximum(1, np.ceil(np.max(np.abs(d), axis=1) / step - 1e-12).astype(np.int64))
-    seg = np.repeat(np.arange(len(d)), pieces)
-    start = np.repeat(np.cumsum(pieces) - pieces, pieces)
-    frac = (np.arange(len(seg)) - start) / pieces[seg]
-    out = np.vstack([kept[:1], (kept[seg] + ((frac + 1.0 / pieces[seg])[:, None]) * d[seg])])
-    if not return_index:
-        return out
-    row_of_kept = np.concatenate([[0], np.cumsum(pieces)])
-    return out, row_of_kept[np.cumsum(keep) - 1]
-
-
 def path_free_fn(validity: Validity, path: np.ndarray, *, step: float = STEP) -> bool:
     """``True`` when ``validity(q)`` holds at every point of ``interpolate_path(path, step=step)``."""
     return all(bool(validity(q)) for q in interpolate_path(path, step=step))
 
 
-def _validity_and_checker(scene_or_validity: Any, opening: float | None):
+def _validity_and_checker(scene_or_validity: CollisionScene | Validity, opening: float | None
+                          ) -> tuple[Validity, Callable[[np.ndarray, float], bool]]:
     """(state validity q -> bool, path checker (k, n) -> bool) for a scene or a plain callable."""
-    if callable(scene_or_validity) and not hasattr(scene_or_validity, "is_free"):
+    if not isinstance(scene_or_validity, CollisionScene):
         fn = scene_or_validity
         return fn, (lambda path, step: path_free_fn(fn, path, step=step))
     scene = scene_or_validity
     if opening is None:
         raise ValueError("opening (jaw opening, m) is required when planning against a CollisionScene")
-    return (lambda q: scene.is_free(q, opening)), (lambda path, step: scene.path_free(path, opening, step=step))
+    o = opening
+    return (lambda q: scene.is_free(q, o)), (lambda path, step: scene.path_free(path, o, step=step))
 
 
 # --------------------------------------------------------------------------------------------------
@@ -120,7 +91,7 @@ def _seed_ompl(ou, seed: int) -> None:
 
 
 def plan_joint_path(
-    scene_or_validity: Any,
+    scene_or_validity: CollisionScene | Validity,
     q_start: np.ndarray,
     q_goal: np.ndarray,
     *,
@@ -169,9 +140,9 @@ def plan_joint_path(
     if q_goal.shape != (n,):
         raise ValueError(f"q_start and q_goal must have the same shape (n,), got {q_start.shape} and {q_goal.shape}")
     if lower is None or upper is None:
-        robot = getattr(scene_or_validity, "robot", None)
-        if robot is None:
+        if not isinstance(scene_or_validity, CollisionScene):
             raise ValueError("lower and upper joint limits are required with a plain validity callable")
+        robot = scene_or_validity.robot
         lower = robot.lower if lower is None else lower
         upper = robot.upper if upper is None else upper
     lower = np.asarray(lower, dtype=np.float64).reshape(-1)
@@ -250,8 +221,9 @@ def _dist_to_segment(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.linalg.norm(p - (a + t[:, None] * ab), axis=1)
 
 
-def approach_path(robot, scene, T_world_tcp_pre, T_world_tcp_grasp, q_pre, *, opening: float, max_dev: float = 0.002,
-                  T_flange_tcp=None, sample: float = 0.001, max_joint_step: float = 0.1,
+def approach_path(robot: Robot, scene: CollisionScene | None, T_world_tcp_pre: np.ndarray,
+                  T_world_tcp_grasp: np.ndarray, q_pre: np.ndarray, *, opening: float, max_dev: float = 0.002,
+                  T_flange_tcp: np.ndarray | None = None, sample: float = 0.001, max_joint_step: float = 0.1,
                   step: float = STEP) -> np.ndarray | None:
     """Joint waypoints moving the TCP on the straight line ``T_world_tcp_pre -> T_world_tcp_grasp``.
 
@@ -264,8 +236,8 @@ def approach_path(robot, scene, T_world_tcp_pre, T_world_tcp_grasp, q_pre, *, op
 
 
 def approach_path_reason(
-    robot,
-    scene,
+    robot: Robot,
+    scene: CollisionScene | None,
     T_world_tcp_pre: np.ndarray,
     T_world_tcp_grasp: np.ndarray,
     q_pre: np.ndarray,
@@ -315,11 +287,11 @@ def approach_path_reason(
     T_pre = check_transform(T_world_tcp_pre, "T_world_tcp_pre", error=ValueError)
     T_gr = check_transform(T_world_tcp_grasp, "T_world_tcp_grasp", error=ValueError)
     if T_flange_tcp is None:
+        if scene is None:
+            raise ValueError("T_flange_tcp (4, 4) is required without a scene (default: scene.gripper.T_flange_tcp)")
         T_flange_tcp = scene.gripper.T_flange_tcp
     T_flange_tcp = np.asarray(T_flange_tcp, dtype=np.float64)
     T_tcp_flange = np.linalg.inv(T_flange_tcp)
-    from .ik import get_solver
-
     solver = get_solver(robot).clik  # this thread's own Pinocchio data
     lower = np.asarray(robot.lower, dtype=np.float64)
     upper = np.asarray(robot.upper, dtype=np.float64)

@@ -18,7 +18,7 @@ them for every grasp whose approach is planned. The sequence (world frame, lengt
 
 Every straight move uses the one straight-line tracker (:func:`grasplan.paths.approach_path_reason`,
 CLIK seeded by the previous waypoint, ``max_dev`` from the line) and every path is checked at
-``paths.STEP`` rad. The part rests on its support (table, bin floor) when it is grasped and when
+``interpolation.STEP`` rad. The part rests on its support (table, bin floor) when it is grasped and when
 it is placed: within the first and last :data:`SUPPORT_CLEARANCE` of the lift / descent only the
 attached part touching the table or an obstacle is tolerated (every other pair still counts).
 
@@ -30,12 +30,18 @@ RRTConnect found no transfer path), reason ``"place: ..."``.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from .paths import STEP, approach_path_reason, interpolate_path, plan_joint_path
+from .ik import solve_ik
+from .interpolation import STEP, interpolate_path
+from .paths import approach_path_reason, plan_joint_path
 from .result import GripperEvent, Motion
+from .robot import Robot
+from .scene import CollisionScene
+from .status import Status
 
 #: within this TCP travel (m) from the grasp (lift) / to the place (descent) the attached part may
 #: touch the table or an obstacle it rests on
@@ -45,7 +51,7 @@ RELEASE_STEPS = 4
 #: TCP spacing (m) of the waypoints of the lift, descent and retreat. Tracking (CLIK per waypoint)
 #: is most of a straight move's cost; at 4 mm a UR5 joint moves ~0.01 rad per waypoint, the
 #: joint-linear motion between two waypoints stays within micrometres of the line (checked at
-#: every waypoint and midpoint against ``max_dev``) and collisions are checked at ``paths.STEP``
+#: every waypoint and midpoint against ``max_dev``) and collisions are checked at ``interpolation.STEP``
 #: rad between them as everywhere else
 LINE_SAMPLE = 0.004
 
@@ -56,11 +62,11 @@ _KINEMATIC = {"start": "the start pose does not match", "ik": "IK lost on the li
 
 @dataclass(frozen=True)
 class Stage:
-    """Outcome of one stage: ``path`` (k, n) or None, ``status`` ("ok" or the grasp status) and a
+    """Outcome of one stage: ``path`` (k, n) or None, ``status`` (``ok`` or the grasp status) and a
     human-readable ``reason``."""
 
     path: np.ndarray | None
-    status: str
+    status: Status
     reason: str
 
     @property
@@ -139,7 +145,7 @@ def T_tcp_part_of(T_part_tcp: np.ndarray) -> np.ndarray:
 # ------------------------------------------------------------------------------------------------
 # collision helpers
 # ------------------------------------------------------------------------------------------------
-def _support_contact_only(pairs) -> bool:
+def _support_contact_only(pairs: Sequence[tuple[str, str, str]]) -> bool:
     """True when every colliding pair is the (attached) part touching the table or an obstacle."""
     for p in pairs:
         a, b = str(p[0]), str(p[1])
@@ -149,7 +155,7 @@ def _support_contact_only(pairs) -> bool:
     return True
 
 
-def first_collision_on(scene, path: np.ndarray, opening: float, *, step: float = STEP,
+def first_collision_on(scene: CollisionScene, path: np.ndarray, opening: float, *, step: float = STEP,
                        tolerate_until: int = 0) -> tuple[int, str] | None:
     """The first colliding configuration of ``path`` densified at ``step``: (dense index, "a vs b"),
     or None. Configurations before dense row ``tolerate_until`` may have the part touching its
@@ -164,8 +170,8 @@ def first_collision_on(scene, path: np.ndarray, opening: float, *, step: float =
     return None
 
 
-def path_free_near_support(scene, path: np.ndarray, opening: float, *, n_touch: int, at_end: bool = False,
-                           step: float = STEP) -> tuple[bool, str]:
+def path_free_near_support(scene: CollisionScene, path: np.ndarray, opening: float, *, n_touch: int,
+                           at_end: bool = False, step: float = STEP) -> tuple[bool, str]:
     """(free, what collided) for ``path`` where the first (or, ``at_end``, the last) ``n_touch``
     waypoints may have the part touching the table or an obstacle; everything else must be free."""
     path = np.asarray(path, dtype=np.float64)
@@ -186,21 +192,22 @@ def path_free_near_support(scene, path: np.ndarray, opening: float, *, n_touch: 
 # ------------------------------------------------------------------------------------------------
 # lift
 # ------------------------------------------------------------------------------------------------
-def plan_lift(robot, scene_attached, q_grasp: np.ndarray, T_world_tcp: np.ndarray, *, direction, distance: float,
-              width: float, max_dev: float, T_flange_tcp: np.ndarray, sample: float = LINE_SAMPLE) -> Stage:
+def plan_lift(robot: Robot, scene_attached: CollisionScene, q_grasp: np.ndarray, T_world_tcp: np.ndarray, *,
+              direction, distance: float, width: float, max_dev: float, T_flange_tcp: np.ndarray,
+              sample: float = LINE_SAMPLE) -> Stage:
     """The straight lift grasp -> ``distance`` along ``direction`` with the part attached and the jaws
-    at ``width``. Stage status: "ok", "no_path" (kinematic) or "ik_collision" (collision)."""
+    at ``width``. Stage status: ``ok``, ``no_path`` (kinematic) or ``ik_collision`` (collision)."""
     T_lift = lift_pose(T_world_tcp, direction, distance)
     path, why = approach_path_reason(robot, None, T_world_tcp, T_lift, q_grasp, opening=width, max_dev=max_dev,
                                      T_flange_tcp=T_flange_tcp, sample=sample)
     if path is None:
-        return Stage(None, "no_path", f"lift: the straight lift of {distance * 1e3:g} mm along "
-                                      f"{_vec(direction)} fails: {_KINEMATIC.get(why, why)}")
+        return Stage(None, Status.NO_PATH, f"lift: the straight lift of {distance * 1e3:g} mm along "
+                                           f"{_vec(direction)} fails: {_KINEMATIC.get(why, why)}")
     n_touch = int(np.ceil(SUPPORT_CLEARANCE / sample))
     free, what = path_free_near_support(scene_attached, path, width, n_touch=n_touch)
     if not free:
-        return Stage(None, "ik_collision", f"lift: with the part in the jaws {what}")
-    return Stage(path, "ok", "ok")
+        return Stage(None, Status.IK_COLLISION, f"lift: with the part in the jaws {what}")
+    return Stage(path, Status.OK, "ok")
 
 
 def _vec(v) -> str:
@@ -210,26 +217,25 @@ def _vec(v) -> str:
 # ------------------------------------------------------------------------------------------------
 # place
 # ------------------------------------------------------------------------------------------------
-def place_candidates(robot, scene_attached, scene_released, poses: PlacePoses, *, width: float, opening: float,
+def place_candidates(robot: Robot, scene_attached: CollisionScene, scene_released: CollisionScene,
+                     poses: PlacePoses, *, width: float, opening: float,
                      max_dev: float, T_flange_tcp: np.ndarray, q_ref: np.ndarray, seed: int = 0,
                      max_solutions: int = 8, limit: int | None = None, sample: float = LINE_SAMPLE
-                     ) -> tuple[list[PlaceCandidate], str, str]:
+                     ) -> tuple[list[PlaceCandidate], Status, str]:
     """Every IK solution of the place TCP (closest to ``q_ref`` first) whose descent (traced back
     from the place to above it, attached, jaws at ``width``), release (jaws opening to
     ``opening`` with the part static at the place) and retreat (released) are free.
 
-    Returns ``(candidates, status, reason)``: status "ok" when there is at least one candidate,
-    else "place_unreachable" / "place_no_path" and why. ``limit``: stop after this many candidates
+    Returns ``(candidates, status, reason)``: status ``ok`` when there is at least one candidate,
+    else ``place_unreachable`` / ``place_no_path`` and why. ``limit``: stop after this many candidates
     (the caller tries at most that many transfer paths)."""
-    from .ik import solve_ik
-
     T_tcp_flange = np.linalg.inv(np.asarray(T_flange_tcp, dtype=np.float64))
     ik = solve_ik(robot, poses.place @ T_tcp_flange, seed=seed, q_ref=q_ref)
     sols = np.asarray(ik.q, dtype=np.float64).reshape(-1, robot.nq)[:max_solutions]
     if len(sols) == 0:
         above = solve_ik(robot, poses.above @ T_tcp_flange, seed=seed, q_ref=q_ref)
         tail = "" if len(above.q) else f"; nor above it ({above.reason})"
-        return [], "place_unreachable", (f"place: no IK solution for the place TCP at {_vec(poses.place[:3, 3])} m "
+        return [], Status.PLACE_UNREACHABLE, (f"place: no IK solution for the place TCP at {_vec(poses.place[:3, 3])} m "
                                          f"within the joint limits ({ik.reason}){tail}")
     n_touch = int(np.ceil(SUPPORT_CLEARANCE / sample))
     counts = {"place_coll": 0, "desc_kin": 0, "desc_coll": 0, "release_coll": 0, "ret_kin": 0, "ret_coll": 0}
@@ -264,12 +270,12 @@ def place_candidates(robot, scene_attached, scene_released, poses: PlacePoses, *
             continue
         if not scene_released.path_free(ret, opening, step=STEP):
             counts["ret_coll"] += 1
-            hit = first_collision_on(scene_released, ret, opening)
-            first_what.setdefault("ret_coll", hit[1] if hit else "unknown")
+            ret_hit = first_collision_on(scene_released, ret, opening)
+            first_what.setdefault("ret_coll", ret_hit[1] if ret_hit else "unknown")
             continue
         out.append(PlaceCandidate(descend=back[::-1].copy(), retreat=ret))
     if out:
-        return out, "ok", "ok"
+        return out, Status.OK, "ok"
     k = len(sols)
     parts = [f"{k} IK solutions at the place"]
     labels = {"place_coll": "collide at the place (part in the jaws)", "desc_coll": "collide on the descent",
@@ -282,15 +288,16 @@ def place_candidates(robot, scene_attached, scene_released, poses: PlacePoses, *
     if counts["ret_kin"]:
         parts.append(f"{counts['ret_kin']} cannot follow the straight retreat ({kin_why['ret']})")
     collided = counts["place_coll"] + counts["desc_coll"] + counts["release_coll"] + counts["ret_coll"]
-    status = "place_no_path" if collided else "place_unreachable"
+    status = Status.PLACE_NO_PATH if collided else Status.PLACE_UNREACHABLE
     return [], status, "place: " + ", ".join(parts)
 
 
-def _free_or_support(scene, q, opening) -> bool:
+def _free_or_support(scene: CollisionScene, q: np.ndarray, opening: float) -> bool:
     return scene.is_free(q, opening) or _support_contact_only(scene.colliding_pairs(q, opening))
 
 
-def _release_collision(scene_released, q_place: np.ndarray, width: float, opening: float) -> str | None:
+def _release_collision(scene_released: CollisionScene, q_place: np.ndarray, width: float,
+                       opening: float) -> str | None:
     """What the jaws hit while opening from ``width`` to ``opening`` at the place (the part static
     there; the contact width itself is skipped: the jaws touch the part there), or None."""
     for o in np.linspace(width, opening, RELEASE_STEPS + 1)[1:]:
@@ -299,8 +306,8 @@ def _release_collision(scene_released, q_place: np.ndarray, width: float, openin
     return None
 
 
-def transfer_path(scene_attached, q_lifted: np.ndarray, cand: PlaceCandidate, *, lower, upper, width: float,
-                  seed: int, time_limit: float, attempts: int) -> np.ndarray | None:
+def transfer_path(scene_attached: CollisionScene, q_lifted: np.ndarray, cand: PlaceCandidate, *, lower: np.ndarray,
+                  upper: np.ndarray, width: float, seed: int, time_limit: float, attempts: int) -> np.ndarray | None:
     """RRTConnect lifted -> above-place with the part attached and the jaws at ``width`` (None: no
     verified path)."""
     return plan_joint_path(scene_attached, q_lifted, cand.q_above, lower=lower, upper=upper, opening=width,

@@ -32,16 +32,29 @@ behind ``grasplan plan``:
    (:func:`grasplan.simulate.simulate_plan`); each gets ``sim`` and the ranking puts the grasps
    that held first (stable: otherwise the score order).
 
-Result types and their JSON live in :mod:`grasplan.result`; the score in :mod:`grasplan.scoring`.
+The planner hands over typed results: :class:`GraspOutcome` per tried grasp and
+:class:`PlanOutcome` for the stage (status, score, rank and reason arrays, motions, timing, and the
+final :class:`~grasplan.grasps.GraspResult` when rank-order evaluation checked poses while
+planning). The checks before planning are :mod:`grasplan.start_checks`. Result types and their
+JSON live in :mod:`grasplan.result`; the score in :mod:`grasplan.scoring`.
 """
 from __future__ import annotations
 
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 
+from .cell import Cell, load_cell
+from .errors import ConfigError, InputError
+from .grasps import GraspResult, LazyGrasps, compute_grasps
+from .gripper import Gripper, load_gripper
+from .ik import solve_ik
+from .mass import MassProperties
+from .meshdata import TriangleMesh
 from .mesh import Part, load_part
 from .params import (
     DEFAULT_CELL,
@@ -51,83 +64,148 @@ from .params import (
     GraspParams,
     PlanParams,
 )
+from .paths import approach_path_reason, plan_joint_path
+from .pickplace import (
+    PlaceCandidate,
+    T_tcp_part_of,
+    assemble_motion,
+    place_candidates,
+    place_poses,
+    plan_lift,
+    transfer_path,
+)
 from .result import Motion, Params, PlanResult
-from .scoring import distinct_order, score_grasps
-from .transforms import translation
+from .robot import Robot, load_robot
+from .scene import CollisionScene, describe_pairs, no_path_reason
+from .scoring import ScoringConfig, distinct_order, score_grasps
+from .stable_poses import stable_pose, stable_poses
+from .start_checks import check_part_placement, check_start
+from .status import Status
+from .transforms import check_transform, translation
 
 SCHEMA = "grasplan.plan/1"
 
+#: the reason of an ``ok`` grasp the planner did not try
+NOT_TRIED_REASON = "not tried: beyond the top K or the planning budget"
+#: the reason of each grasp-stage rejection (when the grasp stage recorded none of its own)
+STAGE_REJECTION_REASONS = {
+    Status.COLLISION_PART: "grasp stage: the gripper hits the part at the grasp or while closing",
+    Status.COLLISION_TABLE: "grasp stage: the gripper hits the table at the grasp or while closing",
+    Status.COLLISION_OBSTACLE: "grasp stage: the gripper hits an obstacle at the grasp or while closing",
+}
 
-def plan_grasps(grasps, robot, scene, *, params: PlanParams = PlanParams(),
-                progress: Callable[[dict], None] | None = None, ranked=None):
-    """Plan the ranked ``ok`` grasps of ``grasps`` (a GraspResult) for ``robot`` in ``scene``.
 
-    Returns ``(status, score, rank, reason, motions, timing_s)``: (M,) arrays, ``{id: Motion}``
-    for the planned grasps and seconds per stage. ``progress`` gets a dict after every tried grasp:
-    ``{"tried", "planned", "top", "candidates", "id", "status"}``.
+@dataclass(frozen=True)
+class GraspOutcome:
+    """What planning one grasp gave: its plan ``status``, a human-readable ``reason`` and, when
+    ``status`` is ``planned``, its ``motion`` (else None)."""
+
+    status: Status
+    reason: str
+    motion: Motion | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class PlanOutcome:
+    """The plan stage's result for the M poses of a grasp result.
+
+    ``status`` (M,) object: the plan status values (:class:`~grasplan.status.Status` ``.value``);
+    ``score`` (M,) float64 (NaN: not ranked); ``rank`` (M,) int64 (-1: not ranked); ``reason``
+    (M,) object str; ``motions`` ``{pose id: Motion}`` of the planned grasps; ``timing_s`` seconds
+    per stage; ``grasp_result``: the final :class:`~grasplan.grasps.GraspResult` when the
+    rank-order evaluation checked poses while planning (its unchecked poses ``not_checked``), else
+    None (the grasp result planned from is final)."""
+
+    status: np.ndarray
+    score: np.ndarray
+    rank: np.ndarray
+    reason: np.ndarray
+    motions: dict[int, Motion]
+    timing_s: dict[str, float]
+    grasp_result: GraspResult | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class _Setting:
+    """What every grasp of one plan shares: the robot, the scenes, the poses and the options;
+    ``timing`` (seconds per stage) is added to as grasps are planned."""
+
+    robot: Robot
+    scene: CollisionScene
+    gripper: Gripper
+    params: PlanParams
+    T_world_part: np.ndarray
+    T_flange_tcp: np.ndarray
+    T_tcp_flange: np.ndarray
+    q_home: np.ndarray
+    retreat_dir: np.ndarray
+    retreat_dist: float
+    T_place: np.ndarray | None
+    scene_released: CollisionScene | None
+    timing: dict[str, float]
+
+
+def plan_grasps(grasps: GraspResult, robot: Robot, scene: CollisionScene, *, params: PlanParams = PlanParams(),
+                progress: Callable[[dict], None] | None = None, ranked: Iterable[int] | None = None) -> PlanOutcome:
+    """Plan the ranked ``ok`` grasps of ``grasps`` for ``robot`` in ``scene``.
+
+    Returns a :class:`PlanOutcome` ((M,) status, score, rank and reason arrays, ``{id: Motion}``
+    for the planned grasps and seconds per stage). ``progress`` gets a dict after every tried
+    grasp: ``{"tried", "planned", "top", "candidates", "id", "status"}``. ``ranked``: the pose ids
+    to try in this order instead of the ranking (the rank-order evaluation's).
     """
-    from .ik import solve_ik
-    from .paths import approach_path_reason, plan_joint_path
-    from .pickplace import T_tcp_part_of, assemble_motion, place_candidates, place_poses, plan_lift, transfer_path
-    from .scene import describe_pairs, no_path_reason
-
     t_all = time.perf_counter()
     timing = {"ik": 0.0, "approach": 0.0, "joint_path": 0.0, "lift": 0.0, "place": 0.0, "transfer": 0.0}
-    lazy = getattr(grasps, "lazy", None)
-    if lazy is not None and params.score_weights is None and not params.check_all:
-        return _plan_lazy(grasps, robot, scene, params=params, progress=progress, timing=timing, t_all=t_all)
-    if lazy is not None:  # other weights or --check-all: check every pose first
+    lazy = grasps.lazy
+    if isinstance(lazy, LazyGrasps) and params.score_weights is None and not params.check_all:
+        return _plan_lazy(lazy, robot, scene, params=params, progress=progress, timing=timing, t_all=t_all)
+    if isinstance(lazy, LazyGrasps):  # other weights or --check-all: check every pose first
         lazy.check_all()
         grasps = lazy.result()
     status_in = np.asarray(grasps.status).astype(str)
     M = len(status_in)
-    frames = grasps.frames
-    T_part_tcp = np.asarray(frames.T_part_tcp, dtype=np.float64).reshape(-1, 4, 4)
+    T_part_tcp = np.asarray(grasps.frames.T_part_tcp, dtype=np.float64).reshape(-1, 4, 4)
     width = np.asarray(grasps.width, dtype=np.float64)
     gripper = grasps.gripper
     T_world_part = np.asarray(grasps.T_world_part, dtype=np.float64)
-    T_flange_tcp = np.asarray(gripper.T_flange_tcp, dtype=np.float64)
-    T_tcp_flange = np.linalg.inv(T_flange_tcp)
 
-    ok = np.flatnonzero(status_in == "ok")
+    ok = np.flatnonzero(status_in == Status.OK.value)
     scores = np.full(M, np.nan)
-    if getattr(grasps, "score", None) is not None and params.score_weights is None:
+    if grasps.score is not None and params.score_weights is None:
         scores[ok] = np.asarray(grasps.score, dtype=np.float64)[ok]  # the grasp stage's score (quality + reach)
     elif len(ok):
-        from .scoring import ScoringConfig
-
-        q = getattr(grasps, "quality", None)
-        mp = getattr(grasps, "mass_props", None)
+        mp = grasps.mass_props
         gp = grasps.params
         cfg = ScoringConfig.from_params(params.score_weights or gp.score_weights, gp.score_refs)
         scores[ok] = score_grasps(grasps.cand.part.mesh, T_world_part, T_part_tcp[ok], width[ok],
-                                  float(gripper.max_opening), weights=cfg.weights, quality=q, scoring=cfg,
-                                  com=None if mp is None else mp.com)
+                                  float(gripper.max_opening), weights=cfg.weights, quality=grasps.quality,
+                                  scoring=cfg, com=mp.com if isinstance(mp, MassProperties) else None)
     order = ok[np.lexsort((ok, -scores[ok]))] if len(ok) else ok
     order = distinct_order(T_part_tcp, order, min_distance=params.distinct_distance,
                            min_angle_deg=params.distinct_angle_deg)
     rank = np.full(M, -1, dtype=np.int64)
     rank[order] = np.arange(len(order))
-    status = np.where(status_in == "ok", "not_tried", status_in).astype(object)
+    status = np.where(status_in == Status.OK.value, Status.NOT_TRIED.value, status_in).astype(object)
     reason = np.empty(M, dtype=object)
-    reason[:] = "not tried: beyond the top K or the planning budget"
-    reason[status_in == "collision_part"] = "grasp stage: the gripper hits the part at the grasp or while closing"
-    reason[status_in == "collision_table"] = "grasp stage: the gripper hits the table at the grasp or while closing"
-    reason[status_in == "collision_obstacle"] = "grasp stage: the gripper hits an obstacle at the grasp or while closing"
-    stage_reasons = getattr(grasps, "reasons", None)  # per pose, naming the gripper element and the body
+    reason[:] = NOT_TRIED_REASON
+    for st, text in STAGE_REJECTION_REASONS.items():
+        reason[status_in == st.value] = text
+    stage_reasons = grasps.reasons  # per pose, naming the gripper element and the body
     if stage_reasons is not None:
-        rejected = (status_in != "ok") & (np.asarray(stage_reasons, dtype=object) != "")
+        rejected = (status_in != Status.OK.value) & (np.asarray(stage_reasons, dtype=object) != "")
         reason[rejected] = np.asarray(stage_reasons, dtype=object)[rejected]
     motions: dict[int, Motion] = {}
 
-    q_home = np.asarray(robot.q_home, dtype=np.float64)
     # pick-and-place (grasplan.pickplace): the lift always, the place when the cell has one
     cell = grasps.cell
-    retreat_dir = np.asarray(getattr(cell, "retreat_direction", (0.0, 0.0, 1.0)), dtype=np.float64)
-    retreat_dist = float(getattr(cell, "retreat_distance", 0.10))
-    T_place = getattr(cell, "place", None)
-    T_place = None if T_place is None else np.asarray(T_place, dtype=np.float64)
-    scene_released = scene.with_part_at(T_place) if T_place is not None else None
+    T_place = None if cell.place is None else np.asarray(cell.place, dtype=np.float64)
+    T_flange_tcp = np.asarray(gripper.T_flange_tcp, dtype=np.float64)
+    setting = _Setting(robot=robot, scene=scene, gripper=gripper, params=params, T_world_part=T_world_part,
+                       T_flange_tcp=T_flange_tcp, T_tcp_flange=np.linalg.inv(T_flange_tcp),
+                       q_home=np.asarray(robot.q_home, dtype=np.float64),
+                       retreat_dir=np.asarray(cell.retreat_direction, dtype=np.float64),
+                       retreat_dist=float(cell.retreat_distance), T_place=T_place,
+                       scene_released=scene.with_part_at(T_place) if T_place is not None else None, timing=timing)
     planned = tried = 0
     n_candidates = len(order)
     for i in (order if ranked is None else ranked):
@@ -136,195 +214,195 @@ def plan_grasps(grasps, robot, scene, *, params: PlanParams = PlanParams(),
         if params.budget_s is not None and time.perf_counter() - t_all > params.budget_s:
             break
         tried += 1
-        e = {"status": "not_tried", "reason": ""}
-        T_world_tcp = T_world_part @ T_part_tcp[i]
-        T_world_pre = T_world_tcp @ translation(z=-params.backoff)
-        opening = float(gripper.pregrasp_opening(width[i]))
-
-        t = time.perf_counter()
-        ik = solve_ik(robot, T_world_tcp @ T_tcp_flange, seed=params.seed)
-        timing["ik"] += time.perf_counter() - t
-        sols = np.asarray(ik.q, dtype=np.float64).reshape(-1, len(q_home))[: params.max_ik_solutions]
-        if len(sols) == 0:
-            e["status"], e["reason"] = "unreachable", f"no IK solution within the joint limits ({ik.reason})"
-        else:
-            n_grasp_coll = n_app_coll = n_app_kin = n_path_fail = 0
-            n_lift_coll = n_lift_kin = n_transfer_fail = 0
-            lift_why = place_why = ""
-            grasp_hit = path_why = ""  # what the best IK branch hits; why the transit failed
-            place_status = None
-            T_tcp_part = T_tcp_part_of(T_part_tcp[i])
-            scene_att = scene.attached(T_tcp_part)
-            place_cands = None  # the place side (IK, descent, release, retreat): once per grasp
-            for j, q_grasp in enumerate(sols):
-                if not scene.is_free(q_grasp, opening):
-                    n_grasp_coll += 1
-                    grasp_hit = grasp_hit or f"IK solution {j} at the grasp: " + describe_pairs(
-                        scene.colliding_pairs(q_grasp, opening), 2)
-                    continue
-                t = time.perf_counter()
-                back, why = approach_path_reason(robot, scene, T_world_tcp, T_world_pre, q_grasp, opening=opening,
-                                                 max_dev=params.max_dev, T_flange_tcp=T_flange_tcp)
-                timing["approach"] += time.perf_counter() - t
-                if back is None:
-                    if why == "collision":
-                        n_app_coll += 1
-                        if not grasp_hit:  # re-trace the approach without the scene to name the hit
-                            kin, _ = approach_path_reason(robot, None, T_world_tcp, T_world_pre, q_grasp,
-                                                          opening=opening, max_dev=params.max_dev,
-                                                          T_flange_tcp=T_flange_tcp)
-                            hit = None if kin is None else scene.path_collisions(kin, opening)
-                            grasp_hit = "" if hit is None else (f"IK solution {j} on the approach: "
-                                                                + describe_pairs(hit[1], 2))
-                    else:
-                        n_app_kin += 1
-                    continue
-                approach = back[::-1]  # pre-grasp -> grasp
-                q_pre = approach[0]
-                t = time.perf_counter()
-                lift = plan_lift(robot, scene_att, approach[-1], T_world_tcp, direction=retreat_dir,
-                                 distance=retreat_dist, width=float(width[i]), max_dev=params.max_dev,
-                                 T_flange_tcp=T_flange_tcp)
-                timing["lift"] += time.perf_counter() - t
-                if not lift.ok:
-                    n_lift_coll += lift.status == "ik_collision"
-                    n_lift_kin += lift.status != "ik_collision"
-                    lift_why = lift_why or lift.reason
-                    continue
-                if T_place is not None and place_cands is None:
-                    t = time.perf_counter()
-                    place_cands, place_status, place_why = place_candidates(
-                        robot, scene_att, scene_released,
-                        place_poses(T_place, T_part_tcp[i], retreat_dir, retreat_dist, params.backoff),
-                        width=float(width[i]), opening=opening, max_dev=params.max_dev, T_flange_tcp=T_flange_tcp,
-                        q_ref=lift.path[-1], seed=params.seed, max_solutions=params.max_ik_solutions,
-                        limit=params.max_path_queries)
-                    timing["place"] += time.perf_counter() - t
-                if T_place is not None and not place_cands:
-                    break  # the place side does not depend on the grasp's IK solution
-                t = time.perf_counter()
-                transit = plan_joint_path(scene, q_home, q_pre, lower=robot.lower, upper=robot.upper, opening=opening,
-                                          seed=params.seed * 1_000_003 + int(i), time_limit=params.time_limit_per_query,
-                                          attempts=params.path_attempts)
-                timing["joint_path"] += time.perf_counter() - t
-                if transit is None:
-                    n_path_fail += 1
-                    path_why = path_why or no_path_reason(scene, q_home, q_pre, opening,
-                                                          params.time_limit_per_query, params.path_attempts)
-                    if n_path_fail >= params.max_path_queries:
-                        break
-                    continue
-                transfer = cand = None
-                if T_place is not None:
-                    t = time.perf_counter()
-                    for c in place_cands:
-                        if n_transfer_fail >= params.max_path_queries:
-                            break
-                        transfer = transfer_path(scene_att, lift.path[-1], c, lower=robot.lower, upper=robot.upper,
-                                                 width=float(width[i]), seed=params.seed * 1_000_003 + int(i) + 7,
-                                                 time_limit=params.time_limit_per_query,
-                                                 attempts=params.path_attempts)
-                        if transfer is not None:
-                            cand = c
-                            break
-                        n_transfer_fail += 1
-                    timing["transfer"] += time.perf_counter() - t
-                    if cand is None:
-                        if n_transfer_fail >= params.max_path_queries:
-                            break
-                        continue
-                e.update(status="planned", reason=f"planned with IK solution {j} of {len(sols)} (closest to q_home first)"
-                         + ("" if cand is None else " and a place"))
-                motions[int(i)] = assemble_motion(transit, approach, lift.path, width=float(width[i]), opening=opening,
-                                                  T_tcp_part=T_tcp_part, transfer=transfer, place=cand,
-                                                  T_world_part_place=T_place)
-                planned += 1
-                break
-            if e["status"] != "planned":
-                k = len(sols)
-                detail = (f"{k} IK solutions: {n_grasp_coll} collide at the grasp, {n_app_coll} collide on the "
-                          f"approach, {n_app_kin} cannot follow the straight approach (IK lost, joint limit, "
-                          f"jump or > {params.max_dev * 1e3:g} mm off the line)")
-                if T_place is not None and place_cands is not None and not place_cands:
-                    e["status"], e["reason"] = place_status, place_why
-                elif n_transfer_fail:
-                    e["status"] = "place_no_path"
-                    e["reason"] = (f"place: RRTConnect found no verified transfer path (part in the jaws) lifted -> "
-                                   f"above the place in {n_transfer_fail} queries")
-                elif n_path_fail:
-                    e["status"] = "no_path"
-                    e["reason"] = (f"RRTConnect found no verified path home -> pre-grasp in {n_path_fail} "
-                                   f"queries ({path_why}); " + detail)
-                elif n_lift_coll + n_lift_kin > 0:
-                    e["status"] = "ik_collision" if n_lift_coll else "no_path"
-                    e["reason"] = (f"{lift_why}; {n_lift_coll + n_lift_kin} of {len(sols)} IK solutions fail the lift "
-                                   f"({n_lift_coll} collide, {n_lift_kin} cannot follow the line); " + detail)
-                elif n_grasp_coll + n_app_coll > 0:
-                    e["status"], e["reason"] = "ik_collision", detail + (f"; {grasp_hit}" if grasp_hit else "")
-                else:
-                    e["status"], e["reason"] = "unreachable", detail
-        status[i], reason[i] = e["status"], e["reason"]
+        out = _plan_grasp(setting, int(i), T_part_tcp[i], float(width[i]))
+        if out.motion is not None:
+            motions[int(i)] = out.motion
+            planned += 1
+        status[i], reason[i] = out.status.value, out.reason
         if progress is not None:
             progress({"tried": tried, "planned": planned, "top": params.top, "candidates": n_candidates,
-                      "id": int(i), "status": e["status"]})
+                      "id": int(i), "status": out.status.value})
     timing["plan"] = time.perf_counter() - t_all
-    return status, scores, rank, reason, motions, timing
+    return PlanOutcome(status=status, score=scores, rank=rank, reason=reason, motions=motions, timing_s=timing)
 
 
-def _plan_lazy(grasps, robot, scene, *, params: PlanParams, progress, timing: dict, t_all: float):
+def _plan_grasp(s: _Setting, i: int, T_part_tcp: np.ndarray, width: float) -> GraspOutcome:
+    """Plan grasp ``i`` (TCP ``T_part_tcp`` (4, 4) in the part frame, contact ``width`` m): IK at the
+    grasp, then for each IK solution (closest to q_home first) the approach, the lift, the place
+    side and the transit from q_home; the first solution that gets through all is ``planned``."""
+    params, robot, scene, timing = s.params, s.robot, s.scene, s.timing
+    T_place, T_flange_tcp = s.T_place, s.T_flange_tcp
+    T_world_tcp = s.T_world_part @ T_part_tcp
+    T_world_pre = T_world_tcp @ translation(z=-params.backoff)
+    opening = float(s.gripper.pregrasp_opening(width))
+
+    t = time.perf_counter()
+    ik = solve_ik(robot, T_world_tcp @ s.T_tcp_flange, seed=params.seed)
+    timing["ik"] += time.perf_counter() - t
+    sols = np.asarray(ik.q, dtype=np.float64).reshape(-1, len(s.q_home))[: params.max_ik_solutions]
+    if len(sols) == 0:
+        return GraspOutcome(Status.UNREACHABLE, f"no IK solution within the joint limits ({ik.reason})")
+    n_grasp_coll = n_app_coll = n_app_kin = n_path_fail = 0
+    n_lift_coll = n_lift_kin = n_transfer_fail = 0
+    lift_why = ""
+    grasp_hit = path_why = ""  # what the best IK branch hits; why the transit failed
+    T_tcp_part = T_tcp_part_of(T_part_tcp)
+    scene_att = scene.attached(T_tcp_part)
+    # the place side (IK, descent, release, retreat), once per grasp: (candidates, status, reason)
+    place: tuple[list[PlaceCandidate], Status, str] | None = None
+    for j, q_grasp in enumerate(sols):
+        if not scene.is_free(q_grasp, opening):
+            n_grasp_coll += 1
+            grasp_hit = grasp_hit or f"IK solution {j} at the grasp: " + describe_pairs(
+                scene.colliding_pairs(q_grasp, opening), 2)
+            continue
+        t = time.perf_counter()
+        back, why = approach_path_reason(robot, scene, T_world_tcp, T_world_pre, q_grasp, opening=opening,
+                                         max_dev=params.max_dev, T_flange_tcp=T_flange_tcp)
+        timing["approach"] += time.perf_counter() - t
+        if back is None:
+            if why == "collision":
+                n_app_coll += 1
+                if not grasp_hit:  # re-trace the approach without the scene to name the hit
+                    kin, _ = approach_path_reason(robot, None, T_world_tcp, T_world_pre, q_grasp,
+                                                  opening=opening, max_dev=params.max_dev,
+                                                  T_flange_tcp=T_flange_tcp)
+                    hit = None if kin is None else scene.path_collisions(kin, opening)
+                    grasp_hit = "" if hit is None else (f"IK solution {j} on the approach: "
+                                                        + describe_pairs(hit[1], 2))
+            else:
+                n_app_kin += 1
+            continue
+        approach = back[::-1]  # pre-grasp -> grasp
+        q_pre = approach[0]
+        t = time.perf_counter()
+        lift = plan_lift(robot, scene_att, approach[-1], T_world_tcp, direction=s.retreat_dir,
+                         distance=s.retreat_dist, width=width, max_dev=params.max_dev, T_flange_tcp=T_flange_tcp)
+        timing["lift"] += time.perf_counter() - t
+        if lift.path is None:
+            n_lift_coll += lift.status == Status.IK_COLLISION
+            n_lift_kin += lift.status != Status.IK_COLLISION
+            lift_why = lift_why or lift.reason
+            continue
+        lift_path = lift.path
+        if T_place is not None and s.scene_released is not None and place is None:
+            t = time.perf_counter()
+            place = place_candidates(
+                robot, scene_att, s.scene_released,
+                place_poses(T_place, T_part_tcp, s.retreat_dir, s.retreat_dist, params.backoff),
+                width=width, opening=opening, max_dev=params.max_dev, T_flange_tcp=T_flange_tcp,
+                q_ref=lift_path[-1], seed=params.seed, max_solutions=params.max_ik_solutions,
+                limit=params.max_path_queries)
+            timing["place"] += time.perf_counter() - t
+        if place is not None and not place[0]:
+            break  # the place side does not depend on the grasp's IK solution
+        t = time.perf_counter()
+        transit = plan_joint_path(scene, s.q_home, q_pre, lower=robot.lower, upper=robot.upper, opening=opening,
+                                  seed=params.seed * 1_000_003 + i, time_limit=params.time_limit_per_query,
+                                  attempts=params.path_attempts)
+        timing["joint_path"] += time.perf_counter() - t
+        if transit is None:
+            n_path_fail += 1
+            path_why = path_why or no_path_reason(scene, s.q_home, q_pre, opening,
+                                                  params.time_limit_per_query, params.path_attempts)
+            if n_path_fail >= params.max_path_queries:
+                break
+            continue
+        transfer = cand = None
+        if place is not None:
+            t = time.perf_counter()
+            for c in place[0]:
+                if n_transfer_fail >= params.max_path_queries:
+                    break
+                transfer = transfer_path(scene_att, lift_path[-1], c, lower=robot.lower, upper=robot.upper,
+                                         width=width, seed=params.seed * 1_000_003 + i + 7,
+                                         time_limit=params.time_limit_per_query, attempts=params.path_attempts)
+                if transfer is not None:
+                    cand = c
+                    break
+                n_transfer_fail += 1
+            timing["transfer"] += time.perf_counter() - t
+            if cand is None:
+                if n_transfer_fail >= params.max_path_queries:
+                    break
+                continue
+        motion = assemble_motion(transit, approach, lift_path, width=width, opening=opening, T_tcp_part=T_tcp_part,
+                                 transfer=transfer, place=cand, T_world_part_place=T_place)
+        return GraspOutcome(Status.PLANNED, f"planned with IK solution {j} of {len(sols)} (closest to q_home first)"
+                            + ("" if cand is None else " and a place"), motion)
+    k = len(sols)
+    detail = (f"{k} IK solutions: {n_grasp_coll} collide at the grasp, {n_app_coll} collide on the "
+              f"approach, {n_app_kin} cannot follow the straight approach (IK lost, joint limit, "
+              f"jump or > {params.max_dev * 1e3:g} mm off the line)")
+    if place is not None and not place[0]:
+        return GraspOutcome(place[1], place[2])
+    if n_transfer_fail:
+        return GraspOutcome(Status.PLACE_NO_PATH, f"place: RRTConnect found no verified transfer path (part in the "
+                            f"jaws) lifted -> above the place in {n_transfer_fail} queries")
+    if n_path_fail:
+        return GraspOutcome(Status.NO_PATH, f"RRTConnect found no verified path home -> pre-grasp in {n_path_fail} "
+                            f"queries ({path_why}); " + detail)
+    if n_lift_coll + n_lift_kin > 0:
+        return GraspOutcome(Status.IK_COLLISION if n_lift_coll else Status.NO_PATH,
+                            f"{lift_why}; {n_lift_coll + n_lift_kin} of {len(sols)} IK solutions fail the lift "
+                            f"({n_lift_coll} collide, {n_lift_kin} cannot follow the line); " + detail)
+    if n_grasp_coll + n_app_coll > 0:
+        return GraspOutcome(Status.IK_COLLISION, detail + (f"; {grasp_hit}" if grasp_hit else ""))
+    return GraspOutcome(Status.UNREACHABLE, detail)
+
+
+def _plan_lazy(lazy: LazyGrasps, robot: Robot, scene: CollisionScene, *, params: PlanParams,
+               progress: Callable[[dict], None] | None, timing: dict[str, float], t_all: float) -> PlanOutcome:
     """:func:`plan_grasps` with the rank-order evaluation of :class:`grasplan.grasps.LazyGrasps`:
     the planning loop takes the grasps in the full ranking's order, checking chunks of poses only
-    while an unchecked pose could still rank ahead. Returns what :func:`plan_grasps` returns plus
-    the final :class:`grasplan.grasps.GraspResult` (unchecked poses ``not_checked``)."""
-    lazy = grasps.lazy
+    while an unchecked pose could still rank ahead. The outcome carries the final
+    :class:`grasplan.grasps.GraspResult` (unchecked poses ``not_checked``)."""
     it = lazy.ranked(params.distinct_distance, params.distinct_angle_deg)
     tried: list[int] = []
 
-    def gen():
+    def gen() -> Iterator[int]:
         for i in it:
             tried.append(i)
             yield i
 
-    # the loop below writes into the arrays of plan_grasps; run it on a placeholder and re-apply
-    from dataclasses import replace
-
+    # the loop of plan_grasps writes into arrays of its own; run it on a placeholder and re-apply
     sub = plan_grasps(replace(lazy.result(), lazy=None), robot, scene, params=params, progress=progress,
                       ranked=gen())
-    st_t, _, _, reason_t, motions, timing_t = sub
-    timing.update(timing_t)
+    timing.update(sub.timing_s)
     final = lazy.result()
     status_in = np.asarray(final.status).astype(str)
     M = len(status_in)
-    scores = np.where(status_in == "ok", np.asarray(final.score, dtype=np.float64), np.nan)
+    ok = status_in == Status.OK.value
+    scores = np.where(ok, np.asarray(final.score, dtype=np.float64), np.nan)
     order, n = lazy.order(params.distinct_distance, params.distinct_angle_deg)
     rank = np.full(M, -1, dtype=np.int64)
     rank[order[:n]] = np.arange(n)
-    status = np.where(status_in == "ok", "not_tried", status_in).astype(object)
+    status = np.where(ok, Status.NOT_TRIED.value, status_in).astype(object)
     reason = np.asarray(final.reasons, dtype=object).copy()
-    ok = status_in == "ok"
-    reason[ok] = "not tried: beyond the top K or the planning budget"
+    reason[ok] = NOT_TRIED_REASON
     bound = lazy.bound()
-    unchecked = status_in == "not_checked"
+    unchecked = status_in == Status.NOT_CHECKED.value
     best = np.nanmax(scores[order[:n]]) if n else float("nan")
     floor = float(scores[order[n - 1]]) if n else float("nan")
     reason[unchecked] = (f"not checked: ranked below the planned grasps (the upper bound of its score is below "
                          f"{bound:.6g}, the best unchecked bound, <= the ranked grasps' scores {floor:.6g}..{best:.6g}); "
                          f"--check-all checks every pose")
     tried_a = np.asarray(tried, dtype=np.int64)  # pulled from the ranking; the last one may not be tried
-    tried_a = tried_a[np.asarray(st_t, dtype=object)[tried_a] != "not_checked"] if len(tried_a) else tried_a
-    status[tried_a] = st_t[tried_a]
-    reason[tried_a] = reason_t[tried_a]
+    if len(tried_a):
+        tried_a = tried_a[np.asarray(sub.status, dtype=object)[tried_a] != Status.NOT_CHECKED.value]
+    status[tried_a] = sub.status[tried_a]
+    reason[tried_a] = sub.reason[tried_a]
     timing["plan"] = time.perf_counter() - t_all
-    return status, scores, rank, reason, motions, timing, final
-
+    return PlanOutcome(status=status, score=scores, rank=rank, reason=reason, motions=sub.motions, timing_s=timing,
+                       grasp_result=final)
 
 
 def plan(
     part: Part | str | os.PathLike,
-    robot=DEFAULT_ROBOT,
+    robot: Robot | str | Path = DEFAULT_ROBOT,
     *,
-    gripper=DEFAULT_GRIPPER,
-    cell=DEFAULT_CELL,
+    gripper: Gripper | str | os.PathLike = DEFAULT_GRIPPER,
+    cell: Cell | str | os.PathLike = DEFAULT_CELL,
     candidates: CandidateParams = CandidateParams(),
     grasps: GraspParams = GraspParams(),
     planning: PlanParams = PlanParams(),
@@ -358,37 +436,24 @@ def plan(
         there, released and the gripper retreats. A place reaching into the table or an obstacle
         raises ``InputError`` before planning.
     """
-    from dataclasses import replace as _replace
-
-    from .cell import check_part_placement, load_cell
-    from .grasps import compute_grasps
-    from .gripper import load_gripper
-    from .robot import Robot, load_robot
-    from .scene import CollisionScene
-
     t = time.perf_counter()
     rob = robot if isinstance(robot, Robot) else load_robot(robot)
-    g = load_gripper(gripper)
-    c = load_cell(cell)
+    g = gripper if isinstance(gripper, Gripper) else load_gripper(gripper)
+    c = cell if isinstance(cell, Cell) else load_cell(cell)
     t_robot = time.perf_counter() - t
     if place is not None:
-        from .transforms import check_transform
-
-        c = _replace(c, place=check_transform(place, "place (T_world_part after release)"))
+        c = replace(c, place=check_transform(place, "place (T_world_part after release)"))
     if not isinstance(part, Part):
         t = time.perf_counter()
         part = load_part(part, units=units)
         load_s = time.perf_counter() - t
+    # checks before planning (grasplan.start_checks; exit 3 with what to change): the place and the
+    # part inside the table or an obstacle, the robot's base inside an obstacle, q_home in collision
     if c.place is not None:
         check_part_placement(part.mesh, c.place, c, what="the part at the place (--place or the cell's place)",
                              pose_option="--place or the cell's place.T")
-    # checks before planning (exit 3 with what to change): the part inside the table or an
-    # obstacle, the robot's base inside an obstacle, q_home in collision (grasplan.scene.check_start)
-    from .cell import stable_pose
-    from .scene import check_start
-
     T_start = T_world_part if T_world_part is not None else stable_pose(
-        part.mesh, c if grasps.pose_index is None else _replace(c, pose_index=grasps.pose_index))
+        part.mesh, c if grasps.pose_index is None else replace(c, pose_index=grasps.pose_index))
     check_start(CollisionScene(rob, g, part.mesh, T_start, c), part_mesh=part.mesh)
     lazy = not planning.check_all and planning.score_weights is None
     gr = compute_grasps(part, gripper=g, cell=c, candidates=candidates, grasps=grasps, T_world_part=T_world_part,
@@ -399,19 +464,20 @@ def plan(
     scene = CollisionScene(rob, gr.gripper, part.mesh, gr.T_world_part, gr.cell)
     t_robot += time.perf_counter() - t
     out = plan_grasps(gr, rob, scene, params=planning, progress=progress)
-    status, score, rank, reason, motions, timing = out[:6]
-    if len(out) > 6:  # rank-order evaluation: the poses checked while planning
-        gr = out[6]
+    if out.grasp_result is not None:  # rank-order evaluation: the poses checked while planning
+        gr = out.grasp_result
     base = gr.to_result()
     result = PlanResult(part=base.part, gripper=gr.gripper, cell=gr.cell, robot=rob,
-                        grasps=base.grasps.with_plan(status, score, rank, reason), motions=motions,
-                        params=Params(gr.cand.params, grasps, planning), counts_stage=base.counts_stage,
-                        timing_s={**gr.timing_s, "robot": t_robot, **timing}, part_pose_source=gr.part_pose_source,
-                        grasp_result=gr, part_mesh=part.mesh, mass=base.mass)
+                        grasps=base.grasps.with_plan(out.status, out.score, out.rank, out.reason),
+                        motions=out.motions, params=Params(gr.cand.params, grasps, planning),
+                        counts_stage=base.counts_stage, timing_s={**gr.timing_s, "robot": t_robot, **out.timing_s},
+                        part_pose_source=gr.part_pose_source, grasp_result=gr, part_mesh=part.mesh, mass=base.mass)
     if planning.simulate > 0:  # MuJoCo lift and shake of the top planned grasps; held ones rank first
-        from .simulate import simulate_plan
+        from .simulate import simulate_plan  # MuJoCo and trimesh load only when simulating
 
-        result = simulate_plan(result, planning.simulate, mass_props=gr.mass_props, seed=planning.seed)
+        mp = gr.mass_props
+        result = simulate_plan(result, planning.simulate, mass_props=mp if isinstance(mp, MassProperties) else None,
+                               seed=planning.seed)
     return result
 
 
@@ -420,26 +486,21 @@ def plan(
 MIN_POSE_PROBABILITY = 0.02
 
 
-def stable_pose_indices(part_mesh, min_probability: float = MIN_POSE_PROBABILITY) -> list[tuple[int, float]]:
+def stable_pose_indices(part_mesh: TriangleMesh, min_probability: float = MIN_POSE_PROBABILITY
+                        ) -> list[tuple[int, float]]:
     """``[(pose_index, probability)]`` of the part's stable poses with probability >= ``min_probability``."""
-    from .cell import stable_poses
-
     _, prob = stable_poses(part_mesh)
     return [(int(k), float(p)) for k, p in enumerate(prob) if p >= min_probability]
 
 
-def plan_poses(part: Part | str | os.PathLike, robot=DEFAULT_ROBOT, *, grasps: GraspParams = GraspParams(),
+def plan_poses(part: Part | str | os.PathLike, robot: Robot | str | Path = DEFAULT_ROBOT, *,
+               grasps: GraspParams = GraspParams(),
                min_probability: float = MIN_POSE_PROBABILITY, units: str = "auto",
                **kwargs) -> list[tuple[int, float, PlanResult | str]]:
     """:func:`plan` for every stable pose of probability >= ``min_probability`` (``--pose-index
     all``): ``[(pose_index, probability, PlanResult or the error message)]``, most probable first.
     A pose whose checks before planning fail (the part inside an obstacle, InputError) gets the
     message; errors of the cell or robot (q_home in collision, ConfigError) are raised."""
-    from dataclasses import replace as _replace
-
-    from .errors import ConfigError, InputError
-    from .robot import Robot, load_robot
-
     if "T_world_part" in kwargs and kwargs["T_world_part"] is not None:
         raise InputError("--pose-index all: the resting poses replace --part-pose; give one or the other")
     kwargs.pop("T_world_part", None)
@@ -449,7 +510,7 @@ def plan_poses(part: Part | str | os.PathLike, robot=DEFAULT_ROBOT, *, grasps: G
     out: list[tuple[int, float, PlanResult | str]] = []
     for k, p in stable_pose_indices(part.mesh, min_probability):
         try:
-            res = plan(part, rob, grasps=_replace(grasps, pose_index=k), **kwargs)
+            res = plan(part, rob, grasps=replace(grasps, pose_index=k), **kwargs)
         except ConfigError:
             raise
         except InputError as exc:
@@ -459,21 +520,17 @@ def plan_poses(part: Part | str | os.PathLike, robot=DEFAULT_ROBOT, *, grasps: G
     return out
 
 
-def grasp_counts_by_pose(part: Part, *, gripper=DEFAULT_GRIPPER, cell=DEFAULT_CELL,
+def grasp_counts_by_pose(part: Part, *, gripper: Gripper | str = DEFAULT_GRIPPER, cell: Cell | str = DEFAULT_CELL,
                          candidates: CandidateParams = CandidateParams(), grasps: GraspParams = GraspParams(),
                          min_probability: float = MIN_POSE_PROBABILITY, skip: int | None = None
                          ) -> list[tuple[int, float, int]]:
     """``[(pose_index, probability, collision-free grasps)]`` for the stable poses of probability
     >= ``min_probability`` except ``skip``: the grasp stage only (cheap), for the exit-4 message."""
-    from dataclasses import replace as _replace
-
-    from .grasps import compute_grasps
-
     out = []
     for k, p in stable_pose_indices(part.mesh, min_probability):
         if k == skip:
             continue
         gr = compute_grasps(part, gripper=gripper, cell=cell, candidates=candidates,
-                            grasps=_replace(grasps, pose_index=k))
-        out.append((k, p, int(np.count_nonzero(np.asarray(gr.status).astype(str) == "ok"))))
+                            grasps=replace(grasps, pose_index=k))
+        out.append((k, p, int(np.count_nonzero(np.asarray(gr.status).astype(str) == Status.OK.value))))
     return out

@@ -50,20 +50,23 @@ Kinds: ``table``, ``part``, ``obstacle``, ``self``.
 All geometry is in the robot model's frame (its URDF root link); the world objects (table, part,
 obstacles) are placed there through ``inv(robot.T_world_base)``.
 
-:func:`check_start` runs the checks before planning (part inside the table or an obstacle, the
-robot's base inside an obstacle, q_home in collision) and raises with what to change.
+The checks before planning (the part inside the table or an obstacle, the robot's base inside an
+obstacle, q_home in collision) live in :mod:`grasplan.start_checks`.
 """
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import coal
 import numpy as np
 import pinocchio as pin
 
-from .errors import ConfigError, InputError
+from .cell import Cell
+from .errors import InputError
 from .geometry import bvh, obstacle_geometry, shape_geometry
+from .gripper import Gripper
+from .interpolation import STEP, interpolate_path
+from .meshdata import TriangleMesh
 from .robot import Robot
 from .transforms import check_transform, to_se3, translation
 
@@ -79,7 +82,8 @@ ATTACHED_CONTACT_TOL = 1e-4
 class _SceneModel:
     """The geometry shared by a scene and its variants (built once)."""
 
-    def __init__(self, robot: Robot, gripper: Any, part_mesh: Any, cell: Any, margin: float):
+    def __init__(self, robot: Robot, gripper: Gripper, part_mesh: TriangleMesh | None, cell: Cell | None,
+                 margin: float):
         self.robot, self.gripper, self.cell, self.margin = robot, gripper, cell, float(margin)
         model = robot.model
         self.model = model
@@ -115,7 +119,7 @@ class _SceneModel:
         self.env_ids: dict[str, int] = {}
         self.obstacle_ids: list[int] = []
         if cell is not None:
-            z = float(getattr(cell, "table_z", 0.0))
+            z = float(cell.table_z)
             # a coal Halfspace would be exact, but coal cannot prune BVH nodes against it (every
             # triangle of every link gets tested, ~150 us per link); a box TABLE_SIZE wide and deep
             # with its top face on the table plane is the same solid within reach of any arm
@@ -125,14 +129,14 @@ class _SceneModel:
                                                           coal.Box(*TABLE_SIZE)))
             self.env_ids[TABLE] = gid
             self.body[gid] = TABLE
-            for o in getattr(cell, "obstacles", ()) or ():
+            for o in cell.obstacles:
                 gid = gm.addGeometryObject(pin.GeometryObject(
                     f"obstacle:{o.name}", 0, 0, to_se3(self.T_base_world @ np.asarray(o.T_world_obstacle)),
                     obstacle_geometry(o)))
                 self.obstacle_ids.append(gid)
                 self.body[gid] = f"obstacle:{o.name}"
         self.has_part = part_mesh is not None
-        if self.has_part:
+        if part_mesh is not None:
             part_bvh = bvh(np.asarray(part_mesh.vertices), np.asarray(part_mesh.faces))
             gid = gm.addGeometryObject(pin.GeometryObject(PART, 0, 0, pin.SE3.Identity(), part_bvh))
             self.env_ids[PART] = gid
@@ -150,7 +154,7 @@ class _SceneModel:
                     "table_shrunk", 0, 0, to_se3(self.T_base_world @ T_world_table), coal.Box(*TABLE_SIZE)))
                 self.attached_env.append(gid)
                 self.body[gid] = TABLE
-                for o in getattr(cell, "obstacles", ()) or ():
+                for o in cell.obstacles:
                     gid = gm.addGeometryObject(pin.GeometryObject(
                         f"obstacle_shrunk:{o.name}", 0, 0, to_se3(self.T_base_world @ np.asarray(o.T_world_obstacle)),
                         obstacle_geometry(o, shrink=tol)))
@@ -161,7 +165,7 @@ class _SceneModel:
             self.body[r] = self.link(r)
         self._build_pairs()
         self.opening: float | None = None
-        self.owner: Any = None  # the variant whose part placements the model holds
+        self.owner: CollisionScene | None = None  # the variant whose part placements the model holds
 
     def link(self, gid: int) -> str:
         return self.model.frames[self.gm.geometryObjects[gid].parentFrame].name
@@ -247,17 +251,17 @@ class CollisionScene:
     Parameters
     ----------
     robot : Robot
-    gripper : object with ``body`` (shapes), ``fingers(opening)`` -> (-x jaw, +x jaw) shapes,
-        ``T_flange_tcp`` (4, 4) and ``max_opening`` (m) (see :mod:`grasplan.gripper`).
-    part_mesh : trimesh.Trimesh in the part frame (m), or None for no part.
+    gripper : Gripper
+        ``body`` (shapes), ``fingers(opening)`` -> (-x jaw, +x jaw) shapes, ``T_flange_tcp`` (4, 4)
+        and ``max_opening`` (m) (see :mod:`grasplan.gripper`).
+    part_mesh : TriangleMesh in the part frame (m) (a MeshData or a trimesh), or None for no part.
     T_world_part : (4, 4) part pose in the world.
-    cell : object with ``table_z`` (m) and ``obstacles`` (a :class:`grasplan.cell.Cell`), or None
-        for no table.
+    cell : Cell (``table_z`` (m) and ``obstacles``, :mod:`grasplan.cell`), or None for no table.
     margin : security margin (m) applied to every pair (0: exact contact).
     """
 
-    def __init__(self, robot: Robot, gripper: Any, part_mesh: Any = None, T_world_part=None,
-                 cell: Any = None, *, margin: float = 0.0):
+    def __init__(self, robot: Robot, gripper: Gripper, part_mesh: TriangleMesh | None = None,
+                 T_world_part: np.ndarray | None = None, cell: Cell | None = None, *, margin: float = 0.0):
         if part_mesh is not None and T_world_part is None:
             raise InputError("T_world_part (4, 4) is required with a part mesh")
         shared = _SceneModel(robot, gripper, part_mesh, cell, margin)
@@ -414,7 +418,7 @@ class CollisionScene:
         hits = self._hits(q, opening, True)
         return self._shared.kinds[hits[0]] if hits else None
 
-    def path_free(self, qs, opening: float | None = None, *, step: float = 0.01) -> bool:
+    def path_free(self, qs, opening: float | None = None, *, step: float = STEP) -> bool:
         """True when the piecewise-linear joint path qs (k, n) is collision-free, checked at every
         waypoint and at interpolated configurations so that no joint moves more than ``step`` rad
         between two checks (segment i is split into ceil(max|dq| / step) equal parts)."""
@@ -440,13 +444,11 @@ class CollisionScene:
                     return False
         return True
 
-    def path_collisions(self, qs, opening: float | None = None, *, step: float = 0.01
+    def path_collisions(self, qs, opening: float | None = None, *, step: float = STEP
                         ) -> tuple[int, list[tuple[str, str, str]]] | None:
         """The first colliding configuration of the path qs (k, n) densified at ``step`` rad, as
         ``(row in the densified path, colliding_pairs)``; None when the path is free. For reasons;
         use :meth:`path_free` to decide."""
-        from .paths import interpolate_path
-
         dense = interpolate_path(np.asarray(qs, dtype=float), step=step)
         for k, q in enumerate(dense):
             if not self.is_free(q, opening):
@@ -471,44 +473,6 @@ def no_path_reason(scene: CollisionScene, q_start, q_goal, opening: float, time_
             return f"{what} invalid: {describe_pairs(pairs, 2)}"
     return (f"start and goal valid; RRTConnect ran out of time ({time_limit:g} s x {attempts} attempts per query) "
             f"or its path failed the 0.01 rad re-check")
-
-
-def check_start(scene: CollisionScene, q_home=None, *, part_mesh: Any = None) -> None:
-    """The checks before planning; each raises (exit 3) with what to change.
-
-    1. the part (``part_mesh`` at ``scene.T_world_part``) reaches into the table or an obstacle by
-       more than :data:`grasplan.cell.PART_CONTACT_TOL` (:func:`grasplan.cell.check_part_placement`,
-       InputError with the depth in mm);
-    2. the robot's base (its mounted links) inside an obstacle (ConfigError);
-    3. ``q_home`` (default ``robot.q_home``) in collision with the jaws fully open (ConfigError
-       naming the two bodies).
-    """
-    from .cell import check_part_placement
-
-    robot, cell = scene.robot, scene.cell
-    if part_mesh is not None and cell is not None and scene.T_world_part is not None:
-        check_part_placement(part_mesh, scene.T_world_part, cell)
-    q = np.asarray(robot.q_home if q_home is None else q_home, dtype=np.float64)
-    pairs = scene.colliding_pairs(q, float(scene.gripper.max_opening))
-    if not pairs:
-        return
-    mounted = set(robot.mounted_links)
-    base = [(a, b) for a, b, k in pairs if k == "obstacle" and (a in mounted or b in mounted)]
-    if base:
-        a, b = base[0]
-        link, obst = (a, b) if a in mounted else (b, a)
-        raise ConfigError(f"the robot's base is inside {obst} ({link} collides with it): move or shrink the "
-                          f"obstacle in the cell YAML, or move the robot base (T_world_base)")
-    a, b, kind = pairs[0]
-    if kind == "table":
-        fix = "raise the robot base or lower the cell's table_z, or change q_home in the robot YAML"
-    elif kind == "obstacle":
-        fix = "move the obstacle in the cell YAML or change q_home in the robot YAML"
-    elif kind == "part":
-        fix = "move the part (part_xy, --part-pose) or change q_home in the robot YAML"
-    else:
-        fix = "change q_home in the robot YAML"
-    raise ConfigError(f"q_home: {describe_pairs(pairs)}: {fix}; every path starts at q_home")
 
 
 def _bisection_order(n: int) -> list[int]:

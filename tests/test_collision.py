@@ -11,7 +11,8 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from grasplan.antipodal import Candidates
-from grasplan.cell import Cell, load_cell, stable_pose
+from grasplan.cell import Cell, load_cell
+from grasplan.stable_poses import stable_pose
 from grasplan.collision import (
     GripperCollider,
     check_grasps,

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from grasplan.cell import load_cell, stable_pose
+from grasplan.cell import load_cell
+from grasplan.stable_poses import stable_pose
 from grasplan.collision import (
     GripperCollider,
     RayGrid,

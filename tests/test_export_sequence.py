@@ -553,7 +553,8 @@ def real_plan(tmp_path_factory):
     from test_viewer import BRACKET
 
     import grasplan
-    from grasplan.cell import load_cell, stable_pose
+    from grasplan.cell import load_cell
+    from grasplan.stable_poses import stable_pose
     from grasplan.mesh import load_part
     from grasplan.params import PlanParams
 

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from grasplan.cell import load_cell, stable_pose
+from grasplan.cell import load_cell
+from grasplan.stable_poses import stable_pose
 from grasplan.cli import main
 from grasplan.errors import InputError
 from grasplan.grasps import compute_grasps

@@ -257,7 +257,8 @@ def _flat_meshes():
 
 @pytest.mark.parametrize("name", list(_flat_meshes()))
 def test_flat_parts_lie_on_their_plane(name):
-    from grasplan.cell import Cell, stable_pose, stable_poses
+    from grasplan.cell import Cell
+    from grasplan.stable_poses import stable_pose, stable_poses
 
     v, f = _flat_meshes()[name]
     R0 = trimesh.transformations.rotation_matrix(0.7, [1, 2, 3])[:3, :3]  # tilted in the file
@@ -271,8 +272,8 @@ def test_flat_parts_lie_on_their_plane(name):
 
 
 def test_collinear_part_is_refused():
-    from grasplan.cell import stable_poses
     from grasplan.errors import InputError
+    from grasplan.stable_poses import stable_poses
 
     mesh = trimesh.Trimesh([[0, 0, 0], [0.01, 0, 0], [0.02, 0, 0]], [[0, 1, 2]], process=False)
     with pytest.raises(InputError, match="collinear"):
@@ -280,9 +281,9 @@ def test_collinear_part_is_refused():
 
 
 def _trimesh_poses(mesh):
-    from grasplan.cell import centre_of_mass
+    from grasplan.stable_poses import part_centre_of_mass
 
-    T, p = trimesh.poses.compute_stable_poses(mesh, center_mass=centre_of_mass(mesh), sigma=0.0, n_samples=1,
+    T, p = trimesh.poses.compute_stable_poses(mesh, center_mass=part_centre_of_mass(mesh), sigma=0.0, n_samples=1,
                                               threshold=0.0)
     down = np.round(np.einsum("kji,j->ki", T[:, :3, :3], [0, 0, -1.0]), 6) + 0.0
     o = np.lexsort((down[:, 2], down[:, 1], down[:, 0], -np.round(p, 9)))
@@ -293,7 +294,7 @@ def _trimesh_poses(mesh):
 @given(st.integers(min_value=0, max_value=2**31 - 1))
 def test_stable_poses_match_trimesh_on_random_convex_parts(seed):
     """Cross-check of the vectorised toppling model against trimesh's reference implementation."""
-    from grasplan.cell import stable_poses
+    from grasplan.stable_poses import stable_poses
 
     rng = np.random.default_rng(seed)
     mesh = trimesh.convex.convex_hull(rng.normal(size=(int(rng.integers(8, 60)), 3)) * rng.uniform(0.005, 0.05, 3))
@@ -305,7 +306,7 @@ def test_stable_poses_match_trimesh_on_random_convex_parts(seed):
 
 @pytest.mark.parametrize("name", ["box.stl", "bracket.stl", "gear.stl"])
 def test_stable_poses_match_trimesh_on_example_parts(example_part, name):
-    from grasplan.cell import stable_poses
+    from grasplan.stable_poses import stable_poses
 
     mesh = load_part(example_part(name)).mesh
     R, p = stable_poses(mesh)

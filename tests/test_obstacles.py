@@ -18,9 +18,7 @@ from grasplan.cell import (
     BIN_NAMES,
     Cell,
     cell_from_dict,
-    check_part_placement,
     load_cell,
-    stable_pose,
 )
 from grasplan.cli import main
 from grasplan.collision import GripperCollider
@@ -30,7 +28,9 @@ from grasplan.params import PlanParams
 from grasplan.transforms import parse_place
 from grasplan.planning import plan
 from grasplan.robot import load_robot
-from grasplan.scene import CollisionScene, check_start
+from grasplan.scene import CollisionScene
+from grasplan.stable_poses import stable_pose
+from grasplan.start_checks import check_part_placement, check_start
 
 WALL = {"name": "wall", "box": {"size": [0.02, 0.40, 0.30]}, "T": {"xyz": [0.53, 0.0, 0.15], "rpy_deg": [0, 0, 0]}}
 POST = {"name": "post", "cylinder": {"radius": 0.02, "length": 0.30}, "T": {"xyz": [0.40, -0.10, 0.15]}}
@@ -398,7 +398,7 @@ def test_pose_index_all_and_the_exit_4_hint(tmp_path):
     assert r.exit_code == 0, r.output
     doc = json.loads((tmp_path / "all.json").read_text())
     poses = {p["pose_index"]: p for p in doc["poses"]["poses"]}
-    from grasplan.cell import stable_poses
+    from grasplan.stable_poses import stable_poses
 
     prob = stable_poses(trimesh.load(stl))[1]
     assert set(poses) == {k for k, pr in enumerate(prob) if pr >= 0.02} and min(prob) < 0.02 <= prob[3]

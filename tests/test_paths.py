@@ -9,7 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from grasplan.paths import interpolate_path, path_free_fn, plan_joint_path
+from grasplan.interpolation import interpolate_path
+from grasplan.paths import path_free_fn, plan_joint_path
 
 
 def dense(path, step=0.01):

@@ -369,7 +369,8 @@ def test_pepper_pick_and_place_part_touches_only_the_jaws(paper):
 
     part = load_part(paper("SileanePepper.stl"))
     prm = PlanParams(top=2, seed=0, score_weights=FAST_WEIGHTS)
-    from grasplan.cell import load_cell, stable_pose
+    from grasplan.cell import load_cell
+    from grasplan.stable_poses import stable_pose
 
     T_rest = stable_pose(part.mesh, load_cell("table"))
     res = plan(part, "ur5", planning=prm, place=_place_of(T_rest))

@@ -8,13 +8,14 @@ import numpy as np
 import pytest
 import trimesh
 
-from grasplan.cell import load_cell, stable_pose
+from grasplan.cell import load_cell
 from grasplan.errors import InputError
 from grasplan.gripper import load_gripper
 from grasplan.ik import solve_ik
 from grasplan.mesh import load_part
 from grasplan.robot import load_robot
 from grasplan.scene import CollisionScene
+from grasplan.stable_poses import stable_pose
 
 
 @pytest.fixture(scope="module")

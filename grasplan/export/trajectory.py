@@ -40,8 +40,8 @@ CHECK_STEP = 0.01      #: rad, collision check interpolation step
 
 
 def densify(path: np.ndarray, step: float) -> np.ndarray:
-    """The planner's densifier (:func:`grasplan.paths.interpolate_path`)."""
-    from ..paths import interpolate_path
+    """The planner's densifier (:func:`grasplan.interpolation.interpolate_path`)."""
+    from ..interpolation import interpolate_path
 
     return interpolate_path(path, step=step)
 
@@ -70,7 +70,7 @@ def time_parameterize(path: np.ndarray, vmax: np.ndarray, amax: np.ndarray) -> d
     import toppra.algorithm as algo
     import toppra.constraint as constraint
 
-    from ..paths import interpolate_path
+    from ..interpolation import interpolate_path
 
     knots, kidx = interpolate_path(path, step=KNOT_STEP, return_index=True)
     if len(knots) < 2:

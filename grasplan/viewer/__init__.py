@@ -155,10 +155,10 @@ def _load_link_mesh(mesh_path: str, scale) -> tuple[np.ndarray, np.ndarray] | No
 def densify_path(path: np.ndarray, *, step: float = PATH_STEP_RAD, max_samples: int = MAX_SAMPLES_PER_PATH):
     """Joint path (k, n) -> (samples (s, n), index of each original waypoint in the samples (k,)).
 
-    The planner's densifier (:func:`grasplan.paths.interpolate_path`) at ``step`` rad per joint,
+    The planner's densifier (:func:`grasplan.interpolation.interpolate_path`) at ``step`` rad per joint,
     the step grown so that s <= max_samples (when k <= max_samples).
     """
-    from ..paths import interpolate_path
+    from ..interpolation import interpolate_path
 
     P = np.asarray(path, dtype=np.float64)
     if P.ndim != 2 or len(P) == 0:

@@ -1,0 +1,43 @@
+"""Joint-path interpolation: the one densifier every path check uses (:func:`interpolate_path`)
+and its default resolution :data:`STEP`. Plain NumPy: the collision scene, the planners, the
+exports and the viewer all densify here.
+
+Joint vectors are ``(n,)`` float64 radians; paths are ``(k, n)`` arrays, first row the start.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+#: default interpolation resolution (rad, per joint) of every path check
+STEP = 0.01
+
+
+def interpolate_path(path: np.ndarray, *, step: float = STEP, return_index: bool = False):
+    """The one joint-path densifier: every segment of a ``(k, n)`` path split into
+    ``ceil(max|dq| / step)`` equal parts (a repeated waypoint adds no point).
+
+    Returns ``(m, n)`` with the original waypoints included (first and last rows unchanged); the
+    largest per-joint change between consecutive rows is ``<= step``. With ``return_index`` also
+    the row of each original waypoint in the output, ``(k,)``.
+    """
+    path = np.asarray(path, dtype=np.float64)
+    if path.ndim != 2 or len(path) == 0:
+        raise ValueError(f"path must have shape (k, n) with k >= 1, got {path.shape}")
+    if not step > 0:
+        raise ValueError(f"step must be > 0 rad, got {step!r}")
+    keep = np.concatenate([[True], np.max(np.abs(np.diff(path, axis=0)), axis=1) > 1e-12]) if len(path) > 1 \
+        else np.ones(1, dtype=bool)
+    kept = path[keep]
+    if len(kept) < 2:
+        out = kept.copy()
+        return (out, np.zeros(len(path), dtype=np.int64)) if return_index else out
+    d = np.diff(kept, axis=0)
+    pieces = np.maximum(1, np.ceil(np.max(np.abs(d), axis=1) / step - 1e-12).astype(np.int64))
+    seg = np.repeat(np.arange(len(d)), pieces)
+    start = np.repeat(np.cumsum(pieces) - pieces, pieces)
+    frac = (np.arange(len(seg)) - start) / pieces[seg]
+    out = np.vstack([kept[:1], (kept[seg] + ((frac + 1.0 / pieces[seg])[:, None]) * d[seg])])
+    if not return_index:
+        return out
+    row_of_kept = np.concatenate([[0], np.cumsum(pieces)])
+    return out, row_of_kept[np.cumsum(keep) - 1]
