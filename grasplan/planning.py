@@ -363,7 +363,8 @@ def plan(
     from .cell import check_part_placement, load_cell
     from .grasps import compute_grasps
     from .gripper import load_gripper
-    from .robot import Robot, load_robot
+    from .robot import load_robot
+    from .robot_model import Robot
     from .scene import CollisionScene
 
     t = time.perf_counter()
@@ -438,7 +439,8 @@ def plan_poses(part: Part | str | os.PathLike, robot=DEFAULT_ROBOT, *, grasps: G
     from dataclasses import replace as _replace
 
     from .errors import ConfigError, InputError
-    from .robot import Robot, load_robot
+    from .robot import load_robot
+    from .robot_model import Robot
 
     if "T_world_part" in kwargs and kwargs["T_world_part"] is not None:
         raise InputError("--pose-index all: the resting poses replace --part-pose; give one or the other")

@@ -64,7 +64,7 @@ import pinocchio as pin
 
 from .errors import ConfigError, InputError
 from .geometry import bvh, obstacle_geometry, shape_geometry
-from .robot import Robot
+from .robot_model import Robot
 from .transforms import check_transform, to_se3, translation
 
 TABLE = "table"
