@@ -60,7 +60,7 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
 from .errors import ConfigError, InputError
-from .gripper import Gripper
+from .gripper.model import Gripper
 from .mass import MassProperties
 from .scoring import (  # noqa: F401
     DEFAULT_SCORING,

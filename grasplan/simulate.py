@@ -50,7 +50,7 @@ import numpy as np
 import trimesh
 
 from .errors import InputError
-from .gripper import Box, Gripper
+from .gripper.model import Box, Gripper
 from .io import write_atomic_bytes
 from .mass import DEFAULT_DENSITY, MassProperties, mass_properties
 from .quality import CONTACTS_PER_GRIP

@@ -6,7 +6,8 @@ import pytest
 import yaml
 
 from grasplan.errors import ConfigError
-from grasplan.gripper import Box, MeshShape, available_grippers, load_gripper
+from grasplan.gripper import available_grippers, load_gripper
+from grasplan.gripper.model import Box, MeshShape
 
 
 def _span(shape):
