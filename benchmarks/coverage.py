@@ -166,7 +166,7 @@ class Checker:
 
     def _shapes(self, width):
         """[(kind, geometry, T_tcp_shape)] of the body and both swept fingers (TCP frame)."""
-        from grasplan.gripper import Box
+        from grasplan.gripper.model import Box
 
         out = [(s.extents, s.T_tcp_box) if isinstance(s, Box) else (s.vertices, s.faces) for s in self.g.body]
         f = self.g.finger

@@ -53,7 +53,7 @@ if TYPE_CHECKING:  # imported where a trimesh is built (obstacle primitives, mes
 
 from .cell import Cell
 from .geometry import bvh, obstacle_geometry
-from .gripper import Box, Gripper
+from .gripper.model import Box, Gripper
 from .meshdata import convex_hull
 from .transforms import check_transform
 

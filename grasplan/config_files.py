@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 
 from .errors import ConfigError
 
@@ -77,13 +78,14 @@ def search_path(kind: str) -> list[Path]:
     folders: list[Path] = []
     for d in _CONFIG_DIRS.get():
         folders += _roots_sub(d, sub)
-    for d in os.environ.get(ENV_VAR, "").split(os.pathsep):
-        if d.strip():
-            folders += _roots_sub(Path(d).expanduser(), sub)
+    for entry in os.environ.get(ENV_VAR, "").split(os.pathsep):
+        if entry.strip():
+            folders += _roots_sub(Path(entry).expanduser(), sub)
     cwd = Path.cwd()
     folders.append(cwd / "robots" if sub == "robots" else cwd / "configs" / sub)
     folders.append(PACKAGED_DIR / "robots" if sub == "robots" else PACKAGED_DIR / "configs" / sub)
-    seen, out = set(), []
+    seen: set[Path] = set()
+    out: list[Path] = []
     for f in folders:
         key = f.resolve() if f.exists() else f
         if key not in seen:
@@ -94,7 +96,7 @@ def search_path(kind: str) -> list[Path]:
 
 def available(kind: str) -> list[str]:
     """Names of the ``kind`` descriptions found anywhere on the search path, sorted."""
-    names = set()
+    names: set[str] = set()
     for folder in search_path(kind):
         if folder.is_dir():
             names.update(p.stem for p in folder.glob("*.yaml"))
@@ -147,11 +149,10 @@ def resolve_yaml(kind: str, name_or_path: str | os.PathLike) -> Path:
 MAX_CONFIG_BYTES = 1_000_000
 
 
-def read_yaml(kind: str, path: Path):
-    """Parse a gripper/cell/robot YAML with ``yaml.safe_load`` (no Python tags); ConfigError for an
-    unreadable, binary, oversized or invalid file."""
-    import yaml
-
+def read_yaml(kind: str, path: Path) -> Any:
+    """Parse a gripper/cell/robot YAML with ``yaml.safe_load`` (no Python tags): whatever the
+    document holds, for the caller to validate; ConfigError for an unreadable, binary, oversized
+    or invalid file."""
     try:
         if path.stat().st_size > MAX_CONFIG_BYTES:
             raise ConfigError(f"{path}: {path.stat().st_size} bytes is too large for a {kind} file "
@@ -198,15 +199,15 @@ def parse_number_expr(text: str) -> float:
         pos = m.end()
     i = 0
 
-    def peek():
+    def peek() -> str | None:
         return tokens[i][1] if i < len(tokens) else None
 
-    def take():
+    def take() -> tuple[str, str]:
         nonlocal i
         i += 1
         return tokens[i - 1]
 
-    def expr(depth):
+    def expr(depth: int) -> float:
         v = term(depth)
         while peek() in ("+", "-"):
             op = take()[1]
@@ -214,7 +215,7 @@ def parse_number_expr(text: str) -> float:
             v = v + r if op == "+" else v - r
         return v
 
-    def term(depth):
+    def term(depth: int) -> float:
         v = unary(depth)
         while peek() in ("*", "/"):
             op = take()[1]
@@ -224,7 +225,7 @@ def parse_number_expr(text: str) -> float:
             v = v * r if op == "*" else v / r
         return v
 
-    def unary(depth):
+    def unary(depth: int) -> float:
         if depth > 8:
             raise ValueError("nested too deep")
         if peek() in ("+", "-"):
@@ -233,7 +234,7 @@ def parse_number_expr(text: str) -> float:
             return -v if op == "-" else v
         return atom(depth)
 
-    def atom(depth):
+    def atom(depth: int) -> float:
         if i >= len(tokens):
             raise ValueError("unexpected end")
         kind, val = take()
@@ -257,7 +258,7 @@ def parse_number_expr(text: str) -> float:
     return out
 
 
-def config_number(value: Any, where: str, *, positive: bool = False, nonneg: bool = False,
+def config_number(value: object, where: str, *, positive: bool = False, nonneg: bool = False,
                   max_abs: float = 1e6) -> float:
     """A float from a YAML scalar: a number, or an expression of numbers and ``pi`` (``-pi/2``).
 
@@ -286,7 +287,7 @@ def config_number(value: Any, where: str, *, positive: bool = False, nonneg: boo
     return out
 
 
-def config_vector(value: Any, where: str, n: int | None = 3, *, positive: bool = False) -> np.ndarray:
+def config_vector(value: object, where: str, n: int | None = 3, *, positive: bool = False) -> np.ndarray:
     """``(n,)`` float64 from a YAML list of numbers (each read by :func:`config_number`)."""
     if not isinstance(value, (list, tuple)):
         raise ConfigError(f"{where}: expected a list of {n or 'some'} numbers, got {str(value)[:60]!r}")
@@ -298,7 +299,7 @@ def config_vector(value: Any, where: str, n: int | None = 3, *, positive: bool =
                     dtype=np.float64)
 
 
-def read_config_mesh(spec: dict, base: Path, where: str, owner: str) -> tuple[np.ndarray, np.ndarray, Path]:
+def read_config_mesh(spec: dict[str, Any], base: Path, where: str, owner: str) -> tuple[np.ndarray, np.ndarray, Path]:
     """``(vertices (n, 3) m, faces (m, 3), path)`` of the mesh file a config YAML names in ``spec``
     (``path`` relative to ``base``, the YAML's folder; ``scale``, default 1, to metres). ``where``
     names the field in errors, ``owner`` the YAML ("gripper", "cell"). Any reader error, a missing

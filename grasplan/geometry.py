@@ -8,7 +8,7 @@ import numpy as np
 
 from .cell import Obstacle
 from .errors import InputError
-from .gripper import Box, MeshShape, Shape
+from .gripper.model import Box, MeshShape, Shape
 
 
 def bvh(vertices: np.ndarray, faces: np.ndarray) -> coal.BVHModelOBBRSS:

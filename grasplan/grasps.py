@@ -18,7 +18,8 @@ from .cell import Cell, load_cell
 from .collision import GripperCollider
 from .errors import InputError
 from .frames import GraspFrames, grasp_frames
-from .gripper import Gripper, load_gripper
+from .gripper import load_gripper
+from .gripper.model import Gripper
 from .mesh import Part
 from .params import DEFAULT_CELL, DEFAULT_GRIPPER, CandidateParams, GraspParams
 from .result import GRASP_STATUSES as STATUSES

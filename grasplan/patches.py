@@ -29,7 +29,7 @@ import math
 import numpy as np
 
 from .errors import ConfigError
-from .gripper import Gripper
+from .gripper.model import Gripper
 from .meshdata import TriangleMesh, edge_adjacency
 from .polygons import clip_polygons, equivalent_widths, polygon_moments
 

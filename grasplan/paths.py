@@ -35,7 +35,7 @@ import numpy as np
 
 from .ik import get_solver
 from .interpolation import STEP, interpolate_path
-from .robot import Robot
+from .robot_model import Robot
 from .scene import CollisionScene
 from .transforms import check_transform
 

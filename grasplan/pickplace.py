@@ -39,7 +39,7 @@ from .ik import solve_ik
 from .interpolation import STEP, interpolate_path
 from .paths import approach_path_reason, plan_joint_path
 from .result import GripperEvent, Motion
-from .robot import Robot
+from .robot_model import Robot
 from .scene import CollisionScene
 from .status import Status
 

@@ -51,7 +51,8 @@ import numpy as np
 from .cell import Cell, load_cell
 from .errors import ConfigError, InputError
 from .grasps import GraspResult, LazyGrasps, compute_grasps
-from .gripper import Gripper, load_gripper
+from .gripper import load_gripper
+from .gripper.model import Gripper
 from .ik import solve_ik
 from .mass import MassProperties
 from .meshdata import TriangleMesh
@@ -75,7 +76,8 @@ from .pickplace import (
     transfer_path,
 )
 from .result import Motion, Params, PlanResult
-from .robot import Robot, load_robot
+from .robot import load_robot
+from .robot_model import Robot
 from .scene import CollisionScene, describe_pairs, no_path_reason
 from .scoring import ScoringConfig, distinct_order, score_grasps
 from .stable_poses import stable_pose, stable_poses

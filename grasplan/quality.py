@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .errors import InputError
-from .gripper import Gripper
+from .gripper.model import Gripper
 from .mass import MassProperties, mass_properties
 from .meshdata import TriangleMesh
 from .patches import contact_patches, pad_rectangle

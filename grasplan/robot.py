@@ -1,20 +1,9 @@
-"""Robot models: a YAML description (``robots/<name>.yaml``) around a URDF/SRDF pair.
+"""Robot descriptions: a YAML file (``robots/<name>.yaml``) around a URDF/SRDF pair -> :class:`Robot`.
 
-A :class:`Robot` is loaded ONCE per name (:func:`load_robot` caches it) and is immutable and
-shared: it holds the Pinocchio ``Model`` and collision/visual ``GeometryModel`` but no ``Data``.
-Solvers (IK, collision scenes) own their scratch ``pin.Data``. :meth:`Robot.fk` and
-:meth:`Robot.link_poses` use a private per-thread ``Data`` for convenience.
-
-Frames
-------
-* The Pinocchio model's universe is the robot's URDF root link (``base_link`` for the UR5,
-  ``panda_link0`` for the Panda). ``T_world_base`` places that root link in the world
-  (identity for both shipped robots), so ``fk(q) = T_world_base @ T_base_tool(q)``.
-* Extra fixed frames listed in the YAML's ``frames`` are added to the model at load time. The
-  UR5 URDF of example-robot-data already defines ``tool0`` and ``base`` as ``ur_description`` does
-  for the UR controller: ``tool0`` = ``wrist_3_link``
-  translated (0, 0.0823, 0) and rotated -90 deg about x (z along the flange normal), ``base`` =
-  ``base_link`` rotated 180 deg about z (the controller's base frame, used for URScript poses).
+A :class:`~grasplan.robot_model.Robot` is loaded ONCE per name (:func:`load_robot` caches it) and
+is immutable and shared: it holds the Pinocchio ``Model`` and collision/visual ``GeometryModel``
+but no ``Data`` (frames and conventions: :mod:`grasplan.robot_model`). ``kind`` names the robot's
+IK family and must be registered (:mod:`grasplan.ik.registry`).
 
 YAML schema (all lengths m, angles rad; angles may be written as expressions such as ``-pi/2``)::
 
@@ -24,7 +13,8 @@ YAML schema (all lengths m, angles rad; angles may be written as expressions suc
                                     #   robots/ folder; without it, relative to the YAML file
     urdf: ur_description/urdf/ur5_robot.urdf    # required
     srdf: ur_description/srdf/ur5.srdf          # optional: disabled collision pairs
-    kind: ur                        # "ur" (closed-form IK fast path) or "generic" (CLIK only)
+    kind: ur                        # IK family: "ur" (closed-form IK fast path) or "generic" (CLIK
+                                    #   only, the default); any family in grasplan.ik.registry
     tool_frame: tool0               # frame the gripper flange is mounted on (required)
     frames:                         # optional extra fixed frames added to the model
       - {name: tool0, parent: wrist_3_link, xyz: [0, 0.0823, 0], rpy: [-pi/2, 0, 0]}
@@ -36,11 +26,11 @@ YAML schema (all lengths m, angles rad; angles may be written as expressions suc
 """
 from __future__ import annotations
 
+import hashlib
 import importlib.metadata
 import sys
-import threading
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass, field
+from dataclasses import replace
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
@@ -50,8 +40,10 @@ import pinocchio as pin
 import yaml
 
 from .config_files import available, config_number, config_vector, resolve_yaml
-from .errors import ConfigError, InputError, unknown_name
+from .errors import ConfigError, unknown_name
+from .ik.registry import get_family  # importing grasplan.ik registers the built-in families
 from .params import DEFAULT_ROBOT
+from .robot_model import DEFAULT_IK_FAMILY, Robot, read_only
 from .transforms import to_se3, xyz_rpy
 
 _PKG_SHARE = "cmeel.prefix/share"
@@ -89,198 +81,28 @@ def package_share_dir(package: str = "example-robot-data") -> Path:
 # --------------------------------------------------------------------------------------------
 # Small YAML helpers
 # --------------------------------------------------------------------------------------------
-def _frozen(a: np.ndarray) -> np.ndarray:
-    a = np.array(a, dtype=float)
-    a.setflags(write=False)
-    return a
-
-
 def parse_srdf_disabled_pairs(srdf_path: Path) -> tuple[tuple[str, str], ...]:
     """``<disable_collisions link1 link2>`` entries of an SRDF, each pair sorted."""
     try:
         root = ET.parse(srdf_path).getroot()
     except (OSError, ET.ParseError) as exc:
         raise ConfigError(f"cannot read SRDF {srdf_path}: {exc}") from None
-    pairs = set()
+    pairs: set[tuple[str, str]] = set()
     for el in root.iter("disable_collisions"):
         a, b = el.get("link1"), el.get("link2")
         if a and b:
-            pairs.add(tuple(sorted((a, b))))
+            pairs.add((a, b) if a <= b else (b, a))
     return tuple(sorted(pairs))
 
 
 # --------------------------------------------------------------------------------------------
-# Robot
+# Robot geometry
 # --------------------------------------------------------------------------------------------
-_VISUAL_LOCK = threading.Lock()
-
-
 def _remove_link_geometry(gm: pin.GeometryModel, model: pin.Model, link: str) -> None:
     """Drop the geometry objects of ``gm`` attached to the frame ``link`` of ``model``."""
     names = [str(g.name) for g in gm.geometryObjects if model.frames[g.parentFrame].name == link]
     for gname in names:
         gm.removeGeometryObject(gname)
-
-
-@dataclass(frozen=True, eq=False)
-class Robot:
-    """An immutable, shared robot model (load with :func:`load_robot`).
-
-    Arrays are read-only float64: ``q_home``, ``lower``, ``upper``, ``velocity_limit`` (n,),
-    ``T_world_base`` (4, 4). ``disabled_pairs`` holds sorted (link, link) name pairs from the
-    SRDF. ``mounted_links`` are exempt from table checks; ``kind`` is ``"ur"`` or ``"generic"``.
-    """
-
-    name: str
-    model: pin.Model
-    collision_model: pin.GeometryModel
-    joint_names: tuple[str, ...]
-    q_home: np.ndarray
-    lower: np.ndarray
-    upper: np.ndarray
-    velocity_limit: np.ndarray
-    tool_frame: str
-    tool_frame_id: int
-    T_world_base: np.ndarray
-    disabled_pairs: tuple[tuple[str, str], ...]
-    urdf_path: Path
-    srdf_path: Path | None
-    package_dirs: tuple[str, ...]
-    mounted_links: tuple[str, ...] = ()
-    kind: str = "generic"
-    config_path: Path | None = None
-    source_yaml: str = ""                 #: the robot YAML's text (embedded in plans)
-    package: str | None = None            #: the package holding the URDF/SRDF (e.g. example-robot-data)
-    joint_sign: np.ndarray | None = None  #: (n,) controller angle [deg] = sign * degrees(q) + offset_deg
-    joint_offset_deg: np.ndarray | None = None
-    controller_base_frame: str | None = None  #: model frame of the controller's base (UR: "base")
-    _tls: threading.local = field(default_factory=threading.local, repr=False, compare=False)
-    #: builds the visual geometry on first use (:attr:`visual_model`): the UR5's visual meshes take
-    #: 0.33 s to load, 95 % of building the robot, and only a viewer asking for them needs them
-    _visual_loader: object = field(default=None, repr=False, compare=False)
-    _visual: list = field(default_factory=list, repr=False, compare=False)
-
-    # ---- basic properties -------------------------------------------------------------------
-    @property
-    def visual_model(self) -> pin.GeometryModel:
-        """The URDF's visual geometry, built on first use (same joints, locks and removed links
-        as :attr:`collision_model`)."""
-        if not self._visual:
-            with _VISUAL_LOCK:
-                if not self._visual:
-                    self._visual.append(self._visual_loader() if self._visual_loader is not None
-                                        else pin.GeometryModel())
-        return self._visual[0]
-
-    @property
-    def nq(self) -> int:
-        return int(self.model.nq)
-
-    @property
-    def tool_joint_id(self) -> int:
-        """Index of the joint the tool frame (and the gripper) moves with."""
-        return int(self.model.frames[self.tool_frame_id].parentJoint)
-
-    @property
-    def T_joint_tool(self) -> np.ndarray:
-        """(4, 4) placement of the tool frame in its parent joint's frame."""
-        return self.model.frames[self.tool_frame_id].placement.homogeneous.copy()
-
-    def new_data(self) -> pin.Data:
-        """A fresh scratch ``pin.Data`` for a solver to own."""
-        return self.model.createData()
-
-    def _data(self) -> pin.Data:
-        d = getattr(self._tls, "data", None)
-        if d is None:
-            d = self._tls.data = self.model.createData()
-        return d
-
-    def check_q(self, q, *, where: str = "q") -> np.ndarray:
-        """``q`` as a float (n,) array; raises InputError on a wrong shape or non-finite values."""
-        q = np.asarray(q, dtype=float)
-        if q.shape != (self.nq,):
-            raise InputError(f"{where}: expected shape ({self.nq},) for robot {self.name!r}, got {q.shape}")
-        if not np.all(np.isfinite(q)):
-            raise InputError(f"{where}: contains NaN/inf")
-        return q
-
-    def within_limits(self, q, *, tol: float = 1e-9) -> bool | np.ndarray:
-        """True where q (n,) or (k, n) lies within [lower - tol, upper + tol]."""
-        q = np.asarray(q, dtype=float)
-        ok = np.all((q >= self.lower - tol) & (q <= self.upper + tol), axis=-1)
-        return bool(ok) if ok.ndim == 0 else ok
-
-    # ---- kinematics ---------------------------------------------------------------------------
-    def fk(self, q) -> np.ndarray:
-        """T_world_tool (4, 4) for joint vector q (n,)."""
-        q = self.check_q(q)
-        d = self._data()
-        pin.forwardKinematics(self.model, d, q)
-        M = pin.updateFramePlacement(self.model, d, self.tool_frame_id)
-        return self.T_world_base @ M.homogeneous
-
-    def fk_batch(self, qs) -> np.ndarray:
-        """T_world_tool (k, 4, 4) for qs (k, n)."""
-        qs = np.asarray(qs, dtype=float)
-        if qs.ndim != 2 or qs.shape[1] != self.nq:
-            raise InputError(f"qs: expected shape (k, {self.nq}), got {qs.shape}")
-        return np.stack([self.fk(q) for q in qs]) if len(qs) else np.zeros((0, 4, 4))
-
-    def frame_pose(self, q, frame: str) -> np.ndarray:
-        """T_world_frame (4, 4) of any model frame (e.g. ``"base"`` or ``"wrist_3_link"``)."""
-        q = self.check_q(q)
-        if not self.model.existFrame(frame):
-            raise unknown_name("frame", frame, [f.name for f in self.model.frames])
-        d = self._data()
-        pin.forwardKinematics(self.model, d, q)
-        M = pin.updateFramePlacement(self.model, d, self.model.getFrameId(frame))
-        return self.T_world_base @ M.homogeneous
-
-    def link_poses(self, q, *, which: str = "collision") -> list[tuple[str, np.ndarray, str, np.ndarray]]:
-        """For the viewer: ``[(geometry_name, T_world_geom (4,4), mesh_path, mesh_scale (3,))]``.
-
-        ``which`` = ``"collision"`` (STL meshes, default) or ``"visual"``. ``mesh_path`` is ""
-        for primitive shapes (e.g. the UR5's tiny ``ee_link`` box).
-        """
-        q = self.check_q(q)
-        gm = {"collision": self.collision_model, "visual": self.visual_model}.get(which)
-        if gm is None:
-            raise InputError(f"which: expected 'collision' or 'visual', got {which!r}")
-        d = self._data()
-        pin.forwardKinematics(self.model, d, q)
-        out = []
-        for g in gm.geometryObjects:
-            T = self.T_world_base @ (d.oMi[g.parentJoint] * g.placement).homogeneous
-            mesh = str(g.meshPath or "")
-            if mesh.upper() in ("BOX", "SPHERE", "CYLINDER", "CAPSULE", "CONE") or not Path(mesh).is_file():
-                mesh = ""  # a primitive (pinocchio names it "BOX" etc.)
-            out.append((g.name, T, mesh, np.array(g.meshScale, dtype=float)))
-        return out
-
-    def link_name(self, geom: pin.GeometryObject) -> str:
-        """The URDF link a geometry object belongs to."""
-        return self.model.frames[geom.parentFrame].name
-
-    def to_json(self, *, source: bool = False) -> dict:
-        """The ``robot`` block of a plan; with ``source`` also where the model came from (package,
-        URDF/SRDF paths relative to it, the YAML text), so :func:`robot_from_json` rebuilds it."""
-        out = {"name": self.name, "joint_names": list(self.joint_names),
-               "T_world_base": self.T_world_base.tolist(), "q_home": self.q_home.tolist()}
-        if source:
-            out["source"] = {"package": self.package, "urdf": str(self.urdf_path),
-                             "srdf": str(self.srdf_path) if self.srdf_path else None,
-                             "yaml_path": str(self.config_path) if self.config_path else None,
-                             "yaml": self.source_yaml}
-        return out
-
-    def T_world_controller_base(self) -> np.ndarray:
-        """(4, 4) pose of the controller's base frame (``controller_base_frame``, else the model root)."""
-        if not self.controller_base_frame:
-            return self.T_world_base.copy()
-        d = self.model.createData()
-        pin.framesForwardKinematics(self.model, d, pin.neutral(self.model))
-        return self.T_world_base @ d.oMf[self.model.getFrameId(self.controller_base_frame)].homogeneous
 
 
 # --------------------------------------------------------------------------------------------
@@ -291,12 +113,10 @@ def available_robots() -> list[str]:
     return available("robot")
 
 
-def robot_from_json(d, *, where: str = "robot") -> "Robot":
+def robot_from_json(d: object, *, where: str = "robot") -> Robot:
     """Rebuild the robot a plan was made for from its embedded ``source`` (the YAML text; URDF/SRDF
     from the recorded package, else the recorded paths). Checks joint names and q_home against the
     plan's ``robot`` block."""
-    import hashlib
-
     if not isinstance(d, dict) or not isinstance(d.get("source"), dict) or not isinstance(d["source"].get("yaml"), str):
         raise ConfigError(f"{where}: the plan embeds no robot source (written by an older grasplan?); re-run "
                           "`grasplan plan` to get a self-contained plan")
@@ -325,9 +145,8 @@ def robot_from_json(d, *, where: str = "robot") -> "Robot":
 
 
 @lru_cache(maxsize=8)
-def _from_json_cached(key: str, text: str, yaml_dir: str, fallback: tuple, yaml_path: str) -> "Robot":
-    from dataclasses import replace
-
+def _from_json_cached(key: str, text: str, yaml_dir: str, fallback: tuple[tuple[str, str], ...],
+                      yaml_path: str) -> Robot:
     robot = _build_robot_text(text, "embedded robot description", Path(yaml_dir) if yaml_dir else None, dict(fallback))
     return replace(robot, config_path=Path(yaml_path) if yaml_path else None)
 
@@ -354,7 +173,7 @@ def _load_cached(key: str, path: str, mtime_ns: int, size: int) -> Robot:
     return _build_robot(Path(path))
 
 
-def _field(cfg: dict, name: str, where: Path, *, required: bool = True, default: Any = None):
+def _field(cfg: dict[str, Any], name: str, where: Path | str, *, required: bool = True, default: Any = None) -> Any:
     if name not in cfg:
         if required:
             raise ConfigError(f"{where}: missing required field {name!r}")
@@ -370,7 +189,8 @@ def _build_robot(path: Path) -> Robot:
     return _build_robot_text(text, path, path.parent)
 
 
-def _build_robot_text(text: str, path: Path | str, yaml_dir: Path | None, urdf_fallback: dict | None = None) -> Robot:
+def _build_robot_text(text: str, path: Path | str, yaml_dir: Path | None,
+                      urdf_fallback: dict[str, str] | None = None) -> Robot:
     """Build a robot from the YAML ``text``; ``path`` labels errors, relative URDF/SRDF paths are
     resolved against ``yaml_dir`` (or, when that folder is gone, ``urdf_fallback``'s recorded paths)."""
     if len(text) > 1_000_000:
@@ -391,9 +211,8 @@ def _build_robot_text(text: str, path: Path | str, yaml_dir: Path | None, urdf_f
     name = _field(cfg, "name", path)
     if not isinstance(name, str) or not name:
         raise ConfigError(f"{path}: field 'name' must be a non-empty string")
-    kind = _field(cfg, "kind", path, required=False, default="generic")
-    if kind not in ("ur", "generic"):
-        raise ConfigError(f"{path}: field 'kind' must be 'ur' or 'generic', got {kind!r}")
+    kind = _field(cfg, "kind", path, required=False, default=DEFAULT_IK_FAMILY)
+    family = get_family(kind, where=f"field 'kind' in {path}")
 
     package = _field(cfg, "package", path, required=False)
     if package is not None:
@@ -418,6 +237,8 @@ def _build_robot_text(text: str, path: Path | str, yaml_dir: Path | None, urdf_f
         return p
 
     urdf_path = _file("urdf", True)
+    if urdf_path is None:
+        raise ConfigError(f"{path}: field 'urdf' must be a path string, got null")
     srdf_path = _file("srdf", False)
 
     try:  # the collision geometry now; the visual geometry when first asked for (Robot.visual_model)
@@ -522,8 +343,8 @@ def _build_robot_text(text: str, path: Path | str, yaml_dir: Path | None, urdf_f
         raise ConfigError(f"{path}: controller_joint_map.sign: each entry must be 1 or -1, got {sign.tolist()}")
     offset = config_vector(cmap.get("offset_deg", [0] * model.nq), f"{path}: controller_joint_map.offset_deg", model.nq)
     base_frame = _field(cfg, "controller_base_frame", path, required=False, default=None)
-    if base_frame is None and kind == "ur" and model.existFrame("base"):
-        base_frame = "base"  # the UR controller's base frame (ur_description)
+    if base_frame is None and family.controller_base_frame and model.existFrame(family.controller_base_frame):
+        base_frame = family.controller_base_frame  # e.g. the UR controller's "base" (ur_description)
     if base_frame is not None and (not isinstance(base_frame, str) or not model.existFrame(base_frame)):
         raise unknown_name("controller_base_frame", str(base_frame), [f.name for f in model.frames],
                            hint=f"field 'controller_base_frame' in {path}")
@@ -538,12 +359,12 @@ def _build_robot_text(text: str, path: Path | str, yaml_dir: Path | None, urdf_f
         return vm
 
     return Robot(name=name, model=model, collision_model=cmodel, _visual_loader=visual_loader,
-                 joint_names=joint_names, q_home=_frozen(q_home), lower=_frozen(lower),
-                 upper=_frozen(upper), velocity_limit=_frozen(vel), tool_frame=tool_frame,
-                 tool_frame_id=tool_frame_id, T_world_base=_frozen(T_world_base),
+                 joint_names=joint_names, q_home=read_only(q_home), lower=read_only(lower),
+                 upper=read_only(upper), velocity_limit=read_only(vel), tool_frame=tool_frame,
+                 tool_frame_id=tool_frame_id, T_world_base=read_only(T_world_base),
                  disabled_pairs=disabled, urdf_path=urdf_path, srdf_path=srdf_path,
-                 package_dirs=package_dirs, mounted_links=tuple(mounted), kind=kind,
+                 package_dirs=package_dirs, mounted_links=tuple(mounted), kind=family.name,
                  config_path=Path(path) if yaml_dir is not None else None, source_yaml=text,
                  package=str(package) if package is not None else None,
-                 joint_sign=_frozen(sign), joint_offset_deg=_frozen(offset),
+                 joint_sign=read_only(sign), joint_offset_deg=read_only(offset),
                  controller_base_frame=base_frame)

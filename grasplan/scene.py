@@ -64,10 +64,10 @@ import pinocchio as pin
 from .cell import Cell
 from .errors import InputError
 from .geometry import bvh, obstacle_geometry, shape_geometry
-from .gripper import Gripper
+from .gripper.model import Gripper
 from .interpolation import STEP, interpolate_path
 from .meshdata import TriangleMesh
-from .robot import Robot
+from .robot_model import Robot
 from .transforms import check_transform, to_se3, translation
 
 TABLE = "table"

@@ -49,7 +49,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
-from .gripper import Box, Gripper
+from .gripper.model import Box, Gripper
 from .io import write_atomic_bytes
 from .mass import DEFAULT_DENSITY, MassProperties, mass_properties
 from .meshdata import TriangleMesh

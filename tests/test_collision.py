@@ -205,7 +205,7 @@ def test_paper_part_ok_and_rejected_independently_checked(paper, name, pose_inde
 
 
 def _fcl_shape(shape, T_part_tcp):
-    from grasplan.gripper import Box as GBox
+    from grasplan.gripper.model import Box as GBox
 
     if isinstance(shape, GBox):
         T = T_part_tcp @ shape.T_tcp_box

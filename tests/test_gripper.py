@@ -1,12 +1,16 @@
 """Gripper YAML loading, the issue-3 geometry of the default gripper, jaws and their sweep."""
 from __future__ import annotations
 
+from dataclasses import dataclass, fields, replace
+from typing import ClassVar
+
 import numpy as np
 import pytest
 import yaml
 
 from grasplan.errors import ConfigError
-from grasplan.gripper import Box, MeshShape, available_grippers, load_gripper
+from grasplan.gripper import available_grippers, load_gripper
+from grasplan.gripper.model import Box, MeshShape
 
 
 def _span(shape):
@@ -139,3 +143,70 @@ def test_config_numbers_are_read_alike_in_every_description():
             config_number(bad, "field", **kw)
     with pytest.raises(ConfigError, match="list of 3 numbers"):
         config_vector([1, 2], "size")
+
+
+# -- gripper kinds ---------------------------------------------------------------------------
+def test_default_kind_reads_and_writes_as_before(tmp_path):
+    """``kind: parallel_jaw`` is the default: a file with it reads like one without, and the
+    default kind's JSON names no kind (plan files stay byte-identical)."""
+    from grasplan.gripper import gripper_from_json
+
+    plain = load_gripper(_write(tmp_path, BASE))
+    p = tmp_path / "explicit.yaml"
+    p.write_text(yaml.safe_dump({**BASE, "kind": "parallel_jaw"}))
+    explicit = load_gripper(p)
+    assert explicit.to_json(definition=True) == {**plain.to_json(definition=True), "name": "explicit"}
+    d = plain.to_json(definition=True)
+    assert "kind" not in d and "kind" not in plain.to_json()
+    again = gripper_from_json({**d, "kind": "parallel_jaw"})
+    assert again.to_json(definition=True) == d == gripper_from_json(d).to_json(definition=True)
+
+
+def test_unknown_kind_lists_the_registered_ones(tmp_path):
+    from grasplan.gripper import gripper_from_json
+    from grasplan.gripper.registry import KINDS
+
+    with pytest.raises(ConfigError, match=r"g.yaml: unknown gripper kind 'robotiq_9f'; available: parallel_jaw.*kind"):
+        load_gripper(_write(tmp_path, {**BASE, "kind": "robotiq_9f"}))
+    d = load_gripper(_write(tmp_path, BASE)).to_json(definition=True)
+    with pytest.raises(ConfigError, match=f"unknown gripper kind 'suction'; available: {', '.join(sorted(KINDS))}"):
+        gripper_from_json({**d, "kind": "suction"})
+
+
+def test_a_new_kind_is_one_registration(tmp_path):
+    """A kind registered from outside the package (a subclass with one more YAML field) is built by
+    load_gripper from its ``kind:`` and round-trips through its JSON."""
+    from grasplan.gripper import gripper_from_json, parallel_jaw
+    from grasplan.gripper.model import Gripper
+    from grasplan.gripper.registry import KINDS, GripperKind, register
+
+    @dataclass(frozen=True, eq=False)
+    class Padded(Gripper):
+        kind: ClassVar[str] = "padded_jaw"
+        pad: float = 0.0
+
+        def to_json(self, *, definition=False):
+            return {**super().to_json(definition=definition), "pad": self.pad}
+
+    def from_yaml(data, *, base, name, source=""):
+        rest = {k: v for k, v in data.items() if k not in ("kind", "pad")}
+        g = parallel_jaw.from_yaml(rest, base=base, name=name, source=source)
+        return Padded(**{f.name: getattr(g, f.name) for f in fields(g)}, pad=float(data["pad"]))
+
+    def from_json(d, *, where):
+        g = parallel_jaw.from_json(d, where=where)
+        return Padded(**{f.name: getattr(g, f.name) for f in fields(g)}, pad=float(d["pad"]))
+
+    with pytest.raises(ValueError, match="says kind 'parallel_jaw'"):
+        register(GripperKind(name="padded_jaw", description="", model=Gripper, from_yaml=from_yaml, from_json=from_json))
+    register(GripperKind(name="padded_jaw", description="test", model=Padded, from_yaml=from_yaml, from_json=from_json))
+    try:
+        g = load_gripper(_write(tmp_path, {**BASE, "kind": "padded_jaw", "pad": 0.002}))
+        assert isinstance(g, Padded) and g.pad == 0.002 and g.max_opening == 0.05
+        d = g.to_json(definition=True)
+        assert d["kind"] == "padded_jaw"
+        back = gripper_from_json(d)
+        assert isinstance(back, Padded) and back.pad == 0.002
+        assert back.to_json(definition=True) == replace(g, source="embedded").to_json(definition=True)
+    finally:
+        KINDS.pop("padded_jaw", None)

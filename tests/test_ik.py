@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,6 +12,8 @@ from grasplan.errors import InputError
 from grasplan.ik import IKResult, get_solver, solve_ik, wrap_to_limits
 from grasplan.transforms import pose_error
 from grasplan.robot import load_robot
+
+ROBOTS = Path(__file__).resolve().parents[1] / "robots"
 
 
 def _random_reachable(robot, n, seed):
@@ -198,3 +201,81 @@ def test_solver_owns_its_data_and_analytic_self_check():
                                 s.analytic.d6], [0.089159, -0.425, -0.39225, 0.10915, 0.09465, 0.0823])
     # DH frame 6 is tool0 itself
     np.testing.assert_allclose(s.analytic.T_dh6_tool, np.eye(4), atol=1e-9)
+
+
+# --------------------------------------------------------------------------------------------
+# the IK family registry
+# --------------------------------------------------------------------------------------------
+
+
+def _robot_with_kind(tmp_path, name, kind, *, drop=()):
+    """Robot ``name`` with its YAML's ``kind`` replaced (and the fields ``drop`` removed)."""
+    lines = [f"kind: {kind}" if line.startswith("kind:") else line
+             for line in (ROBOTS / f"{name}.yaml").read_text().splitlines()
+             if not line.startswith(tuple(f"{f}:" for f in drop))]
+    p = tmp_path / f"{name}_{kind}_{len(drop)}.yaml"
+    p.write_text("\n".join(lines) + "\n")
+    return load_robot(p)
+
+
+def test_unknown_family_is_a_config_error_listing_the_registered_ones(tmp_path):
+    from grasplan.errors import ConfigError
+    from grasplan.ik.registry import FAMILIES
+
+    with pytest.raises(ConfigError) as e:
+        _robot_with_kind(tmp_path, "ur5", "kuka_kr6")
+    msg = str(e.value)
+    assert "kuka_kr6" in msg and "field 'kind'" in msg
+    assert {"ur", "generic"} <= set(FAMILIES)
+    assert f"available: {', '.join(sorted(FAMILIES))}" in msg
+
+
+def test_a_new_family_is_one_registration(tmp_path):
+    """A family registered from outside the package (a closed form wrapping the UR one and
+    counting its calls) is picked by a YAML's kind with no edit elsewhere."""
+    from grasplan.ik.registry import FAMILIES, IKFamily, register
+    from grasplan.ik.ur import URAnalytic, ur_eligibility
+
+    calls = []
+
+    class Counting(URAnalytic):
+        def solve(self, T_base_tool):
+            calls.append(1)
+            return super().solve(T_base_tool)
+
+    fam = register(IKFamily(name="ur_counting", description="test", closed_form=Counting, eligible=ur_eligibility))
+    try:
+        assert register(fam) is fam  # idempotent
+        with pytest.raises(ValueError, match="twice"):
+            register(IKFamily(name="ur_counting", description="another"))
+        r = _robot_with_kind(tmp_path, "ur5", "ur_counting")
+        assert r.kind == "ur_counting"
+        # the controller's base frame defaults to the family's (ur: "base"; this one names none)
+        assert _robot_with_kind(tmp_path, "ur5", "ur_counting", drop=["controller_base_frame"]).controller_base_frame is None
+        assert _robot_with_kind(tmp_path, "ur5", "ur", drop=["controller_base_frame"]).controller_base_frame == "base"
+        ref = load_robot("ur5")
+        q = np.array([0.4, -1.6, 1.4, -1.2, -1.5, 0.3])
+        T = ref.fk(q)
+        np.testing.assert_array_equal(r.fk(q), T)
+        res, res_ref = solve_ik(r, T), solve_ik(ref, T)
+        assert calls and res.method == res_ref.method == "analytic" and len(res) == 8
+        np.testing.assert_array_equal(res.q, res_ref.q)
+    finally:
+        FAMILIES.pop("ur_counting", None)
+
+
+def test_family_without_closed_form_and_ineligible_robot_fall_back_to_clik(tmp_path):
+    panda = load_robot("panda")
+    q = np.array([0.3, -0.5, 0.2, -2.0, 0.1, 1.8, 0.6])
+    T = panda.fk(q)
+    with pytest.raises(InputError, match="IK family 'generic' has no closed form .*ur"):
+        solve_ik(panda, T, method="analytic")
+    # a 7-joint arm that claims the UR family: the closed form refuses it, CLIK solves it
+    claimed = _robot_with_kind(tmp_path, "panda", "ur")
+    s = get_solver(claimed)
+    assert s.analytic is None and s.no_closed_form == "7 joints, not 6"
+    with pytest.raises(InputError, match="7 joints, not 6"):
+        solve_ik(claimed, T, method="analytic")
+    res = solve_ik(claimed, T, max_solutions=1, q_ref=q)
+    assert res.ok and res.method == "clik"
+    _assert_solutions(claimed, res, T)
