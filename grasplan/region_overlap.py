@@ -14,7 +14,8 @@ import numpy as np
 from .grouping import expand, group_pairs, max3, min3, row_keys
 
 
-def region_edges(RP, RQ, eu, ev, estart, ecount):
+def region_edges(RP: np.ndarray, RQ: np.ndarray, eu: np.ndarray, ev: np.ndarray, estart: np.ndarray, ecount: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Rows of the boundary segments of regions ``RP``/``RQ`` (local region index, polygon, from, to):
     P's edges as they are, Q's reversed (Q faces away from the closing axis)."""
     rP, kP = expand(ecount[RP])
@@ -56,7 +57,7 @@ def _cell_key(reg, cx, cy):
     return row_keys(reg, cx, cy)
 
 
-def green_moments(x0, y0, x1, y1):
+def green_moments(x0: np.ndarray, y0: np.ndarray, x1: np.ndarray, y1: np.ndarray) -> np.ndarray:
     """(k, 6) Green's-theorem moments of directed segments: area, x, y, x^2, y^2, xy."""
     cr = x0 * y1 - x1 * y0
     return np.column_stack([0.5 * cr, (x0 + x1) * cr / 6.0, (y0 + y1) * cr / 6.0,
@@ -64,7 +65,8 @@ def green_moments(x0, y0, x1, y1):
                             (x0 * y1 + 2 * x0 * y0 + 2 * x1 * y1 + x1 * y0) * cr / 24.0])
 
 
-def inside_parts(reg, poly, x0, y0, x1, y1, h):
+def inside_parts(reg: np.ndarray, poly: np.ndarray, x0: np.ndarray, y0: np.ndarray, x1: np.ndarray, y1: np.ndarray,
+                 h: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """For every directed boundary segment (rows; ``poly`` 0 = P, 1 = Q; counter-clockwise polygons),
     its parts inside the *other* polygon of its region: ``(row, xa, ya, xb, yb)`` sub-segments.
 
@@ -129,7 +131,9 @@ def inside_parts(reg, poly, x0, y0, x1, y1, h):
     return r, x0[r] + ta * dx, y0[r] + ta * dy, x0[r] + tb * dx, y0[r] + tb * dy
 
 
-def row_intervals(reg, poly, x0, y0, x1, y1, spacing, offsets, only0):
+def row_intervals(reg: np.ndarray, poly: np.ndarray, x0: np.ndarray, y0: np.ndarray, x1: np.ndarray, y1: np.ndarray,
+                  spacing: float, offsets: tuple[float, ...], only0: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Scanlines ``y = j spacing + offsets[o]``: the intervals where all of P's and Q's polygons (for
     every offset) cover the line ``j``. Returns ``(region, j, xa, xb)``."""
     outs = []
@@ -170,7 +174,7 @@ def row_intervals(reg, poly, x0, y0, x1, y1, spacing, offsets, only0):
     return ev_reg[full], ev_j[full], ev_x[full], ev_x[full + 1]
 
 
-def locate(qreg, q, face_rows, tri2):
+def locate(qreg: np.ndarray, q: np.ndarray, face_rows: np.ndarray, tri2: np.ndarray) -> np.ndarray:
     """Index into ``face_rows`` of a triangle holding each point: ``q`` (k, 2) of region ``qreg``;
     ``face_rows`` = (region, face) rows with 2D triangles ``tri2`` (r, 3, 2) in the same frames. Picks
     the most interior candidate (largest smallest barycentric), so a point on a shared edge gets one."""
