@@ -30,8 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from fresh import run_cli  # noqa: E402
 
-from grasplan.antipodal import find_candidates  # noqa: E402
-from grasplan.candidates import CandidateParams, compute_candidates  # noqa: E402
+from grasplan.candidates import CandidateParams, compute_candidates, find_candidates  # noqa: E402
 from grasplan.cli.common import table  # noqa: E402
 from grasplan.convexity import classify_convexity  # noqa: E402
 from grasplan.mesh import load_part  # noqa: E402

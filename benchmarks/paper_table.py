@@ -24,9 +24,8 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from grasplan.antipodal import find_candidates  # noqa: E402
 from grasplan.blm import boundary_layer  # noqa: E402
-from grasplan.candidates import CandidateParams, compute_candidates  # noqa: E402
+from grasplan.candidates import CandidateParams, compute_candidates, find_candidates  # noqa: E402
 from grasplan.cli.common import table  # noqa: E402
 from grasplan.convexity import classify_convexity  # noqa: E402
 from grasplan.mesh import load_part  # noqa: E402

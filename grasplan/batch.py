@@ -69,7 +69,8 @@ from .io import (
     write_atomic_text,
     write_json,
 )
-from .mesh import SUPPORTED_SUFFIXES, UNIT_CHOICES
+from .mesh import UNIT_CHOICES
+from .meshfile import SUPPORTED_SUFFIXES
 from .params import (
     DEFAULT_CELL,
     DEFAULT_GRIPPER,

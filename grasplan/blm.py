@@ -68,8 +68,8 @@ from .errors import InputError, MeshError
 from .meshdata import MeshData, connected_components, edge_adjacency
 from .tolerance import Tolerance
 
-if TYPE_CHECKING:  # trimesh (and scipy) load with the first mesh; importing this module stays cheap
-    import trimesh
+if TYPE_CHECKING:
+    from .meshdata import TriangleMesh
 
 #: sin(theta) floor for the shift s = alpha / sin(theta): s <= 2 alpha at near-tangent/knife edges
 SIN_FLOOR = 0.5
@@ -154,10 +154,10 @@ def _renumber_by_first(labels: np.ndarray) -> np.ndarray:
     return rank[inv.ravel()]
 
 
-def cluster_surfaces(mesh: trimesh.Trimesh, *, gamma_deg: float = 135.0, tol: Tolerance | None = None,
-                     adjacency: np.ndarray | None = None):
+def cluster_surfaces(mesh: TriangleMesh, *, gamma_deg: float = 135.0, tol: Tolerance | None = None,
+                     adjacency: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, int, int]:
     """Facets and surfaces of ``mesh`` (see the module docstring). ``adjacency`` (k, 2): the
-    mesh's face pairs sharing an edge when the caller has them (:func:`grasplan.convexity.edge_adjacency`).
+    mesh's face pairs sharing an edge when the caller has them (:func:`grasplan.meshdata.edge_adjacency`).
 
     Returns ``(facet (m,) int64, surface (m,) int64, n_facets, n_surfaces)``; ids are numbered by
     their lowest face index.
@@ -175,7 +175,8 @@ def cluster_surfaces(mesh: trimesh.Trimesh, *, gamma_deg: float = 135.0, tol: To
     facet = _renumber_by_first(_components(m, adj[ang < np.radians(tol.planar_deg)]))
     nf = int(facet.max()) + 1
     f_area = np.bincount(facet, weights=areas, minlength=nf)
-    f_n = np.stack([np.bincount(facet, weights=areas * normals[:, i], minlength=nf) for i in range(3)], axis=1)
+    f_n: np.ndarray = np.stack([np.bincount(facet, weights=areas * normals[:, i], minlength=nf) for i in range(3)],
+                               axis=1)
     norm = np.linalg.norm(f_n, axis=1)
     # a facet whose area-weighted normal cancels (cannot happen for a real plane): use its first face
     first_face = np.full(nf, m, dtype=np.int64)
@@ -245,13 +246,13 @@ MAX_ALPHA_FRACTION = 0.1
 
 
 def boundary_layer(
-    mesh: trimesh.Trimesh, *, alpha: float = 1e-4, gamma_deg: float = 135.0, tol: Tolerance | None = None
+    mesh: TriangleMesh, *, alpha: float = 1e-4, gamma_deg: float = 135.0, tol: Tolerance | None = None
 ) -> BLMResult:
     """Insert a boundary layer of width ``alpha`` along every surface boundary.
 
     Parameters
     ----------
-    mesh : trimesh.Trimesh
+    mesh : TriangleMesh
         The part in metres, vertices (n, 3), faces (m, 3), consistently wound (``load_part`` output).
     alpha : float
         Layer width, metres: distance of the shifted vertices from the neighbouring facet's plane

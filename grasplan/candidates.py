@@ -1,31 +1,118 @@
 """Stages 1-4 composed: part -> (BLM) -> convexity -> antipodal candidates, and their JSON.
 
 ``compute_candidates(part, params)`` is the pure function behind ``grasplan candidates``; the
-grasps and plan pipelines start from its result.
+grasps and plan pipelines start from its result. :func:`find_candidates` is stage 4's entry: it
+validates the search parameters and chooses the method, the sampled contact regions
+(:mod:`grasplan.regions`) or the paper's face pairs (:mod:`grasplan.antipodal`); both build on
+:mod:`grasplan.antipodal_base`.
 """
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Literal, cast
 
 import numpy as np
 
-from .antipodal import Candidates, find_candidates
+from .antipodal import find_face_pairs
+from .antipodal_base import Candidates, FaceGeometry
 from .blm import BLMResult, boundary_layer
 from .convexity import classify_convexity
 from .mesh import Part
 from .params import DEFAULT_MAX_OPENING, CandidateParams
+from .regions import find_regions
+from .tolerance import Tolerance
 
-if TYPE_CHECKING:  # trimesh (and scipy) load with the first mesh; importing this module stays cheap
-    import trimesh
+if TYPE_CHECKING:
+    from .meshdata import MeshData, TriangleMesh
 
 SCHEMA = "grasplan.candidates/1"
+#: the candidate methods of :func:`find_candidates`
+Method = Literal["regions", "paper"]
+
+
+def find_candidates(
+    mesh: TriangleMesh,
+    convex: np.ndarray,
+    *,
+    max_opening: float = 0.05,
+    beta_deg: float = 2.0,
+    epsilon: float = 5e-3,
+    mu: float = 0.3,
+    tol: Tolerance | None = None,
+    search: Literal["index", "brute"] = "index",
+    method: Method = "paper",
+    spacing: float = 0.002,
+) -> Candidates:
+    """Antipodal candidates among the convex faces of ``mesh`` by either method.
+
+    Parameters
+    ----------
+    mesh : TriangleMesh
+        Metres, outward winding.
+    convex : (m,) bool
+        Per face of ``mesh`` (from :func:`grasplan.convexity.classify_convexity`).
+    max_opening, epsilon : float
+        Metres.
+    beta_deg : float
+        Degrees.
+    mu : float
+        Friction coefficient (cone half-angle ``atan(mu)``).
+    tol : Tolerance, optional
+        Part tolerance (default: from the mesh).
+    search : {"index", "brute"}
+        ``method="paper"`` only. ``"index"``: the sub-quadratic 6D grid search, streamed in
+        bounded chunks; ``"brute"``: every pair of convex faces (O(m^2) time, chunked; reference
+        for tests and benchmarks).
+    method : {"regions", "paper"}
+        ``"paper"``: one contact pair per face pair (the rules of :mod:`grasplan.antipodal`, Vogt
+        et al. 2021); ``"regions"``: sampled contact regions (:mod:`grasplan.regions`).
+    spacing : float
+        ``method="regions"``: lattice pitch of the samples, metres.
+
+    Returns
+    -------
+    Candidates
+        ``"paper"``: sorted by face pair ``(i, j)``, ``i < j``, contact 0 on face i, ``region`` -1.
+        ``"regions"``: sorted by region, ``region`` set (see :mod:`grasplan.regions`).
+    """
+    F = np.asarray(mesh.faces, dtype=np.int64)
+    convex = np.asarray(convex, dtype=bool)
+    if convex.shape != (len(F),):
+        raise ValueError(f"convex must have shape ({len(F)},), got {convex.shape}")
+    for name, v in (("max_opening", max_opening), ("epsilon", epsilon)):
+        if not (np.isfinite(v) and v > 0):
+            raise ValueError(f"{name} must be a positive length in metres, got {v!r}")
+    if not 0.0 <= beta_deg < 90.0:
+        raise ValueError(f"beta_deg must be in [0, 90), got {beta_deg!r}")
+    if not (np.isfinite(mu) and mu >= 0):
+        raise ValueError(f"mu must be >= 0, got {mu!r}")
+    if search not in ("index", "brute"):
+        raise ValueError(f"search must be 'index' or 'brute', got {search!r}")
+    if method not in ("regions", "paper"):
+        raise ValueError(f"method must be 'regions' or 'paper', got {method!r}")
+    if method == "regions" and not (np.isfinite(spacing) and spacing > 0):
+        raise ValueError(f"spacing must be a positive length in metres, got {spacing!r}")
+    V = np.asarray(mesh.vertices, dtype=np.float64)
+    if tol is None:
+        tol = Tolerance.for_mesh(V)
+    geo = FaceGeometry.of(V, F)
+    ids = np.flatnonzero(convex & geo.valid)
+    if len(ids) < 2:
+        return Candidates.empty()
+    if method == "regions":
+        contacts, normals, width, faces, region = find_regions(
+            mesh, convex, geo, max_opening=max_opening, beta_deg=beta_deg, mu=mu, spacing=spacing, tol=tol)
+        return Candidates(contacts, normals, width, faces, region)
+    return find_face_pairs(geo, ids, max_opening=max_opening, beta_deg=beta_deg, epsilon=epsilon, mu=mu, tol=tol,
+                           search=search)
+
+
 @dataclass(frozen=True)
 class CandidateResult:
     part: Part
     params: CandidateParams
-    mesh: trimesh.Trimesh              #: the mesh the candidates index into (BLM output or the part's)
+    mesh: MeshData                     #: the mesh the candidates index into (BLM output or the part's)
     blm: BLMResult | None
     convex: np.ndarray                 #: (m,) bool, per face of ``mesh``
     candidates: Candidates
@@ -55,8 +142,10 @@ def compute_candidates(part: Part, params: CandidateParams = CandidateParams(), 
 
     ``params.max_opening = None`` searches up to :data:`DEFAULT_MAX_OPENING`; the result's
     ``params`` hold the value used."""
-    if params.max_opening is None:
-        params = replace(params, max_opening=DEFAULT_MAX_OPENING)
+    max_opening = params.max_opening
+    if max_opening is None:
+        max_opening = DEFAULT_MAX_OPENING
+        params = replace(params, max_opening=max_opening)
     timing = {"load": float(load_s)}
     t = time.perf_counter()
     blm_result = None
@@ -74,12 +163,12 @@ def compute_candidates(part: Part, params: CandidateParams = CandidateParams(), 
     cands = find_candidates(
         mesh,
         convex,
-        max_opening=params.max_opening,
+        max_opening=max_opening,
         beta_deg=params.beta_deg,
         epsilon=params.epsilon,
         mu=params.mu,
         tol=part.tol,
-        method=params.method,
+        method=cast(Method, params.method),   # a valid name: CandidateParams validates its choices
         spacing=params.spacing,
     )
     timing["antipodal"] = time.perf_counter() - t

@@ -42,12 +42,11 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
-from .meshdata import edge_adjacency
+from .meshdata import MeshData, TriangleMesh, edge_adjacency
 from .tolerance import Tolerance
 
-if TYPE_CHECKING:  # trimesh (and scipy) load with the first mesh; importing this module stays cheap
+if TYPE_CHECKING:  # scipy loads with the first mesh; importing this module stays cheap
     import scipy.sparse as sp
-    import trimesh
 
 Neighbourhood = Literal["edge", "vertex"]
 
@@ -55,11 +54,11 @@ Neighbourhood = Literal["edge", "vertex"]
 _BATCH_ELEMS = 4_000_000
 
 
-def mesh_edge_adjacency(mesh):
+def mesh_edge_adjacency(mesh: TriangleMesh) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``edge_adjacency(mesh.faces, slots=True)``, computed once per :class:`grasplan.meshdata.
     MeshData` (:attr:`~grasplan.meshdata.MeshData.edge_adjacency`: loading, the BLM, convexity
     and the regions share it), else on each call."""
-    if hasattr(mesh, "derived"):
+    if isinstance(mesh, MeshData):
         return mesh.edge_adjacency
     return edge_adjacency(mesh.faces, slots=True)
 
@@ -85,9 +84,12 @@ def _edge_rows(faces: np.ndarray, adjacency=None) -> _Rows:
     return _Rows(np.r_[0, np.cumsum(counts)], vert[o])
 
 
-def neighbour_vertices(mesh: trimesh.Trimesh, neighbourhood: Neighbourhood = "edge") -> sp.csr_matrix:
-    """``(m, n_vertices)`` boolean CSR: row k marks the vertices of face k and its adjacent faces."""
+def neighbour_vertices(mesh: TriangleMesh, neighbourhood: Neighbourhood = "edge") -> sp.csr_matrix:
+    """``(m, n_vertices)`` boolean CSR: row k marks the vertices of face k and its adjacent faces
+    (built with scipy.sparse and trimesh's face adjacency: the tests' independent check of the
+    vectorised rows)."""
     import scipy.sparse as sp
+    import trimesh.graph
 
     faces = np.asarray(mesh.faces, dtype=np.int64)
     m, nv = len(faces), len(mesh.vertices)
@@ -96,7 +98,7 @@ def neighbour_vertices(mesh: trimesh.Trimesh, neighbourhood: Neighbourhood = "ed
     if neighbourhood == "vertex":
         N = (A @ A.T).tocsr()                     # faces sharing >= 1 vertex (incl. itself)
     elif neighbourhood == "edge":
-        adj = np.asarray(mesh.face_adjacency, dtype=np.int64).reshape(-1, 2)
+        adj = np.asarray(trimesh.graph.face_adjacency(faces), dtype=np.int64).reshape(-1, 2)
         ii = np.concatenate([adj[:, 0], adj[:, 1], np.arange(m)])
         jj = np.concatenate([adj[:, 1], adj[:, 0], np.arange(m)])
         N = sp.csr_matrix((np.ones(len(ii), dtype=np.int32), (ii, jj)), shape=(m, m))
@@ -109,7 +111,7 @@ def neighbour_vertices(mesh: trimesh.Trimesh, neighbourhood: Neighbourhood = "ed
 
 
 def classify_convexity(
-    mesh: trimesh.Trimesh,
+    mesh: TriangleMesh,
     *,
     d_shift: float = 1e-5,
     tol: Tolerance | None = None,
@@ -119,7 +121,7 @@ def classify_convexity(
 
     Parameters
     ----------
-    mesh : trimesh.Trimesh
+    mesh : TriangleMesh
         Metres; outward-facing winding (normals from the winding).
     d_shift : float
         Shift of the auxiliary point along the face normal, metres (paper: 0.01 mm).

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .antipodal import Candidates
+from .antipodal_base import Candidates
 from .params import GraspParams
 
 

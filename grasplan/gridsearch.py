@@ -1,7 +1,7 @@
 """Fixed-radius neighbour search on a uniform grid, with NumPy alone.
 
 The candidate stages need three neighbour queries: all pairs within a radius (the 6D line search of
-:func:`grasplan.antipodal.stream_pairs`, the 2D area-overlap search of :mod:`grasplan.regions`),
+:func:`grasplan.antipodal_base.stream_pairs`; the 2D face-pair search of the regions reference in the tests),
 and "is any point within r" (crease proximity). ``scipy.spatial.cKDTree`` answers them, but
 importing it costs about 0.3 s, a third of ``grasplan candidates`` on a 14k-triangle part (issue 10:
 < 1 s in all). A uniform grid answers a fixed radius exactly: points are binned into cells of side

@@ -7,17 +7,14 @@ parallel-jaw gripper), otherwise as metres; the decision is reported.
 Safe repairs: merging duplicate vertices, dropping degenerate (zero-area) and duplicate faces,
 making the winding consistent and the normals point outwards (watertight meshes only). Anything
 else (missing file, unreadable or empty mesh, NaN/inf coordinates, no area) is refused with a
-:class:`~grasplan.errors.MeshError` naming the file and the problem.
+:class:`~grasplan.errors.MeshError` naming the file and the problem. The file formats are read by
+:mod:`grasplan.meshfile`, within this module's limits (:data:`MAX_TRIANGLES`, :data:`MAX_FILE_BYTES`).
 """
 from __future__ import annotations
 
 import functools
 import hashlib
-import io
-import logging
 import os
-import re
-import stat
 import warnings as _warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,19 +23,19 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 
 from .errors import MeshError
-from .io import NAME_MAX_BYTES, show_path
+from .io import show_path
 from .meshdata import MeshData
+from .meshfile import ReadLimits, read_mesh, too_many_triangles
 from .tolerance import Tolerance
 from .units import LENGTH_UNITS
 
-if TYPE_CHECKING:  # trimesh (with scipy) is imported when a mesh is first built: --help stays fast
-    import trimesh
+if TYPE_CHECKING:
+    from .meshdata import TriangleMesh
 
 Units = Literal["auto", "m", "cm", "mm", "um", "in", "ft"]
 UNIT_CHOICES: tuple[str, ...] = ("auto", *LENGTH_UNITS)
 #: largest extent (file units) from which ``auto`` reads a file as millimetres
 AUTO_MM_THRESHOLD = 2.0
-SUPPORTED_SUFFIXES = (".stl", ".obj", ".ply", ".off", ".glb", ".gltf")
 #: parts with more triangles are refused before they are read (the candidate search and the
 #: collision checks need memory roughly proportional to the triangle count; decimate first)
 MAX_TRIANGLES = 1_000_000
@@ -162,165 +159,6 @@ def decide_units(extent: float, units: str) -> tuple[float, str, str]:
     return scale, unit, note
 
 
-# -- reading files ---------------------------------------------------------------------------
-
-_STL_RECORD = np.dtype([("normal", "<f4", (3,)), ("v", "<f4", (3, 3)), ("attr", "<u2")])
-_NUM = rb"[-+]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?|nan|inf(?:inity)?)"
-_ASCII_VERTEX = re.compile(rb"\bvertex[ \t]+(" + _NUM + rb")[ \t]+(" + _NUM + rb")[ \t]+(" + _NUM + rb")(?=\s)",
-                           re.IGNORECASE)
-_ASCII_VERTEX_WORD = re.compile(rb"\bvertex\b", re.IGNORECASE)
-
-
-def _too_many(src: str, n: int, what: str = "triangles") -> MeshError:
-    return MeshError(f"{src}: {n:,} {what} is more than grasplan handles (limit {MAX_TRIANGLES:,} triangles, "
-                     f"grasplan.mesh.MAX_TRIANGLES); decimate the mesh first (e.g. quadric decimation in "
-                     f"MeshLab or Blender) to at most {MAX_TRIANGLES:,} triangles")
-
-
-def _read_stl(data: bytes, src: str) -> tuple[np.ndarray, np.ndarray]:
-    """``(vertices (3m, 3), faces (m, 3))`` in file units from the bytes of a binary or ASCII STL."""
-    size = len(data)
-    declared = int(np.frombuffer(data, "<u4", count=1, offset=80)[0]) if size >= 84 else -1
-    if declared >= 0 and size == 84 + 50 * declared:  # a complete binary STL (the header may say "solid")
-        if declared == 0:
-            raise MeshError(f"{src}: the binary STL holds no triangles (its header declares 0)")
-        if declared > MAX_TRIANGLES:
-            raise _too_many(src, declared)
-        rec = np.frombuffer(data, _STL_RECORD, count=declared, offset=84)
-        v = rec["v"].reshape(-1, 3).astype(np.float64)
-        return v, np.arange(len(v), dtype=np.int64).reshape(-1, 3)
-    if data.lstrip()[:5].lower() == b"solid" and b"\0" not in data[:4096]:
-        return _read_ascii_stl(data, src)
-    if declared < 0:
-        raise MeshError(f"{src}: {size} bytes is too short for an STL file (a binary STL has an 84-byte "
-                        f"header, an ASCII STL starts with 'solid'); the file is truncated or not an STL")
-    need = 84 + 50 * declared
-    what = "truncated" if size < need else "followed by extra data"
-    raise MeshError(f"{src}: not a valid STL: as binary STL its header declares {declared:,} triangles "
-                    f"({need:,} bytes) but the file has {size:,} bytes ({what}), and it is not an ASCII STL "
-                    f"(no 'solid' at the start); re-export the mesh from CAD")
-
-
-def _read_ascii_stl(data: bytes, src: str) -> tuple[np.ndarray, np.ndarray]:
-    n_words = len(_ASCII_VERTEX_WORD.findall(data))
-    if n_words > 3 * MAX_TRIANGLES:
-        raise _too_many(src, n_words // 3)
-    rows = _ASCII_VERTEX.findall(data)
-    if len(rows) != n_words:
-        good = {m.start() for m in _ASCII_VERTEX.finditer(data)}
-        bad = next(m for m in _ASCII_VERTEX_WORD.finditer(data) if m.start() not in good)
-        line_no = data.count(b"\n", 0, bad.start()) + 1
-        line = data[bad.start(): bad.start() + 80].split(b"\n")[0].decode("ascii", "replace")
-        raise MeshError(f"{src}: ASCII STL line {line_no}: cannot read {line.strip()!r} as 'vertex x y z' "
-                        f"(three numbers); the file is damaged, re-export it")
-    if not rows:
-        raise MeshError(f"{src}: the ASCII STL holds no triangles")
-    if len(rows) % 3:
-        raise MeshError(f"{src}: the ASCII STL has {len(rows)} vertices, not a multiple of 3 (every facet "
-                        f"needs exactly 3); the file is damaged, re-export it")
-    with np.errstate(all="ignore"):
-        v = np.array(rows, dtype=np.bytes_).astype(np.float64)  # overflow (1e999) reads as inf
-    return v, np.arange(len(v), dtype=np.int64).reshape(-1, 3)
-
-
-def _declared_faces(data: bytes, suffix: str) -> int:
-    """A cheap lower bound on the triangle count of an OBJ/PLY/OFF file (``-1`` if unknown)."""
-    if suffix == ".obj":
-        return data.count(b"\nf ") + data.startswith(b"f ")
-    if suffix == ".ply":
-        m = re.search(rb"element\s+face\s+(\d{1,18})", data[:65536])
-        return int(m.group(1)) if m else -1
-    if suffix == ".off":
-        m = re.match(rb"\s*C?N?OFF\s+(\d{1,18})\s+(\d{1,18})", data[:4096])
-        return int(m.group(2)) if m else -1
-    return -1
-
-
-def _read_other(path: Path, data: bytes, src: str) -> tuple[np.ndarray, np.ndarray]:
-    """OBJ/PLY/OFF/glTF through trimesh; any failure becomes one MeshError without library text."""
-    suffix = path.suffix.lower()
-    declared = _declared_faces(data, suffix)
-    if declared > MAX_TRIANGLES:
-        raise _too_many(src, declared, "faces")
-    kind = suffix.lstrip(".").upper()
-    import trimesh
-
-    log = logging.getLogger("trimesh")
-    was_disabled, log.disabled = log.disabled, True
-    try:
-        with _warnings.catch_warnings(), np.errstate(all="ignore"):
-            _warnings.simplefilter("ignore")
-            loaded = trimesh.load(io.BytesIO(data), file_type=suffix.lstrip("."), force="mesh", process=False)
-        if isinstance(loaded, trimesh.Scene):  # force='mesh' on an empty scene
-            raise MeshError(f"{src}: the {kind} file holds no triangles")
-        if not isinstance(loaded, trimesh.Trimesh):
-            raise MeshError(f"{src}: the {kind} file holds no triangle mesh")
-        v = np.asarray(loaded.vertices, dtype=np.float64)
-        f = np.asarray(loaded.faces, dtype=np.int64)
-    except MeshError:
-        raise
-    except Exception:  # trimesh raises many types for damaged files; their text is internal
-        raise MeshError(f"{src}: cannot read the file as {kind}: it is damaged, truncated or not a valid {kind} file; "
-                        f"re-export it (binary STL is the most reliable)") from None
-    finally:
-        log.disabled = was_disabled
-    if f.ndim != 2 or len(f) == 0:
-        raise MeshError(f"{src}: the {kind} file holds no triangles")
-    return v, f
-
-
-def _open_checked(p: Path, src: str) -> bytes:
-    """The bytes of the regular file ``p``; every OS-level problem becomes a MeshError."""
-    if "\x00" in str(p):
-        raise MeshError(f"{src}: a path cannot contain a NUL character")
-    too_long = [c for c in p.parts if len(os.fsencode(c)) > NAME_MAX_BYTES]
-    if too_long:
-        raise MeshError(f"{src}: the name {show_path(too_long[0], limit=60)} is {len(os.fsencode(too_long[0]))} "
-                        f"bytes long; file systems allow at most {NAME_MAX_BYTES}: rename the file")
-    try:
-        st = os.stat(p)
-    except FileNotFoundError:
-        raise MeshError(f"{src}: no such file") from None
-    except PermissionError:
-        raise MeshError(f"{src}: permission denied (cannot look into its folder)") from None
-    except OSError as exc:
-        raise MeshError(f"{src}: cannot open the file ({exc.strerror or 'operating-system error'})") from None
-    if stat.S_ISDIR(st.st_mode):
-        raise MeshError(f"{src}: is a folder, not a mesh file; give the STL/OBJ/PLY file inside it")
-    if not stat.S_ISREG(st.st_mode):
-        kind = ("a named pipe (FIFO)" if stat.S_ISFIFO(st.st_mode) else "a socket" if stat.S_ISSOCK(st.st_mode)
-                else "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else "not a regular file")
-        raise MeshError(f"{src}: is {kind}, not a mesh file; save the mesh to a regular file first")
-    if p.suffix.lower() not in SUPPORTED_SUFFIXES:
-        raise MeshError(f"{src}: unsupported file type {show_path(p.suffix or '(none)', limit=20)!r}; "
-                        f"use one of {', '.join(SUPPORTED_SUFFIXES)}")
-    if st.st_size == 0:
-        raise MeshError(f"{src}: the file is empty")
-    if st.st_size > MAX_FILE_BYTES:
-        raise MeshError(f"{src}: {st.st_size:,} bytes is larger than grasplan reads ({MAX_FILE_BYTES:,} bytes, "
-                        f"grasplan.mesh.MAX_FILE_BYTES); decimate the mesh to at most {MAX_TRIANGLES:,} triangles")
-    try:
-        with open(p, "rb") as fh:
-            return fh.read(MAX_FILE_BYTES + 1)
-    except PermissionError:
-        raise MeshError(f"{src}: permission denied; make the file readable (chmod +r)") from None
-    except OSError as exc:
-        raise MeshError(f"{src}: cannot read the file ({exc.strerror or 'operating-system error'})") from None
-
-
-def _read_mesh(path: Path) -> tuple[np.ndarray, np.ndarray, bytes]:
-    """``(vertices, faces, raw bytes)`` of a mesh file, in file units."""
-    src = show_path(path)
-    data = _open_checked(path, src)
-    if path.suffix.lower() == ".stl":
-        v, f = _read_stl(data, src)
-    else:
-        v, f = _read_other(path, data, src)
-    if len(f) > MAX_TRIANGLES:
-        raise _too_many(src, len(f))
-    return v, f, data
-
-
 def load_part(path: str | os.PathLike, *, units: Units | str = "auto") -> Part:
     """Load and clean a part.
 
@@ -340,7 +178,7 @@ def load_part(path: str | os.PathLike, *, units: Units | str = "auto") -> Part:
         outside [:data:`MIN_EXTENT_M`, :data:`MAX_EXTENT_M`] in the chosen units, or no area.
     """
     p = Path(os.fsdecode(path))
-    v, f, data = _read_mesh(p)
+    v, f, data = read_mesh(p, ReadLimits(MAX_TRIANGLES, MAX_FILE_BYTES))
     digest = hashlib.sha256(data).hexdigest()
     del data  # up to MAX_FILE_BYTES: not kept while the mesh is cleaned
     return part_from_arrays(v, f, path=str(p), sha256=digest, units=units, source=show_path(p))
@@ -451,7 +289,7 @@ def part_from_arrays(
     if v.ndim != 2 or v.shape[1] != 3 or len(v) == 0 or f.ndim != 2 or f.shape[1] != 3 or len(f) == 0:
         raise MeshError(f"{src}: the mesh is empty (no triangles)")
     if len(f) > MAX_TRIANGLES:
-        raise _too_many(src, len(f))
+        raise too_many_triangles(src, len(f), MAX_TRIANGLES)
     if not (np.issubdtype(f.dtype, np.integer) or (np.issubdtype(f.dtype, np.floating)
                                                     and np.all(np.isfinite(f)) and np.all(f == np.round(f)))):
         raise MeshError(f"{src}: face indices must be integers; the file is corrupt")
@@ -572,8 +410,8 @@ def part_from_arrays(
     )
 
 
-def part_from_trimesh(mesh: trimesh.Trimesh, *, path: str = "<memory>", units: Units | str = "m") -> Part:
-    """A :class:`Part` from an in-memory trimesh (file units given by ``units``)."""
+def part_from_trimesh(mesh: TriangleMesh, *, path: str = "<memory>", units: Units | str = "m") -> Part:
+    """A :class:`Part` from an in-memory mesh, e.g. a ``trimesh.Trimesh`` (file units given by ``units``)."""
     return part_from_arrays(mesh.vertices, mesh.faces, path=path, units=units)
 
 

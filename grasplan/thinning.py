@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .antipodal import Candidates
+from .antipodal_base import Candidates
 from .params import GraspParams
 
 _GRID_OFFSET = 0.5 * (np.sqrt(5.0) - 1.0)  # 0.618..., far from the round fractions CAD uses

@@ -9,10 +9,10 @@ from hypothesis import HealthCheck, Phase, example, given, settings
 from hypothesis import strategies as st
 
 from conftest import EXAMPLE_PARTS, PAPER_PARTS, SHARP_PAPER_PARTS, paper_part
-from grasplan import antipodal as ap
-from grasplan.antipodal import Candidates, find_candidates
+from grasplan import antipodal_base as ap
+from grasplan.antipodal_base import Candidates
 from grasplan.blm import boundary_layer
-from grasplan.candidates import CandidateParams, compute_candidates
+from grasplan.candidates import CandidateParams, compute_candidates, find_candidates
 from grasplan.convexity import classify_convexity
 from grasplan.mesh import load_part, part_from_trimesh
 
@@ -242,7 +242,7 @@ def test_index_search_equals_brute_force(name, blm):
     miss = np.linalg.norm(ctr[A] - axis * dist[:, None] - ctr[B], axis=1)
     ok = (dist <= mo + eps) & (miss <= eps)
     ref = set(zip(ids[A[ok]].tolist(), ids[B[ok]].tolist()))
-    geo = ap._FaceGeometry.of(np.asarray(mesh.vertices), np.asarray(mesh.faces))
+    geo = ap.FaceGeometry.of(np.asarray(mesh.vertices), np.asarray(mesh.faces))
     chunks = list(ap.stream_pairs(geo.c[ids], geo.n[ids], np.full(len(ids), 0.5 * eps), reach=mo + eps,
                                   beta_deg=BETA, tol=part.tol))
     pre = {(int(ids[a]), int(ids[b])) for i, j in chunks for a, b in zip(i.tolist(), j.tolist())}

@@ -10,15 +10,11 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from grasplan.antipodal import Candidates
+from grasplan.antipodal_base import Candidates
 from grasplan.cell import Cell, load_cell
+from grasplan.collision import GripperCollider, check_grasps
+from grasplan.containment import obb_aabb_separated, points_inside
 from grasplan.stable_poses import stable_pose
-from grasplan.collision import (
-    GripperCollider,
-    check_grasps,
-    obb_aabb_separated,
-    points_inside,
-)
 from grasplan.frames import grasp_frames
 from grasplan.gripper import load_gripper
 from grasplan.mesh import load_part, part_from_trimesh

@@ -9,14 +9,9 @@ import pytest
 import trimesh
 
 from grasplan.cell import load_cell
+from grasplan.collision import GripperCollider
+from grasplan.containment import RayGrid, points_inside, points_inside_tree, surface_samples
 from grasplan.stable_poses import stable_pose
-from grasplan.collision import (
-    GripperCollider,
-    RayGrid,
-    points_inside,
-    points_inside_tree,
-    surface_samples,
-)
 from grasplan.frames import grasp_frames
 from grasplan.gripper import load_gripper
 from grasplan.mesh import load_part, part_from_trimesh

@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from grasplan.antipodal import Candidates
+from grasplan.antipodal_base import Candidates
 from grasplan.frames import grasp_frames, roll_angles, unique_pairs
 
 

@@ -7,11 +7,17 @@ import pytest
 import trimesh
 from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
+import regions_reference
+from regions_reference import find_regions_pairs
 from test_antipodal import point_triangle_distance
 
-from grasplan import antipodal as ap
+from grasplan import antipodal_base as ap
 from grasplan import regions as rg
-from grasplan.antipodal import Candidates, find_candidates
+from grasplan.antipodal_base import Candidates
+from grasplan.candidates import find_candidates
+from grasplan.region_areas import convex_areas
+from grasplan.region_creases import CONCAVE_MARGIN
+from grasplan.regions import find_regions
 from grasplan.tolerance import Tolerance
 
 MU, BETA, SPACING = 0.3, 2.0, 0.002
@@ -49,7 +55,7 @@ def test_samples_on_both_areas_inside_friction_cone():
     # each contact on its own triangle, the two faces in the region's two (distinct) areas
     for k in range(2):
         assert point_triangle_distance(mesh.triangles[c.faces[:, k]], c.contacts[:, k]).max() <= tol.distance
-    areas = rg.convex_areas(mesh, np.ones(len(mesh.faces), bool), tol)
+    areas = convex_areas(mesh, np.ones(len(mesh.faces), bool), tol)
     la, lb = areas.label[c.faces[:, 0]], areas.label[c.faces[:, 1]]
     assert (la != lb).all()
     for r in np.unique(c.region):        # one region = one pair of areas
@@ -117,7 +123,7 @@ def test_chunked_search_equals_unchunked(monkeypatch, example_part):
     ref = _regions(part.mesh, convex, part.tol)
     paper_ref = find_candidates(part.mesh, convex, tol=part.tol, method="paper")
     monkeypatch.setattr(ap, "_QUERY_ROWS", 7)
-    monkeypatch.setattr(rg, "_CHUNK", 101)
+    monkeypatch.setattr(regions_reference, "_CHUNK", 101)
     monkeypatch.setattr(rg, "_EDGE_CHUNK", 50)
     small = _regions(part.mesh, convex, part.tol)
     paper_small = find_candidates(part.mesh, convex, tol=part.tol, method="paper")
@@ -201,17 +207,17 @@ def _key(c: Candidates):
 def test_boundary_method_equals_triangle_pair_reference(example_part, name):
     # two independent implementations of the same definition: outlines (Green + scanlines) vs every
     # overlapping triangle pair (clipping + point-in-triangle probes)
-    from grasplan.antipodal import _FaceGeometry
+    from grasplan.antipodal_base import FaceGeometry
     from grasplan.convexity import classify_convexity
     from grasplan.mesh import load_part
 
     part = load_part(example_part(name), units="mm")
     mesh = part.mesh
     convex = classify_convexity(mesh, tol=part.tol)
-    geo = _FaceGeometry.of(np.asarray(mesh.vertices), np.asarray(mesh.faces))
+    geo = FaceGeometry.of(np.asarray(mesh.vertices), np.asarray(mesh.faces))
     kw = {"max_opening": 0.05, "beta_deg": BETA, "mu": MU, "spacing": SPACING, "tol": part.tol}
-    new = Candidates(*rg.find_regions(mesh, convex, geo, **kw))
-    ref = Candidates(*rg.find_regions_pairs(mesh, convex, geo, **kw))
+    new = Candidates(*find_regions(mesh, convex, geo, **kw))
+    ref = Candidates(*find_regions_pairs(mesh, convex, geo, **kw))
     assert len(new) > 50
     assert _key(new) == _key(ref)
 
@@ -326,7 +332,7 @@ def test_face_concave_only_at_a_shallow_crease_is_sampled_away_from_it():
     on_top = np.isclose(c.width, 0.010) & np.isclose(c.contacts[:, :, 2].max(axis=1), 0.010)
     assert on_top.sum() >= 9 * 9
     x = c.contacts[on_top][:, :, 0]
-    assert (x <= 0.020 - rg.CONCAVE_MARGIN + tol.distance).all()
+    assert (x <= 0.020 - CONCAVE_MARGIN + tol.distance).all()
     assert np.isclose(x.min(), 0.00005, atol=1e-9)      # 0.05 mm from a convex outline: sampled
     assert np.isclose(x.max(), 0.01796, atol=1e-9)      # 0.05 mm from the crease: dropped
     assert not convex[c.faces[on_top]].all()            # samples on the paper-concave triangle too

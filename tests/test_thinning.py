@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from grasplan.antipodal import Candidates
+from grasplan.antipodal_base import Candidates
 from grasplan.thinning import thin_candidates
 
 

@@ -1,0 +1,218 @@
+"""The package's structure rules, read from its source with ``ast``: no import circle (counting every
+import statement: inside functions and under ``if TYPE_CHECKING:`` too) and no module over 600
+lines. The graph code is checked on small synthetic packages first, so a passing run means
+something."""
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+PACKAGE = Path(__file__).resolve().parents[1] / "grasplan"
+#: the longest a module may be (lines); the viewer's JavaScript is not Python and not counted
+MAX_LINES = 600
+
+
+def modules(pkg_dir: Path) -> dict[str, Path]:
+    """Dotted module name -> file, for every ``.py`` file under the package folder ``pkg_dir``
+    (a package's ``__init__.py`` is the package itself)."""
+    out = {}
+    for path in sorted(pkg_dir.rglob("*.py")):
+        parts = path.relative_to(pkg_dir.parent).with_suffix("").parts
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        out[".".join(parts)] = path
+    return out
+
+
+def _imported_names(node: ast.Import | ast.ImportFrom, module: str, is_package: bool) -> list[str]:
+    """The dotted names an import statement may load, relative imports resolved (``from X import y``
+    may load ``X`` or its submodule ``X.y``)."""
+    if isinstance(node, ast.Import):
+        return [alias.name for alias in node.names]
+    if node.level:
+        base = module.split(".") if is_package else module.split(".")[:-1]
+        base = base[: len(base) - (node.level - 1)]
+        target = ".".join(base + ([node.module] if node.module else []))
+    else:
+        target = node.module or ""
+    return [target] + [f"{target}.{alias.name}" for alias in node.names]
+
+
+def import_graph(pkg_dir: Path) -> dict[str, dict[str, int]]:
+    """``{module: {imported module: line of the first such import}}`` within the package.
+
+    Every ``import`` / ``from ... import`` statement anywhere in a module counts (module level,
+    inside functions, under ``if TYPE_CHECKING:``). A name resolves to the longest module of the
+    package it starts with; imports of the module itself or of a package containing it (its parent
+    packages, loaded before it anyway) are not edges."""
+    mods = modules(pkg_dir)
+    graph: dict[str, dict[str, int]] = {m: {} for m in mods}
+    for module, path in mods.items():
+        tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+        is_package = path.name == "__init__.py"
+        for node in ast.walk(tree):
+            if not isinstance(node, (ast.Import, ast.ImportFrom)):
+                continue
+            for name in _imported_names(node, module, is_package):
+                while name and name not in mods:
+                    name = name.rpartition(".")[0]
+                if name and name != module and not module.startswith(name + "."):
+                    graph[module].setdefault(name, node.lineno)
+    return graph
+
+
+def circles(graph: dict[str, dict[str, int]]) -> list[list[str]]:
+    """The import circles: the strongly connected components of two or more modules (each sorted;
+    Tarjan's algorithm, iterative), sorted."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    components = []
+    for root in sorted(graph):
+        if root in index:
+            continue
+        work = [(root, iter(sorted(graph[root])))]
+        index[root] = low[root] = len(index)
+        stack.append(root)
+        on_stack.add(root)
+        while work:
+            v, children = work[-1]
+            w = next(children, None)
+            if w is not None:
+                if w not in index:
+                    index[w] = low[w] = len(index)
+                    stack.append(w)
+                    on_stack.add(w)
+                    work.append((w, iter(sorted(graph[w]))))
+                elif w in on_stack:
+                    low[v] = min(low[v], index[w])
+                continue
+            work.pop()
+            if work:
+                low[work[-1][0]] = min(low[work[-1][0]], low[v])
+            if low[v] == index[v]:
+                comp = []
+                while True:
+                    w = stack.pop()
+                    on_stack.discard(w)
+                    comp.append(w)
+                    if w == v:
+                        break
+                if len(comp) > 1:
+                    components.append(set(comp))
+    return sorted(sorted(comp) for comp in components)
+
+
+def circle_path(graph: dict[str, dict[str, int]], comp: list[str]) -> list[str]:
+    """``[a, b, ..., a]``: a shortest circle through the component's first module (breadth-first)."""
+    start = min(comp)
+    parent: dict[str, str] = {}
+    frontier = [start]
+    while frontier:
+        nxt = []
+        for v in frontier:
+            for w in sorted(graph[v]):
+                if w not in comp:
+                    continue
+                if w == start:
+                    path = [v]
+                    while path[-1] != start:
+                        path.append(parent[path[-1]])
+                    return path[::-1] + [start]
+                if w not in parent:
+                    parent[w] = v
+                    nxt.append(w)
+        frontier = nxt
+    raise AssertionError(f"no circle through {start} in {sorted(comp)}")  # a component always has one
+
+
+def describe(graph: dict[str, dict[str, int]], comp: list[str], pkg_dir: Path) -> str:
+    """``a, b: a -> b (a.py:12) -> a (b.py:3)``: the modules of a circle and one circle through them,
+    with the line of each import."""
+    mods = modules(pkg_dir)
+    path = circle_path(graph, comp)
+    steps = [path[0]] + [f"{b} ({mods[a].relative_to(pkg_dir.parent)}:{graph[a][b]})" for a, b in zip(path, path[1:])]
+    return ", ".join(comp) + ": " + " -> ".join(steps)
+
+
+def long_modules(pkg_dir: Path, limit: int = MAX_LINES) -> list[tuple[str, int]]:
+    """``(module, lines)`` of the Python modules longer than ``limit`` lines, longest first."""
+    rows = [(m, len(p.read_text(encoding="utf-8").splitlines())) for m, p in modules(pkg_dir).items()]
+    return sorted(((m, n) for m, n in rows if n > limit), key=lambda r: (-r[1], r[0]))
+
+
+# -- the graph code on packages whose answer is known ---------------------------------------------------
+
+def _write(root: Path, files: dict[str, str]) -> Path:
+    for rel, text in files.items():
+        path = root / rel
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+    return root / "pkg"
+
+
+def test_synthetic_circle_through_function_and_type_checking_imports_is_found(tmp_path):
+    pkg = _write(tmp_path, {
+        "pkg/__init__.py": "from .sub import d\n",
+        # a -> b only inside a function, b -> c only under TYPE_CHECKING, c -> a by a relative import
+        "pkg/a.py": "import os\n\n\ndef f():\n    from .b import thing\n    return thing\n",
+        "pkg/b.py": "from typing import TYPE_CHECKING\n\nif TYPE_CHECKING:\n    from pkg.c import C\nthing = 1\n",
+        "pkg/c.py": "from . import a\nC = 2\n",
+        # importing a parent package is not an edge; a submodule by 'from .. import name' is
+        "pkg/sub/__init__.py": "",
+        "pkg/sub/d.py": "import pkg\nfrom pkg import sub\nfrom .. import e\n",
+        "pkg/e.py": "import numpy\n",
+    })
+    graph = import_graph(pkg)
+    assert graph["pkg.a"] == {"pkg.b": 5}
+    assert graph["pkg.b"] == {"pkg.c": 4}
+    assert graph["pkg.c"] == {"pkg.a": 1}
+    assert graph["pkg.sub.d"] == {"pkg.e": 3}
+    assert graph["pkg"] == {"pkg.sub": 1, "pkg.sub.d": 1} and graph["pkg.e"] == {}
+    found = circles(graph)
+    assert found == [["pkg.a", "pkg.b", "pkg.c"]]
+    assert describe(graph, found[0], pkg) == ("pkg.a, pkg.b, pkg.c: pkg.a -> pkg.b (pkg/a.py:5) -> pkg.c (pkg/b.py:4) "
+                                              "-> pkg.a (pkg/c.py:1)")
+
+
+def test_synthetic_package_without_circle_and_two_separate_circles(tmp_path):
+    pkg = _write(tmp_path, {
+        "pkg/__init__.py": "from . import x\n",
+        "pkg/x.py": "from .y import Y\n",
+        "pkg/y.py": "Y = 1\n",
+    })
+    assert circles(import_graph(pkg)) == []
+    pkg2 = _write(tmp_path / "two", {
+        "pkg/__init__.py": "",
+        "pkg/p.py": "from .q import Q\n",
+        "pkg/q.py": "def g():\n    import pkg.p\n",
+        "pkg/r.py": "from .s import S\n",
+        "pkg/s.py": "from .r import R\n",
+        "pkg/t.py": "from .t import T\n",            # a module importing itself is no circle
+    })
+    graph = import_graph(pkg2)
+    assert circles(graph) == [["pkg.p", "pkg.q"], ["pkg.r", "pkg.s"]]
+    assert circle_path(graph, ["pkg.r", "pkg.s"]) == ["pkg.r", "pkg.s", "pkg.r"]
+
+
+def test_synthetic_long_module_is_named(tmp_path):
+    pkg = _write(tmp_path, {"pkg/__init__.py": "", "pkg/ok.py": "x = 1\n" * MAX_LINES,
+                            "pkg/long.py": "x = 1\n" * (MAX_LINES + 1), "pkg/notes.js": "//\n" * 5000})
+    assert long_modules(pkg) == [("pkg.long", MAX_LINES + 1)]
+
+
+# -- the package itself ---------------------------------------------------------------------------------------
+
+def test_grasplan_has_no_import_circle():
+    graph = import_graph(PACKAGE)
+    assert len(graph) > 40 and sum(len(e) for e in graph.values()) > 100   # the graph was really read
+    found = circles(graph)
+    assert not found, "import circles (imports inside functions and under TYPE_CHECKING count):\n" + "\n".join(
+        describe(graph, c, PACKAGE) for c in found)
+
+
+def test_no_grasplan_module_over_600_lines():
+    too_long = long_modules(PACKAGE)
+    assert not too_long, f"modules over {MAX_LINES} lines (split them by job): " + ", ".join(
+        f"{m} ({n})" for m, n in too_long)
