@@ -11,7 +11,10 @@ from pathlib import Path
 
 import pytest
 
-from grasplan.batch import (FINAL_STATUSES, BatchOptions, discover_parts, make_jobs, read_manifest, run_batch)
+from grasplan.batch import run_batch
+from grasplan.batch.layout import FINAL_STATUSES
+from grasplan.batch.manifest import discover_parts, make_jobs, read_manifest
+from grasplan.batch.options import BatchOptions
 from grasplan.errors import InputError
 from grasplan.params import GraspParams, PlanParams
 
