@@ -3,8 +3,17 @@
 ``CandidateParams`` (stages 2-4), ``GraspParams`` (stages 5-6) and ``PlanParams`` (stages 7-8)
 validate themselves in ``__post_init__`` and raise :class:`~grasplan.errors.InputError` naming
 the CLI option, the value and the range that would pass. Each field carries its CLI spelling, kind
-and range in ``metadata`` (:func:`spec`); ``grasplan.cli.options`` builds every command's options
-from these fields, so a default or a range exists in exactly one place.
+(length, angle, pose, file, ...), range and help in ``metadata`` (:func:`grasplan.option_kinds.spec`);
+:mod:`grasplan.option_kinds` is the one interpreter of those kinds: ``grasplan.cli.options`` builds
+every command's options from these fields and the batch manifests read their columns with it, so a
+default, a range or the reading of a text exists in exactly one place.
+
+Besides the stages' numbers the classes hold the options that say what to plan: the place
+(``PlanParams.place``, ``--place``), the scoring file (``GraspParams.scoring``, ``--scoring``: its
+weights become ``score_weights`` / ``score_refs``) and every resting pose (``GraspParams.pose_index
+= "all"``, ``--pose-index all``: :func:`grasplan.planning.plan_poses`). ``to_json`` (the record in
+output files) leaves out what an output records elsewhere: the place is the plan's ``cell.place``,
+the scoring file its weights; ``options_json`` (the batch's options hash) keeps the place.
 
 Units: lengths in metres (the CLI accepts suffixes: ``2mm``), user-facing angles in degrees and
 named so (``gamma_deg``), times in seconds.
