@@ -24,6 +24,8 @@ import math
 from dataclasses import MISSING, Field, dataclass, fields
 from typing import Any, ClassVar
 
+import numpy as np
+
 from .errors import InputError
 from .option_kinds import check_fields, is_option, option_name, option_spec, spec
 
@@ -160,6 +162,15 @@ class GraspParams(_Params):
     score_refs: tuple[tuple[str, float], ...] = spec(DEFAULT_SCORE_REFS, "internal",
                                                       "Normalisation of the physical score terms (scoring YAML).")
 
+    def single_pose_index(self) -> int | None:
+        """:attr:`pose_index` as the one resting pose a grasp stage or a plan uses (None: the cell's);
+        InputError for ``"all"``, which plans every pose (:func:`grasplan.planning.plan_poses`)."""
+        if isinstance(self.pose_index, str):
+            raise InputError("--pose-index all (pose_index='all') plans every resting pose: use `grasplan plan "
+                             "--pose-index all`, `grasplan batch --pose-index all` or grasplan.planning.plan_poses; "
+                             "this step takes one pose index (0 = most probable)")
+        return self.pose_index
+
     def _check(self) -> None:
         from .scoring import REF_KEYS, check_weights, load_scoring
 
@@ -216,6 +227,11 @@ class PlanParams(_Params):
             from .scoring import check_weights
 
             check_weights(self.score_weights)
+
+    def place_matrix(self) -> np.ndarray | None:
+        """:attr:`place` as the (4, 4) float64 ``T_world_part`` :func:`grasplan.planning.plan` takes
+        as ``place`` (None: the cell's place, if any)."""
+        return None if self.place is None else np.asarray(self.place, dtype=np.float64)
 
 
 PARAM_CLASSES = (CandidateParams, GraspParams, PlanParams)

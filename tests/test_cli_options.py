@@ -211,3 +211,17 @@ def test_new_options_leave_the_recorded_params_unchanged(tmp_path):
         PlanParams(place=np.diag([1.0, 1.0, -1.0, 1.0]))  # a reflection is no pose
     with pytest.raises(InputError, match="pose-index"):
         BatchOptions(grasps=GraspParams(pose_index="all"), T_world_part=np.eye(4))
+
+
+def test_pose_index_all_is_refused_where_one_pose_is_planned(tmp_path):
+    """``--pose-index all`` is for plan and batch; grasps (one resting pose) refuses it, exit 3, naming
+    what would work, and writes nothing; the library's one-pose steps refuse it the same way."""
+    from grasplan.params import GraspParams
+
+    r = CliRunner().invoke(main, ["grasps", str(tmp_path / "missing_input.stl"), "--pose-index", "all",
+                                  "-o", str(tmp_path / "out.json")])
+    assert r.exit_code == 3 and "--pose-index all" in r.output and "grasplan plan" in r.output, r.output
+    assert not (tmp_path / "out.json").exists()
+    assert GraspParams(pose_index=2).single_pose_index() == 2 and GraspParams().single_pose_index() is None
+    with pytest.raises(InputError, match="plan_poses"):
+        GraspParams(pose_index="ALL".lower()).single_pose_index()

@@ -60,7 +60,15 @@ from typing import Any
 from ..errors import InputError
 from ..io import read_json, write_atomic_bytes, write_json
 from .engines import ENGINES, iter_local, iter_ray
-from .layout import DONE_FILE, DONE_SCHEMA, FAILED_STATUSES, FINAL_STATUSES, LOCK_FILE, STAGING_DIR, BatchStatus
+from .layout import (
+    DONE_FILE,
+    DONE_SCHEMA,
+    FAILED_STATUSES,
+    FINAL_STATUSES,
+    LOCK_FILE,
+    STAGING_DIR,
+    BatchStatus,
+)
 from .manifest import PartJob, discover_parts, make_jobs
 from .options import BatchOptions
 from .report import BatchSummary, pending_row, summary_row, write_summary

@@ -172,9 +172,8 @@ def _plan_files(o: BatchOptions, part: Part, load_s: float, out: Path, log: list
     from ..planning import MIN_POSE_PROBABILITY, plan, plan_poses
 
     T = None if o.T_world_part is None else np.asarray(o.T_world_part, dtype=np.float64)
-    place = None if o.planning.place is None else np.asarray(o.planning.place, dtype=np.float64)
     kw: dict[str, Any] = dict(robot=o.robot, gripper=o.gripper, cell=o.cell, candidates=o.candidates,
-                              grasps=o.grasps, planning=o.planning, T_world_part=T, place=place)
+                              grasps=o.grasps, planning=o.planning, T_world_part=T, place=o.planning.place_matrix())
     if o.grasps.pose_index != ALL_POSES:
         result = plan(part, load_s=load_s, **kw)
         result.write(out / PLAN_FILE)

@@ -5,8 +5,8 @@ import time
 
 import click
 
-from ..errors import InputError, PlanningError
-from ..params import ALL_POSES, CandidateParams, GraspParams
+from ..errors import PlanningError
+from ..params import CandidateParams, GraspParams
 from ..status import Status
 from .common import check_output, info, table, warn_all
 from .options import (
@@ -43,9 +43,7 @@ def command(part, output, gripper, cell, part_pose, units, only_ok, indent, **kw
     output = check_output(output, part)
     apply_config_dirs(kwargs)
     prm = params_from_kwargs(kwargs, (CandidateParams, GraspParams))  # --scoring is read here
-    if prm["grasps"].pose_index == ALL_POSES:
-        raise InputError("--pose-index all: grasps computes one resting pose; give its index (0 = most probable), "
-                         "or plan every pose with `grasplan plan --pose-index all`")
+    prm["grasps"].single_pose_index()  # one resting pose: InputError for --pose-index all
     g = load_gripper(gripper)
     c = load_cell(cell)
     T_world_part = parse_part_pose(part_pose) if part_pose is not None else None

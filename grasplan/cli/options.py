@@ -18,7 +18,14 @@ from typing import Any
 import click
 
 from ..errors import InputError
-from ..option_kinds import OptionSpec, is_option, metavar, option_name, option_spec, read_value
+from ..option_kinds import (
+    OptionSpec,
+    is_option,
+    metavar,
+    option_name,
+    option_spec,
+    read_value,
+)
 from ..params import (
     DEFAULT_CELL,
     DEFAULT_GRIPPER,

@@ -2,11 +2,9 @@
 from __future__ import annotations
 
 import time
-
 from typing import Any
 
 import click
-import numpy as np
 
 from ..errors import PlanningError
 from ..params import ALL_POSES, CandidateParams, GraspParams, PlanParams
@@ -76,7 +74,7 @@ def command(part, robot, output, gripper, cell, part_pose, units, **kwargs):
         return _plan_all_poses(p, part, rob, g, c, T_world_part, output, prm, t0)
     try:
         result = plan(p, rob, gripper=g, cell=c, T_world_part=T_world_part, progress=on_progress, load_s=load_s,
-                      place=place_of(prm["planning"]), **prm)
+                      place=prm["planning"].place_matrix(), **prm)
     finally:
         if bar_state["bar"] is not None:
             bar_state["ctx"].__exit__(None, None, None)
@@ -106,11 +104,6 @@ def command(part, robot, output, gripper, cell, part_pose, units, **kwargs):
                             f"{output} lists every grasp's status and reason{hint}")
 
 
-def place_of(planning: PlanParams) -> np.ndarray | None:
-    """``PlanParams.place`` as the (4, 4) array :func:`grasplan.planning.plan` takes as ``place``."""
-    return None if planning.place is None else np.asarray(planning.place, dtype=np.float64)
-
-
 def _other_poses_hint(p, g, c, prm, result) -> str:
     """``"; other resting poses: 1 (23 %): 812 collision-free grasps, ..."`` (the grasp stage only)."""
     from ..planning import grasp_counts_by_pose
@@ -133,7 +126,7 @@ def _plan_all_poses(p, part, rob, g, c, T_world_part, output, prm, t0) -> None:
     from ..pose_plans import write_pose_plans
 
     info(f"planning every stable pose of probability >= {MIN_POSE_PROBABILITY * 100:g} % ...")
-    runs = plan_poses(p, rob, gripper=g, cell=c, T_world_part=T_world_part, place=place_of(prm["planning"]), **prm)
+    runs = plan_poses(p, rob, gripper=g, cell=c, T_world_part=T_world_part, place=prm["planning"].place_matrix(), **prm)
     done = write_pose_plans(runs, output, min_probability=MIN_POSE_PROBABILITY)
     click.echo(table(done.table_rows(), header=("pose", "probability", "planned", "collision-free", "file")), err=True)
     if done.result is None:
