@@ -58,7 +58,8 @@ def make_catalogue(folder: Path, n: int, seed: int = 0) -> list[Path]:
 
 def run_one(catalogue: Path, out: Path, workers: int, top: int, engine: str) -> dict:
     """One batch in this process; returns seconds, rows and peak RSS (MiB)."""
-    from grasplan.batch import BatchOptions, run_batch
+    from grasplan.batch import run_batch
+    from grasplan.batch.options import BatchOptions
     from grasplan.params import PlanParams
 
     load0 = os.getloadavg()[0]

@@ -3,8 +3,17 @@
 ``CandidateParams`` (stages 2-4), ``GraspParams`` (stages 5-6) and ``PlanParams`` (stages 7-8)
 validate themselves in ``__post_init__`` and raise :class:`~grasplan.errors.InputError` naming
 the CLI option, the value and the range that would pass. Each field carries its CLI spelling, kind
-and range in ``metadata`` (:func:`spec`); ``grasplan.cli.options`` builds every command's options
-from these fields, so a default or a range exists in exactly one place.
+(length, angle, pose, file, ...), range and help in ``metadata`` (:func:`grasplan.option_kinds.spec`);
+:mod:`grasplan.option_kinds` is the one interpreter of those kinds: ``grasplan.cli.options`` builds
+every command's options from these fields and the batch manifests read their columns with it, so a
+default, a range or the reading of a text exists in exactly one place.
+
+Besides the stages' numbers the classes hold the options that say what to plan: the place
+(``PlanParams.place``, ``--place``), the scoring file (``GraspParams.scoring``, ``--scoring``: its
+weights become ``score_weights`` / ``score_refs``) and every resting pose (``GraspParams.pose_index
+= "all"``, ``--pose-index all``: :func:`grasplan.planning.plan_poses`). ``to_json`` (the record in
+output files) leaves out what an output records elsewhere: the place is the plan's ``cell.place``,
+the scoring file its weights; ``options_json`` (the batch's options hash) keeps the place.
 
 Units: lengths in metres (the CLI accepts suffixes: ``2mm``), user-facing angles in degrees and
 named so (``gamma_deg``), times in seconds.
@@ -12,10 +21,13 @@ named so (``gamma_deg``), times in seconds.
 from __future__ import annotations
 
 import math
-from dataclasses import MISSING, asdict, dataclass, field, fields
-from typing import Any
+from dataclasses import MISSING, Field, dataclass, fields
+from typing import Any, ClassVar
+
+import numpy as np
 
 from .errors import InputError
+from .option_kinds import check_fields, is_option, option_name, option_spec, spec
 
 #: the default gripper, cell and robot (names looked up by grasplan.config_files)
 DEFAULT_GRIPPER = "schunk_egp_c_40"
@@ -24,107 +36,59 @@ DEFAULT_ROBOT = "ur5"
 #: contact distance searched when no gripper says otherwise: the paper's Schunk Co-act EGP-C 40
 #: with fingers for a 50 mm opening
 DEFAULT_MAX_OPENING = 0.05
-#: the largest length any option accepts, m (a cell is a few metres; 1e308 is refused)
-MAX_LENGTH = 10.0
 #: candidate methods: regions (sampled contact regions, the default) or the paper's face pairs
 METHODS = ("regions", "paper")
 #: score terms of :mod:`grasplan.scoring` with their default weights, and the normalisation of the
 #: physical terms: read from the packaged ``configs/scoring.yaml``, their one definition
 from .scoring import DEFAULT_SCORING as _DEFAULT_SCORING
+from .scoring import SCORING_HELP
 
 DEFAULT_SCORE_WEIGHTS: tuple[tuple[str, float], ...] = _DEFAULT_SCORING.weights
 DEFAULT_SCORE_REFS: tuple[tuple[str, float], ...] = _DEFAULT_SCORING.refs
 #: default part density, kg/m^3 (steel)
 DEFAULT_DENSITY = 7850.0
-
-
-def spec(default: Any, kind: str, help: str, *, cli: str | None = None, lo: float | None = None,
-         hi: float | None = None, lo_open: bool = False, choices: tuple = (), flag: str | None = None,
-         show: str | None = None, cli_hidden: bool = False):
-    """A dataclass field with its CLI description.
-
-    kind: ``length`` (m, > 0), ``length0`` (m, >= 0, 0 = off), ``angle`` (deg), ``int``, ``float``,
-    ``bool``, ``choice``, ``seconds`` (> 0 s), ``optional_length`` / ``optional_seconds`` / ``optional_int``
-    (None allowed), ``internal`` (no CLI option)."""
-    md = {"kind": kind, "help": help, "cli": cli, "lo": lo, "hi": hi, "lo_open": lo_open, "choices": choices,
-          "flag": flag, "show": show, "cli_hidden": cli_hidden}
-    return field(default=default, metadata=md)
-
-
-def option_name(f) -> str:
-    """The CLI spelling of a dataclass field (``--roll-step`` for ``roll_step_deg``)."""
-    return f.metadata.get("cli") or "--" + f.name.replace("_", "-")
-
-
-def _fail(f, value, why: str) -> InputError:
-    return InputError(f"{option_name(f)} ({f.name}): {why}, got {value!r}")
-
-
-def _validate(obj) -> None:
-    for f in fields(obj):
-        md = f.metadata
-        kind = md.get("kind")
-        if kind is None or kind == "internal":
-            continue
-        v = getattr(obj, f.name)
-        if v is None and kind.startswith("optional_"):
-            continue
-        base = kind.removeprefix("optional_")
-        if base == "bool":
-            if not isinstance(v, bool):
-                raise _fail(f, v, "expected true or false")
-            continue
-        if base == "choice":
-            if v not in md["choices"]:
-                raise _fail(f, v, f"expected one of {', '.join(map(str, md['choices']))}")
-            continue
-        if base == "int":
-            if isinstance(v, bool) or not isinstance(v, int):
-                raise _fail(f, v, "expected a whole number")
-        elif isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise _fail(f, v, "expected a finite number")
-        lo, hi = md.get("lo"), md.get("hi")
-        if base == "length":
-            lo, hi = (lo if lo is not None else 0.0), (hi if hi is not None else MAX_LENGTH)
-            if not (lo < v <= hi):
-                raise _fail(f, v, f"expected a length in ({lo:g}, {hi:g}] m (e.g. 2mm)")
-            continue
-        if base == "length0":
-            hi = hi if hi is not None else MAX_LENGTH
-            if not (0.0 <= v <= hi):
-                raise _fail(f, v, f"expected a length in [0, {hi:g}] m (0 = off)")
-            continue
-        if base == "seconds":
-            hi = hi if hi is not None else 86400.0
-            if not (0.0 < v <= hi):
-                raise _fail(f, v, f"expected seconds in (0, {hi:g}]")
-            continue
-        if lo is not None and (v < lo or (md.get("lo_open") and v == lo)):
-            raise _fail(f, v, f"must be {'>' if md.get('lo_open') else '>='} {lo:g}" + (f" and <= {hi:g}" if hi is not None else ""))
-        if hi is not None and v > hi:
-            raise _fail(f, v, f"must be <= {hi:g}" + (f" and >= {lo:g}" if lo is not None else ""))
+#: ``pose_index="all"``: plan every stable pose (grasplan.planning.plan_poses), one plan per pose
+ALL_POSES = "all"
 
 
 class _Params:
     """Shared behaviour: validation, JSON (lengths m, angles *_deg), defaults by name."""
 
+    __dataclass_fields__: ClassVar[dict[str, Field[Any]]]
+
     def __post_init__(self):
-        _validate(self)
+        check_fields(self)
         self._check()
 
     def _check(self) -> None:  # cross-field checks, overridden where needed
         pass
 
-    def to_json(self) -> dict:
-        out = asdict(self)
-        for k, v in out.items():
-            if isinstance(v, tuple):
-                out[k] = [list(x) if isinstance(x, tuple) else x for x in v]
+    def _json(self, records: tuple[str, ...]) -> dict:
+        out: dict[str, Any] = {}
+        for f in fields(self):
+            s = option_spec(f)
+            record = s.record if s is not None else "always"
+            if record not in records or (record == "elsewhere" and getattr(self, f.name) == f.default):
+                continue
+            v = getattr(self, f.name)
+            out[f.name] = [list(x) if isinstance(x, tuple) else x for x in v] if isinstance(v, tuple) else v
         return out
+
+    def to_json(self) -> dict:
+        """The record of the options in an output file: every field but those the output records
+        elsewhere (``record="elsewhere"``: the place is the plan's ``cell.place``) and the inputs read
+        into other fields (``record="never"``: the scoring file, recorded as its weights)."""
+        return self._json(("always",))
+
+    def options_json(self) -> dict:
+        """Every option that decides a result (the batch's options hash and its workers):
+        :meth:`to_json` plus the ``record="elsewhere"`` options that are set."""
+        return self._json(("always", "elsewhere"))
 
     @classmethod
     def from_json(cls, data: dict):
-        """Rebuild from :meth:`to_json` output (unknown keys are ignored: older/newer files)."""
+        """Rebuild from :meth:`to_json` or :meth:`options_json` output (unknown keys are ignored:
+        older/newer files)."""
         kw = {}
         for f in fields(cls):
             if f.name in data:
@@ -135,9 +99,12 @@ class _Params:
         return cls(**kw)
 
     @classmethod
-    def default(cls, name: str):
+    def default(cls, name: str) -> Any:
         f = next(f for f in fields(cls) if f.name == name)
-        return f.default if f.default is not MISSING else f.default_factory()
+        if f.default is not MISSING:
+            return f.default
+        assert f.default_factory is not MISSING
+        return f.default_factory()
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -152,8 +119,8 @@ class CandidateParams(_Params):
     d_shift: float = spec(1e-5, "length", "Convexity: shift of the face centroid along its normal.", hi=0.01,
                           show="0.01mm")
     epsilon: float = spec(5e-3, "length", "Antipodal overlap threshold.", hi=0.5, show="5mm")
-    max_opening: float | None = spec(None, "optional_length", "Largest contact distance searched "
-                                     "[default: the gripper's max_opening].", hi=2.0)
+    max_opening: float | None = spec(None, "length", "Largest contact distance searched "
+                                     "[default: the gripper's max_opening].", hi=2.0, optional=True)
     beta_deg: float = spec(2.0, "angle", "Normals anti-parallel within this angle.", cli="--beta", lo=0.0, hi=45.0)
     mu: float = spec(0.3, "float", "Friction coefficient (cone half-angle atan(mu)).", lo=0.0, hi=10.0)
     method: str = spec("regions", "choice", "Candidates: 'regions' samples opposing contact regions every --spacing "
@@ -175,22 +142,42 @@ class GraspParams(_Params):
                                 lo=0.5, hi=90.0)
     merge_distance: float = spec(0.0, "length0", "Also skip a candidate whose contacts fall in the same grid cells of "
                                  "this size as an earlier candidate's; 0 = off.", hi=0.5)
-    pose_index: int | None = spec(None, "optional_int", "Rest the part in this stable pose (0 = most probable) "
-                                  "instead of the cell's pose_index.", lo=0, hi=10000)
+    pose_index: int | str | None = spec(None, "int", "Rest the part in this stable pose (0 = most probable) "
+                                        "instead of the cell's pose_index; 'all' (plan, batch): plan every stable "
+                                        "pose of probability >= 2 %, write OUT.pose<k>.json "
+                                        "per pose and OUT.json = the pose with the most planned grasps plus a "
+                                        "'poses' block with the counts per pose.", lo=0, hi=10000, optional=True,
+                                        words=(ALL_POSES,), metavar="INDEX|all")
     # grasp quality (issue 11, grasplan.quality): mass properties and the score
     density: float = spec(DEFAULT_DENSITY, "float", "Part density, kg/m^3 (uniform; 7850 steel, 2700 aluminium, "
                           "~1200 plastic): mass and centre of mass for the grasp quality.", lo=0.0, lo_open=True,
                           hi=1e5)
-    mass: float | None = spec(None, "optional_float", "Part mass, kg (overrides --density).", lo=0.0, lo_open=True,
-                              hi=1e4)
+    mass: float | None = spec(None, "float", "Part mass, kg (overrides --density).", lo=0.0, lo_open=True,
+                              hi=1e4, optional=True)
+    # a scoring YAML: its weights and normalisation replace score_weights and score_refs (the outputs
+    # record those, not the file name)
+    scoring: str | None = spec(None, "file", SCORING_HELP, optional=True, record="never")
     score_weights: tuple[tuple[str, float], ...] = spec(DEFAULT_SCORE_WEIGHTS, "internal",
                                                          "Score terms and weights (configs/scoring.yaml or --scoring).")
     score_refs: tuple[tuple[str, float], ...] = spec(DEFAULT_SCORE_REFS, "internal",
                                                       "Normalisation of the physical score terms (scoring YAML).")
 
-    def _check(self) -> None:
-        from .scoring import REF_KEYS, check_weights
+    def single_pose_index(self) -> int | None:
+        """:attr:`pose_index` as the one resting pose a grasp stage or a plan uses (None: the cell's);
+        InputError for ``"all"``, which plans every pose (:func:`grasplan.planning.plan_poses`)."""
+        if isinstance(self.pose_index, str):
+            raise InputError("--pose-index all (pose_index='all') plans every resting pose: use `grasplan plan "
+                             "--pose-index all`, `grasplan batch --pose-index all` or grasplan.planning.plan_poses; "
+                             "this step takes one pose index (0 = most probable)")
+        return self.pose_index
 
+    def _check(self) -> None:
+        from .scoring import REF_KEYS, check_weights, load_scoring
+
+        if self.scoring is not None:  # the file's weights and references replace the fields (outputs record those)
+            cfg = load_scoring(self.scoring)
+            object.__setattr__(self, "score_weights", cfg.weights)
+            object.__setattr__(self, "score_refs", cfg.refs)
         check_weights(self.score_weights)
         refs = dict(self.score_refs)
         if set(refs) - set(REF_KEYS) or not all(isinstance(v, (int, float)) and math.isfinite(v) and v > 0
@@ -214,8 +201,8 @@ class PlanParams(_Params):
     path_attempts: int = spec(2, "int", "RRTConnect attempts per query (new seed, finer checks).", lo=1, hi=20)
     max_ik_solutions: int = spec(8, "int", "IK solutions tried per grasp (closest to q_home first).", lo=1, hi=64)
     max_path_queries: int = spec(2, "int", "RRTConnect queries per grasp (distinct IK solutions).", lo=1, hi=64)
-    budget_s: float | None = spec(100.0, "optional_seconds", "Wall-clock budget of the planning loop, seconds; "
-                                  "later grasps are not_tried.", cli="--budget", hi=86400.0)
+    budget_s: float | None = spec(100.0, "seconds", "Wall-clock budget of the planning loop, seconds; "
+                                  "later grasps are not_tried.", cli="--budget", hi=86400.0, optional=True)
     distinct_distance: float = spec(0.005, "length0", "Ranking: a grasp within this distance and --distinct-angle "
                                     "of a better one ranks after every distinct grasp; 0 = off.", hi=0.5, show="5mm")
     distinct_angle_deg: float = spec(15.0, "float", "Ranking: angle for --distinct-distance, degrees.",
@@ -229,6 +216,11 @@ class PlanParams(_Params):
     check_all: bool = spec(True, "bool", "Collision-check and score every pose before planning; --no-check-all: "
                            "only the poses whose score bound can reach the planned ranks, the rest are not_checked "
                            "(docs/plan.md).", flag="--check-all/--no-check-all")
+    place: tuple[tuple[float, ...], ...] | None = spec(
+        None, "pose", "Pick-and-place: the part's pose after release, 'x,y,z,roll,pitch,yaw' (lengths m or with "
+        "units, angles deg, R = Rz(yaw) Ry(pitch) Rx(roll)); overrides the cell's place. Every plan lifts the part "
+        "along the cell's retreat; with a place it is carried there, released and the gripper retreats.",
+        optional=True, record="elsewhere")
 
     def _check(self) -> None:
         if self.score_weights is not None:
@@ -236,5 +228,22 @@ class PlanParams(_Params):
 
             check_weights(self.score_weights)
 
+    def place_matrix(self) -> np.ndarray | None:
+        """:attr:`place` as the (4, 4) float64 ``T_world_part`` :func:`grasplan.planning.plan` takes
+        as ``place`` (None: the cell's place, if any)."""
+        return None if self.place is None else np.asarray(self.place, dtype=np.float64)
+
 
 PARAM_CLASSES = (CandidateParams, GraspParams, PlanParams)
+
+
+def option_fields() -> dict[str, tuple[type, Field[Any]]]:
+    """Every option of the three classes by field name and by CLI spelling without dashes
+    (``thin_spacing`` and ``thin``, ``pose_index``): ``key -> (class, field)`` (batch manifests)."""
+    out: dict[str, tuple[type, Field[Any]]] = {}
+    for cls in PARAM_CLASSES:
+        for f in fields(cls):
+            if is_option(f):
+                out[f.name] = (cls, f)
+                out[option_name(f).lstrip("-").replace("-", "_")] = (cls, f)
+    return out

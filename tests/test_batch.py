@@ -11,7 +11,10 @@ from pathlib import Path
 
 import pytest
 
-from grasplan.batch import (FINAL_STATUSES, BatchOptions, discover_parts, make_jobs, read_manifest, run_batch)
+from grasplan.batch import run_batch
+from grasplan.batch.layout import FINAL_STATUSES
+from grasplan.batch.manifest import discover_parts, make_jobs, read_manifest
+from grasplan.batch.options import BatchOptions
 from grasplan.errors import InputError
 from grasplan.params import GraspParams, PlanParams
 
@@ -247,3 +250,51 @@ def test_per_part_pose_index_reaches_the_plan_and_other_options_replan(tmp_path)
     assert json.loads((folder / "plan.json").read_text())["params"]["pose_index"] == 0
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == sorted(
         [".grasplan-batch.lock", s.rows[0]["dir"], "index.html", "summary.csv", "summary.json"])
+
+
+# ------------------------------------------------------------------ place, scoring file, every pose
+@pytest.mark.slow
+def test_place_scoring_file_and_every_pose_give_the_files_plan_gives(tmp_path):
+    """``place``, ``scoring`` and ``pose_index: all`` are plan options a manifest row (and the batch's
+    command line) sets too: each part's files are those `grasplan plan` writes with the same options
+    (with ``all``: plan.json plus one plan.pose<k>.json per resting pose), timing aside."""
+    import trimesh
+
+    plate = tmp_path / "plate.stl"  # lying flat nothing fits the jaws; on its long edge (poses 2, 3) it does
+    trimesh.creation.box(extents=[0.1, 0.06, 0.012]).export(plate)
+    (tmp_path / "s.yaml").write_text("weights: {top: 1, center: 1}\n")
+    place = "0.45,0.3,5mm,0,0,180"
+    (tmp_path / "m.yaml").write_text(f"- {{path: plate.stl, units: m, pose_index: all, scoring: s.yaml}}\n"
+                                     f"- {{path: {EXAMPLES / 'box.stl'}, place: '{place}'}}\n")
+    out = tmp_path / "out"
+    r = _cli(["batch", str(tmp_path / "m.yaml"), "-o", str(out), "--top", "1", "--workers", "2", "--no-view"])
+    assert r.exit_code == 0, r.output
+    rows = json.loads((out / "summary.json").read_text())["parts"]
+    assert [row["status"] for row in rows] == ["planned", "planned"]
+    r = _cli(["plan", str(plate), "--units", "m", "--top", "1", "--pose-index", "all", "--scoring",
+              str(tmp_path / "s.yaml"), "-o", str(tmp_path / "plate.json")])
+    assert r.exit_code == 0, r.output
+    r = _cli(["plan", str(EXAMPLES / "box.stl"), "--top", "1", "--place", place, "-o", str(tmp_path / "box.json")])
+    assert r.exit_code == 0, r.output
+
+    folder = out / rows[0]["dir"]
+    batch_all, plan_all = _plan_doc(folder / "plan.json"), _plan_doc(tmp_path / "plate.json")
+    for p in plan_all["poses"]["poses"]:  # the per-pose files are named after OUT
+        p["file"] = p["file"] and p["file"].replace("plate.", "plan.", 1)
+    assert batch_all == plan_all
+    assert batch_all["params"]["score_weights"] == [["top", 1.0], ["center", 1.0]]
+    files = sorted(p.name for p in folder.glob("plan.pose*.json"))
+    assert files == sorted(p["file"] for p in plan_all["poses"]["poses"] if p["file"]) and len(files) >= 2
+    for name in files:
+        assert _plan_doc(folder / name) == _plan_doc(tmp_path / name.replace("plan.", "plate.", 1))
+    assert rows[0]["planned"] == batch_all["counts"]["planned"] == 1
+
+    batch_box = _plan_doc(out / rows[1]["dir"] / "plan.json")
+    assert batch_box == _plan_doc(tmp_path / "box.json")
+    assert batch_box["cell"]["place"]["T_world_part"][2][3] == pytest.approx(0.005)
+    # the options hash covers the new options: the same part without them is another option set
+    plain = make_jobs(discover_parts([EXAMPLES / "box.stl"]), BatchOptions())[0]
+    assert rows[1]["options_hash"] != plain.options_hash
+    done = json.loads((out / rows[1]["dir"] / "done.json").read_text())
+    assert done["options"]["planning"]["place"][2][3] == pytest.approx(0.005)
+    assert "scoring" not in json.loads((folder / "done.json").read_text())["options"]["grasps"]

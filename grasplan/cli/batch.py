@@ -33,17 +33,20 @@ def _split_exports(ctx, param, value):
 @param_options(CandidateParams, GraspParams, PlanParams)
 def command(parts, out_dir, workers, engine, ray_address, exports, no_view, **kwargs):
     """Plan every part in PARTS: mesh files, folders (searched recursively for STL/OBJ/PLY) or
-    CSV/YAML manifests (a 'path' column, optional 'units', 'robot', 'gripper', 'cell' and any plan
-    option per part, e.g. 'pose_index').
+    CSV/YAML manifests (a 'path' column, optional 'units', 'robot', 'gripper', 'cell', 'part_pose'
+    and any plan option per part, e.g. 'pose_index', 'place', 'scoring').
 
     Per part OUTDIR/<stem>-<sha8>/ gets plan.json (as `grasplan plan` writes it), the --export
     files, view.html and log.txt. A bad part is recorded in the summary and the batch goes on.
     Rerunning the same command skips finished parts (same file sha256 and options). Exit code 0
     when some part has a planned grasp, 4 when none has, 3 for bad inputs (nothing written).
     """
-    from ..batch import BatchOptions, format_row, run_batch
+    from ..batch import run_batch
+    from ..batch.layout import BatchStatus
+    from ..batch.options import BatchOptions
+    from ..batch.report import format_row
 
-    params = params_from_kwargs(kwargs)
+    params = params_from_kwargs(kwargs)  # --scoring is read here, --place and --pose-index parsed
     part_pose = kwargs.pop("part_pose")
     T_world_part = None
     if part_pose is not None:
@@ -65,10 +68,11 @@ def command(parts, out_dir, workers, engine, ray_address, exports, no_view, **kw
         sys.exit(130)
     bar.close()
     c = summary.counts
-    click.echo(f"{len(summary.rows)} parts: {c['planned']} planned, {c['nothing_planned']} nothing planned, "
-               f"{c['bad_input']} bad input, {c['error']} errors ({c['resumed']} already done)")
+    click.echo(f"{len(summary.rows)} parts: {c[BatchStatus.PLANNED.value]} planned, "
+               f"{c[BatchStatus.NOTHING.value]} nothing planned, {c[BatchStatus.BAD.value]} bad input, "
+               f"{c[BatchStatus.ERROR.value]} errors ({c['resumed']} already done)")
     for row in summary.rows:
-        if row["status"] != "planned":
+        if row["status"] != BatchStatus.PLANNED:
             click.echo("  " + format_row(row))
     click.echo(f"wrote {summary.out_dir / 'summary.csv'} and {summary.out_dir / 'index.html'}")
     if summary.exit_code == 4:
@@ -86,7 +90,7 @@ class _Progress:
         self.failed = 0
 
     def update(self, ev: dict) -> None:
-        from ..batch import format_row
+        from ..batch.report import format_row
 
         if not self.tty:
             info(f"[{ev['done']}/{ev['total']}] {format_row(ev['row'])}")

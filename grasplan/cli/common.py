@@ -1,4 +1,5 @@
-"""Shared CLI pieces: length/angle option types, the units option, summaries, progress."""
+"""Shared CLI pieces: the units option, the output check, summaries, progress (the option types
+are in :mod:`grasplan.cli.options`)."""
 from __future__ import annotations
 
 import sys
@@ -8,68 +9,7 @@ from contextlib import contextmanager
 
 import click
 
-from ..errors import InputError
 from ..mesh import UNIT_CHOICES
-from ..units import parse_angle_deg, parse_length
-
-
-class LengthType(click.ParamType):
-    """A length option: ``0.1mm``, ``5cm`` or a bare number in metres; converted to metres.
-    Positive, or >= 0 with ``allow_zero`` (where 0 means "off")."""
-
-    name = "LENGTH"
-
-    def __init__(self, *, allow_zero: bool = False):
-        self.allow_zero = allow_zero
-
-    def convert(self, value, param, ctx):
-        if isinstance(value, float):
-            return value
-        try:
-            return parse_length(value, name=f"--{param.name.replace('_', '-')}" if param else "length",
-                                allow_zero=self.allow_zero)
-        except InputError as exc:
-            self.fail(str(exc), param, ctx)
-
-
-class AngleType(click.ParamType):
-    """An angle option in degrees (``15`` or ``15deg``; ``0.26rad`` converts); kept in degrees."""
-
-    name = "DEG"
-
-    def convert(self, value, param, ctx):
-        if isinstance(value, float):
-            return value
-        try:
-            return parse_angle_deg(value, name=f"--{param.name.replace('_', '-')}" if param else "angle")
-        except InputError as exc:
-            self.fail(str(exc), param, ctx)
-
-
-class PoseIndexType(click.ParamType):
-    """``--pose-index``: a stable pose (0 = most probable) or ``all`` (every pose of probability >= 2 %)."""
-
-    name = "INDEX|all"
-
-    def convert(self, value, param, ctx):
-        if value is None or (isinstance(value, int) and not isinstance(value, bool)):
-            return value
-        text = str(value).strip()
-        if text.lower() == "all":
-            return "all"
-        try:
-            v = int(text)
-        except ValueError:
-            self.fail(f"{value!r} is neither a whole number nor 'all'", param, ctx)
-        if not 0 <= v <= 10000:
-            self.fail(f"{value!r}: expected 0..10000 (0 = most probable) or 'all'", param, ctx)
-        return v
-
-
-LENGTH = LengthType()
-LENGTH_OR_ZERO = LengthType(allow_zero=True)
-ANGLE = AngleType()
-POSE_INDEX = PoseIndexType()
 
 units_option = click.option(
     "--units",

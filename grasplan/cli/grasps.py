@@ -7,7 +7,7 @@ import click
 
 from ..errors import PlanningError
 from ..params import CandidateParams, GraspParams
-from ..scoring import SCORING_HELP, with_scoring_file
+from ..status import Status
 from .common import check_output, info, table, warn_all
 from .options import (
     apply_config_dirs,
@@ -23,11 +23,10 @@ from .options import (
 @output_option("Output JSON file (grasplan.grasps/1), written atomically.")
 @cell_options
 @param_options(GraspParams, CandidateParams)
-@click.option("--scoring", type=click.Path(dir_okay=False), default=None, help=SCORING_HELP)
 @click.option("--only-ok", is_flag=True,
               help="Write only the ok grasps (counts still cover every pose); keeps files small.")
 @click.option("--indent", type=click.IntRange(0, 8), default=None, help="Indent the JSON (default: compact).")
-def command(part, output, gripper, cell, part_pose, units, only_ok, indent, scoring, **kwargs):
+def command(part, output, gripper, cell, part_pose, units, only_ok, indent, **kwargs):
     """Gripper poses for PART's antipodal candidates, rolled about each closing axis, each checked
     for collisions of the gripper body and the closing jaws against the part and the table.
 
@@ -43,8 +42,8 @@ def command(part, output, gripper, cell, part_pose, units, only_ok, indent, scor
     t_all = time.perf_counter()
     output = check_output(output, part)
     apply_config_dirs(kwargs)
-    prm = params_from_kwargs(kwargs, (CandidateParams, GraspParams))
-    prm["grasps"] = with_scoring_file(prm["grasps"], scoring)
+    prm = params_from_kwargs(kwargs, (CandidateParams, GraspParams))  # --scoring is read here
+    prm["grasps"].single_pose_index()  # one resting pose: InputError for --pose-index all
     g = load_gripper(gripper)
     c = load_cell(cell)
     T_world_part = parse_part_pose(part_pose) if part_pose is not None else None
@@ -67,19 +66,18 @@ def command(part, output, gripper, cell, part_pose, units, only_ok, indent, scor
         ("candidates", n["candidates"]),
         ("posed candidates", n["posed_candidates"]),
         ("poses", n["poses"]),
-        ("kept (ok)", n["ok"]),
-        ("rejected: collision_part", n["collision_part"]),
-        ("rejected: collision_table", n["collision_table"]),
-        ("rejected: collision_obstacle", n["collision_obstacle"]),
+        ("kept (ok)", n[Status.OK.value]),
+        *((f"rejected: {s.value}", n[s.value])
+          for s in (Status.COLLISION_PART, Status.COLLISION_TABLE, Status.COLLISION_OBSTACLE)),
     ]
     if res.mass_props is not None:  # grasp quality (docs/quality.md)
         rows.append(("part mass, kg", float(res.mass_props.mass)))
-        if n["ok"] and res.quality is not None:
+        if n[Status.OK.value] and res.quality is not None:
             rows.append(("ok grasps holding under gravity + 1 g", int((res.quality.gravity_margin >= 1).sum())))
     rows += [(f"seconds: {k}", float(v)) for k, v in res.timing_s.items()]
     rows.append(("seconds: total", time.perf_counter() - t_all))
     click.echo(table(rows))
     click.echo(f"wrote {output}")
-    if n["ok"] == 0:
+    if n[Status.OK.value] == 0:
         raise PlanningError(f"no collision-free grasp for {part} with gripper {g.name} in cell {c.name} "
                             f"({n['candidates']} candidates, {n['poses']} poses); {output} lists every pose's status")

@@ -1,18 +1,31 @@
 """Every command's options, built from the parameter dataclasses (:mod:`grasplan.params`).
 
 ``@param_options(CandidateParams, GraspParams)`` adds one click option per dataclass field, with the
-field's default, help, CLI spelling and value type (lengths take unit suffixes, angles degrees);
-:func:`params_from_kwargs` pops them again and builds the dataclasses, which validate the ranges
-(InputError, exit 3, naming the option and what would pass). Parsing errors (``--top x``,
-``--alpha 5parsecs``, ``--mu nan``) are click usage errors (exit 2). Commands only parse, call and print.
+field's default, help and CLI spelling; its click type (:class:`OptionType`) reads the text with the
+one interpreter of option kinds (:func:`grasplan.option_kinds.read_value`: lengths take unit suffixes,
+angles are degrees, a pose is 'x,y,z,roll,pitch,yaw', ``--pose-index`` also takes ``all``), the same
+reading a batch manifest gets. :func:`params_from_kwargs` pops them again and builds the dataclasses,
+which validate the ranges (InputError, exit 3, naming the option and what would pass). Parsing
+errors (``--top x``, ``--alpha 5parsecs``, ``--mu nan``) are click usage errors (exit 2). Commands
+only parse, call and print.
 """
 from __future__ import annotations
 
-import math
-from dataclasses import MISSING, fields
+from collections.abc import Callable
+from dataclasses import MISSING, Field, fields
+from typing import Any
 
 import click
 
+from ..errors import InputError
+from ..option_kinds import (
+    OptionSpec,
+    is_option,
+    metavar,
+    option_name,
+    option_spec,
+    read_value,
+)
 from ..params import (
     DEFAULT_CELL,
     DEFAULT_GRIPPER,
@@ -21,78 +34,64 @@ from ..params import (
     CandidateParams,
     GraspParams,
     PlanParams,
-    option_name,
 )
-from .common import ANGLE, LENGTH, LENGTH_OR_ZERO, units_option
+from .common import units_option
 
 #: which keyword of params_from_kwargs' result each class fills
-PARAM_KEYS = {CandidateParams: "candidates", GraspParams: "grasps", PlanParams: "planning"}
+PARAM_KEYS: dict[type, str] = {CandidateParams: "candidates", GraspParams: "grasps", PlanParams: "planning"}
 
 
-class FiniteFloat(click.ParamType):
-    """A finite number (NaN and inf are usage errors; ranges are the dataclass's to check)."""
+class OptionType(click.ParamType):
+    """A click type for an option of spec ``s``: the text is read by
+    :func:`grasplan.option_kinds.read_value` (a refused text is a usage error, exit 2; the range is
+    the dataclass's to check, exit 3)."""
 
-    name = "NUMBER"
+    def __init__(self, s: OptionSpec):
+        self.spec = s
+        self.name = metavar(s)
 
-    def convert(self, value, param, ctx):
-        if isinstance(value, float) and math.isfinite(value):
-            return value
+    def get_metavar(self, param: click.Parameter, ctx: click.Context) -> str | None:
+        return self.name  # as written (click would upper-case "INDEX|all" and "[regions|paper]")
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        name = option_name_of(param)
         try:
-            v = float(str(value).strip())
-        except ValueError:
-            self.fail(f"{value!r} is not a number", param, ctx)
-        if not math.isfinite(v):
-            self.fail(f"{value!r} is not a finite number", param, ctx)
-        return v
+            return read_value(self.spec, value, name)
+        except InputError as exc:
+            self.fail(str(exc), param, ctx)
 
 
-class BoundedInt(click.ParamType):
-    """A whole number that fits in 64 bits (ranges are the dataclass's to check)."""
-
-    name = "INTEGER"
-
-    def convert(self, value, param, ctx):
-        if isinstance(value, int) and not isinstance(value, bool):
-            return value
-        try:
-            v = int(str(value).strip())
-        except ValueError:
-            self.fail(f"{value!r} is not a whole number", param, ctx)
-        if abs(v) >= 2**62:
-            self.fail(f"{value!r} is out of range", param, ctx)
-        return v
+def option_name_of(param: click.Parameter | None) -> str:
+    """The spelling of a click option for messages (``--thin``)."""
+    if isinstance(param, click.Option) and param.opts:
+        return max(param.opts, key=len)
+    return f"--{(param.name or 'value').replace('_', '-')}" if param is not None else "value"
 
 
-FLOAT = FiniteFloat()
-INT = BoundedInt()
+#: free-standing numbers of commands that take no parameter dataclass (``grasplan export``)
+FLOAT = OptionType(OptionSpec("float", "a finite number"))
+INT = OptionType(OptionSpec("int", "a whole number"))
 
 
-def _click_type(kind: str, choices: tuple):
-    base = kind.removeprefix("optional_")
-    return {"length": LENGTH, "length0": LENGTH_OR_ZERO, "angle": ANGLE, "float": FLOAT, "seconds": FLOAT,
-            "int": INT}.get(base) or (click.Choice(choices) if base == "choice" else None)
-
-
-def _option(f):
-    md = f.metadata
+def _option(f: Field) -> Callable:
+    s = option_spec(f)
+    assert s is not None
     default = f.default if f.default is not MISSING else None
     name = option_name(f)
-    if md["kind"] == "bool":
-        flag = md.get("flag") or f"{name}/--no-{name[2:]}"
-        return click.option(flag, f.name, default=default, show_default=True, help=md["help"])
-    show = md.get("show") if md.get("show") is not None else (default if default is not None else False)
-    if md["kind"].startswith("optional_") and default is None:
+    if s.kind == "bool":
+        flag = s.flag or f"{name}/--no-{name[2:]}"
+        return click.option(flag, f.name, default=default, show_default=True, help=s.help)
+    show: Any = s.show if s.show is not None else (default if default is not None else False)
+    if s.optional and default is None:
         show = False
-    return click.option(name, f.name, type=_click_type(md["kind"], md.get("choices", ())), default=default,
-                        show_default=show, help=md["help"])
+    return click.option(name, f.name, type=OptionType(s), default=default, show_default=show, help=s.help)
 
 
-def param_options(*classes, exclude: tuple[str, ...] = (), only: tuple[str, ...] | None = None):
-    """Decorator: one click option per (non-internal) field of each parameter class (all but
-    ``exclude``, or just ``only``)."""
+def param_options(*classes: type, exclude: tuple[str, ...] = (), only: tuple[str, ...] | None = None) -> Callable:
+    """Decorator: one click option per option field of each parameter class (all but ``exclude``,
+    or just ``only``)."""
     opts = [_option(f) for cls in classes for f in fields(cls)
-            if f.metadata.get("kind") not in (None, "internal") and f.name not in exclude
-            and (only is None or f.name in only)]
+            if is_option(f) and f.name not in exclude and (only is None or f.name in only)]
 
     def deco(fn):
         for o in reversed(opts):
@@ -101,7 +100,7 @@ def param_options(*classes, exclude: tuple[str, ...] = (), only: tuple[str, ...]
     return deco
 
 
-def params_from_kwargs(kwargs: dict, classes=PARAM_CLASSES) -> dict:
+def params_from_kwargs(kwargs: dict, classes: tuple[type, ...] = PARAM_CLASSES) -> dict[str, Any]:
     """Pop the parameter options from click's ``kwargs`` and build the dataclasses:
     ``{"candidates": CandidateParams, "grasps": GraspParams, "planning": PlanParams}`` (those asked for)."""
     out = {}

@@ -10,7 +10,6 @@ import numpy as np
 
 from ..errors import InputError
 from ..params import GraspParams
-from ..simulate import SIMULATED_STATUSES, select_grasps  # noqa: F401 - re-exported (older imports)
 from .common import check_output, info, table, warn_all
 from .options import param_options
 

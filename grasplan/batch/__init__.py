@@ -1,0 +1,232 @@
+"""``grasplan batch``: plan a whole catalogue of parts, resumable, on a local process pool or on Ray.
+
+Inputs (:func:`discover_parts`): mesh files, folders (searched recursively for STL/OBJ/PLY, sorted)
+and manifests (``.csv`` with a header row, or ``.yaml``) naming one part per row with optional
+per-part options: ``units``, ``robot``, ``gripper``, ``cell``, ``part_pose`` and any option of
+:class:`~grasplan.params.CandidateParams`, :class:`~grasplan.params.GraspParams` or
+:class:`~grasplan.params.PlanParams`, by field name (``pose_index``, ``thin_spacing``) or CLI
+spelling (``pose-index``, ``thin``), read as on the command line (:mod:`grasplan.option_kinds`):
+lengths accept unit suffixes (``2mm``), angles are degrees, ``place`` is 'x,y,z,roll,pitch,yaw',
+``pose_index`` may be ``all``. Relative paths in a manifest are relative to the manifest's folder.
+
+Outputs, in ``OUTDIR``::
+
+    <stem>-<sha8>/plan.json       grasplan.plan/1 (identical to `grasplan plan` with the same options;
+                                  with --pose-index all also plan.pose<k>.json per resting pose)
+    <stem>-<sha8>/<exports>       one file per --export format (plan.script, plan.csv, ...)
+    <stem>-<sha8>/view.html       the offline viewer
+    <stem>-<sha8>/log.txt         what happened (units, warnings, counts, seconds, errors)
+    <stem>-<sha8>/done.json       written last: sha256 of the part, options hash, status, summary row
+    summary.csv, summary.json     one row per part
+    index.html                    offline page linking every part's viewer, sortable
+
+``<sha8>`` is the first 8 hex digits of the part file's sha256; when one file is planned with
+different per-part options in the same batch, ``-<options hash 8>`` is appended.
+
+Resuming: a part whose folder holds a ``done.json`` with the same part sha256 and options hash,
+and a finished status (``planned``, ``nothing_planned``, ``bad_input``), is not planned again.
+Every part is produced in ``OUTDIR/.staging/`` and renamed into place complete, so an interrupted
+batch (Ctrl-C, a killed worker or machine) leaves no half-written result; rerunning the same
+command finishes the rest. Parts that hit an internal error (status ``error``) are retried.
+
+Engines (:mod:`grasplan.batch.engines`): ``local`` (a spawn process pool, one worker per core) and
+``ray`` (Ray tasks; the part's bytes are shipped to the task, which writes nothing on the worker's
+disk but its own temporary folder and returns the result files' bytes, zlib-compressed; the driver
+writes them). Both call the same :func:`grasplan.batch.worker.run_part`, so results are identical
+(same seed) across engines and to single-part ``grasplan plan`` runs; only ``timing_s`` differs.
+
+Exit code (:attr:`grasplan.batch.report.BatchSummary.exit_code`): 0 when at least one part has a
+planned grasp, 4 when no part has any; bad batch inputs (no parts found, a bad manifest, unknown
+option) raise :class:`~grasplan.errors.InputError` (exit 3) before anything is written.
+
+Modules: :mod:`~grasplan.batch.options` (BatchOptions, the options hash), :mod:`~grasplan.batch.manifest`
+(parts, manifests, jobs), :mod:`~grasplan.batch.worker` (one part), :mod:`~grasplan.batch.engines`
+(local pool, Ray), :mod:`~grasplan.batch.report` (summary files, index.html),
+:mod:`~grasplan.batch.layout` (statuses, file names); this module: :func:`run_batch`, the driver.
+"""
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import os
+import shutil
+import time
+import uuid
+import zlib
+from collections.abc import Callable, Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+from ..errors import InputError
+from ..io import read_json, write_atomic_bytes, write_json
+from .engines import ENGINES, iter_local, iter_ray
+from .layout import (
+    DONE_FILE,
+    DONE_SCHEMA,
+    FAILED_STATUSES,
+    FINAL_STATUSES,
+    LOCK_FILE,
+    STAGING_DIR,
+    BatchStatus,
+)
+from .manifest import PartJob, discover_parts, make_jobs
+from .options import BatchOptions
+from .report import BatchSummary, pending_row, summary_row, write_summary
+
+
+def run_batch(parts: Sequence[str | os.PathLike], out_dir: str | os.PathLike, *,
+              options: BatchOptions = BatchOptions(), engine: str = "local", workers: int | None = None,
+              ray_address: str | None = None, config_dirs: Sequence[str | os.PathLike] = (),
+              progress: Callable[[dict[str, Any]], None] | None = None) -> BatchSummary:
+    """Plan every part of ``parts`` (files, folders, manifests) into ``out_dir``; see the module doc.
+
+    Parameters
+    ----------
+    options
+        The batch's options; manifest rows override them per part.
+    engine
+        ``"local"`` (process pool of ``workers``, default one per core) or ``"ray"``.
+    workers
+        Local: pool size. Ray without address: CPUs of the local runtime (default: all).
+    ray_address
+        Join this Ray cluster instead of starting a local runtime (engine ``ray`` only).
+    config_dirs
+        Looked in first for robot/gripper/cell names (``--config-dir``); they must exist on every
+        Ray node.
+    progress
+        Called after every part with ``{"done", "total", "failed", "planned", "skipped", "row",
+        "elapsed_s"}``.
+
+    Raises InputError (nothing written) for bad inputs; KeyboardInterrupt after writing the summary
+    of what finished (the interrupted parts are left out of ``out_dir``).
+    """
+    if engine not in ENGINES:
+        raise InputError(f"--engine {engine!r}: use one of {', '.join(ENGINES)}")
+    if ray_address and engine != "ray":
+        raise InputError("--ray-address needs --engine ray")
+    if workers is not None and workers < 1:
+        raise InputError(f"--workers must be >= 1, got {workers}")
+    cdirs = [str(Path(d).expanduser().resolve()) for d in config_dirs]
+    from ..config_files import use_config_dirs
+
+    with use_config_dirs(*cdirs):
+        jobs = make_jobs(discover_parts(parts), options)
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"-o {out}: exists and is not a folder")
+    out.mkdir(parents=True, exist_ok=True)
+    with _lock(out):
+        staging = out / STAGING_DIR
+        shutil.rmtree(staging, ignore_errors=True)  # left by an interrupted batch: never a finished result
+        staging.mkdir()
+        rows: dict[int, dict[str, Any]] = {}
+        todo: list[PartJob] = []
+        for i, job in enumerate(jobs):
+            if job.duplicate_of is not None:
+                continue
+            row = _read_done(out / job.dir_name, job)
+            if row is not None:
+                rows[i] = {**row, "part": job.path, "resumed": True}
+            else:
+                todo.append(job)
+        # largest files first: the long parts do not end up alone at the tail (rows keep input order)
+        todo.sort(key=lambda j: -_file_size(j.path))
+        position = {id(j): i for i, j in enumerate(jobs)}
+        t0 = time.perf_counter()
+        state = {"done": len(rows), "failed": sum(r["status"] in FAILED_STATUSES for r in rows.values()),
+                 "planned": sum(r["status"] == BatchStatus.PLANNED for r in rows.values()), "skipped": len(rows)}
+        n_unique = sum(j.duplicate_of is None for j in jobs)
+        interrupted = False
+        if todo:
+            workers_n = workers or os.cpu_count() or 1
+            it = (iter_local(todo, workers=min(workers_n, len(todo)), staging=staging, config_dirs=cdirs)
+                  if engine == "local" else
+                  iter_ray(todo, workers=workers, address=ray_address, config_dirs=cdirs))
+            try:
+                for job, outcome, files_dir in it:
+                    row = _finalise(out, staging, job, outcome, files_dir)
+                    rows[position[id(job)]] = row
+                    state["done"] += 1
+                    state["failed"] += row["status"] in FAILED_STATUSES
+                    state["planned"] += row["status"] == BatchStatus.PLANNED
+                    if progress is not None:
+                        progress({**state, "total": n_unique, "row": row, "elapsed_s": time.perf_counter() - t0})
+            except KeyboardInterrupt:
+                interrupted = True
+            finally:
+                it.close()
+        # duplicates share the first occurrence's result
+        first_row = {}
+        for i, job in enumerate(jobs):
+            if job.duplicate_of is None and i in rows:
+                first_row[(job.sha256, job.options_hash)] = rows[i]
+        for i, job in enumerate(jobs):
+            if job.duplicate_of is not None and (job.sha256, job.options_hash) in first_row:
+                src = first_row[(job.sha256, job.options_hash)]
+                rows[i] = {**src, "part": job.path,
+                           "error": (src["error"] + "; " if src["error"] else "") + f"same file and options as "
+                                                                                     f"{job.duplicate_of}"}
+        final_rows = [rows.get(i) or pending_row(job) for i, job in enumerate(jobs)]
+        summary = BatchSummary(out_dir=out, rows=final_rows, interrupted=interrupted)
+        write_summary(summary, options=options, engine=engine)
+        shutil.rmtree(staging, ignore_errors=True)
+    if interrupted:
+        raise KeyboardInterrupt
+    return summary
+
+
+def _read_done(folder: Path, job: PartJob) -> dict[str, Any] | None:
+    """The finished row in ``folder/done.json`` when it matches ``job`` (sha256 and options hash)."""
+    try:
+        done = read_json(folder / DONE_FILE)
+    except (OSError, ValueError):
+        return None
+    if (isinstance(done, dict) and done.get("schema") == DONE_SCHEMA and done.get("sha256") == job.sha256
+            and done.get("options_hash") == job.options_hash and done.get("status") in FINAL_STATUSES
+            and isinstance(done.get("row"), dict)):
+        return done["row"]
+    return None
+
+
+def _finalise(out_dir: Path, staging: Path, job: PartJob, outcome: dict[str, Any], files_dir: Path | None
+              ) -> dict[str, Any]:
+    """Move a part's files into ``out_dir/<dir_name>`` complete (done.json last, then one rename)."""
+    row = summary_row(job, outcome["row"])
+    work = files_dir if files_dir is not None else staging / f"{job.dir_name}.{uuid.uuid4().hex[:8]}"
+    if files_dir is None:
+        for name, blob in outcome.get("files", {}).items():
+            if "/" in name or name.startswith("."):
+                raise RuntimeError(f"unexpected result file name {name!r}")
+            write_atomic_bytes(work / name, zlib.decompress(blob))
+    write_json(work / DONE_FILE, {"schema": DONE_SCHEMA, "sha256": job.sha256, "options_hash": job.options_hash,
+                                  "status": row["status"], "options": job.options.to_json(), "row": row}, indent=1)
+    final = out_dir / job.dir_name
+    if final.exists():
+        trash = staging / f"{job.dir_name}.old.{uuid.uuid4().hex[:8]}"
+        os.replace(final, trash)
+        os.replace(work, final)
+        shutil.rmtree(trash, ignore_errors=True)
+    else:
+        os.replace(work, final)
+    return row
+
+
+def _file_size(path: str) -> int:
+    try:
+        return os.stat(path).st_size
+    except OSError:
+        return 0
+
+
+@contextlib.contextmanager
+def _lock(out_dir: Path) -> Iterator[None]:
+    with open(out_dir / LOCK_FILE, "w") as f:
+        try:
+            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise InputError(f"{out_dir}: another grasplan batch is writing to this folder; wait for it or "
+                             "choose another -o") from None
+        try:
+            yield
+        finally:
+            fcntl.flock(f, fcntl.LOCK_UN)

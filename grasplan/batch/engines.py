@@ -1,0 +1,144 @@
+"""Where a batch's parts run: a local spawn process pool (:func:`iter_local`) or Ray tasks
+(:func:`iter_ray`). Both run :func:`grasplan.batch.worker.run_part` per part and yield
+``(job, outcome, folder holding the part's files or None)`` as parts finish."""
+from __future__ import annotations
+
+import shutil
+import uuid
+from collections.abc import Generator, Sequence
+from pathlib import Path
+from typing import Any
+
+from ..errors import InputError
+from .layout import MAX_CRASHES
+from .manifest import PartJob
+from .worker import died_outcome, job_payload, ray_failed_outcome, run_part
+
+ENGINES = ("local", "ray")
+
+
+def iter_local(jobs: Sequence[PartJob], *, workers: int, staging: Path, config_dirs: Sequence[str]
+               ) -> Generator[tuple[PartJob, dict[str, Any], Path | None], None, None]:
+    """Run ``jobs`` on a spawn process pool; yields (job, outcome, folder the files are in).
+
+    At most ``2 * workers`` parts are in flight. A worker that dies (killed, out of memory) breaks
+    the pool: a new pool is started and the parts that were in flight are resubmitted; a part in
+    flight during :data:`~grasplan.batch.layout.MAX_CRASHES` deaths is recorded as ``error``."""
+    import concurrent.futures as cf
+    import multiprocessing as mp
+    from concurrent.futures.process import BrokenProcessPool
+
+    pending = list(reversed(jobs))
+    crashes: dict[int, int] = {}
+    while pending:
+        pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"))
+        in_flight: dict[cf.Future, tuple[PartJob, Path]] = {}
+        broken = finished = False
+        try:
+            while pending or in_flight:
+                while pending and len(in_flight) < 2 * workers and not broken:
+                    job = pending.pop()
+                    d = staging / f"{job.dir_name}.{uuid.uuid4().hex[:8]}"
+                    try:
+                        fut = pool.submit(run_part, job_payload(job, ship_bytes=False, config_dirs=config_dirs),
+                                          str(d))
+                    except BrokenProcessPool:
+                        pending.append(job)
+                        broken = True
+                        break
+                    in_flight[fut] = (job, d)
+                if not in_flight:
+                    break
+                done, _ = cf.wait(in_flight, return_when=cf.FIRST_COMPLETED)
+                for fut in done:
+                    job, d = in_flight.pop(fut)
+                    try:
+                        outcome = fut.result()
+                    except BrokenProcessPool:
+                        broken = True
+                        crashes[id(job)] = crashes.get(id(job), 0) + 1
+                        shutil.rmtree(d, ignore_errors=True)
+                        if crashes[id(job)] >= MAX_CRASHES:
+                            yield job, died_outcome(crashes[id(job)]), None
+                        else:
+                            pending.append(job)
+                        continue
+                    yield job, outcome, d
+                if broken and not in_flight:
+                    break
+            finished = True
+        finally:
+            if not finished:  # Ctrl-C or the caller stopped: do not wait for the parts in flight
+                _terminate_workers(pool)
+            pool.shutdown(wait=True, cancel_futures=True)
+            for _, d in in_flight.values():
+                shutil.rmtree(d, ignore_errors=True)
+
+
+def _terminate_workers(pool: Any) -> None:
+    """Stop a process pool's workers now (Python >= 3.14 has ``terminate_workers``; before, the
+    executor keeps its processes in ``_processes``)."""
+    terminate = getattr(pool, "terminate_workers", None)
+    if terminate is not None:
+        terminate()
+        return
+    for proc in list((getattr(pool, "_processes", None) or {}).values()):
+        if proc.is_alive():
+            proc.terminate()
+
+
+def iter_ray(jobs: Sequence[PartJob], *, workers: int | None, address: str | None, config_dirs: Sequence[str]
+             ) -> Generator[tuple[PartJob, dict[str, Any], Path | None], None, None]:
+    """Run ``jobs`` as Ray tasks (bytes in, bytes out); yields (job, outcome with ``files``, None).
+
+    With no ``address`` a private local Ray runtime with ``workers`` CPUs (default: all) is started
+    (an already initialised Ray in this process is used as is); with an address (``HOST:6379``,
+    ``ray://HOST:10001`` or ``auto``) the driver joins that cluster. In flight: twice the
+    cluster's CPUs, so the driver holds a bounded number of parts' bytes."""
+    try:
+        import ray
+    except ImportError:
+        raise InputError("--engine ray needs Ray: pip install 'grasplan[ray]' (or use --engine local)") from None
+
+    started = False
+    if not ray.is_initialized():
+        try:
+            if address:
+                ray.init(address=address, include_dashboard=False, log_to_driver=False, configure_logging=False)
+            else:  # "local": a new runtime even when RAY_ADDRESS or a `ray start` cluster exists
+                ray.init(address="local", num_cpus=workers, include_dashboard=False, log_to_driver=False,
+                         configure_logging=False)
+        except (ConnectionError, ValueError, RuntimeError) as exc:
+            if address:
+                raise InputError(f"--ray-address {address}: cannot join the Ray cluster ({exc}); start it with "
+                                 "`ray start --head` and pass the address it prints") from None
+            raise InputError(f"--engine ray: cannot start a local Ray runtime ({exc}); try --engine local") from None
+        started = True
+    in_flight: dict[Any, PartJob] = {}
+    finished = False
+    try:
+        from ray.exceptions import RayError
+
+        remote = ray.remote(num_cpus=1, max_retries=MAX_CRASHES - 1)(run_part)
+        cpus = int(ray.cluster_resources().get("CPU", 1))
+        limit = 2 * max(1, cpus if workers is None or address else workers)
+        pending = list(reversed(jobs))
+        while pending or in_flight:
+            while pending and len(in_flight) < limit:
+                job = pending.pop()
+                in_flight[remote.remote(job_payload(job, ship_bytes=True, config_dirs=config_dirs))] = job
+            ready, _ = ray.wait(list(in_flight), num_returns=1)
+            for ref in ready:
+                job = in_flight.pop(ref)
+                try:
+                    outcome = ray.get(ref)
+                except RayError as exc:
+                    outcome = ray_failed_outcome(exc)
+                yield job, outcome, None
+        finished = True
+    finally:
+        if not finished:  # Ctrl-C or the caller stopped: free the cluster's CPUs
+            for ref in in_flight:
+                ray.cancel(ref, force=True)
+        if started:
+            ray.shutdown()

@@ -1,0 +1,120 @@
+"""The options of a batch part (:class:`BatchOptions`: everything that decides its result) and
+their hash (:func:`options_hash`: a rerun skips a part whose finished result has the same one)."""
+from __future__ import annotations
+
+import hashlib
+import json
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..errors import InputError
+from ..io import sha256_file
+from ..mesh import UNIT_CHOICES
+from ..params import (
+    ALL_POSES,
+    DEFAULT_CELL,
+    DEFAULT_GRIPPER,
+    DEFAULT_ROBOT,
+    CandidateParams,
+    GraspParams,
+    PlanParams,
+)
+from .layout import OPTIONS_SCHEMA
+
+
+@dataclass(frozen=True, kw_only=True)
+class BatchOptions:
+    """Everything that decides a part's result (the options hash is computed from it).
+
+    ``robot``, ``gripper``, ``cell``: names or YAML paths; ``units``: of the mesh files (see
+    :func:`grasplan.mesh.load_part`); ``T_world_part``: 4x4 row-major nested tuple (m), the part's
+    pose instead of its stable resting pose (``--part-pose``), or None; ``exports``:
+    :data:`grasplan.export.FORMATS` names written next to ``plan.json``; ``view``: write ``view.html``.
+    The place (``--place``), the scoring file (``--scoring``) and ``--pose-index all`` are fields
+    of the parameter classes (``planning.place``, ``grasps.scoring``, ``grasps.pose_index``).
+    """
+
+    robot: str = DEFAULT_ROBOT
+    gripper: str = DEFAULT_GRIPPER
+    cell: str = DEFAULT_CELL
+    units: str = "auto"
+    candidates: CandidateParams = field(default_factory=CandidateParams)
+    grasps: GraspParams = field(default_factory=GraspParams)
+    planning: PlanParams = field(default_factory=PlanParams)
+    T_world_part: tuple[tuple[float, ...], ...] | None = None
+    exports: tuple[str, ...] = ()
+    view: bool = True
+
+    def __post_init__(self):
+        if self.units not in UNIT_CHOICES:
+            raise InputError(f"units {self.units!r}: use one of {', '.join(UNIT_CHOICES)}")
+        if self.T_world_part is not None:
+            from ..transforms import check_transform
+
+            T = check_transform(self.T_world_part, "part pose T_world_part")
+            object.__setattr__(self, "T_world_part", tuple(tuple(float(x) for x in r) for r in T))
+            if self.grasps.pose_index == ALL_POSES:
+                raise InputError("--pose-index all: the resting poses replace --part-pose; give one or the other")
+        check_exports(self.exports)
+
+    def to_json(self) -> dict[str, Any]:
+        """The options as JSON (``done.json``, ``summary.json``, the hash and the workers): the
+        parameter classes' :meth:`~grasplan.params.CandidateParams.options_json`, so a place is
+        included (a plan file records it in ``cell.place``) and a scoring file as its weights."""
+        return {"robot": self.robot, "gripper": self.gripper, "cell": self.cell, "units": self.units,
+                "candidates": self.candidates.options_json(), "grasps": self.grasps.options_json(),
+                "planning": self.planning.options_json(),
+                "T_world_part": None if self.T_world_part is None else [list(r) for r in self.T_world_part],
+                "exports": list(self.exports), "view": self.view}
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> BatchOptions:
+        return cls(robot=data["robot"], gripper=data["gripper"], cell=data["cell"], units=data["units"],
+                   candidates=CandidateParams.from_json(data["candidates"]),
+                   grasps=GraspParams.from_json(data["grasps"]), planning=PlanParams.from_json(data["planning"]),
+                   T_world_part=data.get("T_world_part"), exports=tuple(data["exports"]), view=bool(data["view"]))
+
+
+def export_formats() -> dict[str, Any]:
+    """The export registry, name -> format (``.extension``, ``.per_grasp``): :data:`grasplan.export.FORMATS`."""
+    from ..export import load_builtin_formats
+
+    return load_builtin_formats()
+
+
+def export_file(fmt: Any) -> str:
+    """The file a format is written to in a part's folder: ``export-<name><extension>`` (never
+    ``plan.json``, whatever the format's extension)."""
+    return f"export-{fmt.name}{fmt.extension}"
+
+
+def check_exports(names: Iterable[str]) -> tuple[str, ...]:
+    """Validate export names against the registry; InputError listing the available ones."""
+    names = tuple(names)
+    if not names:
+        return names
+    available = export_formats()
+    unknown = [n for n in names if n not in available]
+    if unknown:
+        raise InputError(f"--export: unknown format(s) {', '.join(unknown)}; available: {', '.join(available)}")
+    if len(set(names)) != len(names):
+        raise InputError(f"--export: format listed twice in {','.join(names)}")
+    return names
+
+
+def _config_fingerprint(kind: str, name: str) -> str:
+    """sha256 of the YAML a name resolves to on this machine (so editing a gripper redoes its parts)."""
+    from ..config_files import resolve_yaml
+
+    return sha256_file(resolve_yaml(kind, name))
+
+
+def options_hash(options: BatchOptions) -> str:
+    """sha256 (hex) of the canonical JSON of ``options``, the grasplan version and the robot,
+    gripper and cell YAML contents. Raises ConfigError for an unknown robot/gripper/cell."""
+    from .. import __version__
+
+    doc = {"schema": OPTIONS_SCHEMA, "grasplan": __version__, "options": options.to_json(),
+           "configs": {k: _config_fingerprint(k, getattr(options, k)) for k in ("robot", "gripper", "cell")}}
+    return hashlib.sha256(json.dumps(doc, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
