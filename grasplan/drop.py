@@ -17,10 +17,13 @@ Protocol (:func:`drop_pile`; the world is :class:`grasplan.pileworld.PileWorld`)
    floor's top when none does), at rest.
 4. **Settle**: simulate until every part in the bin has been at rest for :data:`REST_HOLD_S`:
    centre-of-mass speed below :data:`REST_LIN` and turning rate below :data:`REST_ANG`; at most
-   :data:`MAX_SETTLE_S` simulated seconds per drop, else :class:`SettleError` (exit 4).
+   :data:`MAX_SETTLE_S` simulated seconds.
 5. **In the bin, after settling**: every part's whole mesh (its convex hull) lies within the bin's
-   inner walls, above its floor and below the top of its walls, each within :data:`FIT_TOL`; else
-   :class:`PileError` naming the part and by how much.
+   inner walls, above its floor and below the top of its walls, each within :data:`FIT_TOL`.
+6. **Tries**: a drop that fails 4 or 5 (a part leaning out above the rim, bounced out, still
+   moving) is undone (:meth:`PileWorld.snapshot`/``restore``) and tried again from a new random
+   pose, :data:`DROP_TRIES` times in all; then :class:`PileError` (exit 3: the pile does not fit)
+   or :class:`SettleError` (exit 4: it does not come to rest), naming the part and by how much.
 
 Physics: uniform density (default :data:`PILE_DENSITY`, plastic, as issue 21's clutter targets),
 friction ``mu`` (default: the candidates' ``mu``, 0.3), each part colliding through its CoACD
@@ -46,7 +49,7 @@ from .cell import Cell
 from .errors import InputError, PlanningError
 from .mesh import Part
 from .params import CandidateParams, _Params, spec
-from .pileworld import PartBody, PileWorld, part_body
+from .pileworld import PartBody, PileWorld, Settled, part_body
 from .scenefile import MAX_INSTANCES, NAME_RE, Instance, Scene, ScenePart
 
 #: default density of a pile's parts, kg/m^3 (plastic: issue 21's clutter targets)
@@ -57,6 +60,9 @@ DROP_GAP = 0.03
 REST_LIN, REST_ANG, REST_HOLD_S = 0.005, 0.05, 0.2
 #: most simulated seconds a drop may take to come to rest
 MAX_SETTLE_S = 10.0
+#: a drop that leaves the pile moving or a part outside the bin is undone and tried again from a
+#: new random pose, at most this many times in all
+DROP_TRIES = 5
 #: a settled part may reach this far (m) into or beyond the bin's walls, floor and rim
 FIT_TOL = 0.001
 #: a released part's footprint keeps this far (m) from every inner wall
@@ -116,9 +122,10 @@ class PileItem:
 @dataclass(frozen=True)
 class PartDrop:
     """One released part: ``index`` (0-based) of ``total`` drops, instance ``id`` and ``part`` name,
-    ``T_release`` (4, 4) its pose when let go, the simulated seconds ``settle_s`` and physics
-    ``steps`` until the pile was at rest again, the wall-clock ``seconds`` that took, and the
-    height ``top`` (m) of the pile's highest point afterwards."""
+    ``T_release`` (4, 4) its pose when let go (the accepted try), the simulated seconds
+    ``settle_s`` until the pile was at rest again (the accepted try), the physics ``steps`` and
+    wall-clock ``seconds`` of every try, the height ``top`` (m) of the pile's highest point
+    afterwards and the ``attempts`` it took (:data:`DROP_TRIES`)."""
 
     index: int
     total: int
@@ -129,10 +136,11 @@ class PartDrop:
     steps: int
     seconds: float
     top: float
+    attempts: int = 1
 
     def to_json(self) -> dict:
-        return {"id": self.id, "part": self.part, "T_release": self.T_release.tolist(),
-                "settle_s": self.settle_s, "steps": self.steps, "seconds": self.seconds, "top": self.top}
+        return {"id": self.id, "part": self.part, "T_release": self.T_release.tolist(), "settle_s": self.settle_s,
+                "steps": self.steps, "seconds": self.seconds, "top": self.top, "attempts": self.attempts}
 
 
 @dataclass(frozen=True, eq=False)
@@ -316,6 +324,17 @@ def _release_pose(world: PileWorld, i: int, rng: np.random.Generator, gap: float
     return T_bin @ T_bin_part
 
 
+def _problem(world: PileWorld, i: int, s: Settled) -> PileError | SettleError | None:
+    """Why the pile after dropping body ``i`` is not acceptable (module docstring, steps 4-5), None when it is."""
+    if not s.at_rest:
+        return SettleError(f"{s.moving} moving at {s.lin * 1e3:.1f} mm/s, {math.degrees(s.ang):.1f} deg/s")
+    for j in np.flatnonzero(world.present):
+        by, where = outside_bin(world.cell, world.hull_world(int(j)))
+        if by > FIT_TOL:
+            return PileError(f"{world.bodies[j].name} {by * 1e3:.1f} mm {where}")
+    return None
+
+
 def drop_pile(cell: Cell, items: Sequence[PileItem | tuple], *, params: DropParams | None = None,
               cell_ref: str | None = None, progress: Callable[[PartDrop], None] | None = None,
               log: Callable[[str], None] | None = None, cache: bool = True) -> DropResult:
@@ -368,25 +387,29 @@ def drop_pile(cell: Cell, items: Sequence[PileItem | tuple], *, params: DropPara
     sim_s = 0.0
     for i, b in enumerate(bodies):
         t_part = time.perf_counter()
-        T = _release_pose(world, i, rng, p.drop_gap)
-        world.place(i, T)
-        s = world.settle(lin=REST_LIN, ang=REST_ANG, hold=REST_HOLD_S, max_s=MAX_SETTLE_S)
-        sim_s += s.sim_s
-        if not s.at_rest:
-            raise SettleError(f"the pile did not come to rest within {MAX_SETTLE_S:g} s after dropping {b.name} "
-                              f"({i + 1} of {len(bodies)}): {s.slowest_last} still moves at "
-                              f"{s.lin * 1e3:.1f} mm/s, {math.degrees(s.ang):.1f} deg/s; try another --seed")
-        top = -math.inf
-        for j in np.flatnonzero(world.present):
-            hw = world.hull_world(int(j))
-            top = max(top, float(hw[:, 2].max()))
-            by, where = outside_bin(cell, hw)
-            if by > FIT_TOL:
-                raise PileError(f"the pile does not fit the bin: after dropping {i + 1} of {len(bodies)} parts, "
-                                f"{bodies[j].name} lies {by * 1e3:.1f} mm {where}; drop fewer parts or use a "
-                                f"larger bin")
+        snap = world.snapshot()
+        steps = 0
+        for attempt in range(DROP_TRIES):
+            if attempt:
+                world.restore(snap)
+            T = _release_pose(world, i, rng, p.drop_gap)
+            world.place(i, T)
+            s = world.settle(lin=REST_LIN, ang=REST_ANG, hold=REST_HOLD_S, max_s=MAX_SETTLE_S)
+            sim_s += s.sim_s
+            steps += s.steps
+            problem = _problem(world, i, s)
+            if problem is None:
+                break
+        else:
+            what = (f"the pile did not come to rest within {MAX_SETTLE_S:g} s" if isinstance(problem, SettleError)
+                    else "the pile does not fit the bin")
+            raise type(problem)(f"{what}: dropping {b.name} ({i + 1} of {len(bodies)}) from {DROP_TRIES} random "
+                                f"poses, the last left {problem}; "
+                                + ("try another --seed" if isinstance(problem, SettleError)
+                                   else "drop fewer parts or use a larger bin"))
+        top = max(float(world.hull_world(int(j))[:, 2].max()) for j in np.flatnonzero(world.present))
         d = PartDrop(index=i, total=len(bodies), id=b.name, part=ids[order[i]][1], T_release=T, settle_s=s.sim_s,
-                     steps=s.steps, seconds=time.perf_counter() - t_part, top=top)
+                     steps=steps, seconds=time.perf_counter() - t_part, top=top, attempts=attempt + 1)
         drops.append(d)
         if progress is not None:
             progress(d)
