@@ -324,8 +324,8 @@ def _release_pose(world: PileWorld, i: int, rng: np.random.Generator, gap: float
     return T_bin @ T_bin_part
 
 
-def _problem(world: PileWorld, i: int, s: Settled) -> PileError | SettleError | None:
-    """Why the pile after dropping body ``i`` is not acceptable (module docstring, steps 4-5), None when it is."""
+def _problem(world: PileWorld, s: Settled) -> PileError | SettleError | None:
+    """Why the settled pile is not acceptable (module docstring, steps 4-5), None when it is."""
     if not s.at_rest:
         return SettleError(f"{s.moving} moving at {s.lin * 1e3:.1f} mm/s, {math.degrees(s.ang):.1f} deg/s")
     for j in np.flatnonzero(world.present):
@@ -333,6 +333,13 @@ def _problem(world: PileWorld, i: int, s: Settled) -> PileError | SettleError | 
         if by > FIT_TOL:
             return PileError(f"{world.bodies[j].name} {by * 1e3:.1f} mm {where}")
     return None
+
+
+def _give_up(problem: PileError | SettleError, name: str, i: int, n: int) -> PileError | SettleError:
+    where = f"dropping {name} ({i + 1} of {n}) from {DROP_TRIES} random poses, the last left {problem}"
+    if isinstance(problem, SettleError):
+        return SettleError(f"the pile did not come to rest within {MAX_SETTLE_S:g} s: {where}; try another --seed")
+    return PileError(f"the pile does not fit the bin: {where}; drop fewer parts or use a larger bin")
 
 
 def drop_pile(cell: Cell, items: Sequence[PileItem | tuple], *, params: DropParams | None = None,
@@ -388,28 +395,23 @@ def drop_pile(cell: Cell, items: Sequence[PileItem | tuple], *, params: DropPara
     for i, b in enumerate(bodies):
         t_part = time.perf_counter()
         snap = world.snapshot()
-        steps = 0
-        for attempt in range(DROP_TRIES):
-            if attempt:
-                world.restore(snap)
+        steps, attempt = 0, 0
+        while True:
             T = _release_pose(world, i, rng, p.drop_gap)
             world.place(i, T)
             s = world.settle(lin=REST_LIN, ang=REST_ANG, hold=REST_HOLD_S, max_s=MAX_SETTLE_S)
             sim_s += s.sim_s
             steps += s.steps
-            problem = _problem(world, i, s)
+            attempt += 1
+            problem = _problem(world, s)
             if problem is None:
                 break
-        else:
-            what = (f"the pile did not come to rest within {MAX_SETTLE_S:g} s" if isinstance(problem, SettleError)
-                    else "the pile does not fit the bin")
-            raise type(problem)(f"{what}: dropping {b.name} ({i + 1} of {len(bodies)}) from {DROP_TRIES} random "
-                                f"poses, the last left {problem}; "
-                                + ("try another --seed" if isinstance(problem, SettleError)
-                                   else "drop fewer parts or use a larger bin"))
+            if attempt == DROP_TRIES:
+                raise _give_up(problem, b.name, i, len(bodies))
+            world.restore(snap)
         top = max(float(world.hull_world(int(j))[:, 2].max()) for j in np.flatnonzero(world.present))
         d = PartDrop(index=i, total=len(bodies), id=b.name, part=ids[order[i]][1], T_release=T, settle_s=s.sim_s,
-                     steps=steps, seconds=time.perf_counter() - t_part, top=top, attempts=attempt + 1)
+                     steps=steps, seconds=time.perf_counter() - t_part, top=top, attempts=attempt)
         drops.append(d)
         if progress is not None:
             progress(d)
