@@ -45,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from .cell import Cell
+from .cell import BinSpec, Cell
 from .errors import InputError, PlanningError
 from .mesh import Part
 from .params import CandidateParams, _Params, spec
@@ -201,7 +201,7 @@ def _items(items: Sequence[PileItem | tuple]) -> list[PileItem]:
 # ------------------------------------------------------------------------------------------------
 # geometry of the bin
 # ------------------------------------------------------------------------------------------------
-def _bin(cell: Cell):
+def _bin(cell: Cell) -> BinSpec:
     if cell.bin is None:
         raise InputError(f"drop: cell {cell.name!r} has no bin to drop parts into; use a cell with a bin "
                          f"(e.g. --cell bin; docs/cells.md)")
@@ -217,13 +217,13 @@ def _random_rotation(rng: np.random.Generator) -> np.ndarray:
                      [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
-def _room(b) -> np.ndarray:
+def _room(b: BinSpec) -> np.ndarray:
     """The box (3,) a released part must fit in, m: the bin's inner floor less the wall clearance,
     and its wall height."""
     return np.array([b.inner[0] - 2 * WALL_CLEARANCE, b.inner[1] - 2 * WALL_CLEARANCE, b.height + FIT_TOL])
 
 
-def flat_rotation(hull: np.ndarray, b) -> np.ndarray:
+def flat_rotation(hull: np.ndarray, b: BinSpec) -> np.ndarray:
     """``R_bin_part`` (3, 3) laying the part's oriented bounding box (trimesh's) along the bin: its
     shortest side up, its longest along the bin's longer inner side."""
     from trimesh.bounds import oriented_bounds

@@ -75,17 +75,13 @@ ARENA_BASE_MB, ARENA_PER_PIECE_MB = 64, 0.25
 class PartBody:
     """What the world needs of one part instance: its MJCF body ``name``, convex ``pieces``
     (vertices (n_i, 3), part frame, m), ``mass`` properties and the part's convex-hull vertices
-    ``hull`` (h, 3) (part frame, m: extents, containment and heights are read from them)."""
+    ``hull`` (h, 3) (part frame, m: the part's extents, heights and containment in the bin are read
+    from them: a convex region holds the mesh if and only if it holds these)."""
 
     name: str
     pieces: tuple[np.ndarray, ...]
     mass: MassProperties
     hull: np.ndarray
-
-    @property
-    def radius(self) -> float:
-        """Largest distance (m) of the part's surface from its centre of mass."""
-        return float(np.linalg.norm(self.hull - self.mass.com, axis=1).max())
 
 
 def part_body(name: str, mesh: MeshData, *, density: float, decomposition: str = "coacd", cache: bool = True,
@@ -98,7 +94,7 @@ def part_body(name: str, mesh: MeshData, *, density: float, decomposition: str =
     if pieces is None:
         pieces = convex_pieces(mesh.trimesh, decomposition=decomposition, cache=cache)
     mp = mass if mass is not None else mass_properties(mesh, density=density)
-    hull = np.ascontiguousarray(convex_hull(np.concatenate([np.asarray(p) for p in pieces])).vertices)
+    hull = np.ascontiguousarray(convex_hull(mesh.vertices).vertices)
     return PartBody(name=name, pieces=tuple(np.asarray(p, dtype=np.float64) for p in pieces), mass=mp, hull=hull)
 
 
