@@ -371,6 +371,8 @@ def drop_pile(cell: Cell, items: Sequence[PileItem | tuple], *, params: DropPara
     SettleError (exit 4)
         A drop did not come to rest within :data:`MAX_SETTLE_S` simulated seconds.
     """
+    from . import simulate  # noqa: F401 - imported (trimesh, coacd's caller) before the per-part timings
+
     t0 = time.perf_counter()
     p = params if params is not None else DropParams()
     its = _items(items)

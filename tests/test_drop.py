@@ -386,3 +386,23 @@ def test_mixed_paper_pile(paper, cell):
     assert len(res.scene.instances) == 5
     measured = check_pile(cell, items, res.scene)
     assert measured["penetration"] <= PENETRATION_TOL
+
+
+DROP_OPTIONS = [p for p in __import__("grasplan.cli.scene", fromlist=["drop"]).drop.params
+                if p.name != "output" and not getattr(p, "is_flag", False)]
+
+
+@pytest.mark.parametrize("opt", DROP_OPTIONS, ids=[o.opts[0] for o in DROP_OPTIONS])
+def test_cli_bad_option_values_exit_2_or_3_naming_the_problem(opt, tmp_path):
+    """As tests/test_cli_options.py does for every top-level command (it does not walk groups)."""
+    import re
+
+    leaks = re.compile(r"Traceback|KeyError|IndexError|ValueError|TypeError|AttributeError|internal error")
+    for value in ("0", "-1", "nan", "inf", "1e308", "-1e308", "x!", "", "1e-300", "9" * 400):
+        args = ["--part", f"{tmp_path / 'missing_input.stl'}:1", opt.opts[0], value, "-o", tmp_path / "out.yaml"]
+        r = _cli(*args)
+        assert r.exit_code in (2, 3), (args, r.exit_code, r.output[-500:])
+        assert not leaks.search(r.output), (args, r.output[-800:])
+        assert any(o in r.output for o in opt.opts) or opt.name in r.output or "missing_input" in r.output, (
+            args, r.output[-500:])
+        assert not list(tmp_path.glob("out*")), args

@@ -87,9 +87,12 @@ def drop(cell: str, parts: tuple[str, ...], units: str, output: str, **kwargs) -
     info(f"scene drop: {total} parts into {cell} (seed {params.seed}, {params.density:g} kg/m^3, mu {params.mu:g}); "
          f"convex pieces take minutes per part the first time, then come from the cache")
 
+    floor = float(c.bin.T_world_bin[2, 3])
+
     def on_drop(d) -> None:
+        tries = f", {d.attempts} tries" if d.attempts > 1 else ""
         info(f"  drop {d.index + 1}/{d.total} {d.id}: at rest after {d.settle_s:.2f} s simulated "
-             f"({d.seconds:.1f} s), pile top {1e3 * d.top:.0f} mm")
+             f"({d.seconds:.1f} s{tries}), pile {1e3 * (d.top - floor):.0f} mm high")
 
     res = drop_pile(c, items, params=params, cell_ref=cell, progress=on_drop, log=lambda s: info(f"  {s}"))
     header = [f"grasplan scene drop: seed {params.seed}, density {params.density:g} kg/m^3, mu {params.mu:g}, "
