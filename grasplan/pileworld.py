@@ -47,6 +47,7 @@ from .cell import Cell, Obstacle
 from .errors import InputError
 from .mass import MassProperties, mass_properties
 from .meshdata import MeshData, convex_hull
+from .scenefile import NAME_RE, NAME_RULE
 from .transforms import check_transform, quaternions
 
 #: physics step (s) and the period (s) at which rest is checked
@@ -124,8 +125,8 @@ def _static_xml(o: Obstacle, assets: list[str]) -> str:
 
     out = []
     for k, v in enumerate(convex_pieces(o.local_mesh())):
-        assets.append(f'<mesh name="{o.name}_p{k}" vertex="{_fmt(v)}"/>')
-        out.append(f'<geom name="{o.name}_p{k}" type="mesh" mesh="{o.name}_p{k}" {_pose_attrs(T)}/>')
+        assets.append(f'<mesh name="obstacle#{o.name}#{k}" vertex="{_fmt(v)}"/>')
+        out.append(f'<geom name="{o.name}#{k}" type="mesh" mesh="obstacle#{o.name}#{k}" {_pose_attrs(T)}/>')
     return "".join(out)
 
 
@@ -172,16 +173,19 @@ def pile_mjcf(cell: Cell, bodies: Sequence[PartBody], *, mu: float, extra_asset:
     names = [b.name for b in bodies]
     if len(set(names)) != len(names):
         raise InputError("pile world: body names must be unique")
+    bad = [n for n in names if not NAME_RE.match(n)]
+    if bad:
+        raise InputError(f"pile world: body name {bad[0][:40]!r} is not valid ({NAME_RULE})")
     assets: list[str] = []
     statics = "".join(_static_xml(o, assets) for o in cell.obstacles)
     centre, half = _table_box(cell)
-    table = f'<geom name="table" type="box" size="{_fmt(half)}" pos="{_fmt(centre)}"/>'
+    table = f'<geom name="#table" type="box" size="{_fmt(half)}" pos="{_fmt(centre)}"/>'
     parts = []
     for i, b in enumerate(bodies):
         geoms = []
         for k, v in enumerate(b.pieces):
-            assets.append(f'<mesh name="{b.name}_p{k}" vertex="{_fmt(v)}"/>')
-            geoms.append(f'<geom class="part" mesh="{b.name}_p{k}"/>')
+            assets.append(f'<mesh name="{b.name}#{k}" vertex="{_fmt(v)}"/>')
+            geoms.append(f'<geom class="part" mesh="{b.name}#{k}"/>')
         I = b.mass.inertia
         full = [I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]]
         parts.append(f'<body name="{b.name}" {_pose_attrs(park_pose(i))} gravcomp="1">'

@@ -406,3 +406,29 @@ def test_cli_bad_option_values_exit_2_or_3_naming_the_problem(opt, tmp_path):
         assert any(o in r.output for o in opt.opts) or opt.name in r.output or "missing_input" in r.output, (
             args, r.output[-500:])
         assert not list(tmp_path.glob("out*")), args
+
+
+def test_the_cells_other_obstacles_are_in_the_world(tmp_path):
+    """A post (cylinder) and a block (mesh file) standing in the bin: a box dropped on each rests on it."""
+    import shutil
+
+    shutil.copy(EXAMPLES / "box.stl", tmp_path / "block.stl")  # 30 x 20 x 10 mm; its bounds place it on the floor
+    block = load_part(tmp_path / "block.stl").mesh
+    lo, hi = block.bounds
+    (tmp_path / "c.yaml").write_text(
+        "name: c\nbin: {inner: [0.30, 0.20], wall: 0.01, height: 0.15, T: {xyz: [0.45, 0.0, 0.01]}}\n"
+        "obstacles:\n"
+        "  - {name: post, cylinder: {radius: 0.02, length: 0.05}, T: {xyz: [0.40, 0.0, 0.035]}}\n"
+        f"  - {{name: block, mesh: {{path: block.stl, scale: 0.001}}, T: {{xyz: [0.52, 0.0, {0.01 - lo[2]:.6f}]}}}}\n")
+    cell = load_cell(tmp_path / "c.yaml")
+    box = part_body("box", load_part(EXAMPLES / "box.stl").mesh, density=1200.0)
+    other = part_body("box2", load_part(EXAMPLES / "box.stl").mesh, density=1200.0)
+    world = PileWorld(cell, [box, other], mu=0.3)
+    for i, (x, top) in enumerate([(0.40, 0.06), (0.52, 0.01 + hi[2] - lo[2])]):
+        T = np.eye(4)
+        T[:3, 3] = [x, 0.0, top + 0.01 - box.hull[:, 2].min()]
+        world.place(i, T)
+    s = world.settle(lin=0.005, ang=0.05, hold=0.2, max_s=5.0)
+    assert s.at_rest
+    assert world.hull_world(0)[:, 2].min() == pytest.approx(0.06, abs=5e-4)  # on the post's top
+    assert world.hull_world(1)[:, 2].min() == pytest.approx(0.01 + hi[2] - lo[2], abs=5e-4)  # on the block
