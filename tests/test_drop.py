@@ -347,6 +347,9 @@ def test_cli_writes_the_scene(tmp_path):
     same = drop_pile(load_cell("bin"), _items([(EXAMPLES / "box.stl", 2), (EXAMPLES / "gear.stl", 1)]),
                      params=DropParams(seed=3))
     assert all(a == b for a, b in zip(scene.instances, same.scene.instances))
+    again = tmp_path / "again.yaml"
+    r = _cli("--part", f"{EXAMPLES / 'box.stl'}:2", "--part", f"{EXAMPLES / 'gear.stl'}:1", "--seed", 3, "-o", again)
+    assert r.exit_code == 0 and again.read_bytes() == text.encode()
 
 
 @pytest.mark.parametrize("args, match", [
