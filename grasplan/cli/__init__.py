@@ -22,6 +22,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "view": ("view", "Write a self-contained HTML viewer for a grasps or plan file."),
     "simulate": ("simulate", "Close, lift and shake grasps in MuJoCo; record which ones hold the part."),
     "batch": ("batch", "Plan a whole catalogue of parts (files, folders, manifests), locally or on Ray."),
+    "scene": ("scene", "Make scenes of many parts: drop a pile into a bin in MuJoCo (scene drop)."),
 }
 
 
