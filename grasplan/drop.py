@@ -48,7 +48,8 @@ import numpy as np
 from .cell import BinSpec, Cell
 from .errors import InputError, PlanningError
 from .mesh import Part
-from .params import CandidateParams, _Params, spec
+from .option_kinds import spec
+from .params import CandidateParams, OptionSet
 from .pileworld import PartBody, PileWorld, Settled, part_body
 from .scenefile import MAX_INSTANCES, NAME_RE, Instance, Scene, ScenePart
 
@@ -87,7 +88,7 @@ class SettleError(PlanningError):
 
 
 @dataclass(frozen=True, kw_only=True)
-class DropParams(_Params):
+class DropParams(OptionSet):
     """Options of a drop (validated here; ``grasplan scene drop`` builds its options from them)."""
 
     seed: int = spec(0, "int", "Seed of the drop order, orientations and positions (same seed, same pile).",

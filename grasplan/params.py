@@ -51,7 +51,7 @@ DEFAULT_DENSITY = 7850.0
 ALL_POSES = "all"
 
 
-class _Params:
+class OptionSet:
     """Shared behaviour: validation, JSON (lengths m, angles *_deg), defaults by name."""
 
     __dataclass_fields__: ClassVar[dict[str, Field[Any]]]
@@ -108,7 +108,7 @@ class _Params:
 
 
 @dataclass(frozen=True, kw_only=True)
-class CandidateParams(_Params):
+class CandidateParams(OptionSet):
     """Stages 2-4: BLM, convexity, antipodal search. Lengths m, angles degrees."""
 
     blm: bool = spec(True, "bool", "Run the boundary layer mesher before the search (--no-blm: the part's own mesh).",
@@ -130,7 +130,7 @@ class CandidateParams(_Params):
 
 
 @dataclass(frozen=True, kw_only=True)
-class GraspParams(_Params):
+class GraspParams(OptionSet):
     """Stages 5-6: TCP frames rolled about each closing axis, full-jaw collision filter."""
 
     roll_step_deg: float = spec(15.0, "float", "Roll step of the TCP about the closing axis, degrees "
@@ -186,7 +186,7 @@ class GraspParams(_Params):
 
 
 @dataclass(frozen=True, kw_only=True)
-class PlanParams(_Params):
+class PlanParams(OptionSet):
     """Stages 7-8: ranking, IK, straight approach, OMPL path. Lengths m, times s."""
 
     top: int = spec(20, "int", "Plan at most this many grasps, best score first; other ok grasps are not_tried.",
