@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .paths import STEP, approach_path_reason, interpolate_path, plan_joint_path
-from .result import GripperEvent, Motion
+from .motion import GripperEvent, Motion
 
 #: within this TCP travel (m) from the grasp (lift) / to the place (descent) the attached part may
 #: touch the table or an obstacle it rests on

@@ -51,7 +51,8 @@ from .params import (
     GraspParams,
     PlanParams,
 )
-from .result import Motion, Params, PlanResult
+from .motion import Motion
+from .result import Params, PlanResult
 from .scoring import distinct_order, score_grasps
 from .transforms import translation
 
