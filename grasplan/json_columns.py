@@ -242,8 +242,8 @@ class JSONObject(Protocol):
 
 @dataclass(frozen=True)
 class Spread:
-    """The keys of ``objects[row].to_json()`` joined into the enclosing record (its field's key is
-    None; the rows without an object have none of those keys)."""
+    """The keys of ``objects[row].to_json()`` joined into the enclosing record: the field is
+    ``Field(None, spread, present=spread.has)`` (the rows without an object have none of those keys)."""
 
     objects: Mapping[int, JSONObject]
 
@@ -286,6 +286,8 @@ class Record:
     def __post_init__(self) -> None:
         if not self.fields or self.fields[0].key is None or self.fields[0].present is not None:
             raise ValueError("a Record's first field must be a key that every row has")
+        if any(f.key is None and f.present is None for f in self.fields):
+            raise ValueError("a Spread field needs present= (its column's has): the rows without an object")
 
     def _live(self, rows: np.ndarray) -> np.ndarray:
         return np.ones(len(rows), dtype=bool) if self.null is None else ~np.asarray(self.null(rows), dtype=bool)

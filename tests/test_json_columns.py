@@ -163,3 +163,5 @@ def test_record_needs_a_first_key_on_every_row():
         Record((Field("a", n, present=lambda r: r > 0), Field("b", n)))
     with pytest.raises(ValueError, match="first field"):
         Record((Field(None, Spread({})),))
+    with pytest.raises(ValueError, match="present="):
+        Record((Field("a", n), Field(None, Spread({}))))
