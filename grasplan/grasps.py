@@ -275,9 +275,8 @@ class LazyGrasps:
                               cheap_w, scoring=cfg) * (cheap_total / total) if cheap_total > 0 and M
                  else np.zeros(M))
         self.mass_props: MassProperties | None = None
-        phys_ub: np.ndarray | float = phys / total if total > 0 else 0.0  # every physical term at most 1
-        if phys > 0 and M:
-            phys_ub = self._physical_bound(cfg, total, phys_ub)
+        every_term_one = phys / total if total > 0 else 0.0  # every physical term is at most 1
+        phys_ub = self._physical_bound(cfg, total, every_term_one) if phys > 0 and M else every_term_one
         #: (M,) upper bound of each pose's score
         self.ub = cheap + phys_ub + _BOUND_SLACK if total > 0 else np.full(M, np.inf)
         self.timing["score_bound"] = time.perf_counter() - t
@@ -296,7 +295,7 @@ class LazyGrasps:
         self._n_distinct = 0
 
     def _physical_bound(self, cfg: ScoringConfig, total: float, fallback: float) -> np.ndarray | float:
-        """``sum_k w_k term_k(bound_k) / total`` over the physical terms (:func:`grasplan.quality.
+        """(M,) ``sum_k w_k term_k(bound_k) / total`` over the physical terms (:func:`grasplan.quality.
         physical_bounds`: the pad's whole area, the load straight down), or ``fallback`` for a part
         without mass properties (its score has no physical terms)."""
         try:
