@@ -165,9 +165,11 @@ class Strings:
         return [string_texts(self._select(rows))]
 
     def encodable(self, rows: np.ndarray) -> bool:
-        a = self._select(rows)
-        if a.dtype.kind == "U" or all(isinstance(v, str) for v in a.tolist()):
+        if self.as_str:
             return True  # strings always sort and encode
+        a = self.data[rows]
+        if a.dtype.kind == "U" or set(map(type, a.tolist())) <= {str}:
+            return True
         try:
             string_texts(a)
         except TypeError:  # values np.unique cannot order, or json cannot encode: not plain strings
