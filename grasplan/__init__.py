@@ -38,7 +38,7 @@ _LAZY = {
     "GraspParams": ("grasplan.params", "GraspParams"),
     "PlanParams": ("grasplan.params", "PlanParams"),
     "PlanResult": ("grasplan.result", "PlanResult"),
-    "load_result": ("grasplan.result", "load_result"),
+    "load_result": ("grasplan.result_reader", "load_result"),
     "use_config_dirs": ("grasplan.config_files", "use_config_dirs"),
     "export": ("grasplan.export", None),
     "compute_candidates": ("grasplan.candidates", "compute_candidates"),

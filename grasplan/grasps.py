@@ -8,8 +8,10 @@ the pure function behind ``grasplan grasps``; the plan pipeline starts from its
 from __future__ import annotations
 
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -18,24 +20,34 @@ from .cell import Cell, load_cell
 from .collision import GripperCollider
 from .errors import InputError
 from .frames import GraspFrames, grasp_frames
+from .grasp_table import GraspTable
 from .gripper import load_gripper
 from .gripper.model import Gripper
+from .mass import MassProperties, mass_properties
 from .mesh import Part
 from .params import DEFAULT_CELL, DEFAULT_GRIPPER, CandidateParams, GraspParams
-from .result import GRASP_STATUSES as STATUSES
-from .result import GraspTable, Params, PartRecord, PlanResult
+from .quality import Quality, holding_warning, physical_bounds, quality_and_score, quality_columns
+from .result import Params, PartRecord, PlanResult
+from .scoring import (
+    PHYSICAL_TERMS,
+    ScoringConfig,
+    distinct_order,
+    epsilon_term,
+    gravity_margin_term,
+    score_grasps,
+)
+from .status import GRASP_STATUSES, Status
+from .thinning import thin_candidates
 from .stable_poses import stable_pose
 from .transforms import check_transform
-
-SCHEMA = "grasplan.grasps/1"
 
 
 @dataclass(frozen=True)
 class GraspResult:
     """Candidates, the gripper poses built from them and each pose's collision status.
 
-    frames.candidate indexes ``cand.candidates``; ``status`` is (M,) str in
-    {"ok", "collision_part", "collision_table", "collision_obstacle"}; ``T_world_part`` (4, 4)."""
+    frames.candidate indexes ``cand.candidates``; ``status`` is (M,) str, a value of
+    :data:`grasplan.status.GRASP_STATUSES` (or ``not_checked``: see ``lazy``); ``T_world_part`` (4, 4)."""
 
     cand: CandidateResult
     gripper: Gripper
@@ -44,12 +56,12 @@ class GraspResult:
     frames: GraspFrames
     status: np.ndarray
     params: GraspParams = GraspParams()
-    timing_s: dict = field(default_factory=dict)
+    timing_s: dict[str, float] = field(default_factory=dict)
     part_pose_source: str = "stable_pose"
-    #: grasp quality of the ``ok`` poses (grasplan.quality.Quality, rows = np.flatnonzero(status == "ok"))
-    quality: object = None
-    #: the part's mass properties (grasplan.mass.MassProperties) the quality was computed with
-    mass_props: object = None
+    #: grasp quality of the ``ok`` poses (rows = np.flatnonzero(status == "ok"))
+    quality: Quality | None = None
+    #: the part's mass properties the quality was computed with
+    mass_props: MassProperties | None = None
     #: (M,) score of every pose (grasplan.scoring; NaN for poses that collide)
     score: np.ndarray | None = None
     #: why there is no quality ("" when there is): e.g. a flat part has no mass
@@ -58,13 +70,11 @@ class GraspResult:
     reasons: np.ndarray | None = None
     #: rank-order evaluation (``compute_grasps(..., lazy=True)``): the :class:`LazyGrasps` that checks
     #: poses on demand; ``status`` is ``not_checked`` for the poses it has not checked
-    lazy: object = None
+    lazy: LazyGrasps | None = None
 
     def quality_warnings(self) -> list[str]:
         """What to tell the user about the quality step: the mass properties' warnings (or why
         there is no quality) and :func:`grasplan.quality.holding_warning`."""
-        from .quality import holding_warning
-
         out = list(self.mass_props.warnings) if self.mass_props is not None else \
             [self.quality_note] if self.quality_note else []
         w = holding_warning(self.quality, self.mass_props, part=Path(self.cand.part.path).name)
@@ -80,7 +90,7 @@ class GraspResult:
         """(M, 4, 4) TCP poses in the world frame."""
         return self.T_world_part @ self.frames.T_part_tcp
 
-    def counts(self) -> dict:
+    def counts(self) -> dict[str, int]:
         st = self.status
         out = {
             "candidates": len(self.cand.candidates),
@@ -90,15 +100,15 @@ class GraspResult:
         region = getattr(self.cand.candidates, "region", None)
         if region is not None and len(region):
             out["regions"] = int(len(np.unique(region[region >= 0])))
-        out.update({s: int(np.count_nonzero(st == s)) for s in STATUSES})
-        n_unchecked = int(np.count_nonzero(st == "not_checked"))
+        out.update({s: int(np.count_nonzero(st == s)) for s in GRASP_STATUSES})
+        n_unchecked = int(np.count_nonzero(st == Status.NOT_CHECKED.value))
         if n_unchecked:
             out["checked"] = int(len(st)) - n_unchecked
-            out["not_checked"] = n_unchecked
+            out[Status.NOT_CHECKED.value] = n_unchecked
         return out
 
     def table(self) -> GraspTable:
-        """Per-pose arrays (:class:`grasplan.result.GraspTable`)."""
+        """Per-pose arrays (:class:`grasplan.grasp_table.GraspTable`)."""
         c = self.cand.candidates
         ci = np.asarray(self.frames.candidate, dtype=np.int64)
         M = len(ci)
@@ -112,13 +122,11 @@ class GraspResult:
                           reason=np.full(M, "", dtype=object) if self.reasons is None
                           else np.asarray(self.reasons, dtype=object), **self._quality_columns(M))
 
-    def _quality_columns(self, M: int) -> dict:
+    def _quality_columns(self, M: int) -> dict[str, np.ndarray]:
         """GraspTable quality arrays (M rows; NaN / -1 where a pose has none)."""
         if self.quality is None:
             return {}
-        from .quality import quality_columns
-
-        return quality_columns(self.quality, np.flatnonzero(np.asarray(self.status).astype(str) == "ok"), M)
+        return quality_columns(self.quality, np.flatnonzero(np.asarray(self.status).astype(str) == Status.OK.value), M)
 
     def to_result(self) -> PlanResult:
         """This grasp result as a :class:`grasplan.result.PlanResult` (no robot)."""
@@ -126,7 +134,7 @@ class GraspResult:
         rec = PartRecord(path=part.path, sha256=part.sha256, scale_to_m=part.scale_to_m, triangles=part.triangles,
                          T_world_part=np.asarray(self.T_world_part, dtype=np.float64))
         counts = self.counts()
-        stage = {k: counts[k] for k in ("candidates", "posed_candidates", "poses", "regions", "checked")
+        stage: dict[str, int] = {k: counts[k] for k in ("candidates", "posed_candidates", "poses", "regions", "checked")
                  if k in counts}
         return PlanResult(part=rec, gripper=self.gripper, cell=self.cell, robot=None, grasps=self.table(),
                           params=Params(self.cand.params, self.params), counts_stage=stage,
@@ -134,7 +142,7 @@ class GraspResult:
                           grasp_result=self, part_mesh=part.mesh,
                           mass=None if self.mass_props is None else self.mass_props.record())
 
-    def to_json(self, *, only_ok: bool = False) -> dict:
+    def to_json(self, *, only_ok: bool = False) -> dict[str, Any]:
         """``grasplan.grasps/1`` (see :meth:`grasplan.result.PlanResult.to_json`)."""
         return self.to_result().to_json(only_ok=only_ok)
 
@@ -175,8 +183,8 @@ def compute_grasps(
     ``not_checked`` and ``result.lazy`` (a :class:`LazyGrasps`) collision-checks and scores them in
     chunks of ``chunk`` poses in the order of their score bound as the planner asks for grasps.
     """
-    g = load_gripper(gripper)
-    c = load_cell(cell)
+    g = gripper if isinstance(gripper, Gripper) else load_gripper(gripper)
+    c = cell if isinstance(cell, Cell) else load_cell(cell)
     if grasps.pose_index is not None:
         c = replace(c, pose_index=grasps.pose_index)
     if candidates.max_opening is None:  # search exactly as far as this gripper opens
@@ -200,8 +208,6 @@ def compute_grasps(
     down_in_part = T[:3, :3].T @ np.array([0.0, 0.0, -1.0])
     select = None
     if grasps.thin_spacing > 0:
-        from .thinning import thin_candidates
-
         select = thin_candidates(cand.candidates, spacing=float(grasps.thin_spacing),
                                  axis_step_deg=float(grasps.thin_axis_deg))
     frames = grasp_frames(cand.candidates, roll_step_deg=grasps.roll_step_deg, reference=down_in_part,
@@ -221,8 +227,6 @@ def compute_grasps(
     timing["collision"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    from .quality import quality_and_score
-
     quality, mass_props, score, note = quality_and_score(part.mesh, g, T, frames.T_part_tcp, frames.candidate,
                                                          cand.candidates, status, candidates.mu, grasps)
     timing["quality"] = time.perf_counter() - t
@@ -232,10 +236,8 @@ def compute_grasps(
                        reasons=reasons)
 
 
-def _concat_quality(parts: list, order: np.ndarray):
+def _concat_quality(parts: list[Quality], order: np.ndarray) -> Quality | None:
     """One :class:`grasplan.quality.Quality` of the rows of ``parts`` (in order), permuted by ``order``."""
-    from .quality import Quality
-
     if not parts:
         return None
     cat = {k: np.concatenate([getattr(q, k) for q in parts])[order]
@@ -255,10 +257,9 @@ class LazyGrasps:
     the next exact candidate is not certainly ahead of every unchecked pose. Mutable: one per plan.
     """
 
-    def __init__(self, *, part, gripper, cell, T_world_part, cand, frames, params, mu, collider, timing, source,
-                 chunk: int = LAZY_CHUNK):
-        from .scoring import PHYSICAL_TERMS, ScoringConfig, score_grasps
-
+    def __init__(self, *, part: Part, gripper: Gripper, cell: Cell, T_world_part: np.ndarray, cand: CandidateResult,
+                 frames: GraspFrames, params: GraspParams, mu: float, collider: GripperCollider,
+                 timing: dict[str, float], source: str, chunk: int = LAZY_CHUNK):
         self.part, self.gripper, self.cell, self.T = part, gripper, cell, T_world_part
         self.cand, self.frames, self.params, self.mu = cand, frames, params, float(mu)
         self.collider, self.timing, self.source, self.chunk = collider, timing, source, max(1, int(chunk))
@@ -275,35 +276,30 @@ class LazyGrasps:
         cheap = (score_grasps(part.mesh, T_world_part, self.T_part_tcp, self.width, float(gripper.max_opening),
                               cheap_w, scoring=cfg) * (cheap_total / total) if cheap_total > 0 and M
                  else np.zeros(M))
-        self.mass_props = None
-        phys_ub = phys / total if total > 0 else 0.0  # every physical term at most 1
-        if phys > 0 and M:
-            phys_ub = self._physical_bound(cfg, total, phys_ub)
+        self.mass_props: MassProperties | None = None
+        every_term_one = phys / total if total > 0 else 0.0  # every physical term is at most 1
+        phys_ub = self._physical_bound(cfg, total, every_term_one) if phys > 0 and M else every_term_one
         #: (M,) upper bound of each pose's score
         self.ub = cheap + phys_ub + _BOUND_SLACK if total > 0 else np.full(M, np.inf)
         self.timing["score_bound"] = time.perf_counter() - t
         self.queue = np.lexsort((np.arange(M), -self.ub)).astype(np.int64)  # check order
         self.pos = 0
-        self.status = np.full(M, "not_checked", dtype="<U18")
+        self.status = np.full(M, Status.NOT_CHECKED.value, dtype="<U18")
         self.reasons = np.full(M, "", dtype=object)
         self.score = np.full(M, np.nan)
-        self._q_parts: list = []
-        self._q_rows: list = []
+        self._q_parts: list[Quality] = []
+        self._q_rows: list[np.ndarray] = []
         self.note = ""
         self.timing.setdefault("collision", 0.0)
         self.timing["quality"] = 0.0
         self._order = np.zeros(0, dtype=np.int64)
-        self._order_key = None
+        self._order_key: tuple[int, float, float] | None = None
         self._n_distinct = 0
 
-    def _physical_bound(self, cfg, total: float, fallback):
-        """``sum_k w_k term_k(bound_k) / total`` over the physical terms (:func:`grasplan.quality.
+    def _physical_bound(self, cfg: ScoringConfig, total: float, fallback: float) -> np.ndarray | float:
+        """(M,) ``sum_k w_k term_k(bound_k) / total`` over the physical terms (:func:`grasplan.quality.
         physical_bounds`: the pad's whole area, the load straight down), or ``fallback`` for a part
         without mass properties (its score has no physical terms)."""
-        from .mass import mass_properties
-        from .quality import physical_bounds
-        from .scoring import PHYSICAL_TERMS, epsilon_term, gravity_margin_term
-
         try:
             mp = mass_properties(self.part.mesh, density=self.params.density, mass=self.params.mass)
         except InputError:
@@ -331,8 +327,6 @@ class LazyGrasps:
 
     def check_next(self) -> int:
         """Collision-check and score the next chunk in bound order; returns how many were checked."""
-        from .quality import quality_and_score
-
         idx = self.queue[self.pos: self.pos + self.chunk]
         if not len(idx):
             return 0
@@ -348,7 +342,7 @@ class LazyGrasps:
         self.score[idx] = sc
         if q is not None:
             self._q_parts.append(q)
-            self._q_rows.append(idx[np.asarray(st).astype(str) == "ok"])
+            self._q_rows.append(idx[np.asarray(st).astype(str) == Status.OK.value])
         self.mass_props = mp if mp is not None else self.mass_props
         self.note = note or self.note
         self.timing["quality"] += time.perf_counter() - t
@@ -365,11 +359,9 @@ class LazyGrasps:
         :func:`grasplan.scoring.distinct_order`) and how many of its leading entries are certainly
         the full computation's (their score is above every unchecked pose's bound; all of them
         once every pose is checked)."""
-        from .scoring import distinct_order
-
         key = (self.pos, min_distance, min_angle_deg)
         if key != self._order_key:
-            ok = np.flatnonzero(self.status == "ok")
+            ok = np.flatnonzero(self.status == Status.OK.value)
             order = ok[np.lexsort((ok, -self.score[ok]))] if len(ok) else ok
             self._order, self._n_distinct = distinct_order(self.T_part_tcp, order, min_distance=min_distance,
                                                            min_angle_deg=min_angle_deg, return_count=True)
@@ -382,7 +374,7 @@ class LazyGrasps:
         s = self.score[order[: self._n_distinct]]
         return order, int(np.count_nonzero(s > self.bound()))
 
-    def ranked(self, min_distance: float = 0.005, min_angle_deg: float = 15.0):
+    def ranked(self, min_distance: float = 0.005, min_angle_deg: float = 15.0) -> Iterator[int]:
         """Generator of pose indices in the full computation's rank order (checking chunks as needed)."""
         k = 0
         while True:

@@ -38,7 +38,7 @@ import numpy as np
 from .ik import solve_ik
 from .interpolation import STEP, interpolate_path
 from .paths import approach_path_reason, plan_joint_path
-from .result import GripperEvent, Motion
+from .motion import GripperEvent, Motion
 from .robot_model import Robot
 from .scene import CollisionScene
 from .status import Status

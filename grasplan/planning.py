@@ -75,7 +75,8 @@ from .pickplace import (
     plan_lift,
     transfer_path,
 )
-from .result import Motion, Params, PlanResult
+from .motion import Motion
+from .result import Params, PlanResult
 from .robot import load_robot
 from .robot_model import Robot
 from .scene import CollisionScene, describe_pairs, no_path_reason

@@ -1,57 +1,66 @@
-"""The JSON of a grasp table's quality and simulation columns and of the part's mass record:
-what :mod:`grasplan.result` writes under each grasp (``quality``, ``sim``) and under ``part``
-(``mass_kg``, ``com``, ...), and the parsers that read them back, naming the grasp at fault."""
+"""The JSON of a grasp table's quality and simulation columns and of the part's mass record: the
+``quality`` and ``sim`` fields of each grasp (:func:`quality_field`, :func:`sim_field`, one
+definition for the dicts and the streamed text of :mod:`grasplan.result_writer`), the ``part``
+mass record (``mass_kg``, ``com``, ...), and the parsers that read them back, naming the grasp at
+fault."""
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .errors import InputError
+from .json_columns import Bools, Field, Items, Names, Numbers, Record
+
+if TYPE_CHECKING:
+    from .grasp_table import GraspTable
 
 #: contact type codes (``Quality.contact_type``, ``GraspTable.contact_type``): the JSON names they index
 CONTACT_TYPES = ("point", "line", "surface")
 
 
-def quality_entries(table, ids: np.ndarray) -> list | None:
-    """The ``quality`` object per grasp row ``ids`` of a :class:`grasplan.result.GraspTable`
-    (``{score, gravity_margin, epsilon, contact: [{area_m2, type}] * 2}``, None for grasps without
-    quality), or None when the table has no quality columns."""
-    if table.gravity_margin is None:
+def quality_field(table: GraspTable, score: Numbers) -> Field | None:
+    """The ``quality`` field of each grasp, None when the table has no quality columns:
+    ``{score, gravity_margin, epsilon, contact: [{area_m2, type}] * 2}`` (``score``: the grasp's
+    score column), ``null`` for grasps without quality (gravity margin not finite)."""
+    gm, eps, area, kind = table.gravity_margin, table.epsilon, table.contact_area, table.contact_type
+    if gm is None:
         return None
-    ids = np.asarray(ids, dtype=np.int64)
-    gm = table.gravity_margin[ids]
-    has = np.isfinite(gm)
-    area = np.round(table.contact_area[ids], 12).tolist()
-    kind = table.contact_type[ids].tolist()
-    score = table.score[ids].tolist()
-    gml, eps = gm.tolist(), table.epsilon[ids].tolist()
-    return [{"score": None if score[k] != score[k] else score[k], "gravity_margin": gml[k], "epsilon": eps[k],
-             "contact": [{"area_m2": area[k][j], "type": CONTACT_TYPES[kind[k][j]]} for j in range(2)]}
-            if has[k] else None for k in range(len(ids))]
+    if eps is None or area is None or kind is None:
+        raise ValueError("a GraspTable with gravity_margin needs epsilon, contact_area and contact_type too")
+
+    def jaw(j: int) -> Record:
+        return Record((Field("area_m2", Numbers(area[:, j], decimals=12)), Field("type", Names(kind[:, j], CONTACT_TYPES))))
+
+    return Field("quality", Record((Field("score", score), Field("gravity_margin", Numbers(gm)),
+                                    Field("epsilon", Numbers(eps)), Field("contact", Items((jaw(0), jaw(1))))),
+                                   null=lambda rows: ~np.isfinite(gm[rows])))
 
 
-def sim_entries(table, ids: np.ndarray) -> list | None:
-    """The ``sim`` object ``{success, slip_m, turn_deg}`` per grasp row (None: not simulated), or
-    None when the table has no simulation columns."""
-    if table.sim_success is None:
+def sim_field(table: GraspTable) -> Field | None:
+    """The ``sim`` field ``{success, slip_m, turn_deg}`` of the simulated grasps (absent on the
+    others), None when the table has no simulation columns."""
+    ok, slip, turn = table.sim_success, table.sim_slip_m, table.sim_turn_deg
+    if ok is None:
         return None
-    ids = np.asarray(ids, dtype=np.int64)
-    ok, slip, turn = table.sim_success[ids].tolist(), table.sim_slip_m[ids].tolist(), table.sim_turn_deg[ids].tolist()
-    return [{"success": bool(ok[k]), "slip_m": slip[k], "turn_deg": turn[k]} if ok[k] >= 0 else None
-            for k in range(len(ids))]
+    if slip is None or turn is None:
+        raise ValueError("a GraspTable with sim_success needs sim_slip_m and sim_turn_deg too")
+    return Field("sim", Record((Field("success", Bools(ok)), Field("slip_m", Numbers(slip)),
+                                Field("turn_deg", Numbers(turn)))),
+                 present=lambda rows: ok[rows] >= 0)
 
 
-def _bad(where: str, i: int, g, what: str) -> InputError:
+def _bad(where: str, i: int, g: Any, what: str) -> InputError:
     gid = g.get("id") if isinstance(g, dict) else None
     return InputError(f"{where}: grasps[{i}] (id {str(gid)[:20]}): {what}")
 
 
-def parse_quality_sim(grasps: list, where: str) -> dict:
+def parse_quality_sim(grasps: list[Any], where: str) -> dict[str, np.ndarray]:
     """GraspTable quality / sim columns from the grasp dicts of a file (keys absent: no columns);
     InputError naming the grasp for a malformed ``quality`` or ``sim`` object."""
     M = len(grasps)
-    out: dict = {}
+    out: dict[str, np.ndarray] = {}
     qs = [g.get("quality") if isinstance(g, dict) else None for g in grasps]
     if any(q is not None for q in qs):
         cols = {"contact_area": np.full((M, 2), np.nan), "contact_type": np.full((M, 2), -1, dtype=np.int8),
@@ -95,7 +104,7 @@ def parse_quality_sim(grasps: list, where: str) -> dict:
     return out
 
 
-def parse_mass_record(part: dict, where: str) -> dict | None:
+def parse_mass_record(part: Any, where: str) -> dict[str, Any] | None:
     """The ``part`` mass record (``mass_kg``, ``com``, ``density``, ``mass_from``) of a file, None
     when absent; InputError when malformed."""
     if not isinstance(part, dict) or "mass_kg" not in part:

@@ -28,7 +28,8 @@ from grasplan.export.trajectory import (
     joint_trajectory,
     point_to_polyline_distance,
 )
-from grasplan.result import PlanResult, load_result
+from grasplan.result import PlanResult
+from grasplan.result_reader import load_result
 
 pin = pytest.importorskip("pinocchio")
 

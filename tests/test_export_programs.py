@@ -31,7 +31,7 @@ import grasplan
 from grasplan.errors import InputError
 from grasplan.export import krl, moveit_grasp, rapid
 from grasplan.export.program import motion_program
-from grasplan.export.registry import FORMATS, ExportOptions
+from grasplan.export_registry import FORMATS, ExportOptions
 from grasplan.params import PlanParams
 
 TOP = 2

@@ -51,7 +51,7 @@ from test_export_programs import (
 from grasplan.errors import InputError
 from grasplan.export import render
 from grasplan.export.trajectory import joint_trajectory
-from grasplan.result import load_result
+from grasplan.result_reader import load_result
 
 pin = pytest.importorskip("pinocchio")
 

@@ -211,7 +211,7 @@ def test_bracket_lift_always_planned_and_rechecked(bracket_plans):
 
 
 def test_bracket_pick_and_place_rechecked_and_round_trips(bracket_plans, tmp_path):
-    from grasplan.result import load_result
+    from grasplan.result_reader import load_result
 
     part, _, res = bracket_plans
     ids = [res.grasps.index_of(g) for g in res.planned_ids()]
@@ -265,7 +265,7 @@ def test_checker_can_fail(bracket_plans):
 ])
 def test_loader_rejects_tampered_sequences(bracket_plans, bad, match):
     from grasplan.errors import InputError
-    from grasplan.result import result_from_document
+    from grasplan.result_reader import result_from_document
 
     _, _, res = bracket_plans
     doc = json.loads(json.dumps(res.to_json()))
@@ -277,7 +277,7 @@ def test_loader_rejects_tampered_sequences(bracket_plans, bad, match):
 
 
 def test_old_motion_without_segments_is_transit_plus_approach():
-    from grasplan.result import Motion
+    from grasplan.motion import Motion
 
     p = np.zeros((5, 6))
     p[:, 0] = np.arange(5)

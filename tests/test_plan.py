@@ -21,7 +21,7 @@ STATUSES = {"planned", "collision_part", "collision_table", "collision_obstacle"
 
 
 def test_plan_statuses_are_the_documented_ones():
-    from grasplan.result import PLAN_STATUSES, Status
+    from grasplan.status import PLAN_STATUSES, Status
 
     assert set(PLAN_STATUSES) == STATUSES and len(PLAN_STATUSES) == len(STATUSES)
     assert {s.value for s in Status} == STATUSES | {"ok"}

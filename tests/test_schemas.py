@@ -163,6 +163,6 @@ def test_grasps_and_plan_cli_outputs_validate(tmp_path, example_part):
     assert r.exit_code in (0, 4), r.output
     assert validate(json.loads(p_out.read_text())) == "grasplan.plan/1"
     # and both read back through the full loader (schema, grasps, robot, FK of the planned grasps)
-    from grasplan.result import load_result
+    from grasplan.result_reader import load_result
 
     assert load_result(g_out).schema == "grasplan.grasps/1" and load_result(p_out).robot.name == "ur5"

@@ -123,7 +123,7 @@ def test_grasps_json_has_quality_for_ok_grasps_and_null_for_collisions(grasps_do
 
 
 def test_grasps_file_round_trips_quality(grasps_doc):
-    from grasplan.result import result_from_document
+    from grasplan.result_reader import result_from_document
 
     res = result_from_document(grasps_doc)
     t = res.grasps
@@ -204,7 +204,7 @@ def test_plan_ranks_by_score_with_the_diversity_rule(plan_doc, grasps_doc):
 
 
 def test_plan_simulate_writes_sim_and_ranks_held_first(plan_doc):
-    from grasplan.result import load_result
+    from grasplan.result_reader import load_result
 
     path, doc = plan_doc
     simulated = [x for x in doc["grasps"] if x.get("sim")]
@@ -233,7 +233,7 @@ def test_rank_held_first_is_stable_and_applied_to_a_plan(plan_doc):
     new = rank_held_first(rank, np.array([1, -1, 0, 1, -1], dtype=np.int8))
     # held in rank order (row 3 then row 0), then the rest in rank order (row 2, row 4)
     assert new.tolist() == [1, -1, 2, 0, 3]
-    from grasplan.result import load_result
+    from grasplan.result_reader import load_result
 
     path, _ = plan_doc
     res = load_result(path)
@@ -248,7 +248,7 @@ def test_rank_held_first_is_stable_and_applied_to_a_plan(plan_doc):
 
 
 def test_simulate_cli_on_a_plan_takes_the_planned_grasps_in_rank_order(plan_doc, tmp_path):
-    from grasplan.result import load_result
+    from grasplan.result_reader import load_result
 
     path, _ = plan_doc
     out = tmp_path / "sim.json"

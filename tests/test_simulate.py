@@ -94,7 +94,7 @@ def test_coacd_pieces_are_cached_atomically(tmp_path, monkeypatch):
 def test_simulate_cli_writes_sim_per_grasp(tmp_path, example_part):
     from click.testing import CliRunner
 
-    from grasplan import result
+    from grasplan import result_reader as result
     from grasplan.cli import main
 
     grasps_json = tmp_path / "grasps.json"

@@ -23,7 +23,7 @@ import pytest
 
 from grasplan.errors import InputError
 from grasplan.mesh import load_part
-from grasplan.result import load_result
+from grasplan.result_reader import load_result
 from grasplan.viewer import (
     OTHER_COLOR,
     STATUS_COLORS,
@@ -364,7 +364,7 @@ def test_malformed_grasp_is_named_small_and_unsampled(bracket_plan):
     """A malformed grasp is named by its index: in a small document (JSON Schema on every grasp) and
     in a large one where the grasp is not in the schema sample (the vectorised check)."""
     doc, _ = bracket_plan
-    from grasplan.result import SCHEMA_SAMPLE
+    from grasplan.result_reader import SCHEMA_SAMPLE
 
     small = [dict(g) for g in doc["grasps"][:20]]
     small[7]["T_part_tcp"] = [[1, 0, 0], [0, 1, 0]]
@@ -745,7 +745,7 @@ def test_browser_shows_quality_and_sim(tmp_path):
 
 def test_every_status_has_its_own_colour():
     """Each grasp status the pipeline can write is drawn in a colour of its own."""
-    from grasplan.result import GRASP_STATUSES, PLAN_STATUSES
+    from grasplan.status import GRASP_STATUSES, PLAN_STATUSES
 
     statuses = set(PLAN_STATUSES) | set(GRASP_STATUSES)
     assert statuses <= set(STATUS_COLORS), sorted(statuses - set(STATUS_COLORS))

@@ -6,7 +6,7 @@ import time
 import click
 
 from ..export import load_builtin_formats
-from ..export.registry import DEFAULT_MAX_ACCEL
+from ..export_registry import DEFAULT_MAX_ACCEL
 from .common import check_output, info
 from .options import FLOAT, INT
 
@@ -50,7 +50,7 @@ def command(plan, fmt, grasp_id, out, max_accel, velocity_scale, part_path):
     from pathlib import Path
 
     from ..export import write
-    from ..result import load_result
+    from ..result_reader import load_result
 
     t0 = time.perf_counter()
     out = check_output(out, plan, part_path)

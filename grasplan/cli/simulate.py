@@ -43,7 +43,7 @@ def command(ctx, result: Path, output: Path, top: int, part: Path | None, seed: 
     Density and mass default to those the file was made with."""
     from ..io import write_json
     from ..mass import mass_properties
-    from ..result import load_result
+    from ..result_reader import load_result
     from ..simulate import (
         LIFT_HEIGHT,
         LIFT_S,

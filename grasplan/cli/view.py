@@ -25,7 +25,7 @@ def command(result: str, output: str, part: str | None, allow_other_part: bool) 
     q_grasp with a button that plays the path home -> pre-grasp -> grasp. It makes no network
     request (three.js is bundled). RESULT is self-contained: no gripper, cell or robot YAML needed.
     """
-    from ..result import load_result
+    from ..result_reader import load_result
     from ..viewer import (
         write_viewer,  # imported here: the CLI stays fast for other commands
     )

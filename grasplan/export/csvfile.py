@@ -31,7 +31,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..transforms import pose7
-from .registry import ExportFormat, register
+from ..export_registry import ExportFormat, register
 
 POSE_COLS = ("x", "y", "z", "qw", "qx", "qy", "qz")
 

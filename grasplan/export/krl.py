@@ -43,7 +43,7 @@ from .program import (
     row_label,
     waypoint_labels,
 )
-from .registry import ExportFormat, ExportOptions, register
+from ..export_registry import ExportFormat, ExportOptions, register
 
 #: PTP joint speed, percent of each axis' maximum ($VEL_AXIS) and acceleration ($ACC_AXIS)
 PTP_VEL_PERCENT = 20

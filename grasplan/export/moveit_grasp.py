@@ -49,7 +49,7 @@ import numpy as np
 from ..errors import InputError
 from ..transforms import check_transform, quaternions
 from .program import is_sequence, motion_program, safe_text
-from .registry import ExportFormat, ExportOptions, register
+from ..export_registry import ExportFormat, ExportOptions, register
 
 #: seconds after which a finger posture is reached (time_from_start of its single point)
 POSTURE_TIME_S = 1.0

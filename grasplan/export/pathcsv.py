@@ -30,7 +30,7 @@ import numpy as np
 from ..errors import InputError
 from ..transforms import pose7
 from .program import motion_segments
-from .registry import ExportFormat, ExportOptions, register
+from ..export_registry import ExportFormat, ExportOptions, register
 
 POSE_COLS = ("x", "y", "z", "qw", "qx", "qy", "qz")
 

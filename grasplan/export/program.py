@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from .registry import ExportOptions
+from ..export_registry import ExportOptions
 
 #: slack (deg) when checking controller angles against the limits: the URDF limits are rad and the
 #: plan's joint values may sit exactly on a limit
@@ -174,7 +174,7 @@ def motion_program(plan, grasp_id: int | None = None, *, source: str = "") -> Mo
 
 
 def motion_segments(m) -> list[tuple[str, int, int]]:
-    """``(label, start, end)`` of a :class:`~grasplan.result.Motion` (transit + approach for a
+    """``(label, start, end)`` of a :class:`~grasplan.motion.Motion` (transit + approach for a
     motion without segments)."""
     if hasattr(m, "segment_list"):
         return m.segment_list()

@@ -44,7 +44,7 @@ from .program import (
     row_label,
     waypoint_labels,
 )
-from .registry import ExportFormat, ExportOptions, register
+from ..export_registry import ExportFormat, ExportOptions, register
 
 #: speeddata of the joint moves and of the linear approach/retreat (predefined RAPID data)
 JOINT_SPEED = "v200"

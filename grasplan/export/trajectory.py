@@ -30,7 +30,7 @@ import math
 import numpy as np
 
 from ..errors import InputError, PlanningError
-from .registry import DEFAULT_MAX_ACCEL, ExportFormat, register
+from ..export_registry import DEFAULT_MAX_ACCEL, ExportFormat, register
 
 SCHEMA = "grasplan.joint_trajectory/1"
 KNOT_STEP = 0.005      #: rad, spline knot spacing (max joint motion between knots)

@@ -421,7 +421,7 @@ def build_html(result, *, part_path=None, allow_other_part: bool = False) -> str
     ----------
     result : PlanResult, dict or path
         A :class:`~grasplan.result.PlanResult`, or a grasps/plan document or file (read with
-        :func:`grasplan.result.load_result`: validated in full, models rebuilt from the file).
+        :func:`grasplan.result_reader.load_result`: validated in full, models rebuilt from the file).
     part_path : path, optional
         The part's mesh file; default: the path recorded in the result (a relative path is looked
         up in the current folder, then next to the result file). Its sha256 must match the
@@ -432,7 +432,7 @@ def build_html(result, *, part_path=None, allow_other_part: bool = False) -> str
     InputError
         Not a grasps/plan document, the part cannot be found or differs, or a malformed grasp.
     """
-    from ..result import load_result
+    from ..result_reader import load_result
 
     res = load_result(result)
     data, notes = build_data(res, part_path=part_path, allow_other_part=allow_other_part)

@@ -1,0 +1,370 @@
+"""Reading a result back: :func:`load_result` turns a ``grasplan.grasps/1`` or ``grasplan.plan/1``
+file (or a parsed document) into a typed :class:`grasplan.result.PlanResult`.
+
+Nothing a file says is trusted: :func:`result_from_document` checks the JSON Schema (on a sample
+of a large file) and then every grasp, vectorised (finite numbers, rigid transforms, statuses of
+the file's stage, joint vectors of the robot's length within its limits, consecutive motion
+segments with their gripper events), and re-checks each planned grasp by forward kinematics
+(:func:`check_fk`: ``FK(q_grasp)`` at the recorded TCP, the attached part and the place). The
+gripper, cell and robot are rebuilt from the definitions the file embeds. Every problem is an
+:class:`~grasplan.errors.InputError` naming the file, the grasp and what would pass.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+from dataclasses import fields, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .cell import Cell
+from .errors import InputError
+from .grasp_table import GraspTable
+from .gripper import Gripper, gripper_from_json
+from .motion import GRIPPER_ACTIONS, SEGMENT_SEQUENCES, GripperEvent, Motion
+from .params import CandidateParams, GraspParams, PlanParams
+from .quality_json import parse_mass_record, parse_quality_sim
+from .result import Params, PartRecord, PlanResult
+from .result_writer import GRASPS_SCHEMA, PLAN_SCHEMA, SCHEMAS
+from .schemas import validate
+from .status import GRASP_STATUSES, PLAN_STATUSES, Status
+from .transforms import check_transform, pose_error
+
+if TYPE_CHECKING:
+    from .meshdata import TriangleMesh
+    from .robot_model import Robot
+
+#: documents with more grasps than this get the JSON Schema on a sample plus a vectorised check
+#: of every grasp (jsonschema checks ~1000 grasps/s)
+SCHEMA_SAMPLE = 50
+MAX_JSON_BYTES = 2 * 1024**3
+
+
+def read_document(path: str | os.PathLike[str]) -> Any:
+    """Parse a grasplan JSON file; InputError for anything that is not one."""
+    p = Path(path)
+    try:
+        if not p.is_file():
+            raise InputError(f"{p}: no such file (expected a grasplan grasps or plan JSON file)")
+        if p.stat().st_size > MAX_JSON_BYTES:
+            raise InputError(f"{p}: {p.stat().st_size / 1e9:.1f} GB is larger than grasplan reads ({MAX_JSON_BYTES / 1e9:.0f} GB)")
+        with open(p, "rb") as f:
+            doc = json.load(f)
+    except OSError as exc:
+        raise InputError(f"{p}: cannot read it ({exc.strerror or exc})") from None
+    except RecursionError:
+        raise InputError(f"{p}: JSON nested too deeply; not a grasplan result") from None
+    except (UnicodeDecodeError, ValueError) as exc:
+        raise InputError(f"{p}: not a JSON file ({str(exc)[:80]}); expected a result written by grasplan") from None
+    return doc
+
+
+def _arr(grasps: list[Any], key: str, shape: tuple[int, ...], dtype: Any, where: str, *, default: Any = None) -> np.ndarray:
+    try:
+        if default is not None:
+            vals = [g.get(key, default) if isinstance(g, dict) else None for g in grasps]
+        else:
+            vals = [g[key] for g in grasps]
+        a = np.array(vals, dtype=dtype)
+        if a.shape == (len(grasps), *shape) and (dtype is object or np.all(np.isfinite(a))):
+            return a
+    except (KeyError, TypeError, ValueError, OverflowError):
+        pass
+    for i, g in enumerate(grasps):
+        try:
+            v = np.asarray(g[key] if default is None else g.get(key, default), dtype=dtype)
+            ok = v.shape == shape and (dtype is object or bool(np.all(np.isfinite(v))))
+        except (KeyError, TypeError, ValueError, OverflowError, AttributeError):
+            ok = False
+        if not ok:
+            gid = g.get("id") if isinstance(g, dict) else None
+            raise InputError(f"{where}: grasps[{i}] (id {str(gid)[:20]}): {key!r} missing or malformed; expected "
+                             f"{'a finite number' if not shape else 'finite numbers of shape ' + str(shape)}")
+    raise InputError(f"{where}: grasps: {key!r} malformed")
+
+
+def result_from_document(doc: Any, *, where: str = "document", part_mesh: TriangleMesh | None = None) -> PlanResult:
+    """Validate a parsed grasps/plan document in full (schema on a sample, every grasp vectorised,
+    finite numbers, rigid transforms, joint vectors of the robot's length within its limits, FK of
+    each planned grasp at its recorded TCP) and rebuild the typed result."""
+    if not isinstance(doc, dict) or doc.get("schema") not in SCHEMAS:
+        found = doc.get("schema") if isinstance(doc, dict) else type(doc).__name__
+        raise InputError(f"{where}: not a grasplan grasps or plan file: schema is {str(found)[:60]!r}, expected "
+                         f"{' or '.join(map(repr, SCHEMAS))}")
+    schema = doc["schema"]
+    grasps = doc.get("grasps")
+    if not isinstance(grasps, list):
+        raise InputError(f"{where}: $.grasps must be a list")
+    if len(grasps) > SCHEMA_SAMPLE:
+        step = max(1, len(grasps) // SCHEMA_SAMPLE)
+        picked = [i for i, g in enumerate(grasps) if i % step == 0
+                  or (isinstance(g, dict) and g.get("status") == Status.PLANNED.value)]
+        _validate({**doc, "grasps": [grasps[i] for i in picked]}, schema, where, picked)
+    else:
+        _validate(doc, schema, where)
+    M = len(grasps)
+    ids = _arr(grasps, "id", (), np.float64, where)
+    id_values = None
+    if M and not np.array_equal(ids, np.arange(M)):
+        filtered = doc.get("only_ok") is True and schema == GRASPS_SCHEMA
+        if not (filtered and np.all(ids == np.round(ids)) and ids[0] >= 0 and np.all(np.diff(ids) > 0)
+                and ids[-1] < 2**53):
+            raise InputError(f"{where}: grasp ids must be 0..{M - 1} in order (a file written with --only-ok: "
+                             "strictly increasing ids)")
+        id_values = ids.astype(np.int64)
+    names = PLAN_STATUSES if schema == PLAN_SCHEMA else GRASP_STATUSES
+    status = _arr(grasps, "status", (), object, where)
+    bad = sorted(set(status.tolist()) - set(names)) if M else []
+    if bad:
+        raise InputError(f"{where}: unknown grasp status {str(bad[:3])[:80]}; expected one of {', '.join(names)}")
+    T = _arr(grasps, "T_part_tcp", (4, 4), np.float64, where)
+    if M:
+        check_transform(T, f"{where}: grasps[*].T_part_tcp", batch=True)
+    width = _arr(grasps, "width", (), np.float64, where)
+    if np.any(width < 0) or np.any(width > 10):
+        raise InputError(f"{where}: grasp widths must be in [0, 10] m")
+    table = GraspTable(
+        candidate=_arr(grasps, "candidate", (), np.float64, where).astype(np.int64),
+        region=_arr(grasps, "region", (), np.float64, where, default=-1).astype(np.int64),
+        contacts=_arr(grasps, "contacts", (2, 3), np.float64, where),
+        normals=_arr(grasps, "normals", (2, 3), np.float64, where),
+        width=width, T_part_tcp=T.reshape(M, 4, 4),
+        roll=_arr(grasps, "roll", (), np.float64, where),
+        status=status,
+        score=np.array([np.nan if (s := g.get("score")) is None else s for g in grasps], dtype=np.float64)
+        if M else np.full(M, np.nan),
+        rank=np.array([-1 if (r := g.get("rank")) is None else r for g in grasps], dtype=np.int64)
+        if schema == PLAN_SCHEMA else np.full(M, -1, dtype=np.int64),
+        reason=_arr(grasps, "reason", (), object, where, default="") if M else np.zeros(0, dtype=object),
+        id_values=id_values,
+        **parse_quality_sim(grasps, where),
+    )
+    if M and not np.all(np.isfinite(table.score[~np.isnan(table.score)])):
+        raise InputError(f"{where}: grasp scores must be finite numbers or null")
+    p = doc["part"]
+    part = PartRecord(path=str(p["path"]), sha256=str(p["sha256"]), scale_to_m=float(p["scale_to_m"]),
+                      triangles=int(p["triangles"]),
+                      T_world_part=check_transform(p["T_world_part"], f"{where}: part.T_world_part"))
+    if not (math.isfinite(part.scale_to_m) and 0 < part.scale_to_m <= 1e3):
+        raise InputError(f"{where}: part.scale_to_m must be a positive scale, got {part.scale_to_m!r}")
+    gripper = gripper_from_json(doc["gripper"], where=f"{where}: gripper")
+    cell = Cell.from_json({k: v for k, v in doc["cell"].items() if k != "part_pose"}
+                          if isinstance(doc["cell"], dict) else doc["cell"])
+    cp, gp, pp = _params_from_doc(doc, where)
+    robot: Robot | None = None
+    motions: dict[int, Motion] = {}
+    if schema == PLAN_SCHEMA:
+        from .robot import robot_from_json  # Pinocchio loads only when a plan is read
+
+        robot = robot_from_json(doc["robot"], where=f"{where}: robot")
+        motions = _motions(grasps, status, robot, where)
+        check_fk(robot, gripper, part.T_world_part, table.T_part_tcp, motions, where)
+    counts = {k: v for k, v in (doc.get("counts") or {}).items() if k in ("candidates", "posed_candidates", "poses",
+                                                                           "regions")}
+    timing = {str(k): float(v) for k, v in (doc.get("timing_s") or {}).items()
+              if isinstance(v, (int, float)) and not isinstance(v, bool)}
+    return PlanResult(part=part, gripper=gripper, cell=cell, robot=robot, grasps=table, motions=motions,
+                      params=Params(cp, gp, pp), counts_stage=counts, timing_s=timing,
+                      part_pose_source=str((doc.get("cell") or {}).get("part_pose", "stable_pose")), part_mesh=part_mesh,
+                      mass=parse_mass_record(p, where))
+
+
+def _validate(doc: dict[str, Any], schema: str, where: str, picked: list[int] | None = None) -> None:
+    try:
+        validate(doc, schema)
+    except InputError as exc:
+        msg = str(exc)
+        if picked is not None:  # name the grasp in the file, not its place in the sample
+            msg = re.sub(r"\$\.grasps\[(\d+)\]", lambda m: f"$.grasps[{picked[int(m.group(1))]}]", msg)
+        raise InputError(f"{where}: {msg}") from None
+    except RecursionError:
+        raise InputError(f"{where}: JSON nested too deeply; not a grasplan result") from None
+
+
+def _params_from_doc(doc: dict[str, Any], where: str) -> tuple[CandidateParams, GraspParams, PlanParams]:
+    prm = doc.get("params") or {}
+    try:
+        cp = CandidateParams.from_json({k: v for k, v in prm.items() if k in {f.name for f in fields(CandidateParams)}})
+        gp = GraspParams.from_json({k: v for k, v in prm.items() if k in {f.name for f in fields(GraspParams)}})
+        pp = PlanParams.from_json(doc.get("plan_params") or {})
+    except (InputError, TypeError) as exc:
+        raise InputError(f"{where}: params: {exc}") from None
+    return cp, gp, pp
+
+
+def _motions(grasps: list[Any], status: np.ndarray, robot: Robot, where: str) -> dict[int, Motion]:
+    n = robot.nq
+    out: dict[int, Motion] = {}
+    for i in np.flatnonzero(status == Status.PLANNED.value).tolist():
+        g = grasps[i]
+        try:
+            path = np.asarray(g["path"], dtype=np.float64)
+            qg = np.asarray(g["q_grasp"], dtype=np.float64)
+            qp = np.asarray(g["q_pregrasp"], dtype=np.float64)
+            k = g["pregrasp_index"]
+        except (KeyError, TypeError, ValueError, OverflowError):
+            raise InputError(f"{where}: planned grasp {i} needs numeric q_grasp, q_pregrasp, path and pregrasp_index") from None
+        if path.ndim != 2 or path.shape[1] != n or len(path) < 2 or qg.shape != (n,) or qp.shape != (n,):
+            raise InputError(f"{where}: planned grasp {i}: joint vectors must have the robot's {n} joints "
+                             f"({', '.join(robot.joint_names)}) and the path >= 2 of them")
+        if not (np.all(np.isfinite(path)) and np.all(np.isfinite(qg)) and np.all(np.isfinite(qp))):
+            raise InputError(f"{where}: planned grasp {i}: joint values must be finite numbers")
+        if isinstance(k, bool) or not isinstance(k, int) or not 0 <= k < len(path):
+            raise InputError(f"{where}: planned grasp {i}: pregrasp_index must be an index into its path")
+        if not np.all(robot.within_limits(path, tol=1e-6)):
+            raise InputError(f"{where}: planned grasp {i}: the path leaves the joint limits of robot {robot.name!r}")
+        segments, events, T_place, T_tcp_part = _motion_extras(g, len(path), k, f"{where}: planned grasp {i}")
+        m = Motion(q_grasp=qg, q_pregrasp=qp, path=path, pregrasp_index=int(k), segments=segments, gripper=events,
+                   T_world_part_place=T_place, T_tcp_part=T_tcp_part)
+        gi = m.grasp_index
+        for a_name, a, b_name, b in (("path[0]", path[0], "q_home", robot.q_home),
+                                     ("path[pregrasp_index]", path[k], "q_pregrasp", qp),
+                                     (f"path[{gi}] (the end of the approach)", path[gi], "q_grasp", qg)):
+            if np.max(np.abs(a - b)) > 1e-6:
+                raise InputError(f"{where}: planned grasp {i}: {a_name} differs from {b_name} by "
+                                 f"{np.max(np.abs(a - b)):.3g} rad; the plan file is inconsistent")
+        out[i] = m
+    return out
+
+
+def _index(v: Any, k: int) -> int | None:
+    return int(v) if isinstance(v, int) and not isinstance(v, bool) and 0 <= v < k else None
+
+
+def _motion_extras(g: dict[str, Any], k: int, pregrasp_index: int, where: str) -> tuple[
+        tuple[tuple[str, int, int], ...], tuple[GripperEvent, ...], np.ndarray | None, np.ndarray | None]:
+    """Segments, gripper events and the place / attached-part transforms of one planned grasp,
+    validated: labels in their order, consecutive inclusive ranges covering the path, the approach
+    starting at ``pregrasp_index``, a ``close`` event at the end of the approach exactly when there
+    is a lift, an ``open`` event at the end of the descent exactly when there is a place."""
+    segs_in = g.get("segments")
+    ev_in = g.get("gripper", [])
+    if segs_in is None or segs_in == []:
+        segs_in = [{"label": "transit", "start": 0, "end": pregrasp_index},
+                   {"label": "approach", "start": pregrasp_index, "end": k - 1}]
+        explicit = False
+    else:
+        explicit = True
+    if not isinstance(segs_in, list) or not all(isinstance(s, dict) for s in segs_in):
+        raise InputError(f"{where}: segments must be a list of {{label, start, end}}")
+    labels = tuple(s.get("label") for s in segs_in)
+    if labels not in SEGMENT_SEQUENCES:
+        raise InputError(f"{where}: segment labels {list(labels)!s:.120} are not one of "
+                         f"{' | '.join('/'.join(q) for q in SEGMENT_SEQUENCES)}")
+    segs = []
+    prev_end = 0
+    for s in segs_in:
+        a, b = _index(s.get("start"), k), _index(s.get("end"), k)
+        if a is None or b is None or b <= a:
+            raise InputError(f"{where}: segment {s.get('label')!r}: start and end must be path rows 0..{k - 1} "
+                             "with end > start")
+        if a != prev_end:
+            raise InputError(f"{where}: segment {s.get('label')!r} starts at row {a}, not where the previous one "
+                             f"ends ({prev_end}); segments must be consecutive")
+        segs.append((str(s["label"]), a, b))
+        prev_end = b
+    if prev_end != k - 1:
+        raise InputError(f"{where}: the last segment ends at row {prev_end}, not at the path's last row {k - 1}")
+    if segs[1][1] != pregrasp_index:
+        raise InputError(f"{where}: the approach segment starts at row {segs[1][1]}, not at pregrasp_index "
+                         f"{pregrasp_index}")
+    if not isinstance(ev_in, list) or not all(isinstance(e, dict) for e in ev_in):
+        raise InputError(f"{where}: gripper must be a list of {{index, action, width}}")
+    events = []
+    for e in ev_in:
+        idx, act, w = _index(e.get("index"), k), e.get("action"), e.get("width")
+        if idx is None or act not in GRIPPER_ACTIONS or isinstance(w, bool) or not isinstance(w, (int, float)) \
+                or not (math.isfinite(w) and 0 <= w <= 10):
+            raise InputError(f"{where}: gripper event {str(e)[:80]}: needs index (a path row), action "
+                             f"({' | '.join(GRIPPER_ACTIONS)}) and width in [0, 10] m")
+        events.append(GripperEvent(index=idx, action=str(act), width=float(w)))
+    bounds = {lab: (a, b) for lab, a, b in segs}
+    expected = []
+    if "lift" in bounds:
+        expected.append(("close", bounds["approach"][1]))
+    if "descend" in bounds:
+        expected.append(("open", bounds["descend"][1]))
+    got = [(e.action, e.index) for e in events]
+    if got != expected:
+        want = ", ".join(f"{a} at row {r}" for a, r in expected) or "none"
+        raise InputError(f"{where}: gripper events {got!s:.120} must be at the segment boundaries: {want}")
+    T_place = T_tcp = None
+    if "T_tcp_part" in g or "lift" in bounds:
+        if "T_tcp_part" not in g:
+            raise InputError(f"{where}: a motion with a lift needs T_tcp_part (the part in the jaws)")
+        T_tcp = check_transform(g["T_tcp_part"], f"{where}: T_tcp_part")
+    if "T_world_part_place" in g or "descend" in bounds:
+        if "T_world_part_place" not in g or "descend" not in bounds:
+            raise InputError(f"{where}: T_world_part_place and the transfer/descend/retreat segments go together")
+        T_place = check_transform(g["T_world_part_place"], f"{where}: T_world_part_place")
+    return (tuple(segs) if explicit else ()), tuple(events), T_place, T_tcp
+
+
+#: FK check tolerances (m, rad): FK(q_grasp) @ T_flange_tcp must be the recorded grasp TCP
+FK_POS_TOL = 1e-3
+FK_ROT_TOL = 1e-2
+
+
+def check_fk(robot: Robot, gripper: Gripper, T_world_part: np.ndarray, T_part_tcp: np.ndarray,
+             motions: dict[int, Motion], where: str) -> None:
+    """Each planned grasp re-checked by forward kinematics: ``FK(q_grasp) @ T_flange_tcp`` is its
+    recorded TCP, the attached part is the grasp's inverse, and at the open event the part is at
+    ``T_world_part_place`` (within :data:`FK_POS_TOL` / :data:`FK_ROT_TOL`); InputError otherwise."""
+    if not motions:
+        return
+    ids = np.fromiter(motions, dtype=np.int64)
+    q = np.stack([motions[i].q_grasp for i in ids])
+    T_fk = robot.fk_batch(q) @ gripper.T_flange_tcp
+    T_rec = T_world_part @ T_part_tcp[ids]
+    dp = np.linalg.norm(T_fk[:, :3, 3] - T_rec[:, :3, 3], axis=1)
+    cos = np.clip((np.einsum("nij,nij->n", T_fk[:, :3, :3], T_rec[:, :3, :3]) - 1.0) / 2.0, -1.0, 1.0)
+    dr = np.arccos(cos)
+    bad = np.flatnonzero((dp > FK_POS_TOL) | (dr > FK_ROT_TOL))
+    if len(bad):
+        b = int(bad[0])
+        raise InputError(f"{where}: planned grasp {int(ids[b])}: FK(q_grasp) is {dp[b] * 1000:.1f} mm / {dr[b]:.3f} rad "
+                         f"from its recorded TCP with robot {robot.name!r}; the plan was made with another robot or "
+                         "gripper, or was edited")
+    # the part in the jaws is the grasp's own inverse, and the jaws open where the part is placed
+    for i in ids.tolist():
+        m = motions[i]
+        if m.T_tcp_part is None:
+            continue
+        d_att = pose_error(m.T_tcp_part @ T_part_tcp[i], np.eye(4))
+        if d_att[0] > FK_POS_TOL or d_att[1] > FK_ROT_TOL:
+            raise InputError(f"{where}: planned grasp {i}: T_tcp_part is not the inverse of its T_part_tcp "
+                             f"({d_att[0] * 1000:.1f} mm / {d_att[1]:.3f} rad); the plan file was edited")
+        if m.T_world_part_place is not None:
+            opened = m.event("open")
+            if opened is None:
+                raise InputError(f"{where}: planned grasp {i}: a placed part needs an open gripper event")
+            o = opened.index
+            T_part = robot.fk_batch(m.path[o][None])[0] @ gripper.T_flange_tcp @ m.T_tcp_part
+            d_pl = pose_error(T_part, m.T_world_part_place)
+            if d_pl[0] > FK_POS_TOL or d_pl[1] > FK_ROT_TOL:
+                raise InputError(f"{where}: planned grasp {i}: at the open event (row {o}) the part is "
+                                 f"{d_pl[0] * 1000:.1f} mm / {d_pl[1]:.3f} rad from T_world_part_place with robot "
+                                 f"{robot.name!r}; the plan was made with another robot or gripper, or was edited")
+
+
+def load_result(source: str | os.PathLike[str] | dict[str, Any] | PlanResult, *,
+                part: str | os.PathLike[str] | None = None,
+                load_mesh: bool = False, allow_other_part: bool = False) -> PlanResult:
+    """A :class:`PlanResult` from a grasps/plan file (or a parsed document, or a result).
+
+    ``load_mesh``: also load the part's mesh (from ``part`` or the recorded path, relative paths
+    also looked up next to the file) at the recorded scale; its sha256 must match unless
+    ``allow_other_part``."""
+    if isinstance(source, PlanResult):
+        res = source
+    elif isinstance(source, dict):
+        res = result_from_document(source, where="document")
+    else:
+        res = replace(result_from_document(read_document(source), where=str(source)), origin=Path(source).resolve())
+    if load_mesh and (res.part_mesh is None or part is not None):
+        res = replace(res, part_mesh=res.mesh(part, allow_other_part=allow_other_part))
+    return res
