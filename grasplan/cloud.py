@@ -135,9 +135,9 @@ def _read_pcd(data: bytes, src: str) -> np.ndarray:
             continue
         w = ln.split()
         h[w[0].upper()] = w[1:]
-    for key in ("FIELDS", "SIZE", "TYPE", "POINTS", "DATA"):
-        if key not in h:
-            raise _bad(src, f"PCD header lacks {key}; not a PCD file")
+    for name in ("FIELDS", "SIZE", "TYPE", "POINTS", "DATA"):
+        if name not in h:
+            raise _bad(src, f"PCD header lacks {name}; not a PCD file")
     fields, sizes, types = h["FIELDS"], h["SIZE"], h["TYPE"]
     counts = h.get("COUNT", ["1"] * len(fields))
     if not (len(fields) == len(sizes) == len(types) == len(counts)):
@@ -158,9 +158,9 @@ def _read_pcd(data: bytes, src: str) -> np.ndarray:
         col = np.cumsum([0] + [int(c) for c in counts])
         return rows[:, [int(col[fields.index(c)]) for c in "xyz"]]
     if mode == "binary":
-        parts = []
+        parts: list[tuple] = []
         for f, s, t, c in zip(fields, sizes, types, counts):
-            key = (t.upper(), _count(s, src, "SIZE"))
+            key: tuple[str, int] = (t.upper(), _count(s, src, "SIZE"))
             if key not in _PCD_TYPES:
                 raise _bad(src, f"PCD field {f} has TYPE {t} SIZE {s}; not a type PCD defines")
             cnt = _count(c, src, "COUNT")

@@ -60,7 +60,8 @@ def mesh_edge_adjacency(mesh: TriangleMesh) -> tuple[np.ndarray, np.ndarray, np.
     and the regions share it), else on each call."""
     if isinstance(mesh, MeshData):
         return mesh.edge_adjacency
-    return edge_adjacency(mesh.faces, slots=True)
+    adj, edge, far, slot = edge_adjacency(mesh.faces, slots=True)
+    return adj, edge, far, slot
 
 
 class _Rows:

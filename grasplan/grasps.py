@@ -185,8 +185,9 @@ def compute_grasps(
     """
     g = gripper if isinstance(gripper, Gripper) else load_gripper(gripper)
     c = cell if isinstance(cell, Cell) else load_cell(cell)
-    if grasps.pose_index is not None:
-        c = replace(c, pose_index=grasps.pose_index)
+    k = grasps.single_pose_index()
+    if k is not None:
+        c = replace(c, pose_index=k)
     if candidates.max_opening is None:  # search exactly as far as this gripper opens
         candidates = replace(candidates, max_opening=g.max_opening)
     timing: dict = {}

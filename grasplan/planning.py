@@ -444,6 +444,8 @@ def plan(
     g = gripper if isinstance(gripper, Gripper) else load_gripper(gripper)
     c = cell if isinstance(cell, Cell) else load_cell(cell)
     t_robot = time.perf_counter() - t
+    if place is None:
+        place = planning.place_matrix()  # PlanParams.place (--place in a batch manifest)
     if place is not None:
         c = replace(c, place=check_transform(place, "place (T_world_part after release)"))
     if not isinstance(part, Part):
@@ -455,8 +457,9 @@ def plan(
     if c.place is not None:
         check_part_placement(part.mesh, c.place, c, what="the part at the place (--place or the cell's place)",
                              pose_option="--place or the cell's place.T")
+    k = grasps.single_pose_index()
     T_start = T_world_part if T_world_part is not None else stable_pose(
-        part.mesh, c if grasps.pose_index is None else replace(c, pose_index=grasps.pose_index))
+        part.mesh, c if k is None else replace(c, pose_index=k))
     check_start(CollisionScene(rob, g, part.mesh, T_start, c), part_mesh=part.mesh)
     lazy = not planning.check_all and planning.score_weights is None
     gr = compute_grasps(part, gripper=g, cell=c, candidates=candidates, grasps=grasps, T_world_part=T_world_part,

@@ -42,7 +42,7 @@ class _Loader(yaml.SafeLoader):
         self.aliases = 0
         self.depth = 0
 
-    def compose_node(self, parent, index):  # type: ignore[no-untyped-def]
+    def compose_node(self, parent, index):
         if self.depth >= MAX_DEPTH:
             mark = self.peek_event().start_mark
             raise _Refused(f"nested deeper than {MAX_DEPTH} levels (line {mark.line + 1})")
@@ -112,8 +112,8 @@ def _path_of(root: yaml.Node, target: yaml.Node) -> str:
 def _construct(loader: _Loader, root: yaml.Node, where: str) -> Any:
     failing: list[yaml.Node] = []
 
-    def guarded(fn):  # type: ignore[no-untyped-def]
-        def wrapper(self, node, *a, **k):  # type: ignore[no-untyped-def]
+    def guarded(fn):
+        def wrapper(self, node, *a, **k):
             try:
                 return fn(self, node, *a, **k)
             except (_Refused, RecursionError):
@@ -124,7 +124,7 @@ def _construct(loader: _Loader, root: yaml.Node, where: str) -> Any:
         return wrapper
 
     ctor = loader.construct_object
-    loader.construct_object = guarded(type(loader).construct_object).__get__(loader)  # type: ignore[method-assign]
+    loader.construct_object = guarded(type(loader).construct_object).__get__(loader)
     try:
         return loader.construct_document(root)
     except (_Refused, RecursionError):
@@ -140,7 +140,7 @@ def _construct(loader: _Loader, root: yaml.Node, where: str) -> Any:
             (str(exc).splitlines() or ["invalid value"])[0][:100]
         raise InputError(f"{where}: {field or 'value'} ({at}): cannot read{shown}{tag}: {first}") from None
     finally:
-        loader.construct_object = ctor  # type: ignore[method-assign]
+        loader.construct_object = ctor
 
 
 def _check_duplicates(root: yaml.Node, where: str) -> None:

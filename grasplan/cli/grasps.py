@@ -62,7 +62,7 @@ def command(part, output, gripper, cell, part_pose, units, only_ok, indent, **kw
     info(f"  wrote {output} in {time.perf_counter() - t:.2f} s")
 
     n = res.counts()
-    rows = [
+    rows: list[tuple[str, int | float]] = [
         ("candidates", n["candidates"]),
         ("posed candidates", n["posed_candidates"]),
         ("poses", n["poses"]),

@@ -84,7 +84,8 @@ def command(part, robot, output, gripper, cell, part_pose, units, **kwargs):
     result.write(output)
 
     counts = result.counts()
-    click.echo(f"{part}: {counts['grasps']} grasp poses, robot {result.robot.name}, wrote {output}")
+    robot_name = rob.name
+    click.echo(f"{part}: {counts['grasps']} grasp poses, robot {robot_name}, wrote {output}")
     click.echo(table([(s, counts[s]) for s in PLAN_STATUSES], header=("status", "grasps")))
     click.echo("")
     click.echo(table([(k, float(v)) for k, v in result.timing_s.items()] + [("total", time.perf_counter() - t0)],
@@ -94,13 +95,13 @@ def command(part, robot, output, gripper, cell, part_pose, units, **kwargs):
     if counts[Status.PLANNED.value] == 0 and n_place:
         st = result.grasps.status.astype(str)
         first = next(iter(result.grasps.reason[(st == Status.PLACE_UNREACHABLE.value) | (st == Status.PLACE_NO_PATH.value)]))
-        raise PlanningError(f"no grasp could be planned for {part} with {result.robot.name}: {n_place} grasps picked "
+        raise PlanningError(f"no grasp could be planned for {part} with {robot_name}: {n_place} grasps picked "
                             f"the part but could not place it ({unplaced} place_unreachable, "
                             f"{no_transfer} place_no_path; e.g. {first}); move the place "
                             f"(--place or the cell's place) within reach; {output} lists every grasp's status and reason")
     if counts[Status.PLANNED.value] == 0:
         hint = "" if T_world_part is not None else _other_poses_hint(p, g, c, prm, result)
-        raise PlanningError(f"no grasp could be planned for {part} with {result.robot.name}; "
+        raise PlanningError(f"no grasp could be planned for {part} with {robot_name}; "
                             f"{output} lists every grasp's status and reason{hint}")
 
 

@@ -65,7 +65,7 @@ def command(ctx, result: Path, output: Path, top: int, part: Path | None, seed: 
         gp = GraspParams.from_json({**gp.to_json(), **({"density": density} if "density" in given else {}),
                                     **({"mass": mass} if "mass" in given else {})})
         res = replace(res, params=replace(res.params, grasps=gp))
-    mp = mass_properties(res.part_mesh, density=gp.density, mass=gp.mass)
+    mp = mass_properties(res.mesh(), density=gp.density, mass=gp.mass)
     warn_all(mp.warnings)
     info(f"simulate: {result} (mass {mp.mass:.3f} kg, mu {res.params.candidates.mu:g}, {decomposition})")
     rows, sim, mp, mu = simulate_result(res, top, mass_props=mp, grip_force=grip_force, seed=seed,

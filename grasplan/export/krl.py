@@ -175,13 +175,13 @@ def _sequence(mp: MotionProgram, t: ProgramTargets) -> tuple[list[str], list[str
             dat.append(f"; segment {seg.label}")
         elif kind == "joint":
             p += 1
-            dat.append(f"DECL E6AXIS XP{p}={_e6axis(t.full_deg[step[1]])}")
+            dat.append(f"DECL E6AXIS XP{p}={_e6axis(t.sequence_deg()[step[1]])}")
             src.append(f"PTP XP{p} ; {row_label(mp, step[1])}")
         elif kind == "linear":
             seg = step[2]
             name = LINEAR_TARGETS[seg.label]
             T = check_transform(seg.T_base_tcp_end, f"{seg.label} target")
-            dat.append(f"DECL E6POS {name}={_e6pos(T, t.full_deg[seg.end, 6:])}")
+            dat.append(f"DECL E6POS {name}={_e6pos(T, t.sequence_deg()[seg.end, 6:])}")
             src.append(f"LIN {name} ; {row_label(mp, seg.end)}")
         else:
             ev = step[1]

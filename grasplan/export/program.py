@@ -275,6 +275,8 @@ def program_steps(mp: MotionProgram) -> list[tuple]:
     The program starts by opening the jaws to the pre-grasp opening (not a step)."""
     steps: list[tuple] = []
     path = mp.full_path
+    if path is None:
+        raise ValueError("program_steps: the plan has no labelled sequence (full_path)")
     for seg in mp.segments:
         steps.append(("segment", seg))
         if seg.linear:
@@ -420,6 +422,12 @@ class ProgramTargets:
     ext_retreat: np.ndarray
     #: sequences: controller degrees of every path row (k, n), checked; None for an old plan
     full_deg: np.ndarray | None = None
+
+    def sequence_deg(self) -> np.ndarray:
+        """:attr:`full_deg`, which a sequence program needs (ValueError for a plan without one)."""
+        if self.full_deg is None:
+            raise ValueError("the plan has no labelled sequence (full_path); write the pick-only program")
+        return self.full_deg
 
 
 def program_targets(mp: MotionProgram, program_name: str, language: str, axes: str) -> ProgramTargets:

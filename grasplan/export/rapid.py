@@ -168,14 +168,14 @@ def _sequence(mp: MotionProgram, t: ProgramTargets, move: str) -> tuple[list[str
             proc.append(f"    ! segment {seg.label} (path rows {seg.start}-{seg.end}): {SEGMENT_TEXT[seg.label]}")
         elif kind == "joint":
             p += 1
-            q = t.full_deg[step[1]]
+            q = t.sequence_deg()[step[1]]
             decl.append(f"  LOCAL CONST jointtarget jt_{p}:=[[{','.join(num(v) for v in q[:6])}],{_extax(q[6:])}];")
             proc.append(f"    MoveAbsJ jt_{p}\\NoEOffs,{JOINT_SPEED},fine,{move}  ! {row_label(mp, step[1])}")
         elif kind == "linear":
             seg = step[2]
             name = LINEAR_TARGETS[seg.label]
             T = check_transform(seg.T_base_tcp_end, f"{seg.label} target")
-            q = t.full_deg[seg.end]
+            q = t.sequence_deg()[seg.end]
             conf = ",".join(str(c) for c in confdata(q))
             decl.append(f"  LOCAL CONST robtarget {name}:=[{_pose(T)[1:-1]},[{conf}],{_extax(q[6:])}];")
             proc.append(f"    MoveL {name},{LINEAR_SPEED},fine,{move}  ! {row_label(mp, seg.end)}")

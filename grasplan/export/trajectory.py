@@ -304,7 +304,8 @@ def sequence_trajectory(plan, g, *, vmax, amax, lower, upper, scene=None) -> dic
     path = np.asarray(m.path, dtype=np.float64)
     k = len(path)
     cuts = sorted({0, k - 1} | {e.index for e in mp.events if 0 < e.index < k - 1})
-    ts, qs, qds, qdds, rows = [], [], [], [], {}
+    ts, qs, qds, qdds = [], [], [], []
+    rows: dict[int, int] = {}
     t0, steps, v_ratios, deviations, a_ratios = 0.0, [], [], [], []
     n_points = 0
     for a, b in zip(cuts[:-1], cuts[1:]):

@@ -71,10 +71,10 @@ def urscript_program(prog: MotionProgram, *, joint_speed: float = JOINT_SPEED, j
     if tuple(prog.joint_names) != UR_JOINTS:
         raise InputError(f"URScript runs only on Universal Robots arms; robot {prog.robot_name!r} has joints "
                          f"{', '.join(prog.joint_names)}. Export --format krl, rapid or joint-trajectory instead")
-    for name, v in (("joint_speed", joint_speed), ("joint_accel", joint_accel),
-                    ("linear_speed", linear_speed), ("linear_accel", linear_accel)):
-        if not (np.isfinite(v) and v > 0):
-            raise InputError(f"{name} must be > 0, got {v!r}")
+    for name, limit in (("joint_speed", joint_speed), ("joint_accel", joint_accel),
+                        ("linear_speed", linear_speed), ("linear_accel", linear_accel)):
+        if not (np.isfinite(limit) and limit > 0):
+            raise InputError(f"{name} must be > 0, got {limit!r}")
     moves = prog.path
     a, v = f"{joint_accel:g}", f"{joint_speed:g}"
     la, lv = f"{linear_accel:g}", f"{linear_speed:g}"

@@ -325,7 +325,9 @@ def _robot_data(res, T_flange_tcp: np.ndarray, notes: list[str]) -> dict:
     robot = res.robot
     q_home = np.asarray(robot.q_home, dtype=np.float64)
     first = robot.link_poses(q_home)
-    links, meshes, mesh_index = [], [], {}
+    links: list[dict] = []
+    meshes: list[dict] = []
+    mesh_index: dict[tuple, int] = {}
     keep = []
     for k, (gname, _T, mpath, scale) in enumerate(first):
         key = (str(mpath), tuple(np.round(np.asarray(scale, dtype=float).reshape(-1), 9)))
