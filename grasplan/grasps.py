@@ -58,7 +58,7 @@ class GraspResult:
     params: GraspParams = GraspParams()
     timing_s: dict[str, float] = field(default_factory=dict)
     part_pose_source: str = "stable_pose"
-    #: grasp quality of the ``ok`` poses (rows = np.flatnonzero(status == "ok"))
+    #: grasp quality of the ``ok`` poses (rows = np.flatnonzero(status == Status.OK.value))
     quality: Quality | None = None
     #: the part's mass properties the quality was computed with
     mass_props: MassProperties | None = None

@@ -59,7 +59,7 @@ from typing import Any
 
 from ..errors import InputError
 from ..io import read_json, write_atomic_bytes, write_json
-from .engines import ENGINES, iter_local, iter_ray
+from .engines import ENGINES
 from .layout import (
     DONE_FILE,
     DONE_SCHEMA,
@@ -138,10 +138,7 @@ def run_batch(parts: Sequence[str | os.PathLike], out_dir: str | os.PathLike, *,
         n_unique = sum(j.duplicate_of is None for j in jobs)
         interrupted = False
         if todo:
-            workers_n = workers or os.cpu_count() or 1
-            it = (iter_local(todo, workers=min(workers_n, len(todo)), staging=staging, config_dirs=cdirs)
-                  if engine == "local" else
-                  iter_ray(todo, workers=workers, address=ray_address, config_dirs=cdirs))
+            it = ENGINES[engine](todo, workers=workers, address=ray_address, staging=staging, config_dirs=cdirs)
             try:
                 for job, outcome, files_dir in it:
                     row = _finalise(out, staging, job, outcome, files_dir)

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import shutil
 import uuid
-from collections.abc import Generator, Sequence
+import os
+from collections.abc import Callable, Generator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -14,16 +15,32 @@ from .layout import MAX_CRASHES
 from .manifest import PartJob
 from .worker import died_outcome, job_payload, ray_failed_outcome, run_part
 
-ENGINES = ("local", "ray")
+#: what an engine yields per part: (job, outcome, folder its files are in or None when they came back as bytes)
+Outcomes = Generator[tuple[PartJob, dict[str, Any], Path | None], None, None]
+#: an engine runs jobs: ``run(jobs, *, workers, address, staging, config_dirs) -> Outcomes``
+Engine = Callable[..., Outcomes]
+#: the engines ``grasplan batch --engine`` offers, by name: adding one is a function plus one registration
+ENGINES: dict[str, Engine] = {}
 
 
-def iter_local(jobs: Sequence[PartJob], *, workers: int, staging: Path, config_dirs: Sequence[str]
-               ) -> Generator[tuple[PartJob, dict[str, Any], Path | None], None, None]:
-    """Run ``jobs`` on a spawn process pool; yields (job, outcome, folder the files are in).
+def register_engine(name: str) -> Callable[[Engine], Engine]:
+    """Decorator: register an engine under ``name``."""
+    def deco(fn: Engine) -> Engine:
+        ENGINES[name] = fn
+        return fn
+    return deco
+
+
+@register_engine("local")
+def iter_local(jobs: Sequence[PartJob], *, workers: int | None, staging: Path, config_dirs: Sequence[str],
+               address: str | None = None) -> Outcomes:
+    """Run ``jobs`` on a spawn process pool of ``workers`` processes (default: one per CPU, at most
+    one per job); yields (job, outcome, folder the files are in). ``address`` is not used.
 
     At most ``2 * workers`` parts are in flight. A worker that dies (killed, out of memory) breaks
     the pool: a new pool is started and the parts that were in flight are resubmitted; a part in
     flight during :data:`~grasplan.batch.layout.MAX_CRASHES` deaths is recorded as ``error``."""
+    workers = max(1, min(workers or os.cpu_count() or 1, len(jobs)))
     import concurrent.futures as cf
     import multiprocessing as mp
     from concurrent.futures.process import BrokenProcessPool
@@ -87,8 +104,9 @@ def _terminate_workers(pool: Any) -> None:
             proc.terminate()
 
 
-def iter_ray(jobs: Sequence[PartJob], *, workers: int | None, address: str | None, config_dirs: Sequence[str]
-             ) -> Generator[tuple[PartJob, dict[str, Any], Path | None], None, None]:
+@register_engine("ray")
+def iter_ray(jobs: Sequence[PartJob], *, workers: int | None, address: str | None, config_dirs: Sequence[str],
+             staging: Path | None = None) -> Outcomes:
     """Run ``jobs`` as Ray tasks (bytes in, bytes out); yields (job, outcome with ``files``, None).
 
     With no ``address`` a private local Ray runtime with ``workers`` CPUs (default: all) is started

@@ -5,6 +5,7 @@ import sys
 
 import click
 
+from ..batch.engines import ENGINES
 from ..params import CandidateParams, GraspParams, PlanParams
 from .common import info
 from .options import cell_options, param_options, params_from_kwargs, robot_option
@@ -21,7 +22,7 @@ def _split_exports(ctx, param, value):
               help="Output folder: one <stem>-<sha8>/ per part, summary.csv, summary.json, index.html.")
 @click.option("--workers", type=click.IntRange(min=1), default=None,
               help="Parallel parts: local pool size (default: one per core) / CPUs of a local Ray runtime.")
-@click.option("--engine", type=click.Choice(["local", "ray"]), default="local", show_default=True,
+@click.option("--engine", type=click.Choice(list(ENGINES)), default="local", show_default=True,
               help="local: a process pool on this machine; ray: Ray tasks (pip install 'grasplan[ray]').")
 @click.option("--ray-address", default=None,
               help="Join this Ray cluster (HOST:6379, ray://HOST:10001 or auto) instead of starting a local runtime.")

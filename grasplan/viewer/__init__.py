@@ -39,24 +39,26 @@ import numpy as np
 
 from ..errors import InputError, MeshError
 from ..io import write_atomic_text
+from ..result_writer import GRASPS_SCHEMA, PLAN_SCHEMA
+from ..status import Status
 from ..transforms import pose7, quaternions
 
-SCHEMAS = ("grasplan.grasps/1", "grasplan.plan/1")
+SCHEMAS = (GRASPS_SCHEMA, PLAN_SCHEMA)
 #: display order (and drawing priority, last on top) of the statuses, with their colours
-STATUS_COLORS: dict[str, str] = {
-    "planned": "#00c853",
-    "ok": "#2e9d3a",
-    "not_tried": "#9e9e9e",
-    "not_checked": "#cfd8dc",
-    "no_path": "#ab47bc",
-    "ik_collision": "#ffb300",
-    "unreachable": "#fb8c00",
-    "collision_part": "#e53935",
-    "collision_table": "#1e88e5",
-    "collision_obstacle": "#6d4c41",
-    "place_unreachable": "#f4511e",
-    "place_no_path": "#8e24aa",
-}
+STATUS_COLORS: dict[str, str] = {s.value: c for s, c in (
+    (Status.PLANNED, "#00c853"),
+    (Status.OK, "#2e9d3a"),
+    (Status.NOT_TRIED, "#9e9e9e"),
+    (Status.NOT_CHECKED, "#cfd8dc"),
+    (Status.NO_PATH, "#ab47bc"),
+    (Status.IK_COLLISION, "#ffb300"),
+    (Status.UNREACHABLE, "#fb8c00"),
+    (Status.COLLISION_PART, "#e53935"),
+    (Status.COLLISION_TABLE, "#1e88e5"),
+    (Status.COLLISION_OBSTACLE, "#6d4c41"),
+    (Status.PLACE_UNREACHABLE, "#f4511e"),
+    (Status.PLACE_NO_PATH, "#8e24aa"),
+)}
 STATUS_ORDER = tuple(STATUS_COLORS)
 OTHER_COLOR = "#607d8b"
 #: largest joint step (rad) between two played-back samples of a path
@@ -70,7 +72,7 @@ MAX_PART_TRIANGLES = 250_000
 #: grasp list: rows rendered per status before a "show more" button ...
 LIST_CHUNK = 200
 #: ... except for these statuses (the usable grasps), which are always listed in full
-LIST_FULL = ("planned", "ok")
+LIST_FULL = (Status.PLANNED.value, Status.OK.value)
 
 _HERE = Path(__file__).resolve().parent
 
