@@ -562,10 +562,21 @@ def cell_from_dict(data, *, name: str, source: str = "", base: Path | None = Non
                 place=place)
 
 
+#: the name of the cell that is nothing but the part: ``--cell none``
+NO_CELL_NAME = "none"
+#: the part alone, in its own frame: no obstacles and no table within reach (the half-space lies
+#: 10 m below the part frame's origin); grasps checked against the part only, as a grasp database
+#: needs them (grasplan.graspdb). Nothing can be planned in it: a robot needs a cell.
+NO_CELL = Cell(name=NO_CELL_NAME, table_z=-MAX_CELL_COORD_M, part_xy=(0.0, 0.0),
+               source="the part alone in its own frame: no table, no obstacles")
+
+
 def load_cell(name_or_path: str | os.PathLike = DEFAULT_CELL) -> Cell:
-    """A cell by name (``configs/cells/<name>.yaml``) or path to a YAML file."""
+    """A cell by name (``configs/cells/<name>.yaml``; ``none``: :data:`NO_CELL`) or path to a YAML file."""
     if isinstance(name_or_path, Cell):
         return name_or_path
+    if isinstance(name_or_path, str) and name_or_path == NO_CELL_NAME:
+        return NO_CELL
     p = resolve_yaml("cell", name_or_path)
     data = read_yaml("cell", p)
     try:

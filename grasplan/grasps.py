@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from .candidates import CandidateResult, compute_candidates
-from .cell import Cell, load_cell
+from .cell import NO_CELL_NAME, Cell, load_cell
 from .collision import GripperCollider
 from .errors import InputError
 from .frames import GraspFrames, grasp_frames
@@ -197,7 +197,10 @@ def compute_grasps(
     timing["candidates"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    if T_world_part is None:
+    if T_world_part is None and c.name == NO_CELL_NAME:  # the part alone, in its own frame
+        T = np.eye(4)
+        source = "part_frame"
+    elif T_world_part is None:
         T = stable_pose(part.mesh, c)
         source = "stable_pose"
     else:

@@ -48,7 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .cell import Cell, load_cell
+from .cell import NO_CELL_NAME, Cell, load_cell
 from .errors import ConfigError, InputError
 from .grasps import GraspResult, LazyGrasps, compute_grasps
 from .gripper import load_gripper
@@ -443,6 +443,9 @@ def plan(
     rob = robot if isinstance(robot, Robot) else load_robot(robot)
     g = gripper if isinstance(gripper, Gripper) else load_gripper(gripper)
     c = cell if isinstance(cell, Cell) else load_cell(cell)
+    if c.name == NO_CELL_NAME:
+        raise InputError("cell 'none' holds the part alone, with nothing to plan a robot against: it is for "
+                         "`grasplan grasps` and `grasplan database`; plan in a cell (e.g. --cell table or bin)")
     t_robot = time.perf_counter() - t
     if place is None:
         place = planning.place_matrix()  # PlanParams.place (--place in a batch manifest)

@@ -115,7 +115,7 @@ class PlanResult:
 
     ``motions``: {grasp id: Motion} for the planned grasps; ``counts_stage``: stage counts
     (candidates, poses, ...); ``timing_s``: seconds per stage; ``part_pose_source``:
-    "stable_pose" | "given"; ``grasp_result``: the in-memory grasp stage (None when loaded from a
+    "stable_pose" | "given" | "part_frame" (cell ``none``); ``grasp_result``: the in-memory grasp stage (None when loaded from a
     file); ``part_mesh``: the part's mesh in metres when known (in memory, or loaded by
     :func:`grasplan.result_reader.load_result` with ``load_mesh=True``).
     """

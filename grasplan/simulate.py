@@ -48,6 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .cache import cache_dir
 from .errors import InputError
 from .gripper.model import Box, Gripper
 from .io import write_atomic_bytes
@@ -121,12 +122,6 @@ class SimResult:
 # ------------------------------------------------------------------------------------------------
 # convex decomposition, cached
 # ------------------------------------------------------------------------------------------------
-def cache_dir() -> Path:
-    """``$GRASPLAN_CACHE_DIR`` or ``~/.cache/grasplan``."""
-    env = os.environ.get("GRASPLAN_CACHE_DIR")
-    return Path(env).expanduser() if env else Path.home() / ".cache" / "grasplan"
-
-
 def _mesh_key(mesh: TriangleMesh, extra: str) -> str:
     h = hashlib.sha256()
     h.update(np.ascontiguousarray(mesh.vertices, dtype=np.float64).tobytes())

@@ -17,6 +17,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "blm": ("blm", "Insert the boundary layer into a part's mesh and write the remeshed part."),
     "candidates": ("candidates", "Convex antipodal contact pairs for a part (BLM, convexity, antipodal)."),
     "grasps": ("grasps", "Gripper poses from candidates, filtered by full-jaw collision checks."),
+    "database": ("database", "A part's grasp database: its grasps in the part frame, computed once for picking."),
     "plan": ("plan", "Grasps a robot can reach: IK and collision-free approach paths."),
     "export": ("export", "Write a planned grasp as URScript, a timed joint trajectory or CSV."),
     "view": ("view", "Write a self-contained HTML viewer for a grasps or plan file."),
