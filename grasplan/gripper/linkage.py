@@ -22,7 +22,8 @@ YAML: the ``parallel_jaw`` fields (:mod:`grasplan.gripper.parallel_jaw`) plus, r
     kind: parallel_linkage
     arc: {radius: 0.05715, center_x: 0.005342}   # m; |opening/2 - center_x| <= radius over the stroke
 
-The closing sweep of a jaw is the convex hull of the finger at :data:`SWEEP_SAMPLES` openings along
+The closing sweep of a box finger is one axis-aligned box over its x and z travel (a superset of
+the arc); of a mesh finger, the convex hull of the finger at :data:`SWEEP_SAMPLES` openings along
 the arc (the chord between samples cuts the arc by at most radius * (1 - cos(dtheta / 2)): 0.07 mm
 for the 2F-85's 0.8 rad travel).
 """
@@ -38,7 +39,7 @@ from ..config_files import config_number
 from ..errors import ConfigError
 from ..meshdata import convex_hull
 from . import parallel_jaw
-from .model import Gripper, MeshShape, Shape, rz180
+from .model import Box, Gripper, MeshShape, Shape, rz180
 from .registry import GripperKind, register
 
 #: the kind's name (the YAML / JSON ``kind``)
@@ -75,8 +76,33 @@ class LinkageGripper(Gripper):
         right = self.finger.moved(T)
         return right.moved(rz180()), right
 
+    def offset_range(self, lo: float, hi: float) -> tuple[float, float]:
+        """``(min, max)`` of :meth:`tcp_offset` over openings in [lo, hi] (cos theta peaks where the
+        link points straight along z, theta = 0)."""
+        cands = [lo, hi]
+        o0 = 2.0 * self.arc_center_x  # theta = 0
+        if lo < o0 < hi:
+            cands.append(o0)
+        z = self.tcp_offset(np.array(cands))
+        return float(z.min()), float(z.max())
+
     def swept_fingers(self, open_from: float, close_to: float) -> tuple[Shape, Shape]:
+        """The volume each jaw sweeps between two openings. A box finger: one axis-aligned box
+        spanning its x travel and its z travel along the arc (a superset of the arc sweep, as tight
+        as the z travel over the interval: 0.2 mm for a 10 mm closing sweep of the 2F-85); a mesh
+        finger: the convex hull of :data:`SWEEP_SAMPLES` placements along the arc."""
         lo, hi = sorted((float(open_from), float(close_to)))
+        if isinstance(self.finger, Box):
+            f = self.finger
+            ext = np.array(f.extents, dtype=np.float64)
+            z0, z1 = self.offset_range(lo, hi)
+            x0 = f.T_tcp_box[0, 3] - ext[0] / 2 + lo / 2
+            x1 = f.T_tcp_box[0, 3] + ext[0] / 2 + hi / 2
+            T = f.T_tcp_box.copy()
+            T[0, 3], T[2, 3] = 0.5 * (x0 + x1), f.T_tcp_box[2, 3] + 0.5 * (z0 + z1)
+            ext[0], ext[2] = x1 - x0, ext[2] + (z1 - z0)
+            box = Box(ext, T)
+            return box.moved(rz180()), box
         pts = np.vstack([self.fingers(o)[1].corners() for o in np.linspace(lo, hi, SWEEP_SAMPLES)])
         hull = convex_hull(pts)
         right = MeshShape(np.asarray(hull.vertices, dtype=np.float64), np.asarray(hull.faces, dtype=np.int64),
