@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -248,3 +249,56 @@ def test_tless20_grasps_collision_free_within_the_stroke(name, paper, tmp_path):
     e = ok[0]
     T_world_tcp = T_world_part @ np.asarray(e["T_part_tcp"])
     assert any("part" in h for h in _hits(g, T_world_tcp, float(e["width"]), 0.0, part_obj, table_obj))
+
+
+# --------------------------------------------------------------------------------------------------
+# a moving TCP through planning, the plan reader and the robot programs
+# --------------------------------------------------------------------------------------------------
+@pytest.mark.slow
+def test_robotiq_plan_uses_the_tcp_at_the_grasp_width(tmp_path, example_part):
+    """The bracket planned on the UR5 with the 2F-85: FK(q_grasp) reaches each grasp TCP through
+    T_flange_tcp_at(width) (not the constant T_flange_tcp), the path re-checks free with python-fcl
+    (fingers along their arc), the plan loads (its FK check) and the RAPID / URScript tool is the
+    TCP at the grasp's width with the gripper's load."""
+    import pinocchio as pin
+    from click.testing import CliRunner
+
+    import fcl_recheck
+    from grasplan.cli import main
+    from grasplan.result_reader import load_result
+
+    out = tmp_path / "plan.json"
+    r = CliRunner().invoke(main, ["plan", str(example_part("bracket.stl")), "--units", "mm", "--robot", "ur5",
+                                  "--gripper", "robotiq_2f_85", "--top", "3", "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    res = load_result(out)  # runs the FK check of every planned grasp
+    g = res.gripper
+    assert g.moving_tcp
+    doc = json.loads(out.read_text())
+    planned = [e for e in doc["grasps"] if e["status"] == "planned"]
+    assert len(planned) == 3
+    model = pin.buildModelFromUrdf(str(res.robot.urdf_path))
+    data = model.createData()
+    fid = model.getFrameId(res.robot.tool_frame)
+    for e in planned:
+        pin.framesForwardKinematics(model, data, np.asarray(e["q_grasp"]))
+        T_tool = data.oMf[fid].homogeneous
+        T_grasp = np.asarray(doc["part"]["T_world_part"]) @ np.asarray(e["T_part_tcp"])
+        np.testing.assert_allclose(T_tool @ g.T_flange_tcp_at(e["width"]), T_grasp, atol=1e-5)
+        # the constant T_flange_tcp would miss by the offset (so the check above can fail)
+        miss = np.linalg.norm((T_tool @ g.T_flange_tcp)[:3, 3] - T_grasp[:3, 3])
+        assert miss == pytest.approx(float(g.tcp_offset(e["width"])), abs=1e-5) and miss > 1e-3
+    reports = fcl_recheck.recheck_result(res, step=0.01)
+    assert not {i: rep.problems for i, rep in reports.items() if rep.problems}
+    for fmt, needle in (("rapid", "PERS tooldata"), ("urscript", "set_tcp")):
+        dest = tmp_path / f"prog_{fmt}"
+        r = CliRunner().invoke(main, ["export", str(out), "--format", fmt, "-o", str(dest)])
+        assert r.exit_code == 0, r.output
+        line = next(ln for ln in dest.read_text().splitlines() if needle in ln)
+        nums = np.array([float(v) for v in re.findall(r"-?\d+\.\d+", line)])
+        tool_z = nums[2] * (1.0 if fmt == "urscript" else 1e-3)  # m (URScript) / mm (RAPID)
+        # the exported grasp's TCP at its width, not the constant one
+        assert any(abs(tool_z - g.T_flange_tcp_at(e["width"])[2, 3]) < 2e-6 for e in planned), line
+        assert abs(tool_z - g.T_flange_tcp[2, 3]) > 1e-3
+        if fmt == "rapid":  # tload: mass, cog (mm)
+            assert nums[7:11] == pytest.approx([0.925, 0.0, 0.0, 45.0])
