@@ -302,3 +302,33 @@ def test_robotiq_plan_uses_the_tcp_at_the_grasp_width(tmp_path, example_part):
         assert abs(tool_z - g.T_flange_tcp[2, 3]) > 1e-3
         if fmt == "rapid":  # tload: mass, cog (mm)
             assert nums[7:11] == pytest.approx([0.925, 0.0, 0.0, 45.0])
+
+
+def test_simulation_payload_is_gripper_plus_part_in_the_flange_frame():
+    """simulate's flange load: the gripper's mass/com (its file) and the part at its centre of mass,
+    worked out by hand for a top grasp 10 mm off the part's centre."""
+    import trimesh
+
+    from grasplan.mass import mass_properties
+    from grasplan.simulate import flange_payload
+
+    mp = mass_properties(trimesh.creation.box(extents=(0.12, 0.03, 0.03)), density=1000.0)
+    T = np.eye(4)  # TCP from above, closing along part y, at part (0.01, 0, 0): TCP y = part x
+    T[:3, 0], T[:3, 2] = [0, 1, 0], [0, 0, -1]
+    T[:3, 1] = np.cross(T[:3, 2], T[:3, 0])
+    T[:3, 3] = [0.01, 0, 0]
+    g = load_gripper("schunk_egp_c_40")
+    kg, com = flange_payload(g, mp, T[None], np.array([0.03]))
+    m_p = 0.12 * 0.03 * 0.03 * 1000.0
+    assert kg[0] == pytest.approx(g.mass + m_p)
+    expect = (g.mass * np.array([0, 0, 0.048]) + m_p * np.array([0.0, -0.01, 0.127])) / (g.mass + m_p)
+    np.testing.assert_allclose(com[0], expect, atol=1e-9)
+    # the Robotiq: the part rides at the TCP of the grasp width (further out when closed narrower)
+    rq = load_gripper("robotiq_2f_85")
+    _, c = flange_payload(rq, mp, T[None], np.array([0.03]))
+    z_part = rq.T_flange_tcp_at(0.03)[2, 3]
+    assert c[0, 2] == pytest.approx((rq.mass * rq.com[2] + m_p * z_part) / (rq.mass + m_p))
+    # no gripper mass: no payload
+    q = load_gripper("round_mesh_jaws")
+    from dataclasses import replace as _replace
+    assert flange_payload(_replace(q, mass=None, com=None), mp, T[None], np.array([0.03])) is None
