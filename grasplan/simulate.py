@@ -45,7 +45,6 @@ import os
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -120,12 +119,7 @@ class SimResult:
 
     def to_json(self, i: int) -> dict:
         """The ``sim`` object of grasp ``i``."""
-        out: dict[str, Any] = {"success": bool(self.success[i]), "slip_m": float(self.slip_m[i]),
-                               "turn_deg": float(self.turn_deg[i])}
-        if self.payload_kg is not None and self.payload_com is not None:
-            out["payload_kg"] = float(self.payload_kg[i])
-            out["payload_com"] = [float(c) for c in self.payload_com[i]]
-        return out
+        return {"success": bool(self.success[i]), "slip_m": float(self.slip_m[i]), "turn_deg": float(self.turn_deg[i])}
 
 
 def flange_payload(gripper: Gripper, mass_props: MassProperties, T_part_tcp: np.ndarray, width: np.ndarray

@@ -332,3 +332,22 @@ def test_simulation_payload_is_gripper_plus_part_in_the_flange_frame():
     q = load_gripper("round_mesh_jaws")
     from dataclasses import replace as _replace
     assert flange_payload(_replace(q, mass=None, com=None), mp, T[None], np.array([0.03])) is None
+
+
+def test_simulate_grasps_reports_the_payload():
+    import trimesh
+
+    from grasplan.simulate import simulate_grasps
+
+    block = trimesh.creation.box(extents=(0.12, 0.03, 0.03))
+    T_world_part = np.eye(4)
+    T_world_part[:3, 3] = [0.45, 0.0, 0.015]
+    T = np.eye(4)
+    T[:3, 0], T[:3, 2] = [0, 1, 0], [0, 0, -1]
+    T[:3, 1] = np.cross(T[:3, 2], T[:3, 0])
+    g = load_gripper("schunk_egp_c_40")
+    res = simulate_grasps(block, g, T_world_part, T[None], np.array([0.03]), mass=0.2, decomposition="hull",
+                          cache=False)
+    assert res.payload_kg is not None and res.payload_kg[0] == pytest.approx(g.mass + 0.2)
+    np.testing.assert_allclose(res.payload_com[0], (g.mass * g.com + 0.2 * np.array([0, 0, 0.127])) / (g.mass + 0.2),
+                               atol=1e-9)
