@@ -96,6 +96,9 @@ class _SceneModel:
         self.f_tool = f_tool = robot.tool_frame_id
         T_joint_tcp = robot.T_joint_tool @ np.asarray(gripper.T_flange_tcp, dtype=float)
         self.T_joint_tcp = T_joint_tcp
+        # fingertips that move along z with the opening (Robotiq 2F): z of the jaws at o vs at 0
+        self.finger_dz = (lambda o: float(gripper.tcp_offset(o)) - float(gripper.tcp_offset(0.0))) \
+            if getattr(gripper, "moving_tcp", False) else (lambda o: 0.0)
         self.body: dict[int, str] = {}
         for k, shape in enumerate(gripper.body):
             geom, T_tcp_g = shape_geometry(shape)
@@ -241,7 +244,8 @@ class _SceneModel:
         if o == self.opening:
             return
         for sign, gid, T0 in zip((-1.0, 1.0), self.finger_ids, self.finger_T0):
-            self.gm.geometryObjects[gid].placement = to_se3(self.T_joint_tcp @ translation(sign * o / 2) @ T0)
+            self.gm.geometryObjects[gid].placement = to_se3(
+                self.T_joint_tcp @ translation(sign * o / 2, z=self.finger_dz(o)) @ T0)
         self.opening = o
 
 
@@ -328,15 +332,17 @@ class CollisionScene:
 
     # ------------------------------------------------------------------------------------------
     def _check_finger_model(self, gripper) -> None:
-        """The fingers move as pure x translations of their opening-0 pose (checked once)."""
+        """The fingers move as pure x translations of their opening-0 pose (checked once), plus
+        ``tcp_offset`` along z for a gripper whose TCP moves with the opening."""
         o = float(gripper.max_opening)
+        dz = float(gripper.tcp_offset(o)) - float(gripper.tcp_offset(0.0)) if getattr(gripper, "moving_tcp", False) else 0.0
         for sign, shape0, shape in zip((-1.0, 1.0), gripper.fingers(0.0), gripper.fingers(o)):
             if hasattr(shape, "T_tcp_box"):
-                exp = translation(sign * o / 2) @ np.asarray(shape0.T_tcp_box, dtype=float)
+                exp = translation(sign * o / 2, z=dz) @ np.asarray(shape0.T_tcp_box, dtype=float)
                 ok = np.allclose(exp, np.asarray(shape.T_tcp_box, dtype=float), atol=1e-9)
             else:
                 v0 = np.asarray(shape0.vertices, dtype=float)
-                ok = np.allclose(v0 + [sign * o / 2, 0, 0], np.asarray(shape.vertices, dtype=float), atol=1e-9)
+                ok = np.allclose(v0 + [sign * o / 2, 0, dz], np.asarray(shape.vertices, dtype=float), atol=1e-9)
             if not ok:
                 raise InputError("gripper.fingers(opening): the jaws must move along the TCP x axis by "
                                  "-opening/2 (first jaw) and +opening/2 (second jaw)")
