@@ -150,7 +150,7 @@ class PickWorld:
         tf = coal.Transform3s()
         calls = 0
         for m in np.flatnonzero(need.any(axis=(0, 1))):
-            for bi in np.flatnonzero(need[:, :, m].any(axis=1)):
+            for bi in np.flatnonzero(need[:, :, m].any(axis=1)).tolist():
                 b = bodies[bi]
                 for si in range(len(sets) - 1, -1, -1):  # jaws first: they reach furthest
                     if not need[bi, si, m]:
@@ -161,7 +161,7 @@ class PickWorld:
                     res.clear()
                     calls += 1
                     if collide(sets[si].geoms[sets[si].index[m]], tf, b.geometry, b.tf, req, res):
-                        first[m] = int(bi)
+                        first[m] = bi
                         break
                 if first[m] >= 0:
                     break
