@@ -19,6 +19,9 @@ from ..status import Status
 
 #: the table of the part-alone cell lies this far (m) below the part frame's origin
 _FAR_BELOW = 100.0
+#: grasp sets kept in memory per process (most recently used), keyed by part, gripper and options
+_MEMORY: dict[tuple, PartGrasps] = {}
+MEMORY_SETS = 8
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,7 +47,22 @@ class PartGrasps:
 
 def part_grasps(part: Part, gripper: Gripper, *, candidates: CandidateParams = CandidateParams(),
                 grasps: GraspParams = GraspParams()) -> PartGrasps:
-    """The collision-free grasps of ``part`` alone for ``gripper`` (see the module docstring)."""
+    """The collision-free grasps of ``part`` alone for ``gripper`` (see the module docstring);
+    the last :data:`MEMORY_SETS` sets computed in this process are reused."""
+    import json
+
+    key = (part.sha256, part.scale_to_m, json.dumps(gripper.to_json(definition=True), sort_keys=True, default=str),
+           json.dumps(candidates.to_json(), sort_keys=True), json.dumps(grasps.to_json(), sort_keys=True))
+    hit = _MEMORY.pop(key, None)
+    if hit is None:
+        hit = _compute(part, gripper, candidates, grasps)
+    _MEMORY[key] = hit
+    while len(_MEMORY) > MEMORY_SETS:
+        _MEMORY.pop(next(iter(_MEMORY)))
+    return hit
+
+
+def _compute(part: Part, gripper: Gripper, candidates: CandidateParams, grasps: GraspParams) -> PartGrasps:
     from ..grasps import compute_grasps
 
     alone = Cell(name="none", table_z=-_FAR_BELOW, part_xy=(0.0, 0.0))

@@ -8,9 +8,16 @@ back from the grasp to the pre-grasp (``backoff`` along the TCP's -z) and free; 
 (the cell's retreat direction and distance, jaws at the contact width, the part attached) free
 except that within the first ``lift_contact`` of TCP travel the part in the jaws may touch what it
 rests on (the table, the bin, an obstacle, a neighbour); then the transit ``q_home -> q_pregrasp``:
-the straight joint-space segment when it is free, else OMPL RRTConnect. Straight moves use the one
-line tracker (:func:`grasplan.paths.approach_path_reason`) with waypoints every
-:data:`grasplan.pickplace.LINE_SAMPLE`; every path is checked at ``interpolation.STEP`` rad.
+the straight joint-space segment when it is free, else OMPL RRTConnect. Every path is checked at
+``interpolation.STEP`` rad.
+
+Straight moves (:func:`line_path`): TCP waypoints every :data:`grasplan.pickplace.LINE_SAMPLE`
+with constant orientation. With a closed-form IK (the UR5's, :mod:`grasplan.ik.ur`) every waypoint
+is solved exactly and the branch kept continuous (each joint wrapped to the previous waypoint's
+value, the closest of the up to eight solutions taken; a joint moving more than ``max_joint_step``
+between waypoints is a branch jump); the joint-linear motion between waypoints is held to
+``max_dev`` from the line by forward kinematics at every midpoint. Robots without a closed form
+use the CLIK tracker :func:`grasplan.paths.approach_path_reason`.
 """
 from __future__ import annotations
 
@@ -20,10 +27,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..gripper.model import Gripper
-from ..ik import solve_ik
+from ..ik import get_solver, solve_ik
 from ..interpolation import interpolate_path
 from ..motion import Motion
-from ..paths import approach_path_reason, plan_joint_path
+from ..paths import _dist_to_segment, approach_path_reason, plan_joint_path
 from ..pickplace import LINE_SAMPLE, T_tcp_part_of, assemble_motion, lift_pose
 from ..robot_model import Robot
 from ..scene import CollisionScene, describe_pairs
@@ -31,6 +38,36 @@ from .params import PickParams
 
 #: what the part in the jaws may rest on at the start of the lift (body name or prefix)
 SUPPORT_BODIES = ("table", "obstacle:", "instance:")
+#: largest per-joint change (rad) between consecutive line waypoints (more: a branch jump)
+MAX_JOINT_STEP = 0.1
+
+
+def line_path(robot: Robot, T_from: np.ndarray, T_to: np.ndarray, q_from: np.ndarray, *, max_dev: float,
+              T_flange_tcp: np.ndarray, sample: float = LINE_SAMPLE) -> tuple[np.ndarray | None, str]:
+    """Joint waypoints moving the TCP straight ``T_from -> T_to`` (same orientation) from
+    ``q_from`` (which reaches ``T_from``): ``(path (k, n), "ok")`` or ``(None, why)`` with why in
+    ``ik``, ``limits``, ``jump``, ``deviation`` (see the module docstring)."""
+    from ..ik.ur import URAnalytic
+    from .lines import fk_base_tool, ur_line
+
+    closed = get_solver(robot).analytic
+    if not isinstance(closed, URAnalytic) or not closed.ok:
+        return approach_path_reason(robot, None, T_from, T_to, q_from, opening=0.0, max_dev=max_dev,
+                                    T_flange_tcp=T_flange_tcp, sample=sample)
+    T_base = np.linalg.inv(np.asarray(robot.T_world_base, dtype=np.float64))
+    T_tcp_flange = np.linalg.inv(T_flange_tcp)
+    a, b = T_from[:3, 3], T_to[:3, 3]
+    m = max(1, int(np.ceil(float(np.linalg.norm(b - a)) / sample - 1e-12)))
+    T = np.broadcast_to(np.asarray(T_from, dtype=np.float64), (m, 4, 4)).copy()
+    T[:, :3, 3] = a + (b - a) * (np.arange(1, m + 1) / m)[:, None]
+    path, why = ur_line(closed, T_base @ T @ T_tcp_flange, q_from, robot.lower, robot.upper, MAX_JOINT_STEP)
+    if path is None:
+        return None, why
+    mids = 0.5 * (path[:-1] + path[1:])
+    tcp = (np.asarray(robot.T_world_base) @ fk_base_tool(closed, mids) @ T_flange_tcp)[:, :3, 3]
+    if np.max(_dist_to_segment(tcp, a, b)) > max_dev:
+        return None, "deviation"
+    return path, "ok"
 
 
 @dataclass(frozen=True)
@@ -42,6 +79,7 @@ class Outcome:
     reason: str
     motion: Motion | None = None
     opening: float = 0.0
+    blockers: tuple[str, ...] = ()  #: neighbours (``instance:<id>``) the lift or approach hit
 
 
 @dataclass
@@ -72,14 +110,16 @@ def _support_only(pairs: list[tuple[str, str, str]]) -> bool:
     return True
 
 
-def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touch: int) -> str | None:
-    """What the lift ``path`` (k, n) hits with the part attached (None: free). Within the first
-    ``n_touch`` waypoints only the part resting on a support is allowed."""
+def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touch: int
+                   ) -> list[tuple[str, str, str]] | None:
+    """The colliding pairs where the lift ``path`` (k, n) first hits something with the part
+    attached (None: free). Within the first ``n_touch`` waypoints only the part resting on a
+    support is allowed."""
     n_touch = int(min(max(n_touch, 0), len(path) - 1))
     tail = path[n_touch:]
     if not scene.path_free(tail, width):
         hit = scene.path_collisions(tail, width)
-        return "unknown" if hit is None else describe_pairs(hit[1], 2)
+        return [("?", "?", "?")] if hit is None else hit[1]
     if n_touch == 0:
         return None
     head = path[: n_touch + 1]
@@ -90,8 +130,12 @@ def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touc
             continue
         pairs = scene.colliding_pairs(q, width)
         if not _support_only(pairs):
-            return describe_pairs(pairs, 2)
+            return pairs
     return None
+
+
+def _blockers(pairs: list[tuple[str, str, str]]) -> set[str]:
+    return {x for a, b, _ in pairs for x in (a, b) if x.startswith("instance:")}
 
 
 def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np.ndarray, width: float,
@@ -112,6 +156,7 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
     n_touch = int(np.ceil(p.lift_contact / LINE_SAMPLE - 1e-9))
     T_lift = lift_pose(T_world_tcp, ctx.retreat_dir, ctx.retreat_dist)
     why: dict[str, str] = {}
+    blockers: set[str] = set()
     count = {"grasp": 0, "approach": 0, "approach_kin": 0, "lift": 0, "lift_kin": 0, "path": 0}
     for j, q_grasp in enumerate(sols):
         t = time.perf_counter()
@@ -119,24 +164,43 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
         timing["collision"] += time.perf_counter() - t
         if not free:
             count["grasp"] += 1
-            why.setdefault("grasp", describe_pairs(static.colliding_pairs(q_grasp, opening), 2))
+            if "grasp" not in why:
+                pairs_g = static.colliding_pairs(q_grasp, opening)
+                why["grasp"] = describe_pairs(pairs_g, 2)
+                blockers |= _blockers(pairs_g)
             continue
         t = time.perf_counter()
-        back, reason = approach_path_reason(robot, static, T_world_tcp, T_pre, q_grasp, opening=opening,
-                                            max_dev=p.max_dev, T_flange_tcp=ctx.T_flange_tcp, sample=LINE_SAMPLE)
+        back, reason = line_path(robot, T_world_tcp, T_pre, q_grasp, max_dev=p.max_dev, T_flange_tcp=ctx.T_flange_tcp)
         timing["approach"] += time.perf_counter() - t
         if back is None:
-            count["approach" if reason == "collision" else "approach_kin"] += 1
-            why.setdefault("approach_kin" if reason != "collision" else "approach", reason)
+            count["approach_kin"] += 1
+            why.setdefault("approach_kin", reason)
             continue
         t = time.perf_counter()
-        lift, reason = approach_path_reason(robot, None, T_world_tcp, T_lift, q_grasp, opening=width,
-                                            max_dev=p.max_dev, T_flange_tcp=ctx.T_flange_tcp, sample=LINE_SAMPLE)
-        hit = None if lift is None else lift_collision(att, lift, width, n_touch)
+        free = static.path_free(back, opening)
+        timing["collision"] += time.perf_counter() - t
+        if not free:
+            count["approach"] += 1
+            if "approach" not in why:
+                hit_a = static.path_collisions(back, opening)
+                pairs_a = [] if hit_a is None else hit_a[1]
+                why["approach"] = describe_pairs(pairs_a, 2)
+                blockers |= _blockers(pairs_a)
+            continue
+        t = time.perf_counter()
+        lift, reason = line_path(robot, T_world_tcp, T_lift, q_grasp, max_dev=p.max_dev, T_flange_tcp=ctx.T_flange_tcp)
         timing["lift"] += time.perf_counter() - t
-        if lift is None or hit is not None:
-            count["lift_kin" if lift is None else "lift"] += 1
-            why.setdefault("lift_kin" if lift is None else "lift", reason if lift is None else hit or "")
+        if lift is None:
+            count["lift_kin"] += 1
+            why.setdefault("lift_kin", reason)
+            continue
+        t = time.perf_counter()
+        pairs = lift_collision(att, lift, width, n_touch)
+        timing["collision"] += time.perf_counter() - t
+        if pairs is not None:
+            count["lift"] += 1
+            why.setdefault("lift", describe_pairs(pairs, 2))
+            blockers |= _blockers(pairs)
             continue
         approach = back[::-1]
         t = time.perf_counter()
@@ -156,11 +220,14 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
     detail = (f"{len(sols)} IK solutions: {count['grasp']} collide at the grasp, {count['approach']} on the approach, "
               f"{count['approach_kin']} cannot follow it, {count['lift']} collide on the lift, {count['lift_kin']} "
               f"cannot follow it, {count['path']} found no transit")
+    bl = tuple(sorted(blockers))
     if count["lift"]:
-        return Outcome("lift_collision", f"lift: with the part in the jaws {why['lift']}; " + detail, opening=opening)
+        return Outcome("lift_collision", f"lift: with the part in the jaws {why['lift']}; " + detail, opening=opening,
+                       blockers=bl)
     if count["path"]:
         return Outcome("no_path", "RRTConnect found no verified transit home -> pre-grasp; " + detail, opening=opening)
     if count["grasp"] or count["approach"]:
-        hit = why.get("grasp", "")
-        return Outcome("ik_collision", detail + (f"; at the grasp: {hit}" if hit else ""), opening=opening)
-    return Outcome("unreachable", detail, opening=opening)
+        hit = why.get("grasp", "") or why.get("approach", "")
+        return Outcome("ik_collision", detail + (f"; e.g. {hit}" if hit else ""), opening=opening, blockers=bl)
+    return Outcome("unreachable", detail + (f" ({why['approach_kin']})" if "approach_kin" in why else ""),
+                   opening=opening)

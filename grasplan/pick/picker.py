@@ -298,12 +298,15 @@ class Picker:
                         inst.id, inst.part, "picked", f"grasp ranked {k} of {len(rows)}: {out.reason}"
                         + _hits_text(hit_counts, " better-ranked grasps"), _blockers(hit_counts))
                 first_fail = first_fail or out
+                for b in out.blockers:  # neighbours hit by the robot or the carried part
+                    hit_counts[b] = hit_counts.get(b, 0) + 1
                 if tried >= p.grasps_per_instance:
                     break
             if tried >= p.grasps_per_instance:
                 break
         if first_fail is not None:
-            return None, InstanceReport(inst.id, inst.part, first_fail.status,
+            status = "blocked" if first_fail.blockers else first_fail.status
+            return None, InstanceReport(inst.id, inst.part, status,
                                         f"{tried} collision-free grasps tried, none planned; the best: "
                                         f"{first_fail.reason}" + _hits_text(hit_counts, " grasps"),
                                         _blockers(hit_counts))
