@@ -7,9 +7,10 @@ do not):
   or sphere obstacle (the bin's floor and walls among them): :class:`~grasplan.errors.InputError`
   naming the instance, the body and the depth (a pose estimate that cannot be: exit 3);
 * two instances interpenetrating by more than ``tol`` (pose-estimator noise): a warning naming
-  the pairs and the depth. The depth is estimated from the vertices of each mesh inside the other
-  (winding number) and their distance to the other's surface (coal), so it is a lower bound that
-  is exact where a corner pokes in.
+  the pairs and the depth. The depth is estimated from surface samples of each mesh (its vertices
+  and a grid of :data:`PROBE_SPACING` on its faces, :func:`grasplan.containment.surface_samples`)
+  inside the other (signed ray crossings) and their distance to the other's surface (coal): a lower
+  bound, within about the sample spacing of the true depth.
 """
 from __future__ import annotations
 
@@ -19,14 +20,15 @@ import coal
 import numpy as np
 
 from .cell import Cell, Obstacle
-from .containment import points_inside
+from .containment import RayGrid, points_inside_tree, surface_samples
 from .errors import InputError
 from .geometry import bvh
 from .meshdata import MeshData
 from .scenefile import Instance
 
-#: at most this many vertices of a mesh are tested inside another one (the deepest are kept)
-MAX_PROBE_VERTICES = 4000
+#: surface samples of a mesh probed inside another one: spacing (m) and how many at most per pair
+PROBE_SPACING = 0.002
+MAX_PROBES = 2000
 
 
 def _inside_depth(o: Obstacle, pts: np.ndarray) -> float:
@@ -64,17 +66,17 @@ def check_cell(instances: Sequence[Instance], meshes: Mapping[str, MeshData], ce
                                  f"{tol * 1e3:g} mm is pose noise: check its T (z up, metres)")
 
 
-def _depth_into(a: MeshData, Ta: np.ndarray, b: MeshData, b_bvh: coal.BVHModelOBBRSS, Tb: np.ndarray,
-                lo: np.ndarray, hi: np.ndarray) -> float:
-    """Largest distance to ``b``'s surface of ``a``'s vertices inside ``b`` (both at their poses)."""
-    pts = np.asarray(a.vertices) @ Ta[:3, :3].T + Ta[:3, 3]
+def _depth_into(pts_a: np.ndarray, Ta: np.ndarray, b: MeshData, grid: RayGrid, b_bvh: coal.BVHModelOBBRSS,
+                Tb: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> float:
+    """Largest distance to ``b``'s surface of the probe points ``pts_a`` (part frame of a) inside ``b``."""
+    pts = pts_a @ Ta[:3, :3].T + Ta[:3, 3]
     pts = pts[np.all((pts >= lo) & (pts <= hi), axis=1)]
     if not len(pts):
         return 0.0
     local = (pts - Tb[:3, 3]) @ Tb[:3, :3]
-    if len(local) > MAX_PROBE_VERTICES:
-        local = local[np.linspace(0, len(local) - 1, MAX_PROBE_VERTICES).astype(np.int64)]
-    inside = local[points_inside(b, local)]
+    if len(local) > MAX_PROBES:
+        local = local[np.linspace(0, len(local) - 1, MAX_PROBES).astype(np.int64)]
+    inside = local[points_inside_tree(grid, b, local)]
     best = 0.0
     req, res = coal.DistanceRequest(), coal.DistanceResult()
     probe = coal.Sphere(1e-9)
@@ -89,9 +91,20 @@ def overlap_warnings(instances: Sequence[Instance], meshes: Mapping[str, MeshDat
                      bvhs: Mapping[str, coal.BVHModelOBBRSS] | None = None) -> list[str]:
     """One warning per pair of instances interpenetrating by more than ``tol`` (m)."""
     bvhs = dict(bvhs or {})
-    for name, m in meshes.items():
+    grids: dict[str, RayGrid] = {}
+    probes: dict[str, np.ndarray] = {}
+
+    def prep(name: str) -> None:
+        if name not in grids:
+            m = meshes[name]
+            grids[name] = RayGrid(m.vertices, m.faces)
+            probes[name] = surface_samples(m, spacing=PROBE_SPACING, max_samples=20_000)
+            if name not in bvhs:
+                bvhs[name] = bvh(m.vertices, m.faces)
+
+    for name in meshes:
         if name not in bvhs:
-            bvhs[name] = bvh(m.vertices, m.faces)
+            bvhs[name] = bvh(meshes[name].vertices, meshes[name].faces)
     boxes = []
     for inst in instances:
         T = inst.T_world_part
@@ -111,8 +124,12 @@ def overlap_warnings(instances: Sequence[Instance], meshes: Mapping[str, MeshDat
                                 bvhs[b.part], coal.Transform3s(b.T_world_part[:3, :3].copy(), b.T_world_part[:3, 3].copy()),
                                 req, res):
                 continue
-            d = max(_depth_into(meshes[a.part], a.T_world_part, meshes[b.part], bvhs[b.part], b.T_world_part, lo, hi),
-                    _depth_into(meshes[b.part], b.T_world_part, meshes[a.part], bvhs[a.part], a.T_world_part, lo, hi))
+            prep(a.part)
+            prep(b.part)
+            d = max(_depth_into(probes[a.part], a.T_world_part, meshes[b.part], grids[b.part], bvhs[b.part],
+                                b.T_world_part, lo, hi),
+                    _depth_into(probes[b.part], b.T_world_part, meshes[a.part], grids[a.part], bvhs[a.part],
+                                a.T_world_part, lo, hi))
             if d > tol:
                 out.append(f"instances {a.id!r} and {b.id!r} interpenetrate by about {d * 1e3:.1f} mm (more than "
                            f"{tol * 1e3:g} mm of pose noise); their picks are planned as given")
