@@ -210,6 +210,24 @@ def test_cli_pick_writes_picks_and_exit_4_when_nothing_can_be_picked(tmp_path, r
     assert validate(d) == "grasplan.picks/1"
     assert [p["instance"] for p in d["picks"]] and d["sequence"] is True
     assert {i["id"] for i in d["instances"]} == {"a", "b"} and "first_pick" in d["timing_s"]
+    # read back: the same picks, motions re-checked by FK
+    import grasplan
+
+    back = grasplan.load_picks(out)
+    assert [p.instance for p in back.picks] == [p["instance"] for p in d["picks"]]
+    np.testing.assert_allclose(back.picks[-1].motion.path, d["picks"][-1]["path"])
+    last, first = d["picks"][-1]["instance"], d["picks"][0]["instance"]
+    script = tmp_path / "pick.script"
+    r = CliRunner().invoke(main, ["export", str(out), "--format", "urscript", "--instance", last, "-o", str(script)])
+    assert r.exit_code == 0, r.output
+    assert "movej" in script.read_text()
+    html = tmp_path / "view.html"
+    r = CliRunner().invoke(main, ["view", str(out), "--instance", first, "-o", str(html)])
+    assert r.exit_code == 0, r.output
+    other = ({"a", "b"} - {first}).pop()
+    assert f"instance_{other}" in html.read_text()  # still in the pile: drawn as an obstacle of the cell
+    r = CliRunner().invoke(main, ["export", str(out), "--format", "urscript", "--instance", "nope", "-o", str(script)])
+    assert r.exit_code == 3 and "picked: " in r.output
     # out of reach: on the table 2 m away
     doc2 = dict(doc, cell="table", instances=[{"id": "far", "part": "bracket", "T": at(rest, 1.6, 0, -0.01).tolist()}])
     (tmp_path / "far.yaml").write_text(yaml.safe_dump(doc2))
