@@ -42,9 +42,8 @@ def command(scene, robot, gripper, cell, sequence, max_picks, output, **kwargs):
     apply_config_dirs(kwargs)
     params = PickParams(**kwargs)
     sc = load_scene(scene)  # bad input: exit 3 before anything is computed
-    picker = Picker(robot, gripper=gripper, cell=cell, params=params)
-    info(f"scene {scene}: {len(sc.instances)} instances of {len(sc.part_names())} parts; computing each part's "
-         f"grasps once ...")
+    picker = Picker(robot, gripper=gripper, cell=cell, params=params, progress=info)
+    info(f"scene {scene}: {len(sc.instances)} instances of {len(sc.part_names())} parts")
     result = picker.plan(sc, sequence=sequence, max_picks=max_picks)
     warn_all(result.warnings)
     result.write(output)

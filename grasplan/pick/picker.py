@@ -3,8 +3,9 @@ bin and the neighbours, with the robot, the grasp sets and the collision objects
 
 Per :meth:`Picker.plan` call:
 
-1. the scene (:func:`grasplan.scenefile.load_scene`), its parts (added on first use) and grasp sets
-   (:func:`grasplan.pick.database.part_grasps`, once per part), the cloud's octree, the world of
+1. the scene (:func:`grasplan.scenefile.load_scene`), its parts (added on first use) and grasp
+   databases (:func:`grasplan.graspdb.database_for`: from the cache folder, else computed once and
+   cached; or the scene's ``grasps`` file), the cloud's octree, the world of
    the gripper checks (:class:`grasplan.pick.world.PickWorld`) and the robot's collision scenes (one
    per part, every instance an extra body) are ready: ``timing_s["load"]``; then the geometric
    checks (:mod:`grasplan.pile_checks`: exit 3 for a part below the floor, warnings for
@@ -24,7 +25,7 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -42,7 +43,7 @@ from ..robot import load_robot
 from ..robot_model import Robot
 from ..scene import CollisionScene, ExtraBody
 from ..scenefile import Instance, Scene, load_scene
-from .database import PartGrasps, part_grasps
+from ..graspdb import GraspDatabase, database_for, load_database
 from .motion import MotionContext, Outcome, plan_pick_motion
 from .params import PickParams
 from .rank import instance_order, rank_grasps
@@ -74,32 +75,38 @@ class Picker:
     """Plans picks from piles (see the module docstring).
 
     ``robot``, ``gripper``: models or names/paths; ``cell``: a model, name or path, or None for
-    each scene's own cell; ``params``: :class:`~grasplan.pick.params.PickParams`."""
+    each scene's own cell; ``params``: :class:`~grasplan.pick.params.PickParams`; ``progress``:
+    gets a line when a grasp database is computed."""
 
     def __init__(self, robot: Robot | str = "ur5", *, gripper: Gripper | str = DEFAULT_GRIPPER,
-                 cell: Cell | str | None = None, params: PickParams = PickParams()):
+                 cell: Cell | str | None = None, params: PickParams = PickParams(),
+                 progress: Callable[[str], None] | None = None):
         self.robot = robot if isinstance(robot, Robot) else load_robot(robot)
         self.gripper = gripper if isinstance(gripper, Gripper) else load_gripper(gripper)
         self.cell = None if cell is None else (cell if isinstance(cell, Cell) else load_cell(cell))
         self.params = params
+        self.progress = progress
         self._parts: dict[str, Part] = {}
-        self._part_key: dict[str, tuple] = {}
-        self._grasps: dict[str, PartGrasps] = {}
+        self._grasps: dict[str, GraspDatabase] = {}
         self._cells: dict[Any, _Cell] = {}
         self._clouds: dict[tuple, tuple[Any, np.ndarray, float]] = {}
 
     # -- parts --------------------------------------------------------------------------------------
     def add_part(self, name: str, mesh: str | os.PathLike | Part, *, units: str = "auto",
-                 grasps: PartGrasps | None = None) -> None:
+                 grasps: str | os.PathLike | GraspDatabase | None = None) -> None:
         """Make part ``name`` known: a mesh file (read in ``units``) or a loaded Part; ``grasps``:
-        its grasp set (default: computed once for this picker's gripper)."""
+        its grasp database (a ``.graspdb.npz`` file or a loaded one; refused for another part or
+        gripper; default: :func:`grasplan.graspdb.database_for`, cached)."""
         part = mesh if isinstance(mesh, Part) else load_part(mesh, units=units)
-        if grasps is not None and grasps.part_sha256 != part.sha256:
-            raise InputError(f"part {name!r}: the grasps belong to another part (sha256 {grasps.part_sha256[:12]}, "
-                             f"the mesh {part.sha256[:12]})")
+        if grasps is None:
+            db = database_for(part, self.gripper, progress=self.progress)
+        elif isinstance(grasps, GraspDatabase):
+            grasps.check_for(part, self.gripper)
+            db = grasps
+        else:
+            db = load_database(Path(grasps), part=part, gripper=self.gripper)
         self._parts[name] = part
-        self._part_key[name] = (part.path, part.sha256, part.scale_to_m)
-        self._grasps[name] = grasps if grasps is not None else part_grasps(part, self.gripper)
+        self._grasps[name] = db
         for st in self._cells.values():  # scenes holding the old geometry are rebuilt
             st.world.add_part(name, part)
             st.scenes.pop(name, None)
@@ -116,10 +123,8 @@ class Picker:
                 path = scene.resolve(sp.mesh)
                 if name in self._parts and Path(self._parts[name].path) == path:
                     continue
-                if sp.grasps is not None:
-                    raise InputError(f"scene: parts.{name}.grasps: grasp databases are not read by this version; "
-                                     f"leave it out (the grasps are computed once per part and kept)")
-                self.add_part(name, path, units=sp.units)
+                self.add_part(name, path, units=sp.units,
+                              grasps=None if sp.grasps is None else scene.resolve(sp.grasps))
             elif name not in self._parts:
                 known = ", ".join(self._parts) or "(none)"
                 raise InputError(f"scene: part {name!r} has no mesh in the scene and was not added to the picker "
@@ -317,18 +322,20 @@ class Picker:
                                     f"every one of the {len(rows)} grasps from above collides"
                                     + _hits_text(hit_counts, " grasps"), blockers)
 
-    def _pick(self, inst: Instance, db: PartGrasps, r: int, k: int, T_world_tcp: np.ndarray, out: Outcome,
+    def _pick(self, inst: Instance, db: GraspDatabase, r: int, k: int, T_world_tcp: np.ndarray, out: Outcome,
               cell: Cell) -> Pick:
         assert out.motion is not None
         T_pre = T_world_tcp.copy()
         T_pre[:3, 3] -= self.params.backoff * T_world_tcp[:3, 2]
-        quality: dict[str, float] = {}
-        for name in ("gravity_margin", "epsilon"):
-            if name in db.quality:
-                quality[name] = float(db.quality[name][r])
+        rows = np.array([r])
+        q = db.quality_at(inst.T_world_part, rows)  # at the instance's pose (the gravity margin depends on it)
+        quality: dict[str, float] = {"epsilon": float(db.epsilon[r])}
+        if q is not None:
+            quality["gravity_margin"] = float(q.gravity_margin[0])
+        score = float(db.score_at(self._parts[inst.part].mesh, inst.T_world_part, rows, quality=q)[0])
         return Pick(instance=inst.id, part=inst.part, T_world_part=np.array(inst.T_world_part),
                     T_part_tcp=db.T_part_tcp[r].copy(), contacts=db.contacts[r].copy(), normals=db.normals[r].copy(),
-                    width=float(db.width[r]), opening=out.opening, score=float(db.score[r]), quality=quality,
+                    width=float(db.width[r]), opening=out.opening, score=score, quality=quality,
                     motion=out.motion, T_world_tcp=T_world_tcp.copy(), T_world_pregrasp=T_pre,
                     T_world_lifted=lift_pose(T_world_tcp, cell.retreat_direction, cell.retreat_distance), rank=k)
 
