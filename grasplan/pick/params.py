@@ -26,6 +26,8 @@ class PickParams(OptionSet):
                                   lo=0.0, hi=10.0)
     grasps_per_instance: int = spec(12, "int", "Grasps motion-planned per instance (best ranked collision-free "
                                     "first) before the instance is reported unreachable.", lo=1, hi=10000)
+    max_checked: int = spec(2048, "int", "Grasps gripper-checked per instance (best ranked first); when all of "
+                            "them collide the instance is blocked.", lo=1, hi=10**6)
     max_ik_solutions: int = spec(8, "int", "IK solutions tried per grasp (closest to q_home first).", lo=1, hi=64)
     time_limit_per_query: float = spec(0.2, "seconds", "RRTConnect time per attempt when the straight transit "
                                        "collides, seconds.", cli="--time-limit", hi=600.0)

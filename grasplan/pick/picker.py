@@ -10,8 +10,11 @@ Per :meth:`Picker.plan` call:
    per part, every instance an extra body) are ready: ``timing_s["load"]``; then the geometric
    checks (:mod:`grasplan.pile_checks`: exit 3 for a part below the floor, warnings for
    interpenetrating instances);
-2. instances are tried in the accessibility order (:mod:`grasplan.pick.rank`); per instance its
-   grasps posed in the world are ranked, gripper-checked in chunks against neighbours, cloud, bin
+2. instances are tried in the accessibility order (:mod:`grasplan.pick.rank`); per instance first
+   the lift: the part moved along the cell's retreat, at the line's waypoints beyond
+   ``lift_contact``, against the neighbours and the cloud (the same for every grasp: a hit there
+   fails the robot's lift check whatever the arm does, so the instance is ``blocked`` by that
+   neighbour without trying a grasp); then its grasps posed in the world are ranked, gripper-checked in chunks against neighbours, cloud, bin
    and table (the first body hit names the blocker), and the collision-free ones motion-planned
    (:mod:`grasplan.pick.motion`) until one is planned or ``grasps_per_instance`` were tried;
 3. ``sequence``: after each pick the instance is removed and the rest re-planned (the next pick is
@@ -38,7 +41,7 @@ from ..gripper import load_gripper
 from ..gripper.model import Gripper
 from ..mesh import Part, load_part
 from ..params import DEFAULT_GRIPPER
-from ..pickplace import lift_pose, unit_direction
+from ..pickplace import LINE_SAMPLE, lift_pose, unit_direction
 from ..robot import load_robot
 from ..robot_model import Robot
 from ..scene import CollisionScene, ExtraBody
@@ -51,8 +54,8 @@ from .result import InstanceReport, Pick, PickResult
 from .world import CLOUD, INSTANCE_PREFIX, PickWorld
 
 #: grasps gripper-checked per step while looking for collision-free ones
-CHECK_CHUNK = 64
-_TIMING_KEYS = ("gripper_check", "ik", "collision", "approach", "lift", "transit")
+CHECK_CHUNK = 256
+_TIMING_KEYS = ("gripper_check", "lift_check", "ik", "collision", "approach", "lift", "transit")
 
 
 @dataclass
@@ -276,6 +279,27 @@ class Picker:
         first_fail: Outcome | None = None
         tried = 0
         ctx: MotionContext | None = None
+        rows, T_wt = rows[: p.max_checked], T_wt[: p.max_checked]
+        lift_dir = unit_direction(st.cell.retreat_direction)
+        n_lift = max(1, int(np.ceil(float(st.cell.retreat_distance) / LINE_SAMPLE - 1e-12)))
+        steps = float(st.cell.retreat_distance) * np.arange(n_lift + 1) / n_lift
+        steps = steps[steps >= min(p.lift_contact, steps[-1]) - 1e-12]
+        # the carried part against the neighbours and the cloud (the cell's boxes: the robot's check,
+        # which lets the part slide along a wall it touches within ATTACHED_CONTACT_TOL)
+        pile = [b for b in bodies if b.name.startswith(INSTANCE_PREFIX) or b.name == CLOUD]
+        # lifting the part straight up is the same motion for every grasp: when it drags the part
+        # through a neighbour (or the cloud) beyond lift_contact, no grasp can pick the instance
+        t = time.perf_counter()
+        lh = st.world.part_hits(inst.part, inst.T_world_part, steps[:, None] * lift_dir, pile)
+        timing["lift_check"] += time.perf_counter() - t
+        if np.any(lh >= 0):
+            k_hit = int(np.flatnonzero(lh >= 0)[0])
+            name = pile[int(lh[k_hit])].name
+            return None, InstanceReport(
+                inst.id, inst.part, "blocked" if name.startswith(INSTANCE_PREFIX) else "cloud",
+                f"lifting it {1e3 * float(st.cell.retreat_distance):g} mm along the retreat drags it through {name} "
+                f"after {1e3 * steps[k_hit]:.0f} mm (more than the {1e3 * p.lift_contact:g} mm of resting contact "
+                f"allowed), whatever the grasp", _blockers({name: 1}))
         for c0 in range(0, len(rows), CHECK_CHUNK):
             sel = slice(c0, c0 + CHECK_CHUNK)
             t = time.perf_counter()
@@ -319,7 +343,7 @@ class Picker:
         n_cloud = hit_counts.get(CLOUD, 0)
         status = "blocked" if blockers else "cloud" if n_cloud else "bin"
         return None, InstanceReport(inst.id, inst.part, status,
-                                    f"every one of the {len(rows)} grasps from above collides"
+                                    f"every one of the {len(rows)} best-ranked grasps from above collides"
                                     + _hits_text(hit_counts, " grasps"), blockers)
 
     def _pick(self, inst: Instance, db: GraspDatabase, r: int, k: int, T_world_tcp: np.ndarray, out: Outcome,

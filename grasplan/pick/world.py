@@ -140,30 +140,67 @@ class PickWorld:
         sets = self.parts[part].collider.shape_sets(np.asarray(width, dtype=np.float64).reshape(-1))
         need = np.zeros((len(bodies), len(sets), M), dtype=bool)
         Tgs = []
+        # distance of each TCP to each body's box, against each shape's reach from the TCP (a
+        # bounding sphere): only the poses within reach get the exact box test
+        tcp = T_world_tcp[:, :3, 3]
+        gap = np.stack([np.linalg.norm(np.maximum(np.abs(tcp - b.center) - b.half, 0.0), axis=1) for b in bodies])
         for si, s in enumerate(sets):
+            reach = float(np.max(np.linalg.norm(s.T_tcp_bb[:, :3, 3], axis=1) + np.linalg.norm(s.half_bb, axis=1)))
             Tbb = T_world_tcp @ s.T_tcp_bb[s.index]
             h = s.half_bb[s.index]
             for bi, b in enumerate(bodies):
-                need[bi, si] = ~obb_aabb_separated(Tbb[:, :3, 3], Tbb[:, :3, :3], h, b.center, b.half)
+                idx = np.flatnonzero(gap[bi] <= reach)
+                if len(idx):
+                    need[bi, si, idx] = ~obb_aabb_separated(Tbb[idx, :3, 3], Tbb[idx, :3, :3], h[idx], b.center,
+                                                            b.half)
             Tgs.append(T_world_tcp @ s.T_tcp_geom[s.index] if s.is_box else T_world_tcp)
         collide, req, res = coal.collide, self.request, self.result
         tf = coal.Transform3s()
         calls = 0
-        for m in np.flatnonzero(need.any(axis=(0, 1))):
-            for bi in np.flatnonzero(need[:, :, m].any(axis=1)).tolist():
-                b = bodies[bi]
-                for si in range(len(sets) - 1, -1, -1):  # jaws first: they reach furthest
-                    if not need[bi, si, m]:
-                        continue
-                    T = Tgs[si][m]
-                    tf.setRotation(T[:3, :3])
-                    tf.setTranslation(T[:3, 3])
-                    res.clear()
-                    calls += 1
-                    if collide(sets[si].geoms[sets[si].index[m]], tf, b.geometry, b.tf, req, res):
-                        first[m] = bi
-                        break
-                if first[m] >= 0:
-                    break
+        # candidate (pose, body, shape) triples in checking order: pose, then body order, jaws first
+        m_i, b_i, s_i = np.nonzero(np.transpose(need, (2, 0, 1))[:, :, ::-1])
+        s_i = len(sets) - 1 - s_i
+        geoms = [[s.geoms[k] for k in s.index] for s in sets]
+        done = -1
+        for m, bi, si in zip(m_i.tolist(), b_i.tolist(), s_i.tolist()):
+            if m == done:
+                continue
+            T = Tgs[si][m]
+            tf.setRotation(T[:3, :3])
+            tf.setTranslation(T[:3, 3])
+            res.clear()
+            calls += 1
+            b = bodies[bi]
+            if collide(geoms[si][m], tf, b.geometry, b.tf, req, res):
+                first[m] = bi
+                done = m
         self.coal_calls += calls
         return first, bodies
+
+    def part_hits(self, part: str, T_world_part: np.ndarray, shifts: np.ndarray, bodies: list[Body]) -> np.ndarray:
+        """First body (index into ``bodies``, -1 none) the part ``part`` hits at ``T_world_part``
+        moved by each world vector of ``shifts`` (k, 3) (a straight lift): world boxes first (the
+        part's box only translates), then coal."""
+        g = self.parts[part]
+        T = np.asarray(T_world_part, dtype=np.float64)
+        shifts = np.asarray(shifts, dtype=np.float64).reshape(-1, 3)
+        first = np.full(len(shifts), -1, dtype=np.int64)
+        if not bodies or not len(shifts):
+            return first
+        c0, h = world_box(g.hull, T)
+        centres = c0 + shifts
+        bc = np.array([b.center for b in bodies])
+        bh = np.array([b.half for b in bodies])
+        near = np.all(np.abs(centres[:, None, :] - bc[None]) <= h + bh[None], axis=2)  # (k, bodies)
+        req, res = self.request, self.result
+        tf = coal.Transform3s(T[:3, :3].copy(), T[:3, 3].copy())
+        for k, bi in zip(*np.nonzero(near)):
+            if first[k] >= 0:
+                continue
+            tf.setTranslation(T[:3, 3] + shifts[k])
+            res.clear()
+            self.coal_calls += 1
+            b = bodies[bi]
+            if coal.collide(g.bvh, tf, b.geometry, b.tf, req, res):
+                first[k] = bi
+        return first
