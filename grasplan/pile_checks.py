@@ -27,8 +27,8 @@ from .meshdata import MeshData
 from .scenefile import Instance
 
 #: surface samples of a mesh probed inside another one: spacing (m) and how many at most per pair
-PROBE_SPACING = 0.002
-MAX_PROBES = 2000
+PROBE_SPACING = 0.003
+MAX_PROBES = 600
 
 
 def _inside_depth(o: Obstacle, pts: np.ndarray) -> float:

@@ -190,6 +190,8 @@ class _SceneModel:
             self.extra_kind[e.name] = e.kind
             self.body[gid] = e.name
         self.gm = gm
+        for g in gm.geometryObjects:  # the broad phase of scenes with extras reads them
+            g.geometry.computeLocalAABB()
         for r in self.robot_ids:
             self.body[r] = self.link(r)
         self._build_pairs()
@@ -344,6 +346,7 @@ class CollisionScene:
             req.num_max_contacts = 1
         self.geom_data = gd
         self._active = active
+        self._broadphase: pin.BroadPhaseManager_DynamicAABBTreeCollisionManager | None = None
         self._placements: dict[int, pin.SE3] = {}
         env = shared.env_ids
         if self.T_world_part is not None and PART in env:
@@ -465,9 +468,26 @@ class CollisionScene:
             return []
         return [k for k, res in enumerate(self.geom_data.collisionResults) if self._active[k] and res.isCollision()]
 
+    def _collides(self, q: np.ndarray) -> bool:
+        """Any active pair in collision at q (early stop). A scene with extra bodies (many pairs)
+        goes through a broad phase first: coal's dynamic AABB tree over the placed geometries
+        (Pinocchio's ``BroadPhaseManager``; only the active pairs whose world boxes overlap reach
+        the narrow phase; the same answer, several times faster with a pile)."""
+        if not self._shared.extra_ids:
+            return bool(pin.computeCollisions(self.model, self.data, self.geom_model, self.geom_data, q, True))
+        if self._broadphase is None:
+            self._broadphase = pin.BroadPhaseManager_DynamicAABBTreeCollisionManager(
+                self.model, self.geom_model, self.geom_data)
+        return bool(pin.computeCollisions(self.model, self.data, self._broadphase, q, True))
+
     def is_free(self, q, opening: float | None = None) -> bool:
         """True when configuration q (n,) with the jaws at ``opening`` (m; default max_opening)
         collides with nothing (early stop at the first colliding pair)."""
+        q = self._prep(q, opening)
+        return not self._collides(q)
+
+    def is_free_exhaustive(self, q, opening: float | None = None) -> bool:
+        """:meth:`is_free` checking every active pair (no broad phase): the reference it is tested against."""
         q = self._prep(q, opening)
         return not pin.computeCollisions(self.model, self.data, self.geom_model, self.geom_data, q, True)
 
@@ -509,9 +529,9 @@ class CollisionScene:
             raise InputError(f"step: expected > 0 rad, got {step}")
         self.set_opening(self.gripper.max_opening if opening is None else opening)
         self._apply()
-        m, d, gm, gd = self.model, self.data, self.geom_model, self.geom_data
+        collides = self._collides
         for q in qs:  # waypoints first: cheap rejection
-            if pin.computeCollisions(m, d, gm, gd, q, True):
+            if collides(q):
                 return False
         for a, b in zip(qs[:-1], qs[1:]):
             n = int(math.ceil(float(np.max(np.abs(b - a))) / step - 1e-12))
@@ -519,8 +539,7 @@ class CollisionScene:
                 continue
             # coarse-to-fine order (bisection) finds a collision in the middle early
             for i in _bisection_order(n):
-                q = a + (b - a) * (i / n)
-                if pin.computeCollisions(m, d, gm, gd, q, True):
+                if collides(a + (b - a) * (i / n)):
                     return False
         return True
 

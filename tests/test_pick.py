@@ -236,3 +236,20 @@ def test_cli_pick_writes_picks_and_exit_4_when_nothing_can_be_picked(tmp_path, r
     assert r.exit_code == 4, r.output
     d2 = json.loads(out2.read_text())
     assert d2["picks"] == [] and d2["instances"][0]["status"] == "unreachable"
+
+
+def test_broad_phase_agrees_with_every_pair(picker, rest):
+    """A scene with extras checks through coal's broad phase: the same answer as every active pair."""
+    sc = scene(("a", "bracket", at(rest, -0.05)), ("b", "bracket", at(rest, 0.05)), ("c", "box", at(rest, 0, 0.06, 0.006)))
+    res = picker.plan(sc)
+    st = picker._cells[res.cell]
+    static, att = next(iter(st.variants.values()))
+    rng = np.random.default_rng(3)
+    q0 = res.picks[0].motion.q_grasp
+    qs = np.vstack([res.picks[0].motion.path, q0 + rng.normal(0, 0.4, (300, 6))])
+    qs = np.clip(qs, picker.robot.lower, picker.robot.upper)
+    for s in (static, att):
+        fast = [s.is_free(q, 0.02) for q in qs]
+        ref = [s.is_free_exhaustive(q, 0.02) for q in qs]
+        assert fast == ref
+        assert 0 < sum(ref) < len(ref)  # both kinds of configuration were tested

@@ -8,7 +8,8 @@ back from the grasp to the pre-grasp (``backoff`` along the TCP's -z) and free; 
 (the cell's retreat direction and distance, jaws at the contact width, the part attached) free
 except that within the first ``lift_contact`` of TCP travel the part in the jaws may touch what it
 rests on (the table, the bin, an obstacle, a neighbour); then the transit ``q_home -> q_pregrasp``:
-the straight joint-space segment when it is free, else OMPL RRTConnect. Every path is checked at
+the straight joint-space segment when it is free, else through a via point above the pre-grasp
+(:func:`_transit`), else OMPL RRTConnect. Every path is checked at
 ``interpolation.STEP`` rad.
 
 Straight moves (:func:`line_path`): TCP waypoints every :data:`grasplan.pickplace.LINE_SAMPLE`
@@ -138,6 +139,30 @@ def _blockers(pairs: list[tuple[str, str, str]]) -> set[str]:
     return {x for a, b, _ in pairs for x in (a, b) if x.startswith("instance:")}
 
 
+#: the transit's via point: the pre-grasp TCP raised this far (m) along world +z, same IK branch
+VIA_HEIGHT = 0.25
+
+
+def _transit(ctx: MotionContext, q_pre: np.ndarray, T_pre: np.ndarray, opening: float, seed: int
+             ) -> np.ndarray | None:
+    """``q_home -> q_pre``: the straight joint segment when free; else home -> a via point above
+    the pre-grasp (:data:`VIA_HEIGHT`, reached from ``q_pre`` by a straight TCP line on its IK branch)
+    -> down that line; else OMPL RRTConnect. Every candidate is checked at ``interpolation.STEP``."""
+    p, robot, static = ctx.params, ctx.robot, ctx.static
+    direct = np.stack([ctx.q_home, q_pre])
+    if static.path_free(direct, opening):
+        return direct
+    T_via = T_pre.copy()
+    T_via[2, 3] += VIA_HEIGHT
+    up, _ = line_path(robot, T_pre, T_via, q_pre, max_dev=0.05, T_flange_tcp=ctx.T_flange_tcp, sample=0.02)
+    if up is not None:
+        via = np.vstack([ctx.q_home[None], up[::-1]])
+        if static.path_free(via, opening):
+            return via
+    return plan_joint_path(static, ctx.q_home, q_pre, lower=robot.lower, upper=robot.upper, opening=opening,
+                           seed=seed, time_limit=p.time_limit_per_query, attempts=p.path_attempts)
+
+
 def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np.ndarray, width: float,
                      seed: int) -> Outcome:
     """Plan one grasp (see the module docstring)."""
@@ -204,9 +229,7 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
             continue
         approach = back[::-1]
         t = time.perf_counter()
-        transit = plan_joint_path(static, ctx.q_home, approach[0], lower=robot.lower, upper=robot.upper,
-                                  opening=opening, seed=seed, time_limit=p.time_limit_per_query,
-                                  attempts=p.path_attempts)
+        transit = _transit(ctx, approach[0], T_pre, opening, seed)
         timing["transit"] += time.perf_counter() - t
         if transit is None:
             count["path"] += 1

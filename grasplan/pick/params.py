@@ -28,7 +28,7 @@ class PickParams(OptionSet):
                                     "first) before the instance is reported unreachable.", lo=1, hi=10000)
     max_checked: int = spec(2048, "int", "Grasps gripper-checked per instance (best ranked first); when all of "
                             "them collide the instance is blocked.", lo=1, hi=10**6)
-    max_ik_solutions: int = spec(8, "int", "IK solutions tried per grasp (closest to q_home first).", lo=1, hi=64)
+    max_ik_solutions: int = spec(4, "int", "IK solutions tried per grasp (closest to q_home first).", lo=1, hi=64)
     time_limit_per_query: float = spec(0.2, "seconds", "RRTConnect time per attempt when the straight transit "
                                        "collides, seconds.", cli="--time-limit", hi=600.0)
     path_attempts: int = spec(1, "int", "RRTConnect attempts per transit query.", lo=1, hi=20)
