@@ -61,6 +61,10 @@ def line_path(robot: Robot, T_from: np.ndarray, T_to: np.ndarray, q_from: np.nda
     m = max(1, int(np.ceil(float(np.linalg.norm(b - a)) / sample - 1e-12)))
     T = np.broadcast_to(np.asarray(T_from, dtype=np.float64), (m, 4, 4)).copy()
     T[:, :3, 3] = a + (b - a) * (np.arange(1, m + 1) / m)[:, None]
+    T0 = fk_base_tool(closed, np.asarray(q_from, dtype=np.float64)[None])[0]
+    T0_want = T_base @ np.asarray(T_from, dtype=np.float64) @ T_tcp_flange
+    if np.linalg.norm(T0[:3, 3] - T0_want[:3, 3]) > 0.5 * max_dev or np.max(np.abs(T0[:3, :3] - T0_want[:3, :3])) > 1e-4:
+        return None, "start"
     path, why = ur_line(closed, T_base @ T @ T_tcp_flange, q_from, robot.lower, robot.upper, MAX_JOINT_STEP)
     if path is None:
         return None, why
