@@ -58,15 +58,21 @@ def recheck_pick(robot, gripper, cell, pick, instances, meshes, *, cloud=None, r
 
     tcp = RobotLinks(robot, gripper.T_flange_tcp)
     T_grasp = tcp.fk_tcp(path[l0])
-    for s, e, opening, mode, T in ((0, g1, pick.opening, "static", pick.T_world_part),
-                                   (l0, l1, pick.width, "attached", T_tcp_part)):
+    states = [(0, g1, pick.opening, "static", pick.T_world_part), (l0, l1, pick.width, "attached", T_tcp_part)]
+    if m.segment("transfer") is not None:  # carried to the place, lowered, released, retreat
+        d1 = m.segment("descend")[1]
+        r0, r1 = m.segment("retreat")
+        states += [(l1, d1, pick.width, "attached", T_tcp_part),
+                   (r0, r1, pick.opening, "static", np.asarray(m.T_world_part_place))]
+    for k, (s, e, opening, mode, T) in enumerate(states):
         qs, _ = densify(path[s:e + 1], step)
         for q in qs:
             rep.configs += 1
             hits = world.check(q, opening, mode, T)
             if mode == "attached":
-                travel = float(np.linalg.norm(tcp.fk_tcp(q)[:3, 3] - T_grasp[:3, 3]))
-                if travel <= lift_contact + 1e-9:
+                here = tcp.fk_tcp(q)[:3, 3]
+                travel = float(np.linalg.norm(here - T_grasp[:3, 3]))
+                if k == 1 and travel <= lift_contact + 1e-9:
                     hits = [h for h in hits if not (h.startswith("part (attached) vs ")
                                                     and (h.endswith("vs table") or " vs obstacle:" in h))]
             if hits:

@@ -253,3 +253,22 @@ def test_broad_phase_agrees_with_every_pair(picker, rest):
         ref = [s.is_free_exhaustive(q, 0.02) for q in qs]
         assert fast == ref
         assert 0 < sum(ref) < len(ref)  # both kinds of configuration were tested
+
+
+def test_pick_and_place_rechecked(rest):
+    """--place: the lifted part is carried to the place on the table beside the bin, lowered,
+    released; the whole motion re-checked (the neighbour still in the bin)."""
+    pk = Picker("ur5", params=PickParams(grasps_per_instance=8, place=tuple(map(tuple, at(rest, 0.0, 0.32, -0.01)))))
+    pk.add_part("bracket", load_part(BRACKET))
+    sc = scene(("a", "bracket", at(rest, -0.06)), ("b", "bracket", at(rest, 0.06)))
+    res = pk.plan(sc, max_picks=1)
+    assert len(res.picks) == 1, [r.reason for r in res.instances]
+    m = res.picks[0].motion
+    assert [s[0] for s in m.segments] == ["transit", "approach", "lift", "transfer", "descend", "retreat"]
+    np.testing.assert_allclose(m.T_world_part_place, at(rest, 0.0, 0.32, -0.01))
+    assert_rechecked(pk, res, {})
+    doc = json.loads(json.dumps(res.to_json()))
+    from grasplan.pick.reader import result_from_picks
+
+    back = result_from_picks(doc)
+    np.testing.assert_allclose(back.picks[0].motion.T_world_part_place, m.T_world_part_place)

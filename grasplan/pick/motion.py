@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -32,7 +33,15 @@ from ..ik import get_solver, solve_ik
 from ..interpolation import interpolate_path
 from ..motion import Motion
 from ..paths import _dist_to_segment, approach_path_reason, plan_joint_path
-from ..pickplace import LINE_SAMPLE, T_tcp_part_of, assemble_motion, lift_pose
+from ..pickplace import (
+    LINE_SAMPLE,
+    T_tcp_part_of,
+    assemble_motion,
+    lift_pose,
+    place_candidates,
+    place_poses,
+    transfer_path,
+)
 from ..robot_model import Robot
 from ..scene import CollisionScene, describe_pairs
 from .params import PickParams
@@ -78,7 +87,7 @@ def line_path(robot: Robot, T_from: np.ndarray, T_to: np.ndarray, q_from: np.nda
 @dataclass(frozen=True)
 class Outcome:
     """One grasp's motion planning: ``status`` (``planned``, ``unreachable``, ``ik_collision``,
-    ``lift_collision``, ``no_path``), why, and the motion when planned."""
+    ``lift_collision``, ``no_path``, ``place``), why, and the motion when planned."""
 
     status: str
     reason: str
@@ -100,6 +109,7 @@ class MotionContext:
     retreat_dir: np.ndarray
     retreat_dist: float
     timing: dict[str, float]
+    T_place: np.ndarray | None = None  #: T_world_part after release (pick-and-place), or None
 
     def __post_init__(self) -> None:
         self.q_home = np.asarray(self.robot.q_home, dtype=np.float64)
@@ -141,6 +151,27 @@ def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touc
 
 def _blockers(pairs: list[tuple[str, str, str]]) -> set[str]:
     return {x for a, b, _ in pairs for x in (a, b) if x.startswith("instance:")}
+
+
+def _place(ctx: MotionContext, q_lifted: np.ndarray, T_part_tcp: np.ndarray, width: float, opening: float,
+           seed: int) -> tuple[Any, np.ndarray | None, str]:
+    """``(place candidate, transfer path, "")`` or ``(None, None, why)``: the place side of
+    :func:`grasplan.planning.plan_grasp`'s pick-and-place for one picked grasp."""
+    p, robot = ctx.params, ctx.robot
+    assert ctx.T_place is not None
+    released = ctx.static.with_part_at(ctx.T_place)
+    poses = place_poses(ctx.T_place, T_part_tcp, ctx.retreat_dir, ctx.retreat_dist, p.backoff)
+    cands, _, why = place_candidates(robot, ctx.attached, released, poses, width=width, opening=opening,
+                                     max_dev=p.max_dev, T_flange_tcp=ctx.T_flange_tcp, q_ref=q_lifted, seed=p.seed,
+                                     max_solutions=p.max_ik_solutions, limit=p.max_path_queries)
+    for c in cands:
+        transfer = transfer_path(ctx.attached, q_lifted, c, lower=robot.lower, upper=robot.upper, width=width,
+                                 seed=seed + 7, time_limit=p.time_limit_per_query, attempts=p.path_attempts)
+        if transfer is not None:
+            return c, transfer, ""
+    if cands:
+        why = "place: RRTConnect found no verified transfer path (part in the jaws) lifted -> above the place"
+    return None, None, why
 
 
 #: the transit's via point: the pre-grasp TCP raised this far (m) along world +z, same IK branch
@@ -186,7 +217,7 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
     T_lift = lift_pose(T_world_tcp, ctx.retreat_dir, ctx.retreat_dist)
     why: dict[str, str] = {}
     blockers: set[str] = set()
-    count = {"grasp": 0, "approach": 0, "approach_kin": 0, "lift": 0, "lift_kin": 0, "path": 0}
+    count = {"grasp": 0, "approach": 0, "approach_kin": 0, "lift": 0, "lift_kin": 0, "path": 0, "place": 0}
     for j, q_grasp in enumerate(sols):
         t = time.perf_counter()
         free = static.is_free(q_grasp, opening)
@@ -240,14 +271,26 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
             if count["path"] >= p.max_path_queries:
                 break
             continue
+        transfer = cand = None
+        if ctx.T_place is not None:  # carry it to the place (grasplan.pickplace, neighbours still in the scene)
+            t = time.perf_counter()
+            cand, transfer, place_why = _place(ctx, lift[-1], T_part_tcp, width, opening, seed)
+            timing["place"] += time.perf_counter() - t
+            if cand is None:
+                why.setdefault("place", place_why)
+                count["place"] += 1
+                continue
         motion = assemble_motion(transit, approach, lift, width=width, opening=opening,
-                                 T_tcp_part=T_tcp_part_of(T_part_tcp))
+                                 T_tcp_part=T_tcp_part_of(T_part_tcp), transfer=transfer, place=cand,
+                                 T_world_part_place=ctx.T_place)
         return Outcome("planned", f"planned with IK solution {j} of {len(sols)} (closest to q_home first)", motion,
                        opening)
     detail = (f"{len(sols)} IK solutions: {count['grasp']} collide at the grasp, {count['approach']} on the approach, "
               f"{count['approach_kin']} cannot follow it, {count['lift']} collide on the lift, {count['lift_kin']} "
               f"cannot follow it, {count['path']} found no transit")
     bl = tuple(sorted(blockers))
+    if count["place"]:
+        return Outcome("place", f"{why['place']}; " + detail, opening=opening)
     if count["lift"]:
         return Outcome("lift_collision", f"lift: with the part in the jaws {why['lift']}; " + detail, opening=opening,
                        blockers=bl)

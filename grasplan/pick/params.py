@@ -7,6 +7,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from ..option_kinds import spec
 from ..params import OptionSet
 
@@ -40,8 +42,16 @@ class PickParams(OptionSet):
     overlap_tol: float = spec(0.002, "length0", "Scene checks: instances interpenetrating by more than this are "
                               "a warning; a part more than this below the bin floor, the table or inside an "
                               "obstacle is an error.", hi=0.05, show="2mm")
+    place: tuple[tuple[float, ...], ...] | None = spec(
+        None, "pose", "Pick-and-place: every picked part's pose after release, 'x,y,z,roll,pitch,yaw' (lengths m or "
+        "with units, angles deg, R = Rz(yaw) Ry(pitch) Rx(roll)); the lifted part is carried there (OMPL, part in "
+        "the jaws), lowered, released and the gripper retreats. Default: the cell's place, if any.", optional=True)
     budget_s: float | None = spec(None, "seconds", "Wall-clock budget of one plan() call, seconds; instances not "
                                   "reached are 'not_tried'.", cli="--budget", hi=86400.0, optional=True)
+
+    def place_matrix(self) -> np.ndarray | None:
+        """:attr:`place` as a (4, 4) ``T_world_part`` (None: the cell's place, if any)."""
+        return None if self.place is None else np.asarray(self.place, dtype=np.float64)
 
     @property
     def cos_max_tilt(self) -> float:

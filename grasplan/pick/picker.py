@@ -55,7 +55,7 @@ from .world import CLOUD, INSTANCE_PREFIX, PickWorld
 
 #: grasps gripper-checked per step while looking for collision-free ones
 CHECK_CHUNK = 256
-_TIMING_KEYS = ("gripper_check", "lift_check", "ik", "collision", "approach", "lift", "transit")
+_TIMING_KEYS = ("gripper_check", "lift_check", "ik", "collision", "approach", "lift", "transit", "place")
 
 
 @dataclass
@@ -280,6 +280,8 @@ class Picker:
         tried = 0
         ctx: MotionContext | None = None
         rows, T_wt = rows[: p.max_checked], T_wt[: p.max_checked]
+        T_place = p.place_matrix() if p.place is not None else (None if st.cell.place is None
+                                                                  else np.asarray(st.cell.place, dtype=np.float64))
         lift_dir = unit_direction(st.cell.retreat_direction)
         n_lift = max(1, int(np.ceil(float(st.cell.retreat_distance) / LINE_SAMPLE - 1e-12)))
         steps = float(st.cell.retreat_distance) * np.arange(n_lift + 1) / n_lift
@@ -317,7 +319,7 @@ class Picker:
                     static, att = self._variants(st, inst, present, with_cloud)
                     ctx = MotionContext(self.robot, self.gripper, p, static, att,
                                         unit_direction(st.cell.retreat_direction), float(st.cell.retreat_distance),
-                                        timing)
+                                        timing, T_place=T_place)
                 tried += 1
                 stats["grasps_tried"] += 1
                 out = plan_pick_motion(ctx, T_wt[k], db.T_part_tcp[r], float(db.width[r]),

@@ -39,13 +39,23 @@ def _motion(d: dict[str, Any], nq: int, where: str) -> Motion:
     if path.ndim != 2 or path.shape[1] != nq or len(path) < 2 or not np.all(np.isfinite(path)):
         raise InputError(f"{where}: path must be >= 2 finite joint vectors of the robot's {nq} joints")
     labels = [s[0] for s in segs]
-    if labels != ["transit", "approach", "lift"] or segs[0][1] != 0 or segs[-1][2] != len(path) - 1 \
+    place = labels == ["transit", "approach", "lift", "transfer", "descend", "retreat"]
+    if (labels != ["transit", "approach", "lift"] and not place) or segs[0][1] != 0 or segs[-1][2] != len(path) - 1 \
             or any(a[2] != b[1] for a, b in zip(segs[:-1], segs[1:])) or segs[0][2] != k:
-        raise InputError(f"{where}: segments must be consecutive transit, approach, lift covering the path")
-    if [e.action for e in events] != ["close"] or events[0].index != segs[1][2]:
-        raise InputError(f"{where}: a pick has one gripper event, close, at the end of the approach")
+        raise InputError(f"{where}: segments must be consecutive transit, approach, lift (and transfer, descend, "
+                         f"retreat with a place) covering the path")
+    want = ["close", "open"] if place else ["close"]
+    if [e.action for e in events] != want or events[0].index != segs[1][2] or (place and events[1].index != segs[4][2]):
+        raise InputError(f"{where}: a pick closes the jaws at the end of the approach (and opens them at the end of "
+                         f"the descent with a place)")
+    T_place = None
+    if place:
+        try:
+            T_place = np.asarray(d["T_world_part_place"], dtype=np.float64)
+        except (KeyError, TypeError, ValueError):
+            raise InputError(f"{where}: a pick with a place needs T_world_part_place") from None
     return Motion(q_grasp=path[segs[1][2]].copy(), q_pregrasp=path[k].copy(), path=path, pregrasp_index=k,
-                  segments=segs, gripper=events, T_tcp_part=T_tcp_part)
+                  segments=segs, gripper=events, T_tcp_part=T_tcp_part, T_world_part_place=T_place)
 
 
 def result_from_picks(doc: Any, *, where: str = "picks", base: Path | None = None) -> PickResult:
@@ -137,7 +147,8 @@ def pick_as_plan(res: PickResult, instance: str | None = None) -> PlanResult:
     others = tuple(Obstacle(f"instance_{i.id}", "mesh", np.asarray(i.T_world_part),
                             vertices=np.asarray(meshes[i.part].vertices), faces=np.asarray(meshes[i.part].faces))
                    for i in res.scene.instances if i.id != p.instance and i.id not in gone and i.part in meshes)
-    cell = replace(res.cell, obstacles=tuple(res.cell.obstacles) + others)
+    cell = replace(res.cell, obstacles=tuple(res.cell.obstacles) + others,
+                   place=p.motion.T_world_part_place if p.motion.T_world_part_place is not None else res.cell.place)
     rec = res.parts[p.part]
     part = PartRecord(path=str(rec["path"]), sha256=str(rec["sha256"]), scale_to_m=float(rec["scale_to_m"]),
                       triangles=int(rec.get("triangles", len(meshes[p.part].faces))), T_world_part=p.T_world_part)

@@ -29,7 +29,7 @@ from .params import PickParams
 PICKS_SCHEMA = "grasplan.picks/1"
 #: instance statuses, in the order the counts list them
 INSTANCE_STATUSES = ("picked", "blocked", "cloud", "bin", "unreachable", "ik_collision", "lift_collision",
-                     "no_path", "no_grasp", "not_tried")
+                     "no_path", "place", "no_grasp", "not_tried")
 
 
 def _m(a: np.ndarray) -> list:
