@@ -164,6 +164,12 @@ def test_warm_picker_moves_and_removes_without_reload(picker, rest):
     assert [r.id for r in res2.instances] == ["b"] and res2.report("b").status == "picked"
     np.testing.assert_allclose(res2.pick("b").T_world_part, at(rest, 0.07, 0.02))
     assert_rechecked(picker, res2, {})
+    # a parsed document naming a part the picker knows (the README's vision loop)
+    doc = {"schema": "grasplan.scene/1", "cell": "bin", "parts": {"bracket": {}},
+           "instances": [{"id": "b", "part": "bracket", "T": at(rest, 0.07, 0.02).tolist()}]}
+    res3 = picker.plan(doc, max_picks=1)
+    assert st.scenes == scenes and res3.report("b").status == "picked"
+    np.testing.assert_allclose(res3.pick("b").motion.path, res2.pick("b").motion.path)  # deterministic
 
 
 def test_scene_checks_below_floor_is_an_error_overlap_a_warning(picker, rest):
