@@ -110,6 +110,10 @@ class MotionContext:
     retreat_dist: float
     timing: dict[str, float]
     T_place: np.ndarray | None = None  #: T_world_part after release (pick-and-place), or None
+    #: the gripper along the lift in Cartesian space (branch-independent, before any IK):
+    #: ``(T_world_tcp (k, 4, 4), width) -> first body hit per pose (-1 none)`` and the body names
+    lift_gripper_check: Any = None
+    body_names: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         self.q_home = np.asarray(self.robot.q_home, dtype=np.float64)
@@ -205,6 +209,20 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
     opening = float(ctx.gripper.pregrasp_opening(width))
     T_pre = T_world_tcp.copy()
     T_pre[:3, 3] -= p.backoff * T_world_tcp[:3, 2]
+    T_lift = lift_pose(T_world_tcp, ctx.retreat_dir, ctx.retreat_dist)
+    if ctx.lift_gripper_check is not None:  # the closed gripper along the lift: the same for every IK branch
+        t = time.perf_counter()
+        m = max(1, int(np.ceil(ctx.retreat_dist / LINE_SAMPLE - 1e-12)))
+        T_line = np.broadcast_to(T_world_tcp, (m + 1, 4, 4)).copy()
+        T_line[:, :3, 3] += (ctx.retreat_dist * np.arange(m + 1) / m)[:, None] * ctx.retreat_dir
+        hit = ctx.lift_gripper_check(T_line, width)
+        timing["lift_check"] += time.perf_counter() - t
+        if np.any(hit >= 0):
+            k = int(np.flatnonzero(hit >= 0)[0])
+            name = ctx.body_names[int(hit[k])]
+            return Outcome("lift_collision", f"lift: the closed gripper hits {name} {1e3 * ctx.retreat_dist * k / m:.0f} "
+                           f"mm up (any IK solution)", opening=opening,
+                           blockers=(name,) if name.startswith("instance:") else ())
     t = time.perf_counter()
     ik = solve_ik(robot, T_world_tcp @ ctx.T_tcp_flange, seed=p.seed)
     timing["ik"] += time.perf_counter() - t
@@ -214,7 +232,6 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
     static, att = ctx.static, ctx.attached
     att.move_attached(T_tcp_part_of(T_part_tcp))
     n_touch = int(np.ceil(p.lift_contact / LINE_SAMPLE - 1e-9))
-    T_lift = lift_pose(T_world_tcp, ctx.retreat_dir, ctx.retreat_dist)
     why: dict[str, str] = {}
     blockers: set[str] = set()
     count = {"grasp": 0, "approach": 0, "approach_kin": 0, "lift": 0, "lift_kin": 0, "path": 0, "place": 0}

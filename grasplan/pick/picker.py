@@ -319,7 +319,9 @@ class Picker:
                     static, att = self._variants(st, inst, present, with_cloud)
                     ctx = MotionContext(self.robot, self.gripper, p, static, att,
                                         unit_direction(st.cell.retreat_direction), float(st.cell.retreat_distance),
-                                        timing, T_place=T_place)
+                                        timing, T_place=T_place,
+                                        lift_gripper_check=lambda T, w: st.world.gripper_at_hits(T, w, bodies),
+                                        body_names=tuple(b.name for b in bodies))
                 tried += 1
                 stats["grasps_tried"] += 1
                 out = plan_pick_motion(ctx, T_wt[k], db.T_part_tcp[r], float(db.width[r]),

@@ -22,7 +22,7 @@ import numpy as np
 from ..cell import Cell
 from ..collision import GripperCollider
 from ..containment import obb_aabb_separated
-from ..geometry import bvh, obstacle_geometry
+from ..geometry import bvh, obstacle_geometry, shape_geometry
 from ..gripper.model import Gripper
 from ..mesh import Part
 from ..scene import TABLE, TABLE_SIZE
@@ -90,6 +90,7 @@ class PickWorld:
         self.request.num_max_contacts = 1
         self.result = coal.CollisionResult()
         self.coal_calls = 0
+        self._closed: dict[float, list] = {}  # gripper shapes with the jaws at one opening (the last asked)
 
     # -- contents -----------------------------------------------------------------------------------
     def add_part(self, name: str, part: Part) -> PartGeometry:
@@ -203,4 +204,44 @@ class PickWorld:
             b = bodies[bi]
             if coal.collide(g.bvh, tf, b.geometry, b.tf, req, res):
                 first[k] = bi
+        return first
+
+    def gripper_at_hits(self, T_world_tcp: np.ndarray, opening: float, bodies: list[Body]) -> np.ndarray:
+        """First body (index into ``bodies``, -1 none) the gripper hits at each world TCP pose
+        (k, 4, 4) with its jaws at ``opening`` (m; not swept): body shapes and both jaws, world boxes
+        first (each shape's local box), then coal. The robot scene checks the same shapes at the
+        same poses, so a hit here is a hit there."""
+        T_all = np.asarray(T_world_tcp, dtype=np.float64).reshape(-1, 4, 4)
+        first = np.full(len(T_all), -1, dtype=np.int64)
+        if not bodies or not len(T_all):
+            return first
+        key = round(float(opening), 12)
+        shapes = self._closed.get(key)
+        if shapes is None:
+            shapes = []
+            for shape in (*self.gripper.body, *self.gripper.fingers(opening)):
+                geom, T_tcp_geom = shape_geometry(shape)
+                geom.computeLocalAABB()
+                lo, hi = np.asarray(geom.aabb_local.min_), np.asarray(geom.aabb_local.max_)
+                shapes.append((geom, np.asarray(T_tcp_geom, dtype=np.float64), 0.5 * (lo + hi), 0.5 * (hi - lo)))
+            self._closed = {key: shapes}
+        bc = np.array([b.center for b in bodies])
+        bh = np.array([b.half for b in bodies])
+        req, res = self.request, self.result
+        tf = coal.Transform3s()
+        for geom, T_tcp_geom, c_loc, h_loc in shapes:
+            Tg = T_all @ T_tcp_geom
+            c = np.einsum("kij,j->ki", Tg[:, :3, :3], c_loc) + Tg[:, :3, 3]
+            h = np.einsum("kij,j->ki", np.abs(Tg[:, :3, :3]), h_loc)
+            near = np.all(np.abs(c[:, None, :] - bc[None]) <= h[:, None, :] + bh[None], axis=2)
+            for k, bi in zip(*np.nonzero(near)):
+                if first[k] >= 0:
+                    continue
+                tf.setRotation(Tg[k, :3, :3])
+                tf.setTranslation(Tg[k, :3, 3])
+                res.clear()
+                self.coal_calls += 1
+                b = bodies[bi]
+                if coal.collide(geom, tf, b.geometry, b.tf, req, res):
+                    first[k] = bi
         return first
