@@ -89,22 +89,23 @@ def scenes(n: int) -> tuple[list[Path], Path | None]:
     return out, big
 
 
+#: runs the command in a child of this small process, so that the child's peak RSS does not count
+#: the bench's own memory (a forked child's high-water mark starts at its parent's size)
+_WRAP = ("import resource, subprocess, sys\nrc = subprocess.call(sys.argv[1:])\n"
+         "print('PEAK_RSS_KB', resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)\nsys.exit(rc)\n")
+
+
 def _cli(scene: Path) -> tuple[float, float, int, str]:
-    """(wall s, peak RSS MB of that process, exit code, summary line) of ``grasplan pick SCENE`` in a
-    fresh process (its own resource usage, from wait4)."""
+    """(wall s, peak RSS MB, exit code, summary line) of ``grasplan pick SCENE`` in a fresh process."""
     with tempfile.TemporaryDirectory() as d:
-        out = Path(d) / "stdout.txt"
         t = time.perf_counter()
-        with open(out, "w") as f:
-            proc = subprocess.Popen([sys.executable, "-c", "from grasplan.cli import main; main()", "pick", str(scene),
-                                     "-o", str(Path(d) / "picks.json")], stdout=f, stderr=subprocess.STDOUT,
-                                    env={**os.environ, "PYTHONPATH": str(ROOT)})
-            _, status, usage = os.wait4(proc.pid, 0)
+        r = subprocess.run([sys.executable, "-c", _WRAP, sys.executable, "-c", "from grasplan.cli import main; main()",
+                            "pick", str(scene), "-o", str(Path(d) / "picks.json")], capture_output=True, text=True,
+                           env={**os.environ, "PYTHONPATH": str(ROOT)})
         wall = time.perf_counter() - t
-        proc.returncode = os.waitstatus_to_exitcode(status)
-        text = out.read_text()
-    lines = [ln for ln in text.splitlines() if "instances picked" in ln]
-    return wall, usage.ru_maxrss / 1024, proc.returncode, (lines[-1] if lines else text.strip()[-200:])
+    rss = next((int(ln.split()[1]) for ln in r.stdout.splitlines() if ln.startswith("PEAK_RSS_KB")), 0)
+    lines = [ln for ln in r.stdout.splitlines() if "instances picked" in ln]
+    return wall, rss / 1024, r.returncode, (lines[-1] if lines else r.stderr.strip()[-200:])
 
 
 def pct(xs: list[float], q: float) -> float:
