@@ -186,7 +186,8 @@ def _transit(ctx: MotionContext, q_pre: np.ndarray, T_pre: np.ndarray, opening: 
              ) -> np.ndarray | None:
     """``q_home -> q_pre``: the straight joint segment when free; else home -> a via point above
     the pre-grasp (:data:`VIA_HEIGHT`, reached from ``q_pre`` by a straight TCP line on its IK branch)
-    -> down that line; else OMPL RRTConnect. Every candidate is checked at ``interpolation.STEP``."""
+    -> down that line, directly or after turning the base joint alone; else OMPL RRTConnect. Every
+    candidate is checked at ``interpolation.STEP``."""
     p, robot, static = ctx.params, ctx.robot, ctx.static
     direct = np.stack([ctx.q_home, q_pre])
     if static.path_free(direct, opening):
@@ -196,6 +197,11 @@ def _transit(ctx: MotionContext, q_pre: np.ndarray, T_pre: np.ndarray, opening: 
     up, _ = line_path(robot, T_pre, T_via, q_pre, max_dev=0.05, T_flange_tcp=ctx.T_flange_tcp, sample=0.02)
     if up is not None:
         via = np.vstack([ctx.q_home[None], up[::-1]])
+        if static.path_free(via, opening):
+            return via
+        turn = ctx.q_home.copy()  # home turned to face the via point first (the base joint alone)
+        turn[0] = up[-1][0]
+        via = np.vstack([ctx.q_home[None], turn[None], up[::-1]])
         if static.path_free(via, opening):
             return via
     return plan_joint_path(static, ctx.q_home, q_pre, lower=robot.lower, upper=robot.upper, opening=opening,
