@@ -1,9 +1,9 @@
-"""The grippers of issue 23: Robotiq 2F-85 / 2F-140 (pads on an arc: the TCP moves along z with the
-opening), OnRobot RG2 / RG6, SCHUNK EGP 25 / EGP 64 (stroke: they close only to max_opening -
+"""The grippers of issue 23: Robotiq 2F-85 / 2F-140 and OnRobot RG2 / RG6 (pads on an arc: the TCP
+moves along z with the opening), SCHUNK EGP 25 / EGP 64 (stroke: they close only to max_opening -
 stroke), and the gripper's mass and centre of mass (YAML, JSON, RAPID tload).
 
-* the 2F-85's arc against Robotiq's own linkage (the knuckle and finger joint constants of its URDF,
-  written out here as a planar chain, not grasplan's model);
+* the arcs against the makers' own linkages (the joint constants of Robotiq's and OnRobot's URDFs,
+  written out here as planar chains, not grasplan's model);
 * ``grasplan grasps`` on TLess20 with every new gripper: collision-free grasps whose widths fit the
   stroke, re-checked with python-fcl (boxes placed here at the grasp's TCP offset), not coal.
 """
@@ -20,10 +20,11 @@ from grasplan.errors import ConfigError
 from grasplan.gripper import gripper_from_json, load_gripper
 
 NEW = ["robotiq_2f_85", "robotiq_2f_140", "onrobot_rg2", "onrobot_rg6", "schunk_egp_25", "schunk_egp_64"]
-#: figures each YAML must carry (the datasheet values cited in its comments)
+#: figures each YAML must carry (the makers' values cited in its comments; docs/grippers.md, "Gripper
+#: figures and their sources", says which are verified)
 DATASHEET = {  # name: (max_opening m, stroke m or None, grip force N, mass kg)
-    "robotiq_2f_85": (0.085, None, 235.0, 0.925),
-    "robotiq_2f_140": (0.140, None, 125.0, 1.025),
+    "robotiq_2f_85": (0.085, None, 235.0, 0.9),  # Robotiq product sheet: 85 mm, 20-235 N, 0.9 kg
+    "robotiq_2f_140": (0.140, None, 125.0, 1.0),  # Robotiq product sheet: 140 mm, 10-125 N, 1 kg
     "onrobot_rg2": (0.110, None, 40.0, 0.78),
     "onrobot_rg6": (0.160, None, 120.0, 1.25),
     "schunk_egp_25": (0.040, 0.006, 35.0, 0.14),
@@ -41,8 +42,9 @@ def test_loads_with_datasheet_figures_mass_and_com(name):
     assert g.com is not None and g.com.shape == (3,) and 0 < g.com[2] < g.T_flange_tcp[2, 3]
     assert g.stroke == (None if stroke is None else pytest.approx(stroke))
     assert g.min_opening == pytest.approx(0.0 if stroke is None else mo - stroke)
-    assert g.kind == ("parallel_linkage" if name.startswith("robotiq") else "parallel_jaw")
-    assert g.moving_tcp == name.startswith("robotiq")
+    linkage = name.startswith(("robotiq", "onrobot"))  # the makers' URDFs: pads on four-bar linkages
+    assert g.kind == ("parallel_linkage" if linkage else "parallel_jaw")
+    assert g.moving_tcp == linkage
 
 
 @pytest.mark.parametrize("name", NEW + ["schunk_egp_c_40", "round_mesh_jaws"])
@@ -83,7 +85,58 @@ def test_robotiq_85_tcp_offset_follows_robotiqs_linkage():
     assert float(g.tcp_offset(g.max_opening)) == 0.0
 
 
-@pytest.mark.parametrize("name", ["robotiq_2f_85", "robotiq_2f_140"])
+def _robotiq_140_pad(t):
+    """(inner face x, pad centre z) of the +x pad of a 2F-140 at finger_joint t (rad, 0 open .. 0.7
+    closed; negative: further open), mm, from Robotiq's URDF (robotiq_arg2f_140_model_macro.xacro):
+    outer knuckle pivot (30.601, 54.905), joint roll pi/2 + 0.725 - t, knuckle -> inner finger
+    (18.21999 + 81.75540, 26.00182 - 28.22034), inner finger -> pad centre 27.22034 in and 45.75540
+    out, pad 7.5 thick."""
+    a = math.pi / 2 + 0.725 - t
+    ly, lz = 18.21998610742 + 81.7554015893473, 26.0018192872234 - 28.2203446692936
+    y = -30.601 + ly * math.cos(a) - lz * math.sin(a) + 27.2203446692936 + 3.75
+    z = 54.905 + ly * math.sin(a) + lz * math.cos(a) + 45.7554015893473
+    return -y, z
+
+
+def _onrobot_tip(t, pivot, link, tip):
+    """(fingertip x, z) of an OnRobot RG gripper's +x fingertip frame at finger_joint t (rad, 0 closed),
+    mm, from OnRobot's URDF: the finger pivot (x, z) from base_link, the outer proximal link (along,
+    across) and the finger base -> fingertip offset (out, in); the finger base keeps its orientation."""
+    (px, pz), (la, lc), (ta, tc) = pivot, link, tip
+    x = px + la * math.sin(t) + lc * math.cos(t) - tc
+    z = pz + la * math.cos(t) - lc * math.sin(t) + ta
+    return x, z
+
+
+@pytest.mark.parametrize("name, chain, t_open, t_closed", [
+    # t_open: the URDF's open limit (2F-140) or OnRobot's cad_finger_upper (RG2, RG6)
+    ("robotiq_2f_140", _robotiq_140_pad, 0.0, 0.7),
+    ("onrobot_rg2", lambda t: _onrobot_tip(t, (16.95, 123.34), (54.9431524395901, -2.5), (36.5, 14.5)),
+     math.asin(105.0 / 110.0) + math.asin(2.5 / 55.0), 0.0),
+    ("onrobot_rg6", lambda t: _onrobot_tip(t, (23.85, 135.3), (79.8896739261193, -4.2), (47.9, 19.6)),
+     math.asin(151.6 / 160.0) + math.asin(4.2 / 80.0), 0.0),
+])
+def test_arcs_follow_the_makers_linkages(name, chain, t_open, t_closed):
+    """grasplan's arc (radius, center_x) reproduces the maker's linkage: the TCP's travel along z
+    between any two openings of the URDF chain, within 0.1 mm; and the chain spans the stroke
+    (OnRobot: 0 to max_opening exactly; 2F-140: the URDF's open limit stops at 128.5 mm, short of
+    the product sheet's 140 mm, which the arc reaches by extending the same circle)."""
+    g = load_gripper(name)
+    ts = np.linspace(t_open, t_closed, 15)
+    xz = np.array([chain(float(t)) for t in ts])
+    widths, z = 2.0 * xz[:, 0] / 1000.0, xz[:, 1] / 1000.0
+    assert widths.min() == pytest.approx(0.0, abs=2e-4)
+    if name.startswith("onrobot"):
+        assert widths.max() == pytest.approx(g.max_opening, abs=2e-4)
+    else:
+        assert widths.max() == pytest.approx(0.1285, abs=5e-4) and widths.max() < g.max_opening
+    off = g.tcp_offset(np.clip(widths, 0.0, None))
+    np.testing.assert_allclose(off - off[0], z - z[0], atol=1e-4)
+    # closing moves the pads away from the flange: by the chain's own travel
+    assert float(g.tcp_offset(0.0)) > 0.02
+
+
+@pytest.mark.parametrize("name", ["robotiq_2f_85", "robotiq_2f_140", "onrobot_rg2", "onrobot_rg6"])
 def test_moving_tcp_is_used_for_fingers_flange_and_grasp_frame(name):
     g = load_gripper(name)
     for w in (0.2 * g.max_opening, 0.5 * g.max_opening, 0.9 * g.max_opening):
@@ -113,7 +166,7 @@ def test_moving_tcp_is_used_for_fingers_flange_and_grasp_frame(name):
 
 
 def test_straight_jaws_have_no_tcp_offset():
-    g = load_gripper("onrobot_rg2")
+    g = load_gripper("schunk_egp_64")
     assert not g.moving_tcp
     np.testing.assert_allclose(g.T_flange_tcp_at(0.05), g.T_flange_tcp)
     np.testing.assert_allclose(g.T_tcp_gripper(np.array([0.01, 0.05])), np.broadcast_to(np.eye(4), (2, 4, 4)))
@@ -300,8 +353,9 @@ def test_robotiq_plan_uses_the_tcp_at_the_grasp_width(tmp_path, example_part):
         # the exported grasp's TCP at its width, not the constant one
         assert any(abs(tool_z - g.T_flange_tcp_at(e["width"])[2, 3]) < 2e-6 for e in planned), line
         assert abs(tool_z - g.T_flange_tcp[2, 3]) > 1e-3
-        if fmt == "rapid":  # tload: mass, cog (mm)
-            assert nums[7:11] == pytest.approx([0.925, 0.0, 0.0, 45.0])
+        if fmt == "rapid":  # tload: mass, cog (mm): the gripper file's
+            assert nums[7:11] == pytest.approx([g.mass, *(1000.0 * g.com)], abs=1e-3)
+            assert nums[7] == pytest.approx(0.9)  # Robotiq product sheet
 
 
 def test_simulation_payload_is_gripper_plus_part_in_the_flange_frame():
