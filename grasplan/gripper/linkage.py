@@ -1,5 +1,5 @@
 """The ``parallel_linkage`` gripper kind: parallel pads carried by a four-bar linkage (Robotiq 2F-85,
-2F-140).
+2F-140, OnRobot RG2 and RG6).
 
 The pads stay parallel to each other, but each pad's carrier link swings about a pivot in the
 gripper body, so the pad moves on a circular arc: as the jaws close, the fingertips also move along
