@@ -25,7 +25,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from .errors import ConfigError
 
@@ -150,25 +149,19 @@ MAX_CONFIG_BYTES = 1_000_000
 
 
 def read_yaml(kind: str, path: Path) -> Any:
-    """Parse a gripper/cell/robot YAML with ``yaml.safe_load`` (no Python tags): whatever the
-    document holds, for the caller to validate; ConfigError for an unreadable, binary, oversized
-    or invalid file."""
+    """Parse a gripper/cell/robot YAML with the one YAML reader (:func:`grasplan.yamlfile.read_yaml_file`:
+    a regular file of at most :data:`MAX_CONFIG_BYTES`, no Python tags, alias bombs, duplicate keys
+    and unconstructible values refused naming the field): whatever the document holds, for the
+    caller to validate; ConfigError for an unreadable, binary, oversized or invalid file."""
+    from .errors import InputError
+    from .yamlfile import read_yaml_file
+
     try:
-        if path.stat().st_size > MAX_CONFIG_BYTES:
-            raise ConfigError(f"{path}: {path.stat().st_size} bytes is too large for a {kind} file "
-                              f"(limit {MAX_CONFIG_BYTES})")
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError:
-        raise ConfigError(f"{path}: not a text file; a {kind} description is a UTF-8 YAML file") from None
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot read it ({exc.strerror or exc})") from None
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        first = str(exc).splitlines()[0] if str(exc) else "syntax error"
-        raise ConfigError(f"{path}: not valid YAML ({first[:120]})") from None
-    except RecursionError:
-        raise ConfigError(f"{path}: YAML nested too deeply") from None
+        return read_yaml_file(path, what=f"{kind} file", max_bytes=MAX_CONFIG_BYTES)
+    except ConfigError:
+        raise
+    except InputError as exc:
+        raise ConfigError(str(exc)) from None
 
 
 def packaged_file(*parts: str) -> Path:

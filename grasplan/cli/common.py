@@ -20,13 +20,28 @@ units_option = click.option(
 )
 
 
-def check_output(output, *inputs):
-    """The ``-o`` path checked before any work (:func:`grasplan.io.check_output_path`): not empty, not
-    a system or special file, its folder writable (missing folders are created), not one of the
-    ``inputs`` (None entries are skipped)."""
-    from ..io import check_output_path
+def check_output(output, *inputs, companions=(), families=(), gripper=None, cell=None, robot=None,
+                 scoring=None, part_pose=None):
+    """The ``-o`` path and its ``companions`` (other files the command writes) checked before any
+    work by the one output guard (:func:`grasplan.outputs.check_outputs`): not empty, not a system
+    or special file, its folder writable (missing folders are created), and none of them one of the
+    files the command reads: ``inputs`` (None entries skipped), the YAML files the ``gripper``,
+    ``cell`` and ``robot`` names resolve to, the ``scoring`` file and a ``part_pose`` file.
+    ``families``: ``(folder, regex)`` of companion names known only later (``OUT.pose<k>.json``)."""
+    from ..outputs import check_outputs, config_input, file_input
 
-    return check_output_path(output, inputs=[i for i in inputs if i is not None], create_parents=True)
+    ins = [*inputs, config_input("gripper", gripper), config_input("cell", cell), config_input("robot", robot),
+           file_input(scoring), file_input(part_pose)]
+    return check_outputs([output, *companions], inputs=ins, families=families)[0]
+
+
+def pose_family(output) -> tuple:
+    """``(folder, regex)`` of the ``OUT.pose<k>.json`` files ``--pose-index all`` writes next to ``output``."""
+    import re
+    from pathlib import Path
+
+    p = Path(output)
+    return (p.parent, re.escape(p.stem) + r"\.pose\d+" + re.escape(p.suffix))
 
 
 def info(msg: str) -> None:

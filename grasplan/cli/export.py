@@ -53,7 +53,9 @@ def command(plan, fmt, grasp_id, out, max_accel, velocity_scale, part_path):
     from ..result_reader import load_result
 
     t0 = time.perf_counter()
-    out = check_output(out, plan, part_path)
+    from ..export import output_paths
+
+    out = check_output(out, plan, part_path, companions=output_paths(fmt, out)[1:])  # KRL's .dat too
     res = load_result(plan, part=part_path)
     ids = res.planned_ids()
     info(f"plan {plan}: {len(res.grasps)} grasps, {len(ids)} planned")
