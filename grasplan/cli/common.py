@@ -2,6 +2,10 @@
 are in :mod:`grasplan.cli.options`)."""
 from __future__ import annotations
 
+import contextlib
+import errno
+import io
+import os
 import sys
 import time
 from collections.abc import Iterable, Sequence
@@ -92,3 +96,64 @@ def stage(name: str, timing: dict | None = None):
 def progress(iterable, *, length: int, label: str):
     """A progress bar on stderr (hidden when stderr is not a terminal, e.g. in CI)."""
     return click.progressbar(iterable, length=length, label=label, file=sys.stderr)
+
+
+class _TolerantStdout:
+    """``sys.stdout`` for a command: once the reader is gone (``| true``: EPIPE) or the device is
+    full (``> /dev/full``: ENOSPC), further summary lines are dropped instead of failing a command
+    whose output files are already written. Everything else is the wrapped stream's."""
+
+    _LOST = (errno.EPIPE, errno.ENOSPC, errno.EBADF, errno.EIO)
+
+    def __init__(self, inner):
+        self._inner = inner
+        self.lost = False
+
+    def _drop(self, exc: OSError) -> None:
+        if exc.errno not in self._LOST:
+            raise exc
+        self.lost = True
+        fd = getattr(self._inner, "fileno", None)
+        with contextlib.suppress(OSError, ValueError, AttributeError, io.UnsupportedOperation):
+            n = fd() if fd is not None else -1
+            if n >= 0:  # what the stream still buffers goes nowhere at exit instead of failing again
+                devnull = os.open(os.devnull, os.O_WRONLY)
+                os.dup2(devnull, n)
+                os.close(devnull)
+
+    def write(self, s):
+        if self.lost:
+            return len(s)
+        try:
+            return self._inner.write(s)
+        except OSError as exc:
+            self._drop(exc)
+            return len(s)
+
+    def flush(self) -> None:
+        if self.lost:
+            return
+        try:
+            self._inner.flush()
+        except OSError as exc:
+            self._drop(exc)
+
+    def __getattr__(self, name):
+        return getattr(self._inner, name)
+
+
+@contextmanager
+def tolerant_stdout():
+    """While active, a full or closed stdout does not fail the command (see :class:`_TolerantStdout`)."""
+    inner = sys.stdout
+    if inner is None or isinstance(inner, _TolerantStdout):
+        yield
+        return
+    wrapper = _TolerantStdout(inner)
+    sys.stdout = wrapper
+    try:
+        yield
+        wrapper.flush()
+    finally:
+        if sys.stdout is wrapper:
+            sys.stdout = inner
