@@ -56,7 +56,7 @@ def command(plan, fmt, grasp_id, out, max_accel, velocity_scale, part_path):
     from ..export import output_paths
 
     out = check_output(out, plan, part_path, companions=output_paths(fmt, out)[1:])  # KRL's .dat too
-    res = load_result(plan, part=part_path)
+    res = load_result(plan, part=part_path, verify_part=True)  # a re-pointed part block is refused
     ids = res.planned_ids()
     info(f"plan {plan}: {len(res.grasps)} grasps, {len(ids)} planned")
     path = write(res, fmt, out, grasp_id=grasp_id, part=part_path, max_accel=max_accel,
