@@ -161,7 +161,7 @@ def check_case(case: InputCase, folder: Path, res: dict) -> None:
     new = sorted(set(after) - set(before))
     stray = [n for n in new if not any(fnmatch.fnmatch(n, pat) for pat in declared)]
     assert not stray, f"left behind: {stray[:8]}\n{shown}"
-    temps = [n for n in after if TEMP.search(n)]
+    temps = [n for n in new if TEMP.search(n)]
     assert not temps, f"temporary files left: {temps[:8]}\n{shown}"
     if case.after is not None:
         case.after(folder)
