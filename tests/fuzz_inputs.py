@@ -146,8 +146,19 @@ def _yaml_argv(kind: str, folder: Path, text: str) -> list[str]:
     return ["plan", str(part), opt, str(y), "-o", str(folder / "out.json"), *QUICK]
 
 
+def _embedded_robot(f: Path, r: dict, value: str) -> list[str]:
+    """A plan whose embedded robot YAML (``robot.source.yaml``) holds ``value`` in ``description``."""
+    doc = json.loads(Path(r["plan"]).read_text())
+    text = doc["robot"]["source"]["yaml"]
+    lines = [ln for ln in text.splitlines() if not ln.startswith("description:")]
+    doc["robot"]["source"]["yaml"] = "\n".join(lines + [f"description: {value}"]) + "\n"
+    p = _write(f, "plan.json", json.dumps(doc))
+    return ["export", str(p), "--format", "urscript", "-o", str(f / "pick.script")]
+
+
 def yaml_cases() -> list[InputCase]:
-    out = []
+    out = [InputCase(f"yaml-embedded-robot-{vname}", "yaml_values", lambda f, r, v=value: _embedded_robot(f, r, v),
+                     limit_s=20) for vname, value in BAD_VALUES]
     for kind, fld, tpl, numeric in _templates():
         values = BAD_VALUES + (NUMBER_ONLY if numeric and kind in ("cell", "part_pose") else ())
         for vname, value in values:

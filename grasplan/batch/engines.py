@@ -117,6 +117,9 @@ def iter_ray(jobs: Sequence[PartJob], *, workers: int | None, address: str | Non
         import ray
     except ImportError:
         raise InputError("--engine ray needs Ray: pip install 'grasplan[ray]' (or use --engine local)") from None
+    except (OSError, MemoryError) as exc:  # e.g. an address-space limit too small for Ray's libraries
+        raise InputError(f"--engine ray: cannot load Ray ({type(exc).__name__}); raise the memory limit or use "
+                         "--engine local") from None
 
     started = False
     if not ray.is_initialized():
