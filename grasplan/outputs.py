@@ -38,6 +38,37 @@ def config_input(kind: str, name_or_path: str | os.PathLike | None) -> Path | No
         return None
 
 
+#: keys of a gripper/cell/robot YAML whose text values name further files next to it
+_FILE_KEYS = ("path", "urdf", "srdf")
+
+
+def config_files(kind: str, name_or_path: str | os.PathLike | None) -> list[Path]:
+    """:func:`config_input` and the files its YAML names (a cell's or gripper's mesh ``path``, a
+    robot's ``urdf``/``srdf`` relative to the YAML): everything a description reads. A YAML that
+    cannot be read yields just its own path (its loader reports the problem later)."""
+    y = config_input(kind, name_or_path)
+    if y is None:
+        return []
+    from .yamlfile import read_yaml_file
+
+    try:
+        doc = read_yaml_file(y, what=f"{kind} file")
+    except InputError:
+        return [y]
+    out, stack = [y], [doc]
+    while stack and len(out) < 10_000:
+        node = stack.pop()
+        if isinstance(node, dict):
+            for k, v in node.items():
+                if k in _FILE_KEYS and isinstance(v, str) and v and "\x00" not in v and len(v) < 4096:
+                    out.append(y.parent / v)
+                elif isinstance(v, (dict, list)):
+                    stack.append(v)
+        elif isinstance(node, list):
+            stack += [v for v in node if isinstance(v, (dict, list))]
+    return out
+
+
 def file_input(path: PathLike | None) -> Path | None:
     """``path`` when it names an existing file (``--part-pose`` may be a pose text instead)."""
     if path is None:

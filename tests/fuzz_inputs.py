@@ -274,6 +274,17 @@ def guard_cases() -> list[InputCase]:
                                        str(f / "cell.yaml"), "--units", "mm"], limit_s=10))
     out.append(InputCase("guard-candidates-o-is-part", "output_guard",
                          lambda f, r: ["candidates", str(_box(f)), "-o", str(f / "box.stl")], limit_s=10))
+    def o_is_obstacle_mesh(f, r):
+        shutil.copy(PARTS / "box.stl", f / "ob.stl")
+        argv = _obstacle_argv(f, "ob.stl")
+        return argv[:argv.index("-o") + 1] + [str(f / "ob.stl")] + argv[argv.index("-o") + 2:]
+    out.append(InputCase("guard-plan-o-is-obstacle-mesh", "output_guard", o_is_obstacle_mesh, limit_s=10))
+
+    def o_is_gripper_mesh(f, r):
+        shutil.copy(DATA / "configs" / "grippers" / "tapered_jaw.stl", f / "jaw.stl")
+        argv = _gripper_mesh_argv(f, "jaw.stl")
+        return argv[:argv.index("-o") + 1] + [str(f / "jaw.stl")] + argv[argv.index("-o") + 2:]
+    out.append(InputCase("guard-grasps-o-is-gripper-mesh", "output_guard", o_is_gripper_mesh, limit_s=10))
     out += batch_folder_cases()
     return out
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from ..errors import InputError
 from ..io import check_output_path, show_path
-from ..outputs import check_outputs, config_input, file_input
+from ..outputs import check_outputs, config_files, file_input
 from .layout import LOCK_FILE, STAGING_DIR
 from .manifest import PartJob
 
@@ -25,13 +25,12 @@ MAX_DONE_BYTES = 10_000_000
 
 
 def config_inputs(jobs: Sequence[PartJob]) -> list[Path]:
-    """The YAML files the jobs' robot, gripper and cell names resolve to, and their scoring files."""
+    """The YAML files the jobs' robot, gripper and cell names resolve to (with the mesh and URDF
+    files they name), and their scoring files."""
     out: set[Path] = set()
     for o in {j.options for j in jobs}:
         for kind, name in (("robot", o.robot), ("gripper", o.gripper), ("cell", o.cell)):
-            p = config_input(kind, name)
-            if p is not None:
-                out.add(p)
+            out.update(config_files(kind, name))
         s = file_input(getattr(o.grasps, "scoring", None))
         if s is not None:
             out.add(s)

@@ -32,9 +32,9 @@ def check_output(output, *inputs, companions=(), families=(), gripper=None, cell
     files the command reads: ``inputs`` (None entries skipped), the YAML files the ``gripper``,
     ``cell`` and ``robot`` names resolve to, the ``scoring`` file and a ``part_pose`` file.
     ``families``: ``(folder, regex)`` of companion names known only later (``OUT.pose<k>.json``)."""
-    from ..outputs import check_outputs, config_input, file_input
+    from ..outputs import check_outputs, config_files, file_input
 
-    ins = [*inputs, config_input("gripper", gripper), config_input("cell", cell), config_input("robot", robot),
+    ins = [*inputs, *config_files("gripper", gripper), *config_files("cell", cell), *config_files("robot", robot),
            file_input(scoring), file_input(part_pose)]
     return check_outputs([output, *companions], inputs=ins, families=families)[0]
 
