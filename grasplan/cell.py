@@ -579,9 +579,8 @@ def cell_from_dict(data, *, name: str, source: str = "", base: Path | None = Non
 
 #: the name of the cell that is nothing but the part: ``--cell none``
 NO_CELL_NAME = "none"
-#: the part alone, in its own frame: no obstacles and no table within reach (the half-space lies
-#: 10 m below the part frame's origin); grasps checked against the part only, as a grasp database
-#: needs them (grasplan.graspdb). Nothing can be planned in it: a robot needs a cell.
+#: the part alone in its own frame: no obstacles, the table 10 m below the origin (grasps checked
+#: against the part only, as grasplan.graspdb needs them); nothing is planned in it
 NO_CELL = Cell(name=NO_CELL_NAME, table_z=-MAX_CELL_COORD_M, part_xy=(0.0, 0.0),
                source="the part alone in its own frame: no table, no obstacles")
 
