@@ -278,3 +278,8 @@ def test_pick_and_place_rechecked(rest):
 
     back = result_from_picks(doc)
     np.testing.assert_allclose(back.picks[0].motion.T_world_part_place, m.T_world_part_place)
+
+
+def test_a_gripper_whose_tcp_moves_is_refused():
+    with pytest.raises(InputError, match="TCP moves with the opening"):
+        Picker("ur5", gripper="robotiq_2f_85")

@@ -86,6 +86,9 @@ class Picker:
                  progress: Callable[[str], None] | None = None):
         self.robot = robot if isinstance(robot, Robot) else load_robot(robot)
         self.gripper = gripper if isinstance(gripper, Gripper) else load_gripper(gripper)
+        if self.gripper.moving_tcp:
+            raise InputError(f"gripper {self.gripper.name!r}: its TCP moves with the opening (a linkage gripper); "
+                             f"grasplan pick plans parallel-jaw grippers whose TCP stays put (e.g. schunk_egp_c_40)")
         self.cell = None if cell is None else (cell if isinstance(cell, Cell) else load_cell(cell))
         self.params = params
         self.progress = progress
