@@ -96,6 +96,7 @@ class Picker:
         self._grasps: dict[str, GraspDatabase] = {}
         self._cells: dict[Any, _Cell] = {}
         self._clouds: dict[tuple, tuple[Any, np.ndarray, float]] = {}
+        self._cell_refs: dict[str, tuple[int, Cell]] = {}
 
     # -- parts --------------------------------------------------------------------------------------
     def add_part(self, name: str, mesh: str | os.PathLike | Part, *, units: str = "auto",
@@ -140,9 +141,16 @@ class Picker:
     def _cell_for(self, scene: Scene) -> _Cell:
         if self.cell is not None:
             cell = self.cell
-        else:
-            ref = scene.cell
-            cell = load_cell(scene.resolve(ref) if _looks_like_path(ref) else ref)
+        else:  # by name or path, read once (a path again when the file changed)
+            ref = str(scene.resolve(scene.cell)) if _looks_like_path(scene.cell) else scene.cell
+            try:
+                stamp = Path(ref).stat().st_mtime_ns if _looks_like_path(ref) else 0
+            except OSError:
+                stamp = -1
+            cached = self._cell_refs.get(ref)
+            if cached is None or cached[0] != stamp:
+                cached = self._cell_refs[ref] = (stamp, load_cell(ref))
+            cell = cached[1]
         key = cell
         st = self._cells.get(key)
         if st is None:
