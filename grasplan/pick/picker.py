@@ -10,7 +10,9 @@ Per :meth:`Picker.plan` call:
    per part, every instance an extra body) are ready: ``timing_s["load"]``; then the geometric
    checks (:mod:`grasplan.pile_checks`: exit 3 for a part below the floor, warnings for
    interpenetrating instances);
-2. instances are tried in the accessibility order (:mod:`grasplan.pick.rank`); per instance first
+2. instances are tried in the accessibility order (:mod:`grasplan.pick.rank`), in two passes (the
+   best :data:`FIRST_PASS` grasps of every instance, then the rest of the undecided ones); per
+   instance first
    the lift: the part moved along the cell's retreat, at the line's waypoints beyond
    ``lift_contact``, against the neighbours and the cloud (the same for every grasp: a hit there
    fails the robot's lift check whatever the arm does, so the instance is ``blocked`` by that
@@ -28,7 +30,7 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -55,6 +57,10 @@ from .world import CLOUD, INSTANCE_PREFIX, PickWorld
 
 #: grasps gripper-checked per step while looking for collision-free ones
 CHECK_CHUNK = 256
+#: the first pass over the instances checks this many grasps of each (best ranked) before any
+#: instance's further grasps: a part whose good grasps are free is found before the deep search
+#: of a boxed-in one
+FIRST_PASS = 256
 _TIMING_KEYS = ("gripper_check", "lift_check", "ik", "collision", "approach", "lift", "transit", "place")
 
 
@@ -230,7 +236,7 @@ class Picker:
                                    tol=self.params.overlap_tol,
                                    bvhs={n: st.world.parts[n].bvh for n in sc.part_names()})
         timing["checks"] = time.perf_counter() - t
-        t_ready = time.perf_counter()
+        t_ready, cpu_ready = time.perf_counter(), time.process_time()
         timing.update({k: 0.0 for k in _TIMING_KEYS})
         p = self.params if seed is None else PickParams.from_json({**self.params.to_json(), "seed": int(seed)})
         stats = {"grasps_checked": 0, "grasps_tried": 0}
@@ -244,22 +250,48 @@ class Picker:
             order = instance_order([i.id for i in present], boxes)
             by_id = {i.id: i for i in present}
             picked_now: str | None = None
+            paused: list[tuple[str, Iterator[tuple[Pick | None, InstanceReport | None]]]] = []
+
+            def out_of_budget() -> bool:
+                return (max_picks is not None and len(picks) >= max_picks) or \
+                    (p.budget_s is not None and time.perf_counter() - t_ready > p.budget_s)
+
+            def take(iid: str, pick: Pick | None, rep: InstanceReport) -> bool:
+                nonlocal first_pick
+                reports[iid] = rep
+                if pick is None:
+                    return False
+                picks.append(pick)
+                if first_pick is None:
+                    first_pick = time.perf_counter() - t_ready
+                    timing["first_pick_cpu"] = time.process_time() - cpu_ready
+                return sequence
+
+            # pass 1: every instance's best FIRST_PASS grasps, in order; pass 2: the rest of the paused ones
             for k, iid in enumerate(order):
-                if (max_picks is not None and len(picks) >= max_picks) or \
-                        (p.budget_s is not None and time.perf_counter() - t_ready > p.budget_s):
+                if out_of_budget():
                     break
                 if iid in reports and reports[iid].status == "picked":
                     continue
-                pick, rep = self._plan_instance(st, by_id[iid], present, cloud is not None, p, timing, stats,
-                                                seed_base=k)
-                reports[iid] = rep
-                if pick is not None:
-                    picks.append(pick)
-                    if first_pick is None:
-                        first_pick = time.perf_counter() - t_ready
-                    if sequence:
+                gen = self._plan_instance(st, by_id[iid], present, cloud is not None, p, timing, stats, seed_base=k)
+                pick, rep = next(gen)
+                if rep is None:
+                    paused.append((iid, gen))
+                elif take(iid, pick, rep):
+                    picked_now = iid
+                    break
+            if picked_now is None:
+                for iid, gen in paused:
+                    if out_of_budget():
+                        break
+                    pick, rep = next(gen)
+                    assert rep is not None
+                    if take(iid, pick, rep):
                         picked_now = iid
                         break
+            if not sequence:
+                rank_of = {iid: n for n, iid in enumerate(order)}
+                picks.sort(key=lambda q: rank_of[q.instance])
             if not sequence or picked_now is None:
                 break
             present = [i for i in present if i.id != picked_now]
@@ -278,13 +310,16 @@ class Picker:
 
     def _plan_instance(self, st: _Cell, inst: Instance, present: list[Instance], with_cloud: bool, p: PickParams,
                        timing: dict[str, float], stats: dict[str, int], seed_base: int
-                       ) -> tuple[Pick | None, InstanceReport]:
+                       ) -> Iterator[tuple[Pick | None, InstanceReport | None]]:
+        """Yields ``(pick or None, report)`` once the instance is decided, or first ``(None, None)``
+        when its best :data:`FIRST_PASS` grasps gave nothing yet (the caller resumes it later)."""
         db = self._grasps[inst.part]
         rows, T_wt = rank_grasps(inst.T_world_part, db.T_part_tcp, db.score, p)
         if len(rows) == 0:
-            return None, InstanceReport(inst.id, inst.part, "no_grasp",
-                                        f"none of the part's {len(db)} grasps approaches within {p.max_tilt_deg:g} deg "
-                                        f"of straight down at this pose")
+            yield None, InstanceReport(inst.id, inst.part, "no_grasp",
+                                       f"none of the part's {len(db)} grasps approaches within {p.max_tilt_deg:g} deg "
+                                       f"of straight down at this pose")
+            return
         bodies = st.world.bodies(inst.id)
         hit_counts: dict[str, int] = {}
         first_fail: Outcome | None = None
@@ -308,12 +343,15 @@ class Picker:
         if np.any(lh >= 0):
             k_hit = int(np.flatnonzero(lh >= 0)[0])
             name = pile[int(lh[k_hit])].name
-            return None, InstanceReport(
+            yield None, InstanceReport(
                 inst.id, inst.part, "blocked" if name.startswith(INSTANCE_PREFIX) else "cloud",
                 f"lifting it {1e3 * float(st.cell.retreat_distance):g} mm along the retreat drags it through {name} "
                 f"after {1e3 * steps[k_hit]:.0f} mm (more than the {1e3 * p.lift_contact:g} mm of resting contact "
                 f"allowed), whatever the grasp", _blockers({name: 1}))
+            return
         for c0 in range(0, len(rows), CHECK_CHUNK):
+            if c0 == FIRST_PASS:
+                yield None, None  # paused: the other instances' best grasps first
             sel = slice(c0, c0 + CHECK_CHUNK)
             t = time.perf_counter()
             # the bodies that blocked most grasps so far first: a blocked grasp needs fewer coal calls
@@ -340,9 +378,10 @@ class Picker:
                 out = plan_pick_motion(ctx, T_wt[k], db.T_part_tcp[r], float(db.width[r]),
                                        seed=p.seed * 1_000_003 + seed_base * 10_007 + r)
                 if out.motion is not None:
-                    return self._pick(inst, db, r, k, T_wt[k], out, st.cell), InstanceReport(
+                    yield self._pick(inst, db, r, k, T_wt[k], out, st.cell), InstanceReport(
                         inst.id, inst.part, "picked", f"grasp ranked {k} of {len(rows)}: {out.reason}"
                         + _hits_text(hit_counts, " better-ranked grasps"), _blockers(hit_counts))
+                    return
                 first_fail = first_fail or out
                 for b in out.blockers:  # neighbours hit by the robot or the carried part
                     hit_counts[b] = hit_counts.get(b, 0) + 1
@@ -352,16 +391,17 @@ class Picker:
                 break
         if first_fail is not None:
             status = "blocked" if first_fail.blockers else first_fail.status
-            return None, InstanceReport(inst.id, inst.part, status,
-                                        f"{tried} collision-free grasps tried, none planned; the best: "
-                                        f"{first_fail.reason}" + _hits_text(hit_counts, " grasps"),
-                                        _blockers(hit_counts))
+            yield None, InstanceReport(inst.id, inst.part, status,
+                                       f"{tried} collision-free grasps tried, none planned; the best: "
+                                       f"{first_fail.reason}" + _hits_text(hit_counts, " grasps"),
+                                       _blockers(hit_counts))
+            return
         blockers = _blockers(hit_counts)
         n_cloud = hit_counts.get(CLOUD, 0)
         status = "blocked" if blockers else "cloud" if n_cloud else "bin"
-        return None, InstanceReport(inst.id, inst.part, status,
-                                    f"every one of the {len(rows)} best-ranked grasps from above collides"
-                                    + _hits_text(hit_counts, " grasps"), blockers)
+        yield None, InstanceReport(inst.id, inst.part, status,
+                                   f"every one of the {len(rows)} best-ranked grasps from above collides"
+                                   + _hits_text(hit_counts, " grasps"), blockers)
 
     def _pick(self, inst: Instance, db: GraspDatabase, r: int, k: int, T_world_tcp: np.ndarray, out: Outcome,
               cell: Cell) -> Pick:
