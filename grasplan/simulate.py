@@ -43,6 +43,7 @@ import itertools
 import math
 import os
 import time
+import warnings
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -51,6 +52,7 @@ import numpy as np
 from .cache import cache_dir
 from .errors import InputError
 from .gripper.model import Box, Gripper
+from .inputs import read_input_bytes
 from .io import write_atomic_bytes
 from .mass import DEFAULT_DENSITY, MassProperties, mass_properties
 from .meshdata import TriangleMesh
@@ -165,13 +167,10 @@ def convex_pieces(mesh: TriangleMesh, *, decomposition: str = "coacd", seed: int
         return [np.asarray(mesh.convex_hull.vertices, dtype=np.float64)]
     key = _mesh_key(mesh, f"coacd/{COACD_THRESHOLD}/{COACD_MAX_PIECES}/{int(seed)}")
     path = cache_dir() / "coacd" / f"{key}.npz"
-    if cache and path.is_file():
-        try:
-            with np.load(path) as z:
-                v, off = z["vertices"], z["offsets"]
-            return [v[a:b] for a, b in itertools.pairwise(off)]
-        except (OSError, ValueError, KeyError):
-            pass  # a corrupt cache entry is recomputed and replaced below
+    if cache:
+        cached = _cached_pieces(path)
+        if cached is not None:
+            return cached
     import coacd
 
     coacd.set_log_level("error")
@@ -184,8 +183,35 @@ def convex_pieces(mesh: TriangleMesh, *, decomposition: str = "coacd", seed: int
         off = np.cumsum([0] + [len(p) for p in pieces])
         buf = io.BytesIO()
         np.savez(buf, vertices=np.concatenate(pieces), offsets=off)
-        write_atomic_bytes(path, buf.getvalue())
+        try:
+            write_atomic_bytes(path, buf.getvalue())
+        except InputError as exc:  # a read-only cache folder costs the next run time, not this run's result
+            warnings.warn(f"CoACD cache not written ({exc}); set $GRASPLAN_CACHE_DIR to a writable folder", stacklevel=2)
     return pieces
+
+
+#: a cache entry larger than this is not one grasplan wrote
+MAX_CACHE_BYTES = 200_000_000
+
+
+def _cached_pieces(path: Path) -> list[np.ndarray] | None:
+    """The convex pieces stored in the cache entry ``path``; None when there is none or it is
+    damaged, truncated or not an entry grasplan wrote (the caller then recomputes and replaces it)."""
+    import zipfile
+
+    if not path.is_file():
+        return None
+    try:
+        data = read_input_bytes(path, what="CoACD cache entry", max_bytes=MAX_CACHE_BYTES)
+        with np.load(io.BytesIO(data), allow_pickle=False) as z:
+            v = np.asarray(z["vertices"], dtype=np.float64)
+            off = np.asarray(z["offsets"], dtype=np.int64)
+    except (InputError, OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile):
+        return None
+    if (v.ndim != 2 or v.shape[1:] != (3,) or not np.isfinite(v).all() or off.ndim != 1 or len(off) < 2
+            or off[0] != 0 or off[-1] != len(v) or np.any(np.diff(off) < 4)):
+        return None
+    return [v[a:b] for a, b in itertools.pairwise(off)]
 
 
 # ------------------------------------------------------------------------------------------------

@@ -47,7 +47,10 @@ class LazyGroup(click.Group):
         try:
             # a copied context: --config-dir (a context variable) ends with the command, so an
             # in-process caller (tests, batch workers) starts the next command with a clean lookup
-            return contextvars.copy_context().run(super().invoke, ctx)
+            from .common import tolerant_stdout
+
+            with tolerant_stdout():  # stdout closed or full after the outputs are written is no error
+                return contextvars.copy_context().run(super().invoke, ctx)
         except GrasplanError as exc:
             click.echo(f"grasplan: error: {_one_line(str(exc))}", err=True)
             sys.exit(exc.exit_code)

@@ -57,15 +57,16 @@ def command(plan, fmt, grasp_id, out, max_accel, velocity_scale, part_path, inst
     from ..result_reader import load_result
 
     t0 = time.perf_counter()
-    out = check_output(out, plan, part_path)
+    from ..export import output_paths
     from ..pick.reader import is_picks_file, load_picks, pick_as_plan
 
+    out = check_output(out, plan, part_path, companions=output_paths(fmt, out)[1:])  # KRL's .dat too
     if is_picks_file(plan):  # one pick as a one-grasp plan whose cell holds the other instances
         res = pick_as_plan(load_picks(plan), instance)
     elif instance is not None:
         raise InputError(f"--instance: {plan} is not a picks file (grasplan.picks/1 from `grasplan pick`)")
     else:
-        res = load_result(plan, part=part_path)
+        res = load_result(plan, part=part_path, verify_part=True)  # a re-pointed part block is refused
     ids = res.planned_ids()
     info(f"plan {plan}: {len(res.grasps)} grasps, {len(ids)} planned")
     path = write(res, fmt, out, grasp_id=grasp_id, part=part_path, max_accel=max_accel,

@@ -40,8 +40,9 @@ def command(part, output, gripper, cell, part_pose, units, only_ok, indent, **kw
     from ..mesh import load_part
 
     t_all = time.perf_counter()
-    output = check_output(output, part)
-    apply_config_dirs(kwargs)
+    apply_config_dirs(kwargs)  # first: --config-dir decides which files the names below read
+    output = check_output(output, part, gripper=gripper, cell=cell, scoring=kwargs.get("scoring"),
+                          part_pose=part_pose)
     prm = params_from_kwargs(kwargs, (CandidateParams, GraspParams))  # --scoring is read here
     prm["grasps"].single_pose_index()  # one resting pose: InputError for --pose-index all
     g = load_gripper(gripper)

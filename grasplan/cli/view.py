@@ -44,7 +44,7 @@ def command(result: str, output: str, part: str | None, allow_other_part: bool, 
 
         raise InputError(f"--instance: {result} is not a picks file (grasplan.picks/1 from `grasplan pick`)")
     else:
-        res = load_result(result)
+        res = load_result(result, part=part, allow_other_part=allow_other_part, verify_part=True)  # re-pointed part: refused
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         path = write_viewer(res, output, part_path=part, allow_other_part=allow_other_part)

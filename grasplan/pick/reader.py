@@ -19,6 +19,7 @@ from ..cell import Cell, Obstacle
 from ..errors import InputError
 from ..grasp_table import GraspTable
 from ..gripper import gripper_from_json
+from ..inputs import check_input_file
 from ..motion import GripperEvent, Motion
 from ..result import PartRecord, PlanResult
 from ..scenefile import scene_from_dict
@@ -105,6 +106,7 @@ def result_from_picks(doc: Any, *, where: str = "picks", base: Path | None = Non
 
 def is_picks_file(path: str | os.PathLike) -> bool:
     """True when ``path`` is a JSON file whose ``schema`` is ``grasplan.picks/1`` (looked up in its head)."""
+    check_input_file(path, what="plan or picks file")  # a FIFO or a device is refused, never opened
     try:
         with open(path, "rb") as f:
             head = f.read(4096)
