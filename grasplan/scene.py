@@ -408,11 +408,6 @@ class CollisionScene:
             sh.owner = None
         self._apply()
 
-    @property
-    def extra_names(self) -> list[str]:
-        """Every extra body the scene was built with (placed or not)."""
-        return list(self._shared.extra_ids)
-
     # ------------------------------------------------------------------------------------------
     def _check_finger_model(self, gripper) -> None:
         """The fingers move as pure x translations of their opening-0 pose (checked once), plus

@@ -278,3 +278,27 @@ def test_pick_and_place_rechecked(rest):
 
     back = result_from_picks(doc)
     np.testing.assert_allclose(back.picks[0].motion.T_world_part_place, m.T_world_part_place)
+
+
+def test_a_gripper_whose_tcp_moves_is_refused():
+    with pytest.raises(InputError, match="TCP moves with the opening"):
+        Picker("ur5", gripper="robotiq_2f_85")
+
+
+def test_cli_refuses_an_output_over_a_file_the_scene_reads(tmp_path, rest):
+    import shutil
+
+    import yaml
+    from click.testing import CliRunner
+
+    from grasplan.cli import main
+
+    mesh = tmp_path / "bracket.stl"
+    shutil.copy(BRACKET, mesh)
+    doc = {"schema": "grasplan.scene/1", "cell": "bin", "parts": {"bracket": {"mesh": "bracket.stl"}},
+           "instances": [{"id": "a", "part": "bracket", "T": rest.tolist()}]}
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(doc))
+    before = mesh.read_bytes()
+    r = CliRunner().invoke(main, ["pick", str(tmp_path / "s.yaml"), "-o", str(mesh)])
+    assert r.exit_code == 3, r.output
+    assert mesh.read_bytes() == before

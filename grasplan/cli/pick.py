@@ -38,10 +38,17 @@ def command(scene, robot, gripper, cell, sequence, max_picks, output, **kwargs):
     from ..scenefile import load_scene
 
     t0 = time.perf_counter()
-    output = check_output(output, scene)
     apply_config_dirs(kwargs)
     params = PickParams(**kwargs)
     sc = load_scene(scene)  # bad input: exit 3 before anything is computed
+    # -o must not be any file the scene reads: meshes, grasp databases, the cloud, the cell, the YAMLs
+    reads = [scene, *(sc.resolve(p.mesh) for p in sc.parts if p.mesh), *(sc.resolve(p.grasps) for p in sc.parts
+                                                                         if p.grasps)]
+    if sc.cloud is not None:
+        reads.append(sc.resolve(sc.cloud.path))
+    scene_cell = sc.resolve(sc.cell) if ("/" in sc.cell or sc.cell.endswith((".yaml", ".yml"))) else sc.cell
+    output = check_output(output, *reads, gripper=gripper, cell=cell if cell is not None else str(scene_cell),
+                          robot=robot)
     picker = Picker(robot, gripper=gripper, cell=cell, params=params, progress=info)
     info(f"scene {scene}: {len(sc.instances)} instances of {len(sc.part_names())} parts")
     result = picker.plan(sc, sequence=sequence, max_picks=max_picks)

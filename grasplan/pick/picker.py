@@ -10,7 +10,9 @@ Per :meth:`Picker.plan` call:
    per part, every instance an extra body) are ready: ``timing_s["load"]``; then the geometric
    checks (:mod:`grasplan.pile_checks`: exit 3 for a part below the floor, warnings for
    interpenetrating instances);
-2. instances are tried in the accessibility order (:mod:`grasplan.pick.rank`); per instance first
+2. instances are tried in the accessibility order (:mod:`grasplan.pick.rank`), in two passes (the
+   best :data:`FIRST_PASS` grasps of every instance, then the rest of the undecided ones); per
+   instance first
    the lift: the part moved along the cell's retreat, at the line's waypoints beyond
    ``lift_contact``, against the neighbours and the cloud (the same for every grasp: a hit there
    fails the robot's lift check whatever the arm does, so the instance is ``blocked`` by that
@@ -28,7 +30,7 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -55,6 +57,10 @@ from .world import CLOUD, INSTANCE_PREFIX, PickWorld
 
 #: grasps gripper-checked per step while looking for collision-free ones
 CHECK_CHUNK = 256
+#: the first pass over the instances checks this many grasps of each (best ranked) before any
+#: instance's further grasps: a part whose good grasps are free is found before the deep search
+#: of a boxed-in one
+FIRST_PASS = 256
 _TIMING_KEYS = ("gripper_check", "lift_check", "ik", "collision", "approach", "lift", "transit", "place")
 
 
@@ -86,6 +92,9 @@ class Picker:
                  progress: Callable[[str], None] | None = None):
         self.robot = robot if isinstance(robot, Robot) else load_robot(robot)
         self.gripper = gripper if isinstance(gripper, Gripper) else load_gripper(gripper)
+        if self.gripper.moving_tcp:
+            raise InputError(f"gripper {self.gripper.name!r}: its TCP moves with the opening (a linkage gripper); "
+                             f"grasplan pick plans parallel-jaw grippers whose TCP stays put (e.g. schunk_egp_c_40)")
         self.cell = None if cell is None else (cell if isinstance(cell, Cell) else load_cell(cell))
         self.params = params
         self.progress = progress
@@ -93,6 +102,7 @@ class Picker:
         self._grasps: dict[str, GraspDatabase] = {}
         self._cells: dict[Any, _Cell] = {}
         self._clouds: dict[tuple, tuple[Any, np.ndarray, float]] = {}
+        self._cell_refs: dict[str, tuple[int, Cell]] = {}
 
     # -- parts --------------------------------------------------------------------------------------
     def add_part(self, name: str, mesh: str | os.PathLike | Part, *, units: str = "auto",
@@ -137,9 +147,16 @@ class Picker:
     def _cell_for(self, scene: Scene) -> _Cell:
         if self.cell is not None:
             cell = self.cell
-        else:
-            ref = scene.cell
-            cell = load_cell(scene.resolve(ref) if _looks_like_path(ref) else ref)
+        else:  # by name or path, read once (a path again when the file changed)
+            ref = str(scene.resolve(scene.cell)) if _looks_like_path(scene.cell) else scene.cell
+            try:
+                stamp = Path(ref).stat().st_mtime_ns if _looks_like_path(ref) else 0
+            except OSError:
+                stamp = -1
+            cached = self._cell_refs.get(ref)
+            if cached is None or cached[0] != stamp:
+                cached = self._cell_refs[ref] = (stamp, load_cell(ref))
+            cell = cached[1]
         key = cell
         st = self._cells.get(key)
         if st is None:
@@ -219,7 +236,7 @@ class Picker:
                                    tol=self.params.overlap_tol,
                                    bvhs={n: st.world.parts[n].bvh for n in sc.part_names()})
         timing["checks"] = time.perf_counter() - t
-        t_ready = time.perf_counter()
+        t_ready, cpu_ready = time.perf_counter(), time.process_time()
         timing.update({k: 0.0 for k in _TIMING_KEYS})
         p = self.params if seed is None else PickParams.from_json({**self.params.to_json(), "seed": int(seed)})
         stats = {"grasps_checked": 0, "grasps_tried": 0}
@@ -233,22 +250,48 @@ class Picker:
             order = instance_order([i.id for i in present], boxes)
             by_id = {i.id: i for i in present}
             picked_now: str | None = None
+            paused: list[tuple[str, Iterator[tuple[Pick | None, InstanceReport | None]]]] = []
+
+            def out_of_budget() -> bool:
+                return (max_picks is not None and len(picks) >= max_picks) or \
+                    (p.budget_s is not None and time.perf_counter() - t_ready > p.budget_s)
+
+            def take(iid: str, pick: Pick | None, rep: InstanceReport) -> bool:
+                nonlocal first_pick
+                reports[iid] = rep
+                if pick is None:
+                    return False
+                picks.append(pick)
+                if first_pick is None:
+                    first_pick = time.perf_counter() - t_ready
+                    timing["first_pick_cpu"] = time.process_time() - cpu_ready
+                return sequence
+
+            # pass 1: every instance's best FIRST_PASS grasps, in order; pass 2: the rest of the paused ones
             for k, iid in enumerate(order):
-                if (max_picks is not None and len(picks) >= max_picks) or \
-                        (p.budget_s is not None and time.perf_counter() - t_ready > p.budget_s):
+                if out_of_budget():
                     break
                 if iid in reports and reports[iid].status == "picked":
                     continue
-                pick, rep = self._plan_instance(st, by_id[iid], present, cloud is not None, p, timing, stats,
-                                                seed_base=k)
-                reports[iid] = rep
-                if pick is not None:
-                    picks.append(pick)
-                    if first_pick is None:
-                        first_pick = time.perf_counter() - t_ready
-                    if sequence:
+                gen = self._plan_instance(st, by_id[iid], present, cloud is not None, p, timing, stats, seed_base=k)
+                pick, rep = next(gen)
+                if rep is None:
+                    paused.append((iid, gen))
+                elif take(iid, pick, rep):
+                    picked_now = iid
+                    break
+            if picked_now is None:
+                for iid, gen in paused:
+                    if out_of_budget():
+                        break
+                    pick, rep = next(gen)
+                    assert rep is not None
+                    if take(iid, pick, rep):
                         picked_now = iid
                         break
+            if not sequence:
+                rank_of = {iid: n for n, iid in enumerate(order)}
+                picks.sort(key=lambda q: rank_of[q.instance])
             if not sequence or picked_now is None:
                 break
             present = [i for i in present if i.id != picked_now]
@@ -267,13 +310,16 @@ class Picker:
 
     def _plan_instance(self, st: _Cell, inst: Instance, present: list[Instance], with_cloud: bool, p: PickParams,
                        timing: dict[str, float], stats: dict[str, int], seed_base: int
-                       ) -> tuple[Pick | None, InstanceReport]:
+                       ) -> Iterator[tuple[Pick | None, InstanceReport | None]]:
+        """Yields ``(pick or None, report)`` once the instance is decided, or first ``(None, None)``
+        when its best :data:`FIRST_PASS` grasps gave nothing yet (the caller resumes it later)."""
         db = self._grasps[inst.part]
         rows, T_wt = rank_grasps(inst.T_world_part, db.T_part_tcp, db.score, p)
         if len(rows) == 0:
-            return None, InstanceReport(inst.id, inst.part, "no_grasp",
-                                        f"none of the part's {len(db)} grasps approaches within {p.max_tilt_deg:g} deg "
-                                        f"of straight down at this pose")
+            yield None, InstanceReport(inst.id, inst.part, "no_grasp",
+                                       f"none of the part's {len(db)} grasps approaches within {p.max_tilt_deg:g} deg "
+                                       f"of straight down at this pose")
+            return
         bodies = st.world.bodies(inst.id)
         hit_counts: dict[str, int] = {}
         first_fail: Outcome | None = None
@@ -297,20 +343,25 @@ class Picker:
         if np.any(lh >= 0):
             k_hit = int(np.flatnonzero(lh >= 0)[0])
             name = pile[int(lh[k_hit])].name
-            return None, InstanceReport(
+            yield None, InstanceReport(
                 inst.id, inst.part, "blocked" if name.startswith(INSTANCE_PREFIX) else "cloud",
                 f"lifting it {1e3 * float(st.cell.retreat_distance):g} mm along the retreat drags it through {name} "
                 f"after {1e3 * steps[k_hit]:.0f} mm (more than the {1e3 * p.lift_contact:g} mm of resting contact "
                 f"allowed), whatever the grasp", _blockers({name: 1}))
+            return
         for c0 in range(0, len(rows), CHECK_CHUNK):
+            if c0 == FIRST_PASS:
+                yield None, None  # paused: the other instances' best grasps first
             sel = slice(c0, c0 + CHECK_CHUNK)
             t = time.perf_counter()
-            first, _ = st.world.gripper_hits(inst.part, inst.id, T_wt[sel], db.width[rows[sel]], bodies)
+            # the bodies that blocked most grasps so far first: a blocked grasp needs fewer coal calls
+            order = sorted(bodies, key=lambda b: -hit_counts.get(b.name, 0))
+            first, _ = st.world.gripper_hits(inst.part, inst.id, T_wt[sel], db.width[rows[sel]], order)
             timing["gripper_check"] += time.perf_counter() - t
             stats["grasps_checked"] += len(first)
             for k_local, b in enumerate(first):
                 if b >= 0:
-                    name = bodies[b].name
+                    name = order[b].name
                     hit_counts[name] = hit_counts.get(name, 0) + 1
                     continue
                 k = c0 + k_local
@@ -327,9 +378,10 @@ class Picker:
                 out = plan_pick_motion(ctx, T_wt[k], db.T_part_tcp[r], float(db.width[r]),
                                        seed=p.seed * 1_000_003 + seed_base * 10_007 + r)
                 if out.motion is not None:
-                    return self._pick(inst, db, r, k, T_wt[k], out, st.cell), InstanceReport(
+                    yield self._pick(inst, db, r, k, T_wt[k], out, st.cell), InstanceReport(
                         inst.id, inst.part, "picked", f"grasp ranked {k} of {len(rows)}: {out.reason}"
                         + _hits_text(hit_counts, " better-ranked grasps"), _blockers(hit_counts))
+                    return
                 first_fail = first_fail or out
                 for b in out.blockers:  # neighbours hit by the robot or the carried part
                     hit_counts[b] = hit_counts.get(b, 0) + 1
@@ -339,16 +391,17 @@ class Picker:
                 break
         if first_fail is not None:
             status = "blocked" if first_fail.blockers else first_fail.status
-            return None, InstanceReport(inst.id, inst.part, status,
-                                        f"{tried} collision-free grasps tried, none planned; the best: "
-                                        f"{first_fail.reason}" + _hits_text(hit_counts, " grasps"),
-                                        _blockers(hit_counts))
+            yield None, InstanceReport(inst.id, inst.part, status,
+                                       f"{tried} collision-free grasps tried, none planned; the best: "
+                                       f"{first_fail.reason}" + _hits_text(hit_counts, " grasps"),
+                                       _blockers(hit_counts))
+            return
         blockers = _blockers(hit_counts)
         n_cloud = hit_counts.get(CLOUD, 0)
         status = "blocked" if blockers else "cloud" if n_cloud else "bin"
-        return None, InstanceReport(inst.id, inst.part, status,
-                                    f"every one of the {len(rows)} best-ranked grasps from above collides"
-                                    + _hits_text(hit_counts, " grasps"), blockers)
+        yield None, InstanceReport(inst.id, inst.part, status,
+                                   f"every one of the {len(rows)} best-ranked grasps from above collides"
+                                   + _hits_text(hit_counts, " grasps"), blockers)
 
     def _pick(self, inst: Instance, db: GraspDatabase, r: int, k: int, T_world_tcp: np.ndarray, out: Outcome,
               cell: Cell) -> Pick:

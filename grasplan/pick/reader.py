@@ -106,8 +106,8 @@ def result_from_picks(doc: Any, *, where: str = "picks", base: Path | None = Non
 
 def is_picks_file(path: str | os.PathLike) -> bool:
     """True when ``path`` is a JSON file whose ``schema`` is ``grasplan.picks/1`` (looked up in its head)."""
-    if not os.path.exists(path):
-        return False  # the plan reader says it is missing
+    if not Path(path).exists():
+        return False  # the plan reader says it is missing, in its words
     check_input_file(path, what="plan or picks file")  # a FIFO or a device is refused, never opened
     try:
         with open(path, "rb") as f:
