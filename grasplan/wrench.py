@@ -16,13 +16,17 @@ the two contacts is pressed with the normal force ``F = grip_force / 2`` (70 N f
 **Gravity margin** (:func:`gravity_margin`). Each contact is pressed with ``F`` (N, above). A
 contact resists a tangential force ``|t| <= mu F`` and a torque about the closing axis
 ``|tau| <= (2/3) mu F a``, combined elliptically: ``(|t| / (mu F))^2 + (tau / tau_max)^2 <= 1``. The
-load is the part's weight plus a 1 g acceleration in the worst direction: ``f = m g (g_hat + u)``
-for unit ``u`` (``N_DIRECTIONS`` Fibonacci directions and ``u = g_hat``), applied at the centre of
-mass, whose offset from the contact axis is the lever arm. Forces along the closing axis are held
-by the jaws' mechanism; tangential force is shared equally; the torque about the closing axis is
-held by torsional friction (shared by capacity); the torque perpendicular to it by a couple of
-opposite tangential forces ``|tau_perp| / width`` at the two contacts. ``gravity_margin`` =
-1 / (largest utilisation over both contacts and every direction): below 1 the part slips.
+loads are those of the lift and shake the MuJoCo check applies (:class:`LoadModel`, :data:`LOAD`):
+``f = m (g - a)`` for the gripper accelerations ``a`` of :meth:`LoadModel.accelerations` (the lift's
++-1.97 m/s^2, the shake's +-5 m/s^2 in 8 horizontal directions), applied at the centre of mass,
+whose offset from the contact axis is the lever arm. Forces along the closing axis are held by the
+jaws' mechanism; tangential force is shared equally; the torque about the closing axis is held by
+torsional friction (shared by capacity); the torque perpendicular to it first by the pads' pressure
+(a flat patch of smaller equivalent width ``w`` shifts its centre of pressure by up to
+``PRESSURE_ARM w`` = ``w / 6``, the kern: the pressure stays positive over the whole patch), the rest
+by a couple of opposite tangential forces ``|tau_perp| / width`` at the two contacts.
+``gravity_margin`` = 1 / (largest utilisation over both contacts and every load): below 1 the part
+slips.
 
 **Epsilon** (Ferrari-Canny L1). Two soft-finger contacts, unit normal force each: the friction
 cone linearised with ``CONE_EDGES`` (8) edges ``nu + mu (cos k t1 + sin k t2)`` plus the pure normal
@@ -60,21 +64,10 @@ QHULL_OPTIONS = "QJ Pp"
 EPSILON_TOL = 1e-9
 #: edges of the linearised friction cone
 CONE_EDGES = 8
-#: load directions sampled for the worst-case 1 g acceleration
-N_DIRECTIONS = 64
 #: standard gravity, m/s^2
 G = 9.81
 #: the gripper's ``grip_force`` is the sum over its jaws: each contact gets grip_force / this
 CONTACTS_PER_GRIP = 2
-
-
-def fibonacci_directions(n: int) -> np.ndarray:
-    """(n, 3) unit vectors spread evenly over the sphere (deterministic)."""
-    k = np.arange(n) + 0.5
-    z = 1.0 - 2.0 * k / n
-    phi = k * math.pi * (3.0 - math.sqrt(5.0))
-    r = np.sqrt(1.0 - z * z)
-    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
 
 
 def patch_radius(area: np.ndarray) -> np.ndarray:
