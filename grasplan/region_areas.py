@@ -102,7 +102,7 @@ def convex_areas(mesh: TriangleMesh, convex: np.ndarray, tol: Tolerance, adjacen
     # PATCH_DEG across), and detach whatever still strays by more than PATCH_DEG (each round only
     # removes edges or faces, so it ends)
     attached = use.copy()
-    limit = cos_planar
+    limit, cut_done = cos_planar, False
     while True:
         _, comp = connected_components(m, adj)
         vec = np.column_stack([np.bincount(comp[ids], weights=cr[ids, d], minlength=m) for d in range(3)])
@@ -110,13 +110,13 @@ def convex_areas(mesh: TriangleMesh, convex: np.ndarray, tol: Tolerance, adjacen
         stray = attached[ids] & (np.einsum("ij,ij->i", n[ids], cnorm[comp[ids]]) < limit)
         if not stray.any():
             break
-        if limit == cos_planar:
+        if not cut_done:
             curved = np.zeros(m, dtype=bool)
             curved[comp[ids[stray]]] = True
             cut = curved[comp[adj[:, 0]]]
             cell = normal_cells(n, PATCH_DEG / np.sqrt(2.0))
             adj = adj[~cut | (cell[adj[:, 0]] == cell[adj[:, 1]])]
-            limit = np.cos(np.radians(PATCH_DEG))
+            limit, cut_done = np.cos(np.radians(PATCH_DEG)), True
             continue
         attached[ids[stray]] = False
         adj = adj[attached[adj[:, 0]] & attached[adj[:, 1]]]
