@@ -37,6 +37,14 @@ if TYPE_CHECKING:
 PATCH_DEG = 1.0
 
 
+def _strays(comp: np.ndarray, n: np.ndarray, cr: np.ndarray, k: int, cos_limit: float) -> np.ndarray:
+    """(len(comp),) bool: faces (unit normals ``n``, area vectors ``cr``) more than ``arccos(cos_limit)``
+    from the area-weighted normal of their component ``comp`` (< ``k``)."""
+    vec = np.column_stack([np.bincount(comp, weights=cr[:, d], minlength=k) for d in range(3)])
+    cnorm = vec / np.maximum(np.linalg.norm(vec, axis=1), 1e-300)[:, None]
+    return np.einsum("ij,ij->i", n, cnorm[comp]) < cos_limit
+
+
 def normal_cells(n: np.ndarray, step_deg: float) -> np.ndarray:
     """(k,) int64 cell of each unit normal on a cube map: the dominant axis and its sign, and the
     angles of the other two components, in steps of ``step_deg`` centred on the axes (so normals along
@@ -100,26 +108,29 @@ def convex_areas(mesh: TriangleMesh, convex: np.ndarray, tol: Tolerance, adjacen
     # components; a component whose faces stray more than planar_deg from its normal is a tolerance
     # chain along a curved surface: cut it into patches by a grid on the normals (cube map, cells of
     # PATCH_DEG across), and detach whatever still strays by more than PATCH_DEG (each round only
-    # removes edges or faces, so it ends)
-    attached = use.copy()
-    limit, cut_done = cos_planar, False
-    while True:
-        _, comp = connected_components(m, adj)
-        vec = np.column_stack([np.bincount(comp[ids], weights=cr[ids, d], minlength=m) for d in range(3)])
-        cnorm = vec / np.maximum(np.linalg.norm(vec, axis=1), 1e-300)[:, None]
-        stray = attached[ids] & (np.einsum("ij,ij->i", n[ids], cnorm[comp[ids]]) < limit)
-        if not stray.any():
-            break
-        if not cut_done:
-            curved = np.zeros(m, dtype=bool)
-            curved[comp[ids[stray]]] = True
-            cut = curved[comp[adj[:, 0]]]
-            cell = normal_cells(n, PATCH_DEG / np.sqrt(2.0))
-            adj = adj[~cut | (cell[adj[:, 0]] == cell[adj[:, 1]])]
-            limit, cut_done = np.cos(np.radians(PATCH_DEG)), True
-            continue
-        attached[ids[stray]] = False
-        adj = adj[attached[adj[:, 0]] & attached[adj[:, 1]]]
+    # removes faces, so it ends). Only the curved components' faces are regrouped.
+    _, comp = connected_components(m, adj)
+    stray = _strays(comp[ids], n[ids], cr[ids], m, cos_planar)
+    if stray.any():
+        curved = np.zeros(m, dtype=bool)
+        curved[comp[ids[stray]]] = True
+        face_in = curved[comp] & use
+        sub = np.flatnonzero(face_in)
+        local = np.full(m, -1, dtype=np.int64)
+        local[sub] = np.arange(len(sub))
+        e = local[adj[face_in[adj[:, 0]] & face_in[adj[:, 1]]]]
+        cell = normal_cells(n[sub], PATCH_DEG / np.sqrt(2.0))
+        e = e[cell[e[:, 0]] == cell[e[:, 1]]]
+        attached = np.ones(len(sub), dtype=bool)
+        cos_patch = np.cos(np.radians(PATCH_DEG))
+        while True:
+            _, lc = connected_components(len(sub), e)
+            out = attached & _strays(lc, n[sub], cr[sub], len(sub), cos_patch)
+            if not out.any():
+                break
+            attached[out] = False
+            e = e[attached[e[:, 0]] & attached[e[:, 1]]]
+        comp[sub] = m + lc                       # labels apart from the untouched components'
     # renumber by lowest face index (faces are visited in index order): pose-independent ids
     _, first, inv = np.unique(comp[ids], return_index=True, return_inverse=True)
     rank = np.empty(len(first), dtype=np.int64)
