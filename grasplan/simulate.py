@@ -25,7 +25,9 @@ radius`` per newton, uniform pressure on a disc of the patch's area), the soft-f
 
 The simulation runs in the gripper's (TCP) frame, which only translates: lifting and shaking the
 gripper is exactly a change of the effective gravity ``R_world_tcp^T (g - a_gripper(t))`` and a
-table moving away. Protocol: settle ``SETTLE_S``, close ``CLOSE_S`` (pre-grasp opening
+table moving away. The lift and the shake are :data:`grasplan.wrench.LOAD`, the load model
+``gravity_margin`` checks (the margin takes their peaks: lift +-2 m/s^2, shake +-5 m/s^2 in any
+horizontal direction, x and y among them). Protocol: settle ``SETTLE_S``, close ``CLOSE_S`` (pre-grasp opening
 ``gripper.pregrasp_opening(width)``), lift ``LIFT_HEIGHT`` (10 cm) in ``LIFT_S`` (0.5 s, cosine
 profile, peak 2 m/s^2), shake ``SHAKE_ACCEL`` (+-5 m/s^2) along world x then y for ``SHAKE_S``
 (1 s in all, ``SHAKE_HZ`` sine). Success: at the end the part moved less than ``SLIP_TOL`` (5 mm, its
@@ -60,12 +62,13 @@ from .patches import contact_patches
 from .scoring import distinct_order
 from .status import Status
 from .transforms import check_transform, quaternions
-from .wrench import CONTACTS_PER_GRIP, torsion_length
+from .wrench import CONTACTS_PER_GRIP, LOAD, torsion_length
 
-#: lift height (m) and duration (s)
-LIFT_HEIGHT, LIFT_S = 0.10, 0.5
-#: shake amplitude (m/s^2), total duration (s, half along world x then half along y), frequency (Hz)
-SHAKE_ACCEL, SHAKE_S, SHAKE_HZ = 5.0, 1.0, 4.0
+#: lift height (m) and duration (s); shake amplitude (m/s^2), total duration (s, half along world x
+#: then half along y), frequency (Hz): the load model :data:`grasplan.wrench.LOAD`, which
+#: ``gravity_margin`` checks (one definition of the shake)
+LIFT_HEIGHT, LIFT_S = LOAD.lift_height, LOAD.lift_s
+SHAKE_ACCEL, SHAKE_S, SHAKE_HZ = LOAD.shake_accel, LOAD.shake_s, LOAD.shake_hz
 #: settle with open jaws, then close (s)
 SETTLE_S, CLOSE_S = 0.05, 0.3
 #: success thresholds: centre-of-mass displacement (m) and rotation (deg) relative to the jaws
