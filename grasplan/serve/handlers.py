@@ -28,9 +28,9 @@ def plan(service: Service, doc: Any) -> bytes:
     result = plan_part(req.part.part, service.robot, gripper=service.gripper, cell=service.cell,
                        T_world_part=req.T_world_part, **req.params)
     result = replace(result, part=replace(result.part, path=req.part.path.name))
-    chunks = stream_document(result, only_ok=req.only_ok)
+    chunks = stream_document(result)
     if chunks is None:  # a value the fast writer cannot encode: through the dict (refuses NaN)
-        return to_json_text(result.to_json(only_ok=req.only_ok)).encode("utf-8")
+        return to_json_text(result.to_json()).encode("utf-8")
     return "".join(chunks).encode("utf-8")
 
 

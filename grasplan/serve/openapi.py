@@ -42,9 +42,7 @@ def plan_body() -> dict[str, Any]:
         "part": {"type": "string", "description": "A part name from GET /parts (its mesh file's stem)."},
         "options": plan_options_schema(),
         "part_pose": {"description": "The part's pose instead of its resting pose: 'x,y,z,roll,pitch,yaw' "
-                                     "(m, degrees) or a 4x4 T_world_part."},
-        "only_ok": {"type": "boolean", "default": False,
-                    "description": "List only the collision-free grasps (a smaller document)."}}}
+                                     "(m, degrees) or a 4x4 T_world_part."}}}
     return _body(schema, {"part": "bracket", "options": {"top": 5, "seed": 1}})
 
 

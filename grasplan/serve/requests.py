@@ -23,6 +23,7 @@ import numpy as np
 from ..errors import InputError
 from ..option_kinds import KINDS, OptionSpec, check_fields, option_spec, read_value
 from ..params import ALL_POSES, PARAM_CLASSES, PlanParams, option_fields
+from ..transforms import MAX_CELL_COORD_M
 from ..scenefile import MAX_INSTANCES, SCENE_SCHEMA, Scene, scene_from_dict
 from .state import BUDGET_SHARE, PartEntry, Service
 
@@ -30,7 +31,7 @@ from .state import BUDGET_SHARE, PartEntry, Service
 MAX_INT_DIGITS = 20
 #: JSON nesting deeper than this is refused (a grasplan document is at most ~8 deep)
 MAX_DEPTH = 64
-PLAN_KEYS = ("part", "options", "part_pose", "only_ok")
+PLAN_KEYS = ("part", "options", "part_pose")
 PICK_OPTION_KEYS = ("max_picks", "seed", "sequence")
 EXPORT_KEYS = ("document", "format", "grasp", "instance", "max_accel", "velocity_scale", "program_name")
 _PARAM_ATTRS = dict(zip(PARAM_CLASSES, ("candidates", "grasps", "planning")))
@@ -135,7 +136,6 @@ class PlanRequest:
     part: PartEntry
     params: dict[str, Any]           #: candidates, grasps, planning (the dataclasses)
     T_world_part: np.ndarray | None  #: the part's pose instead of its resting pose
-    only_ok: bool
 
 
 def read_options(options: Any, *, budget_cap_s: float | None = None) -> dict[str, Any]:
@@ -186,7 +186,7 @@ def _replace_checked(obj: Any, **changes: Any) -> Any:
 
 
 def plan_request(doc: Any, service: Service) -> PlanRequest:
-    """A ``POST /plan`` body: ``{"part": NAME, "options": {...}, "part_pose": ..., "only_ok": false}``."""
+    """A ``POST /plan`` body: ``{"part": NAME, "options": {...}, "part_pose": ...}``."""
     d = _object(doc, "body", PLAN_KEYS)
     if "part" not in d:
         raise InputError(f"part: missing; name one of the service's parts: {', '.join(service.parts)}")
@@ -195,7 +195,10 @@ def plan_request(doc: Any, service: Service) -> PlanRequest:
     T = None
     if d.get("part_pose") is not None:
         T = np.asarray(_checked(_POSE, d["part_pose"], "part_pose"), dtype=np.float64)
-    return PlanRequest(entry, params, T, _bool(d.get("only_ok", False), "only_ok"))
+        if np.abs(T[:3, 3]).max() > MAX_CELL_COORD_M:
+            raise InputError(f"part_pose: the position is beyond {MAX_CELL_COORD_M:g} m of the world origin; give the "
+                             "part's pose in the cell (m)")
+    return PlanRequest(entry, params, T)
 
 
 # ---------------------------------------------------------------------------------------- /pick
@@ -214,7 +217,8 @@ def pick_request(doc: Any, service: Service) -> PickRequest:
     if not isinstance(doc, dict):
         raise InputError(f"scene: expected a {SCENE_SCHEMA} document (a JSON object), got {_type(doc)}")
     doc = dict(doc)
-    opts = _object(doc.pop("options", None) or {}, "options", PICK_OPTION_KEYS)
+    opts = doc.pop("options", None)
+    opts = _object({} if opts is None else opts, "options", PICK_OPTION_KEYS)
     max_picks = None if opts.get("max_picks") is None else _checked(_MAX_PICKS, opts["max_picks"], "options.max_picks")
     seed = None if opts.get("seed") is None else _checked(_SEED, opts["seed"], "options.seed")
     sequence = _bool(opts.get("sequence", False), "options.sequence")
