@@ -25,30 +25,49 @@ def parts_folder(dest: Path, names: tuple[str, ...] = ("box", "bracket", "gear")
     return dest
 
 
-def grid_scene(part_name: str, part_mesh: Any, cell: Any, n: int = 10, seed: int = 0,
-               jitter_m: float = 0.0) -> dict[str, Any]:
-    """A ``grasplan.scene/1`` document: ``n`` instances of one part resting in its most probable
-    pose on the bin floor, on a grid (5 per row), each turned by a seeded yaw; ``jitter_m``: a
-    seeded offset of each position (pose-estimator noise), well below the grid's clearance."""
-    from grasplan.stable_poses import place_on_table, stable_poses
-    from grasplan.transforms import rpy_matrix
+class GridScenes:
+    """``grasplan.scene/1`` documents of ``n`` instances of one part resting in its most probable
+    pose on the bin floor, on a grid (5 per row), each turned by a seeded yaw and moved by a seeded
+    offset of at most ``jitter_m`` (pose-estimator noise, within the grid's clearance)."""
 
-    rng = np.random.default_rng(seed)
-    R, _ = stable_poses(part_mesh)
-    ext = float(np.ptp(np.asarray(part_mesh.vertices), axis=0).max())
-    pitch = ext * 1.6
-    cols = 5
-    rows = math.ceil(n / cols)
-    instances = []
-    for k in range(n):
-        yaw = float(rng.uniform(0, 2 * np.pi))
-        Rw = rpy_matrix(0.0, 0.0, yaw) @ R[0]
-        T = place_on_table(part_mesh, Rw, cell)
-        i, j = k % cols, k // cols
-        T[0, 3] += (i - (cols - 1) / 2) * pitch + rng.uniform(-jitter_m, jitter_m)
-        T[1, 3] += (j - (rows - 1) / 2) * pitch + rng.uniform(-jitter_m, jitter_m)
-        instances.append({"id": f"{part_name}_{k}", "part": part_name, "T": T.tolist()})
-    return {"schema": "grasplan.scene/1", "instances": instances}
+    def __init__(self, part_name: str, part_mesh: Any, cell: Any, n: int = 10, jitter_m: float = 0.002):
+        from grasplan.stable_poses import part_centre_of_mass, stable_poses
+
+        self.name, self.mesh, self.cell, self.n, self.jitter = part_name, part_mesh, cell, n, jitter_m
+        R, _ = stable_poses(part_mesh)
+        self.R = R[0]
+        v = (np.asarray(part_mesh.vertices) - part_centre_of_mass(part_mesh)) @ self.R.T  # resting, about its COM
+        radius = float(np.linalg.norm(v[:, :2], axis=1).max()) + 0.004  # its footprint at any yaw, 4 mm spare
+        self.cols = 5
+        rows = math.ceil(n / self.cols)
+        half = np.asarray(cell.bin.inner, dtype=float) / 2 if cell.bin is not None else np.array([0.3, 0.3])
+        self.pitch = min(3.0 * radius, 2 * (half[0] - radius - jitter_m) / (self.cols - 1),
+                         2 * (half[1] - radius - jitter_m) / max(rows - 1, 1))
+        self.rows = rows
+        assert self.pitch >= 2 * (radius + jitter_m), "the bin is too small for this grid"
+
+    def scene(self, seed: int = 0) -> dict[str, Any]:
+        from grasplan.stable_poses import place_on_table
+        from grasplan.transforms import rpy_matrix
+
+        rng = np.random.default_rng(seed)
+        instances = []
+        for k in range(self.n):
+            T = place_on_table(self.mesh, rpy_matrix(0.0, 0.0, float(rng.uniform(0, 2 * np.pi))) @ self.R, self.cell)
+            i, j = k % self.cols, k // self.cols
+            T[0, 3] += (i - (self.cols - 1) / 2) * self.pitch + rng.uniform(-self.jitter, self.jitter)
+            T[1, 3] += (j - (self.rows - 1) / 2) * self.pitch + rng.uniform(-self.jitter, self.jitter)
+            instances.append({"id": f"{self.name}_{k}", "part": self.name, "T": T.tolist()})
+        return {"schema": "grasplan.scene/1", "instances": instances}
+
+
+def grid_scene(part_name: str, part_mesh: Any, cell: Any, n: int = 10, seed: int = 0) -> dict[str, Any]:
+    """One scene of :class:`GridScenes`."""
+    return GridScenes(part_name, part_mesh, cell, n).scene(seed)
+
+
+def percentile_ms(values: list[float], q: float) -> float:
+    return float(np.percentile(np.asarray(values) * 1e3, q))
 
 
 def malformed_requests(scene: dict[str, Any] | None, plan_doc: dict[str, Any] | None) -> list[tuple[str, str, bytes, dict[str, str]]]:
@@ -122,6 +141,8 @@ def malformed_requests(scene: dict[str, Any] | None, plan_doc: dict[str, Any] | 
             add(f"bad export {i}", "/export", d)
     add("no token", "/plan", {"part": "box"}, {"Authorization": ""})
     add("wrong token", "/plan", {"part": "box"}, {"Authorization": "Bearer wrong-token-000000"})
+    add("no token, pick", "/pick", scene or {}, {"Authorization": ""})
+    add("wrong token, pick", "/pick", scene or {}, {"Authorization": "Bearer " + TOKEN[::-1]})
     add("basic auth", "/parts", b"", {"Authorization": "Basic " + TOKEN})
     return out
 
@@ -149,3 +170,46 @@ def raw_request(port: int, head: bytes, body: bytes = b"", timeout_s: float = 30
             rest += chunk
     status = int(header.split(b" ", 2)[1]) if header.startswith(b"HTTP/") else 0
     return status, rest
+def run_load(port: int, bodies: list[bytes], n_requests: int, clients: int, token: str | None = TOKEN,
+             path: str = "/pick") -> tuple[list[float], list[str], list[bytes]]:
+    """``n_requests`` POSTs of ``bodies`` (cycled) from ``clients`` threads, each on its own
+    keep-alive connection: ``(latencies s, errors, response bodies)``; an error is any status but 200."""
+    import threading
+    import time
+
+    from grasplan.serve.loopback import Client
+
+    lat: list[float] = []
+    errors: list[str] = []
+    responses: list[bytes] = []
+    lock = threading.Lock()
+    counter = iter(range(n_requests))
+
+    def worker() -> None:
+        c = Client(port, token=token)
+        try:
+            while True:
+                with lock:
+                    k = next(counter, None)
+                if k is None:
+                    return
+                t = time.perf_counter()
+                try:
+                    status, data = c.request("POST", path, bodies[k % len(bodies)])
+                except OSError as exc:
+                    status, data = 0, str(exc).encode()
+                dt = time.perf_counter() - t
+                with lock:
+                    lat.append(dt)
+                    responses.append(data)
+                    if status != 200:
+                        errors.append(f"{status}: {data[:200]!r}")
+        finally:
+            c.close()
+
+    threads = [threading.Thread(target=worker) for _ in range(clients)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    return lat, errors, responses

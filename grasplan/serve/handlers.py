@@ -8,6 +8,7 @@ Responses never show the server's file paths: a plan's ``part.path`` is the mesh
 from __future__ import annotations
 
 from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
@@ -55,7 +56,8 @@ def _public_picks(doc: dict[str, Any], service: Service) -> dict[str, Any]:
 
 def export(service: Service, doc: Any) -> dict[str, Any]:
     """``{"format", "extension", "text", "files": {extension: text}}`` for a ``POST /export`` body:
-    the program of a plan (or picks) document, rendered in memory (no file is written)."""
+    the program of a plan document's grasp, or of a picks document's pick (``instance``, default
+    the first pick), rendered in memory (no file is written)."""
     from ..export_registry import get_format, render_export
 
     req = export_request(doc)
@@ -65,13 +67,46 @@ def export(service: Service, doc: Any) -> dict[str, Any]:
             raise InputError("instance: a plan document has no instances (instance is for a picks document)")
         res = _plan_result(service, req.document)
     elif schema == PICKS_SCHEMA:
-        raise InputError(f"document: {PICKS_SCHEMA} export is not available in this build; export a "
-                         f"{PLAN_SCHEMA} document")
+        if req.grasp is not None:
+            raise InputError("grasp: a picks document has one grasp per pick; choose the pick with instance")
+        res = _pick_plan(service, req.document, req.instance)
     else:
         raise InputError(f"document.schema: expected {PLAN_SCHEMA!r} or {PICKS_SCHEMA!r}, got {str(schema)[:40]!r}")
     files = render_export(res, req.format, grasp_id=req.grasp, **req.options)
     f = get_format(req.format)
     return {"format": req.format, "extension": f.extension, "text": files[f.extension], "files": files}
+
+
+def _check_robot(service: Service, doc: dict[str, Any]) -> None:
+    """The document's robot must be the service's: a robot's description names URDF files to read."""
+    robot = doc.get("robot")
+    src = robot.get("source") if isinstance(robot, dict) else None
+    if not isinstance(src, dict) or src.get("yaml") != service.robot.source_yaml:
+        name = robot.get("name") if isinstance(robot, dict) else None
+        raise InputError(f"document.robot: the document is for robot {str(name)[:40]!r}, not this service's robot "
+                         f"{service.robot.name!r} (as loaded by the service); export documents made by this service")
+
+
+def _pick_plan(service: Service, doc: dict[str, Any], instance: str | None) -> Any:
+    """One pick of a client's picks document as a one-grasp plan (:func:`grasplan.pick.reader.pick_as_plan`):
+    its robot must be the service's and each of its parts one of the service's (by sha256; the
+    meshes are read from the parts folder, never from a path the document names)."""
+    from ..pick.reader import pick_as_plan, result_from_picks
+
+    _check_robot(service, doc)
+    parts = doc.get("parts")
+    if not isinstance(parts, dict) or not parts:
+        raise InputError("document.parts: expected the picks document's parts ({name: {path, sha256, scale_to_m}})")
+    local: dict[str, Any] = {}
+    for name, rec in parts.items():
+        entry = service.part_by_sha256(rec.get("sha256") if isinstance(rec, dict) else None)
+        if entry is None or not isinstance(rec, dict):
+            raise InputError(f"document.parts.{str(name)[:40]}.sha256: none of the service's parts "
+                             f"({', '.join(service.parts)}); export picks made by this service")
+        local[name] = {**rec, "path": str(entry.path)}
+    res = result_from_picks({**doc, "parts": local}, where="document")
+    plan = pick_as_plan(res, instance)
+    return replace(plan, part=replace(plan.part, path=Path(plan.part.path).name))
 
 
 def _plan_result(service: Service, doc: dict[str, Any]) -> Any:
@@ -81,12 +116,7 @@ def _plan_result(service: Service, doc: dict[str, Any]) -> Any:
     from ..mesh import load_recorded_part
     from ..result_reader import result_from_document
 
-    robot = doc.get("robot")
-    src = robot.get("source") if isinstance(robot, dict) else None
-    if not isinstance(src, dict) or src.get("yaml") != service.robot.source_yaml:
-        name = robot.get("name") if isinstance(robot, dict) else None
-        raise InputError(f"document.robot: the plan is for robot {str(name)[:40]!r}, not this service's robot "
-                         f"{service.robot.name!r} (as loaded by the service); export plans made by this service")
+    _check_robot(service, doc)
     part = doc.get("part")
     sha = part.get("sha256") if isinstance(part, dict) else None
     entry = service.part_by_sha256(sha)

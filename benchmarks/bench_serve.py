@@ -1,0 +1,167 @@
+"""Load test of ``grasplan serve`` over loopback HTTP (issue 23's figures).
+
+    python benchmarks/bench_serve.py [--part TLess20] [--requests 500] [--clients 4] [--single 100]
+                                     [--workers 1]
+
+The service holds a warm picker for one part (a paper part when ../shared/parts/paper has it,
+else examples/parts/box.stl). Every request is ``POST /pick`` of a 10-instance scene (the part
+resting on the bin floor on a grid, seeded yaw and 2 mm position noise, a new scene per request
+for 50 scenes, then cycled) with ``max_picks: 1``, from keep-alive HTTP/1.1 connections:
+first one client alone (``--single`` requests), then ``--clients`` concurrent clients
+(``--requests`` requests). Then more than 100 malformed requests (bad JSON, wrong types, huge
+numbers, NaN, unknown parts, path traversal, missing token; plus an oversized body): each must
+get a 4xx, and ``/health`` must answer afterwards. ``--workers 1`` serves in this process
+(uvicorn in a thread); ``--workers N`` starts ``grasplan serve --workers N`` as a child process.
+
+Printed: p50/p95 latency and throughput of each run against the targets (p50 < 100 ms alone,
+p50 < 150 ms with 4 clients, 0 errors), the ratio p50/target, the picker's own ``plan`` time
+(timing_s.total of the responses: the share of the latency that is planning, not HTTP and JSON),
+peak RSS of the service, and the machine's load average (a shared machine's wall times grow
+with its load).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "tests"))
+
+from grasplan.cli.common import table  # noqa: E402
+from serve_support import (  # noqa: E402
+    TOKEN,
+    GridScenes,
+    malformed_requests,
+    percentile_ms,
+    raw_request,
+    run_load,
+)
+
+PAPER_DIR = Path(os.environ.get("GRASPLAN_PAPER_PARTS", ROOT.parent / "shared" / "parts" / "paper"))
+TARGET_SINGLE_MS = 100.0
+TARGET_CONCURRENT_MS = 150.0
+
+
+def _part(name: str | None) -> Path:
+    if name:
+        for folder in (PAPER_DIR, ROOT / "examples" / "parts"):
+            hits = sorted(folder.glob(f"{name}.*")) if folder.is_dir() else []
+            if hits:
+                return hits[0]
+        raise SystemExit(f"part {name!r} not found in {PAPER_DIR} or examples/parts")
+    paper = PAPER_DIR / "TLess20.stl"
+    return paper if paper.is_file() else ROOT / "examples" / "parts" / "box.stl"
+
+
+def _child_server(parts: Path, workers: int, env: dict[str, str]) -> tuple[subprocess.Popen, int]:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    proc = subprocess.Popen([sys.executable, "-c", "from grasplan.cli import main; main()", "serve", "--parts",
+                             str(parts), "--port", str(port), "--workers", str(workers)],
+                            env={**env, "GRASPLAN_TOKEN": TOKEN, "PYTHONPATH": str(ROOT)},
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    from grasplan.serve.loopback import Client
+
+    deadline = time.monotonic() + 600
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            raise SystemExit(f"grasplan serve exited: {proc.stderr.read().decode()[-2000:] if proc.stderr else ''}")
+        try:
+            if Client(port).json("GET", "/health")[0] == 200:
+                return proc, port
+        except OSError:
+            time.sleep(0.5)
+    raise SystemExit("grasplan serve did not start within 600 s")
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--part", default=None, help="part name (file stem) in the paper folder or examples/parts")
+    ap.add_argument("--requests", type=int, default=500, help="requests of the concurrent run")
+    ap.add_argument("--clients", type=int, default=4)
+    ap.add_argument("--single", type=int, default=100, help="requests of the one-client run")
+    ap.add_argument("--workers", type=int, default=1, help="service worker processes (1: in this process)")
+    a = ap.parse_args()
+
+    from grasplan.serve import ServeConfig, create_app
+    from grasplan.serve.loopback import Client, LoopbackServer
+    from grasplan.serve.state import Service
+
+    part_file = _part(a.part)
+    tmp = Path(tempfile.mkdtemp(prefix="bench_serve_"))
+    parts = tmp / "parts"
+    parts.mkdir()
+    shutil.copy(part_file, parts / part_file.name)
+    name = part_file.stem
+    t0 = time.perf_counter()
+    service = Service.start(ServeConfig(parts_dir=parts, databases=a.workers == 1),
+                            lambda line: print(f"  {line}", flush=True))
+    start_s = time.perf_counter() - t0
+    gs = GridScenes(name, service.parts[name].part.mesh, service.cell, n=10)
+    bodies = [json.dumps({**gs.scene(seed=k), "options": {"max_picks": 1}}).encode() for k in range(50)]
+    proc = None
+    try:
+        if a.workers == 1:
+            server = LoopbackServer(create_app(ServeConfig(parts_dir=parts, token=TOKEN), service=service))
+            server.__enter__()
+            port = server.port
+        else:
+            proc, port = _child_server(parts, a.workers, dict(os.environ))
+        Client(port, token=TOKEN).request("POST", "/pick", bodies[0])  # first-request costs out of the figures
+        rows = []
+        runs = {}
+        for label, n, clients, target in (("1 client", a.single, 1, TARGET_SINGLE_MS),
+                                          (f"{a.clients} clients", a.requests, a.clients, TARGET_CONCURRENT_MS)):
+            t = time.perf_counter()
+            lat, errors, responses = run_load(port, bodies, n, clients)
+            wall = time.perf_counter() - t
+            plan_ms = [json.loads(r)["timing_s"]["total"] * 1e3 for r in responses if r.startswith(b"{\"schema\"")]
+            p50 = percentile_ms(lat, 50)
+            runs[label] = (errors, p50)
+            rows.append((label, n, len(errors), p50, percentile_ms(lat, 95), n / wall,
+                         float(sorted(plan_ms)[len(plan_ms) // 2]) if plan_ms else float("nan"), target, p50 / target))
+        cases = malformed_requests(gs.scene(seed=999), None)
+        c = Client(port, token=TOKEN)
+        not_4xx = [lab for lab, path, body, headers in cases
+                   if not 400 <= c.request("GET" if path == "/parts" else "POST", path, body, headers=headers)[0] < 500]
+        head = (f"POST /pick HTTP/1.1\r\nHost: 127.0.0.1\r\nAuthorization: Bearer {TOKEN}\r\n"
+                f"Content-Length: {11 << 20}").encode()
+        if raw_request(port, head)[0] != 413:
+            not_4xx.append("oversized body")
+        health = c.json("GET", "/health")[0]
+    finally:
+        if proc is not None:
+            proc.send_signal(signal.SIGINT)
+            proc.wait(timeout=60)
+        elif a.workers == 1:
+            server.__exit__(None, None, None)
+        shutil.rmtree(tmp, ignore_errors=True)
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    rss_child = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
+    print(f"\ngrasplan serve: POST /pick, 10 instances of {name}, max_picks 1, workers {a.workers}; "
+          f"service start {start_s:.1f} s; load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
+    print(table(rows, header=("run", "requests", "errors", "p50 ms", "p95 ms", "req/s", "picker median ms",
+                              "target p50 ms", "p50/target")))
+    print(f"\nmalformed requests: {len(cases) + 1}, not answered 4xx: {len(not_4xx)} {not_4xx[:5]}; "
+          f"/health afterwards: {health}")
+    print(f"peak RSS: this process {rss:.0f} MiB" + (f", service processes {rss_child:.0f} MiB" if proc else ""))
+    ok = all(not e for e, _ in runs.values()) and not not_4xx and health == 200
+    print("targets: " + ", ".join(f"{k} p50 {'met' if p50 < tgt else 'MISSED'}" for (k, (_, p50)), tgt in
+                                  zip(runs.items(), (TARGET_SINGLE_MS, TARGET_CONCURRENT_MS))))
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
