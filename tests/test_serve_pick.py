@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -27,6 +28,7 @@ from serve_support import (  # noqa: E402
     run_load,
 )
 
+ROOT = Path(__file__).resolve().parents[1]
 LOAD_REQUESTS = int(os.environ.get("GRASPLAN_SERVE_LOAD", "24"))
 LOAD_CLIENTS = 4
 
@@ -157,3 +159,32 @@ def test_load_and_malformed_requests(server, client, scenes, capsys):
     assert bad == []
     status, h = client.json("GET", "/health")
     assert status == 200 and h["queued"] == 0
+
+
+def test_the_documented_node_client_works(server, scenes, tmp_path):
+    """docs/serve.md's 20-line Node.js client, run as written against the loopback service."""
+    import re
+    import shutil
+    import subprocess
+
+    node = shutil.which("node")
+    if node is None:
+        pytest.skip("node is not installed")
+    doc = (ROOT / "docs" / "serve.md").read_text()
+    code = re.search(r"```js\n(.*?)```", doc, re.S).group(1)
+    assert len(code.strip().splitlines()) <= 22
+    (tmp_path / "pick.mjs").write_text(code)
+    (tmp_path / "scene.json").write_text(json.dumps(scenes.scene(seed=7)))
+    env = {"PATH": os.environ.get("PATH", ""), "GRASPLAN_URL": f"http://127.0.0.1:{server.port}",
+           "GRASPLAN_TOKEN": TOKEN}
+    r = subprocess.run([node, "pick.mjs", "scene.json"], cwd=tmp_path, env=env, capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.splitlines()
+    assert sum(": picked" in line for line in lines) == 1
+    assert any(line.startswith("pick box_") and "q_grasp" in line for line in lines)
+    assert "movej(" in r.stdout and "movel(" in r.stdout  # the URScript program
+    env["GRASPLAN_TOKEN"] = "wrong-token-0000"
+    r = subprocess.run([node, "pick.mjs", "scene.json"], cwd=tmp_path, env=env, capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode != 0 and "HTTP 401" in r.stderr
