@@ -85,9 +85,19 @@ def test_config_refuses(tmp_path, kw, field):
         ServeConfig(parts_dir=tmp_path, **kw)
 
 
+def test_parse_size():
+    from grasplan.serve.config import parse_size
+
+    assert parse_size("10MB") == 10 << 20 and parse_size("512k") == 512 << 10 and parse_size(4096) == 4096
+    for bad in ("lots", "10 parsecs", "1", "9" * 400, "3GB", True, -5):
+        with pytest.raises(InputError, match="--max-body"):
+            parse_size(bad)
+
+
 def test_config_needs_a_parts_folder(tmp_path):
-    with pytest.raises(InputError, match="--parts"):
-        ServeConfig(parts_dir=tmp_path / "missing")
+    for bad in (tmp_path / "missing", "9" * 5000, tmp_path / "box.stl"):
+        with pytest.raises(InputError, match="--parts"):
+            ServeConfig(parts_dir=bad)
 
 
 # --------------------------------------------------------------------------------- the server

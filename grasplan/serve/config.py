@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import InputError
+from ..io import show_path
 from ..params import DEFAULT_GRIPPER, DEFAULT_ROBOT
 from ..scenefile import DEFAULT_CELL as SCENE_DEFAULT_CELL
 from ..scenefile import UNIT_CHOICES
@@ -58,7 +59,8 @@ def parse_size(value: str | int, name: str = "--max-body") -> int:
         if not m:
             raise InputError(f"{name}: cannot read {str(value)[:40]!r} as a size; write bytes or with a k, MB or "
                              "GB suffix, e.g. 10MB")
-        n = int(float(m.group(1)) * _SIZE_UNITS[m.group(2).lower()])
+        x = float(m.group(1)) * _SIZE_UNITS[m.group(2).lower()]
+        n = int(x) if math.isfinite(x) and x < 2**40 else 2**40
     if not 1024 <= n <= 2**31:
         raise InputError(f"{name}: expected a size between 1k and 2GB, got {value!r}")
     return n
@@ -104,8 +106,12 @@ class ServeConfig:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "parts_dir", Path(self.parts_dir).expanduser())
-        if not self.parts_dir.is_dir():
-            raise InputError(f"--parts {self.parts_dir}: not a folder; give the folder of the part meshes "
+        try:
+            is_dir = self.parts_dir.is_dir()
+        except (OSError, ValueError):  # a name too long for the file system, a NUL
+            is_dir = False
+        if not is_dir:
+            raise InputError(f"--parts {show_path(self.parts_dir)}: not a folder; give the folder of the part meshes "
                              "(a part's name is its file's stem)")
         if self.units not in UNIT_CHOICES:
             raise InputError(f"--units: {self.units!r} is not one of {', '.join(UNIT_CHOICES)}")
