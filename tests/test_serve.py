@@ -147,6 +147,13 @@ def test_health_and_the_lists(client, server, service):
         assert folder not in client.request("GET", path)[1].decode()
 
 
+def test_unknown_paths_and_methods_answer_json(client):
+    status, doc = client.json("GET", "/nosuch")
+    assert status == 404 and doc["error"] == "not_found" and "/nosuch" in doc["detail"]
+    status, doc = client.json("GET", "/plan")
+    assert status == 405 and doc["error"] == "method_not_allowed"
+
+
 def test_docs_and_openapi_are_open(server):
     anon = Client(server.port)
     status, spec = anon.json("GET", "/openapi.json")

@@ -138,7 +138,7 @@ def test_pick_refusals_name_the_field(client, scenes, change, field):
     assert status == 422 and field in doc["detail"], doc
 
 
-def test_load_and_malformed_requests(server, client, scenes, capsys):
+def test_load_and_malformed_requests(server, client, scenes, record_property):
     """The issue's load test (bounded: GRASPLAN_SERVE_LOAD requests): 10-instance scenes (each
     request its own seeded poses), max_picks 1, 4 concurrent clients: 0 errors, one pick each;
     then malformed /pick requests each get a 4xx and the service still answers."""
@@ -148,9 +148,9 @@ def test_load_and_malformed_requests(server, client, scenes, capsys):
     assert errors == []
     assert len(lat) == LOAD_REQUESTS
     assert all(len(json.loads(r)["picks"]) == 1 for r in responses)
-    with capsys.disabled():
-        print(f"\n/pick load: {LOAD_REQUESTS} requests, {LOAD_CLIENTS} clients, 10 instances, max_picks 1: "
-              f"p50 {percentile_ms(lat, 50):.0f} ms, p95 {percentile_ms(lat, 95):.0f} ms, 0 errors")
+    record_property("summary", f"grasplan serve /pick load: {LOAD_REQUESTS} requests, {LOAD_CLIENTS} clients, "
+                               f"10 instances, max_picks 1: p50 {percentile_ms(lat, 50):.0f} ms, "
+                               f"p95 {percentile_ms(lat, 95):.0f} ms, 0 errors")
     cases = malformed_requests(scenes.scene(), None)
     assert len(cases) >= 100 and sum(c[1] == "/pick" for c in cases) >= 40
     bad = [(label, s) for label, path, body, headers in cases

@@ -18,6 +18,7 @@ from typing import Any
 
 from fastapi import FastAPI, Request
 from fastapi.responses import JSONResponse, PlainTextResponse, Response
+from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from .. import __version__
 from ..errors import GrasplanError, InputError
@@ -77,6 +78,17 @@ def create_app(config: ServeConfig, *, service: Service | None = None,
     api.state.service = service
     api.state.jobs = jobs
     api.add_middleware(Guard, token=config.token, max_body=config.max_body)
+
+    @api.exception_handler(StarletteHTTPException)
+    async def http_error(request: Request, exc: StarletteHTTPException) -> JSONResponse:
+        kinds = {404: "not_found", 405: "method_not_allowed"}
+        return error(exc.status_code, kinds.get(exc.status_code, "http_error"),
+                     f"{request.method} {request.url.path}: {exc.detail}; see /docs")
+
+    @api.exception_handler(Exception)
+    async def unexpected(request: Request, exc: Exception) -> JSONResponse:  # outside the planning routes
+        log.exception("%s %s: internal error", request.method, request.url.path)
+        return error(500, "internal", f"internal error ({type(exc).__name__}); it is logged")
 
     async def run(request: Request, fn: Callable[[Service, Any], Any], what: str) -> Any:
         """Body -> JSON document -> ``fn(service, doc)`` on the planning thread; errors mapped to
