@@ -18,7 +18,7 @@ pytest.importorskip("uvicorn")
 from grasplan.errors import InputError  # noqa: E402
 from grasplan.serve import ServeConfig, create_app  # noqa: E402
 from grasplan.serve.loopback import Client, LoopbackServer  # noqa: E402
-from grasplan.serve.requests import BadRequest, parse_json, read_options  # noqa: E402
+from grasplan.serve.bodies import BadRequest, parse_json, read_options  # noqa: E402
 from grasplan.serve.state import Service, scan_parts  # noqa: E402
 from serve_support import FAST_PLAN, TOKEN, malformed_requests, parts_folder, raw_request  # noqa: E402
 

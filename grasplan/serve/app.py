@@ -27,7 +27,7 @@ from .config import ServeConfig
 from .guard import Guard
 from .jobs import Busy, JobQueue, TimedOut
 from .openapi import export_body, pick_body, plan_body
-from .requests import BadRequest, parse_json
+from .bodies import BadRequest, parse_json
 from .state import Service
 
 log = logging.getLogger("grasplan.serve")

@@ -13,7 +13,7 @@ from typing import Any
 
 from ..errors import InputError
 from ..io import to_json_text
-from .requests import export_request, pick_request, plan_request
+from .bodies import export_request, pick_request, plan_request
 from .state import Service
 
 PLAN_SCHEMA = "grasplan.plan/1"
@@ -21,7 +21,7 @@ PICKS_SCHEMA = "grasplan.picks/1"
 
 
 def plan(service: Service, doc: Any) -> bytes:
-    """``grasplan.plan/1`` JSON for a ``POST /plan`` body (see :func:`~grasplan.serve.requests.plan_request`)."""
+    """``grasplan.plan/1`` JSON for a ``POST /plan`` body (see :func:`~grasplan.serve.bodies.plan_request`)."""
     from ..planning import plan as plan_part
     from ..result_writer import stream_document
 

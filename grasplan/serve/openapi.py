@@ -1,5 +1,5 @@
 """Request-body schemas shown at ``/docs`` (OpenAPI). The service reads bodies itself
-(:mod:`grasplan.serve.requests`), so these describe the documents; they do not validate them.
+(:mod:`grasplan.serve.bodies`), so these describe the documents; they do not validate them.
 The plan options are listed from the parameter dataclasses (one definition)."""
 from __future__ import annotations
 
