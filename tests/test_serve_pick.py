@@ -188,3 +188,19 @@ def test_the_documented_node_client_works(server, scenes, tmp_path):
     r = subprocess.run([node, "pick.mjs", "scene.json"], cwd=tmp_path, env=env, capture_output=True, text=True,
                        timeout=120)
     assert r.returncode != 0 and "HTTP 401" in r.stderr
+
+
+def test_a_database_next_to_the_mesh_is_used_and_checked(service, tmp_path):
+    """``NAME.graspdb.npz`` next to a mesh is the part's database; one of another part stops the start."""
+    from grasplan.errors import InputError
+    from grasplan.graspdb import database_for, write_database
+
+    folder = parts_folder(tmp_path / "parts", ("box", "bracket"))
+    write_database(database_for(service.parts["box"].part, service.gripper), folder / "box.graspdb.npz")
+    lines: list[str] = []
+    Service.start(ServeConfig(parts_dir=folder), lines.append)
+    assert any("part box: grasp database ready (from box.graspdb.npz" in line for line in lines), lines
+    assert any("part bracket: grasp database ready (from the cache" in line for line in lines), lines
+    write_database(database_for(service.parts["bracket"].part, service.gripper), folder / "box.graspdb.npz")
+    with pytest.raises(InputError, match="box.graspdb.npz"):
+        Service.start(ServeConfig(parts_dir=folder))

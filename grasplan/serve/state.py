@@ -3,8 +3,9 @@ and picker. Built once per worker process (:meth:`Service.start`); nothing here 
 
 A part's name is its mesh file's stem in ``--parts`` (``TLess20.stl`` -> ``TLess20``); names follow
 the scene file's rule (:data:`grasplan.scenefile.NAME_RE`), so a client can only ever name a part
-the folder holds. Each part's grasp database comes from the cache or is computed when the service
-starts (:func:`grasplan.graspdb.database_for`, through the picker), with a progress line per part.
+the folder holds. Each part's grasp database is ``NAME.graspdb.npz`` next to its mesh when there
+is one, else it comes from the cache or is computed when the service starts
+(:func:`grasplan.graspdb.database_for`, through the picker), with a progress line per part.
 """
 from __future__ import annotations
 
@@ -20,6 +21,8 @@ from ..meshfile import SUPPORTED_SUFFIXES
 from ..scenefile import MAX_PARTS, NAME_RE, NAME_RULE
 from .config import ServeConfig
 
+#: a part's grasp database kept next to its mesh (``grasplan database PART -o NAME.graspdb.npz``)
+SIDE_DB_SUFFIX = ".graspdb.npz"
 #: a request's planning budget is this share of its time limit (the rest: queueing, the JSON)
 BUDGET_SHARE = 0.8
 
@@ -145,14 +148,18 @@ class Service:
 
 def _warm_picker(config: ServeConfig, robot: Any, gripper: Any, cell: Any, parts: dict[str, PartEntry],
                  progress: Callable[[str], None]) -> Any:
-    """A :class:`grasplan.Picker` holding every part with its grasp database (from the cache, or
-    computed now), its planning budget capped below the request time limit."""
+    """A :class:`grasplan.Picker` holding every part with its grasp database: ``NAME.graspdb.npz``
+    next to the mesh when there is one (refused for another part or gripper), else from the cache
+    or computed now (:func:`grasplan.graspdb.database_for`); the planning budget is capped below
+    the request time limit."""
     from ..pick import Picker, PickParams
 
-    picker = Picker(robot, gripper=gripper, cell=cell, params=PickParams(budget_s=BUDGET_SHARE * config.time_limit_s))
+    picker = Picker(robot, gripper=gripper, cell=cell, params=PickParams(budget_s=BUDGET_SHARE * config.time_limit_s),
+                    progress=lambda line: progress(f"  {line}"))
     for name, e in parts.items():
         t = time.perf_counter()
-        progress(f"part {name}: grasp database ...")
-        picker.add_part(name, e.part)
-        progress(f"part {name}: grasp database ready ({time.perf_counter() - t:.1f} s)")
+        side = e.path.with_name(name + SIDE_DB_SUFFIX)
+        picker.add_part(name, e.part, grasps=side if side.is_file() else None)
+        how = f"from {side.name}" if side.is_file() else "from the cache or computed"
+        progress(f"part {name}: grasp database ready ({how}, {time.perf_counter() - t:.1f} s)")
     return picker
