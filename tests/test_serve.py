@@ -94,6 +94,30 @@ def test_parse_size():
             parse_size(bad)
 
 
+def test_bind_warning(tmp_path):
+    for host in ("127.0.0.1", "127.1.2.3", "::1", "localhost"):
+        assert ServeConfig(parts_dir=tmp_path, host=host).bind_warning() is None
+    warning = ServeConfig(parts_dir=tmp_path, host="0.0.0.0").bind_warning()
+    assert warning is not None and "--token" in warning
+    assert ServeConfig(parts_dir=tmp_path, host="0.0.0.0", token=TOKEN).bind_warning() is None
+
+
+def test_workers_rebuild_the_app_from_the_settings(tmp_path, monkeypatch):
+    """``--workers N``: each uvicorn worker builds its app from the settings in the environment."""
+    from fastapi import FastAPI
+
+    from grasplan.serve.config import config_from_json, config_to_json
+    from grasplan.serve.run import CONFIG_ENV, app_from_env
+
+    cfg = ServeConfig(parts_dir=parts_folder(tmp_path, ("box",)), token=TOKEN, time_limit_s=12.5, databases=False,
+                      config_dirs=(str(tmp_path),), workers=2)
+    text = json.dumps(config_to_json(cfg))
+    assert config_from_json(json.loads(text)) == cfg
+    monkeypatch.setenv(CONFIG_ENV, text)
+    app = app_from_env()
+    assert isinstance(app, FastAPI) and app.state.service.config == cfg and list(app.state.service.parts) == ["box"]
+
+
 def test_config_needs_a_parts_folder(tmp_path):
     for bad in (tmp_path / "missing", "9" * 5000, tmp_path / "box.stl"):
         with pytest.raises(InputError, match="--parts"):
