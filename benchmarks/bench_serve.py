@@ -1,11 +1,14 @@
 """Load test of ``grasplan serve`` over loopback HTTP (issue 23's figures).
 
     python benchmarks/bench_serve.py [--part TLess20] [--requests 500] [--clients 4] [--single 100]
-                                     [--workers 1]
+                                     [--workers 1] [--scenes drop|grid] [--piles 10]
 
-The service holds a warm picker for one part (a paper part when ../shared/parts/paper has it,
-else examples/parts/box.stl). Every request is ``POST /pick`` of a 10-instance scene (the part
-resting on the bin floor on a grid, seeded yaw and 2 mm position noise) with ``max_picks: 1``, from keep-alive HTTP/1.1 connections:
+The service holds a warm picker for one part (TLess20 when ../shared/parts/paper has it, else
+examples/parts/box.stl). Every request is ``POST /pick`` of a 10-instance scene with
+``max_picks: 1``: one of ``--piles`` piles dropped into the packaged bin by ``grasplan scene
+drop``'s physics (cached), each instance moved by a seeded 0.5 mm of camera noise, so every
+request has poses of its own (``--scenes grid``: the tests' scenes, the part side by side on the
+bin floor), from keep-alive HTTP/1.1 connections:
 first one client alone (``--single`` requests), then ``--clients`` concurrent clients
 (``--requests`` requests). Then more than 100 malformed requests (bad JSON, wrong types, huge
 numbers, NaN, unknown parts, path traversal, missing token; plus an oversized body): each must
@@ -34,6 +37,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -65,6 +69,51 @@ def _part(name: str | None) -> Path:
     return paper if paper.is_file() else ROOT / "examples" / "parts" / "box.stl"
 
 
+def dropped_piles(name: str, part: Any, cell: Any, piles: int) -> list[dict]:
+    """``piles`` scenes of 10 instances of ``part`` dropped into the bin by ``grasplan scene drop``'s
+    physics (seeds 0, 1, ...; a seed whose pile does not fit is skipped), cached in
+    ``<cache folder>/bench_serve/``; instances only (the service knows the part by name)."""
+    from grasplan.cache import cache_dir
+    from grasplan.drop import DropParams, PileItem, drop_pile
+    from grasplan.errors import GrasplanError
+
+    folder = cache_dir() / "bench_serve"
+    folder.mkdir(parents=True, exist_ok=True)
+    out: list[dict] = []
+    seed = 0
+    while len(out) < piles and seed < 5 * piles:
+        path = folder / f"{name}_{part.sha256[:12]}_s{seed}.json"
+        if path.exists():
+            doc = json.loads(path.read_text())
+        else:
+            try:
+                res = drop_pile(cell, [PileItem(name, part, 10)], params=DropParams(seed=seed))
+                doc = {"schema": "grasplan.scene/1", "instances": [i.to_json() for i in res.scene.instances]}
+            except GrasplanError:
+                doc = None
+            path.write_text(json.dumps(doc))
+            print(f"  pile seed {seed}: {'dropped' if doc else 'did not fit'}", flush=True)
+        if doc:
+            out.append(doc)
+        seed += 1
+    return out
+
+
+def jittered(pile: dict, seed: int, jitter_m: float = 0.0005) -> dict:
+    """``pile`` with each instance moved by a seeded horizontal offset of at most ``jitter_m``
+    (a camera's noise: every request has poses of its own, no planner cache helps)."""
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    inst = []
+    for i in pile["instances"]:
+        T = [list(r) for r in i["T"]]
+        T[0][3] += float(rng.uniform(-jitter_m, jitter_m))
+        T[1][3] += float(rng.uniform(-jitter_m, jitter_m))
+        inst.append({**i, "T": T})
+    return {**pile, "instances": inst}
+
+
 def _child_server(parts: Path, workers: int, env: dict[str, str]) -> tuple[subprocess.Popen, int]:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
@@ -94,6 +143,9 @@ def main() -> int:
     ap.add_argument("--clients", type=int, default=4)
     ap.add_argument("--single", type=int, default=100, help="requests of the one-client run")
     ap.add_argument("--workers", type=int, default=1, help="service worker processes")
+    ap.add_argument("--scenes", choices=("drop", "grid"), default="drop",
+                    help="drop: physics-dropped piles (cached); grid: parts side by side on the bin floor (as the tests)")
+    ap.add_argument("--piles", type=int, default=10, help="distinct dropped piles (each request jitters one)")
     a = ap.parse_args()
 
     from grasplan.serve import ServeConfig
@@ -107,10 +159,21 @@ def main() -> int:
     shutil.copy(part_file, parts / part_file.name)
     name = part_file.stem
     local = Service.start(ServeConfig(parts_dir=parts, databases=False))  # the part and cell, for the scenes
-    gs = GridScenes(name, local.parts[name].part.mesh, local.cell, n=10)
+    if a.scenes == "grid":
+        gs = GridScenes(name, local.parts[name].part.mesh, local.cell, n=10)
+
+        def scene(seed: int) -> dict:
+            return gs.scene(seed=seed)
+    else:
+        piles = dropped_piles(name, local.parts[name].part, local.cell, a.piles)
+        if not piles:
+            raise SystemExit(f"no pile of 10 {name} fits the bin")
+
+        def scene(seed: int) -> dict:
+            return jittered(piles[seed % len(piles)], seed)
 
     def bodies(first_seed: int, n: int) -> list[bytes]:  # every request its own poses, as from a camera
-        return [json.dumps({**gs.scene(seed=first_seed + k), "options": {"max_picks": 1}}).encode() for k in range(n)]
+        return [json.dumps({**scene(first_seed + k), "options": {"max_picks": 1}}).encode() for k in range(n)]
 
     t0 = time.perf_counter()
     proc, port = _child_server(parts, a.workers, dict(os.environ))
@@ -131,7 +194,7 @@ def main() -> int:
             runs[label] = (errors, p50)
             rows.append((label, n, len(errors), p50, percentile_ms(lat, 95), n / wall,
                          float(sorted(plan_ms)[len(plan_ms) // 2]) if plan_ms else float("nan"), target, p50 / target))
-        cases = malformed_requests(gs.scene(seed=999), None)
+        cases = malformed_requests(scene(999), None)
         c = Client(port, token=TOKEN)
         not_4xx = [lab for lab, path, body, headers in cases
                    if not 400 <= c.request("GET" if path == "/parts" else "POST", path, body, headers=headers)[0] < 500]
