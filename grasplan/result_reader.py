@@ -162,7 +162,7 @@ def result_from_document(doc: Any, *, where: str = "document", part_mesh: Triang
 
         robot = robot_from_json(doc["robot"], where=f"{where}: robot")
         motions = _motions(grasps, status, robot, where)
-        check_fk(robot, gripper, part.T_world_part, table.T_part_tcp, motions, where)
+        check_fk(robot, gripper, part.T_world_part, table.T_part_tcp, motions, where, width=table.width)
     counts = {k: v for k, v in (doc.get("counts") or {}).items() if k in ("candidates", "posed_candidates", "poses",
                                                                            "regions")}
     timing = {str(k): float(v) for k, v in (doc.get("timing_s") or {}).items()
@@ -310,12 +310,16 @@ FK_ROT_TOL = 1e-2
 
 
 def check_fk(robot: Robot, gripper: Gripper, T_world_part: np.ndarray, T_part_tcp: np.ndarray,
-             motions: dict[int, Motion], where: str) -> None:
+             motions: dict[int, Motion], where: str, *, width: np.ndarray | None = None) -> None:
     """Each planned grasp re-checked by forward kinematics: ``FK(q_grasp) @ T_flange_tcp`` is its
     recorded TCP, the attached part is the grasp's inverse, and at the open event the part is at
-    ``T_world_part_place`` (within :data:`FK_POS_TOL` / :data:`FK_ROT_TOL`); InputError otherwise."""
+    ``T_world_part_place`` (within :data:`FK_POS_TOL` / :data:`FK_ROT_TOL`); InputError otherwise.
+    For a gripper whose TCP moves with the opening (``moving_tcp``) the TCPs are first taken to the
+    frame ``T_flange_tcp`` is given in, at each grasp's ``width`` (m)."""
     if not motions:
         return
+    if gripper.moving_tcp and width is not None:
+        T_part_tcp = np.asarray(T_part_tcp, dtype=np.float64) @ gripper.T_tcp_gripper(np.asarray(width, dtype=np.float64))
     ids = np.fromiter(motions, dtype=np.int64)
     q = np.stack([motions[i].q_grasp for i in ids])
     T_fk = robot.fk_batch(q) @ gripper.T_flange_tcp

@@ -113,10 +113,32 @@ class SimResult:
     seconds: float
     pieces: int
     jaw_torsion_m: np.ndarray | None = None
+    #: (k,) kg and (k, 3) m: the load on the flange while the part is carried (the gripper's mass and
+    #: centre of mass from its file plus the part in the jaws, flange frame); None without a gripper mass
+    payload_kg: np.ndarray | None = None
+    payload_com: np.ndarray | None = None
 
     def to_json(self, i: int) -> dict:
         """The ``sim`` object of grasp ``i``."""
         return {"success": bool(self.success[i]), "slip_m": float(self.slip_m[i]), "turn_deg": float(self.turn_deg[i])}
+
+
+def flange_payload(gripper: Gripper, mass_props: MassProperties, T_part_tcp: np.ndarray, width: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray] | None:
+    """The load on the flange while grasp ``i`` carries the part: ``(kg (k,), centre of mass (k, 3) in
+    the flange frame, m)``: the gripper's ``mass`` / ``com`` (its file) plus the part (its mass at
+    its centre of mass, placed by ``T_part_tcp`` (k, 4, 4) and the TCP at each ``width`` (k,)). None
+    when the gripper file gives no mass."""
+    if gripper.mass is None or gripper.com is None:
+        return None
+    T_tcp_part = np.linalg.inv(np.asarray(T_part_tcp, dtype=np.float64))
+    T_flange_tcp = np.stack([gripper.T_flange_tcp_at(float(wi)) for wi in np.asarray(width, dtype=np.float64)])
+    T_flange_part = T_flange_tcp @ T_tcp_part
+    c_part = T_flange_part[:, :3, :3] @ np.asarray(mass_props.com, dtype=np.float64) + T_flange_part[:, :3, 3]
+    m_g, m_p = float(gripper.mass), float(mass_props.mass)
+    total = np.full(len(c_part), m_g + m_p)
+    com = (m_g * np.asarray(gripper.com, dtype=np.float64) + m_p * c_part) / (m_g + m_p)
+    return total, com
 
 
 # ------------------------------------------------------------------------------------------------
@@ -358,8 +380,10 @@ def simulate_grasps(part_mesh: TriangleMesh, gripper: Gripper, T_world_part: np.
     previous_handler = mujoco.get_mju_user_warning()
     mujoco.set_mju_user_warning(lambda msg: None)
     try:
-        return _run_grasps(model, data, pieces, Twp, T, w, gripper, F, q_part, q_jaw, part_body, T_world_table,
-                           t_start, k, jaw_torsion)
+        res = _run_grasps(model, data, pieces, Twp, T, w, gripper, F, q_part, q_jaw, part_body, T_world_table,
+                          t_start, k, jaw_torsion)
+        load = flange_payload(gripper, mp, T, w)  # the gripper's mass and centre of mass + the part
+        return res if load is None else replace(res, payload_kg=load[0], payload_com=load[1])
     finally:
         mujoco.set_mju_user_warning(previous_handler)
 
