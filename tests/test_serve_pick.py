@@ -79,7 +79,8 @@ def test_pick_matches_the_library(client, service, scenes):
     assert status == 200, doc
     assert doc["schema"] == "grasplan.picks/1" and len(doc["picks"]) == 1
     assert [r["id"] for r in doc["instances"]] == [i["id"] for i in scene["instances"]]
-    assert {p["path"] for p in doc["parts"].values()} == {"box.stl"}  # no server path
+    assert {p["path"] for p in doc["parts"].values()} == {"box.stl"}
+    assert str(service.config.parts_dir) not in json.dumps(doc)  # no path of the service's parts folder
     ref_picker = Picker(service.robot, gripper=service.gripper, cell=service.cell,
                         params=PickParams(budget_s=service.picker.params.budget_s))
     ref_picker.add_part("box", service.parts["box"].part)
