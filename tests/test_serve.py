@@ -286,6 +286,31 @@ def test_oversized_bodies_get_413_before_they_are_read(server):
     assert raw_request(server.port, head)[0] == 400
 
 
+def test_gzip_bodies(client, box_plan, server):
+    """A gzip body counts its compressed size against --max-body; it may inflate to 8 x the
+    limit, no further; other encodings are 415."""
+    import gzip
+
+    doc = {"document": box_plan, "format": "urscript"}
+    status, plain = client.json("POST", "/export", doc)
+    assert status == 200
+    status, data = client.request("POST", "/export", gzip.compress(json.dumps(doc).encode()),
+                                  headers={"Content-Encoding": "gzip"})
+    assert status == 200 and json.loads(data) == plain
+    big = {"part": "box", "pad": "x" * (9 << 20)}  # inflates past 8 x the 1 MB limit
+    packed = gzip.compress(json.dumps(big).encode())
+    assert len(packed) < (1 << 20)
+    status, data = client.request("POST", "/plan", packed, headers={"Content-Encoding": "gzip"})
+    assert status == 413 and b"inflates" in data
+    status, data = client.request("POST", "/plan", b"not gzip", headers={"Content-Encoding": "gzip"})
+    assert status == 400 and b"gzip" in data
+    status, data = client.request("POST", "/plan", gzip.compress(b'{"part": "box"}')[:-8],
+                                  headers={"Content-Encoding": "gzip"})
+    assert status == 400 and b"truncated" in data
+    status, data = client.request("POST", "/plan", b'{"part": "box"}', headers={"Content-Encoding": "br"})
+    assert status == 415
+
+
 def test_internal_error_is_one_line_and_the_service_keeps_serving(client, monkeypatch, caplog):
     import grasplan.planning
 

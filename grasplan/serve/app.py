@@ -12,6 +12,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import uuid
+import zlib
 from collections.abc import AsyncIterator, Callable
 from contextlib import asynccontextmanager
 from typing import Any
@@ -35,8 +36,16 @@ log = logging.getLogger("grasplan.serve")
 _BIG_BODY = 1 << 20
 
 
+#: a gzip-compressed body may inflate to this many times --max-body
+GZIP_FACTOR = 8
+
+
 class TooLarge(Exception):
     pass
+
+
+class Unsupported(Exception):
+    """A Content-Encoding the service does not read (HTTP 415)."""
 
 
 def error(status: int, kind: str, detail: str) -> JSONResponse:
@@ -47,14 +56,36 @@ def error(status: int, kind: str, detail: str) -> JSONResponse:
 
 
 async def read_body(request: Request, limit: int) -> bytes:
-    """The request body, at most ``limit`` bytes (:class:`TooLarge` as soon as it passes them)."""
+    """The request body, at most ``limit`` bytes as sent (:class:`TooLarge` as soon as it passes
+    them); a ``Content-Encoding: gzip`` body is inflated to at most :data:`GZIP_FACTOR` x ``limit``."""
+    encoding = request.headers.get("content-encoding", "identity").strip().lower()
+    if encoding not in ("identity", "gzip"):
+        raise Unsupported(f"Content-Encoding {encoding[:40]!r}: send the body as is or gzip-compressed")
     chunks, n = [], 0
     async for chunk in request.stream():
         n += len(chunk)
         if n > limit:
             raise TooLarge(f"request body larger than the service's limit of {limit} bytes (--max-body)")
         chunks.append(chunk)
-    return b"".join(chunks)
+    body = b"".join(chunks)
+    if encoding == "gzip":  # inflated off the event loop
+        return await asyncio.to_thread(gunzip, body, GZIP_FACTOR * limit)
+    return body
+
+
+def gunzip(data: bytes, limit: int) -> bytes:
+    """``data`` inflated (gzip), at most ``limit`` bytes (:class:`TooLarge` beyond: a compressed
+    body cannot expand without bound); :class:`BadRequest` for data that is not gzip."""
+    d = zlib.decompressobj(wbits=16 + zlib.MAX_WBITS)
+    try:
+        out = d.decompress(data, limit + 1)
+    except zlib.error as exc:
+        raise BadRequest(f"body: Content-Encoding gzip, but not gzip data ({exc})") from None
+    if len(out) > limit or d.unconsumed_tail:
+        raise TooLarge(f"gzip body inflates to more than {limit} bytes ({GZIP_FACTOR} x --max-body)")
+    if not d.eof:
+        raise BadRequest("body: Content-Encoding gzip, but the gzip data is truncated")
+    return out
 
 
 def create_app(config: ServeConfig, *, service: Service | None = None,
@@ -100,6 +131,8 @@ def create_app(config: ServeConfig, *, service: Service | None = None,
             return await jobs.run(fn, service, doc, what=what)
         except TooLarge as exc:
             return error(413, "too_large", str(exc))
+        except Unsupported as exc:
+            return error(415, "unsupported_encoding", str(exc))
         except BadRequest as exc:
             return error(400, "bad_request", str(exc))
         except InputError as exc:
