@@ -160,7 +160,8 @@ def yaml_cases() -> list[InputCase]:
     out = [InputCase(f"yaml-embedded-robot-{vname}", "yaml_values", lambda f, r, v=value: _embedded_robot(f, r, v),
                      limit_s=20) for vname, value in BAD_VALUES]
     for kind, fld, tpl, numeric in _templates():
-        values = BAD_VALUES + (NUMBER_ONLY if numeric and kind in ("cell", "part_pose") else ())
+        values = BAD_VALUES + (NUMBER_ONLY if numeric and kind in ("cell", "part_pose") else ()) \
+            + ((("recursive-alias", "&r [1, *r]"),) if numeric else ())
         for vname, value in values:
             text = tpl.replace("@V@", value)
             out.append(InputCase(f"yaml-{kind}-{fld}-{vname}", "yaml_values",
