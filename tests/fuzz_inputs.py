@@ -166,6 +166,13 @@ def yaml_cases() -> list[InputCase]:
             text = tpl.replace("@V@", value)
             out.append(InputCase(f"yaml-{kind}-{fld}-{vname}", "yaml_values",
                                  lambda f, r, k=kind, t=text: _yaml_argv(k, f, t), limit_s=10))
+        if fld in ("description", "table_z", "grip_force", "weights.center", "pose_index", "T_world_part"):
+            # ~1 MB of entries: refused (or read) within a few seconds, never minutes
+            for bname, big in (("flow-1MB", "[" + ",".join(["1"] * 480_000) + "]"),
+                               ("block-1MB", "\n" + "".join("      - 1\n" for _ in range(95_000)))):
+                text = tpl.replace("@V@", big)
+                out.append(InputCase(f"yaml-{kind}-{fld}-{bname}", "yaml_values",
+                                     lambda f, r, k=kind, t=text: _yaml_argv(k, f, t), limit_s=8))
         first = tpl.splitlines()
         dup = tpl + next((ln for ln in first if ln and not ln.startswith((" ", "-", "#"))), "name: x") + "\n"
         out.append(InputCase(f"yaml-{kind}-{fld}-duplicate-key", "yaml_values",
