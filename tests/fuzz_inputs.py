@@ -648,7 +648,7 @@ def input_cases() -> list[InputCase]:
     return cases
 
 
-def subset(cases: list[InputCase], per_family: int = 6, heavy: int = 3) -> list[InputCase]:
+def subset(cases: list[InputCase], per_family: int = 5, heavy: int = 3) -> list[InputCase]:
     """The default run: up to ``per_family`` light cases of every family, spread evenly over it,
     and ``heavy`` cases that plan (the full run is GRASPLAN_FUZZ_FULL=1)."""
     keep: list[InputCase] = []
