@@ -5,7 +5,10 @@ scenes, pose files) is parsed here, bounded in time and memory, and every proble
 What it guarantees beyond ``yaml.safe_load``:
 
 * **size**: the caller's byte limit (:func:`read_yaml_file`; files are read through
-  :func:`grasplan.inputs.read_input_bytes`, so a FIFO or a device is refused before reading);
+  :func:`grasplan.inputs.read_input_bytes`, so a FIFO or a device is refused before reading) and
+  at most :data:`MAX_ENTRIES` structural characters, counted before parsing;
+* **time**: libyaml's C parser and composer when PyYAML has them (1 MB in about a second; the
+  pure-Python parser needs minutes for a long flow list), the checks below in Python;
 * **aliases**: a document whose aliases would expand to more than :data:`MAX_EXPANDED_NODES`
   nodes (a "billion laughs" bomb: 1 KB of nested anchors, 9^9 leaves) is refused after composing,
   before anything walks it; at most :data:`MAX_ALIASES` alias uses;
