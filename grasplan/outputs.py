@@ -55,7 +55,8 @@ def config_files(kind: str, name_or_path: str | os.PathLike | None) -> list[Path
         doc = read_yaml_file(y, what=f"{kind} file")
     except InputError:
         return [y]
-    out, stack, seen = [y], [doc], set()
+    out, stack = [y], [doc]
+    seen: set[int] = set()
     while stack and len(seen) < 100_000:
         node = stack.pop()
         if id(node) in seen:  # an alias (possibly recursive: a: &a [*a]) is walked once
