@@ -56,8 +56,12 @@ def config_files(kind: str, name_or_path: str | os.PathLike | None) -> list[Path
     except InputError:
         return [y]
     out, stack = [y], [doc]
-    while stack and len(out) < 10_000:
+    seen: set[int] = set()
+    while stack and len(seen) < 100_000:
         node = stack.pop()
+        if id(node) in seen:  # an alias (possibly recursive: a: &a [*a]) is walked once
+            continue
+        seen.add(id(node))
         if isinstance(node, dict):
             for k, v in node.items():
                 if k in _FILE_KEYS and isinstance(v, str) and v and "\x00" not in v and len(v) < 4096:

@@ -5,7 +5,10 @@ scenes, pose files) is parsed here, bounded in time and memory, and every proble
 What it guarantees beyond ``yaml.safe_load``:
 
 * **size**: the caller's byte limit (:func:`read_yaml_file`; files are read through
-  :func:`grasplan.inputs.read_input_bytes`, so a FIFO or a device is refused before reading);
+  :func:`grasplan.inputs.read_input_bytes`, so a FIFO or a device is refused before reading) and
+  at most :data:`MAX_ENTRIES` structural characters, counted before parsing;
+* **time**: libyaml's C parser and composer when PyYAML has them (1 MB in about a second; the
+  pure-Python parser needs minutes for a long flow list), the checks below in Python;
 * **aliases**: a document whose aliases would expand to more than :data:`MAX_EXPANDED_NODES`
   nodes (a "billion laughs" bomb: 1 KB of nested anchors, 9^9 leaves) is refused after composing,
   before anything walks it; at most :data:`MAX_ALIASES` alias uses;
@@ -27,7 +30,13 @@ from .inputs import read_input_bytes
 
 #: most alias uses in one document, and most nodes the document may expand to through them
 MAX_ALIASES = 1000
-MAX_EXPANDED_NODES = 1_000_000
+MAX_EXPANDED_NODES = 200_000
+#: most structural characters (``, : - [ { ?`` and line breaks) in one document, counted before
+#: parsing: a bound on its node count that keeps any document within about 2 s to read (a YAML
+#: batch manifest gets :data:`MAX_MANIFEST_ENTRIES`)
+MAX_ENTRIES = 50_000
+MAX_MANIFEST_ENTRIES = 200_000
+_STRUCTURE = ",:-[{?\n"
 #: deepest nesting of sequences and mappings
 MAX_DEPTH = 100
 #: default byte limit of a YAML input
@@ -59,11 +68,43 @@ class _Loader(yaml.SafeLoader):
             self.depth -= 1
 
 
+class _CLoader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):  # type: ignore[misc]
+    """libyaml's parser and composer (C: a 1 MB document composes in well under a second, where
+    the pure-Python parser needs minutes; libyaml refuses nesting deeper than 1000 itself), then
+    the shape checks of :func:`_check_shape` in Python."""
+
+
 # timestamps stay strings: no config field is a date, and datetime construction errors on 2001-13-45
-_Loader.yaml_implicit_resolvers = {
+_Loader.yaml_implicit_resolvers = _CLoader.yaml_implicit_resolvers = {
     k: [(tag, rx) for tag, rx in v if tag != "tag:yaml.org,2002:timestamp"]
     for k, v in yaml.SafeLoader.yaml_implicit_resolvers.items()
 }
+#: the loader used: the C one when PyYAML was built with libyaml
+LOADER: type = _CLoader if getattr(yaml, "__with_libyaml__", False) else _Loader
+
+
+def _check_shape(root: yaml.Node) -> None:
+    """Refuse nesting deeper than :data:`MAX_DEPTH` and more than :data:`MAX_ALIASES` alias uses
+    (a node reached again is an alias) in a composed document (iterative: no recursion)."""
+    stack: list[tuple[yaml.Node, int]] = [(root, 1)]
+    seen: set[int] = set()
+    aliases = 0
+    while stack:
+        node, depth = stack.pop()
+        if id(node) in seen:
+            aliases += 1
+            if aliases > MAX_ALIASES:
+                raise _Refused(f"more than {MAX_ALIASES} aliases (line {node.start_mark.line + 1}); "
+                               "expand them or split the file")
+            continue
+        seen.add(id(node))
+        if depth > MAX_DEPTH:
+            raise _Refused(f"nested deeper than {MAX_DEPTH} levels (line {node.start_mark.line + 1})")
+        if isinstance(node, yaml.SequenceNode):
+            stack += [(c, depth + 1) for c in node.value]
+        elif isinstance(node, yaml.MappingNode):
+            for k, v in node.value:
+                stack += [(k, depth + 1), (v, depth + 1)]
 
 
 class _Refused(Exception):
@@ -109,7 +150,7 @@ def _path_of(root: yaml.Node, target: yaml.Node) -> str:
     return ""
 
 
-def _construct(loader: _Loader, root: yaml.Node, where: str) -> Any:
+def _construct(loader: Any, root: yaml.Node, where: str) -> Any:
     failing: list[yaml.Node] = []
 
     def guarded(fn):
@@ -164,11 +205,15 @@ def _check_duplicates(root: yaml.Node, where: str) -> None:
             stack += node.value
 
 
-def load_yaml_text(text: str, where: str) -> Any:
+def load_yaml_text(text: str, where: str, *, max_entries: int = MAX_ENTRIES) -> Any:
     """The Python value of the YAML ``text`` (see the module docstring); ``where`` names the input
     in errors (``"cell /path/x.yaml"``)."""
+    entries = sum(text.count(c) for c in _STRUCTURE)
+    if entries > max_entries:
+        raise InputError(f"{where}: {entries:,} entries (commas, colons, dashes, brackets, lines) is more than a "
+                         f"grasplan YAML input holds (limit {max_entries:,}); split the file")
     try:
-        loader = _Loader(text)  # the reader refuses control characters here already
+        loader = LOADER(text)  # the reader refuses control characters here already
     except yaml.YAMLError as exc:
         problem = getattr(exc, "reason", None) or (str(exc).splitlines() or ["not readable"])[0]
         raise InputError(f"{where}: not valid YAML: {str(problem)[:120]} (control characters are not allowed)") from None
@@ -176,6 +221,7 @@ def load_yaml_text(text: str, where: str) -> Any:
         root = loader.get_single_node()
         if root is None:
             return None
+        _check_shape(root)
         if _expanded(root, {}) > MAX_EXPANDED_NODES:
             raise _Refused(f"its aliases expand to more than {MAX_EXPANDED_NODES} nodes (an alias bomb?); "
                            "write the values out")
@@ -188,6 +234,8 @@ def load_yaml_text(text: str, where: str) -> Any:
         mark = getattr(exc, "problem_mark", None)
         at = f" (line {mark.line + 1}, column {mark.column + 1})" if mark is not None else ""
         problem = getattr(exc, "problem", None) or first
+        if "maximum nesting depth" in str(problem):  # libyaml's own limit (1000)
+            problem = f"nested deeper than {MAX_DEPTH} levels"
         raise InputError(f"{where}: not valid YAML{at}: {str(problem)[:120]}") from None
     except RecursionError:
         raise InputError(f"{where}: YAML nested too deeply") from None
@@ -195,7 +243,8 @@ def load_yaml_text(text: str, where: str) -> Any:
         loader.dispose()
 
 
-def read_yaml_file(path: str | os.PathLike, *, what: str, max_bytes: int = DEFAULT_MAX_BYTES) -> Any:
+def read_yaml_file(path: str | os.PathLike, *, what: str, max_bytes: int = DEFAULT_MAX_BYTES,
+                   max_entries: int = MAX_ENTRIES) -> Any:
     """:func:`load_yaml_text` of the UTF-8 file ``path`` (a regular file of at most ``max_bytes``);
     ``what`` names the input (``"cell"``, ``"scoring"``)."""
     data = read_input_bytes(path, what=what, max_bytes=max_bytes)
@@ -203,4 +252,4 @@ def read_yaml_file(path: str | os.PathLike, *, what: str, max_bytes: int = DEFAU
         text = data.decode("utf-8")
     except UnicodeDecodeError:
         raise InputError(f"{what} {path}: not a UTF-8 text file; a {what} file is YAML") from None
-    return load_yaml_text(text, f"{what} {path}")
+    return load_yaml_text(text, f"{what} {path}", max_entries=max_entries)

@@ -127,9 +127,9 @@ def read_manifest(path: str | os.PathLike) -> list[PartEntry]:
                 continue
             entries.append(_entry_from_mapping(row, base, f"{path}:{reader.line_num}"))
     else:
-        from ..yamlfile import load_yaml_text
+        from ..yamlfile import MAX_MANIFEST_ENTRIES, load_yaml_text
 
-        doc = load_yaml_text(text, f"manifest {path}")
+        doc = load_yaml_text(text, f"manifest {path}", max_entries=MAX_MANIFEST_ENTRIES)
         defaults: dict = {}
         if isinstance(doc, dict):
             defaults = doc.get("defaults") or {}
