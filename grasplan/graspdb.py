@@ -64,7 +64,7 @@ from .quality import Quality
 from .scoring import PHYSICAL_TERMS, ScoringConfig, score_grasps
 from .status import Status
 from .transforms import check_transform
-from .wrench import CONTACTS_PER_GRIP, gravity_margin
+from .wrench import CONTACTS_PER_GRIP, gravity_margin, pressure_widths
 
 DB_SCHEMA = "grasplan.graspdb/1"
 #: the file name ending `grasplan database` and the cache use
@@ -159,7 +159,8 @@ class GraspDatabase:
         T = check_transform(T_world_part, "T_world_part")
         F = float(self.gripper.grip_force)
         gm = gravity_margin(self.mass_props, T, self.T_part_tcp[r], self.width[r], self.contact_area[r],
-                            mu=self.mu, normal_force=F / CONTACTS_PER_GRIP)
+                            mu=self.mu, normal_force=F / CONTACTS_PER_GRIP,
+                            patch_width=pressure_widths(self.contact_type[r], self.contact_width[r]))
         return Quality(contact_area=self.contact_area[r], contact_type=self.contact_type[r],
                        contact_width=self.contact_width[r], gravity_margin=gm, epsilon=self.epsilon[r],
                        grip_force=F, mu=self.mu)
