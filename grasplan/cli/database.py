@@ -33,8 +33,8 @@ def command(part, output, gripper, units, **kwargs):
     from ..mesh import load_part
 
     t_all = time.perf_counter()
-    output = check_output(output, part)
-    apply_config_dirs(kwargs)
+    apply_config_dirs(kwargs)  # first: --config-dir decides which file the gripper name reads
+    output = check_output(output, part, gripper=gripper, scoring=kwargs.get("scoring"))
     prm = params_from_kwargs(kwargs, (CandidateParams, GraspParams))
     g = load_gripper(gripper)
     info(f"database: {part} (gripper {g.name}; the part alone in its own frame)")

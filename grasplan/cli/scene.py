@@ -63,8 +63,8 @@ def drop(cell: str, parts: tuple[str, ...], units: str, output: str, **kwargs) -
     if Path(output).suffix.lower() not in SCENE_SUFFIXES:
         raise InputError(f"-o {output}: a scene file is YAML or JSON; name it *.yaml, *.yml or *.json")
     specs = [parse_part_count(p) for p in parts]
-    out = check_output(output, *[p for p, _ in specs])
-    apply_config_dirs(kwargs)
+    apply_config_dirs(kwargs)  # first: --config-dir decides which file the cell name reads
+    out = check_output(output, *[p for p, _ in specs], cell=cell)
     params = DropParams(**kwargs)
     c = load_cell(cell)
     if c.bin is None:
