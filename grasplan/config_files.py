@@ -272,7 +272,8 @@ def config_number(value: object, where: str, *, positive: bool = False, nonneg: 
     if not math.isfinite(out):
         raise ConfigError(f"{where}: must be finite, got {value!r}")
     if abs(out) > max_abs:
-        raise ConfigError(f"{where}: {out:g} is out of range (|value| <= {max_abs:g})")
+        shown = f"{value[:40]!r} = {out:g}" if isinstance(value, str) else f"{out:g}"  # an expression: both
+        raise ConfigError(f"{where}: {shown} is out of range (|value| <= {max_abs:g})")
     if positive and out <= 0:
         raise ConfigError(f"{where}: must be > 0, got {value!r}")
     if nonneg and out < 0:
