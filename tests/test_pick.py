@@ -63,7 +63,8 @@ def assert_rechecked(picker, res, present, cloud=None, resolution=0.005):
     for p in res.picks:
         insts = present.get(p.instance, res.scene.instances) if isinstance(present, dict) else res.scene.instances
         rep = recheck_pick(picker.robot, picker.gripper, res.cell, p, insts, meshes(picker), cloud=cloud,
-                           resolution=resolution, lift_contact=res.params.lift_contact)
+                           resolution=resolution, lift_contact=res.params.lift_contact,
+                           lift_depth=res.params.lift_depth)
         assert rep.configs > 20
         assert rep.ok, (p.instance, rep.problems)
         # the pick holds its part where the scene says, and the motion reaches the grasp
