@@ -63,6 +63,9 @@ def test_pair_depth_agrees_with_independent_depth(bracket, rest, axis, overlap):
     ref = mesh_depth(m, rest, m, Tb)
     assert got == pytest.approx(ref, abs=3e-4)
     assert got <= overlap + 1e-6          # no point is deeper than the overlap of the boxes
+    # "deeper than stop?" answered both ways (the k-d tree filter skips points within stop of the surface)
+    assert pair_depth(model, rest, model, Tb, stop=0.5 * ref) > 0.5 * ref
+    assert pair_depth(model, rest, model, Tb, stop=ref + 3e-4) <= ref + 3e-4
     apart = pair_depth(model, rest, model, at(Tb, *(0.01 * np.eye(3)[axis])))
     assert apart == 0.0
 

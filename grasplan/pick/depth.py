@@ -8,9 +8,13 @@ polyhedra is a vertex of one of them, except where two edges cross). Inside is d
 crossing count of :func:`grasplan.containment.points_inside_tree`; the distance of an inside point
 to the surface is coal's exact point-to-BVH distance.
 
-Everything per part (samples, ray grid, BVH) is built once (:class:`PartDepth`) and kept on the
-:class:`grasplan.Picker`; a query costs the NumPy transform and box filter of the samples and
-one coal distance per point inside, computed only for pairs coal reports in contact.
+Everything per part (samples, their k-d tree, ray grid, BVH) is built once (:class:`PartDepth`)
+and kept on the :class:`grasplan.Picker`. A query (only for pairs coal reports in contact) keeps
+the samples of one part inside the overlap of the two world boxes, then drops those within
+``stop`` of the other part's surface samples (k-d tree): a point that close to the surface is at
+most that deep whether inside or not. Only the rest (none when two neighbours touch side by side)
+get the inside test and coal's distance, so deciding "deeper than the tolerance?" is a few NumPy
+and k-d tree calls.
 """
 from __future__ import annotations
 
@@ -18,6 +22,7 @@ from dataclasses import dataclass
 
 import coal
 import numpy as np
+from scipy.spatial import cKDTree
 
 from ..containment import RayGrid, points_inside_tree, surface_samples
 from ..meshdata import MeshData
@@ -39,13 +44,14 @@ class PartDepth:
     lo: np.ndarray
     hi: np.ndarray
     hull: np.ndarray  #: convex hull vertices (world boxes)
+    tree: cKDTree  #: of the samples
 
     @classmethod
     def build(cls, mesh: MeshData, bvh: coal.BVHModelOBBRSS, hull: np.ndarray) -> "PartDepth":
         V = np.asarray(mesh.vertices, dtype=np.float64)
-        return cls(mesh=mesh, samples=surface_samples(mesh, spacing=SAMPLE_SPACING, max_samples=MAX_SAMPLES),
-                   grid=RayGrid(V, np.asarray(mesh.faces)), bvh=bvh, lo=V.min(axis=0), hi=V.max(axis=0),
-                   hull=np.asarray(hull, dtype=np.float64))
+        samples = surface_samples(mesh, spacing=SAMPLE_SPACING, max_samples=MAX_SAMPLES)
+        return cls(mesh=mesh, samples=samples, grid=RayGrid(V, np.asarray(mesh.faces)), bvh=bvh, lo=V.min(axis=0),
+                   hi=V.max(axis=0), hull=np.asarray(hull, dtype=np.float64), tree=cKDTree(samples))
 
 
 def _into(a: PartDepth, T_a: np.ndarray, b: PartDepth, T_b: np.ndarray, lo: np.ndarray, hi: np.ndarray,
@@ -58,6 +64,9 @@ def _into(a: PartDepth, T_a: np.ndarray, b: PartDepth, T_b: np.ndarray, lo: np.n
         return 0.0
     pts = (w - T_b[:3, 3]) @ T_b[:3, :3]  # b's frame
     pts = pts[np.all((pts >= b.lo) & (pts <= b.hi), axis=1)]
+    if len(pts) and np.isfinite(stop):  # within stop of b's surface: at most stop deep, inside or not
+        r, _ = b.tree.query(pts, distance_upper_bound=stop)
+        pts = pts[~np.isfinite(r)]
     if not len(pts):
         return 0.0
     inside = pts[points_inside_tree(b.grid, b.mesh, pts)]
@@ -82,7 +91,9 @@ def _into(a: PartDepth, T_a: np.ndarray, b: PartDepth, T_b: np.ndarray, lo: np.n
 
 def pair_depth(a: PartDepth, T_a: np.ndarray, b: PartDepth, T_b: np.ndarray, *, stop: float = np.inf) -> float:
     """Penetration depth (m, 0 when apart or touching) of ``a`` at ``T_a`` and ``b`` at ``T_b`` (see
-    the module docstring); once it exceeds ``stop`` the rest is skipped (a lower bound above ``stop``)."""
+    the module docstring). With a finite ``stop`` it answers "deeper than ``stop``?": the result is
+    a depth found above ``stop`` (a lower bound: the search stops there) when there is one, else a
+    value at most ``stop`` (points within ``stop`` of the other surface are not measured)."""
     T_a, T_b = np.asarray(T_a, dtype=np.float64), np.asarray(T_b, dtype=np.float64)
     wa = a.hull @ T_a[:3, :3].T + T_a[:3, 3]
     wb = b.hull @ T_b[:3, :3].T + T_b[:3, 3]
