@@ -281,11 +281,6 @@ def test_pick_and_place_rechecked(rest):
     np.testing.assert_allclose(back.picks[0].motion.T_world_part_place, m.T_world_part_place)
 
 
-def test_a_gripper_whose_tcp_moves_is_refused():
-    with pytest.raises(InputError, match="TCP moves with the opening"):
-        Picker("ur5", gripper="robotiq_2f_85")
-
-
 def test_cli_refuses_an_output_over_a_file_the_scene_reads(tmp_path, rest):
     import shutil
 

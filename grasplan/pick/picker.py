@@ -93,9 +93,6 @@ class Picker:
                  progress: Callable[[str], None] | None = None):
         self.robot = robot if isinstance(robot, Robot) else load_robot(robot)
         self.gripper = gripper if isinstance(gripper, Gripper) else load_gripper(gripper)
-        if self.gripper.moving_tcp:
-            raise InputError(f"gripper {self.gripper.name!r}: its TCP moves with the opening (a linkage gripper); "
-                             f"grasplan pick plans parallel-jaw grippers whose TCP stays put (e.g. schunk_egp_c_40)")
         self.cell = None if cell is None else (cell if isinstance(cell, Cell) else load_cell(cell))
         self.params = params
         self.progress = progress
@@ -329,6 +326,10 @@ class Picker:
         tried = 0
         ctx: MotionContext | None = None
         rows, T_wt = rows[: p.max_checked], T_wt[: p.max_checked]
+        # checks and motions in the frame the gripper's shapes and T_flange_tcp are given in: for a
+        # gripper whose TCP moves with the opening, the grasp TCP moved to it (as grasplan plan does)
+        T_tcp_g = self.gripper.T_tcp_gripper(db.width[rows]) if self.gripper.moving_tcp else None
+        T_plan = T_wt if T_tcp_g is None else T_wt @ T_tcp_g
         T_place = p.place_matrix() if p.place is not None else (None if st.cell.place is None
                                                                   else np.asarray(st.cell.place, dtype=np.float64))
         lift_dir = unit_direction(st.cell.retreat_direction)
@@ -385,7 +386,7 @@ class Picker:
             t = time.perf_counter()
             # the bodies that blocked most grasps so far first: a blocked grasp needs fewer coal calls
             order = sorted(bodies, key=lambda b: -hit_counts.get(b.name, 0))
-            first, _ = st.world.gripper_hits(inst.part, inst.id, T_wt[sel], db.width[rows[sel]], order)
+            first, _ = st.world.gripper_hits(inst.part, inst.id, T_plan[sel], db.width[rows[sel]], order)
             timing["gripper_check"] += time.perf_counter() - t
             stats["grasps_checked"] += len(first)
             for k_local, b in enumerate(first):
@@ -405,7 +406,8 @@ class Picker:
                                         lift_depth=lift_depth if p.lift_depth > 0 else None)
                 tried += 1
                 stats["grasps_tried"] += 1
-                out = plan_pick_motion(ctx, T_wt[k], db.T_part_tcp[r], float(db.width[r]),
+                T_part_g = db.T_part_tcp[r] if T_tcp_g is None else db.T_part_tcp[r] @ T_tcp_g[k]
+                out = plan_pick_motion(ctx, T_plan[k], T_part_g, float(db.width[r]),
                                        seed=p.seed * 1_000_003 + seed_base * 10_007 + r)
                 if out.motion is not None:
                     yield self._pick(inst, db, r, k, T_wt[k], out, st.cell), InstanceReport(
