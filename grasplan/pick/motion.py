@@ -7,7 +7,8 @@ solution free at the grasp with the jaws at the pre-grasp opening; the straight 
 back from the grasp to the pre-grasp (``backoff`` along the TCP's -z) and free; the straight lift
 (the cell's retreat direction and distance, jaws at the contact width, the part attached) free
 except that within the first ``lift_contact`` of TCP travel the part in the jaws may touch what it
-rests on (the table, the bin, an obstacle, a neighbour); then the transit ``q_home -> q_pregrasp``:
+rests on (the table, the bin, an obstacle, a neighbour) and all along it a neighbour by at most
+``lift_depth`` (:mod:`grasplan.pick.depth`); then the transit ``q_home -> q_pregrasp``:
 the straight joint-space segment when it is free, else through a via point above the pre-grasp
 (:func:`_transit`), else OMPL RRTConnect. Every path is checked at
 ``interpolation.STEP`` rad.
