@@ -117,6 +117,9 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenes", type=int, default=20)
     ap.add_argument("--no-cold", action="store_true", help="skip the fresh-process runs")
+    ap.add_argument("--lift-depth", type=float, default=None,
+                    help="PickParams.lift_depth in m (default the picker's; 0: the strict lift rule)")
+    ap.add_argument("--profile", metavar="FILE", help="write a cProfile of the measured plans to FILE")
     args = ap.parse_args()
     missing = [p for p in PARTS if not (PAPER_DIR / p).exists()]
     if missing:
@@ -126,16 +129,31 @@ def main() -> int:
     paths, big = scenes(args.scenes + 1)
     from grasplan.pick import Picker
 
-    picker = Picker("ur5", progress=lambda s: print(" ", s, flush=True))
+    from grasplan.pick.params import PickParams
+
+    params = PickParams() if args.lift_depth is None else PickParams(lift_depth=args.lift_depth)
+    picker = Picker("ur5", params=params, progress=lambda s: print(" ", s, flush=True))
     for p in PARTS:
         picker.add_part(Path(p).stem.lower(), load_part(PAPER_DIR / p))
     load0 = os.getloadavg()[0]
     picker.plan(paths[-1])  # warm-up on a scene not measured
     rows, first, first_cpu, whole, per_grasp, cpu = [], [], [], [], [], []
+    n_inst = n_picked = 0
+    prof = None
+    if args.profile:
+        import cProfile
+
+        prof = cProfile.Profile()
     for path in paths[:-1]:
         c = time.process_time()
+        if prof is not None:
+            prof.enable()
         res = picker.plan(path)
+        if prof is not None:
+            prof.disable()
         c = time.process_time() - c
+        n_inst += len(res.instances)
+        n_picked += len(res.picks)
         t = res.timing_s
         tried = res.stats.get("grasps_tried", 0)
         motion = sum(t.get(k, 0.0) for k in MOTION_KEYS)
@@ -151,6 +169,9 @@ def main() -> int:
                      round(c, 3), tried, round(1e3 * motion / max(tried, 1), 2), round(1e3 * t["gripper_check"], 1)))
     print(table(rows, header=("scene", "instances", "picked", "first_pick_ms", "plan_s", "cpu_s", "grasps_tried",
                               "ms/grasp", "gripper_check_ms")))
+    print(f"picked {n_picked} of {n_inst} instances (lift_depth {1e3 * picker.params.lift_depth:g} mm)")
+    if prof is not None:
+        prof.dump_stats(args.profile)
     med = statistics.median
     summary = [
         ("first_pick median (ms)", round(1e3 * med(first), 1), 100, round(1e3 * med(first) / 100, 2)),

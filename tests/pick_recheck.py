@@ -11,7 +11,11 @@ point of the cloud as the cube of its octree leaf (``floor(p / resolution)`` cel
 * lift (jaws at the contact width, the instance attached by ``T_tcp_part``): the same, plus the
   carried instance against table, bin, every other instance, the cloud and the links not on the
   tool joint. Within the first ``lift_contact`` metres of TCP travel from the grasp (FK) the carried
-  instance may touch the table, the bin or a neighbour (it rests on them); nothing else may touch.
+  instance may touch the table, the bin or a neighbour (it rests on them); beyond it, it may touch
+  a neighbour only when the two interpenetrate by at most ``lift_depth`` (+ :data:`DEPTH_SLACK` for
+  the sampling), measured here independently of grasplan (:func:`mesh_depth`: trimesh's random
+  surface samples and vertices, a generalised winding number for inside, trimesh's exact
+  closest point on the triangles for the distance); nothing else may touch.
 """
 from __future__ import annotations
 
@@ -22,6 +26,56 @@ import numpy as np
 from fcl_recheck import FclWorld, Report, densify
 
 from grasplan.cell import Obstacle
+
+
+#: the planner and this check sample the surfaces differently: depths may differ by about this (m)
+DEPTH_SLACK = 0.0003
+
+
+def _winding(V: np.ndarray, F: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """Generalised winding number of each point (k,) (van Oosterom-Strackee solid angles)."""
+    out = np.zeros(len(pts))
+    tri = V[F]
+    for c in range(0, len(pts), 256):
+        p = pts[c:c + 256]
+        a, b, d = (tri[None, :, i, :] - p[:, None, :] for i in range(3))
+        la, lb, ld = (np.linalg.norm(x, axis=2) for x in (a, b, d))
+        num = np.einsum("kfi,kfi->kf", a, np.cross(b, d))
+        den = la * lb * ld + np.einsum("kfi,kfi->kf", a, b) * ld + np.einsum("kfi,kfi->kf", a, d) * lb \
+            + np.einsum("kfi,kfi->kf", b, d) * la
+        out[c:c + 256] = (2.0 * np.arctan2(num, den)).sum(axis=1) / (4.0 * np.pi)
+    return out
+
+
+def _depth_one_way(ma, Ta, mb, Tb, n_samples: int) -> float:
+    import trimesh
+
+    Va, Fa = np.asarray(ma.vertices, dtype=np.float64), np.asarray(ma.faces)
+    Vb, Fb = np.asarray(mb.vertices, dtype=np.float64), np.asarray(mb.faces)
+    pts, _ = trimesh.sample.sample_surface(trimesh.Trimesh(Va, Fa, process=False), n_samples, seed=1)
+    pts = np.vstack([Va, pts])
+    T = np.linalg.inv(Tb) @ Ta
+    local = pts @ T[:3, :3].T + T[:3, 3]
+    local = local[np.all((local >= Vb.min(axis=0)) & (local <= Vb.max(axis=0)), axis=1)]
+    if not len(local):
+        return 0.0
+    inside = local[_winding(Vb, Fb, local) > 0.5]
+    best = 0.0
+    tri = Vb[Fb]
+    for c in range(0, len(inside), 64):
+        p = inside[c:c + 64]
+        cp = trimesh.triangles.closest_point(np.repeat(tri[None], len(p), axis=0).reshape(-1, 3, 3),
+                                             np.repeat(p, len(tri), axis=0))
+        d = np.linalg.norm(cp - np.repeat(p, len(tri), axis=0), axis=1).reshape(len(p), len(tri)).min(axis=1)
+        best = max(best, float(d.max()))
+    return best
+
+
+def mesh_depth(ma, Ta, mb, Tb, *, n_samples: int = 20_000) -> float:
+    """Penetration depth (m) of mesh ``ma`` at ``Ta`` and ``mb`` at ``Tb``: the largest distance to the
+    other's surface of a surface point of either inside the other (written independently of
+    grasplan.pick.depth)."""
+    return max(_depth_one_way(ma, Ta, mb, Tb, n_samples), _depth_one_way(mb, Tb, ma, Ta, n_samples))
 
 
 def pile_obstacles(instances, meshes, *, exclude: str, cloud=None, resolution: float = 0.005) -> list[Obstacle]:
@@ -43,7 +97,7 @@ def pile_obstacles(instances, meshes, *, exclude: str, cloud=None, resolution: f
 
 
 def recheck_pick(robot, gripper, cell, pick, instances, meshes, *, cloud=None, resolution: float = 0.005,
-                 lift_contact: float = 0.002, step: float = 0.01) -> Report:
+                 lift_contact: float = 0.002, lift_depth: float = 0.0, step: float = 0.01) -> Report:
     """Re-check one :class:`grasplan.pick.Pick` against the pile ``instances`` present when it was planned."""
     obstacles = pile_obstacles(instances, meshes, exclude=pick.instance, cloud=cloud, resolution=resolution)
     world = FclWorld(robot, gripper, replace(cell, obstacles=tuple(cell.obstacles) + tuple(obstacles)),
@@ -54,6 +108,8 @@ def recheck_pick(robot, gripper, cell, pick, instances, meshes, *, cloud=None, r
     l0, l1 = m.segment("lift")
     T_tcp_part = np.asarray(m.T_tcp_part)
     rep = Report()
+    rep.lift_depths = []  # type: ignore[attr-defined]  # depths of the accepted and refused lift contacts
+    by_id = {i.id: i for i in instances if i.id != pick.instance}
     from fcl_recheck import RobotLinks
 
     tcp = RobotLinks(robot, gripper.T_flange_tcp)
@@ -75,6 +131,19 @@ def recheck_pick(robot, gripper, cell, pick, instances, meshes, *, cloud=None, r
                 if k == 1 and travel <= lift_contact + 1e-9:
                     hits = [h for h in hits if not (h.startswith("part (attached) vs ")
                                                     and (h.endswith("vs table") or " vs obstacle:" in h))]
+                elif k == 1 and lift_depth > 0:  # shallow contacts with neighbours, by an independent depth
+                    T_part = tcp.fk_tcp(q) @ T_tcp_part
+                    keep = []
+                    for h in hits:
+                        iid = h[len("part (attached) vs obstacle:instance_"):]
+                        if h.startswith("part (attached) vs obstacle:instance_") and iid in by_id:
+                            d = mesh_depth(meshes[pick.part], T_part, meshes[by_id[iid].part], by_id[iid].T_world_part)
+                            rep.lift_depths.append(d)
+                            if d <= lift_depth + DEPTH_SLACK:
+                                continue
+                            h += f" ({1e3 * d:.2f} mm deep)"
+                        keep.append(h)
+                    hits = keep
             if hits:
                 rep.problems.append(f"{mode} q={np.round(q, 4).tolist()}: " + ", ".join(hits[:3]))
                 break

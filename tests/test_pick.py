@@ -63,7 +63,8 @@ def assert_rechecked(picker, res, present, cloud=None, resolution=0.005):
     for p in res.picks:
         insts = present.get(p.instance, res.scene.instances) if isinstance(present, dict) else res.scene.instances
         rep = recheck_pick(picker.robot, picker.gripper, res.cell, p, insts, meshes(picker), cloud=cloud,
-                           resolution=resolution, lift_contact=res.params.lift_contact)
+                           resolution=resolution, lift_contact=res.params.lift_contact,
+                           lift_depth=res.params.lift_depth)
         assert rep.configs > 20
         assert rep.ok, (p.instance, rep.problems)
         # the pick holds its part where the scene says, and the motion reaches the grasp
@@ -278,11 +279,6 @@ def test_pick_and_place_rechecked(rest):
 
     back = result_from_picks(doc)
     np.testing.assert_allclose(back.picks[0].motion.T_world_part_place, m.T_world_part_place)
-
-
-def test_a_gripper_whose_tcp_moves_is_refused():
-    with pytest.raises(InputError, match="TCP moves with the opening"):
-        Picker("ur5", gripper="robotiq_2f_85")
 
 
 def test_cli_refuses_an_output_over_a_file_the_scene_reads(tmp_path, rest):

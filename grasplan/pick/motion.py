@@ -7,7 +7,8 @@ solution free at the grasp with the jaws at the pre-grasp opening; the straight 
 back from the grasp to the pre-grasp (``backoff`` along the TCP's -z) and free; the straight lift
 (the cell's retreat direction and distance, jaws at the contact width, the part attached) free
 except that within the first ``lift_contact`` of TCP travel the part in the jaws may touch what it
-rests on (the table, the bin, an obstacle, a neighbour); then the transit ``q_home -> q_pregrasp``:
+rests on (the table, the bin, an obstacle, a neighbour) and all along it a neighbour by at most
+``lift_depth`` (:mod:`grasplan.pick.depth`); then the transit ``q_home -> q_pregrasp``:
 the straight joint-space segment when it is free, else through a via point above the pre-grasp
 (:func:`_transit`), else OMPL RRTConnect. Every path is checked at
 ``interpolation.STEP`` rad.
@@ -24,6 +25,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -114,6 +116,9 @@ class MotionContext:
     #: ``(T_world_tcp (k, 4, 4), width) -> first body hit per pose (-1 none)`` and the body names
     lift_gripper_check: Any = None
     body_names: tuple[str, ...] = ()
+    #: ``(T_world_part of the carried part, neighbour names) -> deepest penetration (m)``
+    #: (:mod:`grasplan.pick.depth`); None: any contact beyond ``lift_contact`` is a collision
+    lift_depth: Any = None
 
     def __post_init__(self) -> None:
         self.q_home = np.asarray(self.robot.q_home, dtype=np.float64)
@@ -129,26 +134,41 @@ def _support_only(pairs: list[tuple[str, str, str]]) -> bool:
     return True
 
 
-def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touch: int
+def _part_vs_instances(pairs: list[tuple[str, str, str]]) -> list[str] | None:
+    """The neighbours (``instance:<id>``) of pairs that are all the carried part against an
+    instance, else None."""
+    out = []
+    for a, b, _ in pairs:
+        other = b if a == "part" else a if b == "part" else None
+        if other is None or not other.startswith("instance:"):
+            return None
+        out.append(other)
+    return out
+
+
+def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touch: int,
+                   shallow: Callable[[np.ndarray, list[str]], bool] | None = None
                    ) -> list[tuple[str, str, str]] | None:
     """The colliding pairs where the lift ``path`` (k, n) first hits something with the part
-    attached (None: free). Within the first ``n_touch`` waypoints only the part resting on a
-    support is allowed."""
+    attached (None: free). Within the first ``n_touch`` waypoints the part resting on a support is
+    allowed; all along, contacts of the part with neighbours only for which ``shallow(q, names)``
+    is true (their penetration depth within the tolerance, :mod:`grasplan.pick.depth`)."""
     n_touch = int(min(max(n_touch, 0), len(path) - 1))
-    tail = path[n_touch:]
-    if not scene.path_free(tail, width):
-        hit = scene.path_collisions(tail, width)
-        return [("?", "?", "?")] if hit is None else hit[1]
-    if n_touch == 0:
-        return None
-    head = path[: n_touch + 1]
-    if scene.path_free(head, width):
-        return None
-    for q in interpolate_path(head):
-        if scene.is_free(q, width):
+    for k0, k1, support in ((n_touch, len(path), False), (0, n_touch + 1, True)):
+        part = path[k0:k1]
+        if support and n_touch == 0:
             continue
-        pairs = scene.colliding_pairs(q, width)
-        if not _support_only(pairs):
+        if scene.path_free(part, width):
+            continue
+        for q in interpolate_path(part):
+            if scene.is_free(q, width):
+                continue
+            pairs = scene.colliding_pairs(q, width)
+            if support and _support_only(pairs):
+                continue
+            names = None if shallow is None else _part_vs_instances(pairs)
+            if names and shallow is not None and shallow(q, names):
+                continue
             return pairs
     return None
 
@@ -278,7 +298,13 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
             why.setdefault("lift_kin", reason)
             continue
         t = time.perf_counter()
-        pairs = lift_collision(att, lift, width, n_touch)
+        shallow = None
+        if ctx.lift_depth is not None and p.lift_depth > 0:
+            T_flange_part = ctx.T_flange_tcp @ T_tcp_part_of(T_part_tcp)
+
+            def shallow(q: np.ndarray, names: list[str]) -> bool:
+                return bool(ctx.lift_depth(robot.fk(q) @ T_flange_part, names) <= p.lift_depth)
+        pairs = lift_collision(att, lift, width, n_touch, shallow)
         timing["collision"] += time.perf_counter() - t
         if pairs is not None:
             count["lift"] += 1

@@ -36,9 +36,14 @@ class PickParams(OptionSet):
     path_attempts: int = spec(1, "int", "RRTConnect attempts per transit query.", lo=1, hi=20)
     max_path_queries: int = spec(1, "int", "RRTConnect queries per grasp (distinct IK solutions).", lo=1, hi=64)
     lift_contact: float = spec(0.002, "length0", "Lift: within this TCP travel from the grasp the part in the jaws "
-                               "may touch the bin, the table or a neighbour it rests on (beyond it, any contact "
-                               "is a collision: a part dragged through its neighbour is no pick).", hi=0.05,
+                               "may touch the bin, the table or a neighbour it rests on (beyond it, only contacts "
+                               "with neighbours within --lift-depth: a part dragged through its neighbour is no "
+                               "pick).", hi=0.05,
                                show="2mm")
+    lift_depth: float = spec(0.001, "length0", "Lift: all along it the part in the jaws may touch a neighbour "
+                             "when they interpenetrate by at most this much (a part sliding up beside the one it "
+                             "rests against in a settled pile); deeper is a collision (dragged through it). 0: any "
+                             "contact beyond --lift-contact is a collision.", hi=0.01, show="1mm")
     overlap_tol: float = spec(0.002, "length0", "Scene checks: instances interpenetrating by more than this are "
                               "a warning; a part more than this below the bin floor, the table or inside an "
                               "obstacle is an error.", hi=0.05, show="2mm")

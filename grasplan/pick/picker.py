@@ -49,6 +49,7 @@ from ..robot_model import Robot
 from ..scene import CollisionScene, ExtraBody
 from ..scenefile import Instance, Scene, load_scene
 from ..graspdb import GraspDatabase, database_for, load_database
+from .depth import PartDepth, pair_depth
 from .motion import MotionContext, Outcome, plan_pick_motion
 from .params import PickParams
 from .rank import instance_order, rank_grasps
@@ -61,7 +62,7 @@ CHECK_CHUNK = 256
 #: instance's further grasps: a part whose good grasps are free is found before the deep search
 #: of a boxed-in one
 FIRST_PASS = 256
-_TIMING_KEYS = ("gripper_check", "lift_check", "ik", "collision", "approach", "lift", "transit", "place")
+_TIMING_KEYS = ("gripper_check", "lift_check", "lift_depth", "ik", "collision", "approach", "lift", "transit", "place")
 
 
 @dataclass
@@ -92,9 +93,6 @@ class Picker:
                  progress: Callable[[str], None] | None = None):
         self.robot = robot if isinstance(robot, Robot) else load_robot(robot)
         self.gripper = gripper if isinstance(gripper, Gripper) else load_gripper(gripper)
-        if self.gripper.moving_tcp:
-            raise InputError(f"gripper {self.gripper.name!r}: its TCP moves with the opening (a linkage gripper); "
-                             f"grasplan pick plans parallel-jaw grippers whose TCP stays put (e.g. schunk_egp_c_40)")
         self.cell = None if cell is None else (cell if isinstance(cell, Cell) else load_cell(cell))
         self.params = params
         self.progress = progress
@@ -103,6 +101,7 @@ class Picker:
         self._cells: dict[Any, _Cell] = {}
         self._clouds: dict[tuple, tuple[Any, np.ndarray, float]] = {}
         self._cell_refs: dict[str, tuple[int, Cell]] = {}
+        self._depth: dict[str, PartDepth] = {}  # per part name: depth probes (grasplan.pick.depth)
 
     # -- parts --------------------------------------------------------------------------------------
     def add_part(self, name: str, mesh: str | os.PathLike | Part, *, units: str = "auto",
@@ -120,6 +119,7 @@ class Picker:
             db = load_database(Path(grasps), part=part, gripper=self.gripper)
         self._parts[name] = part
         self._grasps[name] = db
+        self._depth.pop(name, None)
         for st in self._cells.values():  # scenes holding the old geometry are rebuilt
             st.world.add_part(name, part)
             st.scenes.pop(name, None)
@@ -326,6 +326,10 @@ class Picker:
         tried = 0
         ctx: MotionContext | None = None
         rows, T_wt = rows[: p.max_checked], T_wt[: p.max_checked]
+        # checks and motions in the frame the gripper's shapes and T_flange_tcp are given in: for a
+        # gripper whose TCP moves with the opening, the grasp TCP moved to it (as grasplan plan does)
+        T_tcp_g = self.gripper.T_tcp_gripper(db.width[rows]) if self.gripper.moving_tcp else None
+        T_plan = T_wt if T_tcp_g is None else T_wt @ T_tcp_g
         T_place = p.place_matrix() if p.place is not None else (None if st.cell.place is None
                                                                   else np.asarray(st.cell.place, dtype=np.float64))
         lift_dir = unit_direction(st.cell.retreat_direction)
@@ -335,19 +339,45 @@ class Picker:
         # the carried part against the neighbours and the cloud (the cell's boxes: the robot's check,
         # which lets the part slide along a wall it touches within ATTACHED_CONTACT_TOL)
         pile = [b for b in bodies if b.name.startswith(INSTANCE_PREFIX) or b.name == CLOUD]
+        by_name = {INSTANCE_PREFIX + i.id: i for i in present}
+
+        def lift_depth(T_world_part: np.ndarray, names: list[str]) -> float:
+            """Deepest penetration of the carried part at ``T_world_part`` into the neighbours ``names``."""
+            t_d = time.perf_counter()
+            a = self._depth_of(st, inst.part)
+            d = 0.0
+            for n in names:
+                o = by_name[n]
+                d = max(d, pair_depth(a, T_world_part, self._depth_of(st, o.part), o.T_world_part, stop=p.lift_depth))
+                if d > p.lift_depth:
+                    break
+            timing["lift_depth"] += time.perf_counter() - t_d
+            return d
+
+        def shallow_hit(T_world_part: np.ndarray, b: Any) -> bool:
+            return p.lift_depth > 0 and b.name in by_name and lift_depth(T_world_part, [b.name]) <= p.lift_depth
         # lifting the part straight up is the same motion for every grasp: when it drags the part
         # through a neighbour (or the cloud) beyond lift_contact, no grasp can pick the instance
         t = time.perf_counter()
-        lh = st.world.part_hits(inst.part, inst.T_world_part, steps[:, None] * lift_dir, pile)
+        lh = st.world.part_hits(inst.part, inst.T_world_part, steps[:, None] * lift_dir, pile, shallow_hit,
+                                first_only=True)
         timing["lift_check"] += time.perf_counter() - t
         if np.any(lh >= 0):
             k_hit = int(np.flatnonzero(lh >= 0)[0])
             name = pile[int(lh[k_hit])].name
+            deep = None
+            if name in by_name and p.lift_depth > 0:
+                T_hit = inst.T_world_part.copy()
+                T_hit[:3, 3] += steps[k_hit] * lift_dir
+                deep = lift_depth(T_hit, [name])
             yield None, InstanceReport(
                 inst.id, inst.part, "blocked" if name.startswith(INSTANCE_PREFIX) else "cloud",
                 f"lifting it {1e3 * float(st.cell.retreat_distance):g} mm along the retreat drags it through {name} "
-                f"after {1e3 * steps[k_hit]:.0f} mm (more than the {1e3 * p.lift_contact:g} mm of resting contact "
-                f"allowed), whatever the grasp", _blockers({name: 1}))
+                f"after {1e3 * steps[k_hit]:.0f} mm" + (f" ({1e3 * deep:.1f} mm deep; at most "
+                                                         f"{1e3 * p.lift_depth:g} mm allowed)" if deep is not None else
+                                                         f" (more than the {1e3 * p.lift_contact:g} mm of resting "
+                                                         f"contact allowed)") + ", whatever the grasp",
+                _blockers({name: 1}))
             return
         for c0 in range(0, len(rows), CHECK_CHUNK):
             if c0 == FIRST_PASS:
@@ -356,7 +386,7 @@ class Picker:
             t = time.perf_counter()
             # the bodies that blocked most grasps so far first: a blocked grasp needs fewer coal calls
             order = sorted(bodies, key=lambda b: -hit_counts.get(b.name, 0))
-            first, _ = st.world.gripper_hits(inst.part, inst.id, T_wt[sel], db.width[rows[sel]], order)
+            first, _ = st.world.gripper_hits(inst.part, inst.id, T_plan[sel], db.width[rows[sel]], order)
             timing["gripper_check"] += time.perf_counter() - t
             stats["grasps_checked"] += len(first)
             for k_local, b in enumerate(first):
@@ -372,10 +402,12 @@ class Picker:
                                         unit_direction(st.cell.retreat_direction), float(st.cell.retreat_distance),
                                         timing, T_place=T_place,
                                         lift_gripper_check=lambda T, w: st.world.gripper_at_hits(T, w, bodies),
-                                        body_names=tuple(b.name for b in bodies))
+                                        body_names=tuple(b.name for b in bodies),
+                                        lift_depth=lift_depth if p.lift_depth > 0 else None)
                 tried += 1
                 stats["grasps_tried"] += 1
-                out = plan_pick_motion(ctx, T_wt[k], db.T_part_tcp[r], float(db.width[r]),
+                T_part_g = db.T_part_tcp[r] if T_tcp_g is None else db.T_part_tcp[r] @ T_tcp_g[k]
+                out = plan_pick_motion(ctx, T_plan[k], T_part_g, float(db.width[r]),
                                        seed=p.seed * 1_000_003 + seed_base * 10_007 + r)
                 if out.motion is not None:
                     yield self._pick(inst, db, r, k, T_wt[k], out, st.cell), InstanceReport(
@@ -402,6 +434,13 @@ class Picker:
         yield None, InstanceReport(inst.id, inst.part, status,
                                    f"every one of the {len(rows)} best-ranked grasps from above collides"
                                    + _hits_text(hit_counts, " grasps"), blockers)
+
+    def _depth_of(self, st: _Cell, part: str) -> PartDepth:
+        d = self._depth.get(part)
+        if d is None:
+            d = self._depth[part] = PartDepth.build(self._parts[part].mesh, st.world.parts[part].bvh,
+                                                     st.world.parts[part].hull)
+        return d
 
     def _pick(self, inst: Instance, db: GraspDatabase, r: int, k: int, T_world_tcp: np.ndarray, out: Outcome,
               cell: Cell) -> Pick:

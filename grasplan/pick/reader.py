@@ -86,7 +86,7 @@ def result_from_picks(doc: Any, *, where: str = "picks", base: Path | None = Non
             raise InputError(f"{w}: the path leaves the joint limits of robot {robot.name!r}")
         T_wp = np.asarray(d["T_world_part"], dtype=np.float64)
         T_pt = np.asarray(d["T_part_tcp"], dtype=np.float64)
-        check_fk(robot, gripper, T_wp, T_pt[None], {0: m}, w)
+        check_fk(robot, gripper, T_wp, T_pt[None], {0: m}, w, width=np.array([float(d["width"])]))
         picks.append(Pick(instance=d["instance"], part=d["part"], T_world_part=T_wp, T_part_tcp=T_pt,
                           contacts=np.asarray(d["contacts"], dtype=np.float64),
                           normals=np.asarray(d["normals"], dtype=np.float64), width=float(d["width"]),

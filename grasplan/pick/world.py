@@ -13,7 +13,7 @@ first body a pose hits names what blocks it.
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import coal
@@ -178,10 +178,14 @@ class PickWorld:
         self.coal_calls += calls
         return first, bodies
 
-    def part_hits(self, part: str, T_world_part: np.ndarray, shifts: np.ndarray, bodies: list[Body]) -> np.ndarray:
+    def part_hits(self, part: str, T_world_part: np.ndarray, shifts: np.ndarray, bodies: list[Body],
+                  allowed: Callable[[np.ndarray, Body], bool] | None = None, *, first_only: bool = False
+                  ) -> np.ndarray:
         """First body (index into ``bodies``, -1 none) the part ``part`` hits at ``T_world_part``
         moved by each world vector of ``shifts`` (k, 3) (a straight lift): world boxes first (the
-        part's box only translates), then coal."""
+        part's box only translates), then coal; a contact for which ``allowed(T_world_part moved,
+        body)`` is true (a shallow one) is no hit. ``first_only``: stop at the first shift hitting
+        anything (the later shifts stay -1)."""
         g = self.parts[part]
         T = np.asarray(T_world_part, dtype=np.float64)
         shifts = np.asarray(shifts, dtype=np.float64).reshape(-1, 3)
@@ -203,7 +207,14 @@ class PickWorld:
             self.coal_calls += 1
             b = bodies[bi]
             if coal.collide(g.bvh, tf, b.geometry, b.tf, req, res):
+                if allowed is not None:
+                    Tk = T.copy()
+                    Tk[:3, 3] += shifts[k]
+                    if allowed(Tk, b):
+                        continue
                 first[k] = bi
+                if first_only:
+                    break
         return first
 
     def gripper_at_hits(self, T_world_tcp: np.ndarray, opening: float, bodies: list[Body]) -> np.ndarray:

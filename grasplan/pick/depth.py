@@ -1,0 +1,106 @@
+"""Penetration depth of two part meshes in contact (coal reports mesh-vs-mesh contact, not its depth).
+
+The depth of two placed parts A and B is the largest distance to the other mesh's surface of a
+surface point of either one lying inside the other: the points are each mesh's vertices and a
+barycentric grid of :data:`SAMPLE_SPACING` on its faces (:func:`grasplan.containment.surface_samples`),
+so a penetration is found to within about that spacing (the deepest point of two touching
+polyhedra is a vertex of one of them, except where two edges cross). Inside is decided by the
+crossing count of :func:`grasplan.containment.points_inside_tree`; the distance of an inside point
+to the surface is coal's exact point-to-BVH distance.
+
+Everything per part (samples, their k-d tree, ray grid, BVH) is built once (:class:`PartDepth`)
+and kept on the :class:`grasplan.Picker`. A query (only for pairs coal reports in contact) keeps
+the samples of one part inside the overlap of the two world boxes, then drops those within
+``stop`` of the other part's surface samples (k-d tree): a point that close to the surface is at
+most that deep whether inside or not. Only the rest (none when two neighbours touch side by side)
+get the inside test and coal's distance, so deciding "deeper than the tolerance?" is a few NumPy
+and k-d tree calls.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import coal
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ..containment import RayGrid, points_inside_tree, surface_samples
+from ..meshdata import MeshData
+
+#: surface sample spacing (m) of the depth probes
+SAMPLE_SPACING = 0.001
+#: at most this many probes per part (coarser spacing beyond)
+MAX_SAMPLES = 30_000
+
+
+@dataclass(frozen=True, eq=False)
+class PartDepth:
+    """One part's depth probes: mesh, surface samples (part frame), ray grid, BVH and local box."""
+
+    mesh: MeshData
+    samples: np.ndarray
+    grid: RayGrid
+    bvh: coal.BVHModelOBBRSS
+    lo: np.ndarray
+    hi: np.ndarray
+    hull: np.ndarray  #: convex hull vertices (world boxes)
+    tree: cKDTree  #: of the samples
+
+    @classmethod
+    def build(cls, mesh: MeshData, bvh: coal.BVHModelOBBRSS, hull: np.ndarray) -> "PartDepth":
+        V = np.asarray(mesh.vertices, dtype=np.float64)
+        samples = surface_samples(mesh, spacing=SAMPLE_SPACING, max_samples=MAX_SAMPLES)
+        return cls(mesh=mesh, samples=samples, grid=RayGrid(V, np.asarray(mesh.faces)), bvh=bvh, lo=V.min(axis=0),
+                   hi=V.max(axis=0), hull=np.asarray(hull, dtype=np.float64), tree=cKDTree(samples))
+
+
+def _into(a: PartDepth, T_a: np.ndarray, b: PartDepth, T_b: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+          stop: float) -> float:
+    """Largest depth of ``a``'s samples (at ``T_a``) inside ``b`` (at ``T_b``), of those in the world
+    box ``lo, hi`` (where the two parts' world boxes overlap); stops once above ``stop``."""
+    w = a.samples @ T_a[:3, :3].T + T_a[:3, 3]
+    w = w[np.all((w >= lo) & (w <= hi), axis=1)]
+    if not len(w):
+        return 0.0
+    pts = (w - T_b[:3, 3]) @ T_b[:3, :3]  # b's frame
+    pts = pts[np.all((pts >= b.lo) & (pts <= b.hi), axis=1)]
+    if len(pts) and np.isfinite(stop):  # within stop of b's surface: at most stop deep, inside or not
+        r, _ = b.tree.query(pts, distance_upper_bound=stop)
+        pts = pts[~np.isfinite(r)]
+    if not len(pts):
+        return 0.0
+    inside = pts[points_inside_tree(b.grid, b.mesh, pts)]
+    if not len(inside):
+        return 0.0
+    # deepest first is unknown: probe the points farthest from b's box faces first (a cheap bound)
+    margin = np.minimum(inside - b.lo, b.hi - inside).min(axis=1)
+    req, res = coal.DistanceRequest(), coal.DistanceResult()
+    probe = coal.Sphere(1e-12)
+    tf, eye = coal.Transform3s(), coal.Transform3s()
+    best = 0.0
+    for k in np.argsort(-margin):
+        if margin[k] <= best:  # the distance to b's surface is at most the distance to its box
+            break
+        tf.setTranslation(inside[k])
+        res.clear()
+        best = max(best, float(coal.distance(probe, tf, b.bvh, eye, req, res)))
+        if best > stop:
+            break
+    return best
+
+
+def pair_depth(a: PartDepth, T_a: np.ndarray, b: PartDepth, T_b: np.ndarray, *, stop: float = np.inf) -> float:
+    """Penetration depth (m, 0 when apart or touching) of ``a`` at ``T_a`` and ``b`` at ``T_b`` (see
+    the module docstring). With a finite ``stop`` it answers "deeper than ``stop``?": the result is
+    a depth found above ``stop`` (a lower bound: the search stops there) when there is one, else a
+    value at most ``stop`` (points within ``stop`` of the other surface are not measured)."""
+    T_a, T_b = np.asarray(T_a, dtype=np.float64), np.asarray(T_b, dtype=np.float64)
+    wa = a.hull @ T_a[:3, :3].T + T_a[:3, 3]
+    wb = b.hull @ T_b[:3, :3].T + T_b[:3, 3]
+    lo, hi = np.maximum(wa.min(axis=0), wb.min(axis=0)), np.minimum(wa.max(axis=0), wb.max(axis=0))
+    if np.any(lo > hi):
+        return 0.0
+    d = _into(a, T_a, b, T_b, lo, hi, stop)
+    if d > stop:
+        return d
+    return max(d, _into(b, T_b, a, T_a, lo, hi, stop))

@@ -1,0 +1,112 @@
+"""The depth-tolerant lift rule (PickParams.lift_depth, grasplan/pick/depth.py): a part sliding up
+beside a neighbour it touches is picked, one whose lift drags it through a neighbour is refused
+naming it; every accepted lift contact re-checked by python-fcl plus an independent depth
+(tests/pick_recheck.py: trimesh samples, winding number, exact closest points)."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).parent))
+from pick_recheck import mesh_depth, recheck_pick  # noqa: E402
+
+from grasplan.cell import load_cell  # noqa: E402
+from grasplan.geometry import bvh  # noqa: E402
+from grasplan.mesh import load_part  # noqa: E402
+from grasplan.meshdata import convex_hull  # noqa: E402
+from grasplan.pick import Picker, PickParams  # noqa: E402
+from grasplan.pick.depth import PartDepth, pair_depth  # noqa: E402
+from grasplan.scenefile import Instance, Scene  # noqa: E402
+from grasplan.stable_poses import stable_pose  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+BRACKET = ROOT / "examples" / "parts" / "bracket.stl"
+
+
+def _depth_model(mesh):
+    return PartDepth.build(mesh, bvh(mesh.vertices, mesh.faces), np.asarray(convex_hull(np.asarray(mesh.vertices)).vertices))
+
+
+@pytest.fixture(scope="module")
+def bracket():
+    return load_part(BRACKET)
+
+
+@pytest.fixture(scope="module")
+def rest(bracket):
+    return stable_pose(bracket.mesh, load_cell("bin"))
+
+
+def at(T, dx=0.0, dy=0.0, dz=0.0):
+    out = np.array(T, dtype=np.float64)
+    out[:3, 3] += [dx, dy, dz]
+    return out
+
+
+def _world_extent(mesh, T):
+    w = np.asarray(mesh.vertices) @ T[:3, :3].T + T[:3, 3]
+    return w.min(axis=0), w.max(axis=0)
+
+
+@pytest.mark.parametrize("axis,overlap", [(0, 0.0005), (1, 0.0015), (2, 0.003)])
+def test_pair_depth_agrees_with_independent_depth(bracket, rest, axis, overlap):
+    m = bracket.mesh
+    lo, hi = _world_extent(m, rest)
+    d = np.zeros(3)
+    d[axis] = (hi - lo)[axis] - overlap  # the copy shifted so that the two overlap by `overlap` along the axis
+    Tb = at(rest, *d)
+    model = _depth_model(m)
+    got = pair_depth(model, rest, model, Tb)
+    ref = mesh_depth(m, rest, m, Tb)
+    assert got == pytest.approx(ref, abs=3e-4)
+    assert got <= overlap + 1e-6          # no point is deeper than the overlap of the boxes
+    # "deeper than stop?" answered both ways (the k-d tree filter skips points within stop of the surface)
+    assert pair_depth(model, rest, model, Tb, stop=0.5 * ref) > 0.5 * ref
+    assert pair_depth(model, rest, model, Tb, stop=ref + 3e-4) <= ref + 3e-4
+    apart = pair_depth(model, rest, model, at(Tb, *(0.01 * np.eye(3)[axis])))
+    assert apart == 0.0
+
+
+def _scene(rest, gap_axis: int, dz_b: float, overlap: float, mesh):
+    lo, hi = _world_extent(mesh, rest)
+    d = np.zeros(3)
+    d[gap_axis] = (hi - lo)[gap_axis] - overlap
+    return Scene(instances=(Instance("a", "bracket", rest), Instance("b", "bracket", at(rest, d[0], d[1], d[2] + dz_b))), cell="bin")
+
+
+@pytest.mark.parametrize("gap_axis", [0, 1])
+def test_sliding_up_beside_a_touching_neighbour_is_picked_and_rechecked(bracket, rest, gap_axis):
+    strict = Picker("ur5", params=PickParams(grasps_per_instance=8, lift_depth=0.0))
+    strict.add_part("bracket", bracket)
+    sc = _scene(rest, gap_axis, 0.0, 0.0005, bracket.mesh)  # side by side, 0.5 mm of pose noise
+    a = strict.plan(sc).report("a")
+    assert a.status == "blocked" and a.blocked_by == ("b",), a      # the strict rule: dragged through b
+    tol = Picker("ur5", params=PickParams(grasps_per_instance=8, lift_depth=0.001))
+    tol.add_part("bracket", bracket)
+    res = tol.plan(sc)
+    assert res.report("a").status == "picked", res.report("a")
+    pick = res.pick("a")
+    rep = recheck_pick(tol.robot, tol.gripper, res.cell, pick, sc.instances, {"bracket": bracket.mesh},
+                       lift_contact=res.params.lift_contact, lift_depth=res.params.lift_depth)
+    assert rep.ok, rep.problems
+    assert rep.lift_depths and max(rep.lift_depths) <= 0.001 + 3e-4   # it did touch b along the lift, shallowly
+    # the same pick re-checked with the strict rule fails: the tolerance is what let it through
+    strict_rep = recheck_pick(tol.robot, tol.gripper, res.cell, pick, sc.instances, {"bracket": bracket.mesh},
+                              lift_contact=res.params.lift_contact, lift_depth=0.0)
+    assert not strict_rep.ok and "instance_b" in strict_rep.problems[0]
+
+
+def test_dragged_through_a_neighbour_deeper_than_the_tolerance_is_refused(bracket, rest):
+    pk = Picker("ur5", params=PickParams(grasps_per_instance=8, lift_depth=0.001))
+    pk.add_part("bracket", bracket)
+    lo, hi = _world_extent(bracket.mesh, rest)
+    # b lies across a's far half, resting on it (0.2 mm of pose noise): lifting a pushes into b
+    sc = Scene(instances=(Instance("a", "bracket", rest),
+                          Instance("b", "bracket", at(rest, 0.5 * (hi - lo)[0], dz=(hi - lo)[2] - 0.0002))), cell="bin")
+    res = pk.plan(sc)
+    a = res.report("a")
+    assert a.status == "blocked" and a.blocked_by == ("b",), a
+    assert "instance:b" in a.reason and "mm deep; at most 1 mm allowed" in a.reason, a.reason
