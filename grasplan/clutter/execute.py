@@ -233,10 +233,12 @@ def execute_pick(cw: ClutterWorld, target: int, pick: PickLike, *, jaw_torsion=N
                 out = _collided(run, "lift", T0, com0, held, moved)
             else:
                 out = _judge(run, T0, com0, held, moved)
-        _finish(run, out.success, settle)
-        return out
+        _finish(run, out.success)
     finally:
         cw.model.opt.timestep = timestep
+    if settle and w.present.any():  # at the pile world's own timestep, as the drop settles
+        w.settle(lin=REST_LIN, ang=REST_ANG, hold=REST_HOLD_S, max_s=SETTLE_MAX_S)
+    return out
 
 
 def _outcome(run: _Run, outcome: str, reason: str, T0: np.ndarray, com0: np.ndarray, held: bool,
@@ -271,8 +273,8 @@ def _judge(run: _Run, T0, com0, held: bool, moved: tuple[float, float]) -> Outco
                     f"(moved {moved[0] * 1e3:.1f} mm)", T0, com0, held, moved)
 
 
-def _finish(run: _Run, picked: bool, settle: bool) -> None:
-    """After a pick: park the picked part, open the jaws, park the gripper, let the pile settle."""
+def _finish(run: _Run, picked: bool) -> None:
+    """After a pick: park the picked part, open the jaws, park the gripper."""
     cw = run.cw
     if picked:
         cw.world.park(run.target)
@@ -282,5 +284,3 @@ def _finish(run: _Run, picked: bool, settle: bool) -> None:
         cw.set_hand(T)
         cw.step(CONTROL_DT)
     cw.park_hand()
-    if settle and cw.world.present.any():
-        cw.world.settle(lin=REST_LIN, ang=REST_ANG, hold=REST_HOLD_S, max_s=SETTLE_MAX_S)

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -34,6 +34,7 @@ from ..cell import Cell
 from ..drop import DropParams, PileItem, drop_pile
 from ..errors import InputError
 from ..gripper.model import Gripper
+from ..mesh import Part
 from ..scenefile import Instance, Scene
 from ..transforms import pose_error
 from ..units import parse_angle_deg, parse_length
@@ -91,6 +92,17 @@ def perturb(T_world_part: np.ndarray, com: np.ndarray, noise_m: float, noise_deg
     out[:3, :3] = R @ T[:3, :3]
     out[:3, 3] = c + R @ (T[:3, 3] - c) + d
     return out
+
+
+def noise_reach(parts: Sequence[Part], noise: tuple[float, float]) -> float:
+    """How far (m) the pose noise moves any point of these parts: ``noise_m`` plus the chord the
+    turn sweeps at the point farthest from its centre of mass (bounded here by the farthest vertex
+    from the vertex centroid, doubled: a safe bound for any centre inside the part's hull). A
+    planner that refuses parts below the bin floor beyond a tolerance needs that much more."""
+    if noise[0] <= 0 and noise[1] <= 0:
+        return 0.0
+    reach = max(2.0 * float(np.linalg.norm(p.vertices - p.vertices.mean(axis=0), axis=1).max()) for p in parts)
+    return float(noise[0] + 2.0 * reach * math.sin(0.5 * math.radians(noise[1])))
 
 
 # ------------------------------------------------------------------------------------------------
@@ -219,9 +231,9 @@ def run_round(cell: Cell, items: Sequence[PileItem], gripper: Gripper, plan_fn: 
               drop: DropParams = DropParams(), noise: tuple[float, float] = (0.0, 0.0), cell_ref: str | None = None,
               record: bool = False, cold: bool = False, cache: bool = True,
               progress: Callable[[str], None] | None = None) -> RoundResult:
-    """Run clutter-removal round ``r`` (module docstring). ``drop.seed + r`` seeds the pile,
-    ``(drop.seed, r)`` the pose noise; ``cold`` marks the first planning call as the run's cold
-    one; ``record`` keeps the replay samples."""
+    """Run clutter-removal round ``r`` (module docstring): drop a pile with seed ``drop.seed + r``,
+    then :func:`clear_pile` (pose noise seeded with ``(drop.seed, r)``). ``cold`` marks the first
+    planning call as the run's cold one; ``record`` keeps the replay samples."""
     t0 = time.perf_counter()
     seed = int(drop.seed) + int(r)
     holder: dict[str, ClutterWorld] = {}
@@ -231,14 +243,26 @@ def run_round(cell: Cell, items: Sequence[PileItem], gripper: Gripper, plan_fn: 
         return holder["cw"].world
 
     res = drop_pile(cell, items, params=replace(drop, seed=seed), cell_ref=cell_ref, make_world=make, cache=cache)
-    drop_s = time.perf_counter() - t0
-    sim_s = res.sim_s
-    cw = holder["cw"]
+    rr = clear_pile(holder["cw"], res.scene, {it.name: it.part for it in items}, plan_fn, r=r, seed=seed,
+                    noise=noise, noise_seed=(int(drop.seed), int(r)), record=record, cold=cold, progress=progress)
+    return replace(rr, seconds=time.perf_counter() - t0, drop_s=time.perf_counter() - t0 - rr.seconds,
+                   sim_s=rr.sim_s + res.sim_s)
+
+
+def clear_pile(cw: ClutterWorld, scene: Scene, parts: Mapping[str, Part], plan_fn: PlanFn, *, r: int = 0,
+               seed: int = 0, noise: tuple[float, float] = (0.0, 0.0), noise_seed: Sequence[int] = (0, 0),
+               record: bool = False, cold: bool = False,
+               progress: Callable[[str], None] | None = None) -> RoundResult:
+    """Steps 2-5 of a round (module docstring) on the pile now in ``cw`` (``scene``: its instances,
+    whose ids are the world's body names, and its parts; ``parts``: the meshes by part name)."""
+    t0 = time.perf_counter()
     world = cw.world
-    part_of = {inst.id: inst.part for inst in res.scene.instances}
-    parts = {it.name: it.part for it in items}
+    gripper = cw.gripper
+    cell = world.cell
+    part_of = {inst.id: inst.part for inst in scene.instances}
     coms = [b.mass.com for b in world.bodies]
-    rng = np.random.default_rng([int(drop.seed), int(r)])
+    rng = np.random.default_rng(list(noise_seed))
+    sim_s = 0.0
     attempts: list[Attempt] = []
     replay: list[dict] = []
     fell_all: list[str] = []
@@ -252,10 +276,10 @@ def run_round(cell: Cell, items: Sequence[PileItem], gripper: Gripper, plan_fn: 
         truth = {world.bodies[i].name: world.pose(i) for i in present}
         seen = {k: (perturb(T, coms[world.index(k)], noise[0], noise[1], rng) if noise[0] > 0 or noise[1] > 0 else T)
                 for k, T in truth.items()}
-        scene = Scene(instances=tuple(Instance(k, part_of[k], seen[k]) for k in truth), cell=res.scene.cell,
-                      parts=res.scene.parts)
+        now = Scene(instances=tuple(Instance(k, part_of[k], seen[k]) for k in truth), cell=scene.cell,
+                    parts=scene.parts, base=scene.base)
         t = time.perf_counter()
-        result = plan_fn(scene)
+        result = plan_fn(now)
         plan_ms = 1e3 * (time.perf_counter() - t)
         first_cold, cold = cold, False
         picks = tuple(getattr(result, "picks", ()) or ())
@@ -267,7 +291,7 @@ def run_round(cell: Cell, items: Sequence[PileItem], gripper: Gripper, plan_fn: 
         i = world.index(pick.instance)
         t = time.perf_counter()
         before = {world.bodies[j].name: truth[world.bodies[j].name] for j in present}
-        out = execute_pick(cw, i, pick, jaw_torsion=_jaw_torsion(parts[part_of[pick.instance]], gripper, pick, drop.mu),
+        out = execute_pick(cw, i, pick, jaw_torsion=_jaw_torsion(parts[part_of[pick.instance]], gripper, pick, cw.mu),
                            record=record)
         sim_s += out.sim_s
         fell = []
@@ -290,7 +314,7 @@ def run_round(cell: Cell, items: Sequence[PileItem], gripper: Gripper, plan_fn: 
         if fails >= MAX_FAILURES_IN_ROW:
             ended = "two_failures"
             break
-    return RoundResult(r=int(r), seed=seed, scene=res.scene, attempts=tuple(attempts), ended=ended,
-                       fell_out=tuple(fell_all), seconds=time.perf_counter() - t0, drop_s=drop_s, sim_s=sim_s,
+    return RoundResult(r=int(r), seed=int(seed), scene=scene, attempts=tuple(attempts), ended=ended,
+                       fell_out=tuple(fell_all), seconds=time.perf_counter() - t0, drop_s=0.0, sim_s=sim_s,
                        replay=tuple(replay))
 
