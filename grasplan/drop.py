@@ -182,6 +182,37 @@ def part_name(path: str | Path, taken: Sequence[str] = ()) -> str:
     return name
 
 
+def load_items(specs: Sequence[tuple[str, int]], *, units: str = "auto",
+               info: Callable[[str], None] | None = None, warn: Callable[[str], None] | None = None) -> list[PileItem]:
+    """:class:`PileItem` s from ``(mesh path, count)`` pairs (``--part PATH:COUNT``), named by
+    :func:`part_name`; InputError (exit 3) for a file given twice or an unreadable mesh."""
+    from .mesh import load_part
+
+    seen: dict[str, str] = {}
+    items: list[PileItem] = []
+    for path, n in specs:
+        key = str(Path(path).resolve())
+        if key in seen:
+            raise InputError(f"--part {path}: given twice (also as {seen[key]}); give each part once with the total "
+                             f"count")
+        seen[key] = path
+        p = load_part(path, units=units)
+        for w in p.warnings:
+            if warn is not None:
+                warn(w)
+        name = part_name(path, taken=[it.name for it in items])
+        if info is not None:
+            info(f"part {name}: {path} ({p.units_note}; sha256 {p.sha256[:16]}, scale_to_m {p.scale_to_m:g})")
+        items.append(PileItem(name=name, part=p, count=n))
+    return items
+
+
+def parts_record(items: Sequence[PileItem]) -> dict[str, dict[str, Any]]:
+    """What an output records of each part: path, sha256, scale_to_m, units and count."""
+    return {it.name: {"path": it.part.path, "sha256": it.part.sha256, "scale_to_m": float(it.part.scale_to_m),
+                      "units": it.part.units, "count": it.count} for it in items}
+
+
 def _items(items: Sequence[PileItem | tuple]) -> list[PileItem]:
     out = [it if isinstance(it, PileItem) else PileItem(*it) for it in items]
     if not out:

@@ -50,6 +50,11 @@ PUSH_DIST, PUSH_DEG = 0.005, 10.0
 #: longest settling of the pile after a pick (simulated s)
 SETTLE_MAX_S = 3.0
 
+#: the execution protocol's numbers, as a report records them
+PROTOCOL = {"approach_speed": APPROACH_SPEED, "lift_speed": LIFT_SPEED, "close_s": CLOSE_S, "hold_s": HOLD_S,
+            "lift_min": LIFT_MIN, "start_depth": START_DEPTH, "collide_force": COLLIDE_FORCE, "push_dist": PUSH_DIST,
+            "push_deg": PUSH_DEG, "timestep": PICK_TIMESTEP, "control_dt": CONTROL_DT}
+
 SUCCESS, COLLIDED, SLIPPED, PUSHED, MISSED = "success", "collided", "slipped", "pushed_away", "missed"
 #: every outcome of an executed pick, in the order they are decided
 OUTCOMES = (SUCCESS, COLLIDED, SLIPPED, PUSHED, MISSED)

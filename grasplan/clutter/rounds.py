@@ -61,7 +61,7 @@ def parse_pose_noise(text: str) -> tuple[float, float]:
     if len(parts) != 2 or not all(parts):
         raise InputError(f"--pose-noise {text!r}: expected LENGTH,ANGLE, {example}")
     try:
-        m = parse_length(parts[0])
+        m = parse_length(parts[0], name="length", allow_zero=True)
         deg = parse_angle_deg(parts[1])
     except (InputError, ValueError) as exc:
         raise InputError(f"--pose-noise {text!r}: {exc}; {example}") from None
