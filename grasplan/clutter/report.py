@@ -5,9 +5,10 @@ DR, planning milliseconds per pick and failures by reason.
 {"schema": "grasplan.clutter/1",
  "params": {...}, "parts": {name: {path, sha256, scale_to_m, units, count}}, "cell": ..., "gripper": ...,
  "rounds": [{round, seed, parts, attempts, successes, removed, gsr, dr, ended, plan_ms: {median, p95, n},
-             failures: {reason: n}, fell_out, seconds, drop_s, sim_s, picks: [...]}],
+             failures: {reason: n}, fell_out, seconds, drop_s, cpu_s, sim_s, pile, picks: [...]}],
  "total": {rounds, attempts, successes, parts, removed, gsr, dr, plan_ms: {median, p95, n, cold_ms},
-           failures: {...}, round_seconds: {median, max}, seconds}}
+           failures: {...}, ended: {why: n}, round_seconds: {median, max}, round_cpu_s: {median, max},
+           seconds}}
 ```
 
 Rates are fractions (0..1; ``null`` when nothing was attempted). Planning times leave out the
@@ -59,7 +60,7 @@ def round_json(rr: RoundResult) -> dict[str, Any]:
             "removed": rr.removed, "gsr": _rate(rr.successes, len(ex)), "dr": _rate(rr.removed, rr.parts),
             "ended": rr.ended, "plan_ms": plan_stats([a.plan_ms for a in rr.attempts if not a.cold]),
             "failures": _failures([rr]), "fell_out": list(rr.fell_out), "seconds": rr.seconds, "drop_s": rr.drop_s,
-            "sim_s": rr.sim_s, "pile": [i.to_json() for i in rr.scene.instances],
+            "cpu_s": rr.cpu_s, "sim_s": rr.sim_s, "pile": [i.to_json() for i in rr.scene.instances],
             "picks": [a.to_json() for a in rr.attempts]}
 
 
@@ -73,12 +74,15 @@ def total_json(rounds: Sequence[RoundResult]) -> dict[str, Any]:
     cold = [a.plan_ms for a in calls if a.cold]
     plan["cold_ms"] = cold[0] if cold else None
     secs = np.asarray([rr.seconds for rr in rounds], dtype=np.float64)
+    cpu = np.asarray([rr.cpu_s for rr in rounds], dtype=np.float64)
     return {"rounds": len(rounds), "attempts": attempts, "successes": successes, "parts": parts, "removed": removed,
             "gsr": _rate(successes, attempts), "dr": _rate(removed, parts), "plan_ms": plan,
             "failures": _failures(rounds),
             "ended": {e: sum(rr.ended == e for rr in rounds) for e in ("empty", "two_failures", "nothing_feasible")},
             "round_seconds": {"median": float(np.median(secs)) if len(secs) else None,
                               "max": float(secs.max()) if len(secs) else None},
+            "round_cpu_s": {"median": float(np.median(cpu)) if len(cpu) else None,
+                            "max": float(cpu.max()) if len(cpu) else None},
             "seconds": float(secs.sum())}
 
 

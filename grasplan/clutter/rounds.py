@@ -147,7 +147,8 @@ class RoundResult:
     """One round: its index ``r``, drop ``seed``, the pile as dropped (``scene``), the planning
     calls in order (``attempts``: executed picks and a final nothing-feasible call), how it
     ``ended`` (:data:`ENDS`), parts that left the bin, wall-clock ``seconds`` (drop included),
-    ``drop_s`` of it and simulated seconds ``sim_s``; ``replay``: per executed attempt the poses
+    ``drop_s`` of it, the process's CPU seconds ``cpu_s`` (user + system: what a round costs on a
+    shared machine, whose load stretches wall time) and simulated seconds ``sim_s``; ``replay``: per executed attempt the poses
     before it and the samples (only when recorded)."""
 
     r: int
@@ -159,6 +160,7 @@ class RoundResult:
     seconds: float
     drop_s: float
     sim_s: float
+    cpu_s: float = 0.0
     replay: tuple[dict, ...] = ()
 
     @property
@@ -234,7 +236,7 @@ def run_round(cell: Cell, items: Sequence[PileItem], gripper: Gripper, plan_fn: 
     """Run clutter-removal round ``r`` (module docstring): drop a pile with seed ``drop.seed + r``,
     then :func:`clear_pile` (pose noise seeded with ``(drop.seed, r)``). ``cold`` marks the first
     planning call as the run's cold one; ``record`` keeps the replay samples."""
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     seed = int(drop.seed) + int(r)
     holder: dict[str, ClutterWorld] = {}
 
@@ -246,7 +248,7 @@ def run_round(cell: Cell, items: Sequence[PileItem], gripper: Gripper, plan_fn: 
     rr = clear_pile(holder["cw"], res.scene, {it.name: it.part for it in items}, plan_fn, r=r, seed=seed,
                     noise=noise, noise_seed=(int(drop.seed), int(r)), record=record, cold=cold, progress=progress)
     return replace(rr, seconds=time.perf_counter() - t0, drop_s=time.perf_counter() - t0 - rr.seconds,
-                   sim_s=rr.sim_s + res.sim_s)
+                   sim_s=rr.sim_s + res.sim_s, cpu_s=time.process_time() - c0)
 
 
 def clear_pile(cw: ClutterWorld, scene: Scene, parts: Mapping[str, Part], plan_fn: PlanFn, *, r: int = 0,
@@ -255,7 +257,7 @@ def clear_pile(cw: ClutterWorld, scene: Scene, parts: Mapping[str, Part], plan_f
                progress: Callable[[str], None] | None = None) -> RoundResult:
     """Steps 2-5 of a round (module docstring) on the pile now in ``cw`` (``scene``: its instances,
     whose ids are the world's body names, and its parts; ``parts``: the meshes by part name)."""
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     world = cw.world
     gripper = cw.gripper
     cell = world.cell
@@ -316,5 +318,5 @@ def clear_pile(cw: ClutterWorld, scene: Scene, parts: Mapping[str, Part], plan_f
             break
     return RoundResult(r=int(r), seed=int(seed), scene=scene, attempts=tuple(attempts), ended=ended,
                        fell_out=tuple(fell_all), seconds=time.perf_counter() - t0, drop_s=0.0, sim_s=sim_s,
-                       replay=tuple(replay))
+                       cpu_s=time.process_time() - c0, replay=tuple(replay))
 
