@@ -1,6 +1,6 @@
 """Clutter removal of the paper parts in physics (issue 21's targets), driving ``grasplan clutter``.
 
-    python benchmarks/clutter.py [--rounds 20] [--seed 0] [--noise 0,0 --noise 2mm,2deg] [--out DIR]
+    python benchmarks/clutter.py [--rounds 20] [--seed 0] [--noise 0,0 --noise 2mm,2deg] [--out out/clutter]
 
 Each setting runs ``grasplan clutter --cell bin --part P:1`` for the five paper parts (TLess20,
 TLess22, SileanePepper, IPARingScrew, SileaneGear: 5-part mixed piles), plastic (1200 kg/m^3),
@@ -67,7 +67,7 @@ def main() -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--noise", action="append", help="pose noise settings (default: 0,0 and 2mm,2deg)")
     ap.add_argument("--density", type=float, default=1200.0)
-    ap.add_argument("--out", type=Path, default=Path("clutter_reports"), help="folder for the reports")
+    ap.add_argument("--out", type=Path, default=ROOT / "out" / "clutter", help="folder for the reports")
     args = ap.parse_args()
     missing = [p for p in PARTS if not (PAPER_DIR / p).exists()]
     if missing:
