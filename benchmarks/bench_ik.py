@@ -44,7 +44,11 @@ def main() -> None:
             _ik_rows("ur5", "clik", 200, max_solutions=1),
             _ik_rows("ur5", "clik", 50),
             _ik_rows("panda", "clik", 200, max_solutions=1),
-            _ik_rows("panda", "clik", 50)]
+            _ik_rows("panda", "clik", 50),
+            # issue 23: the UR family's one closed form on the other arms, the xArm7 by CLIK
+            _ik_rows("ur3", "analytic", 1000),
+            _ik_rows("ur10", "analytic", 1000),
+            _ik_rows("xarm7", "clik", 200, max_solutions=1)]
     print(f"{'IK':42s} {'n':>6s} {'success %':>10s} {'median ms':>10s}")
     for label, n, succ, med in rows:
         print(f"{label:42s} {n:6d} {succ:10.1f} {med:10.3f}")
@@ -56,7 +60,7 @@ def main() -> None:
     cell, gripper = load_cell(), load_gripper()
     T_wp = stable_pose(part.mesh, cell)
     print(f"\n{'collision check (bracket, table, gripper)':42s} {'free %':>10s} {'free ms':>10s} {'any ms':>10s}")
-    for name in ("ur5", "panda"):
+    for name in ("ur5", "panda", "ur10", "xarm7"):
         r = load_robot(name)
         t = time.perf_counter()
         scene = CollisionScene(r, gripper, part.mesh, T_wp, cell)

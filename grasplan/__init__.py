@@ -49,6 +49,10 @@ _LAZY = {
     "solve_ik": ("grasplan.ik", "solve_ik"),
     "plan": ("grasplan.planning", "plan"),
     "write_viewer": ("grasplan.viewer", "write_viewer"),
+    "Picker": ("grasplan.pick.picker", "Picker"),
+    "PickParams": ("grasplan.pick.params", "PickParams"),
+    "PickResult": ("grasplan.pick.result", "PickResult"),
+    "load_picks": ("grasplan.pick.reader", "load_picks"),
 }
 
 __all__ = ["GrasplanError", "InputError", "MeshError", "ConfigError", "PlanningError", "__version__", *_LAZY]

@@ -62,9 +62,13 @@ CELL_DIR = packaged_file("configs", "cells")  # the packaged cells
 MAX_NAME_CHARS = 100
 #: largest pose_index accepted from a file (a part has far fewer distinct resting poses)
 MAX_POSE_INDEX = 100_000
-#: most obstacles in one cell, and most triangles of one mesh obstacle
-MAX_OBSTACLES = 1000
-MAX_OBSTACLE_FACES = 200_000
+#: most obstacles in one cell, and most triangles of all its mesh obstacles together: what a plan
+#: honours in seconds and well under 1 GB (measured: 200 obstacles of 5k triangles took 76 s and
+#: 2.5 GB, 1000 small boxes 65 s; 40 x 5k triangles 20 s, 650 MB); more is refused up front
+MAX_OBSTACLES = 250
+MAX_CELL_TRIANGLES = 250_000
+#: most triangles of one mesh obstacle
+MAX_OBSTACLE_FACES = MAX_CELL_TRIANGLES
 #: longest obstacle dimension (m)
 MAX_OBSTACLE_SIZE_M = 10.0
 #: the obstacle names the bin's boxes get (reserved)
@@ -321,6 +325,10 @@ class Cell:
         if not isinstance(obs, list) or len(obs) > MAX_OBSTACLES:
             raise ConfigError(f"{where}.obstacles: expected a list of at most {MAX_OBSTACLES} obstacles")
         obstacles = tuple(_obstacle_from_json(o, f"{where}.obstacles[{i}]") for i, o in enumerate(obs))
+        total = sum(len(o.faces) for o in obstacles if o.faces is not None)
+        if total > MAX_CELL_TRIANGLES:
+            raise ConfigError(f"{where}.obstacles: {total} mesh triangles; at most {MAX_CELL_TRIANGLES} together "
+                              "(grasplan.cell.MAX_CELL_TRIANGLES)")
         _check_unique([o.name for o in obstacles], f"{where}.obstacles", reserved=())
         b = d.get("bin")
         bin_ = None if b is None else _bin_from_json(b, f"{where}.bin")
@@ -378,7 +386,7 @@ def _positive(v, where: str) -> float:
     return x
 
 
-def _shape_fields(kind: str, spec, where: str, *, base: Path | None) -> dict:
+def _shape_fields(kind: str, spec, where: str, *, base: Path | None, max_faces: int = MAX_OBSTACLE_FACES) -> dict:
     """The shape's fields (size / radius, length / vertices, faces) from a YAML or JSON mapping."""
     valid = {"box": ["size"], "cylinder": ["length", "radius"], "sphere": ["radius"],
              "mesh": ["path", "scale"] if base is not None else ["faces", "vertices"]}[kind]
@@ -403,7 +411,8 @@ def _shape_fields(kind: str, spec, where: str, *, base: Path | None) -> dict:
     if kind == "sphere":
         return {"radius": _positive(spec["radius"], f"{where}.radius")}
     if base is not None:  # YAML: a file
-        v, f, _ = read_config_mesh(spec, base, where, "cell")
+        v, f, _ = read_config_mesh(spec, base, where, "cell", max_triangles=max_faces,
+                                   limit_name="grasplan.cell.MAX_CELL_TRIANGLES, all mesh obstacles together")
     else:
         try:
             v = np.asarray(spec["vertices"], dtype=np.float64)
@@ -414,16 +423,17 @@ def _shape_fields(kind: str, spec, where: str, *, base: Path | None) -> dict:
             raise ConfigError(f"{where}: expected vertices (V, 3) and faces (F, 3), got {v.shape} and {f.shape}")
         if f.min() < 0 or f.max() >= len(v):
             raise ConfigError(f"{where}.faces: vertex index out of range 0..{len(v) - 1}")
-    if len(f) > MAX_OBSTACLE_FACES:
-        raise ConfigError(f"{where}: {len(f)} triangles; a mesh obstacle may have at most {MAX_OBSTACLE_FACES} "
-                          f"(simplify it)")
+    if len(f) > max_faces:
+        raise ConfigError(f"{where}: {len(f)} triangles; the mesh obstacles of a cell may have at most "
+                          f"{MAX_CELL_TRIANGLES} together (grasplan.cell.MAX_CELL_TRIANGLES; {max_faces} left for this "
+                          f"one): simplify the meshes")
     if not np.all(np.isfinite(v)) or np.abs(v).max() > MAX_OBSTACLE_SIZE_M:
         raise ConfigError(f"{where}: non-finite or huge coordinates (|v| <= {MAX_OBSTACLE_SIZE_M} m after scale; "
                           f"is 'scale' right?)")
     return {"vertices": _readonly(v), "faces": np.asarray(f, dtype=np.int64)}
 
 
-def _obstacle_from_yaml(item, where: str, base: Path) -> Obstacle:
+def _obstacle_from_yaml(item, where: str, base: Path, max_faces: int = MAX_OBSTACLE_FACES) -> Obstacle:
     valid = ["name", *OBSTACLE_KINDS, "T"]
     if not isinstance(item, dict):
         raise ConfigError(f"{where}: expected a mapping {{name: ..., box|cylinder|sphere|mesh: ..., T: ...}}, "
@@ -441,7 +451,7 @@ def _obstacle_from_yaml(item, where: str, base: Path) -> Obstacle:
     if "T" not in item:
         raise ConfigError(f"{where}.T: missing (the obstacle's pose {{xyz: [x, y, z] m, rpy_deg: [r, p, y] deg}})")
     kind = kinds[0]
-    fields = _shape_fields(kind, item[kind], f"{where}.{kind}", base=base)
+    fields = _shape_fields(kind, item[kind], f"{where}.{kind}", base=base, max_faces=max_faces)
     return Obstacle(name, kind, _readonly(_pose_yaml(item["T"], f"{where}.T")), **fields)
 
 
@@ -549,9 +559,14 @@ def cell_from_dict(data, *, name: str, source: str = "", base: Path | None = Non
     if not isinstance(obs, list):
         raise ConfigError("obstacles: expected a list of {name, box|cylinder|sphere|mesh, T} mappings")
     if len(obs) > MAX_OBSTACLES:
-        raise ConfigError(f"obstacles: {len(obs)} obstacles; at most {MAX_OBSTACLES}")
+        raise ConfigError(f"obstacles: {len(obs)} obstacles; a cell may have at most {MAX_OBSTACLES} "
+                          f"(grasplan.cell.MAX_OBSTACLES): merge small ones into meshes or boxes")
     folder = base if base is not None else Path(source).parent if source else Path(".")
-    obstacles = [_obstacle_from_yaml(o, f"obstacles[{i}]", folder) for i, o in enumerate(obs)]
+    obstacles, left = [], MAX_CELL_TRIANGLES
+    for i, o in enumerate(obs):  # the triangle budget is shared: a mesh is refused from its header when over it
+        ob = _obstacle_from_yaml(o, f"obstacles[{i}]", folder, max_faces=left)
+        left -= len(ob.faces) if ob.faces is not None else 0
+        obstacles.append(ob)
     _check_unique([o.name for o in obstacles], "obstacles", reserved=BIN_NAMES if bin_ is not None else ())
     if bin_ is not None:
         obstacles = list(bin_.obstacles()) + obstacles
@@ -564,9 +579,8 @@ def cell_from_dict(data, *, name: str, source: str = "", base: Path | None = Non
 
 #: the name of the cell that is nothing but the part: ``--cell none``
 NO_CELL_NAME = "none"
-#: the part alone, in its own frame: no obstacles and no table within reach (the half-space lies
-#: 10 m below the part frame's origin); grasps checked against the part only, as a grasp database
-#: needs them (grasplan.graspdb). Nothing can be planned in it: a robot needs a cell.
+#: the part alone in its own frame: no obstacles, the table 10 m below the origin (grasps checked
+#: against the part only, as grasplan.graspdb needs them); nothing is planned in it
 NO_CELL = Cell(name=NO_CELL_NAME, table_z=-MAX_CELL_COORD_M, part_xy=(0.0, 0.0),
                source="the part alone in its own frame: no table, no obstacles")
 

@@ -393,6 +393,8 @@ class GripperCollider:
         body = np.full(M, -1, dtype=np.int64)
         if M == 0:
             return status, elem, body
+        if self.gripper.moving_tcp:  # the shapes are given at max_opening: place them for each width
+            T_part_tcp = T_part_tcp @ self.gripper.T_tcp_gripper(width)
         sets = self.shape_sets(width)
         part, e_part = self._part_hits(T_part_tcp, sets)
         table, e_table = self._table_hits(T_part_tcp, sets)
@@ -410,6 +412,8 @@ class GripperCollider:
         """(M,) bool: any shape hits the part (no table check)."""
         T_part_tcp = check_transform(T_part_tcp, "T_part_tcp", batch=True, error=ValueError)
         width = np.asarray(width, dtype=np.float64).reshape(-1)
+        if self.gripper.moving_tcp:
+            T_part_tcp = T_part_tcp @ self.gripper.T_tcp_gripper(width)
         return self._part_hits(T_part_tcp, self.shape_sets(width))[0]
 
 

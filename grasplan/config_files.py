@@ -25,7 +25,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from .errors import ConfigError
 
@@ -150,25 +149,19 @@ MAX_CONFIG_BYTES = 1_000_000
 
 
 def read_yaml(kind: str, path: Path) -> Any:
-    """Parse a gripper/cell/robot YAML with ``yaml.safe_load`` (no Python tags): whatever the
-    document holds, for the caller to validate; ConfigError for an unreadable, binary, oversized
-    or invalid file."""
+    """Parse a gripper/cell/robot YAML with the one YAML reader (:func:`grasplan.yamlfile.read_yaml_file`:
+    a regular file of at most :data:`MAX_CONFIG_BYTES`, no Python tags, alias bombs, duplicate keys
+    and unconstructible values refused naming the field): whatever the document holds, for the
+    caller to validate; ConfigError for an unreadable, binary, oversized or invalid file."""
+    from .errors import InputError
+    from .yamlfile import read_yaml_file
+
     try:
-        if path.stat().st_size > MAX_CONFIG_BYTES:
-            raise ConfigError(f"{path}: {path.stat().st_size} bytes is too large for a {kind} file "
-                              f"(limit {MAX_CONFIG_BYTES})")
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError:
-        raise ConfigError(f"{path}: not a text file; a {kind} description is a UTF-8 YAML file") from None
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot read it ({exc.strerror or exc})") from None
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        first = str(exc).splitlines()[0] if str(exc) else "syntax error"
-        raise ConfigError(f"{path}: not valid YAML ({first[:120]})") from None
-    except RecursionError:
-        raise ConfigError(f"{path}: YAML nested too deeply") from None
+        return read_yaml_file(path, what=f"{kind} file", max_bytes=MAX_CONFIG_BYTES)
+    except ConfigError:
+        raise
+    except InputError as exc:
+        raise ConfigError(str(exc)) from None
 
 
 def packaged_file(*parts: str) -> Path:
@@ -299,23 +292,33 @@ def config_vector(value: object, where: str, n: int | None = 3, *, positive: boo
                     dtype=np.float64)
 
 
-def read_config_mesh(spec: dict[str, Any], base: Path, where: str, owner: str) -> tuple[np.ndarray, np.ndarray, Path]:
+#: largest mesh file a gripper or cell YAML may name (bytes)
+MAX_CONFIG_MESH_BYTES = 100_000_000
+
+
+def read_config_mesh(spec: dict[str, Any], base: Path, where: str, owner: str, *,
+                     max_triangles: int = 1_000_000, limit_name: str = "grasplan.mesh.MAX_TRIANGLES") -> tuple[np.ndarray, np.ndarray, Path]:
     """``(vertices (n, 3) m, faces (m, 3), path)`` of the mesh file a config YAML names in ``spec``
     (``path`` relative to ``base``, the YAML's folder; ``scale``, default 1, to metres). ``where``
-    names the field in errors, ``owner`` the YAML ("gripper", "cell"). Any reader error, a missing
-    file or a file without triangles is a ConfigError naming the field and the file."""
-    if not isinstance(spec.get("path"), str) or not spec["path"]:
+    names the field in errors, ``owner`` the YAML ("gripper", "cell"). Read by the part's reader
+    (:func:`grasplan.meshfile.read_mesh`: regular files only, the files an OBJ or glTF names read
+    through the same guard, at most ``max_triangles`` triangles, refused from the header where the
+    format declares a count). Any problem is a ConfigError naming the field and the file."""
+    if not isinstance(spec.get("path"), str) or not spec["path"] or "\x00" in spec["path"]:
         raise ConfigError(f"{where}.path: expected a mesh file name relative to the {owner} YAML")
-    path = (base / spec["path"]).resolve()
-    if not path.is_file():
-        raise ConfigError(f"{where}.path: mesh file {path} not found (paths are relative to the {owner} YAML)")
+    path = Path(os.path.normpath(base / spec["path"]))
     scale = config_number(spec.get("scale", 1.0), f"{where}.scale", positive=True)
-    import trimesh
+    from .errors import InputError
+    from .meshfile import ReadLimits, read_mesh
 
     try:
-        m = trimesh.load(str(path), force="mesh", process=True)
-    except Exception as exc:  # noqa: BLE001 - any reader error is a config error here
-        raise ConfigError(f"{where}.path: cannot read {path}: {str(exc)[:120]}") from None
-    if not isinstance(m, trimesh.Trimesh) or len(m.faces) == 0:
+        v, f, _ = read_mesh(path, ReadLimits(max_triangles=max_triangles, max_bytes=MAX_CONFIG_MESH_BYTES,
+                                         limit_name=limit_name))
+    except InputError as exc:
+        raise ConfigError(f"{where}.path: mesh file {exc} (paths are relative to the {owner} YAML)") from None
+    import trimesh
+
+    m = trimesh.Trimesh(v, f, process=True)  # merged vertices, degenerate faces dropped
+    if len(m.faces) == 0:
         raise ConfigError(f"{where}.path: {path} holds no triangles")
     return np.asarray(m.vertices, dtype=np.float64) * scale, np.asarray(m.faces, dtype=np.int64), path

@@ -25,7 +25,6 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from .errors import InputError
-from .io import write_atomic_text
 
 #: joint acceleration limit of the joint trajectory when none is given, rad/s^2 (all joints): the
 #: URDF has none; 1.4 rad/s^2 is the UR controller's default ``movej`` acceleration
@@ -166,13 +165,8 @@ def write_export(plan: ExportablePlan, fmt: str, path: str | os.PathLike[str], *
     paths = output_paths(fmt, path)
     if len(paths) != len(files):
         raise AssertionError(f"format {fmt!r} rendered {list(files)}, its registration names {len(paths)} files")
-    written: list[Path] = []
-    try:
-        for target, text in zip(paths, files.values()):  # each atomically; a failure removes the ones already written
-            write_atomic_text(target, text)
-            written.append(target)
-    except BaseException:
-        for w in written:
-            w.unlink(missing_ok=True)
-        raise
+    from .outputs import write_files_atomic
+
+    # all or nothing: a companion that cannot be written (a folder named pick.dat) leaves pick.src as it was
+    write_files_atomic(list(zip(paths, files.values())))
     return path

@@ -98,6 +98,7 @@ def grasp_frames(
     roll_step_deg: float = GraspParams.default("roll_step_deg"),
     reference: np.ndarray | None = None,
     max_width: float | None = None,
+    min_width: float = 0.0,
     dedupe_swapped: bool = True,
     merge_distance: float = 0.0,
     select: np.ndarray | None = None,
@@ -110,6 +111,8 @@ def grasp_frames(
     roll_step_deg : roll step about the closing axis, degrees (0, 360]
     reference : (3,) direction (part frame) that roll 0 approaches along as closely as possible
     max_width : candidates wider than this (m) are not posed (``None``: all)
+    min_width : candidates narrower than this (m) are not posed (the jaws close no further:
+        ``Gripper.min_opening``)
     dedupe_swapped : drop repeated / swapped contact pairs (right for a symmetric gripper)
     merge_distance : > 0: also drop a candidate whose two contacts fall in the same
         ``merge_distance`` grid cells as an earlier candidate's (in either order when
@@ -126,6 +129,8 @@ def grasp_frames(
     use = np.ones(n, dtype=bool)
     if max_width is not None:
         use &= candidates.width <= float(max_width)
+    if min_width > 0:
+        use &= candidates.width >= float(min_width)
     if select is not None:
         allowed = np.zeros(n, dtype=bool)
         allowed[np.asarray(select, dtype=np.int64)] = True

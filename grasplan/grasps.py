@@ -215,7 +215,7 @@ def compute_grasps(
         select = thin_candidates(cand.candidates, spacing=float(grasps.thin_spacing),
                                  axis_step_deg=float(grasps.thin_axis_deg))
     frames = grasp_frames(cand.candidates, roll_step_deg=grasps.roll_step_deg, reference=down_in_part,
-                          max_width=g.max_opening, dedupe_swapped=g.symmetric,
+                          max_width=g.max_opening, min_width=g.min_opening, dedupe_swapped=g.symmetric,
                           merge_distance=grasps.merge_distance, select=select)
     timing["frames"] = time.perf_counter() - t
 

@@ -205,7 +205,9 @@ def write_atomic_chunks(path: str | os.PathLike, chunks: Iterable[bytes | str]) 
 
 
 def write_atomic_text(path: str | os.PathLike, text: str) -> Path:
-    return write_atomic_bytes(path, text.encode("utf-8"))
+    """UTF-8 ``text`` written atomically; a lone surrogate (a file name's undecodable byte, which
+    Python keeps as ``\udcff``) is written as its escape ``\udcff`` rather than failing."""
+    return write_atomic_bytes(path, text.encode("utf-8", "backslashreplace"))
 
 
 def write_json(path: str | os.PathLike, data: Any, *, indent: int | None = None) -> Path:

@@ -28,6 +28,8 @@ class ReadLimits:
 
     max_triangles: int
     max_bytes: int
+    #: what the triangle limit is called in messages
+    limit_name: str = "grasplan.mesh.MAX_TRIANGLES"
 
 
 _STL_RECORD = np.dtype([("normal", "<f4", (3,)), ("v", "<f4", (3, 3)), ("attr", "<u2")])
@@ -37,10 +39,11 @@ _ASCII_VERTEX = re.compile(rb"\bvertex[ \t]+(" + _NUM + rb")[ \t]+(" + _NUM + rb
 _ASCII_VERTEX_WORD = re.compile(rb"\bvertex\b", re.IGNORECASE)
 
 
-def too_many_triangles(src: str, n: int, limit: int, what: str = "triangles") -> MeshError:
-    """The error for a mesh of ``n`` triangles (or faces) over the ``limit`` (``grasplan.mesh.MAX_TRIANGLES``)."""
+def too_many_triangles(src: str, n: int, limit: int, what: str = "triangles",
+                       name: str = "grasplan.mesh.MAX_TRIANGLES") -> MeshError:
+    """The error for a mesh of ``n`` triangles (or faces) over the ``limit`` (called ``name``)."""
     return MeshError(f"{src}: {n:,} {what} is more than grasplan handles (limit {limit:,} triangles, "
-                     f"grasplan.mesh.MAX_TRIANGLES); decimate the mesh first (e.g. quadric decimation in "
+                     f"{name}); decimate the mesh first (e.g. quadric decimation in "
                      f"MeshLab or Blender) to at most {limit:,} triangles")
 
 
@@ -52,7 +55,7 @@ def _read_stl(data: bytes, src: str, lim: ReadLimits) -> tuple[np.ndarray, np.nd
         if declared == 0:
             raise MeshError(f"{src}: the binary STL holds no triangles (its header declares 0)")
         if declared > lim.max_triangles:
-            raise too_many_triangles(src, declared, lim.max_triangles)
+            raise too_many_triangles(src, declared, lim.max_triangles, name=lim.limit_name)
         rec = np.frombuffer(data, _STL_RECORD, count=declared, offset=84)
         v = rec["v"].reshape(-1, 3).astype(np.float64)
         return v, np.arange(len(v), dtype=np.int64).reshape(-1, 3)
@@ -71,7 +74,7 @@ def _read_stl(data: bytes, src: str, lim: ReadLimits) -> tuple[np.ndarray, np.nd
 def _read_ascii_stl(data: bytes, src: str, lim: ReadLimits) -> tuple[np.ndarray, np.ndarray]:
     n_words = len(_ASCII_VERTEX_WORD.findall(data))
     if n_words > 3 * lim.max_triangles:
-        raise too_many_triangles(src, n_words // 3, lim.max_triangles)
+        raise too_many_triangles(src, n_words // 3, lim.max_triangles, name=lim.limit_name)
     rows = _ASCII_VERTEX.findall(data)
     if len(rows) != n_words:
         good = {m.start() for m in _ASCII_VERTEX.finditer(data)}
@@ -103,21 +106,73 @@ def _declared_faces(data: bytes, suffix: str) -> int:
     return -1
 
 
+class _GuardedFiles:
+    """The files a mesh loader opens on its own (an OBJ's ``mtllib`` and textures, a glTF's buffers
+    and images), read through :func:`grasplan.inputs.read_input_bytes`: regular files only (a FIFO,
+    a device or a folder is refused before reading, so nothing blocks), at most ``max_bytes`` in all.
+    The first refusal is kept in ``error`` (the caller reports it); the loader sees an ``OSError``,
+    which an OBJ reader takes as "no material"."""
+
+    def __init__(self, folder: Path, max_bytes: int):
+        self.folder = folder
+        self.left = max_bytes
+        self.error: str | None = None
+
+    def get(self, name: str) -> bytes:
+        from .errors import InputError
+        from .inputs import read_input_bytes
+
+        text = str(name)
+        try:
+            if "\x00" in text or len(text) > 4096 or "://" in text:
+                raise InputError(f"{show_path(text, limit=60)}: not a file name next to the mesh")
+            data = read_input_bytes(self.folder / text, what="a file the mesh names",
+                                    max_bytes=max(0, self.left))
+        except InputError as exc:
+            self.error = self.error or str(exc)
+            raise FileNotFoundError(str(exc)) from None
+        self.left -= len(data)
+        return data
+
+    __getitem__ = get
+
+    def namespaced(self, namespace: str) -> _GuardedFiles:
+        return type(self)(self.folder / namespace, self.left)
+
+    def keys(self) -> list[str]:
+        return []
+
+    def write(self, name: str, data: bytes) -> None:
+        raise OSError("read-only")
+
+
+def _resolver(folder: Path, max_bytes: int):
+    """A trimesh resolver (a subclass of its ``Resolver``) over :class:`_GuardedFiles`."""
+    import trimesh.resolvers
+
+    class GuardedResolver(_GuardedFiles, trimesh.resolvers.Resolver):
+        pass
+
+    return GuardedResolver(folder, max_bytes)
+
+
 def _read_other(path: Path, data: bytes, src: str, lim: ReadLimits) -> tuple[np.ndarray, np.ndarray]:
     """OBJ/PLY/OFF/glTF through trimesh; any failure becomes one MeshError without library text."""
     suffix = path.suffix.lower()
     declared = _declared_faces(data, suffix)
     if declared > lim.max_triangles:
-        raise too_many_triangles(src, declared, lim.max_triangles, "faces")
+        raise too_many_triangles(src, declared, lim.max_triangles, "faces", name=lim.limit_name)
     kind = suffix.lstrip(".").upper()
     import trimesh
 
     log = logging.getLogger("trimesh")
     was_disabled, log.disabled = log.disabled, True
+    files = _resolver(path.parent, lim.max_bytes)
     try:
         with _warnings.catch_warnings(), np.errstate(all="ignore"):
             _warnings.simplefilter("ignore")
-            loaded = trimesh.load(io.BytesIO(data), file_type=suffix.lstrip("."), force="mesh", process=False)
+            loaded = trimesh.load(io.BytesIO(data), file_type=suffix.lstrip("."), force="mesh", process=False,
+                                  resolver=files)
         if isinstance(loaded, trimesh.Scene):  # force='mesh' on an empty scene
             raise MeshError(f"{src}: the {kind} file holds no triangles")
         if not isinstance(loaded, trimesh.Trimesh):
@@ -127,6 +182,8 @@ def _read_other(path: Path, data: bytes, src: str, lim: ReadLimits) -> tuple[np.
     except MeshError:
         raise
     except Exception:  # trimesh raises many types for damaged files; their text is internal
+        if files.error is not None:  # a glTF buffer that is a FIFO, missing, too large
+            raise MeshError(f"{src}: {files.error}") from None
         raise MeshError(f"{src}: cannot read the file as {kind}: it is damaged, truncated or not a valid {kind} file; "
                         f"re-export it (binary STL is the most reliable)") from None
     finally:
@@ -185,5 +242,5 @@ def read_mesh(path: Path, lim: ReadLimits) -> tuple[np.ndarray, np.ndarray, byte
     else:
         v, f = _read_other(path, data, src, lim)
     if len(f) > lim.max_triangles:
-        raise too_many_triangles(src, len(f), lim.max_triangles)
+        raise too_many_triangles(src, len(f), lim.max_triangles, name=lim.limit_name)
     return v, f, data

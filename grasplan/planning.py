@@ -235,6 +235,8 @@ def _plan_grasp(s: _Setting, i: int, T_part_tcp: np.ndarray, width: float) -> Gr
     side and the transit from q_home; the first solution that gets through all is ``planned``."""
     params, robot, scene, timing = s.params, s.robot, s.scene, s.timing
     T_place, T_flange_tcp = s.T_place, s.T_flange_tcp
+    if s.gripper.moving_tcp:  # plan in the frame the gripper's shapes and T_flange_tcp are given in
+        T_part_tcp = T_part_tcp @ s.gripper.T_tcp_gripper(width)
     T_world_tcp = s.T_world_part @ T_part_tcp
     T_world_pre = T_world_tcp @ translation(z=-params.backoff)
     opening = float(s.gripper.pregrasp_opening(width))

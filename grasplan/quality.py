@@ -7,8 +7,9 @@ For ``M`` parallel-jaw grasps of a part (TCP frames ``T_part_tcp`` (M, 4, 4), co
 
 - the **contact patch** of each finger pad (area, type point / line / surface, equivalent widths):
   :func:`grasplan.patches.contact_patches`;
-- the **gravity margin** (soft-finger friction available / needed under gravity + 1 g in the worst
-  direction; below 1 the part slips) and the **Ferrari-Canny epsilon** (L1, two soft-finger
+- the **gravity margin** (soft-finger friction and pad pressure available / needed under the lift
+  and shake of :data:`grasplan.wrench.LOAD`, the profile the MuJoCo check applies; below 1 the part
+  slips) and the **Ferrari-Canny epsilon** (L1, two soft-finger
   contacts): :mod:`grasplan.wrench`, whose docstring gives the models; each contact is pressed
   with ``grip_force / CONTACTS_PER_GRIP`` (the datasheet gripping force is the sum of both jaws).
 
@@ -40,7 +41,7 @@ from .scoring import (
 )
 from .status import Status
 from .transforms import check_transform
-from .wrench import CONTACTS_PER_GRIP, epsilon_dedup, gravity_margin
+from .wrench import CONTACTS_PER_GRIP, LOAD, epsilon_dedup, gravity_margin, pressure_widths
 
 if TYPE_CHECKING:
     from .params import GraspParams
@@ -59,7 +60,7 @@ class Quality:
     contact_width : (M, 2, 2) float64
         Equivalent (min, max) widths of each patch, m.
     gravity_margin : (M,) float64
-        Friction available / friction needed under gravity + 1 g worst case; < 1 slips.
+        Friction available / friction needed under the lift and shake (``wrench.LOAD``); < 1 slips.
     epsilon : (M,) float64
         Ferrari-Canny L1 quality (wrench units: N per N of normal force), >= 0.
     grip_force : float
@@ -101,7 +102,8 @@ def physical_bounds(part_mesh: TriangleMesh, mass_props: MassProperties, gripper
     score's upper bound, :class:`grasplan.grasps.LazyGrasps`). Both grow with the patch area (more
     torsional friction: the wrench set grows, the demand falls), and a patch is never larger than
     the finger's pad: each is computed with the pad's whole area on both jaws; the margin also
-    with the load straight down only (it takes the worst of several directions), the epsilon once
+    with the widest pressure patch a pad allows and the lift's load only (it takes the worst of
+    several loads), the epsilon once
     per candidate (its rolls share the contacts). ``T_part_tcp`` (M, 4, 4), ``candidate`` (M,)
     into ``contacts``/``normals`` (K, 2, 3); ``width`` (M,). Returns ``(M,)`` arrays."""
     T = np.asarray(T_part_tcp, dtype=np.float64).reshape(-1, 4, 4)
@@ -111,11 +113,14 @@ def physical_bounds(part_mesh: TriangleMesh, mass_props: MassProperties, gripper
     pad = float(np.prod(rect[:, 1] - rect[:, 0]))
     F = float(gripper.grip_force if grip_force is None else grip_force)
     Twp = np.asarray(T_world_part, dtype=np.float64)
+    # a patch inside the pad: its smaller equivalent width sqrt(12 var) is at most sqrt(3) x the pad's short side
+    pad_w = math.sqrt(3.0) * float(np.min(rect[:, 1] - rect[:, 0]))
     gm = np.empty(M)
     for s in range(0, M, 65536):  # (chunk, 1, 3) temporaries
         e = min(M, s + 65536)
         gm[s:e] = gravity_margin(mass_props, Twp, T[s:e], width[s:e], np.full((e - s, 2), pad), mu=mu,
-                                 normal_force=F / CONTACTS_PER_GRIP, straight_down_only=True)
+                                 normal_force=F / CONTACTS_PER_GRIP, patch_width=np.full((e - s, 2), pad_w),
+                                 lift_only=True)
     used, inv = np.unique(ci, return_inverse=True)
     eps_c = epsilon_dedup(np.asarray(contacts, dtype=np.float64)[used], np.asarray(normals, dtype=np.float64)[used],
                           np.full((len(used), 2), pad), mass_props.com,
@@ -177,7 +182,8 @@ def grasp_quality(part_mesh: TriangleMesh, mass_props: MassProperties, gripper: 
         return Quality(contact_area=z2, contact_type=np.zeros((0, 2), dtype=np.int8), contact_width=np.zeros((0, 2, 2)),
                        gravity_margin=np.zeros(0), epsilon=np.zeros(0), grip_force=F, mu=float(mu))
     area, kind, widths = contact_patches(part_mesh, gripper, T, C)
-    margin = gravity_margin(mass_props, Twp, T, w, area, mu=mu, normal_force=F / CONTACTS_PER_GRIP)
+    margin = gravity_margin(mass_props, Twp, T, w, area, mu=mu, normal_force=F / CONTACTS_PER_GRIP,
+                            patch_width=pressure_widths(kind, widths))
     eps = epsilon_dedup(C, N, area, mass_props.com, max(part_radius(part_mesh, mass_props.com), 1e-9), mu)
     return Quality(contact_area=area, contact_type=kind, contact_width=widths, gravity_margin=margin,
                    epsilon=eps, grip_force=F, mu=float(mu))
@@ -194,8 +200,8 @@ def holding_warning(quality: Quality | None, mass_props: MassProperties | None, 
         return ""
     need = quality.grip_force / max(best, 1e-12)
     return (f"no collision-free grasp is predicted to hold {part} ({mass_props.mass:.3g} kg, "
-            f"{mass_props.density:.4g} kg/m^3) under gravity "
-            f"+ 1 g: the best gravity_margin is {best:.2f} (< 1: it slips); it would take about {need:.0f} N of "
+            f"{mass_props.density:.4g} kg/m^3) through the lift and shake "
+            f"(peak {LOAD.peak_g():.2f} g): the best gravity_margin is {best:.2f} (< 1: it slips); it would take about {need:.0f} N of "
             f"grip force at mu {quality.mu:g} (the gripper gives {quality.grip_force:g} N). The ranking leads with the "
             f"grasps closest to holding; give the real material (--density, --mass), a stronger gripper "
             f"(grip_force in its YAML), or check them in simulation (grasplan simulate)")

@@ -4,14 +4,16 @@ A candidate of the paper (:mod:`grasplan.antipodal`) is one contact pair per pai
 the count grows with the square of the tessellation. Here a candidate is a sample of a *region*:
 
 1. **Convex areas.** Faces that hold convex points are grouped into areas: edge-connected faces
-   whose normals differ by less than ``tol.planar_deg`` (coplanar facets; a face of a curved surface
-   is an area of its own). Area normal = area-weighted mean normal; ids are numbered by lowest face
+   whose normals differ by less than ``tol.planar_deg`` (coplanar facets; a face of a coarsely
+   tessellated curved surface is an area of its own; a finely tessellated one, whose neighbours chain
+   within the tolerance, is cut into patches of normals within
+   :data:`grasplan.region_areas.PATCH_DEG`). Area normal = area-weighted mean normal; ids are numbered by lowest face
    index, so they do not depend on the part's pose. A face is admitted when the convexity stage
    calls it convex, or when it is concave only because neighbours rise above it across some (not
    all) of its edges -- a shallow crease the BLM does not split (within ``180 - gamma``); samples
    closer than :data:`CONCAVE_MARGIN` (the BLM's 0.1 mm strip) to such a rising edge are dropped.
 2. **Candidate regions, streamed.** Pairs of areas ``(P, Q)`` (``P < Q``, contact 0 on P) whose
-   normals are anti-parallel within beta and whose discs (centroid, largest corner distance) can
+   normals are anti-parallel within beta plus both areas' spreads and whose discs (centroid, largest corner distance) can
    overlap along the closing axis ``a = (n_P - n_Q)/|n_P - n_Q|`` within ``max_opening``: the 6D
    line search of :func:`grasplan.antipodal_base.stream_pairs` over *areas*, in bounded chunks.
 3. **Exact overlap from the outlines.** A region is ``proj(P) & proj(Q)`` along ``a``. Only the
@@ -28,9 +30,9 @@ the count grows with the square of the tessellation. Here a candidate is a sampl
    sampled whatever the tessellation. A region the lattice misses (thinner than a pitch and off
    it) gets the middle of its widest interval on the centroid's scanline; a strip's centroid line
    is always sampled. Each sample is located in a face of P and of Q (2D point location in each
-   area's plane) and lifted along ``a`` onto both. The paper's rules then apply per sample:
-   contacts facing away, closing axis inside both friction cones (``a`` is within beta/2 of both
-   normals), width ``<= max_opening``.
+   area's plane) and lifted along ``a`` onto both. The paper's rules then apply per sample, on the
+   normals of the two faces it touches (not the areas' mean normals): anti-parallel within beta,
+   contacts facing away, closing axis inside both friction cones, width ``<= max_opening``.
 5. **Curved surfaces.** Regions smaller than one lattice cell (``area < spacing^2``: single faces of
    curved surfaces, whose partner is not coplanar) give one sample each (their centroid); those
    samples are deduplicated on the spacing grid (grasp-centre cell x closing-axis direction, by
@@ -235,19 +237,24 @@ def find_regions(mesh: TriangleMesh, convex: np.ndarray, geo: FaceGeometry, *, m
     reg, si, sj, p0, p1 = reg[ok], si[ok], sj[ok], p0[ok], p1[ok]
     # region ids: rank among the live regions (pose- and tessellation-independent)
     rid = np.cumsum(live) - 1
-    return finish_samples(reg, rid[reg], si, sj, p0, p1, small, geo, mu, eps, max_opening, spacing)
+    return finish_samples(reg, rid[reg], si, sj, p0, p1, small, geo, mu, eps, max_opening, spacing, beta_deg)
 
 
 def finish_samples(reg: np.ndarray, rid: np.ndarray, si: np.ndarray, sj: np.ndarray, p0: np.ndarray,
                    p1: np.ndarray, small: np.ndarray, geo: FaceGeometry, mu: float, eps: float,
-                   max_opening: float, spacing: float
+                   max_opening: float, spacing: float, beta_deg: float
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The paper's per-sample rules and the curved-surface deduplication; the Candidates arrays."""
+    """The paper's per-sample rules and the curved-surface deduplication; the Candidates arrays.
+
+    Beta is checked on the normals of the two faces a sample touches (an area's normal is a mean:
+    the faces of an area may stray from it by ``Areas.spread``), as are the friction cones."""
     d = p1 - p0
     w = np.linalg.norm(d, axis=1)
     dn = d / np.maximum(w, 1e-300)[:, None]
     cosf = np.cos(np.arctan(mu)) - 1e-12
-    ok = ((np.einsum("ij,ij->i", geo.n[si], -d) > 0) & (np.einsum("ij,ij->i", geo.n[sj], d) > 0) & (w > eps)
+    cosb = np.cos(np.radians(beta_deg))
+    ok = ((np.einsum("ij,ij->i", geo.n[si], geo.n[sj]) <= -cosb)
+          & (np.einsum("ij,ij->i", geo.n[si], -d) > 0) & (np.einsum("ij,ij->i", geo.n[sj], d) > 0) & (w > eps)
           & (np.einsum("ij,ij->i", -geo.n[si], dn) >= cosf) & (np.einsum("ij,ij->i", geo.n[sj], dn) >= cosf)
           & (w <= max_opening))
     reg, rid, si, sj, p0, p1, w = reg[ok], rid[ok], si[ok], sj[ok], p0[ok], p1[ok], w[ok]

@@ -23,6 +23,8 @@ import numpy as np
 
 from .cell import Cell
 from .errors import InputError
+from .inputs import read_input_bytes
+from .io import show_path
 from .grasp_table import GraspTable
 from .gripper import Gripper, gripper_from_json
 from .motion import GRIPPER_ACTIONS, SEGMENT_SEQUENCES, GripperEvent, Motion
@@ -48,14 +50,12 @@ def read_document(path: str | os.PathLike[str]) -> Any:
     """Parse a grasplan JSON file; InputError for anything that is not one."""
     p = Path(path)
     try:
-        if not p.is_file():
-            raise InputError(f"{p}: no such file (expected a grasplan grasps or plan JSON file)")
-        if p.stat().st_size > MAX_JSON_BYTES:
-            raise InputError(f"{p}: {p.stat().st_size / 1e9:.1f} GB is larger than grasplan reads ({MAX_JSON_BYTES / 1e9:.0f} GB)")
-        with open(p, "rb") as f:
-            doc = json.load(f)
+        if not p.exists():
+            raise InputError(f"{show_path(p)}: no such file (expected a grasplan grasps or plan JSON file)")
+        # a regular file only (a FIFO or a device is refused before reading), at most MAX_JSON_BYTES
+        doc = json.loads(read_input_bytes(p, what="result", max_bytes=MAX_JSON_BYTES))
     except OSError as exc:
-        raise InputError(f"{p}: cannot read it ({exc.strerror or exc})") from None
+        raise InputError(f"{show_path(p)}: cannot read it ({exc.strerror or exc})") from None
     except RecursionError:
         raise InputError(f"{p}: JSON nested too deeply; not a grasplan result") from None
     except (UnicodeDecodeError, ValueError) as exc:
@@ -162,7 +162,7 @@ def result_from_document(doc: Any, *, where: str = "document", part_mesh: Triang
 
         robot = robot_from_json(doc["robot"], where=f"{where}: robot")
         motions = _motions(grasps, status, robot, where)
-        check_fk(robot, gripper, part.T_world_part, table.T_part_tcp, motions, where)
+        check_fk(robot, gripper, part.T_world_part, table.T_part_tcp, motions, where, width=table.width)
     counts = {k: v for k, v in (doc.get("counts") or {}).items() if k in ("candidates", "posed_candidates", "poses",
                                                                            "regions")}
     timing = {str(k): float(v) for k, v in (doc.get("timing_s") or {}).items()
@@ -310,12 +310,16 @@ FK_ROT_TOL = 1e-2
 
 
 def check_fk(robot: Robot, gripper: Gripper, T_world_part: np.ndarray, T_part_tcp: np.ndarray,
-             motions: dict[int, Motion], where: str) -> None:
+             motions: dict[int, Motion], where: str, *, width: np.ndarray | None = None) -> None:
     """Each planned grasp re-checked by forward kinematics: ``FK(q_grasp) @ T_flange_tcp`` is its
     recorded TCP, the attached part is the grasp's inverse, and at the open event the part is at
-    ``T_world_part_place`` (within :data:`FK_POS_TOL` / :data:`FK_ROT_TOL`); InputError otherwise."""
+    ``T_world_part_place`` (within :data:`FK_POS_TOL` / :data:`FK_ROT_TOL`); InputError otherwise.
+    For a gripper whose TCP moves with the opening (``moving_tcp``) the TCPs are first taken to the
+    frame ``T_flange_tcp`` is given in, at each grasp's ``width`` (m)."""
     if not motions:
         return
+    if gripper.moving_tcp and width is not None:
+        T_part_tcp = np.asarray(T_part_tcp, dtype=np.float64) @ gripper.T_tcp_gripper(np.asarray(width, dtype=np.float64))
     ids = np.fromiter(motions, dtype=np.int64)
     q = np.stack([motions[i].q_grasp for i in ids])
     T_fk = robot.fk_batch(q) @ gripper.T_flange_tcp
@@ -353,18 +357,81 @@ def check_fk(robot: Robot, gripper: Gripper, T_world_part: np.ndarray, T_part_tc
 
 def load_result(source: str | os.PathLike[str] | dict[str, Any] | PlanResult, *,
                 part: str | os.PathLike[str] | None = None,
-                load_mesh: bool = False, allow_other_part: bool = False) -> PlanResult:
+                load_mesh: bool = False, allow_other_part: bool = False, verify_part: bool = False) -> PlanResult:
     """A :class:`PlanResult` from a grasps/plan file (or a parsed document, or a result).
 
     ``load_mesh``: also load the part's mesh (from ``part`` or the recorded path, relative paths
     also looked up next to the file) at the recorded scale; its sha256 must match unless
-    ``allow_other_part``."""
+    ``allow_other_part``. ``verify_part``: load it only when it can be found (an export needs no
+    mesh). A loaded mesh is checked against the grasps (:func:`check_contacts_on_part`): a plan
+    whose ``part`` block was re-pointed to another mesh is refused."""
     if isinstance(source, PlanResult):
         res = source
     elif isinstance(source, dict):
         res = result_from_document(source, where="document")
     else:
         res = replace(result_from_document(read_document(source), where=str(source)), origin=Path(source).resolve())
+    where = str(source) if isinstance(source, (str, os.PathLike)) else "the result"
+    if verify_part and not load_mesh and not allow_other_part and _part_findable(res, part):
+        load_mesh = True
     if load_mesh and (res.part_mesh is None or part is not None):
         res = replace(res, part_mesh=res.mesh(part, allow_other_part=allow_other_part))
+        if not allow_other_part:
+            check_contacts_on_part(res, where)
     return res
+
+
+def _part_findable(res: PlanResult, part: str | os.PathLike[str] | None) -> bool:
+    """Whether the part's mesh is where :meth:`PlanResult.mesh` looks (``part``, the recorded
+    path, the recorded name next to the result file)."""
+    if part is not None:
+        return True
+    places = [Path(res.part.path)] if res.part.path else []
+    if res.origin is not None and res.part.path:
+        places.append(res.origin.parent / Path(res.part.path).name)
+    for p in places:
+        try:
+            if p.is_file():
+                return True
+        except (OSError, ValueError):
+            continue
+    return False
+
+
+#: contacts checked per result (the planned grasps' first, then evenly spaced others)
+CONTACT_CHECKS = 256
+#: a contact lies on the part when within this fraction of the part's diagonal (or 10 um) of it
+CONTACT_TOL_REL, CONTACT_TOL_ABS = 1e-3, 1e-5
+
+
+def check_contacts_on_part(res: PlanResult, where: str) -> None:
+    """InputError unless the grasps' contact points lie on the part's mesh (within
+    :data:`CONTACT_TOL_REL` of its diagonal): a result whose ``part`` block (path and sha256) names
+    another mesh than the one its grasps were computed on. Cheap: at most :data:`CONTACT_CHECKS`
+    points, each a BVH distance query (coal)."""
+    import coal
+
+    from .geometry import bvh
+
+    mesh = res.part_mesh
+    t = res.grasps
+    if mesh is None or len(t) == 0:
+        return
+    planned = np.flatnonzero(t.status.astype(str) == Status.PLANNED.value)
+    spread = np.unique(np.linspace(0, len(t) - 1, min(len(t), CONTACT_CHECKS)).astype(np.int64))
+    rows = np.concatenate([planned, spread])
+    _, first = np.unique(rows, return_index=True)
+    rows = rows[np.sort(first)][:CONTACT_CHECKS]
+    pts = np.asarray(t.contacts, dtype=np.float64)[rows].reshape(-1, 3)
+    v, f = np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces)
+    tol = max(CONTACT_TOL_ABS, CONTACT_TOL_REL * float(np.linalg.norm(np.ptp(v, axis=0))))
+    model, probe = bvh(v, f), coal.Sphere(1e-9)
+    req, out, at = coal.DistanceRequest(), coal.DistanceResult(), coal.Transform3s()
+    for k, p in enumerate(pts):
+        out.clear()
+        d = coal.distance(probe, coal.Transform3s(np.eye(3), p), model, at, req, out)
+        if d > tol:
+            gid = int(t.ids[rows[k // 2]])
+            raise InputError(f"{where}: grasp {gid}'s contact lies {d * 1000:.3g} mm from the part "
+                             f"{show_path(res.part.path)} (tolerance {tol * 1000:.3g} mm): the result's part block "
+                             "names another mesh than the one it was planned for; give the part it was made from")

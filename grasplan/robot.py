@@ -37,7 +37,6 @@ from typing import Any
 
 import numpy as np
 import pinocchio as pin
-import yaml
 
 from .config_files import available, config_number, config_vector, resolve_yaml
 from .errors import ConfigError, unknown_name
@@ -182,10 +181,12 @@ def _field(cfg: dict[str, Any], name: str, where: Path | str, *, required: bool 
 
 
 def _build_robot(path: Path) -> Robot:
+    from .inputs import read_input_bytes
+
     try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"cannot read robot file {path}: {exc}") from None
+        text = read_input_bytes(path, what="robot file", max_bytes=1_000_000).decode("utf-8")
+    except UnicodeDecodeError:
+        raise ConfigError(f"robot file {path}: not a UTF-8 text file; a robot description is YAML") from None
     return _build_robot_text(text, path, path.parent)
 
 
@@ -195,10 +196,13 @@ def _build_robot_text(text: str, path: Path | str, yaml_dir: Path | None,
     resolved against ``yaml_dir`` (or, when that folder is gone, ``urdf_fallback``'s recorded paths)."""
     if len(text) > 1_000_000:
         raise ConfigError(f"{path}: robot file too large ({len(text)} bytes)")
+    from .errors import InputError
+    from .yamlfile import load_yaml_text
+
     try:
-        cfg = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"cannot read robot file {path}: not valid YAML ({str(exc).splitlines()[0]})") from None
+        cfg = load_yaml_text(text, f"robot file {path}")
+    except InputError as exc:
+        raise ConfigError(str(exc)) from None
     if not isinstance(cfg, dict):
         raise ConfigError(f"{path}: expected a mapping of fields, got {type(cfg).__name__}")
     known = {"name", "description", "package", "urdf", "srdf", "kind", "tool_frame", "frames",

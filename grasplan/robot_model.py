@@ -8,7 +8,7 @@ Frames
 ------
 * The Pinocchio model's universe is the robot's URDF root link (``base_link`` for the UR5,
   ``panda_link0`` for the Panda). ``T_world_base`` places that root link in the world
-  (identity for both shipped robots), so ``fk(q) = T_world_base @ T_base_tool(q)``.
+  (identity for every shipped robot), so ``fk(q) = T_world_base @ T_base_tool(q)``.
 * Extra fixed frames listed in the YAML's ``frames`` are added to the model at load time. The
   UR5 URDF of example-robot-data already defines ``tool0`` and ``base`` as ``ur_description`` does
   for the UR controller: ``tool0`` = ``wrist_3_link``

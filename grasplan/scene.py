@@ -50,12 +50,20 @@ Kinds: ``table``, ``part``, ``obstacle``, ``self``.
 All geometry is in the robot model's frame (its URDF root link); the world objects (table, part,
 obstacles) are placed there through ``inv(robot.T_world_base)``.
 
+Extra bodies (``extras``: :class:`ExtraBody`, e.g. the other instances of a pile and a point
+cloud's octree for ``grasplan pick``): static geometry checked against the gripper, every robot
+link and the attached part, reported by their own body names (``instance:<id>``, ``cloud``). They
+are built once; :meth:`CollisionScene.arranged` makes a variant with the part at a pose and each
+extra placed or switched off, so a scene serves every instance of every pile of the same parts.
+
 The checks before planning (the part inside the table or an obstacle, the robot's base inside an
 obstacle, q_home in collision) live in :mod:`grasplan.start_checks`.
 """
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 
 import coal
 import numpy as np
@@ -79,11 +87,22 @@ TABLE_SIZE = (20.0, 20.0, 2.0)  # m: the table box (top face at z = table_z, cen
 ATTACHED_CONTACT_TOL = 1e-4
 
 
+@dataclass(frozen=True, eq=False)
+class ExtraBody:
+    """Static geometry besides the cell and the part: ``name`` (the body name in reports, e.g.
+    ``instance:b``), coal ``geometry`` in its own frame, ``kind`` (the pair kind in reports, e.g.
+    ``instance``, ``cloud``). Its world pose is given per variant (:meth:`CollisionScene.arranged`)."""
+
+    name: str
+    geometry: coal.CollisionGeometry
+    kind: str = "obstacle"
+
+
 class _SceneModel:
     """The geometry shared by a scene and its variants (built once)."""
 
     def __init__(self, robot: Robot, gripper: Gripper, part_mesh: TriangleMesh | None, cell: Cell | None,
-                 margin: float):
+                 margin: float, extras: Sequence[ExtraBody] = ()):
         self.robot, self.gripper, self.cell, self.margin = robot, gripper, cell, float(margin)
         model = robot.model
         self.model = model
@@ -96,6 +115,9 @@ class _SceneModel:
         self.f_tool = f_tool = robot.tool_frame_id
         T_joint_tcp = robot.T_joint_tool @ np.asarray(gripper.T_flange_tcp, dtype=float)
         self.T_joint_tcp = T_joint_tcp
+        # fingertips that move along z with the opening (Robotiq 2F): z of the jaws at o vs at 0
+        self.finger_dz = (lambda o: float(gripper.tcp_offset(o)) - float(gripper.tcp_offset(0.0))) \
+            if getattr(gripper, "moving_tcp", False) else (lambda o: 0.0)
         self.body: dict[int, str] = {}
         for k, shape in enumerate(gripper.body):
             geom, T_tcp_g = shape_geometry(shape)
@@ -160,7 +182,19 @@ class _SceneModel:
                         obstacle_geometry(o, shrink=tol)))
                     self.attached_env.append(gid)
                     self.body[gid] = f"obstacle:{o.name}"
+        # extra bodies: placed per variant (identity until then; inactive unless placed)
+        self.extra_ids: dict[str, int] = {}
+        self.extra_kind: dict[str, str] = {}
+        for e in extras:
+            if e.name in self.extra_ids:
+                raise InputError(f"extra body {e.name!r} given twice")
+            gid = gm.addGeometryObject(pin.GeometryObject(f"extra:{e.name}", 0, 0, pin.SE3.Identity(), e.geometry))
+            self.extra_ids[e.name] = gid
+            self.extra_kind[e.name] = e.kind
+            self.body[gid] = e.name
         self.gm = gm
+        for g in gm.geometryObjects:  # the broad phase of scenes with extras reads them
+            g.geometry.computeLocalAABB()
         for r in self.robot_ids:
             self.body[r] = self.link(r)
         self._build_pairs()
@@ -179,11 +213,13 @@ class _SceneModel:
         pairs: list[tuple[int, int]] = []
         kinds: list[str] = []
         group: list[str] = []  # "static" (static part), "attached" (attached part), "" (always)
+        extra_of: list[str] = []  # the extra body of the pair ("" none)
 
-        def add(a, b, kind, grp=""):
+        def add(a, b, kind, grp="", extra=""):
             pairs.append((a, b))
             kinds.append(kind)
             group.append(grp)
+            extra_of.append(extra)
 
         # 1. gripper vs environment (most likely hits near a grasp)
         if PART in env:
@@ -195,10 +231,15 @@ class _SceneModel:
         for o in self.obstacle_ids:
             for g in self.gripper_ids_all:
                 add(g, o, "obstacle")
-        # 2. the attached part vs table, obstacles
+        for name, x in self.extra_ids.items():
+            for g in self.gripper_ids_all:
+                add(g, x, self.extra_kind[name], "", name)
+        # 2. the attached part vs table, obstacles, extras
         if PART_ATTACHED in env:
             for o in self.attached_env:
                 add(env[PART_ATTACHED], o, TABLE if self.body[o] == TABLE else "obstacle", "attached")
+            for name, x in self.extra_ids.items():
+                add(env[PART_ATTACHED], x, self.extra_kind[name], "attached", name)
         # 3. robot links vs table, obstacles, then vs the part
         if TABLE in env:
             for r in self.robot_ids:
@@ -207,6 +248,9 @@ class _SceneModel:
         for o in self.obstacle_ids:
             for r in self.robot_ids:
                 add(r, o, "obstacle")
+        for name, x in self.extra_ids.items():
+            for r in self.robot_ids:
+                add(r, x, self.extra_kind[name], "", name)
         if PART in env:
             for r in self.robot_ids:
                 add(r, env[PART], PART, "static")
@@ -234,6 +278,7 @@ class _SceneModel:
         self.pairs = pairs
         self.kinds = kinds
         self.group = np.array(group)
+        self.extra_of = np.array(extra_of, dtype=object)
         self.geom_names = [(gm.geometryObjects[a].name, gm.geometryObjects[b].name) for a, b in pairs]
         self.body_names = [(self.body[a], self.body[b]) for a, b in pairs]
 
@@ -241,7 +286,8 @@ class _SceneModel:
         if o == self.opening:
             return
         for sign, gid, T0 in zip((-1.0, 1.0), self.finger_ids, self.finger_T0):
-            self.gm.geometryObjects[gid].placement = to_se3(self.T_joint_tcp @ translation(sign * o / 2) @ T0)
+            self.gm.geometryObjects[gid].placement = to_se3(
+                self.T_joint_tcp @ translation(sign * o / 2, z=self.finger_dz(o)) @ T0)
         self.opening = o
 
 
@@ -261,15 +307,17 @@ class CollisionScene:
     """
 
     def __init__(self, robot: Robot, gripper: Gripper, part_mesh: TriangleMesh | None = None,
-                 T_world_part: np.ndarray | None = None, cell: Cell | None = None, *, margin: float = 0.0):
+                 T_world_part: np.ndarray | None = None, cell: Cell | None = None, *, margin: float = 0.0,
+                 extras: Sequence[ExtraBody] = ()):
         if part_mesh is not None and T_world_part is None:
             raise InputError("T_world_part (4, 4) is required with a part mesh")
-        shared = _SceneModel(robot, gripper, part_mesh, cell, margin)
+        shared = _SceneModel(robot, gripper, part_mesh, cell, margin, extras)
         self._check_finger_model(gripper)
         T_wp = check_transform(T_world_part, "T_world_part") if part_mesh is not None else None
-        self._init_variant(shared, "static" if part_mesh is not None else "none", T_wp, None)
+        self._init_variant(shared, "static" if part_mesh is not None else "none", T_wp, None, {})
 
-    def _init_variant(self, shared: _SceneModel, mode: str, T_world_part, T_tcp_part) -> None:
+    def _init_variant(self, shared: _SceneModel, mode: str, T_world_part, T_tcp_part,
+                      extras: Mapping[str, np.ndarray]) -> None:
         self._shared = shared
         self.robot, self.gripper, self.cell, self.margin = shared.robot, shared.gripper, shared.cell, shared.margin
         self.model = shared.model
@@ -278,6 +326,10 @@ class CollisionScene:
         self.mode = mode
         self.T_world_part = None if T_world_part is None else np.array(T_world_part, dtype=np.float64)
         self.T_tcp_part = None if T_tcp_part is None else np.array(T_tcp_part, dtype=np.float64)
+        self.extras = {k: np.array(v, dtype=np.float64) for k, v in extras.items()}
+        unknown = sorted(set(self.extras) - set(shared.extra_ids))
+        if unknown:
+            raise InputError(f"unknown extra bodies {unknown[:5]}; the scene has {sorted(shared.extra_ids)[:20]}")
         self.data = shared.model.createData()
         gd = pin.GeometryData(shared.gm)
         active = np.ones(len(shared.pairs), dtype=bool)
@@ -285,9 +337,11 @@ class CollisionScene:
             active &= shared.group != "static"
         if mode != "attached":
             active &= shared.group != "attached"
-        for k, on in enumerate(active):
-            if not on:
-                gd.deactivateCollisionPair(k)
+        if shared.extra_ids:
+            placed = np.array([e == "" or e in self.extras for e in shared.extra_of], dtype=bool)
+            active &= placed
+        for k in np.flatnonzero(~active):
+            gd.deactivateCollisionPair(int(k))
         for req in gd.collisionRequests:
             req.security_margin = shared.margin
             # contacts on, as in grasplan.collision: coal 3.0 with enable_contact = False missed a
@@ -296,25 +350,29 @@ class CollisionScene:
             req.num_max_contacts = 1
         self.geom_data = gd
         self._active = active
+        self._broadphase: pin.BroadPhaseManager_DynamicAABBTreeCollisionManager | None = None
         self._placements: dict[int, pin.SE3] = {}
         env = shared.env_ids
         if self.T_world_part is not None and PART in env:
             self._placements[env[PART]] = to_se3(shared.T_base_world @ self.T_world_part)
         if self.T_tcp_part is not None and PART_ATTACHED in env:
             self._placements[env[PART_ATTACHED]] = to_se3(shared.T_joint_tcp @ self.T_tcp_part)
+        for name, T in self.extras.items():
+            self._placements[shared.extra_ids[name]] = to_se3(shared.T_base_world @ check_transform(
+                T, f"extra body {name!r}: T_world"))
         self._apply()
         self.set_opening(float(shared.gripper.max_opening))
 
     # -- variants ---------------------------------------------------------------------------------
     def _variant(self, mode: str, T_world_part, T_tcp_part) -> CollisionScene:
         other = CollisionScene.__new__(CollisionScene)
-        other._init_variant(self._shared, mode, T_world_part, T_tcp_part)
+        other._init_variant(self._shared, mode, T_world_part, T_tcp_part, self.extras)
         return other
 
     def attached(self, T_tcp_part) -> CollisionScene:
         """This scene with the part in the jaws: part pose = FK(TCP) @ ``T_tcp_part`` (4, 4),
-        checked against the table, the obstacles and the robot links; the static part is gone.
-        Shares the geometry (cheap); has its own scratch data."""
+        checked against the table, the obstacles, the placed extras and the robot links; the static
+        part is gone. Shares the geometry (cheap); has its own scratch data."""
         if not self._shared.has_part:
             raise InputError("attached(): the scene has no part mesh to attach")
         return self._variant("attached", None, check_transform(T_tcp_part, "T_tcp_part"))
@@ -326,17 +384,43 @@ class CollisionScene:
             raise InputError("with_part_at(): the scene has no part mesh")
         return self._variant("static", check_transform(T_world_part, "T_world_part"), None)
 
+    def arranged(self, T_world_part: np.ndarray | None, extras: Mapping[str, np.ndarray]) -> CollisionScene:
+        """A variant with the part static at ``T_world_part`` (None: no part) and the extra bodies
+        named in ``extras`` at their world poses (4, 4); extras not named are not checked.
+        Shares the geometry (cheap); has its own scratch data."""
+        if T_world_part is not None and not self._shared.has_part:
+            raise InputError("arranged(): the scene has no part mesh")
+        other = CollisionScene.__new__(CollisionScene)
+        other._init_variant(self._shared, "static" if T_world_part is not None else "none",
+                            None if T_world_part is None else check_transform(T_world_part, "T_world_part"),
+                            None, extras)
+        return other
+
+    def move_attached(self, T_tcp_part) -> None:
+        """Set the attached part's ``T_tcp_part`` (4, 4) of this ``attached`` variant in place
+        (no new scratch data: the planner holds one attached variant and moves the part per grasp)."""
+        if self.mode != "attached":
+            raise InputError("move_attached(): only an attached() variant holds a part in the jaws")
+        self.T_tcp_part = check_transform(T_tcp_part, "T_tcp_part").astype(np.float64)
+        sh = self._shared
+        self._placements[sh.env_ids[PART_ATTACHED]] = to_se3(sh.T_joint_tcp @ self.T_tcp_part)
+        if sh.owner is self:
+            sh.owner = None
+        self._apply()
+
     # ------------------------------------------------------------------------------------------
     def _check_finger_model(self, gripper) -> None:
-        """The fingers move as pure x translations of their opening-0 pose (checked once)."""
+        """The fingers move as pure x translations of their opening-0 pose (checked once), plus
+        ``tcp_offset`` along z for a gripper whose TCP moves with the opening."""
         o = float(gripper.max_opening)
+        dz = float(gripper.tcp_offset(o)) - float(gripper.tcp_offset(0.0)) if getattr(gripper, "moving_tcp", False) else 0.0
         for sign, shape0, shape in zip((-1.0, 1.0), gripper.fingers(0.0), gripper.fingers(o)):
             if hasattr(shape, "T_tcp_box"):
-                exp = translation(sign * o / 2) @ np.asarray(shape0.T_tcp_box, dtype=float)
+                exp = translation(sign * o / 2, z=dz) @ np.asarray(shape0.T_tcp_box, dtype=float)
                 ok = np.allclose(exp, np.asarray(shape.T_tcp_box, dtype=float), atol=1e-9)
             else:
                 v0 = np.asarray(shape0.vertices, dtype=float)
-                ok = np.allclose(v0 + [sign * o / 2, 0, 0], np.asarray(shape.vertices, dtype=float), atol=1e-9)
+                ok = np.allclose(v0 + [sign * o / 2, 0, dz], np.asarray(shape.vertices, dtype=float), atol=1e-9)
             if not ok:
                 raise InputError("gripper.fingers(opening): the jaws must move along the TCP x axis by "
                                  "-opening/2 (first jaw) and +opening/2 (second jaw)")
@@ -385,9 +469,26 @@ class CollisionScene:
             return []
         return [k for k, res in enumerate(self.geom_data.collisionResults) if self._active[k] and res.isCollision()]
 
+    def _collides(self, q: np.ndarray) -> bool:
+        """Any active pair in collision at q (early stop). A scene with extra bodies (many pairs)
+        goes through a broad phase first: coal's dynamic AABB tree over the placed geometries
+        (Pinocchio's ``BroadPhaseManager``; only the active pairs whose world boxes overlap reach
+        the narrow phase; the same answer, several times faster with a pile)."""
+        if not self._shared.extra_ids:
+            return bool(pin.computeCollisions(self.model, self.data, self.geom_model, self.geom_data, q, True))
+        if self._broadphase is None:
+            self._broadphase = pin.BroadPhaseManager_DynamicAABBTreeCollisionManager(
+                self.model, self.geom_model, self.geom_data)
+        return bool(pin.computeCollisions(self.model, self.data, self._broadphase, q, True))
+
     def is_free(self, q, opening: float | None = None) -> bool:
         """True when configuration q (n,) with the jaws at ``opening`` (m; default max_opening)
         collides with nothing (early stop at the first colliding pair)."""
+        q = self._prep(q, opening)
+        return not self._collides(q)
+
+    def is_free_exhaustive(self, q, opening: float | None = None) -> bool:
+        """:meth:`is_free` checking every active pair (no broad phase): the reference it is tested against."""
         q = self._prep(q, opening)
         return not pin.computeCollisions(self.model, self.data, self.geom_model, self.geom_data, q, True)
 
@@ -429,9 +530,9 @@ class CollisionScene:
             raise InputError(f"step: expected > 0 rad, got {step}")
         self.set_opening(self.gripper.max_opening if opening is None else opening)
         self._apply()
-        m, d, gm, gd = self.model, self.data, self.geom_model, self.geom_data
+        collides = self._collides
         for q in qs:  # waypoints first: cheap rejection
-            if pin.computeCollisions(m, d, gm, gd, q, True):
+            if collides(q):
                 return False
         for a, b in zip(qs[:-1], qs[1:]):
             n = int(math.ceil(float(np.max(np.abs(b - a))) / step - 1e-12))
@@ -439,8 +540,7 @@ class CollisionScene:
                 continue
             # coarse-to-fine order (bisection) finds a collision in the middle early
             for i in _bisection_order(n):
-                q = a + (b - a) * (i / n)
-                if pin.computeCollisions(m, d, gm, gd, q, True):
+                if collides(a + (b - a) * (i / n)):
                     return False
         return True
 

@@ -32,7 +32,6 @@ from pathlib import Path
 from typing import Protocol
 
 import numpy as np
-import yaml
 
 from .config_files import config_number, packaged_file
 from .errors import ConfigError, InputError
@@ -172,18 +171,22 @@ def _epsilon(ctx: ScoreContext) -> np.ndarray:
 # ------------------------------------------------------------------------------------------------
 # the scoring YAML
 # ------------------------------------------------------------------------------------------------
+#: a scoring file larger than this is refused before it is read
+MAX_SCORING_BYTES = 1_000_000
+
+
 def load_scoring(path: str | Path | None = None) -> ScoringConfig:
     """Read a scoring YAML (default: the packaged ``configs/scoring.yaml``); ConfigError naming the
     field and the fix."""
     p = Path(path) if path is not None else SCORING_FILE
-    try:
-        data = yaml.safe_load(p.read_text())
-    except OSError as exc:
-        raise ConfigError(f"scoring file {p}: cannot read it ({exc.strerror}); give an existing YAML file") from None
-    except UnicodeDecodeError:
-        raise ConfigError(f"scoring file {p}: not a text file; give a YAML file like configs/scoring.yaml") from None
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"scoring file {p}: not valid YAML: {exc}") from None
+    from .yamlfile import read_yaml_file
+
+    try:  # the one YAML reader: a regular file of at most 1 MB, bounded aliases, each field constructible
+        data = read_yaml_file(p, what="scoring file", max_bytes=MAX_SCORING_BYTES)
+    except ConfigError:
+        raise
+    except InputError as exc:
+        raise ConfigError(str(exc)) from None
     if not isinstance(data, dict) or not isinstance(data.get("weights"), dict) or not data["weights"]:
         raise ConfigError(f"scoring file {p}: expected a mapping with 'weights: {{term: weight, ...}}'")
     unknown = set(data) - {"weights", "normalisation"}

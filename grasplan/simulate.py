@@ -25,7 +25,9 @@ radius`` per newton, uniform pressure on a disc of the patch's area), the soft-f
 
 The simulation runs in the gripper's (TCP) frame, which only translates: lifting and shaking the
 gripper is exactly a change of the effective gravity ``R_world_tcp^T (g - a_gripper(t))`` and a
-table moving away. Protocol: settle ``SETTLE_S``, close ``CLOSE_S`` (pre-grasp opening
+table moving away. The lift and the shake are :data:`grasplan.wrench.LOAD`, the load model
+``gravity_margin`` checks (the margin takes their peaks: lift +-2 m/s^2, shake +-5 m/s^2 in any
+horizontal direction, x and y among them). Protocol: settle ``SETTLE_S``, close ``CLOSE_S`` (pre-grasp opening
 ``gripper.pregrasp_opening(width)``), lift ``LIFT_HEIGHT`` (10 cm) in ``LIFT_S`` (0.5 s, cosine
 profile, peak 2 m/s^2), shake ``SHAKE_ACCEL`` (+-5 m/s^2) along world x then y for ``SHAKE_S``
 (1 s in all, ``SHAKE_HZ`` sine). Success: at the end the part moved less than ``SLIP_TOL`` (5 mm, its
@@ -43,6 +45,7 @@ import itertools
 import math
 import os
 import time
+import warnings
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -51,6 +54,7 @@ import numpy as np
 from .cache import cache_dir
 from .errors import InputError
 from .gripper.model import Box, Gripper
+from .inputs import read_input_bytes
 from .io import write_atomic_bytes
 from .mass import DEFAULT_DENSITY, MassProperties, mass_properties
 from .meshdata import TriangleMesh
@@ -58,12 +62,13 @@ from .patches import contact_patches
 from .scoring import distinct_order
 from .status import Status
 from .transforms import check_transform, quaternions
-from .wrench import CONTACTS_PER_GRIP, torsion_length
+from .wrench import CONTACTS_PER_GRIP, LOAD, torsion_length
 
-#: lift height (m) and duration (s)
-LIFT_HEIGHT, LIFT_S = 0.10, 0.5
-#: shake amplitude (m/s^2), total duration (s, half along world x then half along y), frequency (Hz)
-SHAKE_ACCEL, SHAKE_S, SHAKE_HZ = 5.0, 1.0, 4.0
+#: lift height (m) and duration (s); shake amplitude (m/s^2), total duration (s, half along world x
+#: then half along y), frequency (Hz): the load model :data:`grasplan.wrench.LOAD`, which
+#: ``gravity_margin`` checks (one definition of the shake)
+LIFT_HEIGHT, LIFT_S = LOAD.lift_height, LOAD.lift_s
+SHAKE_ACCEL, SHAKE_S, SHAKE_HZ = LOAD.shake_accel, LOAD.shake_s, LOAD.shake_hz
 #: settle with open jaws, then close (s)
 SETTLE_S, CLOSE_S = 0.05, 0.3
 #: success thresholds: centre-of-mass displacement (m) and rotation (deg) relative to the jaws
@@ -113,10 +118,32 @@ class SimResult:
     seconds: float
     pieces: int
     jaw_torsion_m: np.ndarray | None = None
+    #: (k,) kg and (k, 3) m: the load on the flange while the part is carried (the gripper's mass and
+    #: centre of mass from its file plus the part in the jaws, flange frame); None without a gripper mass
+    payload_kg: np.ndarray | None = None
+    payload_com: np.ndarray | None = None
 
     def to_json(self, i: int) -> dict:
         """The ``sim`` object of grasp ``i``."""
         return {"success": bool(self.success[i]), "slip_m": float(self.slip_m[i]), "turn_deg": float(self.turn_deg[i])}
+
+
+def flange_payload(gripper: Gripper, mass_props: MassProperties, T_part_tcp: np.ndarray, width: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray] | None:
+    """The load on the flange while grasp ``i`` carries the part: ``(kg (k,), centre of mass (k, 3) in
+    the flange frame, m)``: the gripper's ``mass`` / ``com`` (its file) plus the part (its mass at
+    its centre of mass, placed by ``T_part_tcp`` (k, 4, 4) and the TCP at each ``width`` (k,)). None
+    when the gripper file gives no mass."""
+    if gripper.mass is None or gripper.com is None:
+        return None
+    T_tcp_part = np.linalg.inv(np.asarray(T_part_tcp, dtype=np.float64))
+    T_flange_tcp = np.stack([gripper.T_flange_tcp_at(float(wi)) for wi in np.asarray(width, dtype=np.float64)])
+    T_flange_part = T_flange_tcp @ T_tcp_part
+    c_part = T_flange_part[:, :3, :3] @ np.asarray(mass_props.com, dtype=np.float64) + T_flange_part[:, :3, 3]
+    m_g, m_p = float(gripper.mass), float(mass_props.mass)
+    total = np.full(len(c_part), m_g + m_p)
+    com = (m_g * np.asarray(gripper.com, dtype=np.float64) + m_p * c_part) / (m_g + m_p)
+    return total, com
 
 
 # ------------------------------------------------------------------------------------------------
@@ -143,13 +170,10 @@ def convex_pieces(mesh: TriangleMesh, *, decomposition: str = "coacd", seed: int
         return [np.asarray(mesh.convex_hull.vertices, dtype=np.float64)]
     key = _mesh_key(mesh, f"coacd/{COACD_THRESHOLD}/{COACD_MAX_PIECES}/{int(seed)}")
     path = cache_dir() / "coacd" / f"{key}.npz"
-    if cache and path.is_file():
-        try:
-            with np.load(path) as z:
-                v, off = z["vertices"], z["offsets"]
-            return [v[a:b] for a, b in itertools.pairwise(off)]
-        except (OSError, ValueError, KeyError):
-            pass  # a corrupt cache entry is recomputed and replaced below
+    if cache:
+        cached = _cached_pieces(path)
+        if cached is not None:
+            return cached
     import coacd
 
     coacd.set_log_level("error")
@@ -162,8 +186,35 @@ def convex_pieces(mesh: TriangleMesh, *, decomposition: str = "coacd", seed: int
         off = np.cumsum([0] + [len(p) for p in pieces])
         buf = io.BytesIO()
         np.savez(buf, vertices=np.concatenate(pieces), offsets=off)
-        write_atomic_bytes(path, buf.getvalue())
+        try:
+            write_atomic_bytes(path, buf.getvalue())
+        except InputError as exc:  # a read-only cache folder costs the next run time, not this run's result
+            warnings.warn(f"CoACD cache not written ({exc}); set $GRASPLAN_CACHE_DIR to a writable folder", stacklevel=2)
     return pieces
+
+
+#: a cache entry larger than this is not one grasplan wrote
+MAX_CACHE_BYTES = 200_000_000
+
+
+def _cached_pieces(path: Path) -> list[np.ndarray] | None:
+    """The convex pieces stored in the cache entry ``path``; None when there is none or it is
+    damaged, truncated or not an entry grasplan wrote (the caller then recomputes and replaces it)."""
+    import zipfile
+
+    if not path.is_file():
+        return None
+    try:
+        data = read_input_bytes(path, what="CoACD cache entry", max_bytes=MAX_CACHE_BYTES)
+        with np.load(io.BytesIO(data), allow_pickle=False) as z:
+            v = np.asarray(z["vertices"], dtype=np.float64)
+            off = np.asarray(z["offsets"], dtype=np.int64)
+    except (InputError, OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile):
+        return None
+    if (v.ndim != 2 or v.shape[1:] != (3,) or not np.isfinite(v).all() or off.ndim != 1 or len(off) < 2
+            or off[0] != 0 or off[-1] != len(v) or np.any(np.diff(off) < 4)):
+        return None
+    return [v[a:b] for a, b in itertools.pairwise(off)]
 
 
 # ------------------------------------------------------------------------------------------------
@@ -358,8 +409,10 @@ def simulate_grasps(part_mesh: TriangleMesh, gripper: Gripper, T_world_part: np.
     previous_handler = mujoco.get_mju_user_warning()
     mujoco.set_mju_user_warning(lambda msg: None)
     try:
-        return _run_grasps(model, data, pieces, Twp, T, w, gripper, F, q_part, q_jaw, part_body, T_world_table,
-                           t_start, k, jaw_torsion)
+        res = _run_grasps(model, data, pieces, Twp, T, w, gripper, F, q_part, q_jaw, part_body, T_world_table,
+                          t_start, k, jaw_torsion)
+        load = flange_payload(gripper, mp, T, w)  # the gripper's mass and centre of mass + the part
+        return res if load is None else replace(res, payload_kg=load[0], payload_com=load[1])
     finally:
         mujoco.set_mju_user_warning(previous_handler)
 

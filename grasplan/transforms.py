@@ -179,7 +179,11 @@ def parse_pose_text(s: str, option: str, alt: str = "") -> np.ndarray:
         raise InputError(f"{option}: expected 'x,y,z,roll,pitch,yaw' (m or with units; degrees){' ' + alt if alt else ''}, "
                          f"got {s[:80]!r}")
     xyz = [parse_length(v, name=f"{option} {n}", allow_negative=True) for v, n in zip(parts[:3], "xyz")]
-    rpy = [math.radians(parse_angle_deg(v, name=f"{option} {n}")) for v, n in zip(parts[3:], ("roll", "pitch", "yaw"))]
+    deg = [parse_angle_deg(v, name=f"{option} {n}") for v, n in zip(parts[3:], ("roll", "pitch", "yaw"))]
+    if max(abs(a) for a in deg) > MAX_ANGLE_DEG:  # the limit cell YAMLs have: 1e308 deg is no angle
+        raise InputError(f"{option}: angles in degrees, at most {MAX_ANGLE_DEG:g} in magnitude, got "
+                         f"{', '.join(f'{a:g}' for a in deg)}")
+    rpy = [math.radians(a) for a in deg]
     if max(abs(x) for x in xyz) > MAX_CELL_COORD_M:
         raise InputError(f"{option}: the position must be within {MAX_CELL_COORD_M} m of the world origin")
     T = np.eye(4)
@@ -194,8 +198,6 @@ def parse_part_pose(text: str | os.PathLike) -> np.ndarray:
     Either ``"x,y,z,roll,pitch,yaw"`` (:func:`parse_pose_text`) or a JSON/YAML file holding a 4x4
     row-major matrix (top level, or under the key ``T_world_part``). The pose is used as given: the
     part may float above or sink into the table (the collision check does not move it)."""
-    import yaml
-
     s = str(text)
     if len(s) > 4096 or "\x00" in s:
         raise InputError("--part-pose: expected 'x,y,z,roll,pitch,yaw' or a JSON/YAML file with T_world_part")
@@ -207,12 +209,9 @@ def parse_part_pose(text: str | os.PathLike) -> np.ndarray:
     if p.suffix.lower() in (".json", ".yaml", ".yml") or is_file:
         if not is_file:
             raise InputError(f"--part-pose: file {p} not found")
-        try:
-            if p.stat().st_size > 1_000_000:
-                raise InputError(f"--part-pose: {p} is too large for a pose file")
-            data = yaml.safe_load(p.read_text())  # YAML is a superset of JSON
-        except (yaml.YAMLError, UnicodeDecodeError, OSError) as exc:
-            raise InputError(f"--part-pose: {p} is not a readable JSON/YAML file ({str(exc).splitlines()[0][:80]})") from None
+        from .yamlfile import read_yaml_file
+
+        data = read_yaml_file(p, what="--part-pose file", max_bytes=1_000_000)  # YAML is a superset of JSON
         if isinstance(data, dict):
             if "T_world_part" not in data:
                 raise InputError(f"--part-pose: {p} has no key 'T_world_part' (a 4x4 row-major matrix)")

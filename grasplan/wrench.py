@@ -16,13 +16,17 @@ the two contacts is pressed with the normal force ``F = grip_force / 2`` (70 N f
 **Gravity margin** (:func:`gravity_margin`). Each contact is pressed with ``F`` (N, above). A
 contact resists a tangential force ``|t| <= mu F`` and a torque about the closing axis
 ``|tau| <= (2/3) mu F a``, combined elliptically: ``(|t| / (mu F))^2 + (tau / tau_max)^2 <= 1``. The
-load is the part's weight plus a 1 g acceleration in the worst direction: ``f = m g (g_hat + u)``
-for unit ``u`` (``N_DIRECTIONS`` Fibonacci directions and ``u = g_hat``), applied at the centre of
-mass, whose offset from the contact axis is the lever arm. Forces along the closing axis are held
-by the jaws' mechanism; tangential force is shared equally; the torque about the closing axis is
-held by torsional friction (shared by capacity); the torque perpendicular to it by a couple of
-opposite tangential forces ``|tau_perp| / width`` at the two contacts. ``gravity_margin`` =
-1 / (largest utilisation over both contacts and every direction): below 1 the part slips.
+loads are those of the lift and shake the MuJoCo check applies (:class:`LoadModel`, :data:`LOAD`):
+``f = m (g - a)`` for the gripper accelerations ``a`` of :meth:`LoadModel.accelerations` (the lift's
++-1.97 m/s^2, the shake's +-5 m/s^2 in 8 horizontal directions), applied at the centre of mass,
+whose offset from the contact axis is the lever arm. Forces along the closing axis are held by the
+jaws' mechanism; tangential force is shared equally; the torque about the closing axis is held by
+torsional friction (shared by capacity); the torque perpendicular to it first by the pads' pressure
+(a flat patch of smaller equivalent width ``w`` shifts its centre of pressure by up to
+``PRESSURE_ARM w`` = ``w / 6``, the kern: the pressure stays positive over the whole patch), the rest
+by a couple of opposite tangential forces ``|tau_perp| / width`` at the two contacts.
+``gravity_margin`` = 1 / (largest utilisation over both contacts and every load): below 1 the part
+slips.
 
 **Epsilon** (Ferrari-Canny L1). Two soft-finger contacts, unit normal force each: the friction
 cone linearised with ``CONE_EDGES`` (8) edges ``nu + mu (cos k t1 + sin k t2)`` plus the pure normal
@@ -42,6 +46,7 @@ share one hull computation (:func:`epsilon_dedup`).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
@@ -59,21 +64,10 @@ QHULL_OPTIONS = "QJ Pp"
 EPSILON_TOL = 1e-9
 #: edges of the linearised friction cone
 CONE_EDGES = 8
-#: load directions sampled for the worst-case 1 g acceleration
-N_DIRECTIONS = 64
 #: standard gravity, m/s^2
 G = 9.81
 #: the gripper's ``grip_force`` is the sum over its jaws: each contact gets grip_force / this
 CONTACTS_PER_GRIP = 2
-
-
-def fibonacci_directions(n: int) -> np.ndarray:
-    """(n, 3) unit vectors spread evenly over the sphere (deterministic)."""
-    k = np.arange(n) + 0.5
-    z = 1.0 - 2.0 * k / n
-    phi = k * math.pi * (3.0 - math.sqrt(5.0))
-    r = np.sqrt(1.0 - z * z)
-    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
 
 
 def patch_radius(area: np.ndarray) -> np.ndarray:
@@ -93,21 +87,80 @@ def torsion_length(area: np.ndarray) -> np.ndarray:
     return SOFT_FINGER * patch_radius(area)
 
 
+@dataclass(frozen=True)
+class LoadModel:
+    """The lift and shake a grasp must survive: one definition for :func:`gravity_margin` and the
+    MuJoCo check (:mod:`grasplan.simulate` runs exactly this profile).
+
+    After closing, the gripper lifts ``lift_height`` in ``lift_s`` (cosine profile: vertical
+    acceleration ``+-lift_accel``, up first), then shakes ``+-shake_accel`` (sine at ``shake_hz``)
+    along world x for ``shake_s / 2`` and along world y for ``shake_s / 2``. The jaws must supply
+    ``m (a - g)`` for every gripper acceleration ``a`` of :meth:`accelerations`: the lift's two
+    extremes and the shake's peak in ``shake_directions`` horizontal directions (x and y, the
+    simulation's, among them; the margin does not depend on how the part happens to be turned about
+    the vertical). Peak load: ``m sqrt(g^2 + shake_accel^2)`` = 1.12 g tilted 27 deg while shaking,
+    ``m (g + lift_accel)`` = 1.20 g while lifting."""
+
+    lift_height: float = 0.10      #: m
+    lift_s: float = 0.5            #: s
+    shake_accel: float = 5.0       #: m/s^2, amplitude
+    shake_s: float = 1.0           #: s, half along world x then half along world y
+    shake_hz: float = 4.0          #: Hz
+    shake_directions: int = 8      #: horizontal directions the margin checks (multiple of 4: includes +-x, +-y)
+
+    @property
+    def lift_accel(self) -> float:
+        """Peak vertical acceleration of the cosine lift profile, m/s^2."""
+        return 0.5 * self.lift_height * (math.pi / self.lift_s) ** 2
+
+    def accelerations(self) -> np.ndarray:
+        """(K, 3) gripper accelerations in the world (m/s^2) whose loads the margin checks: lift up,
+        lift braking, and the shake's peak in ``shake_directions`` horizontal directions."""
+        th = 2.0 * math.pi * np.arange(self.shake_directions) / self.shake_directions
+        shake = self.shake_accel * np.column_stack([np.cos(th), np.sin(th), np.zeros_like(th)])
+        lift = np.array([[0.0, 0.0, self.lift_accel], [0.0, 0.0, -self.lift_accel]])
+        return np.vstack([lift, shake])
+
+
+    def peak_g(self) -> float:
+        """The largest load of :meth:`accelerations`, in g (gravity included)."""
+        return float(np.linalg.norm(np.array([0.0, 0.0, G]) + self.accelerations(), axis=1).max() / G)
+
+
+#: the load model of the margin and the simulation
+LOAD = LoadModel()
+#: pad-pressure moment: a flat patch pressed with ``F`` carries a moment perpendicular to the
+#: closing axis of up to ``F * PRESSURE_ARM * w`` by shifting its centre of pressure (``w``: the
+#: patch's smaller equivalent width); 1/6 keeps the linear pressure positive over the whole patch
+#: (the kern of a rectangle: no edge lifts off)
+PRESSURE_ARM = 1.0 / 6.0
+
+
+def pressure_widths(contact_type: np.ndarray, widths: np.ndarray) -> np.ndarray:
+    """(M, 2) width (m) of each jaw's pad-pressure moment (:data:`PRESSURE_ARM`): the smaller
+    equivalent width of a surface patch (``contact_type`` 2, ``widths`` (M, 2, 2) sorted, from
+    :func:`grasplan.patches.contact_patches`); 0 for point and line contacts."""
+    return np.where(np.asarray(contact_type) == 2, np.asarray(widths, dtype=np.float64)[..., 0], 0.0)
+
+
 def gravity_margin(mass_props: MassProperties, T_world_part: np.ndarray, T_part_tcp: np.ndarray,
                    width: np.ndarray, area: np.ndarray, *, mu: float, normal_force: float,
-                   accel_g: float = 1.0, straight_down_only: bool = False) -> np.ndarray:
-    """(M,) friction available / needed to hold the part under gravity plus ``accel_g`` g in the
-    worst direction (module docstring). ``area`` (M, 2) m^2, ``width`` (M,) m, ``normal_force``: N
-    pressing each contact (``grip_force / CONTACTS_PER_GRIP``). ``straight_down_only``: the
-    acceleration straight down only, one of the directions the margin takes the worst of, so the
+                   patch_width: np.ndarray | None = None, load: LoadModel = LOAD,
+                   lift_only: bool = False) -> np.ndarray:
+    """(M,) friction available / needed to hold the part under the lift and shake of ``load``
+    (module docstring). ``area`` (M, 2) m^2, ``width`` (M,) m, ``normal_force``: N pressing each
+    contact (``grip_force / CONTACTS_PER_GRIP``); ``patch_width`` (M, 2) m: each patch's smaller
+    equivalent width (its pad-pressure moment, :data:`PRESSURE_ARM`; ``None``: none). ``lift_only``:
+    the lift's upward acceleration only, one of the loads the margin takes the worst of, so the
     result is >= the margin (an upper bound, :func:`grasplan.quality.physical_bounds`)."""
     T = np.asarray(T_part_tcp, dtype=np.float64).reshape(-1, 4, 4)
     R = T[:, :3, :3]
-    g_hat = np.einsum("mji,j->mi", R, T_world_part[:3, :3].T @ np.array([0.0, 0.0, -1.0]))  # in TCP
+    acc = load.accelerations()[:1] if lift_only else load.accelerations()
+    # load on the part that the jaws must hold, world: m (g - a); in each TCP frame
+    f_world = mass_props.mass * (np.array([0.0, 0.0, -G])[None] - acc)              # (D, 3)
+    f_part = f_world @ np.asarray(T_world_part, dtype=np.float64)[:3, :3]         # rows: R_wp^T f
+    f = np.einsum("mji,dj->mdi", R, f_part)                                       # (M, D, 3) TCP frame
     com = np.einsum("mji,mj->mi", R, mass_props.com - T[:, :3, 3])  # centre of mass in TCP
-    u = g_hat[:, None] if straight_down_only else \
-        np.concatenate([g_hat[:, None], np.broadcast_to(fibonacci_directions(N_DIRECTIONS), (len(T), N_DIRECTIONS, 3))], 1)
-    f = mass_props.mass * G * (g_hat[:, None] + accel_g * u)  # (M, D, 3) load on the part, TCP frame
     t_max = mu * normal_force
     if t_max <= 0:  # no friction: nothing holds the part against a tangential load
         return np.zeros(len(T))
@@ -116,6 +169,13 @@ def gravity_margin(mass_props: MassProperties, T_world_part: np.ndarray, T_part_
     tau_x = cy * fz - cz * fy  # tau = com x f, component by component (no (M, D, 3) temporaries)
     tau_y = cz * fx - cx * fz
     tau_z = cx * fy - cy * fx
+    if patch_width is not None:
+        # the pads' pressure moment carries up to normal_force * PRESSURE_ARM * (w0 + w1) of the
+        # moment perpendicular to the closing axis; friction the rest
+        cap = normal_force * PRESSURE_ARM * np.maximum(np.asarray(patch_width, dtype=np.float64), 0.0).sum(axis=1)
+        tp = np.hypot(tau_y, tau_z)
+        keep = np.maximum(tp - cap[:, None], 0.0) / np.maximum(tp, 1e-300)
+        tau_y, tau_z = tau_y * keep, tau_z * keep
     inv_w = 1.0 / np.maximum(np.asarray(width, dtype=np.float64), 1e-9)[:, None]
     # the couple h = (tau_perp x x_hat) / width = (0, tau_z, -tau_y) / width at the two contacts
     hy, hz = tau_z * inv_w, -tau_y * inv_w
@@ -123,7 +183,7 @@ def gravity_margin(mass_props: MassProperties, T_world_part: np.ndarray, T_part_
     r_tors2 = (tau_x / tors_max[:, None]) ** 2
     a0 = (0.5 * fy - hy) ** 2 + (0.5 * fz - hz) ** 2
     a1 = (0.5 * fy + hy) ** 2 + (0.5 * fz + hz) ** 2
-    demand = np.sqrt((np.maximum(a0, a1) / (t_max * t_max) + r_tors2).max(axis=1))  # worst contact, direction
+    demand = np.sqrt((np.maximum(a0, a1) / (t_max * t_max) + r_tors2).max(axis=1))  # worst contact, load
     return 1.0 / np.maximum(demand, 1e-12)
 
 

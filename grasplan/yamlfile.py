@@ -167,7 +167,11 @@ def _check_duplicates(root: yaml.Node, where: str) -> None:
 def load_yaml_text(text: str, where: str) -> Any:
     """The Python value of the YAML ``text`` (see the module docstring); ``where`` names the input
     in errors (``"cell /path/x.yaml"``)."""
-    loader = _Loader(text)
+    try:
+        loader = _Loader(text)  # the reader refuses control characters here already
+    except yaml.YAMLError as exc:
+        problem = getattr(exc, "reason", None) or (str(exc).splitlines() or ["not readable"])[0]
+        raise InputError(f"{where}: not valid YAML: {str(problem)[:120]} (control characters are not allowed)") from None
     try:
         root = loader.get_single_node()
         if root is None:

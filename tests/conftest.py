@@ -36,3 +36,14 @@ def example_part():
     def get(name: str) -> Path:
         return EXAMPLE_PARTS / name
     return get
+
+
+def pytest_terminal_summary(terminalreporter):
+    """Lines a test recorded with ``record_property("summary", text)`` (e.g. the service load
+    test's p50/p95), printed after the run, also from pytest-xdist workers."""
+    lines = [v for rep in terminalreporter.stats.get("passed", []) for k, v in getattr(rep, "user_properties", ())
+             if k == "summary"]
+    if lines:
+        terminalreporter.section("summaries")
+        for line in lines:
+            terminalreporter.write_line(str(line))

@@ -293,4 +293,4 @@ def find_regions_pairs(mesh, convex, geo, *, max_opening, beta_deg, mu, spacing,
     p1 = x + (np.einsum("ij,ij->i", geo.n[sj], geo.tri[sj, 0] - x) / np.einsum("ij,ij->i", geo.n[sj], ax))[:, None] * ax
     ok = ~near_creases(p0, p1, creases)
     reg, si, sj, p0, p1 = reg[ok], si[ok], sj[ok], p0[ok], p1[ok]
-    return finish_samples(reg, reg, si, sj, p0, p1, small, geo, mu, eps, max_opening, spacing)
+    return finish_samples(reg, reg, si, sj, p0, p1, small, geo, mu, eps, max_opening, spacing, beta_deg)

@@ -49,6 +49,9 @@ def test_every_command_has_options_to_walk():
 
 
 def _args(command: str, tmp_path, opt: click.Option, value: str) -> list[str]:
+    if command == "serve":  # no input file, no -o: a valid value ends at the missing --parts folder
+        parts = [] if opt.opts[0] == "--parts" else ["--parts", str(tmp_path / "missing_parts")]
+        return [command, *parts, opt.opts[0], value]
     plan = str(tmp_path / "missing_plan.json")
     base = {"export": [plan], "view": [plan], "simulate": [plan]}.get(command, [str(tmp_path / "missing_input.stl")])
     args = [command, *base, opt.opts[0], value]

@@ -181,6 +181,12 @@ def synthetic_plan(robot, *, T_world_base=None, part=None) -> dict:
     rec = {"path": "/nonexistent/part.stl", "sha256": "0" * 64, "scale_to_m": 0.001, "triangles": 12}
     if part is not None:
         rec = {"path": str(part), "sha256": sha256_file(part), "scale_to_m": 0.001, "triangles": 12}
+        # loading a plan checks that its contacts lie on the part it names: put them on two corners
+        from grasplan.mesh import load_part
+
+        corners = np.asarray(load_part(part, units="mm").mesh.vertices)[:2].tolist()
+        for g in (g0, g1, ok_not_tried, coll):
+            g["contacts"] = corners
     return {
         "schema": "grasplan.plan/1",
         "part": {**rec, "T_world_part": T_world_part.tolist()},

@@ -103,7 +103,8 @@ def test_part_pose_parsing(tmp_path):
 @pytest.mark.parametrize(
     "args, needle",
     [
-        (["--gripper", "nope"], "available: round_mesh_jaws, schunk_egp_c_40"),
+        (["--gripper", "nope"], "available: onrobot_rg2, onrobot_rg6, robotiq_2f_140, robotiq_2f_85, "
+                                "round_mesh_jaws, schunk_egp_25, schunk_egp_64, schunk_egp_c_40"),
         (["--cell", "nope"], "available: bin, table, wall"),
         (["--part-pose", "1,2"], "--part-pose"),
     ],

@@ -336,3 +336,27 @@ def test_face_concave_only_at_a_shallow_crease_is_sampled_away_from_it():
     assert np.isclose(x.min(), 0.00005, atol=1e-9)      # 0.05 mm from a convex outline: sampled
     assert np.isclose(x.max(), 0.01796, atol=1e-9)      # 0.05 mm from the crease: dropped
     assert not convex[c.faces[on_top]].all()            # samples on the paper-concave triangle too
+
+
+def test_curved_tolerance_chains_are_cut_into_patches():
+    """Issue 22: on a 1000-sided cylinder neighbours differ by 0.36 deg (< planar_deg), so
+    neighbour-to-neighbour grouping chains the whole side into one 'area' whose faces point every
+    way. Areas are cut into patches whose faces stay within PATCH_DEG of the area normal; flat
+    faces (caps, a box's sides) stay one area each, whatever their tessellation."""
+    from grasplan.region_areas import PATCH_DEG
+    cyl = trimesh.creation.cylinder(radius=0.01, height=0.03, sections=1000)
+    tol = Tolerance.for_mesh(cyl.vertices)
+    areas = convex_areas(cyl, np.ones(len(cyl.faces), bool), tol)
+    fn = cyl.face_normals
+    dev = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", fn, areas.normal[areas.label]), -1, 1)))
+    assert dev.max() <= PATCH_DEG + 1e-9
+    assert np.allclose(areas.spread[areas.label], np.radians(np.maximum.reduceat(dev[np.argsort(areas.label)],
+                       np.r_[0, np.flatnonzero(np.diff(np.sort(areas.label))) + 1]))[areas.label], atol=1e-6)
+    caps = np.abs(fn[:, 2]) > 0.99
+    assert len(np.unique(areas.label[caps])) == 2                       # each cap one flat area
+    side = np.unique(areas.label[~caps])
+    assert 100 < len(side) < 1000                                       # patches, not one chain, not single faces
+    box = trimesh.Trimesh(*trimesh.remesh.subdivide_to_size(*(lambda b: (b.vertices, b.faces))(
+        trimesh.creation.box(extents=[0.06, 0.045, 0.014])), 0.002))
+    ab = convex_areas(box, np.ones(len(box.faces), bool), Tolerance.for_mesh(box.vertices))
+    assert len(ab.area) == 6 and np.all(ab.spread < 1e-9)

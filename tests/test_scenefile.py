@@ -99,3 +99,38 @@ def test_edits_make_new_scenes():
     with pytest.raises(InputError, match="unique"):
         Scene(instances=(Instance("a", "p", np.eye(4)), Instance("a", "p", np.eye(4))))
     assert not s.instance("a").T_world_part.flags.writeable
+
+
+# the JSON Schema (grasplan/schemas/scene.schema.json) and the reader agree ----------------------
+STRUCTURAL = [
+    (("colour",), "red"),
+    (("schema",), "grasplan.scene/2"),
+    (("instances", 0, "T"), {"pos": [0, 0, 0]}),
+    (("instances", 0, "T"), {"rpy_deg": [0, 0, 0]}),
+    (("instances", 0, "T"), [[1, 0, 0], [0, 1, 0], [0, 0, 1]]),
+    (("instances", 0, "id"), "../etc"),
+    (("instances", 0, "size"), 3),
+    (("instances", 1, "part"), KeyError),
+    (("instances",), []),
+    (("parts", "tless20", "units"), "furlong"),
+    (("parts", "tless20", "colour"), "red"),
+    (("cloud", "path"), KeyError),
+    (("cloud", "resolution"), "fine"),
+]
+
+
+def test_schema_accepts_what_the_reader_writes_and_accepts():
+    from grasplan.schemas import errors
+
+    assert errors(DOC) == []
+    assert errors(scene_from_dict(DOC).to_json()) == []
+
+
+@pytest.mark.parametrize("path, value", STRUCTURAL)
+def test_schema_and_reader_refuse_the_same_structural_errors(path, value):
+    from grasplan.schemas import errors
+
+    doc = _with(path, value)
+    assert errors(doc, "grasplan.scene/1"), f"the schema accepts {path} = {value!r}"
+    with pytest.raises(InputError):
+        scene_from_dict(doc)

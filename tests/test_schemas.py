@@ -43,7 +43,7 @@ def candidates_doc(tmp_path_factory, example_part):
 
 def test_schemas_are_valid_draft_2020_12():
     assert set(available_schemas()) == {"grasplan.candidates/1", "grasplan.grasps/1", "grasplan.plan/1",
-                                        "grasplan.joint_trajectory/1"}
+                                        "grasplan.joint_trajectory/1", "grasplan.picks/1", "grasplan.scene/1"}
     for name in SCHEMA_FILES:
         schema = load_schema(name)
         assert schema["$schema"] == "https://json-schema.org/draft/2020-12/schema"

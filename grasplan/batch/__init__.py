@@ -48,7 +48,9 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import json
 import os
+import stat
 import shutil
 import time
 import uuid
@@ -57,8 +59,9 @@ from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
-from ..errors import InputError
-from ..io import read_json, write_atomic_bytes, write_json
+from ..errors import GrasplanError, InputError
+from ..inputs import read_input_bytes
+from ..io import _sigterm_raises, show_path, write_atomic_bytes, write_json
 from .engines import ENGINES
 from .layout import (
     DONE_FILE,
@@ -66,9 +69,11 @@ from .layout import (
     FAILED_STATUSES,
     FINAL_STATUSES,
     LOCK_FILE,
+    PLAN_FILE,
     STAGING_DIR,
     BatchStatus,
 )
+from .outdir import MAX_DONE_BYTES, check_out_dir, clear_staging, config_inputs
 from .manifest import PartJob, discover_parts, make_jobs
 from .options import BatchOptions
 from .report import BatchSummary, pending_row, summary_row, write_summary
@@ -109,80 +114,103 @@ def run_batch(parts: Sequence[str | os.PathLike], out_dir: str | os.PathLike, *,
     cdirs = [str(Path(d).expanduser().resolve()) for d in config_dirs]
     from ..config_files import use_config_dirs
 
+    check_out_dir(out_dir, inputs=parts, create=False)  # before a manifest is read: -o out with out/summary.csv
     with use_config_dirs(*cdirs):
-        jobs = make_jobs(discover_parts(parts), options)
-    out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"-o {out}: exists and is not a folder")
-    out.mkdir(parents=True, exist_ok=True)
-    with _lock(out):
+        entries = discover_parts(parts)
+        jobs = make_jobs(entries, options)
+        out = check_out_dir(out_dir, jobs, inputs=[*parts, *(e.path for e in entries), *config_inputs(jobs)])
+    with _sigterm_raises(), _lock(out):
         staging = out / STAGING_DIR
-        shutil.rmtree(staging, ignore_errors=True)  # left by an interrupted batch: never a finished result
-        staging.mkdir()
-        rows: dict[int, dict[str, Any]] = {}
-        todo: list[PartJob] = []
-        for i, job in enumerate(jobs):
-            if job.duplicate_of is not None:
-                continue
-            row = _read_done(out / job.dir_name, job)
-            if row is not None:
-                rows[i] = {**row, "part": job.path, "resumed": True}
-            else:
-                todo.append(job)
-        # largest files first: the long parts do not end up alone at the tail (rows keep input order)
-        todo.sort(key=lambda j: -_file_size(j.path))
-        position = {id(j): i for i, j in enumerate(jobs)}
-        t0 = time.perf_counter()
-        state = {"done": len(rows), "failed": sum(r["status"] in FAILED_STATUSES for r in rows.values()),
-                 "planned": sum(r["status"] == BatchStatus.PLANNED for r in rows.values()), "skipped": len(rows)}
-        n_unique = sum(j.duplicate_of is None for j in jobs)
-        interrupted = False
-        if todo:
-            it = ENGINES[engine](todo, workers=workers, address=ray_address, staging=staging, config_dirs=cdirs)
-            try:
-                for job, outcome, files_dir in it:
-                    row = _finalise(out, staging, job, outcome, files_dir)
-                    rows[position[id(job)]] = row
-                    state["done"] += 1
-                    state["failed"] += row["status"] in FAILED_STATUSES
-                    state["planned"] += row["status"] == BatchStatus.PLANNED
-                    if progress is not None:
-                        progress({**state, "total": n_unique, "row": row, "elapsed_s": time.perf_counter() - t0})
-            except KeyboardInterrupt:
-                interrupted = True
-            finally:
-                it.close()
-        # duplicates share the first occurrence's result
-        first_row = {}
-        for i, job in enumerate(jobs):
-            if job.duplicate_of is None and i in rows:
-                first_row[(job.sha256, job.options_hash)] = rows[i]
-        for i, job in enumerate(jobs):
-            if job.duplicate_of is not None and (job.sha256, job.options_hash) in first_row:
-                src = first_row[(job.sha256, job.options_hash)]
-                rows[i] = {**src, "part": job.path,
-                           "error": (src["error"] + "; " if src["error"] else "") + f"same file and options as "
-                                                                                     f"{job.duplicate_of}"}
-        final_rows = [rows.get(i) or pending_row(job) for i, job in enumerate(jobs)]
-        summary = BatchSummary(out_dir=out, rows=final_rows, interrupted=interrupted)
-        write_summary(summary, options=options, engine=engine)
-        shutil.rmtree(staging, ignore_errors=True)
+        try:
+            return _run_locked(out, staging, jobs, options, engine, workers, ray_address, cdirs, progress)
+        finally:
+            shutil.rmtree(staging, ignore_errors=True)  # also on SIGTERM or an engine failure
+
+
+def _run_locked(out: Path, staging: Path, jobs: list[PartJob], options: BatchOptions, engine: str,
+                workers: int | None, ray_address: str | None, cdirs: list[str],
+                progress: Callable[[dict[str, Any]], None] | None) -> BatchSummary:
+    """The batch once ``out`` is locked: stage, run, finalise, summarise (see :func:`run_batch`)."""
+    clear_staging(staging)  # left by an interrupted batch: never a finished result
+    staging.mkdir()
+    rows: dict[int, dict[str, Any]] = {}
+    todo: list[PartJob] = []
+    for i, job in enumerate(jobs):
+        if job.duplicate_of is not None:
+            continue
+        row = _read_done(out / job.dir_name, job)
+        if row is not None:
+            rows[i] = {**row, "part": job.path, "resumed": True}
+        else:
+            todo.append(job)
+    # largest files first: the long parts do not end up alone at the tail (rows keep input order)
+    todo.sort(key=lambda j: -_file_size(j.path))
+    position = {id(j): i for i, j in enumerate(jobs)}
+    t0 = time.perf_counter()
+    state = {"done": len(rows), "failed": sum(r["status"] in FAILED_STATUSES for r in rows.values()),
+             "planned": sum(r["status"] == BatchStatus.PLANNED for r in rows.values()), "skipped": len(rows)}
+    n_unique = sum(j.duplicate_of is None for j in jobs)
+    interrupted = False
+    if todo:
+        it = ENGINES[engine](todo, workers=workers, address=ray_address, staging=staging, config_dirs=cdirs)
+        try:
+            for job, outcome, files_dir in it:
+                row = _finalise(out, staging, job, outcome, files_dir)
+                rows[position[id(job)]] = row
+                state["done"] += 1
+                state["failed"] += row["status"] in FAILED_STATUSES
+                state["planned"] += row["status"] == BatchStatus.PLANNED
+                if progress is not None:
+                    progress({**state, "total": n_unique, "row": row, "elapsed_s": time.perf_counter() - t0})
+        except KeyboardInterrupt:
+            interrupted = True
+        finally:
+            it.close()
+    # duplicates share the first occurrence's result
+    first_row = {}
+    for i, job in enumerate(jobs):
+        if job.duplicate_of is None and i in rows:
+            first_row[(job.sha256, job.options_hash)] = rows[i]
+    for i, job in enumerate(jobs):
+        if job.duplicate_of is not None and (job.sha256, job.options_hash) in first_row:
+            src = first_row[(job.sha256, job.options_hash)]
+            rows[i] = {**src, "part": job.path,
+                       "error": (src["error"] + "; " if src["error"] else "") + f"same file and options as "
+                                                                                 f"{job.duplicate_of}"}
+    final_rows = [rows.get(i) or pending_row(job) for i, job in enumerate(jobs)]
+    summary = BatchSummary(out_dir=out, rows=final_rows, interrupted=interrupted)
+    write_summary(summary, options=options, engine=engine)
     if interrupted:
         raise KeyboardInterrupt
     return summary
 
 
 def _read_done(folder: Path, job: PartJob) -> dict[str, Any] | None:
-    """The finished row in ``folder/done.json`` when it matches ``job`` (sha256 and options hash)."""
+    """The finished row in ``folder/done.json`` when it matches ``job`` (sha256 and options hash)
+    and every file it lists is still there with its recorded size; None (plan the part again)
+    otherwise, whatever ``done.json`` holds: a damaged record affects only its part."""
     try:
-        done = read_json(folder / DONE_FILE)
-    except (OSError, ValueError):
+        raw = read_input_bytes(folder / DONE_FILE, what="done.json", max_bytes=MAX_DONE_BYTES)
+        done = json.loads(raw)
+    except (GrasplanError, ValueError, RecursionError, MemoryError):
         return None
-    if (isinstance(done, dict) and done.get("schema") == DONE_SCHEMA and done.get("sha256") == job.sha256
+    if not (isinstance(done, dict) and done.get("schema") == DONE_SCHEMA and done.get("sha256") == job.sha256
             and done.get("options_hash") == job.options_hash and done.get("status") in FINAL_STATUSES
             and isinstance(done.get("row"), dict)):
-        return done["row"]
-    return None
+        return None
+    files = done.get("files")
+    if not isinstance(files, dict):  # a record of an older batch: plan.json must be there at least
+        files = {} if done["status"] == BatchStatus.BAD.value else {PLAN_FILE: None}
+    for name, size in files.items():
+        if not isinstance(name, str) or "/" in name or name.startswith("."):
+            return None
+        try:
+            st = os.stat(folder / name)
+        except OSError:
+            return None
+        if not stat.S_ISREG(st.st_mode) or (isinstance(size, int) and st.st_size != size):
+            return None
+    return done["row"]
 
 
 def _finalise(out_dir: Path, staging: Path, job: PartJob, outcome: dict[str, Any], files_dir: Path | None
@@ -195,8 +223,11 @@ def _finalise(out_dir: Path, staging: Path, job: PartJob, outcome: dict[str, Any
             if "/" in name or name.startswith("."):
                 raise RuntimeError(f"unexpected result file name {name!r}")
             write_atomic_bytes(work / name, zlib.decompress(blob))
+    files = {p.name: p.stat().st_size for p in sorted(work.iterdir()) if p.is_file() and p.name != DONE_FILE
+             and not p.name.startswith(".")}  # a rerun checks they are all still there
     write_json(work / DONE_FILE, {"schema": DONE_SCHEMA, "sha256": job.sha256, "options_hash": job.options_hash,
-                                  "status": row["status"], "options": job.options.to_json(), "row": row}, indent=1)
+                                  "status": row["status"], "options": job.options.to_json(), "row": row,
+                                  "files": files}, indent=1)
     final = out_dir / job.dir_name
     if final.exists():
         trash = staging / f"{job.dir_name}.old.{uuid.uuid4().hex[:8]}"
@@ -217,7 +248,13 @@ def _file_size(path: str) -> int:
 
 @contextlib.contextmanager
 def _lock(out_dir: Path) -> Iterator[None]:
-    with open(out_dir / LOCK_FILE, "w") as f:
+    try:
+        f = open(out_dir / LOCK_FILE, "w")
+    except OSError as exc:
+        raise InputError(f"-o {show_path(out_dir)}: cannot create the lock file {LOCK_FILE} "
+                         f"({exc.strerror or 'operating-system error'}); remove what has that name or "
+                         "choose another -o") from None
+    with f:
         try:
             fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:

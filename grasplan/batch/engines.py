@@ -117,6 +117,9 @@ def iter_ray(jobs: Sequence[PartJob], *, workers: int | None, address: str | Non
         import ray
     except ImportError:
         raise InputError("--engine ray needs Ray: pip install 'grasplan[ray]' (or use --engine local)") from None
+    except (OSError, MemoryError) as exc:  # e.g. an address-space limit too small for Ray's libraries
+        raise InputError(f"--engine ray: cannot load Ray ({type(exc).__name__}); raise the memory limit or use "
+                         "--engine local") from None
 
     started = False
     if not ray.is_initialized():
@@ -126,7 +129,7 @@ def iter_ray(jobs: Sequence[PartJob], *, workers: int | None, address: str | Non
             else:  # "local": a new runtime even when RAY_ADDRESS or a `ray start` cluster exists
                 ray.init(address="local", num_cpus=workers, include_dashboard=False, log_to_driver=False,
                          configure_logging=False)
-        except (ConnectionError, ValueError, RuntimeError) as exc:
+        except Exception as exc:  # noqa: BLE001 - any start failure (no memory, no port, no /dev/shm) is the setup's
             if address:
                 raise InputError(f"--ray-address {address}: cannot join the Ray cluster ({exc}); start it with "
                                  "`ray start --head` and pass the address it prints") from None

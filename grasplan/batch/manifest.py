@@ -82,6 +82,24 @@ def _entry_from_mapping(row: dict, base_dir: Path, where: str) -> PartEntry:
     return PartEntry(path=str(path), overrides=tuple(sorted(overrides.items())), origin=where)
 
 
+#: a manifest larger than this is refused before it is read
+MAX_MANIFEST_BYTES = 50_000_000
+
+
+def _csv_rows(reader: csv.DictReader, path: Path) -> Iterable[dict]:
+    """The rows of a CSV manifest; a field longer than the csv module's limit (131,072 characters)
+    or a damaged quote is an InputError naming the line."""
+    while True:
+        try:
+            row = next(reader)
+        except StopIteration:
+            return
+        except csv.Error as exc:
+            raise InputError(f"manifest {path}:{reader.line_num}: cannot read the CSV row ({exc}); a field is "
+                             "too long or a quote is not closed") from None
+        yield row
+
+
 def read_manifest(path: str | os.PathLike) -> list[PartEntry]:
     """Parts named by a CSV (header row with a ``path`` column) or YAML manifest.
 
@@ -89,29 +107,29 @@ def read_manifest(path: str | os.PathLike) -> list[PartEntry]:
     ``defaults`` applies to every part that does not set the key itself."""
     path = Path(path)
     base = path.parent
+    from ..inputs import read_input_bytes
+
+    data = read_input_bytes(path, what="manifest", max_bytes=MAX_MANIFEST_BYTES)  # no FIFO, no device
     try:
-        text = path.read_text(encoding="utf-8-sig")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read the manifest ({exc})") from None
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise InputError(f"manifest {path}: not a UTF-8 text file; a manifest is CSV or YAML") from None
     entries: list[PartEntry] = []
     if path.suffix.lower() == ".csv":
         reader = csv.DictReader(io.StringIO(text))
         if not reader.fieldnames or "path" not in [h.strip().lower() for h in reader.fieldnames]:
             raise InputError(f"{path}: a CSV manifest needs a header row with a 'path' column "
                              f"(e.g. 'path,units,pose_index'); got {reader.fieldnames}")
-        for row in reader:
+        for row in _csv_rows(reader, path):
             if None in row:
                 raise InputError(f"{path}:{reader.line_num}: more values than header columns")
             if all((v or "").strip() == "" for v in row.values()):
                 continue
             entries.append(_entry_from_mapping(row, base, f"{path}:{reader.line_num}"))
     else:
-        import yaml
+        from ..yamlfile import load_yaml_text
 
-        try:
-            doc = yaml.safe_load(text)
-        except yaml.YAMLError as exc:
-            raise InputError(f"{path}: not valid YAML ({exc})") from None
+        doc = load_yaml_text(text, f"manifest {path}")
         defaults: dict = {}
         if isinstance(doc, dict):
             defaults = doc.get("defaults") or {}

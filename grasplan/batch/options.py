@@ -85,7 +85,10 @@ def export_formats() -> dict[str, Any]:
 
 def export_file(fmt: Any) -> str:
     """The file a format is written to in a part's folder: ``export-<name><extension>`` (never
-    ``plan.json``, whatever the format's extension)."""
+    ``plan.json``, whatever the format's extension); a program named after its file (KRL, RAPID)
+    gets a valid program name instead: ``export_<name><extension>`` (``export_krl.src`` + ``.dat``)."""
+    if getattr(fmt, "program_named_by_file", False):
+        return f"export_{fmt.name.replace('-', '_')}{fmt.extension}"
     return f"export-{fmt.name}{fmt.extension}"
 
 
@@ -98,6 +101,10 @@ def check_exports(names: Iterable[str]) -> tuple[str, ...]:
     unknown = [n for n in names if n not in available]
     if unknown:
         raise InputError(f"--export: unknown format(s) {', '.join(unknown)}; available: {', '.join(available)}")
+    from ..export_registry import program_options
+
+    for n in names:  # the per-part file name must be one the format can write (a KRL program name)
+        program_options(n, export_file(available[n]), {})
     if len(set(names)) != len(names):
         raise InputError(f"--export: format listed twice in {','.join(names)}")
     return names

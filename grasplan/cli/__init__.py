@@ -24,6 +24,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "simulate": ("simulate", "Close, lift and shake grasps in MuJoCo; record which ones hold the part."),
     "batch": ("batch", "Plan a whole catalogue of parts (files, folders, manifests), locally or on Ray."),
     "scene": ("scene", "Make scenes of many parts: drop a pile into a bin in MuJoCo (scene drop)."),
+    "pick": ("pick", "Plan picks from a pile of parts at known poses: bin, neighbours and cloud checked."),
+    "serve": ("serve", "An HTTP JSON service: picks, plans and robot programs from a warm planner."),
 }
 
 
@@ -46,7 +48,10 @@ class LazyGroup(click.Group):
         try:
             # a copied context: --config-dir (a context variable) ends with the command, so an
             # in-process caller (tests, batch workers) starts the next command with a clean lookup
-            return contextvars.copy_context().run(super().invoke, ctx)
+            from .common import tolerant_stdout
+
+            with tolerant_stdout():  # stdout closed or full after the outputs are written is no error
+                return contextvars.copy_context().run(super().invoke, ctx)
         except GrasplanError as exc:
             click.echo(f"grasplan: error: {_one_line(str(exc))}", err=True)
             sys.exit(exc.exit_code)

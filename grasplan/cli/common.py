@@ -2,6 +2,10 @@
 are in :mod:`grasplan.cli.options`)."""
 from __future__ import annotations
 
+import contextlib
+import errno
+import io
+import os
 import sys
 import time
 from collections.abc import Iterable, Sequence
@@ -20,13 +24,28 @@ units_option = click.option(
 )
 
 
-def check_output(output, *inputs):
-    """The ``-o`` path checked before any work (:func:`grasplan.io.check_output_path`): not empty, not
-    a system or special file, its folder writable (missing folders are created), not one of the
-    ``inputs`` (None entries are skipped)."""
-    from ..io import check_output_path
+def check_output(output, *inputs, companions=(), families=(), gripper=None, cell=None, robot=None,
+                 scoring=None, part_pose=None):
+    """The ``-o`` path and its ``companions`` (other files the command writes) checked before any
+    work by the one output guard (:func:`grasplan.outputs.check_outputs`): not empty, not a system
+    or special file, its folder writable (missing folders are created), and none of them one of the
+    files the command reads: ``inputs`` (None entries skipped), the YAML files the ``gripper``,
+    ``cell`` and ``robot`` names resolve to, the ``scoring`` file and a ``part_pose`` file.
+    ``families``: ``(folder, regex)`` of companion names known only later (``OUT.pose<k>.json``)."""
+    from ..outputs import check_outputs, config_files, file_input
 
-    return check_output_path(output, inputs=[i for i in inputs if i is not None], create_parents=True)
+    ins = [*inputs, *config_files("gripper", gripper), *config_files("cell", cell), *config_files("robot", robot),
+           file_input(scoring), file_input(part_pose)]
+    return check_outputs([output, *companions], inputs=ins, families=families)[0]
+
+
+def pose_family(output) -> tuple:
+    """``(folder, regex)`` of the ``OUT.pose<k>.json`` files ``--pose-index all`` writes next to ``output``."""
+    import re
+    from pathlib import Path
+
+    p = Path(output)
+    return (p.parent, re.escape(p.stem) + r"\.pose\d+" + re.escape(p.suffix))
 
 
 def info(msg: str) -> None:
@@ -77,3 +96,64 @@ def stage(name: str, timing: dict | None = None):
 def progress(iterable, *, length: int, label: str):
     """A progress bar on stderr (hidden when stderr is not a terminal, e.g. in CI)."""
     return click.progressbar(iterable, length=length, label=label, file=sys.stderr)
+
+
+class _TolerantStdout:
+    """``sys.stdout`` for a command: once the reader is gone (``| true``: EPIPE) or the device is
+    full (``> /dev/full``: ENOSPC), further summary lines are dropped instead of failing a command
+    whose output files are already written. Everything else is the wrapped stream's."""
+
+    _LOST = (errno.EPIPE, errno.ENOSPC, errno.EBADF, errno.EIO)
+
+    def __init__(self, inner):
+        self._inner = inner
+        self.lost = False
+
+    def _drop(self, exc: OSError) -> None:
+        if exc.errno not in self._LOST:
+            raise exc
+        self.lost = True
+        fd = getattr(self._inner, "fileno", None)
+        with contextlib.suppress(OSError, ValueError, AttributeError, io.UnsupportedOperation):
+            n = fd() if fd is not None else -1
+            if n >= 0:  # what the stream still buffers goes nowhere at exit instead of failing again
+                devnull = os.open(os.devnull, os.O_WRONLY)
+                os.dup2(devnull, n)
+                os.close(devnull)
+
+    def write(self, s):
+        if self.lost:
+            return len(s)
+        try:
+            return self._inner.write(s)
+        except OSError as exc:
+            self._drop(exc)
+            return len(s)
+
+    def flush(self) -> None:
+        if self.lost:
+            return
+        try:
+            self._inner.flush()
+        except OSError as exc:
+            self._drop(exc)
+
+    def __getattr__(self, name):
+        return getattr(self._inner, name)
+
+
+@contextmanager
+def tolerant_stdout():
+    """While active, a full or closed stdout does not fail the command (see :class:`_TolerantStdout`)."""
+    inner = sys.stdout
+    if inner is None or isinstance(inner, _TolerantStdout):
+        yield
+        return
+    wrapper = _TolerantStdout(inner)
+    sys.stdout = wrapper
+    try:
+        yield
+        wrapper.flush()
+    finally:
+        if sys.stdout is wrapper:
+            sys.stdout = inner

@@ -5,6 +5,7 @@ import time
 
 import click
 
+from ..errors import InputError
 from ..export import load_builtin_formats
 from ..export_registry import DEFAULT_MAX_ACCEL
 from .common import check_output, info
@@ -35,7 +36,10 @@ def _formats_help() -> str:
 @click.option("--part", "part_path", type=click.Path(dir_okay=True), default=None,
               help="The part's mesh file, when it is no longer at the path recorded in the plan (used to verify "
                    "the timed trajectory against collisions; its sha256 must match).")
-def command(plan, fmt, grasp_id, out, max_accel, velocity_scale, part_path):
+@click.option("--instance", default=None,
+              help="PLAN is a picks file (grasplan.picks/1, `grasplan pick`): export this instance's pick "
+                   "(default: the first pick).")
+def command(plan, fmt, grasp_id, out, max_accel, velocity_scale, part_path, instance):
     """Write a planned grasp of PLAN (a grasplan.plan/1 file from `grasplan plan`) in a robot's language.
 
     PLAN is self-contained: the gripper, cell and robot are rebuilt from it (no YAML needed).
@@ -53,8 +57,16 @@ def command(plan, fmt, grasp_id, out, max_accel, velocity_scale, part_path):
     from ..result_reader import load_result
 
     t0 = time.perf_counter()
-    out = check_output(out, plan, part_path)
-    res = load_result(plan, part=part_path)
+    from ..export import output_paths
+    from ..pick.reader import is_picks_file, load_picks, pick_as_plan
+
+    out = check_output(out, plan, part_path, companions=output_paths(fmt, out)[1:])  # KRL's .dat too
+    if is_picks_file(plan):  # one pick as a one-grasp plan whose cell holds the other instances
+        res = pick_as_plan(load_picks(plan), instance)
+    elif instance is not None:
+        raise InputError(f"--instance: {plan} is not a picks file (grasplan.picks/1 from `grasplan pick`)")
+    else:
+        res = load_result(plan, part=part_path, verify_part=True)  # a re-pointed part block is refused
     ids = res.planned_ids()
     info(f"plan {plan}: {len(res.grasps)} grasps, {len(ids)} planned")
     path = write(res, fmt, out, grasp_id=grasp_id, part=part_path, max_accel=max_accel,

@@ -40,8 +40,9 @@ def command(part, output, gripper, cell, part_pose, units, only_ok, indent, **kw
     from ..mesh import load_part
 
     t_all = time.perf_counter()
-    output = check_output(output, part)
-    apply_config_dirs(kwargs)
+    apply_config_dirs(kwargs)  # first: --config-dir decides which files the names below read
+    output = check_output(output, part, gripper=gripper, cell=cell, scoring=kwargs.get("scoring"),
+                          part_pose=part_pose)
     prm = params_from_kwargs(kwargs, (CandidateParams, GraspParams))  # --scoring is read here
     prm["grasps"].single_pose_index()  # one resting pose: InputError for --pose-index all
     g = load_gripper(gripper)
@@ -73,7 +74,7 @@ def command(part, output, gripper, cell, part_pose, units, only_ok, indent, **kw
     if res.mass_props is not None:  # grasp quality (docs/quality.md)
         rows.append(("part mass, kg", float(res.mass_props.mass)))
         if n[Status.OK.value] and res.quality is not None:
-            rows.append(("ok grasps holding under gravity + 1 g", int((res.quality.gravity_margin >= 1).sum())))
+            rows.append(("ok grasps holding through lift and shake", int((res.quality.gravity_margin >= 1).sum())))
     rows += [(f"seconds: {k}", float(v)) for k, v in res.timing_s.items()]
     rows.append(("seconds: total", time.perf_counter() - t_all))
     click.echo(table(rows))

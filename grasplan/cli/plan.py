@@ -9,7 +9,7 @@ import click
 from ..errors import PlanningError
 from ..params import ALL_POSES, CandidateParams, GraspParams, PlanParams
 from ..status import PLAN_STATUSES, Status
-from .common import check_output, info, progress, table, warn_all
+from .common import check_output, info, pose_family, progress, table, warn_all
 from .options import (
     apply_config_dirs,
     cell_options,
@@ -41,8 +41,10 @@ def command(part, robot, output, gripper, cell, part_pose, units, **kwargs):
     from ..transforms import parse_part_pose
 
     t0 = time.perf_counter()
-    output = check_output(output, part)
-    apply_config_dirs(kwargs)
+    apply_config_dirs(kwargs)  # first: --config-dir decides which files the names below read
+    fam = [pose_family(output)] if kwargs.get("pose_index") == ALL_POSES else []
+    output = check_output(output, part, gripper=gripper, cell=cell, robot=robot, scoring=kwargs.get("scoring"),
+                          part_pose=part_pose, families=fam)
     prm = params_from_kwargs(kwargs)  # --scoring is read here, --place and --pose-index parsed
     # resolve everything cheap first: nothing is written on bad input
     g = load_gripper(gripper)

@@ -54,7 +54,7 @@ def command(ctx, result: Path, output: Path, top: int, part: Path | None, seed: 
         simulate_result,
     )
 
-    output = Path(check_output(output, result))
+    output = Path(check_output(output, result, part))
     if not result.exists():
         raise InputError(f"{result}: no such file (expected a grasplan grasps or plan JSON)")
     res = load_result(result, part=part, load_mesh=True)

@@ -17,7 +17,10 @@ from .common import check_output, info, warn_all
                    "in the current folder, then next to RESULT). Its sha256 must match RESULT's.")
 @click.option("--allow-other-part", is_flag=True,
               help="Draw a part whose sha256 differs from RESULT's (the grasps may not belong to it).")
-def command(result: str, output: str, part: str | None, allow_other_part: bool) -> None:
+@click.option("--instance", default=None,
+              help="RESULT is a picks file (grasplan.picks/1, `grasplan pick`): show this instance's pick "
+                   "(default: the first pick) with every other instance of the pile.")
+def command(result: str, output: str, part: str | None, allow_other_part: bool, instance: str | None) -> None:
     """Write a self-contained HTML viewer for a grasps or plan file (RESULT).
 
     The page shows the part in its cell pose, the table, every grasp's contacts coloured by status,
@@ -32,7 +35,16 @@ def command(result: str, output: str, part: str | None, allow_other_part: bool) 
 
     output = check_output(output, result, part)
     info(f"view: {result}")
-    res = load_result(result)
+    from ..pick.reader import is_picks_file, load_picks, pick_as_plan
+
+    if is_picks_file(result):  # the pick as a one-grasp plan; the other instances are cell obstacles
+        res = pick_as_plan(load_picks(result), instance)
+    elif instance is not None:
+        from ..errors import InputError
+
+        raise InputError(f"--instance: {result} is not a picks file (grasplan.picks/1 from `grasplan pick`)")
+    else:
+        res = load_result(result, part=part, allow_other_part=allow_other_part, verify_part=True)  # re-pointed part: refused
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         path = write_viewer(res, output, part_path=part, allow_other_part=allow_other_part)

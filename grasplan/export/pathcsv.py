@@ -15,7 +15,7 @@ tcp_x, tcp_y, tcp_z, tcp_qw, tcp_qx, tcp_qy, tcp_qz``
   opening, m. Empty elsewhere.
 - ``attached``: 1 when the robot arrives at the row with the part in the jaws (the rows after the
   close row up to and including the open row), else 0.
-- ``tcp_*``: the TCP pose in the world frame by forward kinematics (``FK(q) @ T_flange_tcp``),
+- ``tcp_*``: the TCP pose in the world frame by forward kinematics (``FK(q) @ T_flange_tcp_at(width)``),
   quaternion w first with ``qw >= 0``.
 
 Numbers are written with up to 12 significant digits (joint values round-trip to 1e-12 rad).
@@ -60,7 +60,8 @@ def path_rows(plan, grasp_id: int | None = None) -> list[dict]:
     grip = {int(e.index): (str(e.action), float(e.width)) for e in events}
     c0 = min((int(e.index) for e in events if e.action == "close"), default=k)
     c1 = min((int(e.index) for e in events if e.action == "open"), default=k - 1)
-    tcp = pose7(robot.fk_batch(path) @ np.asarray(plan.gripper.T_flange_tcp, dtype=np.float64)) + 0.0
+    # the TCP of this grasp's width (it moves with the opening on a Robotiq 2F: Gripper.T_flange_tcp_at)
+    tcp = pose7(robot.fk_batch(path) @ np.asarray(plan.gripper.T_flange_tcp_at(float(g.width)), dtype=np.float64)) + 0.0
     joints = list(robot.joint_names)
     out = []
     for r in range(k):

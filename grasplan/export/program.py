@@ -120,6 +120,9 @@ class MotionProgram:
     segments: tuple[ProgramSegment, ...] = ()
     events: tuple[ProgramEvent, ...] = ()
     sequence: bool = False
+    #: the gripper's load from its YAML: kg and (3,) centre of mass in the flange frame, m (None: not given)
+    gripper_mass: float | None = None
+    gripper_com: np.ndarray | None = None
 
     @property
     def placed(self) -> bool:
@@ -147,7 +150,8 @@ def motion_program(plan, grasp_id: int | None = None, *, source: str = "") -> Mo
         raise InputError(f"grasp {g.id}: the path has non-finite values or leaves the joint limits of {robot.name!r}")
     T_world_ctrl = robot.T_world_controller_base()
     T_ctrl_world = np.linalg.inv(T_world_ctrl)
-    T_flange_tcp = np.asarray(gripper.T_flange_tcp, dtype=np.float64)
+    # the TCP with the jaws on this grasp's width (it moves with the opening on a Robotiq 2F)
+    T_flange_tcp = np.asarray(gripper.T_flange_tcp_at(float(g.width)), dtype=np.float64)
     fk_grasp = robot.fk(m.q_grasp) @ T_flange_tcp
     dp = float(np.linalg.norm(fk_grasp[:3, 3] - g.T_world_tcp[:3, 3]))
     if dp > 1e-3:
@@ -170,7 +174,7 @@ def motion_program(plan, grasp_id: int | None = None, *, source: str = "") -> Mo
         pregrasp_opening=float(gripper.pregrasp_opening(width)), width=width,
         gripper_name=safe_text(gripper.name, 40), part_label=safe_text(plan.part.label, 80),
         part_sha256=safe_text(plan.part.sha256, 64), part_scale_to_m=float(plan.part.scale_to_m),
-        source=safe_text(source, 80), full_path=path, **seq)
+        source=safe_text(source, 80), full_path=path, gripper_mass=gripper.mass, gripper_com=gripper.com, **seq)
 
 
 def motion_segments(m) -> list[tuple[str, int, int]]:

@@ -2,10 +2,12 @@
 
 The module ``MODULE <program_name>`` holds:
 
-- ``PERS tooldata <program_name>_tool``: the gripper's ``T_flange_tcp`` as ``tframe`` (mm, quaternion
-  ``[q1, q2, q3, q4]`` = w, x, y, z). The load (``tload``) is a **placeholder** (mass
-  :data:`PLACEHOLDER_MASS_KG`, centre of gravity halfway to the TCP): grasplan's gripper files have no
-  mass; set the real values (or run LoadIdentify) before running at speed.
+- ``PERS tooldata <program_name>_tool``: the gripper's TCP at the grasp's width
+  (``Gripper.T_flange_tcp_at``) as ``tframe`` (mm, quaternion ``[q1, q2, q3, q4]`` = w, x, y, z). The
+  load (``tload``) is the gripper YAML's ``mass`` (kg) and ``com`` (``cog``, mm in the flange frame),
+  as a point mass (``aom`` = [1, 0, 0, 0], inertia 0 0 0: run LoadIdentify for the inertia); a gripper
+  file without ``mass`` gets a **placeholder** (mass :data:`PLACEHOLDER_MASS_KG`, centre of gravity
+  halfway to the TCP) and a comment saying so.
 - ``PERS wobjdata <program_name>_wobj``: ``uframe`` = the plan's ``T_world_base`` (the robot's base
   frame in the world), ``oframe`` identity; the Cartesian targets are in this work object.
 - ``LOCAL CONST jointtarget jt_1 .. jt_k``: the planned joint path ``q_home -> q_pregrasp`` (degrees),
@@ -49,7 +51,7 @@ from ..export_registry import ExportFormat, ExportOptions, register
 #: speeddata of the joint moves and of the linear approach/retreat (predefined RAPID data)
 JOINT_SPEED = "v200"
 LINEAR_SPEED = "v50"
-#: kg, the tload mass written until the gripper files carry one (see the module docstring)
+#: kg, the tload mass written for a gripper file without ``mass`` (see the module docstring)
 PLACEHOLDER_MASS_KG = 1.0
 #: seconds the gripper stubs wait (placeholder for the gripper's "done" signal)
 GRIPPER_WAIT_S = 0.5
@@ -58,7 +60,7 @@ NO_AXIS = "9E9"
 #: digits of quaternion components (RAPID checks that orientations are normalised)
 QUAT_DIGITS = 9
 
-__all__ = ["confdata", "rapid_module", "render"]
+__all__ = ["confdata", "rapid_module", "render", "tool_load"]
 
 
 def _pose(T: np.ndarray) -> str:
@@ -79,6 +81,21 @@ def confdata(joint_deg: np.ndarray) -> list[int]:
     return [int(np.floor(d[0] / 90.0)), int(np.floor(d[3] / 90.0)), int(np.floor(d[5] / 90.0)), 0]
 
 
+def tool_load(mp: MotionProgram, T_tool: np.ndarray) -> list[str]:
+    """``[comment, ..., loaddata]``: RAPID ``loaddata`` of the gripper (``[mass, [cog mm], [1,0,0,0],
+    0, 0, 0]``) from the gripper YAML's ``mass`` and ``com`` (flange frame); without them the placeholder
+    (:data:`PLACEHOLDER_MASS_KG`, cog halfway to the TCP) and comment lines saying so."""
+    if mp.gripper_mass is not None and mp.gripper_com is not None:
+        cog = np.asarray(mp.gripper_com, dtype=np.float64) * 1000.0
+        return ["tload: the gripper's mass and centre of mass (gripper file); point mass, inertia 0.",
+                f"[{num(float(mp.gripper_mass), 4)},[{','.join(num(c) for c in cog)}],[1,0,0,0],0,0,0]"]
+    cog = 0.5 * T_tool[:3, 3] * 1000.0
+    return ["tload is a PLACEHOLDER",
+            f"  ! (mass {num(PLACEHOLDER_MASS_KG, 1)} kg, cog halfway to the TCP): the gripper file has no mass;"
+            " set your gripper's mass and cog.",
+            f"[{num(PLACEHOLDER_MASS_KG, 3)},[{','.join(num(c) for c in cog)}],[1,0,0,0],0,0,0]"]
+
+
 def rapid_module(mp: MotionProgram, program_name: str = "grasplan_pick") -> dict[str, str]:
     """``{".mod": text}``: the RAPID module for ``mp``. Units mm, degrees, quaternions w first.
 
@@ -90,7 +107,7 @@ def rapid_module(mp: MotionProgram, program_name: str = "grasplan_pick") -> dict
     name, n, path, q_grasp = t.name, len(mp.joint_names), t.path_deg, t.q_grasp_deg
     T_tool, T_base, T_grasp, T_retreat = t.T_tool, t.T_base, t.T_grasp, t.T_retreat
     ext_grasp, ext_retreat = t.ext_grasp, t.ext_retreat
-    cog = 0.5 * T_tool[:3, 3] * 1000.0
+    load = tool_load(mp, T_tool)
     conf = ",".join(str(c) for c in confdata(q_grasp))
     tool, wobj = f"{name}_tool", f"{name}_wobj"
     move = f"{tool}\\WObj:={wobj};"
@@ -104,10 +121,9 @@ def rapid_module(mp: MotionProgram, program_name: str = "grasplan_pick") -> dict
         f"MODULE {name}",
         *header_lines(mp, "  !", "Units: mm, degrees; quaternions [q1,q2,q3,q4] = w, x, y, z."),
         "  ! Joint 7 of a 7-joint arm is eax_a." if n == 7 else "  ! External axes are unused (9E9).",
-        "  ! tooldata: TCP = T_flange_tcp of the gripper. tload is a PLACEHOLDER",
-        f"  ! (mass {num(PLACEHOLDER_MASS_KG, 1)} kg, cog halfway to the TCP): set your gripper's mass and cog.",
-        (f"  PERS tooldata {tool}:=[TRUE,{_pose(T_tool)},[{num(PLACEHOLDER_MASS_KG, 3)},"
-        f"[{','.join(num(c) for c in cog)}],[1,0,0,0],0,0,0]];"),
+        f"  ! tooldata: TCP = the gripper's TCP at the grasp width (mm in the flange frame). {load[0]}",
+        *load[1:-1],
+        f"  PERS tooldata {tool}:=[TRUE,{_pose(T_tool)},{load[-1]}];",
         "  ! wobjdata: uframe = the robot's base frame in the world (T_world_base)",
         f"  PERS wobjdata {wobj}:=[FALSE,TRUE,\"\",{_pose(T_base)},[[0,0,0],[1,0,0,0]]];",
         *(seq_decl if mp.sequence else [

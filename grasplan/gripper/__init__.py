@@ -2,7 +2,8 @@
 
 A gripper YAML (``configs/grippers/<name>.yaml``) or a result file's ``gripper`` block names its
 kind with an optional ``kind:`` key (default ``parallel_jaw``, :mod:`grasplan.gripper.parallel_jaw`,
-which documents the YAML schema). The kinds are registered in :mod:`grasplan.gripper.registry`;
+which documents the YAML schema; ``parallel_linkage``, :mod:`grasplan.gripper.linkage`: pads on an
+arc, the Robotiq 2F). The kinds are registered in :mod:`grasplan.gripper.registry`;
 the gripper model and its shapes are in :mod:`grasplan.gripper.model`.
 
 Adding a kind: a module that defines its gripper class (a subclass of
@@ -18,12 +19,12 @@ from pathlib import Path
 from ..config_files import available, packaged_file, read_yaml, resolve_yaml
 from ..errors import ConfigError
 from ..params import DEFAULT_GRIPPER
-from . import parallel_jaw
+from . import linkage, parallel_jaw
 from .model import PARALLEL_JAW, Gripper
 from .registry import GripperKind, get_kind
 
 #: the shipped gripper kinds (importing their modules registered them)
-BUILTIN_KINDS: tuple[GripperKind, ...] = (parallel_jaw.KIND,)
+BUILTIN_KINDS: tuple[GripperKind, ...] = (parallel_jaw.KIND, linkage.KIND)
 #: the packaged grippers (``grasplan/data/configs/grippers``)
 GRIPPER_DIR = packaged_file("configs", "grippers")
 

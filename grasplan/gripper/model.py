@@ -98,6 +98,45 @@ class Gripper:
     symmetric: bool = True
     source: str = ""
     grip_force: float = DEFAULT_GRIP_FORCE  #: N, datasheet gripping force = sum of both jaws (each contact: half)
+    #: m, how far the jaws travel together (both jaws): they close to ``max_opening - stroke`` at the
+    #: narrowest (:attr:`min_opening`); None: they close fully (stroke = max_opening)
+    stroke: float | None = None
+    #: kg, the gripper with its fingers (datasheet); None when the file gives none
+    mass: float | None = None
+    #: (3,) centre of mass in the FLANGE frame, m (what RAPID's ``tload.cog`` and a UR payload take)
+    com: np.ndarray | None = None
+
+    @property
+    def min_opening(self) -> float:
+        """The narrowest jaw opening (m): ``max_opening - stroke`` (0 when the jaws close fully);
+        narrower candidates are not posed (:func:`grasplan.frames.grasp_frames`)."""
+        return 0.0 if self.stroke is None else max(0.0, float(self.max_opening) - float(self.stroke))
+
+    # -- the TCP at an opening ------------------------------------------------------------------
+    #: True for a kind whose fingertips move along the approach axis as the jaws open (Robotiq 2F
+    #: linkages); the stages then ask :meth:`T_flange_tcp_at` instead of reading ``T_flange_tcp``
+    moving_tcp: ClassVar[bool] = False
+
+    def tcp_offset(self, opening: float | np.ndarray) -> np.ndarray:
+        """How far (m, along +z) the fingertips are beyond their place at ``max_opening`` when the
+        jaws stand at ``opening``: 0 for jaws that slide straight; shape of ``opening``."""
+        return np.zeros_like(np.asarray(opening, dtype=np.float64))
+
+    def T_flange_tcp_at(self, width: float) -> np.ndarray:
+        """(4, 4) flange -> TCP with the jaws closed on ``width``: ``T_flange_tcp`` moved by
+        :meth:`tcp_offset` along its z (the grasp's TCP, between the contacts)."""
+        T = np.array(self.T_flange_tcp, dtype=np.float64)
+        T[:3, 3] += T[:3, 2] * float(self.tcp_offset(float(width)))
+        return T
+
+    def T_tcp_gripper(self, width: float | np.ndarray) -> np.ndarray:
+        """(4, 4), or (n, 4, 4) for n widths: the grasp TCP of contact width ``width`` -> the frame
+        the gripper's shapes are given in (the TCP at ``max_opening``): a move by
+        ``-tcp_offset(width)`` along z. Identity for jaws that slide straight."""
+        w = np.asarray(width, dtype=np.float64)
+        T = np.broadcast_to(np.eye(4), w.shape + (4, 4)).copy()
+        T[..., 2, 3] = -self.tcp_offset(w)
+        return T
 
     # -- finger geometry -------------------------------------------------------------------
     def fingers(self, opening: float) -> tuple[Shape, Shape]:
@@ -159,6 +198,11 @@ class Gripper:
         than the default names itself (``kind``), so default-kind files read as before kinds."""
         out: dict[str, Any] = {"name": self.name, "max_opening": float(self.max_opening),
                                "T_flange_tcp": self.T_flange_tcp.tolist(), "grip_force": float(self.grip_force)}
+        if self.stroke is not None:
+            out["stroke"] = float(self.stroke)
+        if self.mass is not None:
+            out["mass"] = float(self.mass)
+            out["com"] = [float(c) for c in (self.com if self.com is not None else np.zeros(3))]
         if definition:
             out["definition"] = {"body": [shape_to_json(b) for b in self.body], "finger": shape_to_json(self.finger),
                                  "symmetric": bool(self.symmetric)}

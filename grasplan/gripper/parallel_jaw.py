@@ -21,6 +21,13 @@ YAML schema (``configs/grippers/<name>.yaml``; lengths in metres, angles in degr
     symmetric: true                  # optional: body invariant under a 180 deg turn about z
                                      # (default: computed for box bodies, false with meshes)
     grip_force: 140                  # optional, N (both jaws together)
+    stroke: 0.012                    # optional, m: the jaws' travel (both together), <= max_opening;
+                                     #   they close to max_opening - stroke at the narrowest
+                                     #   (default: fully, stroke = max_opening)
+    mass: 0.32                       # optional, kg: the gripper with its fingers (datasheet)
+    com: [0, 0, 0.04]                # with mass: centre of mass in the FLANGE frame, m (RAPID tload,
+                                     #   the simulation's load); without it the exports say the load
+                                     #   is unknown
 
 A finger box's inner face sits at ``x = +opening/2`` (the other finger's at ``-opening/2``).
 """
@@ -39,7 +46,41 @@ from .registry import GripperKind, register
 
 #: the fields of a parallel-jaw gripper YAML
 YAML_FIELDS = {"kind", "name", "max_opening", "T_flange_tcp", "body", "fingers", "symmetric", "description",
-               "grip_force"}
+               "grip_force", "mass", "com", "stroke"}
+#: kg and m: bounds of a gripper's mass and of its centre of mass (|c| per axis) in the flange frame
+MAX_MASS_KG = 100.0
+MAX_COM_M = 1.0
+
+
+def stroke_from(data: dict[str, Any], where: str, max_opening: float) -> float | None:
+    """The optional ``stroke`` (m, in (0, max_opening]); ConfigError naming the field otherwise."""
+    if data.get("stroke") is None:
+        return None
+    stroke = config_number(data["stroke"], f"{where}stroke", positive=True, max_abs=2.0)
+    if stroke > max_opening + 1e-12:
+        raise ConfigError(f"{where}stroke: {stroke} m is more than max_opening {max_opening} m; the jaws travel "
+                          "at most from max_opening to closed")
+    return stroke
+
+
+def mass_from(data: dict[str, Any], where: str) -> dict[str, Any]:
+    """``{"mass": kg or None, "com": (3,) or None}`` from a gripper YAML / JSON mapping: ``mass`` in
+    (0, 100] kg and ``com`` (three finite numbers, each within 1 m of the flange) come together;
+    ConfigError naming the field otherwise."""
+    if "mass" not in data and "com" not in data:
+        return {"mass": None, "com": None}
+    if "mass" not in data or "com" not in data:
+        missing = "com" if "mass" in data else "mass"
+        raise ConfigError(f"{where}{missing}: missing: give 'mass' (kg) and 'com' ([x, y, z] in the flange frame, m) "
+                          "together, or neither")
+    mass = config_number(data["mass"], f"{where}mass", positive=True, max_abs=MAX_MASS_KG)
+    com = config_vector(data["com"], f"{where}com", 3)
+    if np.any(np.abs(com) > MAX_COM_M):
+        raise ConfigError(f"{where}com: {com.tolist()} is more than {MAX_COM_M} m from the flange; expected the "
+                          "centre of mass [x, y, z] in the flange frame, in metres")
+    com = np.array(com, dtype=np.float64)
+    com.setflags(write=False)
+    return {"mass": mass, "com": com}
 
 
 def box_from_yaml(spec: object, field_: str, *, finger: bool) -> Box:
@@ -135,7 +176,7 @@ def from_yaml(data: dict[str, Any], *, base: Path, name: str, source: str = "") 
         symmetric = len(boxes) == len(body) and box_body_symmetric(boxes)
     grip_force = config_number(data.get("grip_force", DEFAULT_GRIP_FORCE), "grip_force", positive=True, max_abs=1e5)
     return Gripper(name=gname, max_opening=max_opening, T_flange_tcp=T_flange_tcp, body=tuple(body),
-                   finger=finger, symmetric=symmetric, source=source, grip_force=grip_force)
+                   finger=finger, symmetric=symmetric, source=source, grip_force=grip_force, stroke=stroke_from(data, "", max_opening), **mass_from(data, ""))
 
 
 def from_json(d: dict[str, Any], *, where: str) -> Gripper:
@@ -154,12 +195,12 @@ def from_json(d: dict[str, Any], *, where: str) -> Gripper:
     sym = defn.get("symmetric", True)
     if not isinstance(sym, bool):
         raise ConfigError(f"{where}.definition.symmetric: expected true or false")
-    return Gripper(name=name,
-                   max_opening=config_number(d.get("max_opening"), f"{where}.max_opening", positive=True, max_abs=2.0),
+    max_opening = config_number(d.get("max_opening"), f"{where}.max_opening", positive=True, max_abs=2.0)
+    return Gripper(name=name, max_opening=max_opening, stroke=stroke_from(d, f"{where}.", max_opening),
                    T_flange_tcp=parse_pose(d.get("T_flange_tcp"), f"{where}.T_flange_tcp"), body=shapes,
                    finger=finger, symmetric=sym, source="embedded",
                    grip_force=config_number(d.get("grip_force", DEFAULT_GRIP_FORCE), f"{where}.grip_force",
-                                            positive=True, max_abs=1e5))
+                                            positive=True, max_abs=1e5), **mass_from(d, f"{where}."))
 
 
 KIND = register(GripperKind(

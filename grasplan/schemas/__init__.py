@@ -7,6 +7,8 @@
 ``grasplan.grasps/1``           ``grasps.schema.json``               ``grasplan grasps``
 ``grasplan.plan/1``             ``plan.schema.json``                 ``grasplan plan``
 ``grasplan.joint_trajectory/1`` ``joint_trajectory.schema.json``     ``grasplan export --format joint-trajectory``
+``grasplan.picks/1``            ``picks.schema.json``                ``grasplan pick``
+``grasplan.scene/1``            ``scene.schema.json``                ``grasplan scene drop`` (read by ``grasplan pick``)
 =============================== ==================================== ===============================
 
 >>> from grasplan.schemas import validate
@@ -32,6 +34,8 @@ SCHEMA_FILES: dict[str, str] = {
     "grasplan.grasps/1": "grasps.schema.json",
     "grasplan.plan/1": "plan.schema.json",
     "grasplan.joint_trajectory/1": "joint_trajectory.schema.json",
+    "grasplan.picks/1": "picks.schema.json",
+    "grasplan.scene/1": "scene.schema.json",
 }
 
 

@@ -1,0 +1,64 @@
+"""``grasplan pick SCENE -o picks.json``: picks from a pile of known parts, planned against the bin,
+the neighbours and a point cloud (docs/pick.md)."""
+from __future__ import annotations
+
+import time
+
+import click
+
+from ..errors import PlanningError
+from ..params import DEFAULT_GRIPPER
+from ..pick.params import PickParams
+from .common import check_output, info, table, warn_all
+from .options import apply_config_dirs, config_dir_option, output_option, param_options, robot_option
+
+
+@click.command(name="pick")
+@click.argument("scene", type=click.Path(dir_okay=False))
+@robot_option
+@click.option("--gripper", default=DEFAULT_GRIPPER, show_default=True,
+              help="Gripper name (see --config-dir) or path to a gripper YAML.")
+@click.option("--cell", default=None,
+              help="Cell name or YAML path instead of the scene's own cell.")
+@click.option("--sequence", is_flag=True, default=False,
+              help="Plan a pick, remove that instance, plan the next, until none is left or none is feasible.")
+@click.option("--max-picks", type=click.IntRange(1, 100000), default=None,
+              help="Stop after this many picks (the other instances are not_tried).")
+@param_options(PickParams)
+@config_dir_option
+@output_option("Output JSON (grasplan.picks/1): the scene, robot, gripper and cell, every pick in pick order and "
+               "every instance's status and reason.")
+def command(scene, robot, gripper, cell, sequence, max_picks, output, **kwargs):
+    """Plan picks from the pile in SCENE (grasplan.scene/1): per instance its grasps posed in the
+    world, checked against the bin, the table, the other instances and the cloud, ranked by score
+    and accessibility (parts on top first), then IK, the straight approach, the transit and the lift
+    checked against the neighbours. Exit 4 (the file still written) when nothing can be picked.
+    """
+    from ..pick.picker import Picker
+    from ..scenefile import load_scene
+
+    t0 = time.perf_counter()
+    apply_config_dirs(kwargs)
+    params = PickParams(**kwargs)
+    sc = load_scene(scene)  # bad input: exit 3 before anything is computed
+    # -o must not be any file the scene reads: meshes, grasp databases, the cloud, the cell, the YAMLs
+    reads = [scene, *(sc.resolve(p.mesh) for p in sc.parts if p.mesh), *(sc.resolve(p.grasps) for p in sc.parts
+                                                                         if p.grasps)]
+    if sc.cloud is not None:
+        reads.append(sc.resolve(sc.cloud.path))
+    scene_cell = sc.resolve(sc.cell) if ("/" in sc.cell or sc.cell.endswith((".yaml", ".yml"))) else sc.cell
+    output = check_output(output, *reads, gripper=gripper, cell=cell if cell is not None else str(scene_cell),
+                          robot=robot)
+    picker = Picker(robot, gripper=gripper, cell=cell, params=params, progress=info)
+    info(f"scene {scene}: {len(sc.instances)} instances of {len(sc.part_names())} parts")
+    result = picker.plan(sc, sequence=sequence, max_picks=max_picks)
+    warn_all(result.warnings)
+    result.write(output)
+    rows = [(r.id, r.part, r.status, ",".join(r.blocked_by) or "-") for r in result.instances]
+    click.echo(table(rows, header=("instance", "part", "status", "blocked_by")))
+    order = " -> ".join(p.instance for p in result.picks) or "(none)"
+    click.echo(f"{len(result.picks)} of {len(result.instances)} instances picked ({order}); wrote {output}")
+    click.echo(table([(k, float(v)) for k, v in result.timing_s.items()] + [("wall", time.perf_counter() - t0)],
+                     header=("stage", "seconds")))
+    if not result.picks:
+        raise PlanningError(f"no instance of {scene} can be picked; {output} lists every instance's status and reason")

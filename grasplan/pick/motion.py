@@ -1,0 +1,326 @@
+"""One pick's motion: IK at the grasp, the straight approach, the lift with the part in the jaws
+and the transit from home, against a pile (:class:`~grasplan.scene.CollisionScene` variants whose
+extra bodies are the other instances and the cloud).
+
+Per grasp (world TCP ``T_world_tcp``), for each IK solution closest to ``q_home`` first: the
+solution free at the grasp with the jaws at the pre-grasp opening; the straight approach traced
+back from the grasp to the pre-grasp (``backoff`` along the TCP's -z) and free; the straight lift
+(the cell's retreat direction and distance, jaws at the contact width, the part attached) free
+except that within the first ``lift_contact`` of TCP travel the part in the jaws may touch what it
+rests on (the table, the bin, an obstacle, a neighbour); then the transit ``q_home -> q_pregrasp``:
+the straight joint-space segment when it is free, else through a via point above the pre-grasp
+(:func:`_transit`), else OMPL RRTConnect. Every path is checked at
+``interpolation.STEP`` rad.
+
+Straight moves (:func:`line_path`): TCP waypoints every :data:`grasplan.pickplace.LINE_SAMPLE`
+with constant orientation. With a closed-form IK (the UR5's, :mod:`grasplan.ik.ur`) every waypoint
+is solved exactly and the branch kept continuous (each joint wrapped to the previous waypoint's
+value, the closest of the up to eight solutions taken; a joint moving more than ``max_joint_step``
+between waypoints is a branch jump); the joint-linear motion between waypoints is held to
+``max_dev`` from the line by forward kinematics at every midpoint. Robots without a closed form
+use the CLIK tracker :func:`grasplan.paths.approach_path_reason`.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..gripper.model import Gripper
+from ..ik import get_solver, solve_ik
+from ..interpolation import interpolate_path
+from ..motion import Motion
+from ..paths import _dist_to_segment, approach_path_reason, plan_joint_path
+from ..pickplace import (
+    LINE_SAMPLE,
+    T_tcp_part_of,
+    assemble_motion,
+    lift_pose,
+    place_candidates,
+    place_poses,
+    transfer_path,
+)
+from ..robot_model import Robot
+from ..scene import CollisionScene, describe_pairs
+from .params import PickParams
+
+#: what the part in the jaws may rest on at the start of the lift (body name or prefix)
+SUPPORT_BODIES = ("table", "obstacle:", "instance:")
+#: largest per-joint change (rad) between consecutive line waypoints (more: a branch jump)
+MAX_JOINT_STEP = 0.1
+
+
+def line_path(robot: Robot, T_from: np.ndarray, T_to: np.ndarray, q_from: np.ndarray, *, max_dev: float,
+              T_flange_tcp: np.ndarray, sample: float = LINE_SAMPLE) -> tuple[np.ndarray | None, str]:
+    """Joint waypoints moving the TCP straight ``T_from -> T_to`` (same orientation) from
+    ``q_from`` (which reaches ``T_from``): ``(path (k, n), "ok")`` or ``(None, why)`` with why in
+    ``ik``, ``limits``, ``jump``, ``deviation`` (see the module docstring)."""
+    from ..ik.ur import URAnalytic
+    from .lines import fk_base_tool, ur_line
+
+    closed = get_solver(robot).analytic
+    if not isinstance(closed, URAnalytic) or not closed.ok:
+        return approach_path_reason(robot, None, T_from, T_to, q_from, opening=0.0, max_dev=max_dev,
+                                    T_flange_tcp=T_flange_tcp, sample=sample)
+    T_base = np.linalg.inv(np.asarray(robot.T_world_base, dtype=np.float64))
+    T_tcp_flange = np.linalg.inv(T_flange_tcp)
+    a, b = T_from[:3, 3], T_to[:3, 3]
+    m = max(1, int(np.ceil(float(np.linalg.norm(b - a)) / sample - 1e-12)))
+    T = np.broadcast_to(np.asarray(T_from, dtype=np.float64), (m, 4, 4)).copy()
+    T[:, :3, 3] = a + (b - a) * (np.arange(1, m + 1) / m)[:, None]
+    T0 = fk_base_tool(closed, np.asarray(q_from, dtype=np.float64)[None])[0]
+    T0_want = T_base @ np.asarray(T_from, dtype=np.float64) @ T_tcp_flange
+    if np.linalg.norm(T0[:3, 3] - T0_want[:3, 3]) > 0.5 * max_dev or np.max(np.abs(T0[:3, :3] - T0_want[:3, :3])) > 1e-4:
+        return None, "start"
+    path, why = ur_line(closed, T_base @ T @ T_tcp_flange, q_from, robot.lower, robot.upper, MAX_JOINT_STEP)
+    if path is None:
+        return None, why
+    mids = 0.5 * (path[:-1] + path[1:])
+    tcp = (np.asarray(robot.T_world_base) @ fk_base_tool(closed, mids) @ T_flange_tcp)[:, :3, 3]
+    if np.max(_dist_to_segment(tcp, a, b)) > max_dev:
+        return None, "deviation"
+    return path, "ok"
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """One grasp's motion planning: ``status`` (``planned``, ``unreachable``, ``ik_collision``,
+    ``lift_collision``, ``no_path``, ``place``), why, and the motion when planned."""
+
+    status: str
+    reason: str
+    motion: Motion | None = None
+    opening: float = 0.0
+    blockers: tuple[str, ...] = ()  #: neighbours (``instance:<id>``) the lift or approach hit
+
+
+@dataclass
+class MotionContext:
+    """What every grasp of one instance shares: robot, gripper, options, the pile scenes (part
+    static, part attached), home and the lift."""
+
+    robot: Robot
+    gripper: Gripper
+    params: PickParams
+    static: CollisionScene
+    attached: CollisionScene
+    retreat_dir: np.ndarray
+    retreat_dist: float
+    timing: dict[str, float]
+    T_place: np.ndarray | None = None  #: T_world_part after release (pick-and-place), or None
+    #: the gripper along the lift in Cartesian space (branch-independent, before any IK):
+    #: ``(T_world_tcp (k, 4, 4), width) -> first body hit per pose (-1 none)`` and the body names
+    lift_gripper_check: Any = None
+    body_names: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        self.q_home = np.asarray(self.robot.q_home, dtype=np.float64)
+        self.T_flange_tcp = np.asarray(self.gripper.T_flange_tcp, dtype=np.float64)
+        self.T_tcp_flange = np.linalg.inv(self.T_flange_tcp)
+
+
+def _support_only(pairs: list[tuple[str, str, str]]) -> bool:
+    for a, b, _ in pairs:
+        other = b if a == "part" else a if b == "part" else None
+        if other is None or not other.startswith(SUPPORT_BODIES):
+            return False
+    return True
+
+
+def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touch: int
+                   ) -> list[tuple[str, str, str]] | None:
+    """The colliding pairs where the lift ``path`` (k, n) first hits something with the part
+    attached (None: free). Within the first ``n_touch`` waypoints only the part resting on a
+    support is allowed."""
+    n_touch = int(min(max(n_touch, 0), len(path) - 1))
+    tail = path[n_touch:]
+    if not scene.path_free(tail, width):
+        hit = scene.path_collisions(tail, width)
+        return [("?", "?", "?")] if hit is None else hit[1]
+    if n_touch == 0:
+        return None
+    head = path[: n_touch + 1]
+    if scene.path_free(head, width):
+        return None
+    for q in interpolate_path(head):
+        if scene.is_free(q, width):
+            continue
+        pairs = scene.colliding_pairs(q, width)
+        if not _support_only(pairs):
+            return pairs
+    return None
+
+
+def _blockers(pairs: list[tuple[str, str, str]]) -> set[str]:
+    return {x for a, b, _ in pairs for x in (a, b) if x.startswith("instance:")}
+
+
+def _place(ctx: MotionContext, q_lifted: np.ndarray, T_part_tcp: np.ndarray, width: float, opening: float,
+           seed: int) -> tuple[Any, np.ndarray | None, str]:
+    """``(place candidate, transfer path, "")`` or ``(None, None, why)``: the place side of
+    :func:`grasplan.planning.plan_grasp`'s pick-and-place for one picked grasp."""
+    p, robot = ctx.params, ctx.robot
+    assert ctx.T_place is not None
+    released = ctx.static.with_part_at(ctx.T_place)
+    poses = place_poses(ctx.T_place, T_part_tcp, ctx.retreat_dir, ctx.retreat_dist, p.backoff)
+    cands, _, why = place_candidates(robot, ctx.attached, released, poses, width=width, opening=opening,
+                                     max_dev=p.max_dev, T_flange_tcp=ctx.T_flange_tcp, q_ref=q_lifted, seed=p.seed,
+                                     max_solutions=p.max_ik_solutions, limit=p.max_path_queries)
+    for c in cands:
+        transfer = transfer_path(ctx.attached, q_lifted, c, lower=robot.lower, upper=robot.upper, width=width,
+                                 seed=seed + 7, time_limit=p.time_limit_per_query, attempts=p.path_attempts)
+        if transfer is not None:
+            return c, transfer, ""
+    if cands:
+        why = "place: RRTConnect found no verified transfer path (part in the jaws) lifted -> above the place"
+    return None, None, why
+
+
+#: the transit's via point: the pre-grasp TCP raised this far (m) along world +z, same IK branch
+VIA_HEIGHT = 0.25
+
+
+def _transit(ctx: MotionContext, q_pre: np.ndarray, T_pre: np.ndarray, opening: float, seed: int
+             ) -> np.ndarray | None:
+    """``q_home -> q_pre``: the straight joint segment when free; else home -> a via point above
+    the pre-grasp (:data:`VIA_HEIGHT`, reached from ``q_pre`` by a straight TCP line on its IK branch)
+    -> down that line, directly or after turning the base joint alone; else OMPL RRTConnect. Every
+    candidate is checked at ``interpolation.STEP``."""
+    p, robot, static = ctx.params, ctx.robot, ctx.static
+    direct = np.stack([ctx.q_home, q_pre])
+    if static.path_free(direct, opening):
+        return direct
+    T_via = T_pre.copy()
+    T_via[2, 3] += VIA_HEIGHT
+    up, _ = line_path(robot, T_pre, T_via, q_pre, max_dev=0.05, T_flange_tcp=ctx.T_flange_tcp, sample=0.02)
+    if up is not None:
+        via = np.vstack([ctx.q_home[None], up[::-1]])
+        if static.path_free(via, opening):
+            return via
+        turn = ctx.q_home.copy()  # home turned to face the via point first (the base joint alone)
+        turn[0] = up[-1][0]
+        via = np.vstack([ctx.q_home[None], turn[None], up[::-1]])
+        if static.path_free(via, opening):
+            return via
+    return plan_joint_path(static, ctx.q_home, q_pre, lower=robot.lower, upper=robot.upper, opening=opening,
+                           seed=seed, time_limit=p.time_limit_per_query, attempts=p.path_attempts)
+
+
+def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np.ndarray, width: float,
+                     seed: int) -> Outcome:
+    """Plan one grasp (see the module docstring)."""
+    p, robot, timing = ctx.params, ctx.robot, ctx.timing
+    opening = float(ctx.gripper.pregrasp_opening(width))
+    T_pre = T_world_tcp.copy()
+    T_pre[:3, 3] -= p.backoff * T_world_tcp[:3, 2]
+    T_lift = lift_pose(T_world_tcp, ctx.retreat_dir, ctx.retreat_dist)
+    if ctx.lift_gripper_check is not None:  # the closed gripper along the lift: the same for every IK branch
+        t = time.perf_counter()
+        m = max(1, int(np.ceil(ctx.retreat_dist / LINE_SAMPLE - 1e-12)))
+        T_line = np.broadcast_to(T_world_tcp, (m + 1, 4, 4)).copy()
+        T_line[:, :3, 3] += (ctx.retreat_dist * np.arange(m + 1) / m)[:, None] * ctx.retreat_dir
+        hit = ctx.lift_gripper_check(T_line, width)
+        timing["lift_check"] += time.perf_counter() - t
+        if np.any(hit >= 0):
+            k = int(np.flatnonzero(hit >= 0)[0])
+            name = ctx.body_names[int(hit[k])]
+            return Outcome("lift_collision", f"lift: the closed gripper hits {name} {1e3 * ctx.retreat_dist * k / m:.0f} "
+                           f"mm up (any IK solution)", opening=opening,
+                           blockers=(name,) if name.startswith("instance:") else ())
+    t = time.perf_counter()
+    ik = solve_ik(robot, T_world_tcp @ ctx.T_tcp_flange, seed=p.seed)
+    timing["ik"] += time.perf_counter() - t
+    sols = np.asarray(ik.q, dtype=np.float64).reshape(-1, robot.nq)[: p.max_ik_solutions]
+    if len(sols) == 0:
+        return Outcome("unreachable", f"no IK solution within the joint limits ({ik.reason})", opening=opening)
+    static, att = ctx.static, ctx.attached
+    att.move_attached(T_tcp_part_of(T_part_tcp))
+    n_touch = int(np.ceil(p.lift_contact / LINE_SAMPLE - 1e-9))
+    why: dict[str, str] = {}
+    blockers: set[str] = set()
+    count = {"grasp": 0, "approach": 0, "approach_kin": 0, "lift": 0, "lift_kin": 0, "path": 0, "place": 0}
+    for j, q_grasp in enumerate(sols):
+        t = time.perf_counter()
+        free = static.is_free(q_grasp, opening)
+        timing["collision"] += time.perf_counter() - t
+        if not free:
+            count["grasp"] += 1
+            if "grasp" not in why:
+                pairs_g = static.colliding_pairs(q_grasp, opening)
+                why["grasp"] = describe_pairs(pairs_g, 2)
+                blockers |= _blockers(pairs_g)
+            continue
+        t = time.perf_counter()
+        back, reason = line_path(robot, T_world_tcp, T_pre, q_grasp, max_dev=p.max_dev, T_flange_tcp=ctx.T_flange_tcp)
+        timing["approach"] += time.perf_counter() - t
+        if back is None:
+            count["approach_kin"] += 1
+            why.setdefault("approach_kin", reason)
+            continue
+        t = time.perf_counter()
+        free = static.path_free(back, opening)
+        timing["collision"] += time.perf_counter() - t
+        if not free:
+            count["approach"] += 1
+            if "approach" not in why:
+                hit_a = static.path_collisions(back, opening)
+                pairs_a = [] if hit_a is None else hit_a[1]
+                why["approach"] = describe_pairs(pairs_a, 2)
+                blockers |= _blockers(pairs_a)
+            continue
+        t = time.perf_counter()
+        lift, reason = line_path(robot, T_world_tcp, T_lift, q_grasp, max_dev=p.max_dev, T_flange_tcp=ctx.T_flange_tcp)
+        timing["lift"] += time.perf_counter() - t
+        if lift is None:
+            count["lift_kin"] += 1
+            why.setdefault("lift_kin", reason)
+            continue
+        t = time.perf_counter()
+        pairs = lift_collision(att, lift, width, n_touch)
+        timing["collision"] += time.perf_counter() - t
+        if pairs is not None:
+            count["lift"] += 1
+            why.setdefault("lift", describe_pairs(pairs, 2))
+            blockers |= _blockers(pairs)
+            continue
+        approach = back[::-1]
+        t = time.perf_counter()
+        transit = _transit(ctx, approach[0], T_pre, opening, seed)
+        timing["transit"] += time.perf_counter() - t
+        if transit is None:
+            count["path"] += 1
+            if count["path"] >= p.max_path_queries:
+                break
+            continue
+        transfer = cand = None
+        if ctx.T_place is not None:  # carry it to the place (grasplan.pickplace, neighbours still in the scene)
+            t = time.perf_counter()
+            cand, transfer, place_why = _place(ctx, lift[-1], T_part_tcp, width, opening, seed)
+            timing["place"] += time.perf_counter() - t
+            if cand is None:
+                why.setdefault("place", place_why)
+                count["place"] += 1
+                continue
+        motion = assemble_motion(transit, approach, lift, width=width, opening=opening,
+                                 T_tcp_part=T_tcp_part_of(T_part_tcp), transfer=transfer, place=cand,
+                                 T_world_part_place=ctx.T_place)
+        return Outcome("planned", f"planned with IK solution {j} of {len(sols)} (closest to q_home first)", motion,
+                       opening)
+    detail = (f"{len(sols)} IK solutions: {count['grasp']} collide at the grasp, {count['approach']} on the approach, "
+              f"{count['approach_kin']} cannot follow it, {count['lift']} collide on the lift, {count['lift_kin']} "
+              f"cannot follow it, {count['path']} found no transit")
+    bl = tuple(sorted(blockers))
+    if count["place"]:
+        return Outcome("place", f"{why['place']}; " + detail, opening=opening)
+    if count["lift"]:
+        return Outcome("lift_collision", f"lift: with the part in the jaws {why['lift']}; " + detail, opening=opening,
+                       blockers=bl)
+    if count["path"]:
+        return Outcome("no_path", "RRTConnect found no verified transit home -> pre-grasp; " + detail, opening=opening)
+    if count["grasp"] or count["approach"]:
+        hit = why.get("grasp", "") or why.get("approach", "")
+        return Outcome("ik_collision", detail + (f"; e.g. {hit}" if hit else ""), opening=opening, blockers=bl)
+    return Outcome("unreachable", detail + (f" ({why['approach_kin']})" if "approach_kin" in why else ""),
+                   opening=opening)

@@ -1,0 +1,432 @@
+"""``grasplan.Picker``: picks from a pile of known parts at poses from vision, planned against the
+bin and the neighbours, with the robot, the grasp sets and the collision objects kept warm.
+
+Per :meth:`Picker.plan` call:
+
+1. the scene (:func:`grasplan.scenefile.load_scene`), its parts (added on first use) and grasp
+   databases (:func:`grasplan.graspdb.database_for`: from the cache folder, else computed once and
+   cached; or the scene's ``grasps`` file), the cloud's octree, the world of
+   the gripper checks (:class:`grasplan.pick.world.PickWorld`) and the robot's collision scenes (one
+   per part, every instance an extra body) are ready: ``timing_s["load"]``; then the geometric
+   checks (:mod:`grasplan.pile_checks`: exit 3 for a part below the floor, warnings for
+   interpenetrating instances);
+2. instances are tried in the accessibility order (:mod:`grasplan.pick.rank`), in two passes (the
+   best :data:`FIRST_PASS` grasps of every instance, then the rest of the undecided ones); per
+   instance first
+   the lift: the part moved along the cell's retreat, at the line's waypoints beyond
+   ``lift_contact``, against the neighbours and the cloud (the same for every grasp: a hit there
+   fails the robot's lift check whatever the arm does, so the instance is ``blocked`` by that
+   neighbour without trying a grasp); then its grasps posed in the world are ranked, gripper-checked in chunks against neighbours, cloud, bin
+   and table (the first body hit names the blocker), and the collision-free ones motion-planned
+   (:mod:`grasplan.pick.motion`) until one is planned or ``grasps_per_instance`` were tried;
+3. ``sequence``: after each pick the instance is removed and the rest re-planned (the next pick is
+   the first feasible one in the new order), until none is left or none is feasible. Otherwise each
+   instance gets its best pick with every other instance in place; picks are listed in trying order.
+
+``timing_s["first_pick"]``: seconds from the ready scene (end of step 1 and the checks) to the
+first feasible pick.
+"""
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..cell import Cell, load_cell
+from ..errors import InputError
+from ..gripper import load_gripper
+from ..gripper.model import Gripper
+from ..mesh import Part, load_part
+from ..params import DEFAULT_GRIPPER
+from ..pickplace import LINE_SAMPLE, lift_pose, unit_direction
+from ..robot import load_robot
+from ..robot_model import Robot
+from ..scene import CollisionScene, ExtraBody
+from ..scenefile import Instance, Scene, load_scene
+from ..graspdb import GraspDatabase, database_for, load_database
+from .motion import MotionContext, Outcome, plan_pick_motion
+from .params import PickParams
+from .rank import instance_order, rank_grasps
+from .result import InstanceReport, Pick, PickResult
+from .world import CLOUD, INSTANCE_PREFIX, PickWorld
+
+#: grasps gripper-checked per step while looking for collision-free ones
+CHECK_CHUNK = 256
+#: the first pass over the instances checks this many grasps of each (best ranked) before any
+#: instance's further grasps: a part whose good grasps are free is found before the deep search
+#: of a boxed-in one
+FIRST_PASS = 256
+_TIMING_KEYS = ("gripper_check", "lift_check", "ik", "collision", "approach", "lift", "transit", "place")
+
+
+@dataclass
+class _Cell:
+    """Warm state per cell: the gripper world and the robot scenes (per part) with their extras."""
+
+    cell: Cell
+    world: PickWorld
+    scenes: dict[str, CollisionScene] = field(default_factory=dict)
+    extras: frozenset = frozenset()        # (instance id, part) pairs the scenes hold
+    cloud_key: Any = None
+    variants: dict[Any, tuple[CollisionScene, CollisionScene]] = field(default_factory=dict)
+
+
+def _looks_like_path(ref: str) -> bool:
+    return "/" in ref or os.sep in ref or ref.lower().endswith((".yaml", ".yml"))
+
+
+class Picker:
+    """Plans picks from piles (see the module docstring).
+
+    ``robot``, ``gripper``: models or names/paths; ``cell``: a model, name or path, or None for
+    each scene's own cell; ``params``: :class:`~grasplan.pick.params.PickParams`; ``progress``:
+    gets a line when a grasp database is computed."""
+
+    def __init__(self, robot: Robot | str = "ur5", *, gripper: Gripper | str = DEFAULT_GRIPPER,
+                 cell: Cell | str | None = None, params: PickParams = PickParams(),
+                 progress: Callable[[str], None] | None = None):
+        self.robot = robot if isinstance(robot, Robot) else load_robot(robot)
+        self.gripper = gripper if isinstance(gripper, Gripper) else load_gripper(gripper)
+        if self.gripper.moving_tcp:
+            raise InputError(f"gripper {self.gripper.name!r}: its TCP moves with the opening (a linkage gripper); "
+                             f"grasplan pick plans parallel-jaw grippers whose TCP stays put (e.g. schunk_egp_c_40)")
+        self.cell = None if cell is None else (cell if isinstance(cell, Cell) else load_cell(cell))
+        self.params = params
+        self.progress = progress
+        self._parts: dict[str, Part] = {}
+        self._grasps: dict[str, GraspDatabase] = {}
+        self._cells: dict[Any, _Cell] = {}
+        self._clouds: dict[tuple, tuple[Any, np.ndarray, float]] = {}
+        self._cell_refs: dict[str, tuple[int, Cell]] = {}
+
+    # -- parts --------------------------------------------------------------------------------------
+    def add_part(self, name: str, mesh: str | os.PathLike | Part, *, units: str = "auto",
+                 grasps: str | os.PathLike | GraspDatabase | None = None) -> None:
+        """Make part ``name`` known: a mesh file (read in ``units``) or a loaded Part; ``grasps``:
+        its grasp database (a ``.graspdb.npz`` file or a loaded one; refused for another part or
+        gripper; default: :func:`grasplan.graspdb.database_for`, cached)."""
+        part = mesh if isinstance(mesh, Part) else load_part(mesh, units=units)
+        if grasps is None:
+            db = database_for(part, self.gripper, progress=self.progress)
+        elif isinstance(grasps, GraspDatabase):
+            grasps.check_for(part, self.gripper)
+            db = grasps
+        else:
+            db = load_database(Path(grasps), part=part, gripper=self.gripper)
+        self._parts[name] = part
+        self._grasps[name] = db
+        for st in self._cells.values():  # scenes holding the old geometry are rebuilt
+            st.world.add_part(name, part)
+            st.scenes.pop(name, None)
+            st.extras = frozenset()
+            st.variants.clear()
+
+    def parts(self) -> list[str]:
+        return list(self._parts)
+
+    def _ensure_parts(self, scene: Scene) -> None:
+        for name in scene.part_names():
+            sp = scene.part(name)
+            if sp is not None and sp.mesh is not None:
+                path = scene.resolve(sp.mesh)
+                if name in self._parts and Path(self._parts[name].path) == path:
+                    continue
+                self.add_part(name, path, units=sp.units,
+                              grasps=None if sp.grasps is None else scene.resolve(sp.grasps))
+            elif name not in self._parts:
+                known = ", ".join(self._parts) or "(none)"
+                raise InputError(f"scene: part {name!r} has no mesh in the scene and was not added to the picker "
+                                 f"(Picker.add_part); known parts: {known}")
+
+    # -- warm state ---------------------------------------------------------------------------------
+    def _cell_for(self, scene: Scene) -> _Cell:
+        if self.cell is not None:
+            cell = self.cell
+        else:  # by name or path, read once (a path again when the file changed)
+            ref = str(scene.resolve(scene.cell)) if _looks_like_path(scene.cell) else scene.cell
+            try:
+                stamp = Path(ref).stat().st_mtime_ns if _looks_like_path(ref) else 0
+            except OSError:
+                stamp = -1
+            cached = self._cell_refs.get(ref)
+            if cached is None or cached[0] != stamp:
+                cached = self._cell_refs[ref] = (stamp, load_cell(ref))
+            cell = cached[1]
+        key = cell
+        st = self._cells.get(key)
+        if st is None:
+            world = PickWorld(self.gripper, cell)
+            for name, part in self._parts.items():
+                world.add_part(name, part)
+            st = self._cells[key] = _Cell(cell=cell, world=world)
+        return st
+
+    def _cloud(self, scene: Scene) -> tuple[Any, np.ndarray, float] | None:
+        if scene.cloud is None:
+            return None
+        from ..cloud import cloud_octree, read_cloud
+
+        path = scene.resolve(scene.cloud.path)
+        try:
+            stt = path.stat()
+            key = (str(path), stt.st_mtime_ns, stt.st_size, scene.cloud.resolution)
+        except OSError:
+            key = None
+        if key is not None and key in self._clouds:
+            return self._clouds[key]
+        pts = read_cloud(path).points
+        out = (cloud_octree(pts, scene.cloud.resolution), pts, float(scene.cloud.resolution))
+        if key is not None:
+            self._clouds = {key: out}
+        return out
+
+    def _scenes(self, st: _Cell, scene: Scene, cloud: tuple | None) -> None:
+        need = frozenset((i.id, i.part) for i in scene.instances)
+        cloud_key = None if cloud is None else id(cloud[0])
+        if need <= st.extras and cloud_key == st.cloud_key and all(p in st.scenes for p in scene.part_names()):
+            return
+        extras_set = need | (st.extras if len(st.extras) < 4 * max(len(need), 8) else frozenset())
+        extras_set = frozenset(x for x in extras_set if x[0] not in {i for i, p in need} or x in need)
+        bodies = [ExtraBody(INSTANCE_PREFIX + i, st.world.parts[p].bvh, "instance") for i, p in sorted(extras_set)]
+        if cloud is not None:
+            bodies.append(ExtraBody(CLOUD, cloud[0], "cloud"))
+        st.scenes = {p: CollisionScene(self.robot, self.gripper, self._parts[p].mesh, np.eye(4), st.cell,
+                                       extras=bodies) for p in sorted({p for _, p in extras_set})}
+        st.extras, st.cloud_key = extras_set, cloud_key
+        st.variants.clear()
+
+    def _variants(self, st: _Cell, inst: Instance, present: list[Instance], with_cloud: bool
+                  ) -> tuple[CollisionScene, CollisionScene]:
+        key = (inst.id, inst.part, inst.T_world_part.tobytes(),
+               tuple((i.id, i.T_world_part.tobytes()) for i in present if i.id != inst.id), with_cloud)
+        v = st.variants.get(key)
+        if v is None:
+            extras: dict[str, np.ndarray] = {INSTANCE_PREFIX + i.id: i.T_world_part for i in present if i.id != inst.id}
+            if with_cloud:
+                extras[CLOUD] = np.eye(4)
+            static = st.scenes[inst.part].arranged(inst.T_world_part, extras)
+            v = (static, static.attached(np.eye(4)))
+            if len(st.variants) > 256:
+                st.variants.clear()
+            st.variants[key] = v
+        return v
+
+    # -- planning -----------------------------------------------------------------------------------
+    def plan(self, scene: Scene | str | os.PathLike | Mapping, *, max_picks: int | None = None,
+             sequence: bool = False, seed: int | None = None) -> PickResult:
+        """Plan picks for ``scene`` (a Scene, a scene file or a parsed document); see the module docstring."""
+        from ..pile_checks import check_instances
+
+        t0 = time.perf_counter()
+        sc = load_scene(scene)
+        self._ensure_parts(sc)
+        st = self._cell_for(sc)
+        cloud = self._cloud(sc)
+        st.world.set_cloud(None if cloud is None else cloud[0], None if cloud is None else cloud[1],
+                           0.0 if cloud is None else cloud[2])
+        self._scenes(st, sc, cloud)
+        timing: dict[str, float] = {"load": time.perf_counter() - t0}
+        t = time.perf_counter()
+        warnings = check_instances(sc.instances, {n: self._parts[n].mesh for n in sc.part_names()}, st.cell,
+                                   tol=self.params.overlap_tol,
+                                   bvhs={n: st.world.parts[n].bvh for n in sc.part_names()})
+        timing["checks"] = time.perf_counter() - t
+        t_ready, cpu_ready = time.perf_counter(), time.process_time()
+        timing.update({k: 0.0 for k in _TIMING_KEYS})
+        p = self.params if seed is None else PickParams.from_json({**self.params.to_json(), "seed": int(seed)})
+        stats = {"grasps_checked": 0, "grasps_tried": 0}
+        reports: dict[str, InstanceReport] = {}
+        picks: list[Pick] = []
+        present = list(sc.instances)
+        first_pick: float | None = None
+        while present:
+            st.world.set_instances(present)
+            boxes = {i.id: (st.world.instances[i.id].center, st.world.instances[i.id].half) for i in present}
+            order = instance_order([i.id for i in present], boxes)
+            by_id = {i.id: i for i in present}
+            picked_now: str | None = None
+            paused: list[tuple[str, Iterator[tuple[Pick | None, InstanceReport | None]]]] = []
+
+            def out_of_budget() -> bool:
+                return (max_picks is not None and len(picks) >= max_picks) or \
+                    (p.budget_s is not None and time.perf_counter() - t_ready > p.budget_s)
+
+            def take(iid: str, pick: Pick | None, rep: InstanceReport) -> bool:
+                nonlocal first_pick
+                reports[iid] = rep
+                if pick is None:
+                    return False
+                picks.append(pick)
+                if first_pick is None:
+                    first_pick = time.perf_counter() - t_ready
+                    timing["first_pick_cpu"] = time.process_time() - cpu_ready
+                return sequence
+
+            # pass 1: every instance's best FIRST_PASS grasps, in order; pass 2: the rest of the paused ones
+            for k, iid in enumerate(order):
+                if out_of_budget():
+                    break
+                if iid in reports and reports[iid].status == "picked":
+                    continue
+                gen = self._plan_instance(st, by_id[iid], present, cloud is not None, p, timing, stats, seed_base=k)
+                pick, rep = next(gen)
+                if rep is None:
+                    paused.append((iid, gen))
+                elif take(iid, pick, rep):
+                    picked_now = iid
+                    break
+            if picked_now is None:
+                for iid, gen in paused:
+                    if out_of_budget():
+                        break
+                    pick, rep = next(gen)
+                    assert rep is not None
+                    if take(iid, pick, rep):
+                        picked_now = iid
+                        break
+            if not sequence:
+                rank_of = {iid: n for n, iid in enumerate(order)}
+                picks.sort(key=lambda q: rank_of[q.instance])
+            if not sequence or picked_now is None:
+                break
+            present = [i for i in present if i.id != picked_now]
+        for i in sc.instances:
+            if i.id not in reports:
+                reports[i.id] = InstanceReport(i.id, i.part, "not_tried",
+                                               "not tried: max_picks reached or the planning budget spent")
+        timing["first_pick"] = float("nan") if first_pick is None else first_pick
+        timing["plan"] = time.perf_counter() - t_ready
+        timing["total"] = time.perf_counter() - t0
+        timing_out = {k: v for k, v in timing.items() if np.isfinite(v)}
+        return PickResult(picks=tuple(picks), instances=tuple(reports[i.id] for i in sc.instances), timing_s=timing_out,
+                          scene=sc, robot=self.robot, gripper=self.gripper, cell=st.cell, params=p,
+                          parts={n: self._parts[n].to_json() for n in sc.part_names()}, warnings=tuple(warnings),
+                          sequence=sequence, stats=stats)
+
+    def _plan_instance(self, st: _Cell, inst: Instance, present: list[Instance], with_cloud: bool, p: PickParams,
+                       timing: dict[str, float], stats: dict[str, int], seed_base: int
+                       ) -> Iterator[tuple[Pick | None, InstanceReport | None]]:
+        """Yields ``(pick or None, report)`` once the instance is decided, or first ``(None, None)``
+        when its best :data:`FIRST_PASS` grasps gave nothing yet (the caller resumes it later)."""
+        db = self._grasps[inst.part]
+        rows, T_wt = rank_grasps(inst.T_world_part, db.T_part_tcp, db.score, p)
+        if len(rows) == 0:
+            yield None, InstanceReport(inst.id, inst.part, "no_grasp",
+                                       f"none of the part's {len(db)} grasps approaches within {p.max_tilt_deg:g} deg "
+                                       f"of straight down at this pose")
+            return
+        bodies = st.world.bodies(inst.id)
+        hit_counts: dict[str, int] = {}
+        first_fail: Outcome | None = None
+        tried = 0
+        ctx: MotionContext | None = None
+        rows, T_wt = rows[: p.max_checked], T_wt[: p.max_checked]
+        T_place = p.place_matrix() if p.place is not None else (None if st.cell.place is None
+                                                                  else np.asarray(st.cell.place, dtype=np.float64))
+        lift_dir = unit_direction(st.cell.retreat_direction)
+        n_lift = max(1, int(np.ceil(float(st.cell.retreat_distance) / LINE_SAMPLE - 1e-12)))
+        steps = float(st.cell.retreat_distance) * np.arange(n_lift + 1) / n_lift
+        steps = steps[steps >= min(p.lift_contact, steps[-1]) - 1e-12]
+        # the carried part against the neighbours and the cloud (the cell's boxes: the robot's check,
+        # which lets the part slide along a wall it touches within ATTACHED_CONTACT_TOL)
+        pile = [b for b in bodies if b.name.startswith(INSTANCE_PREFIX) or b.name == CLOUD]
+        # lifting the part straight up is the same motion for every grasp: when it drags the part
+        # through a neighbour (or the cloud) beyond lift_contact, no grasp can pick the instance
+        t = time.perf_counter()
+        lh = st.world.part_hits(inst.part, inst.T_world_part, steps[:, None] * lift_dir, pile)
+        timing["lift_check"] += time.perf_counter() - t
+        if np.any(lh >= 0):
+            k_hit = int(np.flatnonzero(lh >= 0)[0])
+            name = pile[int(lh[k_hit])].name
+            yield None, InstanceReport(
+                inst.id, inst.part, "blocked" if name.startswith(INSTANCE_PREFIX) else "cloud",
+                f"lifting it {1e3 * float(st.cell.retreat_distance):g} mm along the retreat drags it through {name} "
+                f"after {1e3 * steps[k_hit]:.0f} mm (more than the {1e3 * p.lift_contact:g} mm of resting contact "
+                f"allowed), whatever the grasp", _blockers({name: 1}))
+            return
+        for c0 in range(0, len(rows), CHECK_CHUNK):
+            if c0 == FIRST_PASS:
+                yield None, None  # paused: the other instances' best grasps first
+            sel = slice(c0, c0 + CHECK_CHUNK)
+            t = time.perf_counter()
+            # the bodies that blocked most grasps so far first: a blocked grasp needs fewer coal calls
+            order = sorted(bodies, key=lambda b: -hit_counts.get(b.name, 0))
+            first, _ = st.world.gripper_hits(inst.part, inst.id, T_wt[sel], db.width[rows[sel]], order)
+            timing["gripper_check"] += time.perf_counter() - t
+            stats["grasps_checked"] += len(first)
+            for k_local, b in enumerate(first):
+                if b >= 0:
+                    name = order[b].name
+                    hit_counts[name] = hit_counts.get(name, 0) + 1
+                    continue
+                k = c0 + k_local
+                r = int(rows[k])
+                if ctx is None:
+                    static, att = self._variants(st, inst, present, with_cloud)
+                    ctx = MotionContext(self.robot, self.gripper, p, static, att,
+                                        unit_direction(st.cell.retreat_direction), float(st.cell.retreat_distance),
+                                        timing, T_place=T_place,
+                                        lift_gripper_check=lambda T, w: st.world.gripper_at_hits(T, w, bodies),
+                                        body_names=tuple(b.name for b in bodies))
+                tried += 1
+                stats["grasps_tried"] += 1
+                out = plan_pick_motion(ctx, T_wt[k], db.T_part_tcp[r], float(db.width[r]),
+                                       seed=p.seed * 1_000_003 + seed_base * 10_007 + r)
+                if out.motion is not None:
+                    yield self._pick(inst, db, r, k, T_wt[k], out, st.cell), InstanceReport(
+                        inst.id, inst.part, "picked", f"grasp ranked {k} of {len(rows)}: {out.reason}"
+                        + _hits_text(hit_counts, " better-ranked grasps"), _blockers(hit_counts))
+                    return
+                first_fail = first_fail or out
+                for b in out.blockers:  # neighbours hit by the robot or the carried part
+                    hit_counts[b] = hit_counts.get(b, 0) + 1
+                if tried >= p.grasps_per_instance:
+                    break
+            if tried >= p.grasps_per_instance:
+                break
+        if first_fail is not None:
+            status = "blocked" if first_fail.blockers else first_fail.status
+            yield None, InstanceReport(inst.id, inst.part, status,
+                                       f"{tried} collision-free grasps tried, none planned; the best: "
+                                       f"{first_fail.reason}" + _hits_text(hit_counts, " grasps"),
+                                       _blockers(hit_counts))
+            return
+        blockers = _blockers(hit_counts)
+        n_cloud = hit_counts.get(CLOUD, 0)
+        status = "blocked" if blockers else "cloud" if n_cloud else "bin"
+        yield None, InstanceReport(inst.id, inst.part, status,
+                                   f"every one of the {len(rows)} best-ranked grasps from above collides"
+                                   + _hits_text(hit_counts, " grasps"), blockers)
+
+    def _pick(self, inst: Instance, db: GraspDatabase, r: int, k: int, T_world_tcp: np.ndarray, out: Outcome,
+              cell: Cell) -> Pick:
+        assert out.motion is not None
+        T_pre = T_world_tcp.copy()
+        T_pre[:3, 3] -= self.params.backoff * T_world_tcp[:3, 2]
+        rows = np.array([r])
+        q = db.quality_at(inst.T_world_part, rows)  # at the instance's pose (the gravity margin depends on it)
+        quality: dict[str, float] = {"epsilon": float(db.epsilon[r])}
+        if q is not None:
+            quality["gravity_margin"] = float(q.gravity_margin[0])
+        score = float(db.score_at(self._parts[inst.part].mesh, inst.T_world_part, rows, quality=q)[0])
+        return Pick(instance=inst.id, part=inst.part, T_world_part=np.array(inst.T_world_part),
+                    T_part_tcp=db.T_part_tcp[r].copy(), contacts=db.contacts[r].copy(), normals=db.normals[r].copy(),
+                    width=float(db.width[r]), opening=out.opening, score=score, quality=quality,
+                    motion=out.motion, T_world_tcp=T_world_tcp.copy(), T_world_pregrasp=T_pre,
+                    T_world_lifted=lift_pose(T_world_tcp, cell.retreat_direction, cell.retreat_distance), rank=k)
+
+
+def _blockers(hits: dict[str, int]) -> tuple[str, ...]:
+    return tuple(sorted(n[len(INSTANCE_PREFIX):] for n in hits if n.startswith(INSTANCE_PREFIX)))
+
+
+def _hits_text(hits: dict[str, int], what: str) -> str:
+    if not hits:
+        return ""
+    rows = sorted(hits.items(), key=lambda kv: (-kv[1], kv[0]))
+    return f"; {sum(hits.values())}{what} collide: " + ", ".join(f"{n} ({c})" for n, c in rows[:8])

@@ -1,0 +1,150 @@
+"""Typed results of a pick and their JSON, ``grasplan.picks/1`` (schema:
+``grasplan/schemas/picks.schema.json``; reference in docs/pick.md).
+
+The document embeds what reproduces and executes the picks: the scene (poses as 4x4), each part's
+record (path, sha256, scale), the robot (with its source), the gripper (with its shapes) and the
+cell; then ``picks`` (one per picked instance, in pick order: the fields of a planned grasp of
+``grasplan.plan/1`` plus ``instance``, ``part`` and ``T_world_part``), ``instances`` (every
+instance's status and reason; ``blocked_by``: the neighbours that block it or block the grasps
+ranked ahead of the one picked), ``warnings`` and ``timing_s`` (``first_pick``: seconds from the
+loaded scene to the first feasible pick).
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..cell import Cell
+from ..gripper.model import Gripper
+from ..io import write_json
+from ..motion import Motion
+from ..robot_model import Robot
+from ..scenefile import Scene
+from .params import PickParams
+
+PICKS_SCHEMA = "grasplan.picks/1"
+#: instance statuses, in the order the counts list them
+INSTANCE_STATUSES = ("picked", "blocked", "cloud", "bin", "unreachable", "ik_collision", "lift_collision",
+                     "no_path", "place", "no_grasp", "not_tried")
+
+
+def _m(a: np.ndarray) -> list:
+    return np.round(np.asarray(a, dtype=np.float64), 10).tolist()
+
+
+@dataclass(frozen=True, eq=False)
+class Pick:
+    """One planned pick (see the module docstring); poses (4, 4), lengths m."""
+
+    instance: str
+    part: str
+    T_world_part: np.ndarray
+    T_part_tcp: np.ndarray
+    contacts: np.ndarray
+    normals: np.ndarray
+    width: float
+    opening: float
+    score: float
+    quality: dict[str, float]
+    motion: Motion
+    T_world_tcp: np.ndarray
+    T_world_pregrasp: np.ndarray
+    T_world_lifted: np.ndarray
+    rank: int = 0  #: the grasp's place in the instance's ranking (0 = best)
+
+    def to_json(self) -> dict[str, Any]:
+        d: dict[str, Any] = {
+            "instance": self.instance, "part": self.part, "T_world_part": _m(self.T_world_part),
+            "contacts": _m(self.contacts), "normals": _m(self.normals), "width": round(float(self.width), 10),
+            "opening": round(float(self.opening), 10), "T_part_tcp": _m(self.T_part_tcp),
+            "score": float(self.score), "rank": int(self.rank),
+            "quality": {k: (None if not np.isfinite(v) else float(v)) for k, v in self.quality.items()},
+            "T_world_tcp": _m(self.T_world_tcp), "T_world_pregrasp": _m(self.T_world_pregrasp),
+            "T_world_lifted": _m(self.T_world_lifted)}
+        d.update(self.motion.to_json())
+        return d
+
+
+@dataclass(frozen=True)
+class InstanceReport:
+    """Status of one instance: ``picked``, ``blocked`` (every grasp hits a neighbour, the bin or the
+    table), ``cloud`` (the best grasps hit the cloud), ``bin`` (they hit the bin, the table or an
+    obstacle), ``unreachable`` / ``ik_collision`` / ``lift_collision`` / ``no_path`` (collision-free
+    grasps exist but no motion: the reason of the best), ``no_grasp`` (no grasp approaches from
+    above), ``not_tried`` (budget or ``max_picks``)."""
+
+    id: str
+    part: str
+    status: str
+    reason: str
+    blocked_by: tuple[str, ...] = ()
+
+    def to_json(self) -> dict[str, Any]:
+        return {"id": self.id, "part": self.part, "status": self.status, "reason": self.reason,
+                "blocked_by": list(self.blocked_by)}
+
+
+@dataclass(frozen=True, eq=False)
+class PickResult:
+    """What :meth:`grasplan.Picker.plan` returns (see the module docstring)."""
+
+    picks: tuple[Pick, ...]
+    instances: tuple[InstanceReport, ...]
+    timing_s: dict[str, float]
+    scene: Scene
+    robot: Robot | None = None
+    gripper: Gripper | None = None
+    cell: Cell | None = None
+    params: PickParams = PickParams()
+    parts: dict[str, dict[str, Any]] = field(default_factory=dict)
+    warnings: tuple[str, ...] = ()
+    sequence: bool = False
+    stats: dict[str, int] = field(default_factory=dict)  #: grasps_checked, grasps_tried
+
+    def pick(self, instance: str | None = None) -> Pick:
+        """The pick of ``instance`` (default: the first pick); InputError listing the picked ids."""
+        from ..errors import InputError
+
+        if not self.picks:
+            raise InputError("the picks file has no pick (every instance's status says why)")
+        if instance is None:
+            return self.picks[0]
+        for p in self.picks:
+            if p.instance == instance:
+                return p
+        raise InputError(f"instance {instance!r} has no pick; picked: {', '.join(p.instance for p in self.picks)}")
+
+    def report(self, instance: str) -> InstanceReport:
+        return next(r for r in self.instances if r.id == instance)
+
+    def counts(self) -> dict[str, int]:
+        st = [r.status for r in self.instances]
+        return {s: st.count(s) for s in INSTANCE_STATUSES if s in st}
+
+    def to_json(self) -> dict[str, Any]:
+        """The ``grasplan.picks/1`` document."""
+        doc: dict[str, Any] = {"schema": PICKS_SCHEMA, "scene": self.scene.to_json(),
+                               "parts": {k: dict(v) for k, v in self.parts.items()}}
+        if self.robot is not None:
+            doc["robot"] = self.robot.to_json(source=True)
+        if self.gripper is not None:
+            doc["gripper"] = self.gripper.to_json(definition=True)
+        if self.cell is not None:
+            doc["cell"] = self.cell.to_json()
+        doc["params"] = self.params.to_json()
+        doc["sequence"] = bool(self.sequence)
+        doc["counts"] = {"instances": len(self.instances), "picks": len(self.picks), **self.counts(),
+                         **{k: int(v) for k, v in self.stats.items()}}
+        doc["timing_s"] = {k: float(v) for k, v in self.timing_s.items()}
+        doc["warnings"] = list(self.warnings)
+        doc["instances"] = [r.to_json() for r in self.instances]
+        doc["picks"] = [p.to_json() for p in self.picks]
+        return doc
+
+    def write(self, path: str | os.PathLike) -> Path:
+        """Write :meth:`to_json` atomically (a temporary file, then a rename)."""
+        return write_json(path, self.to_json())

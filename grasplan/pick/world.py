@@ -1,0 +1,247 @@
+"""The pile as collision geometry for the gripper: every instance's mesh, the cell (table, bin,
+obstacles) and the cloud's octree, and the vectorised gripper check of many world TCP poses.
+
+:class:`PickWorld` is built once per (gripper, cell) and keeps each part's coal BVH; a new scene
+only moves instances (their world boxes and coal transforms), so planning the next cycle reloads
+nothing. :meth:`PickWorld.gripper_hits` checks the gripper of each pose (its body shapes and each
+jaw swept from the pre-grasp opening to the contacts, as in ``grasplan plan``:
+:meth:`grasplan.collision.GripperCollider.shape_sets`) against every body but the instance being
+grasped (the part-alone grasp set already checked that one): first an exact NumPy
+separating-axis test of each shape's oriented box against each body's world box, then coal for
+the overlapping pairs, the bodies in the order neighbours, cloud, obstacles, table, so that the
+first body a pose hits names what blocks it.
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import coal
+import numpy as np
+
+from ..cell import Cell
+from ..collision import GripperCollider
+from ..containment import obb_aabb_separated
+from ..geometry import bvh, obstacle_geometry, shape_geometry
+from ..gripper.model import Gripper
+from ..mesh import Part
+from ..scene import TABLE, TABLE_SIZE
+from ..scenefile import Instance
+
+#: body name prefixes in reports
+INSTANCE_PREFIX = "instance:"
+CLOUD = "cloud"
+
+
+@dataclass(frozen=True, eq=False)
+class Body:
+    """One collision body of the world: ``name`` (``instance:<id>``, ``cloud``, ``obstacle:<name>``,
+    ``table``), coal geometry and transform, world axis-aligned box (centre, half extents)."""
+
+    name: str
+    geometry: coal.CollisionGeometry
+    tf: coal.Transform3s
+    center: np.ndarray
+    half: np.ndarray
+
+
+def _tf(T: np.ndarray) -> coal.Transform3s:
+    T = np.asarray(T, dtype=np.float64)
+    return coal.Transform3s(T[:3, :3].copy(), T[:3, 3].copy())
+
+
+def world_box(vertices: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(centre (3,), half extents (3,))`` of the world axis-aligned box of ``vertices`` (V, 3) at ``T``."""
+    w = vertices @ T[:3, :3].T + T[:3, 3]
+    lo, hi = w.min(axis=0), w.max(axis=0)
+    return 0.5 * (lo + hi), 0.5 * (hi - lo)
+
+
+@dataclass(frozen=True, eq=False)
+class PartGeometry:
+    """A part's collision geometry, built once: coal BVH, hull vertices for world boxes, and the
+    gripper collider whose shape sets the checks use."""
+
+    part: Part
+    bvh: coal.BVHModelOBBRSS
+    hull: np.ndarray
+    collider: GripperCollider
+
+
+class PickWorld:
+    """Gripper checks against a pile (see the module docstring)."""
+
+    def __init__(self, gripper: Gripper, cell: Cell):
+        self.gripper, self.cell = gripper, cell
+        self.parts: dict[str, PartGeometry] = {}
+        self.cloud: Body | None = None
+        T_table = np.eye(4)
+        T_table[2, 3] = float(cell.table_z) - TABLE_SIZE[2] / 2
+        half = 0.5 * np.asarray(TABLE_SIZE)
+        self.cell_bodies: list[Body] = []
+        for o in cell.obstacles:
+            lo, hi = o.aabb()
+            self.cell_bodies.append(Body(o.body, obstacle_geometry(o), _tf(o.T_world_obstacle), 0.5 * (lo + hi),
+                                         0.5 * (hi - lo)))
+        self.cell_bodies.append(Body(TABLE, coal.Box(*TABLE_SIZE), _tf(T_table), T_table[:3, 3].copy(), half))
+        self.instances: dict[str, Body] = {}
+        self.request = coal.CollisionRequest()
+        self.request.enable_contact = True  # see grasplan.collision: contacts on for shallow hits
+        self.request.num_max_contacts = 1
+        self.result = coal.CollisionResult()
+        self.coal_calls = 0
+        self._closed: dict[float, list] = {}  # gripper shapes with the jaws at one opening (the last asked)
+
+    # -- contents -----------------------------------------------------------------------------------
+    def add_part(self, name: str, part: Part) -> PartGeometry:
+        from ..meshdata import convex_hull
+
+        mesh = part.mesh
+        hull = np.asarray(convex_hull(np.asarray(mesh.vertices)).vertices, dtype=np.float64)
+        g = PartGeometry(part=part, bvh=bvh(mesh.vertices, mesh.faces), hull=hull,
+                         collider=GripperCollider(mesh, self.gripper, self.cell, np.eye(4)))
+        self.parts[name] = g
+        return g
+
+    def set_cloud(self, octree: coal.OcTree | None, points: np.ndarray | None = None, resolution: float = 0.0) -> None:
+        """The cloud's octree (world frame) and the points it was built from (for its box), or None."""
+        if octree is None or points is None:
+            self.cloud = None
+            return
+        lo, hi = points.min(axis=0) - resolution, points.max(axis=0) + resolution
+        self.cloud = Body(CLOUD, octree, coal.Transform3s(), 0.5 * (lo + hi), 0.5 * (hi - lo))
+
+    def set_instances(self, instances: Sequence[Instance]) -> None:
+        """Place the scene's instances (their parts must have been added)."""
+        out: dict[str, Body] = {}
+        for inst in instances:
+            g = self.parts[inst.part]
+            c, h = world_box(g.hull, inst.T_world_part)
+            out[inst.id] = Body(INSTANCE_PREFIX + inst.id, g.bvh, _tf(inst.T_world_part), c, h)
+        self.instances = out
+
+    def bodies(self, target: str | None) -> list[Body]:
+        """Every body but instance ``target``: neighbours (scene order), cloud, obstacles, table."""
+        out = [b for i, b in self.instances.items() if i != target]
+        if self.cloud is not None:
+            out.append(self.cloud)
+        return out + self.cell_bodies
+
+    # -- the check ----------------------------------------------------------------------------------
+    def gripper_hits(self, part: str, target: str | None, T_world_tcp: np.ndarray, width: np.ndarray,
+                     bodies: list[Body] | None = None) -> tuple[np.ndarray, list[Body]]:
+        """``(first body hit (M,) int64 index into the returned bodies, -1 = free; bodies)`` for the
+        gripper at the world TCP poses ``T_world_tcp`` (M, 4, 4) closing to contact ``width`` (M,)."""
+        bodies = self.bodies(target) if bodies is None else bodies
+        T_world_tcp = np.asarray(T_world_tcp, dtype=np.float64).reshape(-1, 4, 4)
+        M = len(T_world_tcp)
+        first = np.full(M, -1, dtype=np.int64)
+        if M == 0 or not bodies:
+            return first, bodies
+        sets = self.parts[part].collider.shape_sets(np.asarray(width, dtype=np.float64).reshape(-1))
+        need = np.zeros((len(bodies), len(sets), M), dtype=bool)
+        Tgs = []
+        # distance of each TCP to each body's box, against each shape's reach from the TCP (a
+        # bounding sphere): only the poses within reach get the exact box test
+        tcp = T_world_tcp[:, :3, 3]
+        gap = np.stack([np.linalg.norm(np.maximum(np.abs(tcp - b.center) - b.half, 0.0), axis=1) for b in bodies])
+        for si, s in enumerate(sets):
+            reach = float(np.max(np.linalg.norm(s.T_tcp_bb[:, :3, 3], axis=1) + np.linalg.norm(s.half_bb, axis=1)))
+            Tbb = T_world_tcp @ s.T_tcp_bb[s.index]
+            h = s.half_bb[s.index]
+            for bi, b in enumerate(bodies):
+                idx = np.flatnonzero(gap[bi] <= reach)
+                if len(idx):
+                    need[bi, si, idx] = ~obb_aabb_separated(Tbb[idx, :3, 3], Tbb[idx, :3, :3], h[idx], b.center,
+                                                            b.half)
+            Tgs.append(T_world_tcp @ s.T_tcp_geom[s.index] if s.is_box else T_world_tcp)
+        collide, req, res = coal.collide, self.request, self.result
+        tf = coal.Transform3s()
+        calls = 0
+        # candidate (pose, body, shape) triples in checking order: pose, then body order, jaws first
+        m_i, b_i, s_i = np.nonzero(np.transpose(need, (2, 0, 1))[:, :, ::-1])
+        s_i = len(sets) - 1 - s_i
+        geoms = [[s.geoms[k] for k in s.index] for s in sets]
+        done = -1
+        for m, bi, si in zip(m_i.tolist(), b_i.tolist(), s_i.tolist()):
+            if m == done:
+                continue
+            T = Tgs[si][m]
+            tf.setRotation(T[:3, :3])
+            tf.setTranslation(T[:3, 3])
+            res.clear()
+            calls += 1
+            b = bodies[bi]
+            if collide(geoms[si][m], tf, b.geometry, b.tf, req, res):
+                first[m] = bi
+                done = m
+        self.coal_calls += calls
+        return first, bodies
+
+    def part_hits(self, part: str, T_world_part: np.ndarray, shifts: np.ndarray, bodies: list[Body]) -> np.ndarray:
+        """First body (index into ``bodies``, -1 none) the part ``part`` hits at ``T_world_part``
+        moved by each world vector of ``shifts`` (k, 3) (a straight lift): world boxes first (the
+        part's box only translates), then coal."""
+        g = self.parts[part]
+        T = np.asarray(T_world_part, dtype=np.float64)
+        shifts = np.asarray(shifts, dtype=np.float64).reshape(-1, 3)
+        first = np.full(len(shifts), -1, dtype=np.int64)
+        if not bodies or not len(shifts):
+            return first
+        c0, h = world_box(g.hull, T)
+        centres = c0 + shifts
+        bc = np.array([b.center for b in bodies])
+        bh = np.array([b.half for b in bodies])
+        near = np.all(np.abs(centres[:, None, :] - bc[None]) <= h + bh[None], axis=2)  # (k, bodies)
+        req, res = self.request, self.result
+        tf = coal.Transform3s(T[:3, :3].copy(), T[:3, 3].copy())
+        for k, bi in zip(*np.nonzero(near)):
+            if first[k] >= 0:
+                continue
+            tf.setTranslation(T[:3, 3] + shifts[k])
+            res.clear()
+            self.coal_calls += 1
+            b = bodies[bi]
+            if coal.collide(g.bvh, tf, b.geometry, b.tf, req, res):
+                first[k] = bi
+        return first
+
+    def gripper_at_hits(self, T_world_tcp: np.ndarray, opening: float, bodies: list[Body]) -> np.ndarray:
+        """First body (index into ``bodies``, -1 none) the gripper hits at each world TCP pose
+        (k, 4, 4) with its jaws at ``opening`` (m; not swept): body shapes and both jaws, world boxes
+        first (each shape's local box), then coal. The robot scene checks the same shapes at the
+        same poses, so a hit here is a hit there."""
+        T_all = np.asarray(T_world_tcp, dtype=np.float64).reshape(-1, 4, 4)
+        first = np.full(len(T_all), -1, dtype=np.int64)
+        if not bodies or not len(T_all):
+            return first
+        key = round(float(opening), 12)
+        shapes = self._closed.get(key)
+        if shapes is None:
+            shapes = []
+            for shape in (*self.gripper.body, *self.gripper.fingers(opening)):
+                geom, T_tcp_geom = shape_geometry(shape)
+                geom.computeLocalAABB()
+                lo, hi = np.asarray(geom.aabb_local.min_), np.asarray(geom.aabb_local.max_)
+                shapes.append((geom, np.asarray(T_tcp_geom, dtype=np.float64), 0.5 * (lo + hi), 0.5 * (hi - lo)))
+            self._closed = {key: shapes}
+        bc = np.array([b.center for b in bodies])
+        bh = np.array([b.half for b in bodies])
+        req, res = self.request, self.result
+        tf = coal.Transform3s()
+        for geom, T_tcp_geom, c_loc, h_loc in shapes:
+            Tg = T_all @ T_tcp_geom
+            c = np.einsum("kij,j->ki", Tg[:, :3, :3], c_loc) + Tg[:, :3, 3]
+            h = np.einsum("kij,j->ki", np.abs(Tg[:, :3, :3]), h_loc)
+            near = np.all(np.abs(c[:, None, :] - bc[None]) <= h[:, None, :] + bh[None], axis=2)
+            for k, bi in zip(*np.nonzero(near)):
+                if first[k] >= 0:
+                    continue
+                tf.setRotation(Tg[k, :3, :3])
+                tf.setTranslation(Tg[k, :3, 3])
+                res.clear()
+                self.coal_calls += 1
+                b = bodies[bi]
+                if coal.collide(geom, tf, b.geometry, b.tf, req, res):
+                    first[k] = bi
+        return first

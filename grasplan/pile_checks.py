@@ -1,0 +1,143 @@
+"""Geometric checks of a scene's instances against the cell and each other (``grasplan pick``).
+
+:func:`check_instances` needs the meshes (the scene file's own checks, :mod:`grasplan.scenefile`,
+do not):
+
+* a part reaching more than ``tol`` below the table top, or more than ``tol`` into a box, cylinder
+  or sphere obstacle (the bin's floor and walls among them): :class:`~grasplan.errors.InputError`
+  naming the instance, the body and the depth (a pose estimate that cannot be: exit 3);
+* two instances interpenetrating by more than ``tol`` (pose-estimator noise): a warning naming
+  the pairs and the depth. The depth is estimated from surface samples of each mesh (its vertices
+  and a grid of :data:`PROBE_SPACING` on its faces, :func:`grasplan.containment.surface_samples`)
+  inside the other (signed ray crossings) and their distance to the other's surface (coal): a lower
+  bound, within about the sample spacing of the true depth.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import coal
+import numpy as np
+
+from .cell import Cell, Obstacle
+from .containment import RayGrid, points_inside_tree, surface_samples
+from .errors import InputError
+from .geometry import bvh
+from .meshdata import MeshData
+from .scenefile import Instance
+
+#: surface samples of a mesh probed inside another one: spacing (m) and how many at most per pair
+PROBE_SPACING = 0.003
+MAX_PROBES = 600
+
+
+def _inside_depth(o: Obstacle, pts: np.ndarray) -> float:
+    """Largest depth (m) of ``pts`` (world) inside a box, cylinder or sphere obstacle (0: none)."""
+    T = np.asarray(o.T_world_obstacle, dtype=np.float64)
+    local = (pts - T[:3, 3]) @ T[:3, :3]
+    if o.kind == "box":
+        d = 0.5 * np.asarray(o.box_size()) - np.abs(local)
+        depth = d.min(axis=1)
+    elif o.kind == "sphere":
+        depth = o.dimension("radius") - np.linalg.norm(local, axis=1)
+    elif o.kind == "cylinder":
+        depth = np.minimum(o.dimension("radius") - np.linalg.norm(local[:, :2], axis=1),
+                           0.5 * o.dimension("length") - np.abs(local[:, 2]))
+    else:
+        return 0.0
+    return float(max(depth.max(initial=0.0), 0.0))
+
+
+def check_cell(instances: Sequence[Instance], meshes: Mapping[str, MeshData], cell: Cell, *, tol: float) -> None:
+    """InputError when an instance lies below the table or inside an obstacle by more than ``tol``."""
+    for inst in instances:
+        m = meshes[inst.part]
+        T = inst.T_world_part
+        pts = np.asarray(m.vertices) @ T[:3, :3].T + T[:3, 3]
+        below = float(cell.table_z) - float(pts[:, 2].min())
+        if below > tol:
+            raise InputError(f"scene: instance {inst.id!r} ({inst.part}) reaches {below * 1e3:.1f} mm below the "
+                             f"table top (z = {cell.table_z:g} m); at most {tol * 1e3:g} mm is pose noise: check its T")
+        for o in cell.obstacles:
+            d = _inside_depth(o, pts)
+            if d > tol:
+                where = "below the bin floor" if o.name == "bin_floor" else f"inside obstacle {o.name}"
+                raise InputError(f"scene: instance {inst.id!r} ({inst.part}) lies {d * 1e3:.1f} mm {where}; at most "
+                                 f"{tol * 1e3:g} mm is pose noise: check its T (z up, metres)")
+
+
+def _depth_into(pts_a: np.ndarray, Ta: np.ndarray, b: MeshData, grid: RayGrid, b_bvh: coal.BVHModelOBBRSS,
+                Tb: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> float:
+    """Largest distance to ``b``'s surface of the probe points ``pts_a`` (part frame of a) inside ``b``."""
+    pts = pts_a @ Ta[:3, :3].T + Ta[:3, 3]
+    pts = pts[np.all((pts >= lo) & (pts <= hi), axis=1)]
+    if not len(pts):
+        return 0.0
+    local = (pts - Tb[:3, 3]) @ Tb[:3, :3]
+    if len(local) > MAX_PROBES:
+        local = local[np.linspace(0, len(local) - 1, MAX_PROBES).astype(np.int64)]
+    inside = local[points_inside_tree(grid, b, local)]
+    best = 0.0
+    req, res = coal.DistanceRequest(), coal.DistanceResult()
+    probe = coal.Sphere(1e-9)
+    for p in inside:
+        res.clear()
+        d = coal.distance(probe, coal.Transform3s(np.eye(3), p), b_bvh, coal.Transform3s(), req, res)
+        best = max(best, float(d))
+    return best
+
+
+def overlap_warnings(instances: Sequence[Instance], meshes: Mapping[str, MeshData], *, tol: float,
+                     bvhs: Mapping[str, coal.BVHModelOBBRSS] | None = None) -> list[str]:
+    """One warning per pair of instances interpenetrating by more than ``tol`` (m)."""
+    bvhs = dict(bvhs or {})
+    grids: dict[str, RayGrid] = {}
+    probes: dict[str, np.ndarray] = {}
+
+    def prep(name: str) -> None:
+        if name not in grids:
+            m = meshes[name]
+            grids[name] = RayGrid(m.vertices, m.faces)
+            probes[name] = surface_samples(m, spacing=PROBE_SPACING, max_samples=20_000)
+            if name not in bvhs:
+                bvhs[name] = bvh(m.vertices, m.faces)
+
+    for name in meshes:
+        if name not in bvhs:
+            bvhs[name] = bvh(meshes[name].vertices, meshes[name].faces)
+    boxes = []
+    for inst in instances:
+        T = inst.T_world_part
+        w = np.asarray(meshes[inst.part].vertices) @ T[:3, :3].T + T[:3, 3]
+        boxes.append((w.min(axis=0), w.max(axis=0)))
+    req, res = coal.CollisionRequest(), coal.CollisionResult()
+    out = []
+    for i, a in enumerate(instances):
+        for j in range(i + 1, len(instances)):
+            b = instances[j]
+            lo = np.maximum(boxes[i][0], boxes[j][0])
+            hi = np.minimum(boxes[i][1], boxes[j][1])
+            if np.any(lo > hi):
+                continue
+            res.clear()
+            if not coal.collide(bvhs[a.part], coal.Transform3s(a.T_world_part[:3, :3].copy(), a.T_world_part[:3, 3].copy()),
+                                bvhs[b.part], coal.Transform3s(b.T_world_part[:3, :3].copy(), b.T_world_part[:3, 3].copy()),
+                                req, res):
+                continue
+            prep(a.part)
+            prep(b.part)
+            d = max(_depth_into(probes[a.part], a.T_world_part, meshes[b.part], grids[b.part], bvhs[b.part],
+                                b.T_world_part, lo, hi),
+                    _depth_into(probes[b.part], b.T_world_part, meshes[a.part], grids[a.part], bvhs[a.part],
+                                a.T_world_part, lo, hi))
+            if d > tol:
+                out.append(f"instances {a.id!r} and {b.id!r} interpenetrate by about {d * 1e3:.1f} mm (more than "
+                           f"{tol * 1e3:g} mm of pose noise); their picks are planned as given")
+    return out
+
+
+def check_instances(instances: Sequence[Instance], meshes: Mapping[str, MeshData], cell: Cell, *, tol: float,
+                    bvhs: Mapping[str, coal.BVHModelOBBRSS] | None = None) -> list[str]:
+    """:func:`check_cell` (raises) then :func:`overlap_warnings` (returned)."""
+    check_cell(instances, meshes, cell, tol=tol)
+    return overlap_warnings(instances, meshes, tol=tol, bvhs=bvhs)

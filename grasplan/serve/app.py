@@ -1,0 +1,206 @@
+"""The FastAPI application of ``grasplan serve`` (:func:`create_app`). Routes, status codes and
+bodies: docs/serve.md.
+
+Every planning route reads its body itself (at most ``--max-body`` bytes, counted while it
+arrives), parses it strictly (400), hands the document to the planning thread
+(:class:`~grasplan.serve.jobs.JobQueue`: one request at a time, a time limit each: 503/504) where
+:mod:`grasplan.serve.handlers` validates it (422 naming the field) and plans. Any other exception
+is a bug: logged with its traceback, answered 500 with one line, and the service keeps serving.
+"""
+from __future__ import annotations
+
+import asyncio
+import logging
+import uuid
+import zlib
+from collections.abc import AsyncIterator, Callable
+from contextlib import asynccontextmanager
+from typing import Any
+
+from fastapi import FastAPI, Request
+from fastapi.responses import JSONResponse, PlainTextResponse, Response
+from starlette.exceptions import HTTPException as StarletteHTTPException
+
+from .. import __version__
+from ..errors import GrasplanError, InputError
+from . import handlers
+from .config import ServeConfig
+from .guard import Guard
+from .jobs import Busy, JobQueue, TimedOut
+from .openapi import export_body, pick_body, plan_body
+from .bodies import BadRequest, parse_json
+from .state import Service
+
+log = logging.getLogger("grasplan.serve")
+#: bodies larger than this are parsed off the event loop
+_BIG_BODY = 1 << 20
+
+
+#: a gzip-compressed body may inflate to this many times --max-body
+GZIP_FACTOR = 8
+
+
+class TooLarge(Exception):
+    pass
+
+
+class Unsupported(Exception):
+    """A Content-Encoding the service does not read (HTTP 415)."""
+
+
+def error(status: int, kind: str, detail: str) -> JSONResponse:
+    """``{"error": kind, "detail": one line}`` with ``status``."""
+    detail = " ".join(detail.split())
+    detail = "".join(c if c.isprintable() else "?" for c in detail)[:2000]
+    return JSONResponse({"error": kind, "detail": detail}, status_code=status)
+
+
+async def read_body(request: Request, limit: int) -> bytes:
+    """The request body, at most ``limit`` bytes as sent (:class:`TooLarge` as soon as it passes
+    them); a ``Content-Encoding: gzip`` body is inflated to at most :data:`GZIP_FACTOR` x ``limit``."""
+    encoding = request.headers.get("content-encoding", "identity").strip().lower()
+    if encoding not in ("identity", "gzip"):
+        raise Unsupported(f"Content-Encoding {encoding[:40]!r}: send the body as is or gzip-compressed")
+    chunks, n = [], 0
+    async for chunk in request.stream():
+        n += len(chunk)
+        if n > limit:
+            raise TooLarge(f"request body larger than the service's limit of {limit} bytes (--max-body)")
+        chunks.append(chunk)
+    body = b"".join(chunks)
+    if encoding == "gzip":  # inflated off the event loop
+        return await asyncio.to_thread(gunzip, body, GZIP_FACTOR * limit)
+    return body
+
+
+def gunzip(data: bytes, limit: int) -> bytes:
+    """``data`` inflated (gzip), at most ``limit`` bytes (:class:`TooLarge` beyond: a compressed
+    body cannot expand without bound); :class:`BadRequest` for data that is not gzip."""
+    d = zlib.decompressobj(wbits=16 + zlib.MAX_WBITS)
+    try:
+        out = d.decompress(data, limit + 1)
+    except zlib.error as exc:
+        raise BadRequest(f"body: Content-Encoding gzip, but not gzip data ({exc})") from None
+    if len(out) > limit or d.unconsumed_tail:
+        raise TooLarge(f"gzip body inflates to more than {limit} bytes ({GZIP_FACTOR} x --max-body)")
+    if not d.eof:
+        raise BadRequest("body: Content-Encoding gzip, but the gzip data is truncated")
+    return out
+
+
+def create_app(config: ServeConfig, *, service: Service | None = None,
+               progress: Callable[[str], None] | None = None) -> FastAPI:
+    """The service's app (OpenAPI at ``/docs``), behind the token and body-size guard.
+
+    ``service``: an already started :class:`Service` whose warm state to use with this config's
+    limits (tests share one); by default it is started here (robot, gripper, cell, parts, grasp databases: seconds to minutes), reporting on
+    ``progress``. Raises InputError/ConfigError for a configuration that cannot start."""
+    service = Service.start(config, progress or log.info) if service is None else service.with_config(config)
+    jobs = JobQueue(time_limit_s=config.time_limit_s, max_queue=config.max_queue)
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        yield
+        jobs.close()
+
+    api = FastAPI(title="grasplan", version=__version__, lifespan=lifespan,
+                  description="Grasps, plans and picks for the parts in this service's parts folder "
+                              "(docs/serve.md). Bodies are JSON; errors are {error, detail}.")
+    api.state.service = service
+    api.state.jobs = jobs
+    api.add_middleware(Guard, token=config.token, max_body=config.max_body)
+
+    @api.exception_handler(StarletteHTTPException)
+    async def http_error(request: Request, exc: StarletteHTTPException) -> JSONResponse:
+        kinds = {404: "not_found", 405: "method_not_allowed"}
+        return error(exc.status_code, kinds.get(exc.status_code, "http_error"),
+                     f"{request.method} {request.url.path}: {exc.detail}; see /docs")
+
+    @api.exception_handler(Exception)
+    async def unexpected(request: Request, exc: Exception) -> JSONResponse:  # outside the planning routes
+        log.exception("%s %s: internal error", request.method, request.url.path)
+        return error(500, "internal", f"internal error ({type(exc).__name__}); it is logged")
+
+    async def run(request: Request, fn: Callable[[Service, Any], Any], what: str) -> Any:
+        """Body -> JSON document -> ``fn(service, doc)`` on the planning thread; errors mapped to
+        responses (the caller gets either the result or a Response)."""
+        rid = uuid.uuid4().hex[:12]
+        try:
+            body = await read_body(request, config.max_body)
+            doc = await asyncio.to_thread(parse_json, body) if len(body) > _BIG_BODY else parse_json(body)
+            return await jobs.run(fn, service, doc, what=what)
+        except TooLarge as exc:
+            return error(413, "too_large", str(exc))
+        except Unsupported as exc:
+            return error(415, "unsupported_encoding", str(exc))
+        except BadRequest as exc:
+            return error(400, "bad_request", str(exc))
+        except InputError as exc:
+            return error(422, "invalid", str(exc))
+        except GrasplanError as exc:  # an impossible request (nothing usable), not a bug
+            return error(422, "unprocessable", str(exc))
+        except Busy as exc:
+            return error(503, "busy", str(exc))
+        except TimedOut as exc:
+            return error(504, "time_limit", str(exc))
+        except MemoryError:
+            log.error("%s %s [%s]: out of memory", request.method, request.url.path, rid)
+            return error(507, "out_of_memory", f"the request needs more memory than this machine has [{rid}]")
+        except Exception as exc:  # a bug: one line to the client, the traceback in the log
+            log.exception("%s %s [%s]: internal error", request.method, request.url.path, rid)
+            return error(500, "internal", f"internal error ({type(exc).__name__}) [{rid}]; it is logged and the "
+                                          "service keeps serving; please report it with the request")
+
+    def json_bytes(out: Any) -> Response:
+        return out if isinstance(out, Response) else Response(out, media_type="application/json")
+
+    @api.get("/health", summary="Liveness: status, robot, gripper, cell, parts, queue (no token needed)")
+    async def health() -> dict[str, Any]:
+        return {"status": "ok", "version": __version__, **service.info(), "queued": jobs.pending}
+
+    @api.get("/robots", summary="The robot this service plans for, and the robots grasplan knows")
+    async def robots() -> dict[str, Any]:
+        return {"robot": service.robot.to_json(), "available": service.available["robots"]}
+
+    @api.get("/grippers", summary="The gripper this service plans with, and the grippers grasplan knows")
+    async def grippers() -> dict[str, Any]:
+        return {"gripper": service.gripper.to_json(), "available": service.available["grippers"]}
+
+    @api.get("/parts", summary="The parts a request may name (mesh file stems in --parts)")
+    async def parts() -> dict[str, Any]:
+        return {"parts": [e.to_json() for e in service.parts.values()]}
+
+    @api.post("/plan", summary="Plan grasps of a part: grasplan.plan/1", openapi_extra=plan_body(),
+              responses={200: {"description": "A grasplan.plan/1 document"}})
+    async def plan(request: Request) -> Response:
+        return json_bytes(await run(request, handlers.plan, "plan"))
+
+    @api.post("/pick", summary="Plan picks from a scene: grasplan.picks/1", openapi_extra=pick_body(),
+              responses={200: {"description": "A grasplan.picks/1 document"}})
+    async def pick(request: Request) -> Response:
+        if service.picker is None:
+            return error(503, "unavailable", "this service has no picker (started without grasp databases, or "
+                                             "this build has no grasplan.pick); POST /plan still works")
+        return json_bytes(await run(request, handlers.pick, "pick"))
+
+    @api.post("/export", summary="A robot program of a plan: {format, extension, text, files}",
+              openapi_extra=export_body(),
+              responses={200: {"description": "JSON {format, extension, text, files}; with 'Accept: text/plain' "
+                                              "the program text alone (single-file formats)"}})
+    async def export(request: Request) -> Response:
+        out = await run(request, handlers.export, "export")
+        if isinstance(out, Response):
+            return out
+        if _wants_text(request):
+            if len(out["files"]) != 1:
+                return error(406, "not_acceptable", f"format {out['format']} writes {len(out['files'])} files "
+                                                    f"({', '.join(out['files'])}); ask for application/json")
+            return PlainTextResponse(out["text"])
+        return JSONResponse(out)
+
+    return api
+
+
+def _wants_text(request: Request) -> bool:
+    accept = request.headers.get("accept", "")
+    return "text/plain" in accept and "application/json" not in accept

@@ -1,0 +1,165 @@
+"""What a running service holds warm: its parts (by name), robot, gripper, cell, grasp databases
+and picker. Built once per worker process (:meth:`Service.start`); nothing here imports FastAPI.
+
+A part's name is its mesh file's stem in ``--parts`` (``TLess20.stl`` -> ``TLess20``); names follow
+the scene file's rule (:data:`grasplan.scenefile.NAME_RE`), so a client can only ever name a part
+the folder holds. Each part's grasp database is ``NAME.graspdb.npz`` next to its mesh when there
+is one, else it comes from the cache or is computed when the service starts
+(:func:`grasplan.graspdb.database_for`, through the picker), with a progress line per part.
+"""
+from __future__ import annotations
+
+import importlib.util
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ..errors import InputError
+from ..meshfile import SUPPORTED_SUFFIXES
+from ..scenefile import MAX_PARTS, NAME_RE, NAME_RULE
+from .config import ServeConfig
+
+#: a part's grasp database kept next to its mesh (``grasplan database PART -o NAME.graspdb.npz``)
+SIDE_DB_SUFFIX = ".graspdb.npz"
+#: a request's planning budget is this share of its time limit (the rest: queueing, the JSON)
+BUDGET_SHARE = 0.8
+
+
+@dataclass(frozen=True)
+class PartEntry:
+    """One part of the service: ``name`` (the file's stem), the mesh ``path`` (server side, never
+    shown to clients) and the loaded :class:`grasplan.mesh.Part`."""
+
+    name: str
+    path: Path
+    part: Any  # grasplan.mesh.Part (loaded with Pinocchio-free modules only)
+
+    def to_json(self) -> dict[str, Any]:
+        p = self.part
+        return {"name": self.name, "file": self.path.name, "sha256": p.sha256, "scale_to_m": float(p.scale_to_m),
+                "units": p.units, "triangles": int(p.triangles)}
+
+
+def scan_parts(folder: Path, warn: Callable[[str], None]) -> dict[str, Path]:
+    """``{name: mesh path}`` of the meshes in ``folder`` (not recursive), sorted by name. A file whose
+    stem is no valid name is skipped with a warning; two meshes with one stem are an InputError."""
+    out: dict[str, Path] = {}
+    for p in sorted(folder.iterdir()):
+        if p.suffix.lower() not in SUPPORTED_SUFFIXES or not p.is_file():
+            continue
+        if not NAME_RE.match(p.stem):
+            warn(f"{p.name}: skipped; a part's name is its file's stem, which must be {NAME_RULE}")
+            continue
+        if p.stem in out:
+            raise InputError(f"--parts {folder}: {out[p.stem].name} and {p.name} both give part name {p.stem!r}; "
+                             "keep one mesh per name")
+        out[p.stem] = p
+    if not out:
+        raise InputError(f"--parts {folder}: no part meshes ({', '.join(SUPPORTED_SUFFIXES)}) in it")
+    if len(out) > MAX_PARTS:
+        raise InputError(f"--parts {folder}: {len(out)} parts; a service holds at most {MAX_PARTS}")
+    return out
+
+
+def picker_available() -> bool:
+    """True when this build has :mod:`grasplan.pick` (the picker of ``POST /pick``)."""
+    return importlib.util.find_spec("grasplan.pick") is not None
+
+
+class Service:
+    """The warm state of one worker: see the module docstring. Built by :meth:`start`."""
+
+    def __init__(self, config: ServeConfig, *, robot: Any, gripper: Any, cell: Any,
+                 parts: dict[str, PartEntry], picker: Any | None, started_s: float,
+                 available: dict[str, list[str]] | None = None):
+        self.config = config
+        self.robot = robot
+        self.gripper = gripper
+        self.cell = cell
+        self.parts = parts
+        self.picker = picker
+        self.started_s = started_s
+        #: the robot and gripper names grasplan knows (GET /robots, /grippers), looked up at start
+        self.available = available or {"robots": [], "grippers": []}
+        self._by_sha = {(e.part.sha256): e for e in parts.values()}
+
+    @classmethod
+    def start(cls, config: ServeConfig, progress: Callable[[str], None] = lambda s: None) -> Service:
+        """Load the robot, gripper, cell and every part; with ``config.databases`` also each part's
+        grasp database and the picker. InputError/ConfigError (exit 3) for anything unusable."""
+        from ..cell import load_cell
+        from ..config_files import use_config_dirs
+        from ..gripper import available_grippers, load_gripper
+        from ..mesh import load_part
+        from ..robot import available_robots, load_robot
+
+        t0 = time.perf_counter()
+        with use_config_dirs(*config.config_dirs):
+            gripper = load_gripper(config.gripper)
+            cell = load_cell(config.cell)
+            robot = load_robot(config.robot)
+            available = {"robots": available_robots(), "grippers": available_grippers()}
+        progress(f"robot {robot.name}, gripper {gripper.name}, cell {cell.name} ({time.perf_counter() - t0:.1f} s)")
+        parts: dict[str, PartEntry] = {}
+        for name, path in scan_parts(config.parts_dir, lambda w: progress(f"warning: {w}")).items():
+            p = load_part(path, units=config.units)
+            parts[name] = PartEntry(name, path, p)
+            progress(f"part {name}: {p.triangles} triangles ({p.units_note})")
+        picker = None
+        if config.databases and picker_available():
+            picker = _warm_picker(config, robot, gripper, cell, parts, progress)
+        elif config.databases:
+            progress("warning: this build has no grasplan.pick; POST /pick answers 503")
+        progress(f"ready: {len(parts)} parts in {time.perf_counter() - t0:.1f} s")
+        return cls(config, robot=robot, gripper=gripper, cell=cell, parts=parts, picker=picker,
+                   started_s=time.time(), available=available)
+
+    def with_config(self, config: ServeConfig) -> Service:
+        """This warm state served with other limits (token, body size, time limit, queue); the
+        robot, gripper, cell, parts and picker stay the ones loaded."""
+        return Service(config, robot=self.robot, gripper=self.gripper, cell=self.cell, parts=self.parts,
+                       picker=self.picker, started_s=self.started_s, available=self.available)
+
+    # -- look-ups ------------------------------------------------------------------------------
+    def part(self, name: Any, where: str = "part") -> PartEntry:
+        """The part called ``name``; InputError naming ``where`` and listing the parts otherwise
+        (a name with a path in it is refused as such: the service reads no file a client names)."""
+        if not isinstance(name, str):
+            raise InputError(f"{where}: expected a part name (a string), got {type(name).__name__}")
+        if not NAME_RE.match(name):
+            shown = name[:60].encode("unicode_escape").decode("ascii")
+            raise InputError(f"{where}: {shown!r} is not a part name ({NAME_RULE}); the service takes parts by "
+                             f"name from its parts folder, never a path; its parts: {', '.join(self.parts)}")
+        if name not in self.parts:
+            raise InputError(f"{where}: unknown part {name!r}; the service's parts: {', '.join(self.parts)}")
+        return self.parts[name]
+
+    def part_by_sha256(self, sha: Any) -> PartEntry | None:
+        return self._by_sha.get(sha) if isinstance(sha, str) else None
+
+    def info(self) -> dict[str, Any]:
+        """What ``GET /health`` reports besides the status."""
+        return {"robot": self.robot.name, "gripper": self.gripper.name, "cell": self.cell.name,
+                "parts": len(self.parts), "pick": self.picker is not None,
+                "uptime_s": round(time.time() - self.started_s, 3)}
+
+
+def _warm_picker(config: ServeConfig, robot: Any, gripper: Any, cell: Any, parts: dict[str, PartEntry],
+                 progress: Callable[[str], None]) -> Any:
+    """A :class:`grasplan.Picker` holding every part with its grasp database: ``NAME.graspdb.npz``
+    next to the mesh when there is one (refused for another part or gripper), else from the cache
+    or computed now (:func:`grasplan.graspdb.database_for`); the planning budget is capped below
+    the request time limit."""
+    from ..pick import Picker, PickParams
+
+    picker = Picker(robot, gripper=gripper, cell=cell, params=PickParams(budget_s=BUDGET_SHARE * config.time_limit_s),
+                    progress=lambda line: progress(f"  {line}"))
+    for name, e in parts.items():
+        t = time.perf_counter()
+        side = e.path.with_name(name + SIDE_DB_SUFFIX)
+        picker.add_part(name, e.part, grasps=side if side.is_file() else None)
+        how = f"from {side.name}" if side.is_file() else "from the cache or computed"
+        progress(f"part {name}: grasp database ready ({how}, {time.perf_counter() - t:.1f} s)")
+    return picker

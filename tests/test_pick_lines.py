@@ -1,0 +1,91 @@
+"""Straight TCP lines and scene checks of grasplan pick, each against an independent computation."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from grasplan.cell import load_cell
+from grasplan.errors import InputError
+from grasplan.gripper import load_gripper
+from grasplan.ik import get_solver, solve_ik
+from grasplan.mesh import load_part
+from grasplan.paths import approach_path_reason
+from grasplan.pick.motion import line_path
+from grasplan.pile_checks import check_cell, overlap_warnings
+from grasplan.robot import load_robot
+from grasplan.scenefile import Instance
+
+BOX = Path(__file__).resolve().parents[1] / "examples" / "parts" / "box.stl"
+
+
+@pytest.fixture(scope="module")
+def ur5():
+    return load_robot("ur5"), np.asarray(load_gripper("schunk_egp_c_40").T_flange_tcp)
+
+
+@pytest.mark.parametrize("xyz, up", [((0.45, 0.05, 0.05), 0.10), ((0.35, -0.15, 0.12), 0.05), ((0.55, 0.1, 0.03), 0.10)])
+def test_ur_line_matches_the_clik_tracker_and_fk(ur5, xyz, up):
+    robot, Tf = ur5
+    T = np.eye(4)
+    T[:3, :3] = np.diag([1.0, -1.0, -1.0])  # TCP pointing down
+    T[:3, 3] = xyz
+    T2 = T.copy()
+    T2[2, 3] += up
+    sols = solve_ik(robot, T @ np.linalg.inv(Tf)).q
+    assert len(sols) >= 4
+    fk = get_solver(robot).clik.fk
+    compared = 0
+    for q in sols:
+        p1, w1 = line_path(robot, T, T2, q, max_dev=0.002, T_flange_tcp=Tf)
+        p2, w2 = approach_path_reason(robot, None, T, T2, q, opening=0.0, max_dev=0.002, T_flange_tcp=Tf,
+                                      sample=0.004)
+        if p1 is None or p2 is None:
+            continue
+        compared += 1
+        np.testing.assert_allclose(p1, p2, atol=1e-6)  # closed form on one branch == CLIK seeded waypoint by waypoint
+        for i, qi in enumerate(p1):  # every waypoint on the line, the orientation kept (Pinocchio FK)
+            Ti = fk(qi) @ Tf
+            np.testing.assert_allclose(Ti[:3, 3], T[:3, 3] + (T2[:3, 3] - T[:3, 3]) * i / (len(p1) - 1), atol=1e-9)
+            np.testing.assert_allclose(Ti[:3, :3], T[:3, :3], atol=1e-9)
+    assert compared >= 2
+
+
+def test_ur_line_refuses_a_start_off_its_pose(ur5):
+    robot, Tf = ur5
+    T = np.eye(4)
+    T[:3, :3] = np.diag([1.0, -1.0, -1.0])
+    T[:3, 3] = (0.45, 0.0, 0.05)
+    q = solve_ik(robot, T @ np.linalg.inv(Tf)).q[0]
+    path, why = line_path(robot, T, T, q + 0.05, max_dev=0.002, T_flange_tcp=Tf)
+    assert path is None and why == "start"
+
+
+def _inst(i, T):
+    return Instance(i, "box", T)
+
+
+def test_scene_checks_depths():
+    part = load_part(BOX)  # 30 x 20 x 10 mm, frame at its centre
+    meshes = {"box": part.mesh}
+    cell = load_cell("bin")  # floor top at z = 0.01
+    T = np.eye(4)
+    T[:3, 3] = (0.45, 0.0, 0.015)  # resting on the floor
+    check_cell([_inst("a", T)], meshes, cell, tol=0.002)
+    low = T.copy()
+    low[2, 3] -= 0.003
+    with pytest.raises(InputError, match=r"'a' \(box\) lies 3.0 mm below the bin floor"):
+        check_cell([_inst("a", low)], meshes, cell, tol=0.002)
+    wall = T.copy()
+    wall[0, 3] = 0.45 + 0.15 - 0.015 + 0.004  # 4 mm into the +x wall
+    with pytest.raises(InputError, match="4.0 mm inside obstacle bin_wall_\\+x"):
+        check_cell([_inst("w", wall)], meshes, cell, tol=0.002)
+    # two boxes side by side, 4 mm into each other along x: warned, the depth about 4 mm
+    b = T.copy()
+    b[0, 3] += 0.030 - 0.004
+    (w,) = overlap_warnings([_inst("a", T), _inst("b", b)], meshes, tol=0.002)
+    depth = float(w.split("about ")[1].split(" mm")[0])
+    assert "'a' and 'b'" in w and 3.0 <= depth <= 4.0 + 1e-6
+    b[0, 3] = T[0, 3] + 0.030 - 0.001  # 1 mm: pose noise, no warning
+    assert overlap_warnings([_inst("a", T), _inst("b", b)], meshes, tol=0.002) == []
