@@ -62,7 +62,11 @@ def command(cell: str, parts: tuple[str, ...], units: str, rounds: int, pose_noi
     noise = parse_pose_noise(pose_noise)
     specs = [parse_part_count(p) for p in parts]
     out = check_output(output, *[p for p, _ in specs])
-    page = check_output(view, *[p for p, _ in specs]) if view is not None else None
+    page = None
+    if view is not None:
+        from ..io import check_output_path
+
+        page = check_output_path(view, inputs=[p for p, _ in specs], create_parents=True, option="--view")
     if page is not None and Path(page).resolve() == Path(out).resolve():
         raise InputError(f"--view {view}: the same file as -o {output}; give the page its own name (e.g. clutter.html)")
     apply_config_dirs(kwargs)
