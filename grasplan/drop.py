@@ -157,6 +157,9 @@ class DropResult:
     params: DropParams
     seconds: float
     sim_s: float
+    #: the world the pile settled in (its state is the settled pile), for a caller that goes on
+    #: simulating it (the clutter loop)
+    world: PileWorld | None = None
 
     def to_json(self) -> dict:
         return {"params": self.params.to_json(), "parts": self.parts, "drops": [d.to_json() for d in self.drops],
@@ -177,6 +180,37 @@ def part_name(path: str | Path, taken: Sequence[str] = ()) -> str:
     while name in taken:
         name, k = f"{stem}-{k}", k + 1
     return name
+
+
+def load_items(specs: Sequence[tuple[str, int]], *, units: str = "auto",
+               info: Callable[[str], None] | None = None, warn: Callable[[str], None] | None = None) -> list[PileItem]:
+    """:class:`PileItem` s from ``(mesh path, count)`` pairs (``--part PATH:COUNT``), named by
+    :func:`part_name`; InputError (exit 3) for a file given twice or an unreadable mesh."""
+    from .mesh import load_part
+
+    seen: dict[str, str] = {}
+    items: list[PileItem] = []
+    for path, n in specs:
+        key = str(Path(path).resolve())
+        if key in seen:
+            raise InputError(f"--part {path}: given twice (also as {seen[key]}); give each part once with the total "
+                             f"count")
+        seen[key] = path
+        p = load_part(path, units=units)
+        for w in p.warnings:
+            if warn is not None:
+                warn(w)
+        name = part_name(path, taken=[it.name for it in items])
+        if info is not None:
+            info(f"part {name}: {path} ({p.units_note}; sha256 {p.sha256[:16]}, scale_to_m {p.scale_to_m:g})")
+        items.append(PileItem(name=name, part=p, count=n))
+    return items
+
+
+def parts_record(items: Sequence[PileItem]) -> dict[str, dict[str, Any]]:
+    """What an output records of each part: path, sha256, scale_to_m, units and count."""
+    return {it.name: {"path": it.part.path, "sha256": it.part.sha256, "scale_to_m": float(it.part.scale_to_m),
+                      "units": it.part.units, "count": it.count} for it in items}
 
 
 def _items(items: Sequence[PileItem | tuple]) -> list[PileItem]:
@@ -345,7 +379,8 @@ def _give_up(problem: PileError | SettleError, name: str, i: int, n: int) -> Pil
 
 def drop_pile(cell: Cell, items: Sequence[PileItem | tuple], *, params: DropParams | None = None,
               cell_ref: str | None = None, progress: Callable[[PartDrop], None] | None = None,
-              log: Callable[[str], None] | None = None, cache: bool = True) -> DropResult:
+              log: Callable[[str], None] | None = None, cache: bool = True,
+              make_world: Callable[[list[PartBody]], PileWorld] | None = None) -> DropResult:
     """Drop the parts into the cell's bin and return the settled pile (module docstring).
 
     Parameters
@@ -364,6 +399,10 @@ def drop_pile(cell: Cell, items: Sequence[PileItem | tuple], *, params: DropPara
         Called with a line of text per part once its collision shape is ready.
     cache : bool
         Read and write the convex-decomposition cache.
+    make_world : callable
+        Builds the world from the part bodies (in drop order), e.g. with a gripper added
+        (:class:`grasplan.clutter.world.ClutterWorld`); default ``PileWorld(cell, bodies, mu=params.mu)``.
+        The drop runs at the world's timestep as built; the result's ``world`` is it, settled.
 
     Raises
     ------
@@ -392,7 +431,7 @@ def drop_pile(cell: Cell, items: Sequence[PileItem | tuple], *, params: DropPara
     order = rng.permutation(len(ids))
     bodies = [PartBody(name=ids[k][0], pieces=shared[ids[k][1]].pieces, mass=shared[ids[k][1]].mass,
                        hull=shared[ids[k][1]].hull) for k in order]
-    world = PileWorld(cell, bodies, mu=p.mu)
+    world = PileWorld(cell, bodies, mu=p.mu) if make_world is None else make_world(bodies)
     drops = []
     sim_s = 0.0
     for i, b in enumerate(bodies):
@@ -426,4 +465,4 @@ def drop_pile(cell: Cell, items: Sequence[PileItem | tuple], *, params: DropPara
                        "mass_kg": float(shared[it.name].mass.mass), "volume_m3": float(shared[it.name].mass.volume)}
              for it in its}
     return DropResult(scene=scene, drops=tuple(drops), parts=parts, params=p, seconds=time.perf_counter() - t0,
-                      sim_s=sim_s)
+                      sim_s=sim_s, world=world)

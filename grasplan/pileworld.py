@@ -265,6 +265,11 @@ class PileWorld:
         """A world from MJCF made by :func:`pile_mjcf` (possibly with a caller's extras)."""
         return cls(cell, bodies, mu=0.0, xml=xml)
 
+    @property
+    def body_ids(self) -> np.ndarray:
+        """MuJoCo body id of each part body (n,), in :attr:`bodies` order."""
+        return self._body.copy()
+
     def index(self, name: str) -> int:
         for i, b in enumerate(self.bodies):
             if b.name == name:

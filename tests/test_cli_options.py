@@ -52,6 +52,9 @@ def _args(command: str, tmp_path, opt: click.Option, value: str) -> list[str]:
     if command == "serve":  # no input file, no -o: a valid value ends at the missing --parts folder
         parts = [] if opt.opts[0] == "--parts" else ["--parts", str(tmp_path / "missing_parts")]
         return [command, *parts, opt.opts[0], value]
+    if command == "clutter":  # no input argument: a valid value ends at the missing --part file
+        part = [] if opt.opts[0] == "--part" else ["--part", f"{tmp_path / 'missing_input.stl'}:1"]
+        return [command, *part, opt.opts[0], value, "-o", str(tmp_path / "out.json")]
     plan = str(tmp_path / "missing_plan.json")
     base = {"export": [plan], "view": [plan], "simulate": [plan]}.get(command, [str(tmp_path / "missing_input.stl")])
     args = [command, *base, opt.opts[0], value]

@@ -25,6 +25,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "batch": ("batch", "Plan a whole catalogue of parts (files, folders, manifests), locally or on Ray."),
     "scene": ("scene", "Make scenes of many parts: drop a pile into a bin in MuJoCo (scene drop)."),
     "pick": ("pick", "Plan picks from a pile of parts at known poses: bin, neighbours and cloud checked."),
+    "clutter": ("clutter", "Clear piles in physics (drop, plan, pick in MuJoCo): grasp success and declutter rates."),
     "serve": ("serve", "An HTTP JSON service: picks, plans and robot programs from a warm planner."),
 }
 

@@ -55,8 +55,7 @@ def drop(cell: str, parts: tuple[str, ...], units: str, output: str, **kwargs) -
     the bin; exit 4 when the pile does not come to rest (try another --seed). docs/clutter.md.
     """
     from ..cell import load_cell
-    from ..drop import PileItem, drop_pile, part_name
-    from ..mesh import load_part
+    from ..drop import drop_pile, load_items
     from ..scenewrite import SCENE_SUFFIXES, write_scene
 
     t0 = time.perf_counter()
@@ -70,19 +69,7 @@ def drop(cell: str, parts: tuple[str, ...], units: str, output: str, **kwargs) -
     if c.bin is None:
         raise InputError(f"--cell {cell}: the cell has no bin to drop parts into; use a cell with a bin "
                          f"(e.g. --cell bin; docs/cells.md)")
-    seen: dict[str, str] = {}
-    items: list[PileItem] = []
-    for path, n in specs:
-        key = str(Path(path).resolve())
-        if key in seen:
-            raise InputError(f"--part {path}: given twice (also as {seen[key]}); give each part once with the total "
-                             f"count")
-        seen[key] = path
-        p = load_part(path, units=units)
-        warn_all(p.warnings)
-        name = part_name(path, taken=[it.name for it in items])
-        info(f"part {name}: {path} ({p.units_note}; sha256 {p.sha256[:16]}, scale_to_m {p.scale_to_m:g})")
-        items.append(PileItem(name=name, part=p, count=n))
+    items = load_items(specs, units=units, info=info, warn=lambda w: warn_all([w]))
     total = sum(it.count for it in items)
     info(f"scene drop: {total} parts into {cell} (seed {params.seed}, {params.density:g} kg/m^3, mu {params.mu:g}); "
          f"convex pieces take minutes per part the first time, then come from the cache")

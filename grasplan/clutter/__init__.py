@@ -1,0 +1,1 @@
+"""Clutter removal in physics (issue 21): drop a pile, pick until the bin is empty, measure GSR and DR."""

@@ -1,0 +1,222 @@
+"""The clutter world: the pile world of :mod:`grasplan.pileworld` with a gripper in it.
+
+The gripper is modelled as :mod:`grasplan.simulate` models it (its own shapes; two jaws on
+prismatic joints along the closing axis, coupled, each pushed by a motor of at most half the
+datasheet ``grip_force``, damped to close at :data:`grasplan.simulate.CLOSE_SPEED`, with the
+drive's reflected inertia so they reach that speed in :data:`grasplan.simulate.DRIVE_TAU`), but
+instead of a fixed TCP frame it hangs on a **hand**: a free body whose frame is the TCP frame,
+weightless (``gravcomp``) and heavy (:data:`HAND_MASS`), driven kinematically. Before every
+control period (:data:`CONTROL_DT`) the executor writes the hand's pose and velocity from the
+planned TCP path (:meth:`ClutterWorld.drive`), so contacts see the hand move at its real speed
+(friction lifts a held part) but cannot push it off its path: the arm is not simulated, its
+stiffness is taken as infinite, as a position-controlled industrial arm's nearly is.
+
+While the gripper is not in use it is parked far below the table (:meth:`ClutterWorld.park_hand`).
+
+Physics of a pick: :data:`PICK_TIMESTEP` (1 ms, as :mod:`grasplan.simulate`; the drop itself runs
+at the pile world's 2 ms); the gripper's contacts use :data:`grasplan.simulate.SOLREF_TIMECONST`
+(stiff: the grip force indents well below 1 mm) and win the mix against the parts' softer
+contacts (``solmix``); each jaw's torsional friction is set per pick from its pad's contact
+patch (:func:`grasplan.patches.contact_patches`, :func:`grasplan.wrench.torsion_length`), as the
+lift-and-shake check does.
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..cell import Cell
+from ..gripper.model import Box, Gripper, MeshShape, rz180
+from ..pileworld import PILE_BIT, ROLLING_LENGTH, PartBody, PileWorld, pile_mjcf
+from ..simulate import CLOSE_SPEED, DRIVE_TAU, JAW_MASS, SOLREF_TIMECONST, TORSION_LENGTH
+from ..transforms import quaternions
+from ..wrench import CONTACTS_PER_GRIP
+
+#: physics step while the gripper acts (s); the hand's pose is written every CONTROL_DT (s)
+PICK_TIMESTEP, CONTROL_DT = 0.001, 0.005
+#: the hand's mass (kg): heavy, so a control period of contacts barely moves it off its path
+HAND_MASS = 100.0
+#: where the parked hand waits (m, world): far below the table and the parked parts
+HAND_PARK = (0.0, 0.0, -4.0)
+#: weight of the gripper's contact parameters against a part's when MuJoCo mixes them
+GRIPPER_SOLMIX = 1000.0
+HAND, JAWS = "#hand", ("#jaw0", "#jaw1")
+
+
+def _fmt(a) -> str:
+    return " ".join(f"{x:.12g}" for x in np.asarray(a, dtype=np.float64).ravel())
+
+
+def _shape_xml(shape: Box | MeshShape, name: str, assets: list[str], attrs: str) -> str:
+    if isinstance(shape, Box):
+        T = np.asarray(shape.T_tcp_box)
+        return (f'<geom name="{name}" type="box" size="{_fmt(0.5 * np.asarray(shape.extents))}" '
+                f'pos="{_fmt(T[:3, 3])}" quat="{_fmt(quaternions(T[:3, :3]))}" {attrs}/>')
+    assets.append(f'<mesh name="{name}" vertex="{_fmt(shape.vertices)}"/>')  # MuJoCo collides with its hull
+    return f'<geom name="{name}" type="mesh" mesh="{name}" {attrs}/>'
+
+
+def gripper_mjcf(gripper: Gripper, *, mu: float, grip_force: float) -> tuple[str, str, str]:
+    """MJCF fragments ``(asset, worldbody, extra)`` of the hand, its body shapes and its two jaws
+    (module docstring), for :func:`grasplan.pileworld.pile_mjcf`."""
+    assets: list[str] = []
+    attrs = (f'contype="{PILE_BIT}" conaffinity="{PILE_BIT}" condim="6" solmix="{GRIPPER_SOLMIX:g}" '
+             f'friction="{mu:.9g} {mu * TORSION_LENGTH:.6g} {mu * ROLLING_LENGTH:.6g}" '
+             f'solref="{SOLREF_TIMECONST:.6g} 1"')
+    body = "".join(_shape_xml(s, f"{HAND}#{i}", assets, attrs) for i, s in enumerate(gripper.body))
+    jaw1 = _shape_xml(gripper.finger, JAWS[1], assets, attrs)
+    jaw0 = _shape_xml(gripper.finger.moved(rz180()), JAWS[0], assets, attrs)
+    half = 0.5 * gripper.max_opening
+    jaw_force = grip_force / CONTACTS_PER_GRIP
+    damping = jaw_force / CLOSE_SPEED
+    armature = max(DRIVE_TAU * damping - JAW_MASS, 0.0)
+    inertia = _fmt([JAW_MASS * 1e-4] * 3)
+    hand_inertia = _fmt([HAND_MASS * 0.01] * 3)
+
+    def jaw(k: int, axis: str, geom: str) -> str:
+        return (f'<body name="{JAWS[k]}" gravcomp="1"><inertial pos="0 0 0" mass="{JAW_MASS}" diaginertia="{inertia}"/>'
+                f'<joint name="{JAWS[k]}" type="slide" axis="{axis}" range="0 {half:.9g}" limited="true" '
+                f'damping="{damping:.6g}" armature="{armature:.6g}"/>{geom}</body>')
+
+    world = (f'<body name="{HAND}" pos="{_fmt(HAND_PARK)}" gravcomp="1"><freejoint name="{HAND}"/>'
+             f'<inertial pos="0 0 0" mass="{HAND_MASS:g}" diaginertia="{hand_inertia}"/>{body}'
+             f'{jaw(0, "-1 0 0", jaw0)}{jaw(1, "1 0 0", jaw1)}</body>')
+    extra = (f'<contact><exclude body1="{JAWS[0]}" body2="{JAWS[1]}"/></contact>'
+             f'<equality><joint joint1="{JAWS[0]}" joint2="{JAWS[1]}" polycoef="0 1 0 0 0" '
+             f'solref="{SOLREF_TIMECONST:.6g} 1"/></equality>'
+             f'<actuator><motor name="close0" joint="{JAWS[0]}" gear="-1" ctrlrange="{-jaw_force:.9g} {jaw_force:.9g}" '
+             f'ctrllimited="true"/><motor name="close1" joint="{JAWS[1]}" gear="-1" '
+             f'ctrlrange="{-jaw_force:.9g} {jaw_force:.9g}" ctrllimited="true"/></actuator>')
+    return "".join(assets), world, extra
+
+
+@dataclass(frozen=True)
+class Contact:
+    """One contact of the gripper: which of its bodies (``hand``, ``jaw0``, ``jaw1``), what it
+    touches (a part body index, or -1 for the cell: table, bin, obstacles; ``other`` its name),
+    the penetration ``depth`` (m, > 0 inside) and the normal ``force`` (N)."""
+
+    gripper: str
+    part: int
+    other: str
+    depth: float
+    force: float
+
+
+class ClutterWorld:
+    """A :class:`grasplan.pileworld.PileWorld` holding the pile's parts and a gripper (module
+    docstring). ``world`` is the pile world (its parts, poses, settling), the rest drives the hand."""
+
+    def __init__(self, cell: Cell, bodies: Sequence[PartBody], gripper: Gripper, *, mu: float,
+                 grip_force: float | None = None):
+        import mujoco
+
+        self.gripper = gripper
+        self.mu = float(mu)
+        self.grip_force = float(gripper.grip_force if grip_force is None else grip_force)
+        asset, worldbody, extra = gripper_mjcf(gripper, mu=self.mu, grip_force=self.grip_force)
+        xml = pile_mjcf(cell, bodies, mu=self.mu, extra_asset=asset, extra_worldbody=worldbody, extra=extra)
+        self.world = PileWorld.from_xml(xml, cell, bodies)
+        m = self.model
+        self._hand = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, HAND)
+        j = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, HAND)
+        self._hq, self._hv = int(m.jnt_qposadr[j]), int(m.jnt_dofadr[j])
+        self._jaw_body = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, n) for n in JAWS]
+        self._jaw_q = [int(m.jnt_qposadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n)]) for n in JAWS]
+        self._jaw_v = [int(m.jnt_dofadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n)]) for n in JAWS]
+        self._jaw_geom = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, n) for n in JAWS]
+        # per geom: which gripper body it belongs to ("" none) and which part body (-1 none)
+        gripper_bodies = {self._hand: "hand", self._jaw_body[0]: "jaw0", self._jaw_body[1]: "jaw1"}
+        self._geom_gripper = np.array([gripper_bodies.get(int(b), "") for b in m.geom_bodyid], dtype=object)
+        part_of_body = np.full(m.nbody, -1, dtype=int)
+        part_of_body[self.world.body_ids] = np.arange(len(self.world.bodies))
+        self._geom_part = part_of_body[m.geom_bodyid]
+
+    @property
+    def model(self):
+        return self.world.model
+
+    @property
+    def data(self):
+        return self.world.data
+
+    # -- the hand ----------------------------------------------------------------------------------
+    def set_hand(self, T_world_tcp: np.ndarray, v: np.ndarray | None = None, w: np.ndarray | None = None) -> None:
+        """Put the hand (TCP frame) at ``T_world_tcp`` moving at linear velocity ``v`` (m/s,
+        world) and angular velocity ``w`` (rad/s, world); zero when not given."""
+        d = self.data
+        T = np.asarray(T_world_tcp, dtype=np.float64)
+        d.qpos[self._hq:self._hq + 3] = T[:3, 3]
+        d.qpos[self._hq + 3:self._hq + 7] = quaternions(T[:3, :3])
+        d.qvel[self._hv:self._hv + 3] = 0.0 if v is None else v
+        d.qvel[self._hv + 3:self._hv + 6] = 0.0 if w is None else T[:3, :3].T @ w  # a free joint: body frame
+
+    def set_jaws(self, opening: float) -> None:
+        """Open the jaws to ``opening`` (m), at rest, motors off."""
+        half = float(np.clip(0.5 * opening, 0.0, 0.5 * self.gripper.max_opening))
+        for q, v in zip(self._jaw_q, self._jaw_v):
+            self.data.qpos[q] = half
+            self.data.qvel[v] = 0.0
+        self.data.ctrl[:] = 0.0
+
+    def squeeze(self, force: float) -> None:
+        """Push the jaws closed with ``force`` (N, the sum of both; negative opens them)."""
+        self.data.ctrl[:] = float(np.clip(force, -self.grip_force, self.grip_force)) / CONTACTS_PER_GRIP
+
+    def opening(self) -> float:
+        """The jaws' opening now (m)."""
+        return float(self.data.qpos[self._jaw_q[0]] + self.data.qpos[self._jaw_q[1]])
+
+    def hand_pose(self) -> np.ndarray:
+        T = np.eye(4)
+        T[:3, :3] = self.data.xmat[self._hand].reshape(3, 3)
+        T[:3, 3] = self.data.xpos[self._hand]
+        return T
+
+    def park_hand(self) -> None:
+        """Take the gripper out of the way (:data:`HAND_PARK`), jaws open, motors off."""
+        import mujoco
+
+        T = np.eye(4)
+        T[:3, 3] = HAND_PARK
+        self.set_hand(T)
+        self.set_jaws(self.gripper.max_opening)
+        mujoco.mj_forward(self.model, self.data)
+
+    def set_jaw_torsion(self, torsion: Sequence[float] | None) -> None:
+        """Each jaw's torsional friction length (m: torque per newton of normal force, ``mu``
+        included); None: the default ``mu * TORSION_LENGTH``."""
+        t = [self.mu * TORSION_LENGTH] * 2 if torsion is None else list(torsion)
+        for g, x in zip(self._jaw_geom, t):
+            self.model.geom_friction[g, 1] = float(x)
+
+    def step(self, seconds: float) -> None:
+        self.world.step(seconds)
+
+    # -- contacts ----------------------------------------------------------------------------------
+    def contacts(self) -> list[Contact]:
+        """The gripper's contacts now (after a step or ``mj_forward``)."""
+        import mujoco
+
+        d, m = self.data, self.model
+        n = d.ncon
+        if n == 0:
+            return []
+        g1 = np.asarray(d.contact.geom1[:n])
+        g2 = np.asarray(d.contact.geom2[:n])
+        grip1, grip2 = self._geom_gripper[g1], self._geom_gripper[g2]
+        out = []
+        f6 = np.zeros(6)
+        for k in np.flatnonzero((grip1 != "") | (grip2 != "")):
+            mine, other = (g1[k], g2[k]) if grip1[k] != "" else (g2[k], g1[k])
+            if self._geom_gripper[other] != "":
+                continue  # jaw against its own hand: excluded by MuJoCo, kept out here too
+            mujoco.mj_contactForce(m, d, int(k), f6)
+            name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, int(other)) or f"geom{int(other)}"
+            part = int(self._geom_part[other])
+            out.append(Contact(gripper=str(self._geom_gripper[mine]), part=part,
+                               other=self.world.bodies[part].name if part >= 0 else name.split("#")[0] or name,
+                               depth=float(-d.contact.dist[k]), force=float(f6[0])))
+        return out

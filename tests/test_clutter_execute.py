@@ -1,0 +1,179 @@
+"""Executing a pick in the clutter world (issue 21), without the planner: grasps from
+``compute_grasps`` posed on a part dropped alone into the bin; a round with a tiny planner.
+
+The checks read the world through MuJoCo's own state (body positions, contacts), not through the
+executor's verdict, and a miss must fail with a reason."""
+from __future__ import annotations
+
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from grasplan.cell import load_cell
+from grasplan.clutter.execute import COLLIDED, LIFT_MIN, MISSED, SUCCESS, execute_pick
+from grasplan.clutter.rounds import parse_pose_noise, perturb, run_round
+from grasplan.clutter.world import ClutterWorld
+from grasplan.drop import DropParams, PileItem, drop_pile
+from grasplan.errors import InputError
+from grasplan.grasps import compute_grasps
+from grasplan.gripper import load_gripper
+from grasplan.mesh import load_part
+from grasplan.scenefile import Scene
+from grasplan.transforms import pose_error
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "parts"
+APPROACH, LIFT = 0.08, 0.10
+
+
+@pytest.fixture(scope="module")
+def cell():
+    return load_cell("bin")
+
+
+@pytest.fixture(scope="module")
+def gripper():
+    return load_gripper("schunk_egp_c_40")
+
+
+def _pick(T_world_tcp: np.ndarray, width: float, gripper, instance: str = "box_0", part: str = "box"):
+    """A pick-like record: straight approach along the TCP z, lift straight up."""
+    pre = T_world_tcp.copy()
+    pre[:3, 3] -= APPROACH * T_world_tcp[:3, 2]
+    lifted = T_world_tcp.copy()
+    lifted[2, 3] += LIFT
+    return SimpleNamespace(instance=instance, part=part, T_world_pregrasp=pre, T_world_tcp=T_world_tcp,
+                           T_world_lifted=lifted, opening=float(gripper.pregrasp_opening(width)), width=float(width))
+
+
+def _top_down(part, gripper, cell, T_world_part, n=1):
+    """The best-scored collision-free grasps (against the part and the bin) whose approach points down."""
+    g = compute_grasps(part, gripper=gripper, cell=cell, T_world_part=T_world_part)
+    ok = np.flatnonzero(g.status == "ok")
+    ok = ok[g.T_world_tcp[ok][:, 2, 2] < -0.7]
+    rows = ok[np.argsort(-g.score[ok], kind="stable")][:n]
+    assert len(rows), "no downward grasp on the part"
+    return [(g.T_world_tcp[r], float(g.width[r])) for r in rows]
+
+
+@pytest.fixture(scope="module")
+def lone_box(cell, gripper):
+    part = load_part(EXAMPLES / "box.stl")
+    holder = {}
+
+    def make(bodies):
+        holder["cw"] = ClutterWorld(cell, bodies, gripper, mu=0.3)
+        return holder["cw"].world
+
+    res = drop_pile(cell, [PileItem("box", part, 1)], params=DropParams(seed=1, decomposition="hull"), make_world=make)
+    return part, holder["cw"], res.scene.instances[0].T_world_part
+
+
+def test_gripper_is_where_it_is_driven(lone_box, gripper):
+    """The hand's MuJoCo frame is the TCP frame: the jaws' inner faces sit +-opening/2 along its x."""
+    import mujoco
+
+    _, cw, _ = lone_box
+    T = np.eye(4)
+    T[:3, 3] = [0.45, 0.0, 0.4]
+    T[:3, :3] = np.diag([1.0, -1.0, -1.0])
+    cw.set_hand(T)
+    cw.set_jaws(0.03)
+    mujoco.mj_forward(cw.model, cw.data)
+    np.testing.assert_allclose(cw.hand_pose(), T, atol=1e-12)
+    assert cw.opening() == pytest.approx(0.03)
+    for k, sign in ((0, -1.0), (1, 1.0)):
+        gid = mujoco.mj_name2id(cw.model, mujoco.mjtObj.mjOBJ_GEOM, f"#jaw{k}")
+        centre = cw.data.geom_xpos[gid]
+        half_thick = 0.5 * float(np.asarray(gripper.finger.extents)[0])
+        x_tcp = (T[:3, :3].T @ (centre - T[:3, 3]))[0]
+        assert x_tcp == pytest.approx(sign * (0.015 + half_thick), abs=1e-9)
+    cw.park_hand()
+
+
+def test_lone_part_is_picked(lone_box, gripper, cell):
+    part, cw, T_part = lone_box
+    snap = cw.world.snapshot()
+    (T, w), = _top_down(part, gripper, cell, T_part)
+    z0 = cw.data.xipos[cw.world.body_ids[0]][2]
+    out = execute_pick(cw, 0, _pick(T, w, gripper), settle=False)
+    assert out.outcome == SUCCESS, out.reason
+    assert out.lift >= LIFT_MIN and out.held_at_close
+    assert not cw.world.present[0]  # a picked part leaves the world
+    # MuJoCo's own record: the jaws closed on the box (opening about its width), nothing was pushed
+    assert out.opening == pytest.approx(w, abs=2e-3)
+    assert out.pushed < 1e-3 and out.fixed_force == 0.0
+    assert out.lift == pytest.approx(LIFT, abs=5e-3)
+    cw.world.restore(snap)
+    cw.park_hand()
+    assert cw.data.xipos[cw.world.body_ids[0]][2] == pytest.approx(z0)
+
+
+def test_miss_fails_with_a_reason(lone_box, gripper, cell):
+    """The same grasp 40 mm to the side closes on air; straight into the floor is a collision."""
+    part, cw, T_part = lone_box
+    snap = cw.world.snapshot()
+    (T, w), = _top_down(part, gripper, cell, T_part)
+    aside = T.copy()
+    aside[:3, 3] += 0.04 * T[:3, 1]
+    out = execute_pick(cw, 0, _pick(aside, w, gripper), settle=False)
+    assert out.outcome == MISSED and "without holding" in out.reason
+    assert cw.world.present[0] and out.lift < 1e-3
+    cw.world.restore(snap)
+    cw.park_hand()
+    low = T.copy()
+    low[:3, 3] += 0.03 * T[:3, 2]  # 30 mm deeper: the fingertips go into the bin floor
+    out = execute_pick(cw, 0, _pick(low, w, gripper), settle=False)
+    assert out.outcome == COLLIDED and "bin_floor" in out.reason and out.fixed_force > 50.0
+    cw.world.restore(snap)
+    cw.park_hand()
+
+
+def test_pose_noise_is_exact_and_seeded():
+    rng = np.random.default_rng(5)
+    T = np.eye(4)
+    T[:3, 3] = [0.4, 0.1, 0.05]
+    com = np.array([0.01, -0.02, 0.005])
+    Tn = perturb(T, com, 0.002, 2.0, rng)
+    c0 = T[:3, :3] @ com + T[:3, 3]
+    c1 = Tn[:3, :3] @ com + Tn[:3, 3]
+    assert np.linalg.norm(c1 - c0) == pytest.approx(0.002)  # moved 2 mm (centre of mass) ...
+    assert np.degrees(pose_error(T, Tn)[1]) == pytest.approx(2.0)  # ... and turned 2 deg
+    np.testing.assert_array_equal(Tn, perturb(T, com, 0.002, 2.0, np.random.default_rng(5)))
+    assert parse_pose_noise("2mm,2deg") == pytest.approx((0.002, 2.0))
+    for bad in ("2mm", "2mm,", "x,2deg", "1m,2deg", "2mm,90deg"):
+        with pytest.raises(InputError, match="--pose-noise"):
+            parse_pose_noise(bad)
+
+
+def _tiny_round(cell, gripper, seen=None):
+    """Two boxes, a planner that takes the highest part's best downward grasp."""
+    part = load_part(EXAMPLES / "box.stl")
+
+    def plan(scene: Scene):
+        if seen is not None:
+            seen.append(scene.ids)
+        inst = max(scene.instances, key=lambda i: i.T_world_part[2, 3])
+        (T, w), = _top_down(part, gripper, cell, inst.T_world_part)
+        return SimpleNamespace(picks=(_pick(T, w, gripper, inst.id),), instances=())
+
+    return run_round(cell, [PileItem("box", part, 2)], gripper, plan, drop=DropParams(seed=3, decomposition="hull"),
+                     record=True)
+
+
+def test_round_with_a_tiny_planner(cell, gripper):
+    """The round clears the bin on its first two attempts, and the planner sees one part fewer
+    each time; the same round again gives the same bits."""
+    seen: list[list[str]] = []
+    rr = _tiny_round(cell, gripper, seen)
+    assert rr.ended == "empty", [a.reason for a in rr.attempts]
+    assert [a.outcome for a in rr.attempts] == [SUCCESS, SUCCESS]
+    assert [len(s) for s in seen] == [2, 1] and set(seen[0]) == {"box_0", "box_1"}
+    assert seen[1][0] != rr.attempts[0].instance
+    assert len(rr.replay) == 2 and rr.replay[0]["track"]
+    again = _tiny_round(cell, gripper)
+    assert [a.instance for a in again.attempts] == [a.instance for a in rr.attempts]
+    for a, b in zip(rr.attempts, again.attempts):
+        assert a.execution.lift == b.execution.lift and a.execution.opening == b.execution.opening
+    np.testing.assert_array_equal(rr.replay[1]["track"][-1][1], again.replay[1]["track"][-1][1])
