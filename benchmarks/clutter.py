@@ -1,6 +1,6 @@
 """Clutter removal of the paper parts in physics (issue 21's targets), driving ``grasplan clutter``.
 
-    python benchmarks/clutter.py [--rounds 20] [--seed 0] [--noise 0,0 --noise 2mm,2deg] [--out out/clutter]
+    python benchmarks/clutter.py [--rounds 20] [--seed 0] [--noise 0,0 --noise 2mm,2deg] [--lift-depth 1mm] [--out out/clutter]
 
 Each setting runs ``grasplan clutter --cell bin --part P:1`` for the five paper parts (TLess20,
 TLess22, SileanePepper, IPARingScrew, SileaneGear: 5-part mixed piles), plastic (1200 kg/m^3),
@@ -44,12 +44,15 @@ def _pct(x) -> str:
     return "-" if x is None else f"{100 * x:.1f}"
 
 
-def run(noise: str, rounds: int, seed: int, out: Path, density: float) -> tuple[dict, float, float]:
+def run(noise: str, rounds: int, seed: int, out: Path, density: float,
+        lift_depth: str | None = None) -> tuple[dict, float, float]:
     """One ``grasplan clutter`` run in a child process: (report, wall s, peak RSS MB of the child)."""
-    report = out / f"clutter_{noise.replace(',', '_')}_s{seed}_r{rounds}.json"
+    tag = "" if lift_depth is None else f"_d{lift_depth}"
+    report = out / f"clutter_{noise.replace(',', '_')}_s{seed}_r{rounds}{tag}.json"
     cmd = [sys.executable, "-c", "from grasplan.cli import main; main()", "clutter", "--cell", "bin",
            *[a for p in PARTS for a in ("--part", f"{PAPER_DIR / p}:1")], "--rounds", str(rounds), "--seed", str(seed),
-           "--density", str(density), "--pose-noise", noise, "-o", str(report)]
+           "--density", str(density), "--pose-noise", noise, "-o", str(report),
+           *(() if lift_depth is None else ("--lift-depth", lift_depth))]
     env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
     t = time.perf_counter()
     before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
@@ -68,6 +71,7 @@ def main() -> int:
     ap.add_argument("--noise", action="append", help="pose noise settings (default: 0,0 and 2mm,2deg)")
     ap.add_argument("--density", type=float, default=1200.0)
     ap.add_argument("--out", type=Path, default=ROOT / "out" / "clutter", help="folder for the reports")
+    ap.add_argument("--lift-depth", default=None, help="the planner's --lift-depth (default: grasplan pick's)")
     args = ap.parse_args()
     missing = [p for p in PARTS if not (PAPER_DIR / p).exists()]
     if missing:
@@ -77,7 +81,7 @@ def main() -> int:
     rows, fails = [], []
     for noise in args.noise or list(TARGETS):
         load0 = os.getloadavg()[0]
-        doc, wall, rss = run(noise, args.rounds, args.seed, args.out, args.density)
+        doc, wall, rss = run(noise, args.rounds, args.seed, args.out, args.density, args.lift_depth)
         t = doc["total"]
         gsr_t, dr_t = TARGETS.get(noise, (None, None))
         pm, rs, rc = t["plan_ms"], t["round_seconds"], t["round_cpu_s"]

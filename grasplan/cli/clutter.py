@@ -10,8 +10,12 @@ import click
 from ..drop import DropParams
 from ..errors import InputError
 from ..params import DEFAULT_GRIPPER, DEFAULT_ROBOT
+from ..pick.params import PickParams
 from .common import check_output, info, table, units_option, warn_all
 from .options import apply_config_dirs, config_dir_option, output_option, param_options
+
+#: the planner's options a clutter run passes on (the others are grasplan pick's defaults)
+PICK_OPTIONS = ("lift_depth", "lift_contact")
 
 
 def _pct(x) -> str:
@@ -34,6 +38,7 @@ def _pct(x) -> str:
 @click.option("--view", "view", type=click.Path(dir_okay=False), default=None,
               help="Also write one HTML page replaying every round (the viewer's look; offline).")
 @param_options(DropParams)
+@param_options(PickParams, only=PICK_OPTIONS)
 @config_dir_option
 @output_option("The clutter report to write (grasplan.clutter/1 JSON, atomically).")
 def command(cell: str, parts: tuple[str, ...], units: str, rounds: int, pose_noise: str, robot: str, gripper: str,
@@ -55,7 +60,7 @@ def command(cell: str, parts: tuple[str, ...], units: str, rounds: int, pose_noi
     from ..clutter.rounds import noise_reach, parse_pose_noise, run_round
     from ..drop import load_items, parts_record
     from ..gripper import load_gripper
-    from ..pick import PickParams, Picker
+    from ..pick import Picker
     from .scene import parse_part_count
 
     t0 = time.perf_counter()
@@ -70,6 +75,7 @@ def command(cell: str, parts: tuple[str, ...], units: str, rounds: int, pose_noi
     if page is not None and Path(page).resolve() == Path(out).resolve():
         raise InputError(f"--view {view}: the same file as -o {output}; give the page its own name (e.g. clutter.html)")
     apply_config_dirs(kwargs)
+    pick_kw = {k: kwargs.pop(k) for k in PICK_OPTIONS if k in kwargs}
     drop = DropParams(**kwargs)
     c = load_cell(cell)
     if c.bin is None:
@@ -79,7 +85,7 @@ def command(cell: str, parts: tuple[str, ...], units: str, rounds: int, pose_noi
     items = load_items(specs, units=units, info=info, warn=lambda w: warn_all([w]))
     # the planner refuses parts below the bin floor by more than overlap_tol: pose noise moves them by up to this
     tol = PickParams.default("overlap_tol") + noise_reach([it.part for it in items], noise)
-    picker = Picker(robot, gripper=g, cell=c, params=PickParams(overlap_tol=min(tol, 0.05)))
+    picker = Picker(robot, gripper=g, cell=c, params=PickParams(overlap_tol=min(tol, 0.05), **pick_kw))
     for it in items:
         picker.add_part(it.name, it.part)
     n = sum(it.count for it in items)

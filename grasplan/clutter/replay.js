@@ -238,6 +238,7 @@
           : [new Float32Array(0), new Float32Array(0), new Float32Array(0), new Float32Array(0)];
       }
       sel = { r: R.r, k, R, A, meshes: pileMeshes(R, A.ids, A.instance) };
+      statusEl.dataset.selected = `${sel.r}:${sel.k}`;  // at once, not on the next frame (a page dump may come first)
       sel.meshes.forEach((m, j) => setPose(m, A.before, 7 * j));
       seenMesh.geometry = geoms[A.part];
       setPose(seenMesh, A.seen, 0);
