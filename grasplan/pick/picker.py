@@ -62,6 +62,10 @@ CHECK_CHUNK = 256
 #: instance's further grasps: a part whose good grasps are free is found before the deep search
 #: of a boxed-in one
 FIRST_PASS = 256
+#: scene variants (one per instance and arrangement of its neighbours, ~3.7 MB each) kept between
+#: plan() calls: enough for a 30-instance --sequence to reuse them, bounded for a long-running
+#: service whose every request brings new poses (256 grew a worker to ~940 MB)
+MAX_SCENE_VARIANTS = 64
 _TIMING_KEYS = ("gripper_check", "lift_check", "lift_depth", "ik", "collision", "approach", "lift", "transit", "place")
 
 
@@ -211,8 +215,8 @@ class Picker:
                 extras[CLOUD] = np.eye(4)
             static = st.scenes[inst.part].arranged(inst.T_world_part, extras)
             v = (static, static.attached(np.eye(4)))
-            if len(st.variants) > 256:
-                st.variants.clear()
+            if len(st.variants) >= MAX_SCENE_VARIANTS:  # drop the oldest (dicts keep insertion order)
+                del st.variants[next(iter(st.variants))]
             st.variants[key] = v
         return v
 
