@@ -26,7 +26,7 @@ from ..gripper.model import Gripper
 from ..io import write_atomic_text
 from ..mesh import Part
 from ..transforms import pose7
-from ..viewer import _cell_data, _enc, _mesh_block, _read_asset, _script_safe, _shape_json, decimate_mesh
+from ..viewer import cell_data, decimate_mesh, encode_array, mesh_block, read_asset, script_safe, shape_json
 from .execute import OUTCOMES, SUCCESS
 from .rounds import NO_PLAN, RoundResult
 
@@ -62,10 +62,10 @@ def _attempt_data(a, replay: Mapping[str, Any] | None, names: list[str]) -> dict
              seen=_p7(replay["seen"]), ids=ids, before=_p7s(np.stack([before[names[i]] for i in ids])).reshape(-1).tolist(),
              samples=len(track), pose_error_mm=round(a.pose_error_mm, 3), pose_error_deg=round(a.pose_error_deg, 3))
     if track:
-        d["t"] = _enc([s[0] for s in track], "<f4")
-        d["hand"] = _enc(_p7s(np.stack([s[1] for s in track])), "<f4")
-        d["opening"] = _enc([s[2] for s in track], "<f4")
-        d["parts"] = _enc(_p7s(np.concatenate([s[3] for s in track])), "<f4")
+        d["t"] = encode_array([s[0] for s in track], "<f4")
+        d["hand"] = encode_array(_p7s(np.stack([s[1] for s in track])), "<f4")
+        d["opening"] = encode_array([s[2] for s in track], "<f4")
+        d["parts"] = encode_array(_p7s(np.concatenate([s[3] for s in track])), "<f4")
     return d
 
 
@@ -75,12 +75,12 @@ def build_data(rounds: Sequence[RoundResult], parts: Mapping[str, Part], gripper
     meshes = {}
     for name, p in parts.items():
         V, F = decimate_mesh(np.asarray(p.vertices), np.asarray(p.faces), MAX_PART_TRIANGLES)
-        meshes[name] = {**_mesh_block(V, F), "path": p.path, "sha256": p.sha256, "scale_to_m": float(p.scale_to_m)}
+        meshes[name] = {**mesh_block(V, F), "path": p.path, "sha256": p.sha256, "scale_to_m": float(p.scale_to_m)}
     gm: list[dict] = []
     cache: dict = {}
     f_a, f_b = gripper.fingers(0.0), gripper.fingers(float(gripper.max_opening))
-    grip = {"body": [_shape_json(s, cache, gm) for s in gripper.body],
-            "fingers": [_shape_json(s, cache, gm) for s in f_a],
+    grip = {"body": [shape_json(s, cache, gm) for s in gripper.body],
+            "fingers": [shape_json(s, cache, gm) for s in f_a],
             "finger_shift": [(np.asarray(b.corners()).mean(0) - np.asarray(a.corners()).mean(0)).tolist()
                              for a, b in zip(f_a, f_b)],
             "max_opening": float(gripper.max_opening), "meshes": gm, "name": gripper.name}
@@ -97,7 +97,7 @@ def build_data(rounds: Sequence[RoundResult], parts: Mapping[str, Part], gripper
                            "part_of": [i.part for i in rr.scene.instances],
                            "pile": _p7s(np.stack([i.T_world_part for i in rr.scene.instances])).reshape(-1).tolist()})
     return {"schema": "grasplan.clutter-view/1", "title": title, "total": dict(total), "parts": meshes,
-            "gripper": grip, "cell": {"name": cell.name, "table_z": float(cell.table_z), **_cell_data(cell, notes)},
+            "gripper": grip, "cell": {"name": cell.name, "table_z": float(cell.table_z), **cell_data(cell, notes)},
             "outcomes": OUTCOME_COLORS, "rounds": out_rounds, "notes": notes}
 
 
@@ -109,9 +109,9 @@ def build_html(data: Mapping[str, Any]) -> str:
     """The replay page for :func:`build_data`'s JSON, as one HTML string."""
     payload = json.dumps(data, separators=(",", ":"), allow_nan=False).replace("<", "\\u003c")
     template = _asset("replay.html")
-    values = {"TITLE": html.escape(str(data["title"])), "CSS": _read_asset("viewer.css") + _asset("replay.css"),
-              "THREE_LICENSE": html.escape(_read_asset("THREE_LICENSE")), "DATA": payload,
-              "THREE": _script_safe(_read_asset("three.iife.min.js")), "APP": _script_safe(_asset("replay.js"))}
+    values = {"TITLE": html.escape(str(data["title"])), "CSS": read_asset("viewer.css") + _asset("replay.css"),
+              "THREE_LICENSE": html.escape(read_asset("THREE_LICENSE")), "DATA": payload,
+              "THREE": script_safe(read_asset("three.iife.min.js")), "APP": script_safe(_asset("replay.js"))}
     missing = [k for k in values if "{{" + k + "}}" not in template]
     if missing:
         raise RuntimeError(f"replay template lacks {missing}")

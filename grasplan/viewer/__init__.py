@@ -78,7 +78,7 @@ _HERE = Path(__file__).resolve().parent
 
 
 # --------------------------------------------------------------------------- encoding helpers
-def _enc(a, dtype) -> str:
+def encode_array(a, dtype) -> str:
     """Array -> base64 of its zlib-deflated little-endian bytes (the page inflates them with the
     browser's DecompressionStream('deflate'))."""
     raw = np.ascontiguousarray(np.asarray(a), dtype=dtype).tobytes()
@@ -116,15 +116,15 @@ def decimate_mesh(vertices: np.ndarray, faces: np.ndarray, max_faces: int) -> tu
     raise MeshError(f"cannot decimate a mesh of {len(F)} triangles to {max_faces}")
 
 
-def _mesh_block(vertices, faces) -> dict:
+def mesh_block(vertices, faces) -> dict:
     V = np.asarray(vertices, dtype=np.float64)
     F = np.asarray(faces, dtype=np.int64)
-    return {"v": _enc(V.reshape(-1), "<f4"), "f": _enc(F.reshape(-1), "<u4"), "nv": int(len(V)), "nf": int(len(F))}
+    return {"v": encode_array(V.reshape(-1), "<f4"), "f": encode_array(F.reshape(-1), "<u4"), "nv": int(len(V)), "nf": int(len(F))}
 
 
 # --------------------------------------------------------------------------- inputs
 # --------------------------------------------------------------------------- gripper
-def _shape_json(shape, mesh_cache: dict, meshes: list) -> dict:
+def shape_json(shape, mesh_cache: dict, meshes: list) -> dict:
     """A gripper shape -> ``{"box": [ex, ey, ez], "pose": [7]}`` (a :class:`grasplan.gripper.Box`) or
     ``{"mesh": index, "pose": identity}`` (a ``MeshShape``, vertices already in the TCP frame)."""
     if hasattr(shape, "extents"):
@@ -135,7 +135,7 @@ def _shape_json(shape, mesh_cache: dict, meshes: list) -> dict:
     if id(shape) not in mesh_cache:
         V, F = decimate_mesh(np.asarray(shape.vertices), np.asarray(shape.faces), MAX_LINK_TRIANGLES)
         mesh_cache[id(shape)] = len(meshes)
-        meshes.append(_mesh_block(V, F))
+        meshes.append(mesh_block(V, F))
     return {"mesh": mesh_cache[id(shape)], "pose": pose7(np.eye(4), order="xyzw").tolist()}
 
 
@@ -223,8 +223,8 @@ def build_data(res, *, part_path=None, allow_other_part: bool = False) -> tuple[
     f_a = gripper.fingers(0.0)
     f_b = gripper.fingers(float(gripper.max_opening))
     grip = {
-        "body": [_shape_json(s, cache, gmeshes) for s in gripper.body],
-        "fingers": [_shape_json(s, cache, gmeshes) for s in f_a],  # at opening 0
+        "body": [shape_json(s, cache, gmeshes) for s in gripper.body],
+        "fingers": [shape_json(s, cache, gmeshes) for s in f_a],  # at opening 0
         # the jaws translate with the opening: displacement of each jaw from opening 0 to max_opening
         "finger_shift": [(np.asarray(b.corners()).mean(0) - np.asarray(a.corners()).mean(0)).tolist()
                          for a, b in zip(f_a, f_b)],
@@ -236,19 +236,19 @@ def build_data(res, *, part_path=None, allow_other_part: bool = False) -> tuple[
     data: dict[str, Any] = {
         "schema": schema,
         "title": res.part.label,
-        "part": {**_mesh_block(V, F), "T_world_part": T_world_part.reshape(-1).tolist(), "path": res.part.path,
+        "part": {**mesh_block(V, F), "T_world_part": T_world_part.reshape(-1).tolist(), "path": res.part.path,
                  "scale_to_m": float(res.part.scale_to_m), "sha256": res.part.sha256},
-        "cell": {"name": res.cell.name, "table_z": float(res.cell.table_z), **_cell_data(res.cell, notes)},
+        "cell": {"name": res.cell.name, "table_z": float(res.cell.table_z), **cell_data(res.cell, notes)},
         "statuses": [{"name": s, "color": STATUS_COLORS.get(s, OTHER_COLOR)} for s in status_names],
         "grasps": {
             "n": n,
-            "id": _enc(ids, "<i4"), "status": _enc(st, "u1"), "score": _enc(score, "<f4"), "rank": ranks,
-            "pair": _enc(pair_of, "<u4"),                       # contact pair of each grasp
-            "pairs": _enc(pairs, "<f4"), "npairs": int(len(pairs)),  # world contacts (p, 6)
-            "width": _enc(pair_width, "<f4"), "opening": _enc(pre_open, "<f4"),  # per pair
-            "marker_status": _enc(marker[:, 0], "u1"), "marker_pair": _enc(marker[:, 1], "<u4"),
-            "tcp_p": _enc(T_world_tcp[:, :3, 3], "<f4"),        # TCP position, world
-            "tcp_q": _enc(np.round(tcp_q * 32767), "<i2"),      # TCP quaternion (x, y, z, w) * 32767
+            "id": encode_array(ids, "<i4"), "status": encode_array(st, "u1"), "score": encode_array(score, "<f4"), "rank": ranks,
+            "pair": encode_array(pair_of, "<u4"),                       # contact pair of each grasp
+            "pairs": encode_array(pairs, "<f4"), "npairs": int(len(pairs)),  # world contacts (p, 6)
+            "width": encode_array(pair_width, "<f4"), "opening": encode_array(pre_open, "<f4"),  # per pair
+            "marker_status": encode_array(marker[:, 0], "u1"), "marker_pair": encode_array(marker[:, 1], "<u4"),
+            "tcp_p": encode_array(T_world_tcp[:, :3, 3], "<f4"),        # TCP position, world
+            "tcp_q": encode_array(np.round(tcp_q * 32767), "<i2"),      # TCP quaternion (x, y, z, w) * 32767
         },
         "gripper": grip,
         "robot": None,
@@ -270,7 +270,7 @@ def build_data(res, *, part_path=None, allow_other_part: bool = False) -> tuple[
 OBSTACLE_KINDS = ("box", "cylinder", "sphere", "mesh")
 
 
-def _cell_data(cell, notes: list[str]) -> dict:
+def cell_data(cell, notes: list[str]) -> dict:
     """The cell's obstacles (from its JSON, so the page draws what the plan file holds) and bin:
     ``{"obstacles": [{"name", "kind", "box": [sx, sy, sz] | "cylinder": [r, length] | "sphere": [r] |
     "mesh": {v, f, nv, nf}, "T": 16 row-major (T_world_obstacle)}], "bin": {...} | None}``."""
@@ -294,7 +294,7 @@ def _cell_data(cell, notes: list[str]) -> dict:
         else:
             V, F = decimate_mesh(np.asarray(sh["vertices"], dtype=np.float64), np.asarray(sh["faces"], dtype=np.int64),
                                  MAX_LINK_TRIANGLES)
-            e["mesh"] = _mesh_block(V, F)
+            e["mesh"] = mesh_block(V, F)
         out.append(e)
     return {"obstacles": out, "bin": doc.get("bin")}
 
@@ -308,18 +308,18 @@ def _quality_data(t) -> dict:
     for key in ("gravity_margin", "epsilon", "sim_slip_m", "sim_turn_deg"):
         a = getattr(t, key, None)
         if a is not None and len(a) == n:
-            out[key] = _enc(np.asarray(a, dtype=np.float64), "<f4")
+            out[key] = encode_array(np.asarray(a, dtype=np.float64), "<f4")
     area = getattr(t, "contact_area", None)
     ctype = getattr(t, "contact_type", None)
     if area is not None and ctype is not None and len(area) == n:
         from ..quality_json import CONTACT_TYPES
 
-        out["contact_area"] = _enc(np.asarray(area, dtype=np.float64).reshape(n, 2), "<f4")
-        out["contact_type"] = _enc(np.asarray(ctype, dtype=np.int8).reshape(n, 2), "i1")
+        out["contact_area"] = encode_array(np.asarray(area, dtype=np.float64).reshape(n, 2), "<f4")
+        out["contact_type"] = encode_array(np.asarray(ctype, dtype=np.int8).reshape(n, 2), "i1")
         out["contact_types"] = list(CONTACT_TYPES)
     succ = getattr(t, "sim_success", None)
     if succ is not None and len(succ) == n:
-        out["sim_success"] = _enc(np.asarray(succ, dtype=np.int8), "i1")
+        out["sim_success"] = encode_array(np.asarray(succ, dtype=np.int8), "i1")
     return out
 
 
@@ -340,7 +340,7 @@ def _robot_data(res, T_flange_tcp: np.ndarray, notes: list[str]) -> dict:
                     notes.append(f"robot geometry {gname}: mesh {mpath} not loadable; not shown")
                 continue
             mesh_index[key] = len(meshes)
-            meshes.append(_mesh_block(*m))
+            meshes.append(mesh_block(*m))
         links.append({"name": str(gname), "mesh": mesh_index[key]})
         keep.append(k)
 
@@ -374,7 +374,7 @@ def _robot_data(res, T_flange_tcp: np.ndarray, notes: list[str]) -> dict:
         "links": links,
         "meshes": meshes,
         "frame_size": len(links) + 1,
-        "frames": _enc(np.concatenate(chunks), "<f4"),
+        "frames": encode_array(np.concatenate(chunks), "<f4"),
         "paths": paths,
     }
 
@@ -406,14 +406,14 @@ def _sequence_data(res, gid: int, m, idx: np.ndarray) -> dict:
 
 
 # --------------------------------------------------------------------------- HTML
-def _read_asset(name: str) -> str:
+def read_asset(name: str) -> str:
     try:
         return resources.files(__name__).joinpath(name).read_text(encoding="utf-8")
     except (FileNotFoundError, AttributeError):
         return (_HERE / name).read_text(encoding="utf-8")
 
 
-def _script_safe(text: str) -> str:
+def script_safe(text: str) -> str:
     """Text that cannot end an inline <script> early."""
     return text.replace("</script", "<\\/script").replace("</SCRIPT", "<\\/SCRIPT")
 
@@ -445,11 +445,11 @@ def build_html(result, *, part_path=None, allow_other_part: bool = False) -> str
     # every "<" escaped: no input string (a part or gripper name holding "</script>" or "<!--<script>")
     # can end the script block or switch the HTML parser's script state
     payload = json.dumps(data, separators=(",", ":"), allow_nan=False).replace("<", "\\u003c")
-    template = _read_asset("template.html")
-    three = _script_safe(_read_asset("three.iife.min.js"))
-    app = _script_safe(_read_asset("viewer.js"))
-    css = _read_asset("viewer.css")
-    lic = html.escape(_read_asset("THREE_LICENSE"))
+    template = read_asset("template.html")
+    three = script_safe(read_asset("three.iife.min.js"))
+    app = script_safe(read_asset("viewer.js"))
+    css = read_asset("viewer.css")
+    lic = html.escape(read_asset("THREE_LICENSE"))
     title = html.escape(f"grasplan view: {data['title']}")
     values = {"TITLE": title, "CSS": css, "THREE_LICENSE": lic, "DATA": payload, "THREE": three, "APP": app}
     missing = [k for k in values if "{{" + k + "}}" not in template]
@@ -464,4 +464,6 @@ def write_viewer(result, out_path, *, part_path=None, allow_other_part: bool = F
     return write_atomic_text(out_path, build_html(result, part_path=part_path, allow_other_part=allow_other_part))
 
 
-__all__ = ["build_html", "write_viewer", "build_data", "densify_path", "decimate_mesh", "STATUS_COLORS"]
+__all__ = ["build_html", "write_viewer", "build_data", "densify_path", "decimate_mesh", "STATUS_COLORS",
+           # the page-building pieces other pages share (the clutter replay, grasplan.clutter.replay)
+           "encode_array", "mesh_block", "shape_json", "cell_data", "read_asset", "script_safe"]
