@@ -93,6 +93,16 @@ SOLREF_TIMECONST = 0.002
 #: torsional friction length of MuJoCo's soft contacts (m): torque <= mu * this * normal force; the
 #: part against the table. Jaw contacts use each grasp's own patch (``wrench.torsion_length``).
 TORSION_LENGTH = 1e-3
+#: torsional friction length (m) of the pad-part contacts: large, so that a pad grips the part in twist
+#: and the twist slips at the pad's hinge, whose friction is the patch's (one torsional resistance
+#: per pad, not one per MuJoCo contact point: issue 22). 5 cm is 5x the largest disc radius a 16 x 40
+#: mm pad can touch; at the hinge's capacity the contacts' torsion uses < 4 % of their friction cone.
+PAD_GRIP_TORSION = 0.05
+#: the pad body on its hinge: mass (kg; part of JAW_MASS in reality), inertia (kg m^2) and the
+#: hinge's armature (kg m^2, keeps its time constant above the timestep against stiff contacts)
+PAD_MASS, PAD_INERTIA, PAD_ARMATURE = 0.01, 1e-6, 1e-5
+#: impedance of the hinge's dry friction (solimp): near-rigid stiction, no creep below the capacity
+PAD_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
 #: table half extents (m)
 TABLE_HALF = (0.5, 0.5, 0.025)
 #: gravity, m/s^2
@@ -240,6 +250,16 @@ def _arena(n_pieces: int) -> str:
     return f"{32 + n_pieces // 2}M"
 
 
+def _pad_xml(j: int, geom: str) -> str:
+    """Jaw ``j``'s finger on its pad hinge: a body turning about the closing axis (the TCP's x axis)
+    whose dry friction (``frictionloss``, set per grasp and control period by :func:`_pad_twist_caps`)
+    is the pad patch's torsional friction (module docstring)."""
+    return (f'<body name="pad{j}" pos="0 0 0"><inertial pos="0 0 0" mass="{PAD_MASS}" '
+            f'diaginertia="{_fmt([PAD_INERTIA] * 3)}"/><joint name="pad{j}" type="hinge" axis="1 0 0" pos="0 0 0" '
+            f'frictionloss="0" armature="{PAD_ARMATURE:.6g}" solreffriction="{SOLREF_TIMECONST:.6g} 1" '
+            f'solimpfriction="{_fmt(PAD_SOLIMP)}"/>{geom}</body>')
+
+
 def build_model_xml(pieces: list[np.ndarray], mass_props: MassProperties, gripper: Gripper, *, mu: float,
                     grip_force: float) -> str:
     """MJCF text of the part (free body, convex ``pieces``), the gripper (world = TCP frame) and a
@@ -248,9 +268,11 @@ def build_model_xml(pieces: list[np.ndarray], mass_props: MassProperties, grippe
     fr = f'friction="{mu:.6g} {mu * TORSION_LENGTH:.6g} 0" condim="4" solref="{SOLREF_TIMECONST:.6g} 1"'
     grip_geoms = " ".join(_shape_xml(s, f"body{i}", assets, f'contype="1" conaffinity="0" {fr}')
                           for i, s in enumerate(gripper.body))
-    jaw1 = _shape_xml(gripper.finger, "jaw1", assets, f'contype="1" conaffinity="0" {fr}')
+    # the pads grip the part in twist (PAD_GRIP_TORSION); the twist slips at each pad's hinge
+    fj = f'friction="{mu:.6g} {mu * PAD_GRIP_TORSION:.6g} 0" condim="4" solref="{SOLREF_TIMECONST:.6g} 1"'
+    jaw1 = _shape_xml(gripper.finger, "jaw1", assets, f'contype="1" conaffinity="0" {fj}')
     T180 = np.diag([-1.0, -1.0, 1.0, 1.0])
-    jaw0 = _shape_xml(gripper.finger.moved(T180), "jaw0", assets, f'contype="1" conaffinity="0" {fr}')
+    jaw0 = _shape_xml(gripper.finger.moved(T180), "jaw0", assets, f'contype="1" conaffinity="0" {fj}')
     part_geoms = []
     for i, v in enumerate(pieces):
         assets.append(f'<mesh name="piece{i}" vertex="{_fmt(v)}"/>')
@@ -273,13 +295,13 @@ def build_model_xml(pieces: list[np.ndarray], mass_props: MassProperties, grippe
       <inertial pos="0 0 0" mass="{JAW_MASS}" diaginertia="{jaw_inertia}"/>
       <joint name="jaw0" type="slide" axis="-1 0 0" range="0 {half:.9g}" limited="true" damping="{damping:.6g}"
              armature="{armature:.6g}"/>
-      {jaw0}
+      {_pad_xml(0, jaw0)}
     </body>
     <body name="jaw1" pos="0 0 0">
       <inertial pos="0 0 0" mass="{JAW_MASS}" diaginertia="{jaw_inertia}"/>
       <joint name="jaw1" type="slide" axis="1 0 0" range="0 {half:.9g}" limited="true" damping="{damping:.6g}"
              armature="{armature:.6g}"/>
-      {jaw1}
+      {_pad_xml(1, jaw1)}
     </body>
     <body name="part">
       <freejoint name="part"/>
@@ -322,6 +344,33 @@ def _profile() -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     close = np.zeros(P, dtype=bool)
     close[n_settle:] = True
     return acc, z, close, n_settle + n_close
+
+
+def _pad_twist_caps(model, data, jaw_geom: list[int], part_body: int, torsion: np.ndarray, mu: float,
+                    nominal: np.ndarray) -> np.ndarray:
+    """(2,) twist capacity (N m) of each pad's hinge now: the soft-finger ellipse of the pad's patch
+    under its present contact forces, ``torsion * sqrt(N^2 - (|t| / mu)^2)`` (``N``: the pad's total
+    normal force on the part, ``t``: the vector sum of its tangential forces, ``torsion``: the
+    patch's torsional friction per newton, :func:`grasplan.wrench.torsion_length` times ``mu``).
+    A pad touching nothing keeps ``nominal``."""
+    import mujoco
+
+    normal = np.zeros(2)
+    tangent = np.zeros((2, 3))
+    f6 = np.zeros(6)
+    body = model.geom_bodyid
+    for c in range(data.ncon):
+        con = data.contact[c]
+        g1, g2 = int(con.geom[0]), int(con.geom[1])
+        for j in range(2):
+            if (g1 == jaw_geom[j] and body[g2] == part_body) or (g2 == jaw_geom[j] and body[g1] == part_body):
+                mujoco.mj_contactForce(model, data, c, f6)
+                frame = con.frame.reshape(3, 3)
+                normal[j] += f6[0]
+                tangent[j] += f6[1] * frame[1] + f6[2] * frame[2]
+    t = np.linalg.norm(tangent, axis=1) / max(mu, 1e-12)
+    cap = np.asarray(torsion, dtype=np.float64) * np.sqrt(np.maximum(normal * normal - t * t, 0.0))
+    return np.where(normal > 0, cap, nominal)
 
 
 def _rotation_angle_deg(R: np.ndarray) -> float:
@@ -410,7 +459,7 @@ def simulate_grasps(part_mesh: TriangleMesh, gripper: Gripper, T_world_part: np.
     mujoco.set_mju_user_warning(lambda msg: None)
     try:
         res = _run_grasps(model, data, pieces, Twp, T, w, gripper, F, q_part, q_jaw, part_body, T_world_table,
-                          t_start, k, jaw_torsion)
+                          t_start, k, jaw_torsion, float(mu))
         load = flange_payload(gripper, mp, T, w)  # the gripper's mass and centre of mass + the part
         return res if load is None else replace(res, payload_kg=load[0], payload_com=load[1])
     finally:
@@ -418,12 +467,13 @@ def simulate_grasps(part_mesh: TriangleMesh, gripper: Gripper, T_world_part: np.
 
 
 def _run_grasps(model, data, pieces, Twp, T, w, gripper, F, q_part, q_jaw, part_body, T_world_table, t_start, k,
-                jaw_torsion):
+                jaw_torsion, mu):
     """The lift-and-shake of :func:`simulate_grasps` for each of the ``k`` poses ``T``;
     ``jaw_torsion`` (k, 2): each jaw's torsional friction coefficient (m) per grasp."""
     import mujoco
 
     jaw_geom = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f"jaw{j}") for j in range(2)]
+    pad_dof = [model.jnt_dofadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"pad{j}")] for j in range(2)]
 
     acc, lift_z, close, i_closed = _profile()
     nstep = round(CONTROL_DT / TIMESTEP)
@@ -436,9 +486,9 @@ def _run_grasps(model, data, pieces, Twp, T, w, gripper, F, q_part, q_jaw, part_
         T_world_tcp = Twp @ T[i]
         R_wt = T_world_tcp[:3, :3]
         T_tcp_part = np.linalg.inv(T[i])
-        for j in range(2):  # friction combines by the larger value: the jaw's patch torsion counts
-            model.geom_friction[jaw_geom[j], 1] = jaw_torsion[i, j]
-            torsion_used[i, j] = model.geom_friction[jaw_geom[j], 1]  # what MuJoCo reads
+        torsion_used[i] = jaw_torsion[i]
+        nominal = jaw_torsion[i] * (F / CONTACTS_PER_GRIP)  # each pad's twist capacity at the nominal grip
+        model.dof_frictionloss[pad_dof] = nominal
         mujoco.mj_resetData(model, data)
         data.qpos[q_part:q_part + 3] = T_tcp_part[:3, 3]
         data.qpos[q_part + 3:q_part + 7] = quaternions(T_tcp_part[:3, :3])
@@ -453,6 +503,9 @@ def _run_grasps(model, data, pieces, Twp, T, w, gripper, F, q_part, q_jaw, part_
         ref = None
         for p in range(len(acc)):
             model.opt.gravity[:] = gravity[p]
+            if close[p]:
+                model.dof_frictionloss[pad_dof] = _pad_twist_caps(model, data, jaw_geom, part_body, jaw_torsion[i],
+                                                                  mu, nominal)
             data.mocap_pos[0] = T_tcp_table0[:3, 3] + lift_z[p] * down_tcp
             data.ctrl[:] = F / CONTACTS_PER_GRIP if close[p] else 0.0
             try:
