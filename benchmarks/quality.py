@@ -80,6 +80,14 @@ def run_part(path: Path, args, gr, density: float) -> dict:
     rho = spearmanr(gm, slip).statistic if np.ptp(gm) > 0 and np.ptp(slip) > 0 else float("nan")
     pred = gm >= 1
     held = np.concatenate([sims[0].success, sims[1].success])
+    if args.dump is not None:  # per simulated grasp: what the margin is computed from, and the outcome
+        sel = np.concatenate([top, rand])
+        args.dump.mkdir(parents=True, exist_ok=True)
+        np.savez(args.dump / f"{path.stem}_{density:g}.npz", T_part_tcp=T[sel], width=width[sel],
+                 area=q.contact_area[sel], kind=q.contact_type[sel], widths=q.contact_width[sel],
+                 gravity_margin=gm, slip=slip, turn=np.concatenate([sims[0].turn_deg, sims[1].turn_deg]),
+                 success=held, is_top=np.arange(len(sel)) < len(top), row=ok[sel], T_world_part=gr.T_world_part,
+                 mass=mp.mass, com=mp.com, inertia=mp.inertia, mu=mu, grip_force=float(gr.gripper.grip_force))
     return {"part": path.name, "ok": len(ok), "mass_kg": mp.mass, "top_hold": sims[0].success.mean(),
             "rand_hold": sims[1].success.mean(), "spearman": rho, "s_per_20": float(np.median(secs)),
             "decomp_s": t_decomp, "pieces": sims[0].pieces, "quality_ms_per_1000": 1e6 * t_quality / max(len(ok), 1),
@@ -134,6 +142,8 @@ def main() -> None:
     ap.add_argument("--density", type=float, nargs="*", default=[7850.0, 1200.0],
                     help="one table per density, kg/m^3 (default: steel 7850 and plastic 1200)")
     ap.add_argument("--only", nargs="*", default=None, help="part file names to run (default: all)")
+    ap.add_argument("--dump", type=Path, default=None,
+                    help="folder: write each part's simulated grasps (margin inputs and outcomes) as PART_DENSITY.npz")
     args = ap.parse_args()
     paths = [args.parts / p for p in PAPER_PARTS if (args.parts / p).exists()]
     paths += sorted((ROOT / "examples" / "parts").glob("*.stl"))

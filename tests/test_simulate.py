@@ -210,3 +210,32 @@ def test_jaw_torsion_is_the_soft_finger_torsion_of_each_grasps_patch(setup):
     np.testing.assert_allclose(r2.jaw_torsion_m, 0.3 * (2.0 / 3.0) * 5e-4, rtol=1e-12)
     with pytest.raises(InputError, match="contact areas"):
         simulate_grasps(block, g, Twp, T, [BLOCK[1]] * 2, mass=0.2, decomposition="hull", contact_area=np.ones(2))
+
+
+@pytest.mark.parametrize("pieces", ["hull", "slabs"])
+def test_twist_slips_at_the_patch_torsion_whatever_the_contact_points(setup, monkeypatch, pieces):
+    """Issue 22: a block gripped 30 mm off its centre of mass, the load twisting it about the closing
+    axis. Analytic holding limit: the soft-finger ellipse of the pad patches (tangential m g' / 2 per
+    pad and the torque m g' d shared by both pads' torsion mu F (2/3) a) under the peak load of
+    wrench.LOAD, i.e. the grip force F* = F / gravity_margin. The simulation must slip at 0.9 F* and
+    hold at 1.1 F*, whether the part is one convex piece (MuJoCo: 4 contact points per pad at the
+    corners of the overlap) or 16 slabs (a point per slab): each MuJoCo point used to carry the whole
+    patch's torsion on top of the points' spread, and held down to 0.5 F*."""
+    import grasplan.simulate as S
+
+    block, g, Twp = setup
+    if pieces == "slabs":
+        monkeypatch.setattr(S, "convex_pieces", lambda mesh, **kw: _slabs(4))
+    x, mass = 0.03, 0.5
+    T = top_grasp(x)[None]
+    C = np.array([[[x, -0.015, 0], [x, 0.015, 0]]])
+    N = np.array([[[0, -1.0, 0], [0, 1.0, 0]]])
+    q = grasp_quality(block, mass_properties(block, mass=mass), g, T, C, N, np.full(1, BLOCK[1]),
+                      T_world_part=Twp, mu=0.3, grip_force=100.0)
+    f_star = 100.0 / q.gravity_margin[0]  # the margin grows in proportion to the grip force here
+    assert 60.0 < f_star < 120.0
+    r = S.simulate_grasps(block, g, Twp, T, [BLOCK[1]], mass=mass,
+                          grip_force=0.9 * f_star, decomposition="hull")
+    assert not r.success[0] and r.turn_deg[0] > 5.0
+    r = S.simulate_grasps(block, g, Twp, T, [BLOCK[1]], mass=mass, grip_force=1.1 * f_star, decomposition="hull")
+    assert r.success[0] and r.turn_deg[0] < 0.5
