@@ -143,48 +143,80 @@ def pressure_widths(contact_type: np.ndarray, widths: np.ndarray) -> np.ndarray:
     return np.where(np.asarray(contact_type) == 2, np.asarray(widths, dtype=np.float64)[..., 0], 0.0)
 
 
+#: the margin is found by bisection in log scale between these load factors (iterations: relative
+#: precision ``log(hi / lo) / 2^iterations``, 3e-10)
+MARGIN_BRACKET, MARGIN_ITERATIONS = (1e-4, 1e4), 36
+
+
 def gravity_margin(mass_props: MassProperties, T_world_part: np.ndarray, T_part_tcp: np.ndarray,
                    width: np.ndarray, area: np.ndarray, *, mu: float, normal_force: float,
                    patch_width: np.ndarray | None = None, load: LoadModel = LOAD,
                    lift_only: bool = False) -> np.ndarray:
-    """(M,) friction available / needed to hold the part under the lift and shake of ``load``
-    (module docstring). ``area`` (M, 2) m^2, ``width`` (M,) m, ``normal_force``: N pressing each
-    contact (``grip_force / CONTACTS_PER_GRIP``); ``patch_width`` (M, 2) m: each patch's smaller
-    equivalent width (its pad-pressure moment, :data:`PRESSURE_ARM`; ``None``: none). ``lift_only``:
-    the lift's upward acceleration only, one of the loads the margin takes the worst of, so the
-    result is >= the margin (an upper bound, :func:`grasplan.quality.physical_bounds`)."""
+    """(M,) the largest factor ``s`` by which the loads of ``load`` can be scaled and still be held
+    (module docstring): below 1 the part slips. ``area`` (M, 2) m^2, ``width`` (M,) m,
+    ``normal_force``: N pressing each contact (``grip_force / CONTACTS_PER_GRIP``); ``patch_width``
+    (M, 2) m: each patch's smaller equivalent width (its pad-pressure moment, :data:`PRESSURE_ARM`;
+    ``None``: none). ``lift_only``: the lift's upward acceleration only, one of the loads the margin
+    takes the worst of, so the result is >= the margin (an upper bound,
+    :func:`grasplan.quality.physical_bounds`).
+
+    At a load ``s f`` (TCP frame, at the centre of mass) the jaws press with ``F -+ s f_x / 2``
+    (contact 0 on the -x side; the centric jaws share the load along the closing axis); the
+    tangential load is shared equally; the moment perpendicular to the
+    closing axis goes first to the pads' pressure (``PRESSURE_ARM * (N0 w0 + N1 w1)``), the rest to a
+    couple of opposite tangential forces over the width; each contact's tangential utilisation
+    ``u = |t| / (mu N)`` must stay <= 1 and the twist about the closing axis is held by the two
+    patches' torsional friction, each on its soft-finger ellipse: ``|s tau_x| <= sum_j mu N_j L_j
+    sqrt(1 - u_j^2)`` (``L_j``: :func:`torsion_length`), the pad model of the MuJoCo check."""
     T = np.asarray(T_part_tcp, dtype=np.float64).reshape(-1, 4, 4)
+    M = len(T)
     R = T[:, :3, :3]
     acc = load.accelerations()[:1] if lift_only else load.accelerations()
+    if not (mu * normal_force > 0) or M == 0:  # no friction: nothing holds the part against a tangential load
+        return np.zeros(M)
     # load on the part that the jaws must hold, world: m (g - a); in each TCP frame
     f_world = mass_props.mass * (np.array([0.0, 0.0, -G])[None] - acc)              # (D, 3)
     f_part = f_world @ np.asarray(T_world_part, dtype=np.float64)[:3, :3]         # rows: R_wp^T f
     f = np.einsum("mji,dj->mdi", R, f_part)                                       # (M, D, 3) TCP frame
     com = np.einsum("mji,mj->mi", R, mass_props.com - T[:, :3, 3])  # centre of mass in TCP
-    t_max = mu * normal_force
-    if t_max <= 0:  # no friction: nothing holds the part against a tangential load
-        return np.zeros(len(T))
     fx, fy, fz = f[..., 0], f[..., 1], f[..., 2]
     cx, cy, cz = (com[:, k, None] for k in range(3))
-    tau_x = cy * fz - cz * fy  # tau = com x f, component by component (no (M, D, 3) temporaries)
+    tau_x = np.abs(cy * fz - cz * fy)  # tau = com x f, component by component (no (M, D, 3) temporaries)
     tau_y = cz * fx - cx * fz
     tau_z = cx * fy - cy * fx
-    if patch_width is not None:
-        # the pads' pressure moment carries up to normal_force * PRESSURE_ARM * (w0 + w1) of the
-        # moment perpendicular to the closing axis; friction the rest
-        cap = normal_force * PRESSURE_ARM * np.maximum(np.asarray(patch_width, dtype=np.float64), 0.0).sum(axis=1)
-        tp = np.hypot(tau_y, tau_z)
-        keep = np.maximum(tp - cap[:, None], 0.0) / np.maximum(tp, 1e-300)
-        tau_y, tau_z = tau_y * keep, tau_z * keep
+    tp = np.hypot(tau_y, tau_z)
+    uy = np.where(tp > 0, tau_y / np.maximum(tp, 1e-300), 0.0)
+    uz = np.where(tp > 0, tau_z / np.maximum(tp, 1e-300), 0.0)
+    pw = np.zeros((M, 2)) if patch_width is None else np.maximum(np.asarray(patch_width, dtype=np.float64), 0.0)
+    arm0, arm1 = (PRESSURE_ARM * pw[:, k, None] for k in range(2))
     inv_w = 1.0 / np.maximum(np.asarray(width, dtype=np.float64), 1e-9)[:, None]
-    # the couple h = (tau_perp x x_hat) / width = (0, tau_z, -tau_y) / width at the two contacts
-    hy, hz = tau_z * inv_w, -tau_y * inv_w
-    tors_max = mu * normal_force * torsion_length(area).sum(axis=1)  # both contacts
-    r_tors2 = (tau_x / tors_max[:, None]) ** 2
-    a0 = (0.5 * fy - hy) ** 2 + (0.5 * fz - hz) ** 2
-    a1 = (0.5 * fy + hy) ** 2 + (0.5 * fz + hz) ** 2
-    demand = np.sqrt((np.maximum(a0, a1) / (t_max * t_max) + r_tors2).max(axis=1))  # worst contact, load
-    return 1.0 / np.maximum(demand, 1e-12)
+    L = torsion_length(np.asarray(area, dtype=np.float64))
+    L0, L1 = L[:, 0, None], L[:, 1, None]
+    F = float(normal_force)
+
+    def holds(s: np.ndarray) -> np.ndarray:
+        """(M,) every load of grasp m held at scale s[m]."""
+        sc = s[:, None]
+        n0 = F - 0.5 * sc * fx
+        n1 = F + 0.5 * sc * fx
+        rest = np.maximum(sc * tp - (arm0 * n0 + arm1 * n1), 0.0) * inv_w  # couple force per contact
+        hy, hz = rest * uz, -rest * uy  # (tau_rest x x_hat) / width
+        t0 = (0.5 * sc * fy - hy) ** 2 + (0.5 * sc * fz - hz) ** 2
+        t1 = (0.5 * sc * fy + hy) ** 2 + (0.5 * sc * fz + hz) ** 2
+        c0, c1 = (mu * n0) ** 2, (mu * n1) ** 2
+        ok = (n0 > 0) & (n1 > 0) & (t0 <= c0) & (t1 <= c1)
+        twist = L0 * np.sqrt(np.maximum(c0 - t0, 0.0)) + L1 * np.sqrt(np.maximum(c1 - t1, 0.0))
+        return (ok & (sc * tau_x <= twist)).all(axis=1)
+
+    lo = np.full(M, math.log(MARGIN_BRACKET[0]))
+    hi = np.full(M, math.log(MARGIN_BRACKET[1]))
+    for _ in range(MARGIN_ITERATIONS):
+        mid = 0.5 * (lo + hi)
+        h = holds(np.exp(mid))
+        lo = np.where(h, mid, lo)
+        hi = np.where(h, hi, mid)
+    out = np.exp(lo)
+    return np.where(holds(np.exp(lo)), out, 0.0)
 
 
 def _tangent_basis(nu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -269,8 +269,13 @@ def test_pad_pressure_moment_matches_hand_calculation(press_w):
     pw = np.full((1, 2), press_w)
     gm = gravity_margin(_mp(m, [d, 0, 0]), np.eye(4), T, np.array([width]), np.full((1, 2), 1e-4), mu=MU,
                         normal_force=F, patch_width=pw, load=_gravity_only())[0]
-    rest = max(m * G * d - F * PRESSURE_ARM * 2 * press_w, 0.0)
-    assert gm == pytest.approx(MU * F / (0.5 * m * G + rest / width), rel=1e-9)
+    # the margin is the factor s on the load: s m g / 2 per contact plus the couple of what the
+    # pressure (which does not grow with the load) leaves of s m g d
+    cap = F * PRESSURE_ARM * 2 * press_w
+    s = MU * F / (0.5 * m * G)
+    if s * m * G * d > cap:
+        s = (MU * F + cap / width) / (0.5 * m * G + m * G * d / width)
+    assert gm == pytest.approx(s, rel=1e-9)
     no_press = gravity_margin(_mp(m, [d, 0, 0]), np.eye(4), T, np.array([width]), np.full((1, 2), 1e-4), mu=MU,
                               normal_force=F, load=_gravity_only())[0]
     assert gm >= no_press and (gm > no_press) == (press_w > 0)
