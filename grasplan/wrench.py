@@ -13,20 +13,21 @@ the two contacts is pressed with the normal force ``F = grip_force / 2`` (70 N f
 (uniform pressure on a disc of radius ``a = sqrt(area / pi)``, at least ``MIN_PATCH_RADIUS``,
 :func:`patch_radius`; :func:`torsion_length` is the one definition, also used by the MuJoCo check).
 
-**Gravity margin** (:func:`gravity_margin`). Each contact is pressed with ``F`` (N, above). A
-contact resists a tangential force ``|t| <= mu F`` and a torque about the closing axis
-``|tau| <= (2/3) mu F a``, combined elliptically: ``(|t| / (mu F))^2 + (tau / tau_max)^2 <= 1``. The
-loads are those of the lift and shake the MuJoCo check applies (:class:`LoadModel`, :data:`LOAD`):
-``f = m (g - a)`` for the gripper accelerations ``a`` of :meth:`LoadModel.accelerations` (the lift's
-+-1.97 m/s^2, the shake's +-5 m/s^2 in 8 horizontal directions), applied at the centre of mass,
-whose offset from the contact axis is the lever arm. Forces along the closing axis are held by the
-jaws' mechanism; tangential force is shared equally; the torque about the closing axis is held by
-torsional friction (shared by capacity); the torque perpendicular to it first by the pads' pressure
-(a flat patch of smaller equivalent width ``w`` shifts its centre of pressure by up to
-``PRESSURE_ARM w`` = ``w / 6``, the kern: the pressure stays positive over the whole patch), the rest
-by a couple of opposite tangential forces ``|tau_perp| / width`` at the two contacts.
-``gravity_margin`` = 1 / (largest utilisation over both contacts and every load): below 1 the part
-slips.
+**Gravity margin** (:func:`gravity_margin`). The largest factor by which the loads can grow and
+still be held: below 1 the part slips. Each contact is pressed with ``F`` (N, above), shifted by the
+load along the closing axis (``F -+ f_x / 2``: the centric jaws). A contact resists a tangential
+force ``|t| <= mu N`` and a torque about the closing axis ``|tau| <= (2/3) mu N a``, combined
+elliptically (the soft finger): the twist is held by both patches' torsion, each what its own
+tangential load leaves, ``sum_j (2/3) mu a_j sqrt(N_j^2 - (|t_j| / mu)^2)``. The loads are those of
+the lift and shake the MuJoCo check applies (:class:`LoadModel`, :data:`LOAD`): ``f = m (g - a)``
+for the gripper accelerations ``a`` of :meth:`LoadModel.accelerations` (the lift's +-1.97 m/s^2, the
+shake's +-5 m/s^2 in 8 horizontal directions), applied at the centre of mass, whose offset from the
+contact axis is the lever arm. Tangential force is shared equally; the torque perpendicular to the
+closing axis goes first to the pads' pressure (a flat patch of smaller equivalent width ``w``
+shifts its centre of pressure by up to ``PRESSURE_ARM w`` = ``w / 2``, its edge; the shifted
+pressure bears on a smaller effective patch, whose torsion radius shrinks by ``sqrt(1 - 2 e / w)``),
+the rest to a couple of opposite tangential forces ``|tau_perp| / width`` at the two contacts. The
+simulation's pads are this model (:mod:`grasplan.simulate`: one torsional resistance per pad).
 
 **Epsilon** (Ferrari-Canny L1). Two soft-finger contacts, unit normal force each: the friction
 cone linearised with ``CONE_EDGES`` (8) edges ``nu + mu (cos k t1 + sin k t2)`` plus the pure normal
@@ -131,9 +132,12 @@ class LoadModel:
 LOAD = LoadModel()
 #: pad-pressure moment: a flat patch pressed with ``F`` carries a moment perpendicular to the
 #: closing axis of up to ``F * PRESSURE_ARM * w`` by shifting its centre of pressure (``w``: the
-#: patch's smaller equivalent width); 1/6 keeps the linear pressure positive over the whole patch
-#: (the kern of a rectangle: no edge lifts off)
-PRESSURE_ARM = 1.0 / 6.0
+#: patch's smaller equivalent width): 1/2, the pressure at the patch's edge (tipping, the limit of
+#: rigid bodies, which the simulation reaches: its contact points sit on the patch's corners). A
+#: pressure centre shifted by ``e`` bears on the effective patch ``1 - 2 e / w`` of the area
+#: (Meyerhof's effective width), which scales the patch's torsion radius by ``sqrt(1 - 2 e / w)``.
+#: Until issue 22's second round 1/6 (the kern: no edge lifts off) without the torsion loss.
+PRESSURE_ARM = 0.5
 
 
 def pressure_widths(contact_type: np.ndarray, widths: np.ndarray) -> np.ndarray:
@@ -167,7 +171,9 @@ def gravity_margin(mass_props: MassProperties, T_world_part: np.ndarray, T_part_
     couple of opposite tangential forces over the width; each contact's tangential utilisation
     ``u = |t| / (mu N)`` must stay <= 1 and the twist about the closing axis is held by the two
     patches' torsional friction, each on its soft-finger ellipse: ``|s tau_x| <= sum_j mu N_j L_j
-    sqrt(1 - u_j^2)`` (``L_j``: :func:`torsion_length`), the pad model of the MuJoCo check."""
+    sqrt(1 - u_j^2)`` (``L_j``: :func:`torsion_length`, times ``sqrt(1 - p)`` when the pressure
+    moment is a share ``p`` of its capacity (effective patch), at least the point contact's), the
+    pad model of the MuJoCo check. Homogeneous: the margin grows in proportion to ``normal_force``."""
     T = np.asarray(T_part_tcp, dtype=np.float64).reshape(-1, 4, 4)
     M = len(T)
     R = T[:, :3, :3]
@@ -193,19 +199,25 @@ def gravity_margin(mass_props: MassProperties, T_world_part: np.ndarray, T_part_
     L = torsion_length(np.asarray(area, dtype=np.float64))
     L0, L1 = L[:, 0, None], L[:, 1, None]
     F = float(normal_force)
+    LMIN = SOFT_FINGER * MIN_PATCH_RADIUS
 
     def holds(s: np.ndarray) -> np.ndarray:
         """(M,) every load of grasp m held at scale s[m]."""
         sc = s[:, None]
         n0 = F - 0.5 * sc * fx
         n1 = F + 0.5 * sc * fx
-        rest = np.maximum(sc * tp - (arm0 * n0 + arm1 * n1), 0.0) * inv_w  # couple force per contact
+        cap = arm0 * n0 + arm1 * n1  # the pads' pressure moment at the edge of their patches
+        used = np.where(cap > 0, np.clip(sc * tp / np.maximum(cap, 1e-300), 0.0, 1.0), 0.0)  # 2 e / w
+        rest = np.maximum(sc * tp - cap, 0.0) * inv_w  # couple force per contact
         hy, hz = rest * uz, -rest * uy  # (tau_rest x x_hat) / width
         t0 = (0.5 * sc * fy - hy) ** 2 + (0.5 * sc * fz - hz) ** 2
         t1 = (0.5 * sc * fy + hy) ** 2 + (0.5 * sc * fz + hz) ** 2
         c0, c1 = (mu * n0) ** 2, (mu * n1) ** 2
         ok = (n0 > 0) & (n1 > 0) & (t0 <= c0) & (t1 <= c1)
-        twist = L0 * np.sqrt(np.maximum(c0 - t0, 0.0)) + L1 * np.sqrt(np.maximum(c1 - t1, 0.0))
+        # an eccentric pressure bears on the effective patch (1 - used) of the area (Meyerhof): less torsion
+        shrink = np.sqrt(1.0 - used)
+        twist = (np.maximum(L0 * shrink, LMIN) * np.sqrt(np.maximum(c0 - t0, 0.0))
+                 + np.maximum(L1 * shrink, LMIN) * np.sqrt(np.maximum(c1 - t1, 0.0)))
         return (ok & (sc * tau_x <= twist)).all(axis=1)
 
     lo = np.full(M, math.log(MARGIN_BRACKET[0]))
