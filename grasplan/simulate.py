@@ -15,13 +15,22 @@ Model (one per part and gripper, reused for every grasp):
   ``DRIVE_TAU`` (2 ms; without it the jaws rang against many-piece parts, issue 11);
 - the **table**: a box whose top is the cell's table plane, touching only the part.
 
-Contacts: friction ``mu`` (elliptic cones) and soft-finger torsion (``condim`` 4). MuJoCo gives a
-pair of convex shapes one contact point, so a pad pressed flat on a face would resist no twist
-about the closing axis beyond what the spread of the part's pieces gives; each jaw's torsional
-friction is therefore set per grasp from the patch between its pad and the part
-(:func:`grasplan.patches.contact_patches`, :func:`grasplan.wrench.torsion_length`: ``mu * 2/3 *
-radius`` per newton, uniform pressure on a disc of the patch's area), the soft-finger model that
-``gravity_margin`` uses (issue 11). Part against table: ``TORSION_LENGTH``.
+Contacts: friction ``mu`` (elliptic cones). **Twist: one torsional resistance per pad** (issue 22).
+MuJoCo touches a pad at several points (the corners of each convex piece's overlap with the pad,
+one per piece and pad for curved pieces); when each point carried its own soft-finger torsion sized
+for the whole patch, and their spread added the torque tangential friction gives, a pad resisted
+twist according to how many points it got (a box face: 4 corners, twice the patch's torsion; a
+grasp and its mirror image split). Each finger therefore sits on a **hinge about the closing axis**
+(``pad0``/``pad1``) whose dry friction (``frictionloss``) is the pad patch's soft-finger torsion
+under the pad's present contact forces, updated every control period (:func:`_pad_twist_caps`):
+``mu (2/3) a sqrt(N^2 - (|t| / mu)^2)`` with ``a = sqrt(area / pi)`` of the patch between the pad
+and the part (:func:`grasplan.patches.contact_patches`, :func:`grasplan.wrench.torsion_length`), ``N``
+the pad's normal force and ``t`` the vector sum of its tangential forces: the soft-finger ellipse
+``gravity_margin`` uses. The pad-part contacts themselves grip in twist (``condim`` 4 with
+``PAD_GRIP_TORSION``), so the twist slips at the hinge, whatever the number of points; their
+normal and tangential forces, and the pressure moment their spread carries, stay MuJoCo's. The
+hinge's stiction is near rigid (``PAD_SOLIMP``: no creep below the capacity). Part against table:
+``TORSION_LENGTH``.
 
 The simulation runs in the gripper's (TCP) frame, which only translates: lifting and shaking the
 gripper is exactly a change of the effective gravity ``R_world_tcp^T (g - a_gripper(t))`` and a
@@ -39,23 +48,15 @@ decomposition (it is part of the cache key).
 """
 from __future__ import annotations
 
-import hashlib
-import io
-import itertools
 import math
-import os
 import time
-import warnings
 from dataclasses import dataclass, replace
-from pathlib import Path
 
 import numpy as np
 
-from .cache import cache_dir
+from .decomposition import convex_pieces  # also the name the pile world and benchmarks import
 from .errors import InputError
 from .gripper.model import Box, Gripper
-from .inputs import read_input_bytes
-from .io import write_atomic_bytes
 from .mass import DEFAULT_DENSITY, MassProperties, mass_properties
 from .meshdata import TriangleMesh
 from .patches import contact_patches
@@ -107,12 +108,6 @@ PAD_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
 TABLE_HALF = (0.5, 0.5, 0.025)
 #: gravity, m/s^2
 G = 9.81
-#: CoACD settings: concavity threshold and the most pieces (-1: no limit). Merging down to a cap
-#: (32 was tried) fills concavities: on TLess20 the jaws then start up to 4 mm inside a piece at the
-#: pre-grasp opening and the part is pushed away (7 of the top 20 grasps "slipped"); uncapped (80
-#: pieces) all 20 held and the decomposition was faster (no merging)
-COACD_THRESHOLD, COACD_MAX_PIECES = 0.05, -1
-DECOMPOSITIONS = ("coacd", "hull")
 
 
 @dataclass(frozen=True)
@@ -154,77 +149,6 @@ def flange_payload(gripper: Gripper, mass_props: MassProperties, T_part_tcp: np.
     total = np.full(len(c_part), m_g + m_p)
     com = (m_g * np.asarray(gripper.com, dtype=np.float64) + m_p * c_part) / (m_g + m_p)
     return total, com
-
-
-# ------------------------------------------------------------------------------------------------
-# convex decomposition, cached
-# ------------------------------------------------------------------------------------------------
-def _mesh_key(mesh: TriangleMesh, extra: str) -> str:
-    h = hashlib.sha256()
-    h.update(np.ascontiguousarray(mesh.vertices, dtype=np.float64).tobytes())
-    h.update(np.ascontiguousarray(mesh.faces, dtype=np.int64).tobytes())
-    h.update(extra.encode())
-    return h.hexdigest()
-
-
-def convex_pieces(mesh: TriangleMesh, *, decomposition: str = "coacd", seed: int = 0,
-                  cache: bool = True) -> list[np.ndarray]:
-    """Vertices ``(n_i, 3)`` (m, part frame) of the convex pieces the part collides with.
-
-    ``decomposition="coacd"``: CoACD (threshold ``COACD_THRESHOLD``, at most ``COACD_MAX_PIECES`` (-1: any number),
-    ``seed``), cached under :func:`cache_dir` by a sha256 of the mesh geometry and the settings;
-    ``"hull"``: the convex hull (no cache needed)."""
-    if decomposition not in DECOMPOSITIONS:
-        raise InputError(f"decomposition {decomposition!r}: expected one of {', '.join(DECOMPOSITIONS)}")
-    if decomposition == "hull":
-        return [np.asarray(mesh.convex_hull.vertices, dtype=np.float64)]
-    key = _mesh_key(mesh, f"coacd/{COACD_THRESHOLD}/{COACD_MAX_PIECES}/{int(seed)}")
-    path = cache_dir() / "coacd" / f"{key}.npz"
-    if cache:
-        cached = _cached_pieces(path)
-        if cached is not None:
-            return cached
-    import coacd
-
-    coacd.set_log_level("error")
-    parts = coacd.run_coacd(coacd.Mesh(np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int32)),
-                            threshold=COACD_THRESHOLD, max_convex_hull=COACD_MAX_PIECES, seed=int(seed))
-    pieces = [np.asarray(v, dtype=np.float64) for v, _ in parts if len(v) >= 4]
-    if not pieces:
-        pieces = [np.asarray(mesh.convex_hull.vertices, dtype=np.float64)]
-    if cache:
-        off = np.cumsum([0] + [len(p) for p in pieces])
-        buf = io.BytesIO()
-        np.savez(buf, vertices=np.concatenate(pieces), offsets=off)
-        try:
-            write_atomic_bytes(path, buf.getvalue())
-        except InputError as exc:  # a read-only cache folder costs the next run time, not this run's result
-            warnings.warn(f"CoACD cache not written ({exc}); set $GRASPLAN_CACHE_DIR to a writable folder", stacklevel=2)
-    return pieces
-
-
-#: a cache entry larger than this is not one grasplan wrote
-MAX_CACHE_BYTES = 200_000_000
-
-
-def _cached_pieces(path: Path) -> list[np.ndarray] | None:
-    """The convex pieces stored in the cache entry ``path``; None when there is none or it is
-    damaged, truncated or not an entry grasplan wrote (the caller then recomputes and replaces it)."""
-    import zipfile
-
-    if not path.is_file():
-        return None
-    try:
-        data = read_input_bytes(path, what="CoACD cache entry", max_bytes=MAX_CACHE_BYTES)
-        with np.load(io.BytesIO(data), allow_pickle=False) as z:
-            v = np.asarray(z["vertices"], dtype=np.float64)
-            off = np.asarray(z["offsets"], dtype=np.int64)
-    except (InputError, OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile):
-        return None
-    if (v.ndim != 2 or v.shape[1:] != (3,) or not np.isfinite(v).all() or off.ndim != 1 or len(off) < 2
-            or off[0] != 0 or off[-1] != len(v) or np.any(np.diff(off) < 4)):
-        return None
-    return [v[a:b] for a, b in itertools.pairwise(off)]
 
 
 # ------------------------------------------------------------------------------------------------
