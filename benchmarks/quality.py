@@ -58,7 +58,7 @@ def run_part(path: Path, args, gr, density: float) -> dict:
         nan = float("nan")
         return {"part": path.name, "ok": 0, "mass_kg": mp.mass if mp is not None else nan, "top_hold": nan,
                 "rand_hold": nan, "spearman": nan, "s_per_20": nan, "decomp_s": nan, "pieces": 0,
-                "quality_ms_per_1000": nan, "gm_max": 0.0, "holdable": 0, "agree": nan}
+                "quality_ms_per_1000": nan, "gm_max": 0.0, "holdable": 0, "agree": nan, "spearman_limit": nan}
     T = gr.frames.T_part_tcp[ok]
     width = gr.cand.candidates.width[gr.frames.candidate[ok]]
     s = score_all[ok]
@@ -76,29 +76,58 @@ def run_part(path: Path, args, gr, density: float) -> dict:
         sims.append(r)
         secs.append(r.seconds * 20.0 / max(len(sel), 1))
     gm = np.concatenate([q.gravity_margin[top], q.gravity_margin[rand]])
+    sel = np.concatenate([top, rand])
+    held0 = np.concatenate([sims[0].success, sims[1].success])
+    limit = (sim_limit(part.mesh, gr, T[sel], width[sel], q.contact_area[sel], mp, mu, held0, args)
+             if args.threshold else np.full(len(sel), np.nan))
+    rho_lim = spearmanr(gm, limit).statistic if args.threshold and np.ptp(limit) > 0 else float("nan")
     slip = np.concatenate([sims[0].slip_m, sims[1].slip_m])
     rho = spearmanr(gm, slip).statistic if np.ptp(gm) > 0 and np.ptp(slip) > 0 else float("nan")
     pred = gm >= 1
     held = np.concatenate([sims[0].success, sims[1].success])
     if args.dump is not None:  # per simulated grasp: what the margin is computed from, and the outcome
-        sel = np.concatenate([top, rand])
         args.dump.mkdir(parents=True, exist_ok=True)
         np.savez(args.dump / f"{path.stem}_{density:g}.npz", T_part_tcp=T[sel], width=width[sel],
                  area=q.contact_area[sel], kind=q.contact_type[sel], widths=q.contact_width[sel],
                  gravity_margin=gm, slip=slip, turn=np.concatenate([sims[0].turn_deg, sims[1].turn_deg]),
                  success=held, is_top=np.arange(len(sel)) < len(top), row=ok[sel], T_world_part=gr.T_world_part,
-                 mass=mp.mass, com=mp.com, inertia=mp.inertia, mu=mu, grip_force=float(gr.gripper.grip_force))
+                 mass=mp.mass, com=mp.com, inertia=mp.inertia, mu=mu, grip_force=float(gr.gripper.grip_force),
+                 sim_limit=limit)
     return {"part": path.name, "ok": len(ok), "mass_kg": mp.mass, "top_hold": sims[0].success.mean(),
             "rand_hold": sims[1].success.mean(), "spearman": rho, "s_per_20": float(np.median(secs)),
             "decomp_s": t_decomp, "pieces": sims[0].pieces, "quality_ms_per_1000": 1e6 * t_quality / max(len(ok), 1),
             "gm_max": float(q.gravity_margin.max()) if len(ok) else 0.0,
-            "holdable": int((q.gravity_margin >= 1).sum()), "agree": float((pred == held).mean())}
+            "holdable": int((q.gravity_margin >= 1).sum()), "agree": float((pred == held).mean()),
+            "spearman_limit": rho_lim}
+
+
+#: --threshold: grip-force factors searched (log bisection from the nominal outcome) and steps
+LIMIT_RANGE, LIMIT_STEPS = 32.0, 6
+
+
+def sim_limit(mesh, gr, T, width, area, mp, mu, held, args) -> np.ndarray:
+    """(k,) the simulated holding limit of each grasp as a margin: 1 / the grip-force factor at
+    which the simulation starts to hold (log bisection, ``LIMIT_STEPS`` steps within
+    ``LIMIT_RANGE``x either way of the nominal force, starting from the nominal outcome ``held``;
+    resolution ``exp(log(LIMIT_RANGE) / 2^LIMIT_STEPS)``, 5.6 %). Comparable with gravity_margin,
+    which grows in proportion to the grip force."""
+    F0 = float(gr.gripper.grip_force)
+    lo = np.where(held, -np.log(LIMIT_RANGE), 0.0)
+    hi = np.where(held, 0.0, np.log(LIMIT_RANGE))
+    for _ in range(LIMIT_STEPS):
+        mid = 0.5 * (lo + hi)
+        ok = np.array([simulate_grasps(mesh, gr.gripper, gr.T_world_part, T[i:i + 1], width[i:i + 1],
+                                       table_z=gr.cell.table_z, mass_props=mp, mu=mu, grip_force=F0 * np.exp(mid[i]),
+                                       decomposition=args.decomposition, contact_area=area[i:i + 1]).success[0]
+                       for i in range(len(T))])
+        hi, lo = np.where(ok, mid, hi), np.where(ok, lo, mid)
+    return np.exp(-0.5 * (lo + hi))
 
 
 def table(rows, title: str) -> None:
     hdr = (f"{'part':<20} {'ok':>6} {'kg':>7} {'gm>=1':>6} {'max gm':>7} {'top20 hold':>10} {'rand20 hold':>11} "
            f"{'spearman(gm,slip)':>17} {'gm>=1 agrees':>12} {'s/20 sims':>9} {'pieces':>6} {'coacd s':>7} "
-           f"{'quality ms/1000':>15}")
+           f"{'quality ms/1000':>15} {'spearman(gm,limit)':>18}")
     print()
     print(title)
     print(hdr)
@@ -107,7 +136,7 @@ def table(rows, title: str) -> None:
         print(f"{r['part']:<20} {r['ok']:>6} {r['mass_kg']:>7.3f} {r['holdable']:>6} {r['gm_max']:>7.2f} "
               f"{100 * r['top_hold']:>9.0f}% {100 * r['rand_hold']:>10.0f}% {r['spearman']:>17.2f} "
               f"{100 * r['agree']:>11.0f}% {r['s_per_20']:>9.2f} {r['pieces']:>6} {r['decomp_s']:>7.1f} "
-              f"{r['quality_ms_per_1000']:>15.0f}")
+              f"{r['quality_ms_per_1000']:>15.0f} {r['spearman_limit']:>18.2f}")
     all_rows, rows = rows, [r for r in rows if r["ok"] > 0] or rows
     top = np.array([r["top_hold"] for r in rows])
     print("-" * len(hdr))
@@ -127,6 +156,9 @@ def table(rows, title: str) -> None:
           f">= 20 holdable grasps: {sum(r['top_hold'] >= 0.9 for r in hold)}/{len(hold)}; "
           f"s per 20 sims: max {max(r['s_per_20'] for r in rows):.2f} (target < 10); median Spearman(gm, slip) "
           f"{np.nanmedian([r['spearman'] for r in rows]):+.2f} (issue 22 target in steel: <= -0.8)")
+    lim = [r["spearman_limit"] for r in rows if np.isfinite(r["spearman_limit"])]
+    if lim:
+        print(f"median Spearman(gm, simulated holding limit) {np.median(lim):+.2f} over {len(lim)} parts (1: same order)")
 
 
 def args_top(rows) -> int:
@@ -142,6 +174,9 @@ def main() -> None:
     ap.add_argument("--density", type=float, nargs="*", default=[7850.0, 1200.0],
                     help="one table per density, kg/m^3 (default: steel 7850 and plastic 1200)")
     ap.add_argument("--only", nargs="*", default=None, help="part file names to run (default: all)")
+    ap.add_argument("--threshold", action="store_true",
+                    help="also bisect each simulated grasp's holding grip force (6x the simulations) and report "
+                         "the Spearman correlation of gravity_margin with that simulated limit")
     ap.add_argument("--dump", type=Path, default=None,
                     help="folder: write each part's simulated grasps (margin inputs and outcomes) as PART_DENSITY.npz")
     args = ap.parse_args()
@@ -166,7 +201,8 @@ def main() -> None:
             rows[d].append(row)
             print(f"  density {d:g}: {row['part']:<20} ok {row['ok']:>6} {row['mass_kg']:.3f} kg  top "
                   f"{100 * row['top_hold']:5.1f} %  random {100 * row['rand_hold']:5.1f} %  spearman "
-                  f"{row['spearman']:+.2f}  {row['s_per_20']:.2f} s/20  holdable {row['holdable']}", flush=True)
+                  f"{row['spearman']:+.2f}  limit {row['spearman_limit']:+.2f}  {row['s_per_20']:.2f} s/20  "
+                  f"holdable {row['holdable']}", flush=True)
     for d in args.density:
         table(rows[d], f"density {d:g} kg/m^3 (grip_force 140 N = 2 x 70 N, mu 0.3, {args.decomposition})")
     print(f"peak RSS: {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB")
