@@ -296,3 +296,36 @@ def test_margin_checks_the_simulated_lift_and_shake():
     for v in ([1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0]):   # the simulated shake axes are checked loads
         assert np.any(np.all(np.isclose(A, LOAD.shake_accel * np.array(v, float)), axis=1))
     assert LOAD.peak_g() == pytest.approx((G + LOAD.lift_accel) / G)
+
+
+def test_margin_twist_and_closing_axis_load_match_hand_calculation():
+    """Issue 22, second round. (a) Twist: the centre of mass c off the contact axis, gravity across
+    it: each pad carries m g / 2 and the two patches' torsion ellipses the rest, so the load factor
+    is 2 mu F L / (m g sqrt(c^2 + L^2)) with L = (2/3) a; with unequal patches the two ellipses'
+    torsions add. (b) Closing axis tilted from the horizontal: the
+    lower jaw is pressed harder, the upper one with F - s f_x / 2, which slips first."""
+    from grasplan.wrench import gravity_margin, torsion_length
+    m, F, width = 0.4, 70.0, 0.03
+    c = 0.02
+    T = np.eye(4)[None]  # closing axis x horizontal, gravity -z; centre of mass at y = c
+    area = np.full((1, 2), 1e-4)
+    L = float(torsion_length(area)[0, 0])
+    gm = gravity_margin(_mp(m, [0, c, 0]), np.eye(4), T, np.array([width]), area, mu=MU, normal_force=F,
+                        load=_gravity_only())[0]
+    assert gm == pytest.approx(2 * MU * F * L / (m * G * math.hypot(c, L)), rel=1e-8)
+    # unequal patches: s m g c = L0 sqrt((mu F)^2 - (s m g / 2)^2) + L1 sqrt(...) = (L0 + L1) sqrt(...)
+    area2 = np.array([[1e-4, 4e-4]])
+    L0, L1 = torsion_length(area2)[0]
+    gm2 = gravity_margin(_mp(m, [0, c, 0]), np.eye(4), T, np.array([width]), area2, mu=MU, normal_force=F,
+                         load=_gravity_only())[0]
+    assert gm2 == pytest.approx((L0 + L1) * MU * F / (m * G * math.hypot(c, (L0 + L1) / 2)), rel=1e-8)
+    # (b) closing axis tilted 60 deg: f_x = -m g sin, f_t = m g cos; the jaw on the +x side is the upper one
+    th = math.radians(60.0)
+    T3 = np.eye(4)
+    T3[:3, 0] = [math.cos(th), 0.0, math.sin(th)]
+    T3[:3, 2] = [-math.sin(th), 0.0, math.cos(th)]
+    big = np.full((1, 2), 1e-3)
+    gm3 = gravity_margin(_mp(m, [0, 0, 0]), np.eye(4), T3[None], np.array([width]), big, mu=MU, normal_force=F,
+                         load=_gravity_only())[0]
+    fx, ft = m * G * math.sin(th), m * G * math.cos(th)
+    assert gm3 == pytest.approx(MU * F / (0.5 * ft + 0.5 * MU * fx), rel=1e-8)
