@@ -277,21 +277,21 @@ def _pad_twist_caps(model, data, jaw_geom: list[int], part_body: int, torsion: n
     normal force on the part, ``t``: the vector sum of its tangential forces, ``torsion``: the
     patch's torsional friction per newton, :func:`grasplan.wrench.torsion_length` times ``mu``).
     A pad touching nothing keeps ``nominal``."""
-    import mujoco
-
     normal = np.zeros(2)
     tangent = np.zeros((2, 3))
-    f6 = np.zeros(6)
-    body = model.geom_bodyid
-    for c in range(data.ncon):
-        con = data.contact[c]
-        g1, g2 = int(con.geom[0]), int(con.geom[1])
+    if data.ncon:
+        con = data.contact  # struct-of-arrays view over the active contacts
+        geom, addr = np.asarray(con.geom), np.asarray(con.efc_address)
+        frame = np.asarray(con.frame).reshape(-1, 3, 3)
+        body = model.geom_bodyid
         for j in range(2):
-            if (g1 == jaw_geom[j] and body[g2] == part_body) or (g2 == jaw_geom[j] and body[g1] == part_body):
-                mujoco.mj_contactForce(model, data, c, f6)
-                frame = con.frame.reshape(3, 3)
-                normal[j] += f6[0]
-                tangent[j] += f6[1] * frame[1] + f6[2] * frame[2]
+            mine = (addr >= 0) & (((geom[:, 0] == jaw_geom[j]) & (body[geom[:, 1]] == part_body))
+                                  | ((geom[:, 1] == jaw_geom[j]) & (body[geom[:, 0]] == part_body)))
+            if mine.any():
+                a = addr[mine]  # elliptic cones: the force rows are (normal, t1, t2, ...) in the contact frame
+                f = data.efc_force
+                normal[j] = f[a].sum()
+                tangent[j] = (f[a + 1][:, None] * frame[mine, 1] + f[a + 2][:, None] * frame[mine, 2]).sum(axis=0)
     t = np.linalg.norm(tangent, axis=1) / max(mu, 1e-12)
     cap = np.asarray(torsion, dtype=np.float64) * np.sqrt(np.maximum(normal * normal - t * t, 0.0))
     return np.where(normal > 0, cap, nominal)
