@@ -73,7 +73,7 @@ DB_SUFFIX = ".graspdb.npz"
 MAX_DB_BYTES = 1 << 30
 #: bumped when the computation behind a database changes: cached databases of another version are
 #: recomputed, files of another version are refused
-DB_VERSION = 1
+DB_VERSION = 2  # 2: issue 22 second round (gravity_margin as a load factor, pad model; gravity_margin_ref 2)
 _ARRAYS = ("T_part_tcp", "width", "contacts", "normals", "candidate", "region", "contact_area", "contact_type",
            "contact_width", "epsilon", "score")
 _SHAPES: dict[str, tuple[int, ...]] = {"T_part_tcp": (4, 4), "width": (), "contacts": (2, 3), "normals": (2, 3),
