@@ -655,7 +655,12 @@ def test_tless20_joint_trajectory(tless20, tmp_path):
         g = entry(doc, gid)
         t, q, qd = check_trajectory(traj, doc, g, robot, 1.4)
         opening = min(doc["gripper"]["max_opening"], g["width"] + 0.010)
-        assert independent_path_free(tless20["scene_factory"], q, opening)
+        # the fresh scene holds the part where it rests: only the segments before the jaws close on
+        # it (not attached) can be checked with open jaws; once lifted the part moves with the
+        # gripper (a grasp approached off the vertical drags the open jaws through the resting part)
+        free = [sg for sg in traj["segments"] if not sg["attached"]]
+        assert free and free[0]["start"] == 0
+        assert independent_path_free(tless20["scene_factory"], q[:max(sg["end"] for sg in free) + 1], opening)
         assert np.max(np.abs(qd) / np.asarray(robot.velocity_limit)) <= 1.0
 
 
