@@ -148,7 +148,7 @@ def pressure_widths(contact_type: np.ndarray, widths: np.ndarray) -> np.ndarray:
 
 
 #: the margin is found by bisection in log scale between these load factors (iterations: relative
-#: precision ``log(hi / lo) / 2^iterations``, 3e-10)
+#: precision ``log(hi / lo) / 2^iterations``, 3e-10); a margin above the bracket is reported as its top
 MARGIN_BRACKET, MARGIN_ITERATIONS = (1e-4, 1e4), 36
 
 
