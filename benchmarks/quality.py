@@ -12,7 +12,7 @@ batches; target < 10 s; CoACD decomposition cached, its first computation report
 the quality step's cost, and per part whether any grasp can hold it at all (gravity_margin >= 1).
 
     .venv/bin/python benchmarks/quality.py [--parts DIR] [--top 20] [--density 7850 1200]
-                                           [--decomposition coacd|hull] [--only NAME ...]
+                                           [--decomposition coacd|hull] [--only NAME ...] [--threshold] [--dump DIR]
 """
 from __future__ import annotations
 
