@@ -24,6 +24,7 @@ use the CLIK tracker :func:`grasplan.paths.approach_path_reason`.
 from __future__ import annotations
 
 import time
+import weakref
 from dataclasses import dataclass
 from collections.abc import Callable
 from typing import Any
@@ -119,6 +120,10 @@ class MotionContext:
     #: ``(T_world_part of the carried part, neighbour names) -> deepest penetration (m)``
     #: (:mod:`grasplan.pick.depth`); None: any contact beyond ``lift_contact`` is a collision
     lift_depth: Any = None
+    #: ``(T_world_part, shifts (s, 3))``: the carried part was checked against the neighbours and the
+    #: cloud at ``T_world_part`` moved by each shift, with the rule of :func:`lift_collision` (contact
+    #: only within ``lift_depth``), before any grasp; None: not checked
+    lift_part_checked: Any = None
 
     def __post_init__(self) -> None:
         self.q_home = np.asarray(self.robot.q_home, dtype=np.float64)
@@ -147,30 +152,82 @@ def _part_vs_instances(pairs: list[tuple[str, str, str]]) -> list[str] | None:
 
 
 def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touch: int,
-                   shallow: Callable[[np.ndarray, list[str]], bool] | None = None
+                   shallow: Callable[[np.ndarray, list[str]], bool] | None = None,
+                   arm: CollisionScene | None = None, covered: np.ndarray | None = None
                    ) -> list[tuple[str, str, str]] | None:
     """The colliding pairs where the lift ``path`` (k, n) first hits something with the part
-    attached (None: free). Within the first ``n_touch`` waypoints the part resting on a support is
-    allowed; all along, contacts of the part with neighbours only for which ``shallow(q, names)``
-    is true (their penetration depth within the tolerance, :mod:`grasplan.pick.depth`)."""
+    attached (None: free), checked at ``interpolation.STEP``. Within the first ``n_touch``
+    waypoints the part resting on a support is allowed; all along, contacts of the part with
+    neighbours only for which ``shallow(q, names)`` is true (their penetration depth within the
+    tolerance, :mod:`grasplan.pick.depth`).
+
+    ``arm``, ``covered`` (bool per waypoint): at the waypoints marked covered, the pairs the
+    Cartesian checks before IK already decided the same way (:func:`lift_precheck_drop`) are not
+    checked again: ``arm`` is ``scene`` without them; the configurations between waypoints get
+    every pair."""
     n_touch = int(min(max(n_touch, 0), len(path) - 1))
     for k0, k1, support in ((n_touch, len(path), False), (0, n_touch + 1, True)):
         part = path[k0:k1]
         if support and n_touch == 0:
             continue
-        if scene.path_free(part, width):
-            continue
-        for q in interpolate_path(part):
-            if scene.is_free(q, width):
+        dense, rows = interpolate_path(part, return_index=True)
+        on_arm = np.zeros(len(dense), dtype=bool)
+        if arm is not None and covered is not None:
+            on_arm[rows[covered[k0:k1]]] = True
+        for q, reduced in zip(dense, on_arm.tolist()):
+            sc = arm if reduced and arm is not None else scene
+            if sc.is_free(q, width):
                 continue
-            pairs = scene.colliding_pairs(q, width)
+            pairs = sc.colliding_pairs(q, width)
             if support and _support_only(pairs):
                 continue
             names = None if shallow is None else _part_vs_instances(pairs)
             if names and shallow is not None and shallow(q, names):
                 continue
-            return pairs
+            return scene.colliding_pairs(q, width) if reduced else pairs
     return None
+
+
+def lift_precheck_drop(scene: CollisionScene) -> np.ndarray:
+    """Per pair of ``scene``: decided at the lift's waypoints by the checks before IK, the closed
+    gripper (body and jaws) against the world (``MotionContext.lift_gripper_check``: the same
+    shapes at the same poses) and the carried part against the neighbours and the cloud
+    (``MotionContext.lift_part_checked``, the picker's straight lift)."""
+    return np.array([(a.startswith("gripper:") or b.startswith("gripper:")) and kind != "self"
+                     or (group == "attached" and extra != "") for a, b, kind, group, extra in scene.pair_rows()])
+
+
+_ARM_SCENES: "weakref.WeakKeyDictionary[CollisionScene, CollisionScene]" = weakref.WeakKeyDictionary()
+
+
+def _arm_scene(att: CollisionScene) -> CollisionScene:
+    """``att`` without the pairs of :func:`lift_precheck_drop` (built once per attached variant)."""
+    arm = _ARM_SCENES.get(att)
+    if arm is None:
+        arm = _ARM_SCENES[att] = att.restricted(lift_precheck_drop(att))
+    return arm
+
+
+#: a lift waypoint is covered by the checks before IK when its TCP and part poses are theirs within this (m)
+COVER_TOL = 1e-7
+
+
+def _lift_covered(ctx: MotionContext, lift: np.ndarray, T_line: np.ndarray, T_flange_part: np.ndarray
+                  ) -> np.ndarray | None:
+    """Per lift waypoint: the TCP is at the pose the gripper check used (``T_line``) and the
+    carried part at a pose of ``ctx.lift_part_checked`` (rotation and position within
+    :data:`COVER_TOL`); None when the checks before IK did not run."""
+    if ctx.lift_gripper_check is None or ctx.lift_part_checked is None or len(lift) != len(T_line):
+        return None
+    T_part0, shifts = ctx.lift_part_checked
+    F = ctx.robot.fk_batch(lift)
+    tcp = F @ ctx.T_flange_tcp
+    part = F @ T_flange_part
+    ok = (np.abs(tcp[:, :3, :] - T_line[:, :3, :]).max(axis=(1, 2)) <= COVER_TOL)
+    ok &= np.abs(part[:, :3, :3] - T_part0[:3, :3]).max(axis=(1, 2)) <= COVER_TOL
+    off = part[:, :3, 3] - T_part0[:3, 3]
+    near = np.abs(off[:, None, :] - np.asarray(shifts)[None]).max(axis=2) <= COVER_TOL
+    return ok & near.any(axis=1)
 
 
 def _blockers(pairs: list[tuple[str, str, str]]) -> set[str]:
@@ -236,6 +293,7 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
     T_pre = T_world_tcp.copy()
     T_pre[:3, 3] -= p.backoff * T_world_tcp[:3, 2]
     T_lift = lift_pose(T_world_tcp, ctx.retreat_dir, ctx.retreat_dist)
+    T_line = None
     if ctx.lift_gripper_check is not None:  # the closed gripper along the lift: the same for every IK branch
         t = time.perf_counter()
         m = max(1, int(np.ceil(ctx.retreat_dist / LINE_SAMPLE - 1e-12)))
@@ -257,6 +315,11 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
         return Outcome("unreachable", f"no IK solution within the joint limits ({ik.reason})", opening=opening)
     static, att = ctx.static, ctx.attached
     att.move_attached(T_tcp_part_of(T_part_tcp))
+    arm = None
+    if T_line is not None and ctx.lift_part_checked is not None:
+        arm = _arm_scene(att)
+        arm.move_attached(T_tcp_part_of(T_part_tcp))
+    T_flange_part = ctx.T_flange_tcp @ T_tcp_part_of(T_part_tcp)
     n_touch = int(np.ceil(p.lift_contact / LINE_SAMPLE - 1e-9))
     why: dict[str, str] = {}
     blockers: set[str] = set()
@@ -300,11 +363,10 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
         t = time.perf_counter()
         shallow = None
         if ctx.lift_depth is not None and p.lift_depth > 0:
-            T_flange_part = ctx.T_flange_tcp @ T_tcp_part_of(T_part_tcp)
-
             def shallow(q: np.ndarray, names: list[str]) -> bool:
                 return bool(ctx.lift_depth(robot.fk(q) @ T_flange_part, names) <= p.lift_depth)
-        pairs = lift_collision(att, lift, width, n_touch, shallow)
+        covered = None if arm is None or T_line is None else _lift_covered(ctx, lift, T_line, T_flange_part)
+        pairs = lift_collision(att, lift, width, n_touch, shallow, arm, covered)
         timing["collision"] += time.perf_counter() - t
         if pairs is not None:
             count["lift"] += 1

@@ -407,7 +407,8 @@ class Picker:
                                         timing, T_place=T_place,
                                         lift_gripper_check=lambda T, w: st.world.gripper_at_hits(T, w, bodies),
                                         body_names=tuple(b.name for b in bodies),
-                                        lift_depth=lift_depth if p.lift_depth > 0 else None)
+                                        lift_depth=lift_depth if p.lift_depth > 0 else None,
+                                        lift_part_checked=(inst.T_world_part, steps[:, None] * lift_dir))
                 tried += 1
                 stats["grasps_tried"] += 1
                 T_part_g = db.T_part_tcp[r] if T_tcp_g is None else db.T_part_tcp[r] @ T_tcp_g[k]
