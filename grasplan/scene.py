@@ -58,6 +58,7 @@ The checks before planning (part in the table or an obstacle, ...) are :mod:`gra
 """
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -394,12 +395,12 @@ class CollisionScene:
         return other
 
     def restricted(self, drop: np.ndarray) -> CollisionScene:
-        """A variant like this one (mode, part placements, extras) that does not check the pairs
-        where ``drop`` (bool, one per pair of :meth:`pair_rows`) is true; own scratch data."""
-        other = self._variant(self.mode, self.T_world_part, self.T_tcp_part)
-        for k in np.flatnonzero(other._active & np.asarray(drop, dtype=bool)):
-            other.geom_data.deactivateCollisionPair(int(k))
-            other._active[k] = False
+        """This variant (same placements, copied scratch data) without the pairs ``drop`` (bool per :meth:`pair_rows`)."""
+        other, gd = copy.copy(self), self.geom_data.copy()
+        other.data, other.geom_data, other._active = self.model.createData(), gd, self._active & ~drop
+        other._broadphase, other._placements = None, dict(self._placements)
+        for k in np.flatnonzero(self._active & drop):
+            gd.deactivateCollisionPair(int(k))
         return other
 
     def pair_rows(self) -> list[tuple[str, str, str, str, str]]:
@@ -421,8 +422,7 @@ class CollisionScene:
 
     # ------------------------------------------------------------------------------------------
     def _check_finger_model(self, gripper) -> None:
-        """The fingers move as pure x translations of their opening-0 pose (checked once), plus
-        ``tcp_offset`` along z for a gripper whose TCP moves with the opening."""
+        """The fingers move as x translations of their opening-0 pose (+ a moving TCP's z offset)."""
         o = float(gripper.max_opening)
         dz = float(gripper.tcp_offset(o)) - float(gripper.tcp_offset(0.0)) if getattr(gripper, "moving_tcp", False) else 0.0
         for sign, shape0, shape in zip((-1.0, 1.0), gripper.fingers(0.0), gripper.fingers(o)):
@@ -494,7 +494,7 @@ class CollisionScene:
         return not self._collides(q)
 
     def is_free_exhaustive(self, q, opening: float | None = None) -> bool:
-        """:meth:`is_free` checking every active pair (no broad phase): the reference it is tested against."""
+        """:meth:`is_free` checking every active pair (no broad phase): the reference of the tests."""
         q = self._prep(q, opening)
         return not pin.computeCollisions(self.model, self.data, self.geom_model, self.geom_data, q, True)
 
