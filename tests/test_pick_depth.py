@@ -128,7 +128,7 @@ def leaning():
     return box, Scene(instances=(Instance("a", "box", rest), Instance("b", "box", b)), cell="bin")
 
 
-def test_straight_lift_through_a_leaning_neighbour_is_replaced_by_a_tilted_one(leaning):
+def test_straight_lift_through_a_leaning_neighbour_is_replaced_by_a_tilted_one(leaning, tmp_path):
     box, sc = leaning
     straight = Picker("ur5", params=PickParams(grasps_per_instance=8, max_lift_tilt_deg=0.0))
     straight.add_part("box", box)
@@ -159,6 +159,15 @@ def test_straight_lift_through_a_leaning_neighbour_is_replaced_by_a_tilted_one(l
     # and the independent depth confirms the straight lift was rightly refused: 5 mm up, a is > 1 mm into b
     up = at(sc.instances[0].T_world_part, dz=0.005)
     assert mesh_depth(box.mesh, up, box.mesh, sc.instances[1].T_world_part) > 0.001 + 3e-4
+    # the picks file and a robot program follow the pick's own lift (the export checks its lift segment)
+    from click.testing import CliRunner
+
+    from grasplan.cli import main
+
+    out = res.write(tmp_path / "picks.json")
+    r = CliRunner().invoke(main, ["export", str(out), "--format", "urscript", "--instance", "a",
+                                  "-o", str(tmp_path / "a.script")])
+    assert r.exit_code == 0, r.output
 
 
 @pytest.mark.parametrize("cap,picked", [(0.003, True), (0.001, False)])
