@@ -110,6 +110,35 @@ def test_lone_part_is_picked(lone_box, gripper, cell):
     assert cw.data.xipos[cw.world.body_ids[0]][2] == pytest.approx(z0)
 
 
+def test_a_tilted_lift_is_followed(lone_box, gripper, cell):
+    """A pick whose lift is tilted 45 deg (a planner's lift away from a neighbour): the hand follows the
+    pick's own straight line to T_world_lifted (MuJoCo's hand frame in every replay sample) and the box
+    comes up with it, displaced sideways as planned (towards the bin's middle: clear of its walls)."""
+    part, cw, T_part = lone_box
+    snap = cw.world.snapshot()
+    (T, w), = _top_down(part, gripper, cell, T_part)
+    pick = _pick(T, w, gripper)
+    side = np.asarray(cell.bin.T_world_bin)[:2, 3] - T[:2, 3]
+    u = np.append(np.sqrt(0.5) * side / np.linalg.norm(side), np.sqrt(0.5))
+    pick.T_world_lifted = T.copy()
+    pick.T_world_lifted[:3, 3] += LIFT * u
+    x0 = cw.data.xipos[cw.world.body_ids[0]].copy()
+    out = execute_pick(cw, 0, pick, settle=False, record=True)
+    assert out.outcome == SUCCESS, out.reason
+    hand = np.array([h[:3, 3] for _, h, _, _ in out.track])
+    k0 = int(np.flatnonzero(np.linalg.norm(hand - T[:3, 3], axis=1) < 1e-6)[0])  # at the grasp: close, lift, hold
+    off = hand[k0:] - T[:3, 3]
+    assert len(off) > 20
+    along = off @ u
+    assert np.max(np.linalg.norm(off - along[:, None] * u, axis=1)) < 2e-4  # on the planned line
+    assert np.max(along) == pytest.approx(LIFT, abs=1e-4)
+    box = out.track[-1][3][0][:3, 3]  # the box's pose at the end of the hold: moved with the hand
+    np.testing.assert_allclose(box[:2] - x0[:2], LIFT * u[:2], atol=3e-3)
+    assert out.lift == pytest.approx(LIFT * np.sqrt(0.5), abs=5e-3)
+    cw.world.restore(snap)
+    cw.park_hand()
+
+
 def test_miss_fails_with_a_reason(lone_box, gripper, cell):
     """The same grasp 40 mm to the side closes on air; straight into the floor is a collision."""
     part, cw, T_part = lone_box

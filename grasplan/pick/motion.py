@@ -120,9 +120,10 @@ class MotionContext:
     #: ``(T_world_part of the carried part, neighbour names) -> deepest penetration (m)``
     #: (:mod:`grasplan.pick.depth`); None: any contact beyond ``lift_contact`` is a collision
     lift_depth: Any = None
-    #: ``(T_world_part, shifts (s, 3))``: the carried part was checked against the neighbours and the
-    #: cloud at ``T_world_part`` moved by each shift, with the rule of :func:`lift_collision` (contact
-    #: only within ``lift_depth``), before any grasp; None: not checked
+    #: ``(T_world_part, shifts (s, 3))``: before any grasp, the carried part was checked against the
+    #: neighbours and the cloud at ``T_world_part`` moved by each shift and found free, a contact
+    #: with a neighbour accepted only when ``lift_depth`` accepts it (the rule :func:`lift_collision`
+    #: applies with ``shallow``); None: not checked (every pair is then checked at every waypoint)
     lift_part_checked: Any = None
 
     def __post_init__(self) -> None:
