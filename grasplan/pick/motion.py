@@ -201,11 +201,18 @@ def lift_precheck_drop(scene: CollisionScene) -> np.ndarray:
 _ARM_SCENES: "weakref.WeakKeyDictionary[CollisionScene, CollisionScene]" = weakref.WeakKeyDictionary()
 
 
+_DROP: "weakref.WeakKeyDictionary[Any, np.ndarray]" = weakref.WeakKeyDictionary()
+
+
 def _arm_scene(att: CollisionScene) -> CollisionScene:
-    """``att`` without the pairs of :func:`lift_precheck_drop` (built once per attached variant)."""
+    """``att`` without the pairs of :func:`lift_precheck_drop` (built once per attached variant;
+    the pairs are the scene model's, so the mask once per model)."""
     arm = _ARM_SCENES.get(att)
     if arm is None:
-        arm = _ARM_SCENES[att] = att.restricted(lift_precheck_drop(att))
+        drop = _DROP.get(att._shared)
+        if drop is None:
+            drop = _DROP[att._shared] = lift_precheck_drop(att)
+        arm = _ARM_SCENES[att] = att.restricted(drop)
     return arm
 
 
