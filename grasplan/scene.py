@@ -348,7 +348,7 @@ class CollisionScene:
             req.num_max_contacts = 1
         self.geom_data = gd
         self._active = active
-        self._broadphase: pin.BroadPhaseManager_DynamicAABBTreeCollisionManager | None = None
+        self._broadphase: pin.BroadPhaseManager_SSaPCollisionManager | None = None
         self._placements: dict[int, pin.SE3] = {}
         env = shared.env_ids
         if self.T_world_part is not None and PART in env:
@@ -477,13 +477,13 @@ class CollisionScene:
 
     def _collides(self, q: np.ndarray) -> bool:
         """Any active pair in collision at q (early stop). A scene with extra bodies (many pairs)
-        goes through a broad phase first: coal's dynamic AABB tree over the placed geometries
+        goes through a broad phase first: coal's sweep and prune (SSaP) over the placed geometries
         (Pinocchio's ``BroadPhaseManager``; only the active pairs whose world boxes overlap reach
         the narrow phase; the same answer, several times faster with a pile)."""
         if not self._shared.extra_ids:
             return bool(pin.computeCollisions(self.model, self.data, self.geom_model, self.geom_data, q, True))
         if self._broadphase is None:
-            self._broadphase = pin.BroadPhaseManager_DynamicAABBTreeCollisionManager(
+            self._broadphase = pin.BroadPhaseManager_SSaPCollisionManager(
                 self.model, self.geom_model, self.geom_data)
         return bool(pin.computeCollisions(self.model, self.data, self._broadphase, q, True))
 
