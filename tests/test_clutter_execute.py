@@ -206,3 +206,39 @@ def test_round_with_a_tiny_planner(cell, gripper):
     for a, b in zip(rr.attempts, again.attempts):
         assert a.execution.lift == b.execution.lift and a.execution.opening == b.execution.opening
     np.testing.assert_array_equal(rr.replay[1]["track"][-1][1], again.replay[1]["track"][-1][1])
+
+
+def test_linkage_pads_ride_their_arc(cell):
+    """A linkage gripper (Robotiq 2F-85: the pads move on an arc, the TCP with the opening): while the
+    jaws close under the motors, MuJoCo's pad is where the gripper model puts it at the opening
+    MuJoCo reports (grasplan.gripper.linkage: along x and along the approach axis)."""
+    import mujoco
+
+    g = load_gripper("robotiq_2f_85")
+    part = load_part(EXAMPLES / "box.stl")
+    holder = {}
+
+    def make(bodies):
+        holder["cw"] = ClutterWorld(cell, bodies, g, mu=0.3)
+        return holder["cw"].world
+
+    drop_pile(cell, [PileItem("box", part, 1)], params=DropParams(seed=1, decomposition="hull"), make_world=make)
+    cw = holder["cw"]
+    T = np.eye(4)
+    T[:3, 3] = [0.45, 0.0, 0.4]  # in the air above the bin
+    T[:3, :3] = np.diag([1.0, -1.0, -1.0])
+    cw.set_hand(T)
+    cw.set_jaws(g.max_opening)
+    cw.squeeze(cw.grip_force)
+    pad = mujoco.mj_name2id(cw.model, mujoco.mjtObj.mjOBJ_GEOM, "#jaw1")
+    seen = []
+    for _ in range(60):  # 0.3 s at 5 ms
+        cw.set_hand(T)
+        cw.step(0.005)
+        o = cw.opening()
+        want = T @ g.fingers(o)[1].T_tcp_box
+        np.testing.assert_allclose(cw.data.geom_xpos[pad], want[:3, 3], atol=2e-4)
+        seen.append(o)
+    assert seen[0] - seen[-1] > 0.01  # the jaws did close (by more than 10 mm)
+    z_travel = g.tcp_offset(seen[-1]) - g.tcp_offset(seen[0])
+    assert abs(z_travel) > 1e-3  # and the pads moved along the approach axis, as the model says

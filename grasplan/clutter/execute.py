@@ -3,7 +3,8 @@
 Protocol (:func:`execute_pick`), all in the world frame with the bin and every part present:
 
 1. **Pre-grasp.** The hand appears at the pick's ``T_world_pregrasp`` with the jaws at its
-   ``opening`` (the transit from above is not simulated: the arm is not modelled). A gripper that
+   ``opening`` (for a linkage gripper whose TCP moves with the opening, every pose of the pick
+   is moved by ``T_tcp_gripper(width)``: the hand frame is the TCP at full opening) (the transit from above is not simulated: the arm is not modelled). A gripper that
    already overlaps something there by more than :data:`START_DEPTH` has *collided*.
 2. **Approach.** The TCP follows the straight line to ``T_world_tcp`` (cosine speed profile,
    peak :data:`APPROACH_SPEED`), the jaws idle (their damping holds them).
@@ -206,9 +207,12 @@ def execute_pick(cw: ClutterWorld, target: int, pick: PickLike, *, jaw_torsion=N
     w = cw.world
     if not w.present[target]:
         raise ValueError(f"execute_pick: part {w.bodies[target].name} is not in the world")
-    T_pre = check_transform(pick.T_world_pregrasp, "T_world_pregrasp")
-    T_grasp = check_transform(pick.T_world_tcp, "T_world_tcp")
-    T_lift = check_transform(pick.T_world_lifted, "T_world_lifted")
+    # the hand is the frame the gripper's shapes are given in: for a linkage gripper (its TCP moves
+    # with the opening) the pick's grasp TCP moved back to full opening, as the planner checks it
+    T_g = np.asarray(cw.gripper.T_tcp_gripper(float(pick.width)), dtype=np.float64)
+    T_pre = check_transform(pick.T_world_pregrasp, "T_world_pregrasp") @ T_g
+    T_grasp = check_transform(pick.T_world_tcp, "T_world_tcp") @ T_g
+    T_lift = check_transform(pick.T_world_lifted, "T_world_lifted") @ T_g
     timestep = float(cw.model.opt.timestep)
     cw.model.opt.timestep = PICK_TIMESTEP
     cw.set_jaw_torsion(jaw_torsion)

@@ -5,7 +5,8 @@ cell) when it can. When that straight lift is blocked (it drags the part through
 no grasp's gripper and arm can follow it), the planner tries the tilted lifts of
 :func:`lift_directions`: :data:`LIFT_TILTS_DEG` from the retreat in :data:`LIFT_AZIMUTHS`
 azimuths, the smaller tilts first and, per tilt, those leading farthest away from the neighbour
-the straight lift touched and from the bin walls the part is near (``away``). A lift is still one
+the straight lift touched and from the bin walls the part is near (``away``; those leading
+towards them are not tried). A lift is still one
 straight TCP line of the retreat's distance (a 45 deg lift raises the part by 71 % of it), planned
 and checked as the straight one is (the part alone against the pile, then the gripper and the arm
 per grasp); a tilted lift must also keep the part inside the bin's walls until it is above the rim
@@ -54,8 +55,10 @@ def _basis(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def lift_directions(retreat: np.ndarray, away: np.ndarray | None = None, max_tilt_deg: float = 90.0
                     ) -> list[tuple[float, np.ndarray]]:
     """``[(tilt_deg, unit direction)]``: the straight lift (``retreat``, tilt 0) first, then per tilt
-    of :data:`LIFT_TILTS_DEG` up to ``max_tilt_deg`` its :data:`LIFT_AZIMUTHS` directions, those most along ``away`` (a
-    world vector; its part along the retreat is ignored) first, ties by azimuth."""
+    of :data:`LIFT_TILTS_DEG` up to ``max_tilt_deg`` its :data:`LIFT_AZIMUTHS` directions, those most
+    along ``away`` (a world vector; its part along the retreat is ignored) first, ties by azimuth;
+    with a non-zero ``away`` only the azimuths within 90 deg of it (a lift leading towards what
+    blocked the straight one is not tried)."""
     u = np.asarray(retreat, dtype=np.float64)
     u = u / np.linalg.norm(u)
     e1, e2 = _basis(u)
@@ -65,7 +68,8 @@ def lift_directions(retreat: np.ndarray, away: np.ndarray | None = None, max_til
     out: list[tuple[float, np.ndarray]] = [(0.0, u)]
     phi = 2.0 * math.pi * np.arange(LIFT_AZIMUTHS) / LIFT_AZIMUTHS
     h = np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2
-    order = np.lexsort((np.arange(LIFT_AZIMUTHS), -np.round(h @ a, 9)))
+    along = np.round(h @ a, 9)
+    order = [int(k) for k in np.lexsort((np.arange(LIFT_AZIMUTHS), -along)) if n <= 1e-12 or along[k] >= 0.0]
     for tilt in LIFT_TILTS_DEG:
         if tilt > max_tilt_deg + 1e-9:
             break

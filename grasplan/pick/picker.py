@@ -343,7 +343,9 @@ class Picker:
         dist = float(st.cell.retreat_distance)
         n_lift = max(1, int(np.ceil(dist / LINE_SAMPLE - 1e-12)))
         steps = dist * np.arange(n_lift + 1) / n_lift
-        steps = steps[steps >= min(p.lift_contact, steps[-1]) - 1e-12]
+        # the line's waypoints beyond lift_contact, and the lift_contact point itself (where resting
+        # contact stops being allowed: between it and the next waypoint a part may be deep already)
+        steps = np.unique(np.append(steps[steps >= min(p.lift_contact, steps[-1]) - 1e-12], min(p.lift_contact, dist)))
         # the carried part against the neighbours and the cloud (the cell's boxes: the robot's check,
         # which lets the part slide along a wall it touches within ATTACHED_CONTACT_TOL)
         pile = [b for b in bodies if b.name.startswith(INSTANCE_PREFIX) or b.name == CLOUD]
@@ -417,7 +419,8 @@ class Picker:
                 inst.id, inst.part, "blocked" if name.startswith(INSTANCE_PREFIX) else "cloud",
                 f"lifting it {1e3 * dist:g} mm along the retreat drags it through {name} "
                 f"after {1e3 * hit_first['step']:.0f} mm" + (
-                    f" ({1e3 * deep:.1f} mm deeper than at rest" + (f", where the two overlap by {1e3 * rd:.1f} mm" if rd > 0 else "")
+                    (f" ({1e3 * deep:.1f} mm deep" if rd < 5e-5 else
+                     f" ({1e3 * deep:.1f} mm deeper than the {1e3 * rd:.1f} mm of resting overlap counted")
                     + f"; at most {1e3 * p.lift_depth:g} mm allowed)" if deep is not None else
                     f" (more than the {1e3 * p.lift_contact:g} mm of resting contact allowed)")
                 + (f", and so does every one of the {len(dirs) - 1} tilted lifts ({_tilts_text(p)})" if len(dirs) > 1 else "")
