@@ -242,3 +242,27 @@ def test_linkage_pads_ride_their_arc(cell):
     assert seen[0] - seen[-1] > 0.01  # the jaws did close (by more than 10 mm)
     z_travel = g.tcp_offset(seen[-1]) - g.tcp_offset(seen[0])
     assert abs(z_travel) > 1e-3  # and the pads moved along the approach axis, as the model says
+
+
+def test_a_lift_into_a_wall_is_a_collision(lone_box, gripper, cell):
+    """A lift tilted 45 deg towards the nearest bin wall drives the gripper's housing into it: the
+    kinematic hand is pushed back off its path within a control period (MuJoCo's hand frame), a
+    collision (the arm's protective stop), not a slip."""
+    part, cw, T_part = lone_box
+    snap = cw.world.snapshot()
+    (T, w), = _top_down(part, gripper, cell, T_part)
+    pick = _pick(T, w, gripper)
+    c = np.asarray(cell.bin.T_world_bin)[:2, 3]
+    half = 0.5 * np.asarray(cell.bin.inner)
+    gaps = np.concatenate([c + half - T[:2, 3], T[:2, 3] - (c - half)])  # to the +x, +y, -x, -y walls
+    k = int(np.argmin(gaps))
+    u = np.zeros(3)
+    u[k % 2] = 1.0 if k < 2 else -1.0
+    u = np.sqrt(0.5) * (u + np.array([0.0, 0.0, 1.0]))
+    assert gaps[k] < LIFT * np.sqrt(0.5) + 0.5 * 0.06  # the 71 mm sideways take the 60 mm housing to that wall
+    pick.T_world_lifted = T.copy()
+    pick.T_world_lifted[:3, 3] += LIFT * u
+    out = execute_pick(cw, 0, pick, settle=False)
+    assert out.outcome == COLLIDED and "lift" in out.reason and "off its path" in out.reason, out.reason
+    cw.world.restore(snap)
+    cw.park_hand()
