@@ -58,7 +58,6 @@ The checks before planning (part in the table or an obstacle, ...) are :mod:`gra
 """
 from __future__ import annotations
 
-import copy
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -394,14 +393,11 @@ class CollisionScene:
                             None, extras)
         return other
 
-    def restricted(self, drop: np.ndarray) -> CollisionScene:
-        """This variant (same placements, copied scratch data) without the pairs ``drop`` (bool per :meth:`pair_rows`)."""
-        other, gd = copy.copy(self), self.geom_data.copy()
-        other.data, other.geom_data, other._active = self.model.createData(), gd, self._active & ~drop
-        other._broadphase, other._placements = None, dict(self._placements)
-        for k in np.flatnonzero(self._active & drop):
-            gd.deactivateCollisionPair(int(k))
-        return other
+    def switch_pairs(self, pairs: np.ndarray, on: bool) -> None:
+        """Switch the pairs ``pairs`` (indices into :meth:`pair_rows`) of this variant off or back on."""
+        for k in np.asarray(pairs, dtype=np.int64).tolist():
+            (self.geom_data.activateCollisionPair if on else self.geom_data.deactivateCollisionPair)(k)
+        self._active[pairs] = on
 
     def pair_rows(self) -> list[tuple[str, str, str, str, str]]:
         """Every pair: ``(body, body, kind, group (static, attached, ""), extra body name or "")``."""

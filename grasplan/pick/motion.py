@@ -152,9 +152,21 @@ def _part_vs_instances(pairs: list[tuple[str, str, str]]) -> list[str] | None:
     return out
 
 
+def _sample_ok(scene: CollisionScene, q: np.ndarray, width: float, support: bool,
+               shallow: Callable[[np.ndarray, list[str]], bool] | None) -> bool:
+    """Configuration ``q`` of the lift is free, or its contacts are allowed (module docstring)."""
+    if scene.is_free(q, width):
+        return True
+    pairs = scene.colliding_pairs(q, width)
+    if support and _support_only(pairs):
+        return True
+    names = None if shallow is None else _part_vs_instances(pairs)
+    return bool(names and shallow is not None and shallow(q, names))
+
+
 def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touch: int,
                    shallow: Callable[[np.ndarray, list[str]], bool] | None = None,
-                   arm: CollisionScene | None = None, covered: np.ndarray | None = None
+                   covered: np.ndarray | None = None, drop: np.ndarray | None = None
                    ) -> list[tuple[str, str, str]] | None:
     """The colliding pairs where the lift ``path`` (k, n) first hits something with the part
     attached (None: free), checked at ``interpolation.STEP``. Within the first ``n_touch``
@@ -162,30 +174,39 @@ def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touc
     neighbours only for which ``shallow(q, names)`` is true (their penetration depth within the
     tolerance, :mod:`grasplan.pick.depth`).
 
-    ``arm``, ``covered`` (bool per waypoint): at the waypoints marked covered, the pairs the
-    Cartesian checks before IK already decided the same way (:func:`lift_precheck_drop`) are not
-    checked again: ``arm`` is ``scene`` without them; the configurations between waypoints get
-    every pair."""
+    ``covered`` (bool per waypoint), ``drop`` (pair indices of ``scene``): at the waypoints marked
+    covered, the pairs ``drop`` that the checks before IK already decided the same way
+    (:func:`lift_precheck_drop`) are switched off; those waypoints are checked first, then the
+    configurations between waypoints with every pair, up to the first waypoint that failed (the
+    first failing configuration in path order is the one reported)."""
     n_touch = int(min(max(n_touch, 0), len(path) - 1))
     for k0, k1, support in ((n_touch, len(path), False), (0, n_touch + 1, True)):
         part = path[k0:k1]
         if support and n_touch == 0:
             continue
         dense, rows = interpolate_path(part, return_index=True)
-        on_arm = np.zeros(len(dense), dtype=bool)
-        if arm is not None and covered is not None:
-            on_arm[rows[covered[k0:k1]]] = True
-        for q, reduced in zip(dense, on_arm.tolist()):
-            sc = arm if reduced and arm is not None else scene
-            if sc.is_free(q, width):
+        reduced = np.zeros(len(dense), dtype=bool)
+        if covered is not None and drop is not None and len(drop):
+            reduced[rows[covered[k0:k1]]] = True
+        bad: int | None = None
+        for on_reduced in (True, False):
+            idx = np.flatnonzero(reduced == on_reduced).tolist()
+            if not idx:
                 continue
-            pairs = sc.colliding_pairs(q, width)
-            if support and _support_only(pairs):
-                continue
-            names = None if shallow is None else _part_vs_instances(pairs)
-            if names and shallow is not None and shallow(q, names):
-                continue
-            return scene.colliding_pairs(q, width) if reduced else pairs
+            if on_reduced:
+                scene.switch_pairs(drop, False)  # type: ignore[arg-type]
+            try:
+                for i in idx:
+                    if bad is not None and i > bad:
+                        break
+                    if not _sample_ok(scene, dense[i], width, support, shallow):
+                        bad = i
+                        break
+            finally:
+                if on_reduced:
+                    scene.switch_pairs(drop, True)  # type: ignore[arg-type]
+        if bad is not None:
+            return scene.colliding_pairs(dense[bad], width)
     return None
 
 
@@ -198,22 +219,15 @@ def lift_precheck_drop(scene: CollisionScene) -> np.ndarray:
                      or (group == "attached" and extra != "") for a, b, kind, group, extra in scene.pair_rows()])
 
 
-_ARM_SCENES: "weakref.WeakKeyDictionary[CollisionScene, CollisionScene]" = weakref.WeakKeyDictionary()
-
-
 _DROP: "weakref.WeakKeyDictionary[Any, np.ndarray]" = weakref.WeakKeyDictionary()
 
 
-def _arm_scene(att: CollisionScene) -> CollisionScene:
-    """``att`` without the pairs of :func:`lift_precheck_drop` (built once per attached variant;
-    the pairs are the scene model's, so the mask once per model)."""
-    arm = _ARM_SCENES.get(att)
-    if arm is None:
-        drop = _DROP.get(att._shared)
-        if drop is None:
-            drop = _DROP[att._shared] = lift_precheck_drop(att)
-        arm = _ARM_SCENES[att] = att.restricted(drop)
-    return arm
+def _drop_pairs(att: CollisionScene) -> np.ndarray:
+    """The active pairs of ``att`` that :func:`lift_precheck_drop` names (the mask once per scene model)."""
+    drop = _DROP.get(att._shared)
+    if drop is None:
+        drop = _DROP[att._shared] = lift_precheck_drop(att)
+    return np.flatnonzero(att._active & drop)
 
 
 #: a lift waypoint is covered by the checks before IK when its TCP and part poses are theirs within this (m)
@@ -323,10 +337,7 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
         return Outcome("unreachable", f"no IK solution within the joint limits ({ik.reason})", opening=opening)
     static, att = ctx.static, ctx.attached
     att.move_attached(T_tcp_part_of(T_part_tcp))
-    arm = None
-    if T_line is not None and ctx.lift_part_checked is not None:
-        arm = _arm_scene(att)
-        arm.move_attached(T_tcp_part_of(T_part_tcp))
+    drop = _drop_pairs(att) if T_line is not None and ctx.lift_part_checked is not None else None
     T_flange_part = ctx.T_flange_tcp @ T_tcp_part_of(T_part_tcp)
     n_touch = int(np.ceil(p.lift_contact / LINE_SAMPLE - 1e-9))
     why: dict[str, str] = {}
@@ -373,8 +384,8 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
         if ctx.lift_depth is not None and p.lift_depth > 0:
             def shallow(q: np.ndarray, names: list[str]) -> bool:
                 return bool(ctx.lift_depth(robot.fk(q) @ T_flange_part, names) <= p.lift_depth)
-        covered = None if arm is None or T_line is None else _lift_covered(ctx, lift, T_line, T_flange_part)
-        pairs = lift_collision(att, lift, width, n_touch, shallow, arm, covered)
+        covered = None if drop is None or T_line is None else _lift_covered(ctx, lift, T_line, T_flange_part)
+        pairs = lift_collision(att, lift, width, n_touch, shallow, covered, drop)
         timing["collision"] += time.perf_counter() - t
         if pairs is not None:
             count["lift"] += 1
