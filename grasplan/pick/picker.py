@@ -10,13 +10,14 @@ Per :meth:`Picker.plan` call:
    per part, every instance an extra body) are ready: ``timing_s["load"]``; then the geometric
    checks (:mod:`grasplan.pile_checks`: exit 3 for a part below the floor, warnings for
    interpenetrating instances);
-2. instances are tried in the accessibility order (:mod:`grasplan.pick.rank`), in two passes (the
-   best :data:`FIRST_PASS` grasps of every instance, then the rest of the undecided ones); per
-   instance first
+2. instances are tried in the accessibility order (:mod:`grasplan.pick.rank`), in passes (the
+   best :data:`FIRST_PASS` grasps of every instance whose straight lift is free, then, in the same
+   order, the deferred and paused ones: the tilted-lift search of those whose straight lift is
+   blocked, the rest of the undecided ones' grasps); per instance first
    the lift: the part moved along the cell's retreat, at the line's waypoints beyond
    ``lift_contact``, against the neighbours and the cloud (the same for every grasp: a hit there
-   fails the robot's lift check whatever the arm does, so the instance is ``blocked`` by that
-   neighbour without trying a grasp); then its grasps posed in the world are ranked, gripper-checked in chunks against neighbours, cloud, bin
+   fails the robot's lift check whatever the arm does, so only tilted lifts can pick the instance,
+   :mod:`grasplan.pick.lift`); then its grasps posed in the world are ranked, gripper-checked in chunks against neighbours, cloud, bin
    and table (the first body hit names the blocker), and the collision-free ones motion-planned
    (:mod:`grasplan.pick.motion`) until one is planned or ``grasps_per_instance`` were tried;
 3. ``sequence``: after each pick the instance is removed and the rest re-planned (the next pick is
@@ -275,7 +276,9 @@ class Picker:
                     timing["first_pick_cpu"] = time.process_time() - cpu_ready
                 return sequence
 
-            # pass 1: every instance's best FIRST_PASS grasps, in order; pass 2: the rest of the paused ones
+            # pass 1: every instance's best FIRST_PASS grasps with its straight lift, in order (an
+            # instance whose straight lift is blocked is deferred before its tilted-lift search); then
+            # the paused ones, in order, until each is decided
             for k, iid in enumerate(order):
                 if out_of_budget():
                     break
@@ -288,15 +291,18 @@ class Picker:
                 elif take(iid, pick, rep):
                     picked_now = iid
                     break
-            if picked_now is None:
+            while paused and picked_now is None and not out_of_budget():  # the next passes, in order
+                later: list[tuple[str, Iterator[tuple[Pick | None, InstanceReport | None]]]] = []
                 for iid, gen in paused:
                     if out_of_budget():
                         break
                     pick, rep = next(gen)
-                    assert rep is not None
-                    if take(iid, pick, rep):
+                    if rep is None:  # paused again (a deferred instance's own best grasps done)
+                        later.append((iid, gen))
+                    elif take(iid, pick, rep):
                         picked_now = iid
                         break
+                paused = later
             if not sequence:
                 rank_of = {iid: n for n, iid in enumerate(order)}
                 picks.sort(key=lambda q: rank_of[q.instance])
@@ -319,8 +325,9 @@ class Picker:
     def _plan_instance(self, st: _Cell, inst: Instance, present: list[Instance], with_cloud: bool, p: PickParams,
                        timing: dict[str, float], stats: dict[str, int], seed_base: int
                        ) -> Iterator[tuple[Pick | None, InstanceReport | None]]:
-        """Yields ``(pick or None, report)`` once the instance is decided, or first ``(None, None)``
-        when its best :data:`FIRST_PASS` grasps gave nothing yet (the caller resumes it later)."""
+        """Yields ``(pick or None, report)`` once the instance is decided, before that ``(None, None)``
+        when its straight lift is blocked (before the tilted-lift search) and when its best
+        :data:`FIRST_PASS` grasps gave nothing yet (the caller resumes it in a later pass)."""
         db = self._grasps[inst.part]
         rows, T_wt = rank_grasps(inst.T_world_part, db.T_part_tcp, db.score, p)
         if len(rows) == 0:
@@ -408,6 +415,8 @@ class Picker:
                 if lift_ok(j):
                     yield j
 
+        if not lift_ok(0):
+            yield None, None  # deferred: the tilted-lift search after every instance's first pass
         if not any(True for _ in lifts()):
             name, deep = hit_first["name"], None
             if name in by_name and p.lift_depth > 0:
