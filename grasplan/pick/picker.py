@@ -370,7 +370,12 @@ class Picker:
             return d
 
         def shallow_hit(T_world_part: np.ndarray, b: Any) -> bool:
-            return p.lift_depth > 0 and b.name in by_name and lift_depth(T_world_part, [b.name]) <= p.lift_depth
+            if not (p.lift_depth > 0 and b.name in by_name):
+                return False
+            t_d = time.perf_counter()  # lift_depth(...) <= lift_depth, a deep contact found on coarse samples first
+            deep = rest.exceeds(T_world_part, [b.name])
+            timing["lift_depth"] += time.perf_counter() - t_d
+            return not deep
 
         hull_w = st.world.parts[inst.part].hull @ inst.T_world_part[:3, :3].T + inst.T_world_part[:3, 3]
         dirs: list[tuple[float, np.ndarray]] = [(0.0, retreat)]
@@ -386,7 +391,9 @@ class Picker:
                 shifts = steps[:, None] * dirs[j][1]
                 ok = j == 0 or inside_walls(hull_w, shifts, st.cell.bin)
                 if ok:
-                    lh = st.world.part_hits(inst.part, inst.T_world_part, shifts, pile, shallow_hit, first_only=True)
+                    # the straight lift's first hit names the blocker; a tilted one only needs yes or no
+                    lh = st.world.part_hits(inst.part, inst.T_world_part, shifts, pile, shallow_hit, first_only=True,
+                                            far_first=j > 0)
                     ok = not np.any(lh >= 0)
                     if j == 0 and not ok:
                         k_hit = int(np.flatnonzero(lh >= 0)[0])
