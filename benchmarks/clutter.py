@@ -1,6 +1,7 @@
 """Clutter removal of the paper parts in physics (issue 21's targets), driving ``grasplan clutter``.
 
-    python benchmarks/clutter.py [--rounds 20] [--seed 0] [--noise 0,0 --noise 2mm,2deg] [--lift-depth 1mm] [--out out/clutter]
+    python benchmarks/clutter.py [--rounds 20] [--seed 0] [--noise 0,0 --noise 2mm,2deg] [--lift-depth 1mm]
+        [--max-lift-tilt 45] [--gripper NAME] [--out out/clutter]
 
 Each setting runs ``grasplan clutter --cell bin --part P:1`` for the five paper parts (TLess20,
 TLess22, SileanePepper, IPARingScrew, SileaneGear: 5-part mixed piles), plastic (1200 kg/m^3),
@@ -19,6 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import resource
 import subprocess
 import sys
@@ -44,15 +46,18 @@ def _pct(x) -> str:
     return "-" if x is None else f"{100 * x:.1f}"
 
 
-def run(noise: str, rounds: int, seed: int, out: Path, density: float,
-        lift_depth: str | None = None) -> tuple[dict, float, float]:
+def run(noise: str, rounds: int, seed: int, out: Path, density: float, lift_depth: str | None = None,
+        max_lift_tilt: str | None = None, gripper: str | None = None) -> tuple[dict, float, float]:
     """One ``grasplan clutter`` run in a child process: (report, wall s, peak RSS MB of the child)."""
-    tag = "" if lift_depth is None else f"_d{lift_depth}"
+    tag = ("" if lift_depth is None else f"_d{lift_depth}") + ("" if max_lift_tilt is None else f"_t{max_lift_tilt}") \
+        + ("" if gripper is None else f"_{Path(gripper).stem}")
     report = out / f"clutter_{noise.replace(',', '_')}_s{seed}_r{rounds}{tag}.json"
     cmd = [sys.executable, "-c", "from grasplan.cli import main; main()", "clutter", "--cell", "bin",
            *[a for p in PARTS for a in ("--part", f"{PAPER_DIR / p}:1")], "--rounds", str(rounds), "--seed", str(seed),
            "--density", str(density), "--pose-noise", noise, "-o", str(report),
-           *(() if lift_depth is None else ("--lift-depth", lift_depth))]
+           *(() if lift_depth is None else ("--lift-depth", lift_depth)),
+           *(() if max_lift_tilt is None else ("--max-lift-tilt", max_lift_tilt)),
+           *(() if gripper is None else ("--gripper", gripper))]
     env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
     t = time.perf_counter()
     before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
@@ -64,6 +69,23 @@ def run(noise: str, rounds: int, seed: int, out: Path, density: float,
     return json.loads(report.read_text()), wall, rss
 
 
+#: the planner's instance statuses counted for the parts left when nothing was feasible
+STATUS_RE = re.compile(r"(\d+) ([a-z_]+)")
+
+
+def left_by_status(doc: dict) -> dict[str, int]:
+    """Why the planner stopped: over the rounds ended by *nothing feasible*, the parts left by
+    the planner's status (``planning found no pick (2 blocked, 1 no_grasp)``; docs/pick.md)."""
+    out: dict[str, int] = {}
+    for rd in doc["rounds"]:
+        for pk in rd["picks"]:
+            if pk["outcome"] == "no_plan":
+                inner = pk["reason"].partition("(")[2]
+                for n, st in STATUS_RE.findall(inner):
+                    out[st] = out.get(st, 0) + int(n)
+    return out
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rounds", type=int, default=20)
@@ -72,16 +94,19 @@ def main() -> int:
     ap.add_argument("--density", type=float, default=1200.0)
     ap.add_argument("--out", type=Path, default=ROOT / "out" / "clutter", help="folder for the reports")
     ap.add_argument("--lift-depth", default=None, help="the planner's --lift-depth (default: grasplan pick's)")
+    ap.add_argument("--max-lift-tilt", default=None, help="the planner's --max-lift-tilt (0: straight lifts only)")
+    ap.add_argument("--gripper", default=None, help="gripper name or YAML (default: grasplan clutter's)")
     args = ap.parse_args()
     missing = [p for p in PARTS if not (PAPER_DIR / p).exists()]
     if missing:
         print(f"skipped: paper parts {', '.join(missing)} not found in {PAPER_DIR} (set GRASPLAN_PAPER_PARTS)")
         return 0
     args.out.mkdir(parents=True, exist_ok=True)
-    rows, fails = [], []
+    rows, fails, left = [], [], []
     for noise in args.noise or list(TARGETS):
         load0 = os.getloadavg()[0]
-        doc, wall, rss = run(noise, args.rounds, args.seed, args.out, args.density, args.lift_depth)
+        doc, wall, rss = run(noise, args.rounds, args.seed, args.out, args.density, args.lift_depth,
+                             args.max_lift_tilt, args.gripper)
         t = doc["total"]
         gsr_t, dr_t = TARGETS.get(noise, (None, None))
         pm, rs, rc = t["plan_ms"], t["round_seconds"], t["round_cpu_s"]
@@ -94,11 +119,16 @@ def main() -> int:
                      round(rc["max"], 1), round(rss), f"{load0:.1f}-{os.getloadavg()[0]:.1f}", round(wall)))
         fails.append((noise, *[t["failures"][k] for k in t["failures"]], *[t["ended"][k] for k in t["ended"]]))
         keys = (list(t["failures"]), list(t["ended"]))
+        left.append((noise, left_by_status(doc)))
     print(table(rows, header=("pose_noise", "rounds", "parts", "attempts", "GSR_%", "DR_%", "target_%", "met",
                               "plan_ms_median", "plan_ms_p95", "plan_ms_cold", "round_s_median", "round_s_max",
                               "round_cpu_s_median", "round_cpu_s_max", "peak_rss_MB", "load", "run_s")))
     print()
     print(table(fails, header=("pose_noise", *[f"fail:{k}" for k in keys[0]], *[f"ended:{k}" for k in keys[1]])))
+    print()
+    sts = sorted({k for _, d in left for k in d})
+    print("parts left when nothing was feasible, by the planner's instance status:")
+    print(table([(n, *[d.get(k, 0) for k in sts]) for n, d in left], header=("pose_noise", *sts)))
     print()
     print(table(list(VGN), header=("for comparison", "GSR_%", "DR_%", "plan_ms")))
     print(f"targets: planning median < {PLAN_TARGET_MS:g} ms, a round < {ROUND_TARGET_S:g} s; reports in {args.out}")

@@ -1,14 +1,12 @@
 """The robot cell's collision scene: robot links, gripper, table, obstacles and part (Pinocchio + coal).
 
-:class:`CollisionScene` is built ONCE per (robot, gripper, part, part pose, cell) and then queried
-thousands of times (OMPL's state validity checker), so everything is prebuilt: one
-``pin.GeometryModel`` holding
+:class:`CollisionScene` is built ONCE per (robot, gripper, part, part pose, cell), then queried thousands
+of times (OMPL's validity checker), so everything is prebuilt: one ``pin.GeometryModel`` holding
 
 * the robot's URDF collision meshes (``robot.collision_model``, coal BVHs),
 * the gripper body shapes and the two finger shapes, attached to the tool frame's joint at
   ``T_joint_tool @ T_flange_tcp @ T_tcp_shape`` (fingers moved to the requested jaw opening),
-* the table, a 20 m x 20 m x 2 m coal ``Box`` whose top face is ``z = cell.table_z`` (it fills
-  z < table_z within reach: the cell's half-space),
+* the table, a 20 m x 20 m x 2 m coal ``Box`` with its top face at ``z = cell.table_z`` (a half-space within reach),
 * the cell's obstacles (``cell.obstacles``: boxes, cylinders, spheres, mesh BVHs; the bin's floor
   and walls among them), built by :func:`grasplan.geometry.obstacle_geometry`,
 * the part twice: static, a coal BVH (OBBRSS) of ``part_mesh`` at ``T_world_part``, and attached,
@@ -47,8 +45,8 @@ Reports use body names: the robot link name, ``gripper:<element>`` (``gripper:bo
 ``gripper:finger_left``, ``gripper:finger_right``), ``part``, ``table``, ``obstacle:<name>``.
 Kinds: ``table``, ``part``, ``obstacle``, ``self``.
 
-All geometry is in the robot model's frame (its URDF root link); the world objects (table, part,
-obstacles) are placed there through ``inv(robot.T_world_base)``.
+All geometry is in the robot model's frame (its URDF root link), world objects placed through
+``inv(robot.T_world_base)``.
 
 Extra bodies (``extras``: :class:`ExtraBody`, e.g. the other instances of a pile and a point
 cloud's octree for ``grasplan pick``): static geometry checked against the gripper, every robot
@@ -56,8 +54,7 @@ link and the attached part, reported by their own body names (``instance:<id>``,
 are built once; :meth:`CollisionScene.arranged` makes a variant with the part at a pose and each
 extra placed or switched off, so a scene serves every instance of every pile of the same parts.
 
-The checks before planning (the part inside the table or an obstacle, the robot's base inside an
-obstacle, q_home in collision) live in :mod:`grasplan.start_checks`.
+The checks before planning (part in the table or an obstacle, ...) are :mod:`grasplan.start_checks`.
 """
 from __future__ import annotations
 
@@ -350,7 +347,7 @@ class CollisionScene:
             req.num_max_contacts = 1
         self.geom_data = gd
         self._active = active
-        self._broadphase: pin.BroadPhaseManager_DynamicAABBTreeCollisionManager | None = None
+        self._broadphase: pin.BroadPhaseManager_SSaPCollisionManager | None = None
         self._placements: dict[int, pin.SE3] = {}
         env = shared.env_ids
         if self.T_world_part is not None and PART in env:
@@ -396,6 +393,17 @@ class CollisionScene:
                             None, extras)
         return other
 
+    def switch_pairs(self, pairs: np.ndarray, on: bool) -> None:
+        """Switch the pairs ``pairs`` (indices into :meth:`pair_rows`) of this variant off or back on."""
+        for k in np.asarray(pairs, dtype=np.int64).tolist():
+            (self.geom_data.activateCollisionPair if on else self.geom_data.deactivateCollisionPair)(k)
+        self._active[pairs] = on
+
+    def pair_rows(self) -> list[tuple[str, str, str, str, str]]:
+        """Every pair: ``(body, body, kind, group (static, attached, ""), extra body name or "")``."""
+        sh = self._shared
+        return [(*sh.body_names[k], sh.kinds[k], str(sh.group[k]), str(sh.extra_of[k])) for k in range(len(sh.pairs))]
+
     def move_attached(self, T_tcp_part) -> None:
         """Set the attached part's ``T_tcp_part`` (4, 4) of this ``attached`` variant in place
         (no new scratch data: the planner holds one attached variant and moves the part per grasp)."""
@@ -410,8 +418,7 @@ class CollisionScene:
 
     # ------------------------------------------------------------------------------------------
     def _check_finger_model(self, gripper) -> None:
-        """The fingers move as pure x translations of their opening-0 pose (checked once), plus
-        ``tcp_offset`` along z for a gripper whose TCP moves with the opening."""
+        """The fingers move as x translations of their opening-0 pose (+ a moving TCP's z offset)."""
         o = float(gripper.max_opening)
         dz = float(gripper.tcp_offset(o)) - float(gripper.tcp_offset(0.0)) if getattr(gripper, "moving_tcp", False) else 0.0
         for sign, shape0, shape in zip((-1.0, 1.0), gripper.fingers(0.0), gripper.fingers(o)):
@@ -440,11 +447,6 @@ class CollisionScene:
         """The checked pairs of this variant, in checking order: (geometry name, geometry name)."""
         return [n for n, on in zip(self._shared.geom_names, self._active) if on]
 
-    @property
-    def obstacle_names(self) -> list[str]:
-        """The cell's obstacle names, in the cell's order."""
-        return [self._shared.body[g][len("obstacle:"):] for g in self._shared.obstacle_ids]
-
     def set_opening(self, opening: float) -> None:
         """Move the finger geometry to jaw ``opening`` (m); cheap, cached for repeated calls."""
         o = float(opening)
@@ -471,13 +473,13 @@ class CollisionScene:
 
     def _collides(self, q: np.ndarray) -> bool:
         """Any active pair in collision at q (early stop). A scene with extra bodies (many pairs)
-        goes through a broad phase first: coal's dynamic AABB tree over the placed geometries
+        goes through a broad phase first: coal's sweep and prune (SSaP) over the placed geometries
         (Pinocchio's ``BroadPhaseManager``; only the active pairs whose world boxes overlap reach
         the narrow phase; the same answer, several times faster with a pile)."""
         if not self._shared.extra_ids:
             return bool(pin.computeCollisions(self.model, self.data, self.geom_model, self.geom_data, q, True))
         if self._broadphase is None:
-            self._broadphase = pin.BroadPhaseManager_DynamicAABBTreeCollisionManager(
+            self._broadphase = pin.BroadPhaseManager_SSaPCollisionManager(
                 self.model, self.geom_model, self.geom_data)
         return bool(pin.computeCollisions(self.model, self.data, self._broadphase, q, True))
 
@@ -488,7 +490,7 @@ class CollisionScene:
         return not self._collides(q)
 
     def is_free_exhaustive(self, q, opening: float | None = None) -> bool:
-        """:meth:`is_free` checking every active pair (no broad phase): the reference it is tested against."""
+        """:meth:`is_free` checking every active pair (no broad phase): the reference of the tests."""
         q = self._prep(q, opening)
         return not pin.computeCollisions(self.model, self.data, self.geom_model, self.geom_data, q, True)
 
@@ -546,9 +548,8 @@ class CollisionScene:
 
     def path_collisions(self, qs, opening: float | None = None, *, step: float = STEP
                         ) -> tuple[int, list[tuple[str, str, str]]] | None:
-        """The first colliding configuration of the path qs (k, n) densified at ``step`` rad, as
-        ``(row in the densified path, colliding_pairs)``; None when the path is free. For reasons;
-        use :meth:`path_free` to decide."""
+        """``(row of the path densified at step, colliding_pairs)`` of the first colliding
+        configuration, or None (for reasons; :meth:`path_free` decides)."""
         dense = interpolate_path(np.asarray(qs, dtype=float), step=step)
         for k, q in enumerate(dense):
             if not self.is_free(q, opening):

@@ -13,9 +13,11 @@ point of the cloud as the cube of its octree leaf (``floor(p / resolution)`` cel
   tool joint. Within the first ``lift_contact`` metres of TCP travel from the grasp (FK) the carried
   instance may touch the table, the bin or a neighbour (it rests on them); beyond it, it may touch
   a neighbour only when the two interpenetrate by at most ``lift_depth`` (+ :data:`DEPTH_SLACK` for
-  the sampling), measured here independently of grasplan (:func:`mesh_depth`: trimesh's random
-  surface samples and vertices, a generalised winding number for inside, trimesh's exact
-  closest point on the triangles for the distance); nothing else may touch.
+  the sampling) more than they do at rest (the pick's ``T_world_part``; counted up to ``rest_cap``,
+  the planner's ``overlap_tol``; 0: the absolute depth), measured here independently of grasplan
+  (:func:`mesh_depth`: trimesh's random surface samples and vertices, a generalised winding number
+  for inside, trimesh's exact closest point on the triangles for the distance); nothing else may
+  touch. The lift is the motion's own ``lift`` segment, whatever its direction.
 """
 from __future__ import annotations
 
@@ -97,7 +99,8 @@ def pile_obstacles(instances, meshes, *, exclude: str, cloud=None, resolution: f
 
 
 def recheck_pick(robot, gripper, cell, pick, instances, meshes, *, cloud=None, resolution: float = 0.005,
-                 lift_contact: float = 0.002, lift_depth: float = 0.0, step: float = 0.01) -> Report:
+                 lift_contact: float = 0.002, lift_depth: float = 0.0, rest_cap: float = 0.0,
+                 step: float = 0.01) -> Report:
     """Re-check one :class:`grasplan.pick.Pick` against the pile ``instances`` present when it was planned."""
     obstacles = pile_obstacles(instances, meshes, exclude=pick.instance, cloud=cloud, resolution=resolution)
     world = FclWorld(robot, gripper, replace(cell, obstacles=tuple(cell.obstacles) + tuple(obstacles)),
@@ -110,6 +113,13 @@ def recheck_pick(robot, gripper, cell, pick, instances, meshes, *, cloud=None, r
     rep = Report()
     rep.lift_depths = []  # type: ignore[attr-defined]  # depths of the accepted and refused lift contacts
     by_id = {i.id: i for i in instances if i.id != pick.instance}
+    rest: dict[str, float] = {}  # resting depth per neighbour touched
+
+    def at_rest(iid: str) -> float:
+        if iid not in rest:
+            rest[iid] = 0.0 if rest_cap <= 0 else min(rest_cap, mesh_depth(
+                meshes[pick.part], pick.T_world_part, meshes[by_id[iid].part], by_id[iid].T_world_part))
+        return rest[iid]
     from fcl_recheck import RobotLinks
 
     tcp = RobotLinks(robot, gripper.T_flange_tcp)
@@ -137,11 +147,12 @@ def recheck_pick(robot, gripper, cell, pick, instances, meshes, *, cloud=None, r
                     for h in hits:
                         iid = h[len("part (attached) vs obstacle:instance_"):]
                         if h.startswith("part (attached) vs obstacle:instance_") and iid in by_id:
-                            d = mesh_depth(meshes[pick.part], T_part, meshes[by_id[iid].part], by_id[iid].T_world_part)
+                            d = mesh_depth(meshes[pick.part], T_part, meshes[by_id[iid].part],
+                                           by_id[iid].T_world_part) - at_rest(iid)
                             rep.lift_depths.append(d)
                             if d <= lift_depth + DEPTH_SLACK:
                                 continue
-                            h += f" ({1e3 * d:.2f} mm deep)"
+                            h += f" ({1e3 * d:.2f} mm deeper than at rest)"
                         keep.append(h)
                     hits = keep
             if hits:

@@ -110,6 +110,35 @@ def test_lone_part_is_picked(lone_box, gripper, cell):
     assert cw.data.xipos[cw.world.body_ids[0]][2] == pytest.approx(z0)
 
 
+def test_a_tilted_lift_is_followed(lone_box, gripper, cell):
+    """A pick whose lift is tilted 45 deg (a planner's lift away from a neighbour): the hand follows the
+    pick's own straight line to T_world_lifted (MuJoCo's hand frame in every replay sample) and the box
+    comes up with it, displaced sideways as planned (towards the bin's middle: clear of its walls)."""
+    part, cw, T_part = lone_box
+    snap = cw.world.snapshot()
+    (T, w), = _top_down(part, gripper, cell, T_part)
+    pick = _pick(T, w, gripper)
+    side = np.asarray(cell.bin.T_world_bin)[:2, 3] - T[:2, 3]
+    u = np.append(np.sqrt(0.5) * side / np.linalg.norm(side), np.sqrt(0.5))
+    pick.T_world_lifted = T.copy()
+    pick.T_world_lifted[:3, 3] += LIFT * u
+    x0 = cw.data.xipos[cw.world.body_ids[0]].copy()
+    out = execute_pick(cw, 0, pick, settle=False, record=True)
+    assert out.outcome == SUCCESS, out.reason
+    hand = np.array([h[:3, 3] for _, h, _, _ in out.track])
+    k0 = int(np.flatnonzero(np.linalg.norm(hand - T[:3, 3], axis=1) < 1e-6)[0])  # at the grasp: close, lift, hold
+    off = hand[k0:] - T[:3, 3]
+    assert len(off) > 20
+    along = off @ u
+    assert np.max(np.linalg.norm(off - along[:, None] * u, axis=1)) < 2e-4  # on the planned line
+    assert np.max(along) == pytest.approx(LIFT, abs=1e-4)
+    box = out.track[-1][3][0][:3, 3]  # the box's pose at the end of the hold: moved with the hand
+    np.testing.assert_allclose(box[:2] - x0[:2], LIFT * u[:2], atol=3e-3)
+    assert out.lift == pytest.approx(LIFT * np.sqrt(0.5), abs=5e-3)
+    cw.world.restore(snap)
+    cw.park_hand()
+
+
 def test_miss_fails_with_a_reason(lone_box, gripper, cell):
     """The same grasp 40 mm to the side closes on air; straight into the floor is a collision."""
     part, cw, T_part = lone_box
@@ -177,3 +206,63 @@ def test_round_with_a_tiny_planner(cell, gripper):
     for a, b in zip(rr.attempts, again.attempts):
         assert a.execution.lift == b.execution.lift and a.execution.opening == b.execution.opening
     np.testing.assert_array_equal(rr.replay[1]["track"][-1][1], again.replay[1]["track"][-1][1])
+
+
+def test_linkage_pads_ride_their_arc(cell):
+    """A linkage gripper (Robotiq 2F-85: the pads move on an arc, the TCP with the opening): while the
+    jaws close under the motors, MuJoCo's pad is where the gripper model puts it at the opening
+    MuJoCo reports (grasplan.gripper.linkage: along x and along the approach axis)."""
+    import mujoco
+
+    g = load_gripper("robotiq_2f_85")
+    part = load_part(EXAMPLES / "box.stl")
+    holder = {}
+
+    def make(bodies):
+        holder["cw"] = ClutterWorld(cell, bodies, g, mu=0.3)
+        return holder["cw"].world
+
+    drop_pile(cell, [PileItem("box", part, 1)], params=DropParams(seed=1, decomposition="hull"), make_world=make)
+    cw = holder["cw"]
+    T = np.eye(4)
+    T[:3, 3] = [0.45, 0.0, 0.4]  # in the air above the bin
+    T[:3, :3] = np.diag([1.0, -1.0, -1.0])
+    cw.set_hand(T)
+    cw.set_jaws(g.max_opening)
+    cw.squeeze(cw.grip_force)
+    pad = mujoco.mj_name2id(cw.model, mujoco.mjtObj.mjOBJ_GEOM, "#jaw1")
+    seen = []
+    for _ in range(60):  # 0.3 s at 5 ms
+        cw.set_hand(T)
+        cw.step(0.005)
+        o = cw.opening()
+        want = T @ g.fingers(o)[1].T_tcp_box
+        np.testing.assert_allclose(cw.data.geom_xpos[pad], want[:3, 3], atol=2e-4)
+        seen.append(o)
+    assert seen[0] - seen[-1] > 0.01  # the jaws did close (by more than 10 mm)
+    z_travel = g.tcp_offset(seen[-1]) - g.tcp_offset(seen[0])
+    assert abs(z_travel) > 1e-3  # and the pads moved along the approach axis, as the model says
+
+
+def test_a_lift_into_a_wall_is_a_collision(lone_box, gripper, cell):
+    """A lift tilted 45 deg towards the nearest bin wall drives the gripper's housing into it: the
+    kinematic hand is pushed back off its path within a control period (MuJoCo's hand frame), a
+    collision (the arm's protective stop), not a slip."""
+    part, cw, T_part = lone_box
+    snap = cw.world.snapshot()
+    (T, w), = _top_down(part, gripper, cell, T_part)
+    pick = _pick(T, w, gripper)
+    c = np.asarray(cell.bin.T_world_bin)[:2, 3]
+    half = 0.5 * np.asarray(cell.bin.inner)
+    gaps = np.concatenate([c + half - T[:2, 3], T[:2, 3] - (c - half)])  # to the +x, +y, -x, -y walls
+    k = int(np.argmin(gaps))
+    u = np.zeros(3)
+    u[k % 2] = 1.0 if k < 2 else -1.0
+    u = np.sqrt(0.5) * (u + np.array([0.0, 0.0, 1.0]))
+    assert gaps[k] < LIFT * np.sqrt(0.5) + 0.5 * 0.06  # the 71 mm sideways take the 60 mm housing to that wall
+    pick.T_world_lifted = T.copy()
+    pick.T_world_lifted[:3, 3] += LIFT * u
+    out = execute_pick(cw, 0, pick, settle=False)
+    assert out.outcome == COLLIDED and "lift" in out.reason and "off its path" in out.reason, out.reason
+    cw.world.restore(snap)
+    cw.park_hand()

@@ -298,3 +298,38 @@ def test_cli_refuses_an_output_over_a_file_the_scene_reads(tmp_path, rest):
     r = CliRunner().invoke(main, ["pick", str(tmp_path / "s.yaml"), "-o", str(mesh)])
     assert r.exit_code == 3, r.output
     assert mesh.read_bytes() == before
+
+
+def test_lift_shortcut_still_checks_the_arm(picker, rest):
+    """At the lift's waypoints the robot check skips only what the checks before IK decided (the
+    gripper against the world, the carried part against the neighbours and the cloud): a
+    neighbour where the wrist passes during the lift is still a lift collision of that link."""
+    from grasplan.pick.motion import _drop_pairs, lift_collision, lift_precheck_drop
+    from grasplan.pickplace import T_tcp_part_of
+
+    pk = picker.plan(scene(("a", "bracket", rest))).pick("a")
+    s, e = pk.motion.segment("lift")
+    lift = pk.motion.path[s:e + 1]
+    T_x = picker.robot.frame_pose(lift[len(lift) // 2], "wrist_1_link")  # a bracket at the wrist, half-way up
+    sc = scene(("a", "bracket", rest), ("x", "bracket", T_x))
+    res = picker.plan(sc, max_picks=0)
+    st = picker._cells[res.cell]
+    static, att = picker._variants(st, sc.instances[0], list(sc.instances), False)
+    att.move_attached(T_tcp_part_of(pk.T_part_tcp))
+    drop = lift_precheck_drop(att)
+    for (a, b, kind, group, extra), d in zip(att.pair_rows(), drop):
+        gripper_world = (a.startswith("gripper:") or b.startswith("gripper:")) and kind != "self"
+        assert d == (gripper_world or (group == "attached" and extra != "")), (a, b)
+    ids = _drop_pairs(att)
+    active = att._active.copy()
+    att.switch_pairs(ids, False)
+    at_x = att.colliding_pairs(lift[len(lift) // 2], pk.width)  # the waypoint next to x, the pairs kept
+    att.switch_pairs(ids, True)
+    assert np.array_equal(att._active, active)
+    assert any("instance:x" in (p[0], p[1]) and "link" in p[0] + p[1] for p in at_x), at_x
+    assert not any(p[0].startswith("gripper:") or p[1].startswith("gripper:") for p in at_x if p[2] != "self"), at_x
+    covered = np.ones(len(lift), dtype=bool)  # as if every waypoint passed the checks before IK
+    for cov, d in ((None, None), (covered, ids)):
+        pairs = lift_collision(att, lift, pk.width, 1, None, cov, d)
+        assert pairs and any("instance:x" in (p[0], p[1]) and "link" in p[0] + p[1] for p in pairs), pairs
+    assert np.array_equal(att._active, active)  # every pair switched back on

@@ -79,12 +79,13 @@ def _scene(rest, gap_axis: int, dz_b: float, overlap: float, mesh):
 
 @pytest.mark.parametrize("gap_axis", [0, 1])
 def test_sliding_up_beside_a_touching_neighbour_is_picked_and_rechecked(bracket, rest, gap_axis):
-    strict = Picker("ur5", params=PickParams(grasps_per_instance=8, lift_depth=0.0))
+    # straight lifts only (a lift tilted away from b would leave it without touching)
+    strict = Picker("ur5", params=PickParams(grasps_per_instance=8, lift_depth=0.0, max_lift_tilt_deg=0.0))
     strict.add_part("bracket", bracket)
     sc = _scene(rest, gap_axis, 0.0, 0.0005, bracket.mesh)  # side by side, 0.5 mm of pose noise
     a = strict.plan(sc).report("a")
     assert a.status == "blocked" and a.blocked_by == ("b",), a      # the strict rule: dragged through b
-    tol = Picker("ur5", params=PickParams(grasps_per_instance=8, lift_depth=0.001))
+    tol = Picker("ur5", params=PickParams(grasps_per_instance=8, lift_depth=0.001, max_lift_tilt_deg=0.0))
     tol.add_part("bracket", bracket)
     res = tol.plan(sc)
     assert res.report("a").status == "picked", res.report("a")
@@ -109,4 +110,88 @@ def test_dragged_through_a_neighbour_deeper_than_the_tolerance_is_refused(bracke
     res = pk.plan(sc)
     a = res.report("a")
     assert a.status == "blocked" and a.blocked_by == ("b",), a
-    assert "instance:b" in a.reason and "mm deep; at most 1 mm allowed" in a.reason, a.reason
+    assert "instance:b" in a.reason and "mm deeper than the 0.2 mm of resting overlap counted; at most 1 mm allowed" in a.reason, a.reason
+    assert "tilted lifts (15/30/45 deg from the retreat)" in a.reason, a.reason  # b lies on it: no way up
+
+
+BOX = ROOT / "examples" / "parts" / "box.stl"
+
+
+@pytest.fixture(scope="module")
+def leaning():
+    """Two 30 x 20 x 10 mm boxes: b rests on a's +x edge, overlapping it by 1.5 mm in x (lying on it):
+    a's straight lift pushes 1.5 mm into b, beyond the 1 mm of --lift-depth."""
+    box = load_part(BOX)
+    rest = stable_pose(box.mesh, load_cell("bin"))
+    lo, hi = _world_extent(box.mesh, rest)
+    b = at(rest, (hi - lo)[0] - 0.0015, 0.0, (hi - lo)[2])
+    return box, Scene(instances=(Instance("a", "box", rest), Instance("b", "box", b)), cell="bin")
+
+
+def test_straight_lift_through_a_leaning_neighbour_is_replaced_by_a_tilted_one(leaning, tmp_path):
+    box, sc = leaning
+    straight = Picker("ur5", params=PickParams(grasps_per_instance=8, max_lift_tilt_deg=0.0))
+    straight.add_part("box", box)
+    a = straight.plan(sc).report("a")
+    assert a.status == "blocked" and a.blocked_by == ("b",) and "tilted" not in a.reason, a
+    pk = Picker("ur5", params=PickParams(grasps_per_instance=8))
+    pk.add_part("box", box)
+    res = pk.plan(sc)
+    rep = res.report("a")
+    assert rep.status == "picked" and "deg from the retreat" in rep.reason, rep
+    pick = res.pick("a")
+    lift = pick.T_world_lifted[:3, 3] - pick.T_world_tcp[:3, 3]
+    assert np.linalg.norm(lift) == pytest.approx(res.cell.retreat_distance)
+    tilt = np.degrees(np.arccos(lift[2] / np.linalg.norm(lift)))
+    assert tilt == pytest.approx(15.0, abs=1e-6) or tilt == pytest.approx(30.0) or tilt == pytest.approx(45.0)
+    assert lift[0] < 0  # away from b (on a's +x edge)
+    np.testing.assert_allclose(pick.T_world_lifted[:3, :3], pick.T_world_tcp[:3, :3])
+    # the motion's lift segment ends at the pick's own lifted TCP (forward kinematics, not the record)
+    from fcl_recheck import RobotLinks as Links  # Pinocchio FK from the URDF, not grasplan's
+
+    l0, l1 = pick.motion.segment("lift")
+    tcp = Links(res.robot, res.gripper.T_flange_tcp).fk_tcp(np.asarray(pick.motion.path)[l1])
+    np.testing.assert_allclose(tcp[:3, 3], pick.T_world_lifted[:3, 3], atol=5e-4)
+    # re-checked independently (python-fcl, trimesh depths) along the pick's own lift: it touches b, shallowly
+    rc = recheck_pick(pk.robot, pk.gripper, res.cell, pick, sc.instances, {"box": box.mesh},
+                      lift_contact=res.params.lift_contact, lift_depth=res.params.lift_depth)
+    assert rc.ok, rc.problems
+    # and the independent depth confirms the straight lift was rightly refused: 5 mm up, a is > 1 mm into b
+    up = at(sc.instances[0].T_world_part, dz=0.005)
+    assert mesh_depth(box.mesh, up, box.mesh, sc.instances[1].T_world_part) > 0.001 + 3e-4
+    # the picks file and a robot program follow the pick's own lift (the export checks its lift segment)
+    from click.testing import CliRunner
+
+    from grasplan.cli import main
+
+    out = res.write(tmp_path / "picks.json")
+    r = CliRunner().invoke(main, ["export", str(out), "--format", "urscript", "--instance", "a",
+                                  "-o", str(tmp_path / "a.script")])
+    assert r.exit_code == 0, r.output
+
+
+@pytest.mark.parametrize("cap,picked", [(0.003, True), (0.001, False)])
+def test_a_neighbour_overlapping_at_rest_blocks_only_when_the_lift_goes_deeper(cap, picked):
+    """Side by side, 2.5 mm into each other at rest (a pose estimate's error): the straight lift slides
+    a up beside b at that depth, no deeper: picked when the resting depth counts (up to --overlap-tol
+    3 mm), refused when only 1 mm of it may count (2.5 - 1 > 1 mm of --lift-depth)."""
+    box = load_part(BOX)
+    rest = stable_pose(box.mesh, load_cell("bin"))
+    lo, hi = _world_extent(box.mesh, rest)
+    sc = Scene(instances=(Instance("a", "box", rest), Instance("b", "box", at(rest, (hi - lo)[0] - 0.0025))), cell="bin")
+    pk = Picker("ur5", params=PickParams(grasps_per_instance=8, max_lift_tilt_deg=0.0, overlap_tol=cap))
+    pk.add_part("box", box)
+    res = pk.plan(sc)
+    a = res.report("a")
+    if not picked:
+        assert a.status == "blocked" and "mm deeper than the 1.0 mm of resting overlap counted" in a.reason, a
+        return
+    assert a.status == "picked", a
+    rc = recheck_pick(pk.robot, pk.gripper, res.cell, res.pick("a"), sc.instances, {"box": box.mesh},
+                      lift_contact=res.params.lift_contact, lift_depth=res.params.lift_depth, rest_cap=cap)
+    assert rc.ok, rc.problems
+    assert rc.lift_depths and max(rc.lift_depths) <= 0.001 + 3e-4
+    # the absolute rule (no resting depth counted) refuses the same lift: 2.5 mm deep along it
+    absolute = recheck_pick(pk.robot, pk.gripper, res.cell, res.pick("a"), sc.instances, {"box": box.mesh},
+                            lift_contact=res.params.lift_contact, lift_depth=res.params.lift_depth)
+    assert not absolute.ok and "instance_b" in absolute.problems[0]

@@ -89,3 +89,30 @@ def test_scene_checks_depths():
     assert "'a' and 'b'" in w and 3.0 <= depth <= 4.0 + 1e-6
     b[0, 3] = T[0, 3] + 0.030 - 0.001  # 1 mm: pose noise, no warning
     assert overlap_warnings([_inst("a", T), _inst("b", b)], meshes, tol=0.002) == []
+
+
+def test_ur_line_branch_named_by_the_start_signs_is_the_best_match(ur5):
+    """ur_line solves only the branch the start's signs name (start_branch); the paths are those of
+    comparing all eight branches, on random lines from random starts."""
+    import grasplan.pick.lines as lines
+
+    robot, _ = ur5
+    ur = get_solver(robot).analytic
+    rng = np.random.default_rng(7)
+    named = 0
+    for _ in range(60):
+        q0 = rng.uniform(-3.0, 3.0, 6)
+        T0 = lines.fk_base_tool(ur, q0[None])[0]
+        d = rng.normal(0.0, 1.0, 3)
+        T = np.broadcast_to(T0, (20, 4, 4)).copy()
+        T[:, :3, 3] = T0[:3, 3] + 0.1 * d / np.linalg.norm(d) * (np.arange(1, 21) / 20)[:, None]
+        got = lines.ur_line(ur, T, q0, robot.lower, robot.upper, 0.1)
+        Q, valid = lines.branches(ur, np.concatenate([T0[None], T]))
+        gap = Q[:, 0, :] - q0
+        b = int(np.argmin(np.where(valid[:, 0], np.abs(gap - 2 * np.pi * np.round(gap / (2 * np.pi))).max(axis=1),
+                                   np.inf)))
+        named += lines.start_branch(ur, q0, T0) == b
+        if got[0] is not None:  # the path runs on the best-matching branch, unwrapped from q0
+            np.testing.assert_allclose(np.cos(got[0][1:]), np.cos(Q[b, 1:]), atol=1e-12)
+            np.testing.assert_allclose(np.sin(got[0][1:]), np.sin(Q[b, 1:]), atol=1e-12)
+    assert named >= 55

@@ -3,7 +3,8 @@
 Protocol (:func:`execute_pick`), all in the world frame with the bin and every part present:
 
 1. **Pre-grasp.** The hand appears at the pick's ``T_world_pregrasp`` with the jaws at its
-   ``opening`` (the transit from above is not simulated: the arm is not modelled). A gripper that
+   ``opening`` (for a linkage gripper whose TCP moves with the opening, every pose of the pick
+   is moved by ``T_tcp_gripper(width)``: the hand frame is the TCP at full opening) (the transit from above is not simulated: the arm is not modelled). A gripper that
    already overlaps something there by more than :data:`START_DEPTH` has *collided*.
 2. **Approach.** The TCP follows the straight line to ``T_world_tcp`` (cosine speed profile,
    peak :data:`APPROACH_SPEED`), the jaws idle (their damping holds them).
@@ -12,8 +13,9 @@ Protocol (:func:`execute_pick`), all in the world frame with the bin and every p
    :data:`LIFT_SPEED`), then **holds** still for :data:`HOLD_S`.
 5. **Outcome.** *Success*: the target's centre of mass is at least :data:`LIFT_MIN` above where it
    started and both jaws touch it. Otherwise, in this order: *collided* (the gripper pressed on the
-   bin, the table or another fixed obstacle with more than :data:`COLLIDE_FORCE`, a cobot's
-   protective stop: the run stops there), *slipped* (both jaws held the target when they closed;
+   bin, the table or another fixed obstacle with more than :data:`COLLIDE_FORCE`, or contacts
+   pushed the hand more than :data:`PATH_DEV` off its planned path within a control period: a
+   cobot's protective stop; the run stops there), *slipped* (both jaws held the target when they closed;
    it was lost in the lift or the hold), *pushed away* (the target moved more than
    :data:`PUSH_DIST` or turned more than :data:`PUSH_DEG` before the jaws closed on it) and
    *missed* (the jaws closed beside it).
@@ -45,6 +47,9 @@ LIFT_MIN = 0.05
 START_DEPTH = 0.001
 #: contact force (N) of the gripper on the bin, the table or an obstacle that stops the run
 COLLIDE_FORCE = 50.0
+#: the hand (TCP) ended a control period farther (m) than this from its planned path: it ran into
+#: something fixed (the hand is driven along the path; only a collision pushes it off it)
+PATH_DEV = 0.001
 #: the target moved farther (m) or turned more (deg) than this before the jaws closed: pushed
 PUSH_DIST, PUSH_DEG = 0.005, 10.0
 #: longest settling of the pile after a pick (simulated s)
@@ -52,7 +57,8 @@ SETTLE_MAX_S = 3.0
 
 #: the execution protocol's numbers, as a report records them
 PROTOCOL = {"approach_speed": APPROACH_SPEED, "lift_speed": LIFT_SPEED, "close_s": CLOSE_S, "hold_s": HOLD_S,
-            "lift_min": LIFT_MIN, "start_depth": START_DEPTH, "collide_force": COLLIDE_FORCE, "push_dist": PUSH_DIST,
+            "lift_min": LIFT_MIN, "start_depth": START_DEPTH, "collide_force": COLLIDE_FORCE, "path_dev": PATH_DEV,
+            "push_dist": PUSH_DIST,
             "push_deg": PUSH_DEG, "timestep": PICK_TIMESTEP, "control_dt": CONTROL_DT}
 
 SUCCESS, COLLIDED, SLIPPED, PUSHED, MISSED = "success", "collided", "slipped", "pushed_away", "missed"
@@ -145,6 +151,7 @@ class _Run:
         self.track: list = []
         self.fixed_force = 0.0
         self.fixed_what = ""
+        self.off_path = 0.0  #: how far (m) contacts pushed the hand off its planned path, when beyond PATH_DEV
         self.next_sample = 0.0
         self.ids = [int(i) for i in np.flatnonzero(cw.world.present)] if record else []
 
@@ -158,15 +165,24 @@ class _Run:
             poses = np.stack([w.pose(i) for i in self.ids]) if self.ids else np.zeros((0, 4, 4))
             self.track.append((round(self.t, 4), self.cw.hand_pose(), max(0.0, self.cw.opening()), poses))
 
-    def period(self) -> bool:
-        """Step one control period; False when the gripper pressed a fixed obstacle too hard."""
+    def period(self, expect: np.ndarray | None = None) -> bool:
+        """Step one control period; False when the gripper pressed a fixed obstacle too hard, or
+        the hand ended more than :data:`PATH_DEV` from ``expect`` (where the planned path puts the
+        TCP at the period's end: contacts pushed it off, e.g. driven into a wall between samples)."""
         self.cw.step(CONTROL_DT)
         self.t += CONTROL_DT
         self.sample()
         for c in self.cw.contacts():
             if c.part < 0 and c.force > self.fixed_force:
                 self.fixed_force, self.fixed_what = c.force, f"the {c.gripper} on {c.other}"
-        return self.fixed_force <= COLLIDE_FORCE
+        if self.fixed_force > COLLIDE_FORCE:
+            return False
+        if expect is not None:
+            dev = float(np.linalg.norm(self.cw.hand_pose()[:3, 3] - expect))
+            if dev > PATH_DEV:
+                self.off_path = dev
+                return False
+        return True
 
     def move(self, T_from: np.ndarray, T_to: np.ndarray, speed: float) -> bool:
         """Drive the hand along the straight line ``T_from`` -> ``T_to``; False when it collided."""
@@ -178,14 +194,14 @@ class _Run:
             T[:3, :3] = T_from[:3, :3] @ _rotation(s[k] * rv)
             T[:3, 3] = T_from[:3, 3] + s[k] * dp
             self.cw.set_hand(T, v=ds[k] * dp, w=T_from[:3, :3] @ (ds[k] * rv))
-            if not self.period():
+            if not self.period(T_from[:3, 3] + (s[k + 1] if k + 1 < n else 1.0) * dp):
                 return False
         return self.stay(T_to, 0.0)
 
     def stay(self, T: np.ndarray, seconds: float) -> bool:
         for _ in range(round(seconds / CONTROL_DT)):
             self.cw.set_hand(T)
-            if not self.period():
+            if not self.period(T[:3, 3]):
                 return False
         self.cw.set_hand(T)
         return True
@@ -206,9 +222,12 @@ def execute_pick(cw: ClutterWorld, target: int, pick: PickLike, *, jaw_torsion=N
     w = cw.world
     if not w.present[target]:
         raise ValueError(f"execute_pick: part {w.bodies[target].name} is not in the world")
-    T_pre = check_transform(pick.T_world_pregrasp, "T_world_pregrasp")
-    T_grasp = check_transform(pick.T_world_tcp, "T_world_tcp")
-    T_lift = check_transform(pick.T_world_lifted, "T_world_lifted")
+    # the hand is the frame the gripper's shapes are given in: for a linkage gripper (its TCP moves
+    # with the opening) the pick's grasp TCP moved back to full opening, as the planner checks it
+    T_g = np.asarray(cw.gripper.T_tcp_gripper(float(pick.width)), dtype=np.float64)
+    T_pre = check_transform(pick.T_world_pregrasp, "T_world_pregrasp") @ T_g
+    T_grasp = check_transform(pick.T_world_tcp, "T_world_tcp") @ T_g
+    T_lift = check_transform(pick.T_world_lifted, "T_world_lifted") @ T_g
     timestep = float(cw.model.opt.timestep)
     cw.model.opt.timestep = PICK_TIMESTEP
     cw.set_jaw_torsion(jaw_torsion)
@@ -258,6 +277,11 @@ def _outcome(run: _Run, outcome: str, reason: str, T0: np.ndarray, com0: np.ndar
 
 
 def _collided(run: _Run, phase: str, T0, com0, held: bool = False, moved=None) -> Outcome:
+    if run.off_path > 0:
+        what = f" ({run.fixed_what}, {run.fixed_force:.0f} N)" if run.fixed_what else ""
+        return _outcome(run, COLLIDED, f"{phase}: the gripper was pushed {run.off_path * 1e3:.1f} mm off its path"
+                        f"{what} (> {PATH_DEV * 1e3:g} mm: it ran into something fixed; a protective stop)",
+                        T0, com0, held, moved)
     return _outcome(run, COLLIDED, f"{phase}: {run.fixed_what} pressed with {run.fixed_force:.0f} N "
                     f"(> {COLLIDE_FORCE:g} N, a protective stop)", T0, com0, held, moved)
 

@@ -43,6 +43,28 @@ HAND_PARK = (0.0, 0.0, -4.0)
 #: weight of the gripper's contact parameters against a part's when MuJoCo mixes them
 GRIPPER_SOLMIX = 1000.0
 HAND, JAWS = "#hand", ("#jaw0", "#jaw1")
+#: a linkage gripper's pads also slide along the approach axis, on these joints (coupled to the jaws')
+JAWS_Z = ("#jaw0z", "#jaw1z")
+#: largest error (m) of the quartic fit of a linkage gripper's pad arc (z as a function of x)
+ARC_FIT_TOL = 1e-4
+
+
+def arc_polynomial(gripper: Gripper) -> np.ndarray | None:
+    """For a gripper whose pads move on an arc (``moving_tcp``: the fingertips move along the approach
+    axis as the jaws close, :mod:`grasplan.gripper.linkage`): the coefficients ``a0..a4`` of the
+    quartic ``z(q) = sum a_k q^k`` giving each pad's offset along the approach axis at half-opening
+    ``q`` (MuJoCo's joint-equality ``polycoef``), fitted to ``tcp_offset(2 q)`` over the stroke
+    within :data:`ARC_FIT_TOL`; None for jaws that slide straight."""
+    if not getattr(gripper, "moving_tcp", False):
+        return None
+    q = np.linspace(0.0, 0.5 * gripper.max_opening, 201)
+    z = np.asarray(gripper.tcp_offset(2.0 * q), dtype=np.float64)
+    c = np.polynomial.polynomial.polyfit(q, z, 4)
+    err = float(np.max(np.abs(np.polynomial.polynomial.polyval(q, c) - z)))
+    if err > ARC_FIT_TOL:
+        raise ValueError(f"gripper {gripper.name}: its pad arc is not a quartic in the opening within "
+                         f"{ARC_FIT_TOL * 1e3:g} mm ({err * 1e3:.3f} mm); the clutter world cannot model it")
+    return c
 
 
 def _fmt(a) -> str:
@@ -75,17 +97,25 @@ def gripper_mjcf(gripper: Gripper, *, mu: float, grip_force: float) -> tuple[str
     inertia = _fmt([JAW_MASS * 1e-4] * 3)
     hand_inertia = _fmt([HAND_MASS * 0.01] * 3)
 
+    arc = arc_polynomial(gripper)
+
     def jaw(k: int, axis: str, geom: str) -> str:
+        z = "" if arc is None else (f'<joint name="{JAWS_Z[k]}" type="slide" axis="0 0 1" limited="false" '
+                                    f'armature="{JAW_MASS:.6g}"/>')
         return (f'<body name="{JAWS[k]}" gravcomp="1"><inertial pos="0 0 0" mass="{JAW_MASS}" diaginertia="{inertia}"/>'
                 f'<joint name="{JAWS[k]}" type="slide" axis="{axis}" range="0 {half:.9g}" limited="true" '
-                f'damping="{damping:.6g}" armature="{armature:.6g}"/>{geom}</body>')
+                f'damping="{damping:.6g}" armature="{armature:.6g}"/>{z}{geom}</body>')
 
     world = (f'<body name="{HAND}" pos="{_fmt(HAND_PARK)}" gravcomp="1"><freejoint name="{HAND}"/>'
              f'<inertial pos="0 0 0" mass="{HAND_MASS:g}" diaginertia="{hand_inertia}"/>{body}'
              f'{jaw(0, "-1 0 0", jaw0)}{jaw(1, "1 0 0", jaw1)}</body>')
     extra = (f'<contact><exclude body1="{JAWS[0]}" body2="{JAWS[1]}"/></contact>'
              f'<equality><joint joint1="{JAWS[0]}" joint2="{JAWS[1]}" polycoef="0 1 0 0 0" '
-             f'solref="{SOLREF_TIMECONST:.6g} 1"/></equality>'
+             f'solref="{SOLREF_TIMECONST:.6g} 1"/>'
+             + ("" if arc is None else "".join(  # the pads on their arc: z = quartic(x) (arc_polynomial)
+                 f'<joint joint1="{JAWS_Z[k]}" joint2="{JAWS[k]}" polycoef="{_fmt(arc)}" '
+                 f'solref="{SOLREF_TIMECONST:.6g} 1"/>' for k in (0, 1)))
+             + '</equality>'
              f'<actuator><motor name="close0" joint="{JAWS[0]}" gear="-1" ctrlrange="{-jaw_force:.9g} {jaw_force:.9g}" '
              f'ctrllimited="true"/><motor name="close1" joint="{JAWS[1]}" gear="-1" '
              f'ctrlrange="{-jaw_force:.9g} {jaw_force:.9g}" ctrllimited="true"/></actuator>')
@@ -127,6 +157,10 @@ class ClutterWorld:
         self._jaw_q = [int(m.jnt_qposadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n)]) for n in JAWS]
         self._jaw_v = [int(m.jnt_dofadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n)]) for n in JAWS]
         self._jaw_geom = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, n) for n in JAWS]
+        self._arc = arc_polynomial(gripper)
+        self._jaw_z = [] if self._arc is None else [
+            (int(m.jnt_qposadr[j]), int(m.jnt_dofadr[j]))
+            for j in (mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n) for n in JAWS_Z)]
         # per geom: which gripper body it belongs to ("" none) and which part body (-1 none)
         gripper_bodies = {self._hand: "hand", self._jaw_body[0]: "jaw0", self._jaw_body[1]: "jaw1"}
         self._geom_gripper = np.array([gripper_bodies.get(int(b), "") for b in m.geom_bodyid], dtype=object)
@@ -144,7 +178,8 @@ class ClutterWorld:
 
     # -- the hand ----------------------------------------------------------------------------------
     def set_hand(self, T_world_tcp: np.ndarray, v: np.ndarray | None = None, w: np.ndarray | None = None) -> None:
-        """Put the hand (TCP frame) at ``T_world_tcp`` moving at linear velocity ``v`` (m/s,
+        """Put the hand (TCP frame; a linkage gripper's at full opening, the frame its shapes are given
+        in: :meth:`grasplan.gripper.model.Gripper.T_tcp_gripper`) at ``T_world_tcp`` moving at linear velocity ``v`` (m/s,
         world) and angular velocity ``w`` (rad/s, world); zero when not given."""
         d = self.data
         T = np.asarray(T_world_tcp, dtype=np.float64)
@@ -158,6 +193,10 @@ class ClutterWorld:
         half = float(np.clip(0.5 * opening, 0.0, 0.5 * self.gripper.max_opening))
         for q, v in zip(self._jaw_q, self._jaw_v):
             self.data.qpos[q] = half
+            self.data.qvel[v] = 0.0
+        for q, v in self._jaw_z:  # a linkage's pads on their arc
+            assert self._arc is not None
+            self.data.qpos[q] = float(np.polynomial.polynomial.polyval(half, self._arc))
             self.data.qvel[v] = 0.0
         self.data.ctrl[:] = 0.0
 

@@ -55,10 +55,10 @@ class PartDepth:
 
 
 def _into(a: PartDepth, T_a: np.ndarray, b: PartDepth, T_b: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-          stop: float) -> float:
+          stop: float, step: int = 1) -> float:
     """Largest depth of ``a``'s samples (at ``T_a``) inside ``b`` (at ``T_b``), of those in the world
     box ``lo, hi`` (where the two parts' world boxes overlap); stops once above ``stop``."""
-    w = a.samples @ T_a[:3, :3].T + T_a[:3, 3]
+    w = a.samples[::step] @ T_a[:3, :3].T + T_a[:3, 3]
     w = w[np.all((w >= lo) & (w <= hi), axis=1)]
     if not len(w):
         return 0.0
@@ -89,18 +89,21 @@ def _into(a: PartDepth, T_a: np.ndarray, b: PartDepth, T_b: np.ndarray, lo: np.n
     return best
 
 
-def pair_depth(a: PartDepth, T_a: np.ndarray, b: PartDepth, T_b: np.ndarray, *, stop: float = np.inf) -> float:
+def pair_depth(a: PartDepth, T_a: np.ndarray, b: PartDepth, T_b: np.ndarray, *, stop: float = np.inf,
+               step: int = 1) -> float:
     """Penetration depth (m, 0 when apart or touching) of ``a`` at ``T_a`` and ``b`` at ``T_b`` (see
     the module docstring). With a finite ``stop`` it answers "deeper than ``stop``?": the result is
     a depth found above ``stop`` (a lower bound: the search stops there) when there is one, else a
-    value at most ``stop`` (points within ``stop`` of the other surface are not measured)."""
+    value at most ``stop`` (points within ``stop`` of the other surface are not measured).
+    ``step``: only every step-th surface sample of each part is a probe (a lower bound of the depth,
+    so a value above ``stop`` found this way is one the full search finds too)."""
     T_a, T_b = np.asarray(T_a, dtype=np.float64), np.asarray(T_b, dtype=np.float64)
     wa = a.hull @ T_a[:3, :3].T + T_a[:3, 3]
     wb = b.hull @ T_b[:3, :3].T + T_b[:3, 3]
     lo, hi = np.maximum(wa.min(axis=0), wb.min(axis=0)), np.minimum(wa.max(axis=0), wb.max(axis=0))
     if np.any(lo > hi):
         return 0.0
-    d = _into(a, T_a, b, T_b, lo, hi, stop)
+    d = _into(a, T_a, b, T_b, lo, hi, stop, step)
     if d > stop:
         return d
-    return max(d, _into(b, T_b, a, T_a, lo, hi, stop))
+    return max(d, _into(b, T_b, a, T_a, lo, hi, stop, step))

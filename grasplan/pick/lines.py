@@ -39,9 +39,18 @@ def _inv(T: np.ndarray) -> np.ndarray:
     return out
 
 
-def branches(ur: URAnalytic, T_base_tool: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(q (8, m, 6), valid (8, m))``: the eight closed-form branches (shoulder b1, wrist s5, elbow
-    s3) for the tool poses ``T_base_tool`` (m, 4, 4), angles in (-pi, pi]."""
+#: the eight branches in the closed form's order: (shoulder th1 choice, wrist sign, elbow sign)
+BRANCHES = tuple((i1, s5, s3) for i1 in (0, 1) for s5 in (1.0, -1.0) for s3 in (1.0, -1.0))
+#: a start configuration this close (sine of the wrist or elbow angle, shoulder distance in m) to a
+#: singularity gets every branch compared (:func:`ur_line`), not the one its signs name
+SINGULAR = 1e-3
+
+
+def branches(ur: URAnalytic, T_base_tool: np.ndarray, only: tuple[int, ...] = tuple(range(8))
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """``(q (b, m, 6), valid (b, m))``: the closed-form branches ``only`` (indices into
+    :data:`BRANCHES`, default all eight) for the tool poses ``T_base_tool`` (m, 4, 4), angles in
+    (-pi, pi]."""
     T = np.linalg.inv(ur.T_urdf_dh0) @ T_base_tool @ ur.T_tool_dh6
     d1, a2, a3, d4, d5, d6 = ur.d1, ur.a2, ur.a3, ur.d4, ur.d5, ur.d6
     R, p = T[:, :3, :3], T[:, :3, 3]
@@ -51,11 +60,14 @@ def branches(ur: URAnalytic, T_base_tool: np.ndarray) -> tuple[np.ndarray, np.nd
     phi = np.arctan2(p05[:, 1], p05[:, 0])
     s = np.arcsin(np.clip(np.where(r > 0, d4 / np.where(r > 0, r, 1.0), 0.0), -1.0, 1.0))
     qs, valid = [], []
-    for th1 in (phi + s, phi + np.pi - s):
-        s1, c1 = np.sin(th1), np.cos(th1)
-        a6 = np.einsum("mji,mj->mi", R, np.stack([s1, -c1, np.zeros_like(s1)], axis=1))
-        c5 = np.clip(a6[:, 2], -1.0, 1.0)
-        for sign5 in (1.0, -1.0):
+    wrist: dict[tuple[int, float], tuple] = {}
+    for b in only:
+        i1, sign5, sign3 = BRANCHES[b]
+        if (i1, sign5) not in wrist:
+            th1 = phi + s if i1 == 0 else phi + np.pi - s
+            s1, c1 = np.sin(th1), np.cos(th1)
+            a6 = np.einsum("mji,mj->mi", R, np.stack([s1, -c1, np.zeros_like(s1)], axis=1))
+            c5 = np.clip(a6[:, 2], -1.0, 1.0)
             th5 = sign5 * np.arccos(c5)
             s5 = np.sin(th5)
             sing = np.abs(s5) < 1e-10
@@ -64,16 +76,30 @@ def branches(ur: URAnalytic, T_base_tool: np.ndarray) -> tuple[np.ndarray, np.nd
             T14 = _inv(_dh(th1, d1, 0.0, _ALPHA[0])) @ T @ _inv(_dh(th5, d5, 0.0, _ALPHA[4]) @ _dh(th6, d6, 0.0, _ALPHA[5]))
             x, y = T14[:, 0, 3], T14[:, 1, 3]
             c3 = (x * x + y * y - a2 * a2 - a3 * a3) / (2.0 * a2 * a3)
-            ok3 = np.abs(c3) <= 1.0 + 1e-9
-            c3 = np.clip(c3, -1.0, 1.0)
-            for sign3 in (1.0, -1.0):
-                th3 = sign3 * np.arccos(c3)
-                th2 = np.arctan2(y, x) - np.arctan2(a3 * np.sin(th3), a2 + a3 * np.cos(th3))
-                th4 = np.arctan2(T14[:, 1, 0], T14[:, 0, 0]) - th2 - th3
-                q = np.stack([th1, th2, th3, th4, th5, th6], axis=1)
-                qs.append((q + np.pi) % TWO_PI - np.pi)
-                valid.append(ok_r & ok3)
+            wrist[(i1, sign5)] = (th1, th5, th6, T14, x, y, np.clip(c3, -1.0, 1.0), np.abs(c3) <= 1.0 + 1e-9)
+        th1, th5, th6, T14, x, y, c3, ok3 = wrist[(i1, sign5)]
+        th3 = sign3 * np.arccos(c3)
+        th2 = np.arctan2(y, x) - np.arctan2(a3 * np.sin(th3), a2 + a3 * np.cos(th3))
+        th4 = np.arctan2(T14[:, 1, 0], T14[:, 0, 0]) - th2 - th3
+        q = np.stack([th1, th2, th3, th4, th5, th6], axis=1)
+        qs.append((q + np.pi) % TWO_PI - np.pi)
+        valid.append(ok_r & ok3)
     return np.array(qs), np.array(valid)
+
+
+def start_branch(ur: URAnalytic, q0: np.ndarray, T0_base_tool: np.ndarray) -> int | None:
+    """The branch (index into :data:`BRANCHES`) configuration ``q0`` lies on, named by its signs
+    (the shoulder solution nearer ``q0[0]``, the signs of ``sin q5`` and ``sin q3``), or None
+    within :data:`SINGULAR` of a singularity (where two branches meet)."""
+    s5, s3 = float(np.sin(q0[4])), float(np.sin(q0[2]))
+    T = np.linalg.inv(ur.T_urdf_dh0) @ T0_base_tool @ ur.T_tool_dh6
+    p05 = T[:3, 3] - ur.d6 * T[:3, 2]
+    r = float(np.hypot(p05[0], p05[1]))
+    if abs(s5) < SINGULAR or abs(s3) < SINGULAR or r < abs(ur.d4) + SINGULAR:
+        return None
+    phi, s = float(np.arctan2(p05[1], p05[0])), float(np.arcsin(np.clip(ur.d4 / r, -1.0, 1.0)))
+    gap = [abs((th - q0[0] + np.pi) % TWO_PI - np.pi) for th in (phi + s, phi + np.pi - s)]
+    return BRANCHES.index((int(np.argmin(gap)), 1.0 if s5 > 0 else -1.0, 1.0 if s3 > 0 else -1.0))
 
 
 def fk_base_tool(ur: URAnalytic, q: np.ndarray) -> np.ndarray:
@@ -90,13 +116,21 @@ def ur_line(ur: URAnalytic, T_base_tool: np.ndarray, q_from: np.ndarray, lower: 
             max_joint_step: float) -> tuple[np.ndarray | None, str]:
     """Joint path (m + 1, 6) starting at ``q_from`` through the tool poses ``T_base_tool`` (m, 4, 4)
     (the first reached by ``q_from`` itself is not included), or ``(None, why)``: ``start`` (no
-    branch matches ``q_from``), ``ik``, ``jump``, ``limits``."""
+    branch matches ``q_from``), ``ik``, ``jump``, ``limits``. The branch is the one
+    :func:`start_branch` names when it matches ``q_from`` (away from singularities, the only one
+    that can), else the best match of all eight."""
     q0 = np.asarray(q_from, dtype=np.float64)
     T_all = np.concatenate([fk_base_tool(ur, q0[None]), T_base_tool], axis=0)
-    Q, valid = branches(ur, T_all)
+    guess = start_branch(ur, q0, T_all[0])
+    Q, valid = branches(ur, T_all, tuple(range(8)) if guess is None else (guess,))
     d0 = Q[:, 0, :] - q0
     d0 = np.max(np.abs(d0 - TWO_PI * np.round(d0 / TWO_PI)), axis=1)
     b = int(np.argmin(np.where(valid[:, 0], d0, np.inf)))
+    if guess is not None and (not valid[b, 0] or d0[b] > BRANCH_TOL):  # not where its signs say: compare all
+        Q, valid = branches(ur, T_all)
+        d0 = Q[:, 0, :] - q0
+        d0 = np.max(np.abs(d0 - TWO_PI * np.round(d0 / TWO_PI)), axis=1)
+        b = int(np.argmin(np.where(valid[:, 0], d0, np.inf)))
     if not valid[b, 0] or d0[b] > BRANCH_TOL:
         return None, "start"
     if not valid[b].all():

@@ -24,6 +24,7 @@ use the CLIK tracker :func:`grasplan.paths.approach_path_reason`.
 from __future__ import annotations
 
 import time
+import weakref
 from dataclasses import dataclass
 from collections.abc import Callable
 from typing import Any
@@ -119,6 +120,11 @@ class MotionContext:
     #: ``(T_world_part of the carried part, neighbour names) -> deepest penetration (m)``
     #: (:mod:`grasplan.pick.depth`); None: any contact beyond ``lift_contact`` is a collision
     lift_depth: Any = None
+    #: ``(T_world_part, shifts (s, 3))``: before any grasp, the carried part was checked against the
+    #: neighbours and the cloud at ``T_world_part`` moved by each shift and found free, a contact
+    #: with a neighbour accepted only when ``lift_depth`` accepts it (the rule :func:`lift_collision`
+    #: applies with ``shallow``); None: not checked (every pair is then checked at every waypoint)
+    lift_part_checked: Any = None
 
     def __post_init__(self) -> None:
         self.q_home = np.asarray(self.robot.q_home, dtype=np.float64)
@@ -146,31 +152,104 @@ def _part_vs_instances(pairs: list[tuple[str, str, str]]) -> list[str] | None:
     return out
 
 
+def _sample_ok(scene: CollisionScene, q: np.ndarray, width: float, support: bool,
+               shallow: Callable[[np.ndarray, list[str]], bool] | None) -> bool:
+    """Configuration ``q`` of the lift is free, or its contacts are allowed (module docstring)."""
+    if scene.is_free(q, width):
+        return True
+    pairs = scene.colliding_pairs(q, width)
+    if support and _support_only(pairs):
+        return True
+    names = None if shallow is None else _part_vs_instances(pairs)
+    return bool(names and shallow is not None and shallow(q, names))
+
+
 def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touch: int,
-                   shallow: Callable[[np.ndarray, list[str]], bool] | None = None
+                   shallow: Callable[[np.ndarray, list[str]], bool] | None = None,
+                   covered: np.ndarray | None = None, drop: np.ndarray | None = None
                    ) -> list[tuple[str, str, str]] | None:
     """The colliding pairs where the lift ``path`` (k, n) first hits something with the part
-    attached (None: free). Within the first ``n_touch`` waypoints the part resting on a support is
-    allowed; all along, contacts of the part with neighbours only for which ``shallow(q, names)``
-    is true (their penetration depth within the tolerance, :mod:`grasplan.pick.depth`)."""
+    attached (None: free), checked at ``interpolation.STEP``. Within the first ``n_touch``
+    waypoints the part resting on a support is allowed; all along, contacts of the part with
+    neighbours only for which ``shallow(q, names)`` is true (their penetration depth within the
+    tolerance, :mod:`grasplan.pick.depth`).
+
+    ``covered`` (bool per waypoint), ``drop`` (pair indices of ``scene``): at the waypoints marked
+    covered, the pairs ``drop`` that the checks before IK already decided the same way
+    (:func:`lift_precheck_drop`) are switched off; those waypoints are checked first, then the
+    configurations between waypoints with every pair, up to the first waypoint that failed (the
+    first failing configuration in path order is the one reported)."""
     n_touch = int(min(max(n_touch, 0), len(path) - 1))
     for k0, k1, support in ((n_touch, len(path), False), (0, n_touch + 1, True)):
         part = path[k0:k1]
         if support and n_touch == 0:
             continue
-        if scene.path_free(part, width):
-            continue
-        for q in interpolate_path(part):
-            if scene.is_free(q, width):
+        dense, rows = interpolate_path(part, return_index=True)
+        reduced = np.zeros(len(dense), dtype=bool)
+        if covered is not None and drop is not None and len(drop):
+            reduced[rows[covered[k0:k1]]] = True
+        bad: int | None = None
+        for on_reduced in (True, False):
+            idx = np.flatnonzero(reduced == on_reduced).tolist()
+            if not idx:
                 continue
-            pairs = scene.colliding_pairs(q, width)
-            if support and _support_only(pairs):
-                continue
-            names = None if shallow is None else _part_vs_instances(pairs)
-            if names and shallow is not None and shallow(q, names):
-                continue
-            return pairs
+            if on_reduced:
+                scene.switch_pairs(drop, False)  # type: ignore[arg-type]
+            try:
+                for i in idx:
+                    if bad is not None and i > bad:
+                        break
+                    if not _sample_ok(scene, dense[i], width, support, shallow):
+                        bad = i
+                        break
+            finally:
+                if on_reduced:
+                    scene.switch_pairs(drop, True)  # type: ignore[arg-type]
+        if bad is not None:
+            return scene.colliding_pairs(dense[bad], width)
     return None
+
+
+def lift_precheck_drop(scene: CollisionScene) -> np.ndarray:
+    """Per pair of ``scene``: decided at the lift's waypoints by the checks before IK, the closed
+    gripper (body and jaws) against the world (``MotionContext.lift_gripper_check``: the same
+    shapes at the same poses) and the carried part against the neighbours and the cloud
+    (``MotionContext.lift_part_checked``, the picker's straight lift)."""
+    return np.array([(a.startswith("gripper:") or b.startswith("gripper:")) and kind != "self"
+                     or (group == "attached" and extra != "") for a, b, kind, group, extra in scene.pair_rows()])
+
+
+_DROP: "weakref.WeakKeyDictionary[Any, np.ndarray]" = weakref.WeakKeyDictionary()
+
+
+def _drop_pairs(att: CollisionScene) -> np.ndarray:
+    """The active pairs of ``att`` that :func:`lift_precheck_drop` names (the mask once per scene model)."""
+    drop = _DROP.get(att._shared)
+    if drop is None:
+        drop = _DROP[att._shared] = lift_precheck_drop(att)
+    return np.flatnonzero(att._active & drop)
+
+
+#: a lift waypoint is covered by the checks before IK when its TCP and part poses are theirs within this (m)
+COVER_TOL = 1e-7
+
+
+def _lift_covered(ctx: MotionContext, lift: np.ndarray, T_line: np.ndarray, T_flange_part: np.ndarray
+                  ) -> np.ndarray | None:
+    """Per lift waypoint: the TCP is at the pose the gripper check used (``T_line``) and the
+    carried part at a pose of ``ctx.lift_part_checked`` (rotation and position within
+    :data:`COVER_TOL`); None when the checks before IK did not run."""
+    if ctx.lift_gripper_check is None or ctx.lift_part_checked is None or len(lift) != len(T_line):
+        return None
+    T_part0, shifts = ctx.lift_part_checked
+    F = ctx.robot.fk_batch(lift)
+    tcp = F @ ctx.T_flange_tcp
+    part = F @ T_flange_part
+    ok = (np.abs(tcp[:, :3, :] - T_line[:, :3, :]).max(axis=(1, 2)) <= COVER_TOL)
+    ok &= np.abs(part[:, :3, :3] - T_part0[:3, :3]).max(axis=(1, 2)) <= COVER_TOL
+    off = part[:, :3, 3] - T_part0[:3, 3]
+    near = np.abs(off[:, None, :] - np.asarray(shifts)[None]).max(axis=2) <= COVER_TOL
+    return ok & near.any(axis=1)
 
 
 def _blockers(pairs: list[tuple[str, str, str]]) -> set[str]:
@@ -236,6 +315,7 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
     T_pre = T_world_tcp.copy()
     T_pre[:3, 3] -= p.backoff * T_world_tcp[:3, 2]
     T_lift = lift_pose(T_world_tcp, ctx.retreat_dir, ctx.retreat_dist)
+    T_line = None
     if ctx.lift_gripper_check is not None:  # the closed gripper along the lift: the same for every IK branch
         t = time.perf_counter()
         m = max(1, int(np.ceil(ctx.retreat_dist / LINE_SAMPLE - 1e-12)))
@@ -257,6 +337,8 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
         return Outcome("unreachable", f"no IK solution within the joint limits ({ik.reason})", opening=opening)
     static, att = ctx.static, ctx.attached
     att.move_attached(T_tcp_part_of(T_part_tcp))
+    drop = _drop_pairs(att) if T_line is not None and ctx.lift_part_checked is not None else None
+    T_flange_part = ctx.T_flange_tcp @ T_tcp_part_of(T_part_tcp)
     n_touch = int(np.ceil(p.lift_contact / LINE_SAMPLE - 1e-9))
     why: dict[str, str] = {}
     blockers: set[str] = set()
@@ -300,11 +382,10 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
         t = time.perf_counter()
         shallow = None
         if ctx.lift_depth is not None and p.lift_depth > 0:
-            T_flange_part = ctx.T_flange_tcp @ T_tcp_part_of(T_part_tcp)
-
             def shallow(q: np.ndarray, names: list[str]) -> bool:
                 return bool(ctx.lift_depth(robot.fk(q) @ T_flange_part, names) <= p.lift_depth)
-        pairs = lift_collision(att, lift, width, n_touch, shallow)
+        covered = None if drop is None or T_line is None else _lift_covered(ctx, lift, T_line, T_flange_part)
+        pairs = lift_collision(att, lift, width, n_touch, shallow, covered, drop)
         timing["collision"] += time.perf_counter() - t
         if pairs is not None:
             count["lift"] += 1

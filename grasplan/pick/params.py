@@ -42,8 +42,13 @@ class PickParams(OptionSet):
                                show="2mm")
     lift_depth: float = spec(0.001, "length0", "Lift: all along it the part in the jaws may touch a neighbour "
                              "when they interpenetrate by at most this much (a part sliding up beside the one it "
-                             "rests against in a settled pile); deeper is a collision (dragged through it). 0: any "
+                             "rests against in a settled pile), deeper than the two already interpenetrate at rest (pose "
+                             "noise; counted up to --overlap-tol); deeper is a collision (dragged through it). 0: any "
                              "contact beyond --lift-contact is a collision.", hi=0.01, show="1mm")
+    max_lift_tilt_deg: float = spec(45.0, "angle", "Lift: when the straight lift along the cell's retreat is "
+                                    "blocked (by a neighbour, or for a grasp's gripper or arm), lifts tilted "
+                                    "15/30/45 deg from it up to this many degrees are tried (docs/pick.md, the "
+                                    "lift); 0: the straight lift only.", cli="--max-lift-tilt", lo=0.0, hi=60.0)
     overlap_tol: float = spec(0.002, "length0", "Scene checks: instances interpenetrating by more than this are "
                               "a warning; a part more than this below the bin floor, the table or inside an "
                               "obstacle is an error.", hi=0.05, show="2mm")

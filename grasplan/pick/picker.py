@@ -10,13 +10,14 @@ Per :meth:`Picker.plan` call:
    per part, every instance an extra body) are ready: ``timing_s["load"]``; then the geometric
    checks (:mod:`grasplan.pile_checks`: exit 3 for a part below the floor, warnings for
    interpenetrating instances);
-2. instances are tried in the accessibility order (:mod:`grasplan.pick.rank`), in two passes (the
-   best :data:`FIRST_PASS` grasps of every instance, then the rest of the undecided ones); per
-   instance first
+2. instances are tried in the accessibility order (:mod:`grasplan.pick.rank`), in passes (the
+   best :data:`FIRST_PASS` grasps of every instance whose straight lift is free, then, in the same
+   order, the deferred and paused ones: the tilted-lift search of those whose straight lift is
+   blocked, the rest of the undecided ones' grasps); per instance first
    the lift: the part moved along the cell's retreat, at the line's waypoints beyond
    ``lift_contact``, against the neighbours and the cloud (the same for every grasp: a hit there
-   fails the robot's lift check whatever the arm does, so the instance is ``blocked`` by that
-   neighbour without trying a grasp); then its grasps posed in the world are ranked, gripper-checked in chunks against neighbours, cloud, bin
+   fails the robot's lift check whatever the arm does, so only tilted lifts can pick the instance,
+   :mod:`grasplan.pick.lift`); then its grasps posed in the world are ranked, gripper-checked in chunks against neighbours, cloud, bin
    and table (the first body hit names the blocker), and the collision-free ones motion-planned
    (:mod:`grasplan.pick.motion`) until one is planned or ``grasps_per_instance`` were tried;
 3. ``sequence``: after each pick the instance is removed and the rest re-planned (the next pick is
@@ -49,7 +50,8 @@ from ..robot_model import Robot
 from ..scene import CollisionScene, ExtraBody
 from ..scenefile import Instance, Scene, load_scene
 from ..graspdb import GraspDatabase, database_for, load_database
-from .depth import PartDepth, pair_depth
+from .depth import PartDepth
+from .lift import LIFT_TILTS_DEG, LIFTS_PER_GRASP, RestDepth, inside_walls, lift_directions, wall_away
 from .motion import MotionContext, Outcome, plan_pick_motion
 from .params import PickParams
 from .rank import instance_order, rank_grasps
@@ -58,6 +60,9 @@ from .world import CLOUD, INSTANCE_PREFIX, PickWorld
 
 #: grasps gripper-checked per step while looking for collision-free ones
 CHECK_CHUNK = 256
+#: the first steps are smaller (the best-ranked grasps are often free, and a pick waits for its
+#: step's check: 32 grasps take ~1.5 ms, 256 ~12 ms); then CHECK_CHUNK
+FIRST_CHUNKS = (32, 32, 64, 128)
 #: the first pass over the instances checks this many grasps of each (best ranked) before any
 #: instance's further grasps: a part whose good grasps are free is found before the deep search
 #: of a boxed-in one
@@ -271,7 +276,9 @@ class Picker:
                     timing["first_pick_cpu"] = time.process_time() - cpu_ready
                 return sequence
 
-            # pass 1: every instance's best FIRST_PASS grasps, in order; pass 2: the rest of the paused ones
+            # pass 1: every instance's best FIRST_PASS grasps with its straight lift, in order (an
+            # instance whose straight lift is blocked is deferred before its tilted-lift search); then
+            # the paused ones, in order, until each is decided
             for k, iid in enumerate(order):
                 if out_of_budget():
                     break
@@ -284,15 +291,18 @@ class Picker:
                 elif take(iid, pick, rep):
                     picked_now = iid
                     break
-            if picked_now is None:
+            while paused and picked_now is None and not out_of_budget():  # the next passes, in order
+                later: list[tuple[str, Iterator[tuple[Pick | None, InstanceReport | None]]]] = []
                 for iid, gen in paused:
                     if out_of_budget():
                         break
                     pick, rep = next(gen)
-                    assert rep is not None
-                    if take(iid, pick, rep):
+                    if rep is None:  # paused again (a deferred instance's own best grasps done)
+                        later.append((iid, gen))
+                    elif take(iid, pick, rep):
                         picked_now = iid
                         break
+                paused = later
             if not sequence:
                 rank_of = {iid: n for n, iid in enumerate(order)}
                 picks.sort(key=lambda q: rank_of[q.instance])
@@ -315,8 +325,9 @@ class Picker:
     def _plan_instance(self, st: _Cell, inst: Instance, present: list[Instance], with_cloud: bool, p: PickParams,
                        timing: dict[str, float], stats: dict[str, int], seed_base: int
                        ) -> Iterator[tuple[Pick | None, InstanceReport | None]]:
-        """Yields ``(pick or None, report)`` once the instance is decided, or first ``(None, None)``
-        when its best :data:`FIRST_PASS` grasps gave nothing yet (the caller resumes it later)."""
+        """Yields ``(pick or None, report)`` once the instance is decided, before that ``(None, None)``
+        when its straight lift is blocked (before the tilted-lift search) and when its best
+        :data:`FIRST_PASS` grasps gave nothing yet (the caller resumes it in a later pass)."""
         db = self._grasps[inst.part]
         rows, T_wt = rank_grasps(inst.T_world_part, db.T_part_tcp, db.score, p)
         if len(rows) == 0:
@@ -328,7 +339,6 @@ class Picker:
         hit_counts: dict[str, int] = {}
         first_fail: Outcome | None = None
         tried = 0
-        ctx: MotionContext | None = None
         rows, T_wt = rows[: p.max_checked], T_wt[: p.max_checked]
         # checks and motions in the frame the gripper's shapes and T_flange_tcp are given in: for a
         # gripper whose TCP moves with the opening, the grasp TCP moved to it (as grasplan plan does)
@@ -336,57 +346,110 @@ class Picker:
         T_plan = T_wt if T_tcp_g is None else T_wt @ T_tcp_g
         T_place = p.place_matrix() if p.place is not None else (None if st.cell.place is None
                                                                   else np.asarray(st.cell.place, dtype=np.float64))
-        lift_dir = unit_direction(st.cell.retreat_direction)
-        n_lift = max(1, int(np.ceil(float(st.cell.retreat_distance) / LINE_SAMPLE - 1e-12)))
-        steps = float(st.cell.retreat_distance) * np.arange(n_lift + 1) / n_lift
-        steps = steps[steps >= min(p.lift_contact, steps[-1]) - 1e-12]
+        retreat = unit_direction(st.cell.retreat_direction)
+        dist = float(st.cell.retreat_distance)
+        n_lift = max(1, int(np.ceil(dist / LINE_SAMPLE - 1e-12)))
+        steps = dist * np.arange(n_lift + 1) / n_lift
+        # the line's waypoints beyond lift_contact, and the lift_contact point itself (where resting
+        # contact stops being allowed: between it and the next waypoint a part may be deep already)
+        steps = np.unique(np.append(steps[steps >= min(p.lift_contact, steps[-1]) - 1e-12], min(p.lift_contact, dist)))
         # the carried part against the neighbours and the cloud (the cell's boxes: the robot's check,
         # which lets the part slide along a wall it touches within ATTACHED_CONTACT_TOL)
         pile = [b for b in bodies if b.name.startswith(INSTANCE_PREFIX) or b.name == CLOUD]
         by_name = {INSTANCE_PREFIX + i.id: i for i in present}
+        rest = RestDepth(self._depth_of(st, inst.part), inst.T_world_part,
+                         lambda n: (self._depth_of(st, by_name[n].part), by_name[n].T_world_part),
+                         tol=p.lift_depth, cap=p.overlap_tol)
 
         def lift_depth(T_world_part: np.ndarray, names: list[str]) -> float:
-            """Deepest penetration of the carried part at ``T_world_part`` into the neighbours ``names``."""
+            """Deepest penetration of the carried part at ``T_world_part`` into the neighbours
+            ``names`` beyond their resting one (:class:`grasplan.pick.lift.RestDepth`)."""
             t_d = time.perf_counter()
-            a = self._depth_of(st, inst.part)
-            d = 0.0
-            for n in names:
-                o = by_name[n]
-                d = max(d, pair_depth(a, T_world_part, self._depth_of(st, o.part), o.T_world_part, stop=p.lift_depth))
-                if d > p.lift_depth:
-                    break
+            d = rest.excess(T_world_part, names)
             timing["lift_depth"] += time.perf_counter() - t_d
             return d
 
         def shallow_hit(T_world_part: np.ndarray, b: Any) -> bool:
-            return p.lift_depth > 0 and b.name in by_name and lift_depth(T_world_part, [b.name]) <= p.lift_depth
-        # lifting the part straight up is the same motion for every grasp: when it drags the part
-        # through a neighbour (or the cloud) beyond lift_contact, no grasp can pick the instance
-        t = time.perf_counter()
-        lh = st.world.part_hits(inst.part, inst.T_world_part, steps[:, None] * lift_dir, pile, shallow_hit,
-                                first_only=True)
-        timing["lift_check"] += time.perf_counter() - t
-        if np.any(lh >= 0):
-            k_hit = int(np.flatnonzero(lh >= 0)[0])
-            name = pile[int(lh[k_hit])].name
-            deep = None
+            if not (p.lift_depth > 0 and b.name in by_name):
+                return False
+            t_d = time.perf_counter()  # lift_depth(...) <= lift_depth, a deep contact found on coarse samples first
+            deep = rest.exceeds(T_world_part, [b.name])
+            timing["lift_depth"] += time.perf_counter() - t_d
+            return not deep
+
+        hull_w = st.world.parts[inst.part].hull @ inst.T_world_part[:3, :3].T + inst.T_world_part[:3, 3]
+        dirs: list[tuple[float, np.ndarray]] = [(0.0, retreat)]
+        lift_free: list[bool | None] = [None]
+        hit_first: dict[str, Any] = {}
+
+        def lift_ok(j: int) -> bool:
+            """Whether lifting the part alone along direction ``j`` is free (the same motion for every
+            grasp: when it drags the part through a neighbour or the cloud beyond lift_contact, or
+            a tilted one through a bin wall, no grasp can lift it that way)."""
+            if lift_free[j] is None:
+                t = time.perf_counter()
+                shifts = steps[:, None] * dirs[j][1]
+                ok = j == 0 or inside_walls(hull_w, shifts, st.cell.bin)
+                if ok:
+                    # the straight lift's first hit names the blocker; a tilted one only needs yes or no
+                    lh = st.world.part_hits(inst.part, inst.T_world_part, shifts, pile, shallow_hit, first_only=True,
+                                            far_first=j > 0)
+                    ok = not np.any(lh >= 0)
+                    if j == 0 and not ok:
+                        k_hit = int(np.flatnonzero(lh >= 0)[0])
+                        hit_first.update(name=pile[int(lh[k_hit])].name, step=float(steps[k_hit]))
+                lift_free[j] = ok
+                timing["lift_check"] += time.perf_counter() - t
+            return bool(lift_free[j])
+
+        grasp_blocker: list[str] = []  # the neighbour the last grasp's lift (or approach) hit
+
+        def lifts() -> Iterator[int]:
+            """Indices of the free lift directions, the straight one first, then the tilted ones
+            (:func:`grasplan.pick.lift.lift_directions`) leading away from the walls and the
+            neighbour that blocked the straight lift (the part alone, else the last grasp's)."""
+            if lift_ok(0):
+                yield 0
+            if len(dirs) == 1:
+                away = wall_away(hull_w, st.cell.bin)
+                b = by_name.get(hit_first.get("name") or (grasp_blocker[0] if grasp_blocker else ""))
+                if b is not None:
+                    v = st.world.instances[inst.id].center - st.world.instances[b.id].center
+                    away = away + v / max(float(np.linalg.norm(v)), 1e-9)
+                dirs[:] = lift_directions(retreat, away, p.max_lift_tilt_deg)
+                lift_free.extend([None] * (len(dirs) - 1))
+            for j in range(1, len(dirs)):
+                if lift_ok(j):
+                    yield j
+
+        if not lift_ok(0):
+            yield None, None  # deferred: the tilted-lift search after every instance's first pass
+        if not any(True for _ in lifts()):
+            name, deep = hit_first["name"], None
             if name in by_name and p.lift_depth > 0:
                 T_hit = inst.T_world_part.copy()
-                T_hit[:3, 3] += steps[k_hit] * lift_dir
+                T_hit[:3, 3] += hit_first["step"] * retreat
                 deep = lift_depth(T_hit, [name])
+            rd = rest.rest(name) if name in by_name else 0.0
             yield None, InstanceReport(
                 inst.id, inst.part, "blocked" if name.startswith(INSTANCE_PREFIX) else "cloud",
-                f"lifting it {1e3 * float(st.cell.retreat_distance):g} mm along the retreat drags it through {name} "
-                f"after {1e3 * steps[k_hit]:.0f} mm" + (f" ({1e3 * deep:.1f} mm deep; at most "
-                                                         f"{1e3 * p.lift_depth:g} mm allowed)" if deep is not None else
-                                                         f" (more than the {1e3 * p.lift_contact:g} mm of resting "
-                                                         f"contact allowed)") + ", whatever the grasp",
+                f"lifting it {1e3 * dist:g} mm along the retreat drags it through {name} "
+                f"after {1e3 * hit_first['step']:.0f} mm" + (
+                    (f" ({1e3 * deep:.1f} mm deep" if rd < 5e-5 else
+                     f" ({1e3 * deep:.1f} mm deeper than the {1e3 * rd:.1f} mm of resting overlap counted")
+                    + f"; at most {1e3 * p.lift_depth:g} mm allowed)" if deep is not None else
+                    f" (more than the {1e3 * p.lift_contact:g} mm of resting contact allowed)")
+                + (f", and so does every one of the {len(dirs) - 1} tilted lifts ({_tilts_text(p)})" if len(dirs) > 1 else "")
+                + ", whatever the grasp",
                 _blockers({name: 1}))
             return
-        for c0 in range(0, len(rows), CHECK_CHUNK):
-            if c0 == FIRST_PASS:
+        ctxs: dict[int, MotionContext] = {}
+        paused = False
+        for c0, c1 in _chunks(len(rows)):
+            if c0 >= FIRST_PASS and not paused:
+                paused = True
                 yield None, None  # paused: the other instances' best grasps first
-            sel = slice(c0, c0 + CHECK_CHUNK)
+            sel = slice(c0, c1)
             t = time.perf_counter()
             # the bodies that blocked most grasps so far first: a blocked grasp needs fewer coal calls
             order = sorted(bodies, key=lambda b: -hit_counts.get(b.name, 0))
@@ -400,24 +463,34 @@ class Picker:
                     continue
                 k = c0 + k_local
                 r = int(rows[k])
-                if ctx is None:
-                    static, att = self._variants(st, inst, present, with_cloud)
-                    ctx = MotionContext(self.robot, self.gripper, p, static, att,
-                                        unit_direction(st.cell.retreat_direction), float(st.cell.retreat_distance),
-                                        timing, T_place=T_place,
-                                        lift_gripper_check=lambda T, w: st.world.gripper_at_hits(T, w, bodies),
-                                        body_names=tuple(b.name for b in bodies),
-                                        lift_depth=lift_depth if p.lift_depth > 0 else None)
                 tried += 1
                 stats["grasps_tried"] += 1
                 T_part_g = db.T_part_tcp[r] if T_tcp_g is None else db.T_part_tcp[r] @ T_tcp_g[k]
-                out = plan_pick_motion(ctx, T_plan[k], T_part_g, float(db.width[r]),
-                                       seed=p.seed * 1_000_003 + seed_base * 10_007 + r)
-                if out.motion is not None:
-                    yield self._pick(inst, db, r, k, T_wt[k], out, st.cell), InstanceReport(
-                        inst.id, inst.part, "picked", f"grasp ranked {k} of {len(rows)}: {out.reason}"
-                        + _hits_text(hit_counts, " better-ranked grasps"), _blockers(hit_counts))
-                    return
+                out = None
+                for n_dir, j in enumerate(lifts()):
+                    if n_dir >= LIFTS_PER_GRASP or (out is not None and not _lift_may_help(out)):
+                        break
+                    ctx = ctxs.get(j)
+                    if ctx is None:
+                        static, att = self._variants(st, inst, present, with_cloud)
+                        ctx = ctxs[j] = MotionContext(
+                            self.robot, self.gripper, p, static, att, dirs[j][1], dist, timing, T_place=T_place,
+                            lift_gripper_check=lambda T, w: st.world.gripper_at_hits(T, w, bodies),
+                            body_names=tuple(b.name for b in bodies), lift_depth=lift_depth if p.lift_depth > 0 else None,
+                            lift_part_checked=(inst.T_world_part, steps[:, None] * dirs[j][1]))  # by lift_ok(j)
+                    out = plan_pick_motion(ctx, T_plan[k], T_part_g, float(db.width[r]),
+                                           seed=p.seed * 1_000_003 + seed_base * 10_007 + r)
+                    grasp_blocker[:] = list(out.blockers[:1])
+                    if out.motion is not None:
+                        tilt = dirs[j][0]
+                        yield self._pick(inst, db, r, k, T_wt[k], out, dirs[j][1], dist), InstanceReport(
+                            inst.id, inst.part, "picked", f"grasp ranked {k} of {len(rows)}: {out.reason}"
+                            + ("" if j == 0 else f"; lifted {tilt:g} deg from the retreat (the straight lift "
+                               + ("drags the part through " + hit_first["name"] if "name" in hit_first
+                                  else "is blocked for this grasp") + ")")
+                            + _hits_text(hit_counts, " better-ranked grasps"), _blockers(hit_counts))
+                        return
+                assert out is not None
                 first_fail = first_fail or out
                 for b in out.blockers:  # neighbours hit by the robot or the carried part
                     hit_counts[b] = hit_counts.get(b, 0) + 1
@@ -447,7 +520,7 @@ class Picker:
         return d
 
     def _pick(self, inst: Instance, db: GraspDatabase, r: int, k: int, T_world_tcp: np.ndarray, out: Outcome,
-              cell: Cell) -> Pick:
+              lift_dir: np.ndarray, lift_dist: float) -> Pick:
         assert out.motion is not None
         T_pre = T_world_tcp.copy()
         T_pre[:3, 3] -= self.params.backoff * T_world_tcp[:3, 2]
@@ -461,7 +534,27 @@ class Picker:
                     T_part_tcp=db.T_part_tcp[r].copy(), contacts=db.contacts[r].copy(), normals=db.normals[r].copy(),
                     width=float(db.width[r]), opening=out.opening, score=score, quality=quality,
                     motion=out.motion, T_world_tcp=T_world_tcp.copy(), T_world_pregrasp=T_pre,
-                    T_world_lifted=lift_pose(T_world_tcp, cell.retreat_direction, cell.retreat_distance), rank=k)
+                    T_world_lifted=lift_pose(T_world_tcp, lift_dir, lift_dist), rank=k)
+
+
+def _lift_may_help(out: Outcome) -> bool:
+    """Whether another lift direction may plan a grasp that failed with ``out``: its lift collided
+    or could not be followed (not: no IK solution, a collision at the grasp or on the approach,
+    no transit)."""
+    return out.status == "lift_collision" or (out.status == "unreachable" and not out.reason.startswith("no IK"))
+
+
+def _tilts_text(p: PickParams) -> str:
+    return "/".join(f"{t:g}" for t in LIFT_TILTS_DEG if t <= p.max_lift_tilt_deg + 1e-9) + " deg from the retreat"
+
+
+def _chunks(n: int) -> Iterator[tuple[int, int]]:
+    """``(start, end)`` of the gripper-check steps over ``n`` ranked grasps: FIRST_CHUNKS, then CHECK_CHUNK."""
+    c0, sizes = 0, iter(FIRST_CHUNKS)
+    while c0 < n:
+        c1 = c0 + next(sizes, CHECK_CHUNK)
+        yield c0, min(c1, n)
+        c0 = c1
 
 
 def _blockers(hits: dict[str, int]) -> tuple[str, ...]:

@@ -129,7 +129,8 @@ def pick_as_plan(res: PickResult, instance: str | None = None) -> PlanResult:
     """The pick of ``instance`` (default: the first pick) as a ``grasplan.plan/1`` result with one
     planned grasp: the instance is the plan's part, every other instance of the scene (with
     ``sequence``: still in the pile when it was planned) is an obstacle (mesh ``instance_<id>``) of
-    its cell, so exports and the viewer see the whole pile."""
+    its cell, so exports and the viewer see the whole pile; the cell's retreat is the pick's own lift
+    (``T_world_tcp -> T_world_lifted``: a lift tilted away from a neighbour, docs/pick.md)."""
     from ..mesh import load_recorded_part
 
     p = res.pick(instance)
@@ -151,8 +152,13 @@ def pick_as_plan(res: PickResult, instance: str | None = None) -> PlanResult:
     others = tuple(Obstacle(f"instance_{i.id}", "mesh", np.asarray(i.T_world_part),
                             vertices=np.asarray(meshes[i.part].vertices), faces=np.asarray(meshes[i.part].faces))
                    for i in res.scene.instances if i.id != p.instance and i.id not in gone and i.part in meshes)
+    lift = np.asarray(p.T_world_lifted, dtype=np.float64)[:3, 3] - np.asarray(p.T_world_tcp, dtype=np.float64)[:3, 3]
+    dist = float(np.linalg.norm(lift))
     cell = replace(res.cell, obstacles=tuple(res.cell.obstacles) + others,
                    place=p.motion.T_world_part_place if p.motion.T_world_part_place is not None else res.cell.place)
+    if dist > 0:
+        u = lift / dist
+        cell = replace(cell, retreat_direction=(float(u[0]), float(u[1]), float(u[2])), retreat_distance=dist)
     rec = res.parts[p.part]
     part = PartRecord(path=str(rec["path"]), sha256=str(rec["sha256"]), scale_to_m=float(rec["scale_to_m"]),
                       triangles=int(rec.get("triangles", len(meshes[p.part].faces))), T_world_part=p.T_world_part)

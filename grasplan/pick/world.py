@@ -179,13 +179,15 @@ class PickWorld:
         return first, bodies
 
     def part_hits(self, part: str, T_world_part: np.ndarray, shifts: np.ndarray, bodies: list[Body],
-                  allowed: Callable[[np.ndarray, Body], bool] | None = None, *, first_only: bool = False
-                  ) -> np.ndarray:
+                  allowed: Callable[[np.ndarray, Body], bool] | None = None, *, first_only: bool = False,
+                  far_first: bool = False) -> np.ndarray:
         """First body (index into ``bodies``, -1 none) the part ``part`` hits at ``T_world_part``
         moved by each world vector of ``shifts`` (k, 3) (a straight lift): world boxes first (the
         part's box only translates), then coal; a contact for which ``allowed(T_world_part moved,
         body)`` is true (a shallow one) is no hit. ``first_only``: stop at the first shift hitting
-        anything (the later shifts stay -1)."""
+        anything (the later shifts stay -1); with ``far_first`` the shifts are taken from the last
+        one back (whether any hits is the same; a part dragged through a neighbour is usually
+        deepest at the far end, so that hit is found first)."""
         g = self.parts[part]
         T = np.asarray(T_world_part, dtype=np.float64)
         shifts = np.asarray(shifts, dtype=np.float64).reshape(-1, 3)
@@ -199,7 +201,10 @@ class PickWorld:
         near = np.all(np.abs(centres[:, None, :] - bc[None]) <= h + bh[None], axis=2)  # (k, bodies)
         req, res = self.request, self.result
         tf = coal.Transform3s(T[:3, :3].copy(), T[:3, 3].copy())
-        for k, bi in zip(*np.nonzero(near)):
+        ks, bis = np.nonzero(near)
+        if far_first:
+            ks, bis = ks[::-1], bis[::-1]
+        for k, bi in zip(ks, bis):
             if first[k] >= 0:
                 continue
             tf.setTranslation(T[:3, 3] + shifts[k])
