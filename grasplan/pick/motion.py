@@ -166,7 +166,8 @@ def _sample_ok(scene: CollisionScene, q: np.ndarray, width: float, support: bool
 
 def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touch: int,
                    shallow: Callable[[np.ndarray, list[str]], bool] | None = None,
-                   covered: np.ndarray | None = None, drop: np.ndarray | None = None
+                   covered: np.ndarray | None = None, drop: np.ndarray | None = None,
+                   resting: Callable[[np.ndarray], bool] | None = None
                    ) -> list[tuple[str, str, str]] | None:
     """The colliding pairs where the lift ``path`` (k, n) first hits something with the part
     attached (None: free), checked at ``interpolation.STEP``. Within the first ``n_touch``
@@ -178,7 +179,12 @@ def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touc
     covered, the pairs ``drop`` that the checks before IK already decided the same way
     (:func:`lift_precheck_drop`) are switched off; those waypoints are checked first, then the
     configurations between waypoints with every pair, up to the first waypoint that failed (the
-    first failing configuration in path order is the one reported)."""
+    first failing configuration in path order is the one reported).
+
+    ``resting(q)``: whether configuration ``q`` of the first ``n_touch`` waypoints is still within
+    ``lift_contact`` of TCP travel (the waypoints are :data:`~grasplan.pickplace.LINE_SAMPLE` apart,
+    so the last of them may lie beyond it); where it is not, resting contact is not allowed
+    either. None: every configuration up to waypoint ``n_touch`` may rest."""
     n_touch = int(min(max(n_touch, 0), len(path) - 1))
     for k0, k1, support in ((n_touch, len(path), False), (0, n_touch + 1, True)):
         part = path[k0:k1]
@@ -199,7 +205,8 @@ def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touc
                 for i in idx:
                     if bad is not None and i > bad:
                         break
-                    if not _sample_ok(scene, dense[i], width, support, shallow):
+                    rests = support and (resting is None or resting(dense[i]))
+                    if not _sample_ok(scene, dense[i], width, rests, shallow):
                         bad = i
                         break
             finally:
@@ -385,7 +392,11 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
             def shallow(q: np.ndarray, names: list[str]) -> bool:
                 return bool(ctx.lift_depth(robot.fk(q) @ T_flange_part, names) <= p.lift_depth)
         covered = None if drop is None or T_line is None else _lift_covered(ctx, lift, T_line, T_flange_part)
-        pairs = lift_collision(att, lift, width, n_touch, shallow, covered, drop)
+        T_grasp_flange = T_world_tcp @ ctx.T_tcp_flange
+
+        def resting(q: np.ndarray) -> bool:  # TCP travel from the grasp (FK) within lift_contact
+            return bool(np.linalg.norm(robot.fk(q)[:3, 3] - T_grasp_flange[:3, 3]) <= p.lift_contact + 1e-9)
+        pairs = lift_collision(att, lift, width, n_touch, shallow, covered, drop, resting)
         timing["collision"] += time.perf_counter() - t
         if pairs is not None:
             count["lift"] += 1

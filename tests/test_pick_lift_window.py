@@ -1,0 +1,47 @@
+"""The lift's resting-contact window is ``lift_contact`` of TCP travel, not the first line waypoint
+(:func:`grasplan.pick.motion.lift_collision` with ``resting``): a part still touching the table
+3 mm up is a lift collision when 2 mm are allowed, although the first waypoint lies 4 mm up."""
+from __future__ import annotations
+
+import numpy as np
+
+from grasplan.pick.motion import lift_collision
+
+
+class _TableScene:
+    """A stand-in collision scene: joint 0 is the TCP travel x 10 (m); the carried part touches
+    the table while the travel is within ``touch`` (m)."""
+
+    def __init__(self, touch: tuple[float, float]):
+        self.touch = touch
+        self.checked: list[float] = []
+
+    def _travel(self, q: np.ndarray) -> float:
+        return float(q[0]) / 10.0
+
+    def is_free(self, q: np.ndarray, width: float) -> bool:
+        self.checked.append(self._travel(q))
+        return not (self.touch[0] <= self._travel(q) <= self.touch[1])
+
+    def colliding_pairs(self, q: np.ndarray, width: float) -> list[tuple[str, str, str]]:
+        return [] if self.is_free(q, width) else [("part", "table", "attached")]
+
+
+def _lift(n: int = 6) -> np.ndarray:
+    path = np.zeros((n, 6))
+    path[:, 0] = 0.04 * np.arange(n)  # waypoints 4 mm of travel apart
+    return path
+
+
+def test_contact_beyond_lift_contact_before_the_first_waypoint_is_a_collision():
+    sc = _TableScene((0.0025, 0.0035))  # touches the table 2.5-3.5 mm up
+    pairs = lift_collision(sc, _lift(), 0.02, 1, None, None, None, lambda q: sc._travel(q) <= 0.002 + 1e-9)
+    assert pairs == [("part", "table", "attached")]
+    # without the window, the whole first waypoint interval (4 mm) could rest: the old behaviour
+    assert lift_collision(_TableScene((0.0025, 0.0035)), _lift(), 0.02, 1) is None
+
+
+def test_resting_within_lift_contact_is_allowed():
+    sc = _TableScene((0.0, 0.0015))  # leaves the table 1.5 mm up
+    assert lift_collision(sc, _lift(), 0.02, 1, None, None, None, lambda q: sc._travel(q) <= 0.002 + 1e-9) is None
+    assert any(0.0015 < t < 0.004 for t in sc.checked)  # configurations between grasp and waypoint 1 were checked
