@@ -14,6 +14,7 @@ do not):
 """
 from __future__ import annotations
 
+import weakref
 from collections.abc import Mapping, Sequence
 
 import coal
@@ -29,6 +30,18 @@ from .scenefile import Instance
 #: surface samples of a mesh probed inside another one: spacing (m) and how many at most per pair
 PROBE_SPACING = 0.003
 MAX_PROBES = 600
+#: per mesh, its ray grid and surface samples: the same for every scene, so a warm planner (the
+#: pick service) builds them once per part, not once per request; dropped with the mesh
+_PREPARED: weakref.WeakKeyDictionary[MeshData, tuple[RayGrid, np.ndarray]] = weakref.WeakKeyDictionary()
+
+
+def _prepared(m: MeshData) -> tuple[RayGrid, np.ndarray]:
+    """``m``'s :class:`RayGrid` and probe points (:func:`surface_samples`), built on first use."""
+    out = _PREPARED.get(m)
+    if out is None:
+        out = _PREPARED[m] = (RayGrid(m.vertices, m.faces), surface_samples(m, spacing=PROBE_SPACING,
+                                                                           max_samples=20_000))
+    return out
 
 
 def _inside_depth(o: Obstacle, pts: np.ndarray) -> float:
@@ -96,11 +109,7 @@ def overlap_warnings(instances: Sequence[Instance], meshes: Mapping[str, MeshDat
 
     def prep(name: str) -> None:
         if name not in grids:
-            m = meshes[name]
-            grids[name] = RayGrid(m.vertices, m.faces)
-            probes[name] = surface_samples(m, spacing=PROBE_SPACING, max_samples=20_000)
-            if name not in bvhs:
-                bvhs[name] = bvh(m.vertices, m.faces)
+            grids[name], probes[name] = _prepared(meshes[name])
 
     for name in meshes:
         if name not in bvhs:
