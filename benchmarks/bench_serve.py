@@ -17,8 +17,8 @@ variants (``--poses``):
   collision scene of each instance with its neighbours, can help a repeated scene; nothing caches
   responses);
 - ``jitter``: a vision loop: every request's poses are new, each instance moved by a seeded
-  uniform offset of up to 1 mm per axis (upwards only in z: not into the floor) and turned by up
-  to 1 degree about a random axis, so no cache of an earlier request helps.
+  uniform offset of up to 1 mm per axis and turned by up to 1 degree about a random axis, so no
+  cache of an earlier request helps.
 
 Then more than 100 malformed requests (bad JSON, wrong types, huge numbers, NaN, unknown parts,
 path traversal, missing token; plus an oversized body): each must get a 4xx, and ``/health`` must
@@ -109,7 +109,7 @@ def dropped_piles(name: str, part: Any, cell: Any, piles: int) -> list[dict]:
 
 def jittered(pile: dict, seed: int, jitter_m: float = 0.001, jitter_deg: float = 1.0) -> dict:
     """``pile`` with each instance moved by a seeded uniform offset of at most ``jitter_m`` per axis
-    (upwards only in z, so no part is pushed into the floor) and turned about its origin by at most
+    (within the scene checks' 2 mm tolerance of the floor) and turned about its origin by at most
     ``jitter_deg`` about a random axis (a camera's noise: every request has poses of its own)."""
     import numpy as np
 
@@ -122,7 +122,7 @@ def jittered(pile: dict, seed: int, jitter_m: float = 0.001, jitter_deg: float =
         a = np.radians(rng.uniform(0.0, jitter_deg))
         K = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
         T[:3, :3] = (np.eye(3) + np.sin(a) * K + (1 - np.cos(a)) * (K @ K)) @ T[:3, :3]
-        T[:3, 3] += rng.uniform(-jitter_m, jitter_m, 3) * np.array([1.0, 1.0, 0.5]) + np.array([0, 0, 0.5 * jitter_m])
+        T[:3, 3] += rng.uniform(-jitter_m, jitter_m, 3)
         inst.append({**i, "T": T.tolist()})
     return {**pile, "instances": inst}
 

@@ -247,7 +247,13 @@ class PlannerPool:
         assert self._loop is not None
         fut: asyncio.Future = self._loop.create_future()
         self._waiters.append(fut)
-        await asyncio.wait({fut}, timeout=max(timeout_s, 0.0))
+        try:
+            await asyncio.wait({fut}, timeout=max(timeout_s, 0.0))
+        except BaseException:  # the request was cancelled: a planner handed to it goes to the next
+            if fut.done() and not fut.cancelled():
+                self._release(fut.result())
+            fut.cancel()
+            raise
         if fut.done():
             planner: _Planner = fut.result()
             return planner
@@ -301,7 +307,12 @@ class PlannerPool:
                            f"requests, past the time limit of {self.time_limit_s:g} s; retry shortly")
             fut = self._loop.run_in_executor(self._executor, planner.call, job, doc)
             fut.add_done_callback(_retrieve)
-            await asyncio.wait({fut}, timeout=max(self.time_limit_s - (time.monotonic() - t0), 0.0))
+            try:
+                await asyncio.wait({fut}, timeout=max(self.time_limit_s - (time.monotonic() - t0), 0.0))
+            except BaseException:  # the request was cancelled: the planner is free when its job ends
+                fut.add_done_callback(lambda f: self._release(planner) if f.exception() is None
+                                      else self._replace(planner, "its connection broke"))
+                raise
             if not fut.done():
                 self._replace(planner, "time limit")
                 raise TimedOut(f"the {what} took longer than the service's time limit of {self.time_limit_s:g} s "
