@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import weakref
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
 
 import coal
 import numpy as np
@@ -30,17 +32,34 @@ from .scenefile import Instance
 #: surface samples of a mesh probed inside another one: spacing (m) and how many at most per pair
 PROBE_SPACING = 0.003
 MAX_PROBES = 600
-#: per mesh, its ray grid and surface samples: the same for every scene, so a warm planner (the
-#: pick service) builds them once per part, not once per request; dropped with the mesh
-_PREPARED: weakref.WeakKeyDictionary[MeshData, tuple[RayGrid, np.ndarray]] = weakref.WeakKeyDictionary()
+#: a probe point within this of a surface sample of the other mesh is at most this deep in it
+#: (m, below ``tol``: float rounding of the distances)
+_ROUNDING = 1e-9
 
 
-def _prepared(m: MeshData) -> tuple[RayGrid, np.ndarray]:
-    """``m``'s :class:`RayGrid` and probe points (:func:`surface_samples`), built on first use."""
+@dataclass(frozen=True)
+class _Prepared:
+    """Per mesh: its ray grid (inside tests), probe points (:func:`surface_samples`) and a k-d tree
+    of them (the nearest probe bounds a point's distance to the surface from above)."""
+
+    grid: RayGrid
+    probes: np.ndarray
+    tree: Any
+
+
+#: the same for every scene, so a warm planner (the pick service) builds them once per part, not
+#: once per request; dropped with the mesh
+_PREPARED: weakref.WeakKeyDictionary[MeshData, _Prepared] = weakref.WeakKeyDictionary()
+
+
+def _prepared(m: MeshData) -> _Prepared:
+    """``m``'s :class:`_Prepared`, built on first use."""
     out = _PREPARED.get(m)
     if out is None:
-        out = _PREPARED[m] = (RayGrid(m.vertices, m.faces), surface_samples(m, spacing=PROBE_SPACING,
-                                                                           max_samples=20_000))
+        from scipy.spatial import cKDTree
+
+        probes = surface_samples(m, spacing=PROBE_SPACING, max_samples=20_000)
+        out = _PREPARED[m] = _Prepared(RayGrid(m.vertices, m.faces), probes, cKDTree(probes))
     return out
 
 
@@ -79,9 +98,14 @@ def check_cell(instances: Sequence[Instance], meshes: Mapping[str, MeshData], ce
                                  f"{tol * 1e3:g} mm is pose noise: check its T (z up, metres)")
 
 
-def _depth_into(pts_a: np.ndarray, Ta: np.ndarray, b: MeshData, grid: RayGrid, b_bvh: coal.BVHModelOBBRSS,
-                Tb: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> float:
-    """Largest distance to ``b``'s surface of the probe points ``pts_a`` (part frame of a) inside ``b``."""
+def _depth_into(pts_a: np.ndarray, Ta: np.ndarray, b: MeshData, prep_b: _Prepared, b_bvh: coal.BVHModelOBBRSS,
+                Tb: np.ndarray, lo: np.ndarray, hi: np.ndarray, floor: float) -> float:
+    """Largest distance to ``b``'s surface of the probe points ``pts_a`` (part frame of a) inside ``b``
+    when it is more than ``floor``; otherwise some value at most ``floor``.
+
+    A point's distance to ``b``'s surface is at most its distance to ``b``'s nearest probe point
+    (which lies on that surface), so the points within ``floor`` of one are skipped: none of them
+    can be deeper than ``floor``, and the largest depth beyond it is found among the others."""
     pts = pts_a @ Ta[:3, :3].T + Ta[:3, 3]
     pts = pts[np.all((pts >= lo) & (pts <= hi), axis=1)]
     if not len(pts):
@@ -89,7 +113,11 @@ def _depth_into(pts_a: np.ndarray, Ta: np.ndarray, b: MeshData, grid: RayGrid, b
     local = (pts - Tb[:3, 3]) @ Tb[:3, :3]
     if len(local) > MAX_PROBES:
         local = local[np.linspace(0, len(local) - 1, MAX_PROBES).astype(np.int64)]
-    inside = local[points_inside_tree(grid, b, local)]
+    near, _ = prep_b.tree.query(local, distance_upper_bound=floor - _ROUNDING)
+    local = local[~np.isfinite(near)]  # no probe of b within floor: possibly deeper than floor
+    if not len(local):
+        return 0.0
+    inside = local[points_inside_tree(prep_b.grid, b, local)]
     best = 0.0
     req, res = coal.DistanceRequest(), coal.DistanceResult()
     probe = coal.Sphere(1e-9)
@@ -104,13 +132,6 @@ def overlap_warnings(instances: Sequence[Instance], meshes: Mapping[str, MeshDat
                      bvhs: Mapping[str, coal.BVHModelOBBRSS] | None = None) -> list[str]:
     """One warning per pair of instances interpenetrating by more than ``tol`` (m)."""
     bvhs = dict(bvhs or {})
-    grids: dict[str, RayGrid] = {}
-    probes: dict[str, np.ndarray] = {}
-
-    def prep(name: str) -> None:
-        if name not in grids:
-            grids[name], probes[name] = _prepared(meshes[name])
-
     for name in meshes:
         if name not in bvhs:
             bvhs[name] = bvh(meshes[name].vertices, meshes[name].faces)
@@ -133,12 +154,11 @@ def overlap_warnings(instances: Sequence[Instance], meshes: Mapping[str, MeshDat
                                 bvhs[b.part], coal.Transform3s(b.T_world_part[:3, :3].copy(), b.T_world_part[:3, 3].copy()),
                                 req, res):
                 continue
-            prep(a.part)
-            prep(b.part)
-            d = max(_depth_into(probes[a.part], a.T_world_part, meshes[b.part], grids[b.part], bvhs[b.part],
-                                b.T_world_part, lo, hi),
-                    _depth_into(probes[b.part], b.T_world_part, meshes[a.part], grids[a.part], bvhs[a.part],
-                                a.T_world_part, lo, hi))
+            pa, pb = _prepared(meshes[a.part]), _prepared(meshes[b.part])
+            d = max(_depth_into(pa.probes, a.T_world_part, meshes[b.part], pb, bvhs[b.part], b.T_world_part, lo, hi,
+                                tol),
+                    _depth_into(pb.probes, b.T_world_part, meshes[a.part], pa, bvhs[a.part], a.T_world_part, lo, hi,
+                                tol))
             if d > tol:
                 out.append(f"instances {a.id!r} and {b.id!r} interpenetrate by about {d * 1e3:.1f} mm (more than "
                            f"{tol * 1e3:g} mm of pose noise); their picks are planned as given")
