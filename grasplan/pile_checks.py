@@ -45,6 +45,8 @@ class _Prepared:
     grid: RayGrid
     probes: np.ndarray
     tree: Any
+    lo: np.ndarray  #: the mesh's bounding box (part frame): no point outside it is inside the mesh
+    hi: np.ndarray
 
 
 #: the same for every scene, so a warm planner (the pick service) builds them once per part, not
@@ -59,7 +61,9 @@ def _prepared(m: MeshData) -> _Prepared:
         from scipy.spatial import cKDTree
 
         probes = surface_samples(m, spacing=PROBE_SPACING, max_samples=20_000)
-        out = _PREPARED[m] = _Prepared(RayGrid(m.vertices, m.faces), probes, cKDTree(probes))
+        V = np.asarray(m.vertices, dtype=np.float64)
+        out = _PREPARED[m] = _Prepared(RayGrid(m.vertices, m.faces), probes, cKDTree(probes), V.min(axis=0),
+                                       V.max(axis=0))
     return out
 
 
@@ -103,9 +107,10 @@ def _depth_into(pts_a: np.ndarray, Ta: np.ndarray, b: MeshData, prep_b: _Prepare
     """Largest distance to ``b``'s surface of the probe points ``pts_a`` (part frame of a) inside ``b``
     when it is more than ``floor``; otherwise some value at most ``floor``.
 
-    A point's distance to ``b``'s surface is at most its distance to ``b``'s nearest probe point
-    (which lies on that surface), so the points within ``floor`` of one are skipped: none of them
-    can be deeper than ``floor``, and the largest depth beyond it is found among the others."""
+    Points outside ``b``'s bounding box are not inside it. A point's distance to ``b``'s surface is
+    at most its distance to ``b``'s nearest probe point (which lies on that surface), so the points
+    within ``floor`` of one are skipped: none of them can be deeper than ``floor``, and the largest
+    depth beyond it is found among the others."""
     pts = pts_a @ Ta[:3, :3].T + Ta[:3, 3]
     pts = pts[np.all((pts >= lo) & (pts <= hi), axis=1)]
     if not len(pts):
@@ -113,6 +118,9 @@ def _depth_into(pts_a: np.ndarray, Ta: np.ndarray, b: MeshData, prep_b: _Prepare
     local = (pts - Tb[:3, 3]) @ Tb[:3, :3]
     if len(local) > MAX_PROBES:
         local = local[np.linspace(0, len(local) - 1, MAX_PROBES).astype(np.int64)]
+    local = local[np.all((local >= prep_b.lo) & (local <= prep_b.hi), axis=1)]  # outside b's box: not in b
+    if not len(local):
+        return 0.0
     near, _ = prep_b.tree.query(local, distance_upper_bound=floor - _ROUNDING)
     local = local[~np.isfinite(near)]  # no probe of b within floor: possibly deeper than floor
     if not len(local):
