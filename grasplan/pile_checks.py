@@ -121,10 +121,11 @@ def _depth_into(pts_a: np.ndarray, Ta: np.ndarray, b: MeshData, prep_b: _Prepare
     local = local[np.all((local >= prep_b.lo) & (local <= prep_b.hi), axis=1)]  # outside b's box: not in b
     if not len(local):
         return 0.0
-    near, _ = prep_b.tree.query(local, distance_upper_bound=floor - _ROUNDING)
-    local = local[~np.isfinite(near)]  # no probe of b within floor: possibly deeper than floor
-    if not len(local):
-        return 0.0
+    if floor > _ROUNDING:
+        near, _ = prep_b.tree.query(local, distance_upper_bound=floor - _ROUNDING)
+        local = local[~np.isfinite(near)]  # no probe of b within floor: possibly deeper than floor
+        if not len(local):
+            return 0.0
     inside = local[points_inside_tree(prep_b.grid, b, local)]
     best = 0.0
     req, res = coal.DistanceRequest(), coal.DistanceResult()
