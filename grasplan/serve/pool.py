@@ -36,6 +36,7 @@ import traceback
 from collections import deque
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import replace
 from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
@@ -200,7 +201,7 @@ class PlannerPool:
         self.n = int(n)
         self.time_limit_s = float(config.time_limit_s)
         self.max_queue = int(config.max_queue)
-        self._config_json = config_to_json(config)
+        self._config_json = config_to_json(replace(config, token=None))  # the HTTP process checks the token
         self._planners: list[_Planner] = []
         try:
             first = _Planner(self._config_json, 0)
