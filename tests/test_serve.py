@@ -120,16 +120,16 @@ def test_planner_processes(tmp_path):
     import signal
 
     cfg = ServeConfig(parts_dir=parts_folder(tmp_path / "parts", ("box",)), token=TOKEN, databases=False, workers=2,
-                      time_limit_s=4.0, max_queue=1)
+                      time_limit_s=8.0, max_queue=1)
     app = create_app(cfg)
     pool = app.state.pool
     with LoopbackServer(app) as srv:
         def ask(body: dict | None = None) -> tuple[int, dict]:
             return Client(srv.port, token=TOKEN).json("POST", "/plan", body or {"part": "box", "options": FAST_PLAN})
 
-        def asked_together(n: int) -> list[tuple[int, dict]]:
+        def asked_together(n: int, body: dict | None = None) -> list[tuple[int, dict]]:
             out: dict[int, tuple[int, dict]] = {}
-            threads = [threading.Thread(target=lambda k=k: out.__setitem__(k, ask())) for k in range(n)]
+            threads = [threading.Thread(target=lambda k=k: out.__setitem__(k, ask(body))) for k in range(n)]
             for t in threads:
                 t.start()
                 time.sleep(0.05)
@@ -141,7 +141,8 @@ def test_planner_processes(tmp_path):
             """Until two planners, none of ``gone``, plan again."""
             t_end = time.monotonic() + timeout_s
             while time.monotonic() < t_end:
-                ok = [s for s, _ in asked_together(2)] == [200, 200]  # (a dead idle planner is found by a request)
+                # answered by the planners (a refusal: quick); a dead idle planner is found by a request
+                ok = [s for s, _ in asked_together(2, {"part": "nosuch"})] == [422, 422]
                 pids = pool.pids()
                 if ok and len(pids) == 2 and not set(gone) & set(pids):
                     return
@@ -156,12 +157,12 @@ def test_planner_processes(tmp_path):
         first = pool.pids()
         os.kill(first[0], signal.SIGKILL)  # dies while idle: replaced, the request goes to a live one
         time.sleep(0.3)
-        assert ask()[0] == 200 and ask()[0] == 200
+        assert ask({"part": "nosuch"})[0] == 422 and ask({"part": "nosuch"})[0] == 422
         until_replaced(first[:1])
         for pid in pool.pids():  # both stuck
             os.kill(pid, signal.SIGSTOP)
         stuck = pool.pids()
-        got = asked_together(4)
+        got = asked_together(4, {"part": "nosuch"})
         assert Client(srv.port).json("GET", "/health")[0] == 200
         kinds = sorted((s, d["error"]) for s, d in got)
         assert kinds == [(503, "busy"), (503, "busy"), (504, "time_limit"), (504, "time_limit")], kinds
@@ -178,6 +179,7 @@ def test_planner_processes(tmp_path):
         status, doc = busy["r"]
         assert status == 500 and doc["error"] == "internal" and "\n" not in doc["detail"], doc
         until_replaced(killed)
+        assert ask()[0] == 200  # the fresh planners plan
         status, h = Client(srv.port).json("GET", "/health")
         assert status == 200 and h["queued"] == 0
     assert all(p.proc.poll() is not None for p in pool._planners)  # stopped with the service
