@@ -84,8 +84,25 @@ def _inside_depth(o: Obstacle, pts: np.ndarray) -> float:
     return float(max(depth.max(initial=0.0), 0.0))
 
 
+def _world_box(o: Obstacle) -> tuple[np.ndarray, np.ndarray] | None:
+    """An axis-aligned box (world) holding a box, cylinder or sphere obstacle, a nanometre larger
+    (rounding); None for other kinds."""
+    T = np.asarray(o.T_world_obstacle, dtype=np.float64)
+    if o.kind == "box":
+        half = np.abs(T[:3, :3]) @ (0.5 * np.asarray(o.box_size(), dtype=np.float64))
+    elif o.kind == "sphere":
+        half = np.full(3, o.dimension("radius"))
+    elif o.kind == "cylinder":
+        half = np.full(3, float(np.hypot(o.dimension("radius"), 0.5 * o.dimension("length"))))
+    else:
+        return None
+    return T[:3, 3] - half - 1e-9, T[:3, 3] + half + 1e-9
+
+
 def check_cell(instances: Sequence[Instance], meshes: Mapping[str, MeshData], cell: Cell, *, tol: float) -> None:
-    """InputError when an instance lies below the table or inside an obstacle by more than ``tol``."""
+    """InputError when an instance lies below the table or inside an obstacle by more than ``tol``
+    (an obstacle whose bounding box the instance's does not meet holds none of its points)."""
+    boxes = [_world_box(o) for o in cell.obstacles]
     for inst in instances:
         m = meshes[inst.part]
         T = inst.T_world_part
@@ -94,7 +111,10 @@ def check_cell(instances: Sequence[Instance], meshes: Mapping[str, MeshData], ce
         if below > tol:
             raise InputError(f"scene: instance {inst.id!r} ({inst.part}) reaches {below * 1e3:.1f} mm below the "
                              f"table top (z = {cell.table_z:g} m); at most {tol * 1e3:g} mm is pose noise: check its T")
-        for o in cell.obstacles:
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
+        for o, box in zip(cell.obstacles, boxes):
+            if box is not None and (np.any(hi < box[0]) or np.any(lo > box[1])):
+                continue
             d = _inside_depth(o, pts)
             if d > tol:
                 where = "below the bin floor" if o.name == "bin_floor" else f"inside obstacle {o.name}"
