@@ -14,7 +14,10 @@ do not):
 """
 from __future__ import annotations
 
+import weakref
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
 
 import coal
 import numpy as np
@@ -29,6 +32,39 @@ from .scenefile import Instance
 #: surface samples of a mesh probed inside another one: spacing (m) and how many at most per pair
 PROBE_SPACING = 0.003
 MAX_PROBES = 600
+#: a probe point within this of a surface sample of the other mesh is at most this deep in it
+#: (m, below ``tol``: float rounding of the distances)
+_ROUNDING = 1e-9
+
+
+@dataclass(frozen=True)
+class _Prepared:
+    """Per mesh: its ray grid (inside tests), probe points (:func:`surface_samples`) and a k-d tree
+    of them (the nearest probe bounds a point's distance to the surface from above)."""
+
+    grid: RayGrid
+    probes: np.ndarray
+    tree: Any
+    lo: np.ndarray  #: the mesh's bounding box (part frame): no point outside it is inside the mesh
+    hi: np.ndarray
+
+
+#: the same for every scene, so a warm planner (the pick service) builds them once per part, not
+#: once per request; dropped with the mesh
+_PREPARED: weakref.WeakKeyDictionary[MeshData, _Prepared] = weakref.WeakKeyDictionary()
+
+
+def _prepared(m: MeshData) -> _Prepared:
+    """``m``'s :class:`_Prepared`, built on first use."""
+    out = _PREPARED.get(m)
+    if out is None:
+        from scipy.spatial import cKDTree
+
+        probes = surface_samples(m, spacing=PROBE_SPACING, max_samples=20_000)
+        V = np.asarray(m.vertices, dtype=np.float64)
+        out = _PREPARED[m] = _Prepared(RayGrid(m.vertices, m.faces), probes, cKDTree(probes), V.min(axis=0),
+                                       V.max(axis=0))
+    return out
 
 
 def _inside_depth(o: Obstacle, pts: np.ndarray) -> float:
@@ -48,8 +84,25 @@ def _inside_depth(o: Obstacle, pts: np.ndarray) -> float:
     return float(max(depth.max(initial=0.0), 0.0))
 
 
+def _world_box(o: Obstacle) -> tuple[np.ndarray, np.ndarray] | None:
+    """An axis-aligned box (world) holding a box, cylinder or sphere obstacle, a nanometre larger
+    (rounding); None for other kinds."""
+    T = np.asarray(o.T_world_obstacle, dtype=np.float64)
+    if o.kind == "box":
+        half = np.abs(T[:3, :3]) @ (0.5 * np.asarray(o.box_size(), dtype=np.float64))
+    elif o.kind == "sphere":
+        half = np.full(3, o.dimension("radius"))
+    elif o.kind == "cylinder":
+        half = np.full(3, float(np.hypot(o.dimension("radius"), 0.5 * o.dimension("length"))))
+    else:
+        return None
+    return T[:3, 3] - half - 1e-9, T[:3, 3] + half + 1e-9
+
+
 def check_cell(instances: Sequence[Instance], meshes: Mapping[str, MeshData], cell: Cell, *, tol: float) -> None:
-    """InputError when an instance lies below the table or inside an obstacle by more than ``tol``."""
+    """InputError when an instance lies below the table or inside an obstacle by more than ``tol``
+    (an obstacle whose bounding box the instance's does not meet holds none of its points)."""
+    boxes = [_world_box(o) for o in cell.obstacles]
     for inst in instances:
         m = meshes[inst.part]
         T = inst.T_world_part
@@ -58,7 +111,10 @@ def check_cell(instances: Sequence[Instance], meshes: Mapping[str, MeshData], ce
         if below > tol:
             raise InputError(f"scene: instance {inst.id!r} ({inst.part}) reaches {below * 1e3:.1f} mm below the "
                              f"table top (z = {cell.table_z:g} m); at most {tol * 1e3:g} mm is pose noise: check its T")
-        for o in cell.obstacles:
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
+        for o, box in zip(cell.obstacles, boxes):
+            if box is not None and (np.any(hi < box[0]) or np.any(lo > box[1])):
+                continue
             d = _inside_depth(o, pts)
             if d > tol:
                 where = "below the bin floor" if o.name == "bin_floor" else f"inside obstacle {o.name}"
@@ -66,17 +122,31 @@ def check_cell(instances: Sequence[Instance], meshes: Mapping[str, MeshData], ce
                                  f"{tol * 1e3:g} mm is pose noise: check its T (z up, metres)")
 
 
-def _depth_into(pts_a: np.ndarray, Ta: np.ndarray, b: MeshData, grid: RayGrid, b_bvh: coal.BVHModelOBBRSS,
-                Tb: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> float:
-    """Largest distance to ``b``'s surface of the probe points ``pts_a`` (part frame of a) inside ``b``."""
-    pts = pts_a @ Ta[:3, :3].T + Ta[:3, 3]
+def _depth_into(pts: np.ndarray, b: MeshData, prep_b: _Prepared, b_bvh: coal.BVHModelOBBRSS, Tb: np.ndarray,
+                lo: np.ndarray, hi: np.ndarray, floor: float) -> float:
+    """Largest distance to ``b``'s surface of the probe points ``pts`` (world) inside ``b`` (pose
+    ``Tb``) among those in the box ``lo``..``hi`` when it is more than ``floor``; otherwise some
+    value at most ``floor``.
+
+    Points outside ``b``'s bounding box are not inside it. A point's distance to ``b``'s surface is
+    at most its distance to ``b``'s nearest probe point (which lies on that surface), so the points
+    within ``floor`` of one are skipped: none of them can be deeper than ``floor``, and the largest
+    depth beyond it is found among the others."""
     pts = pts[np.all((pts >= lo) & (pts <= hi), axis=1)]
     if not len(pts):
         return 0.0
     local = (pts - Tb[:3, 3]) @ Tb[:3, :3]
     if len(local) > MAX_PROBES:
         local = local[np.linspace(0, len(local) - 1, MAX_PROBES).astype(np.int64)]
-    inside = local[points_inside_tree(grid, b, local)]
+    local = local[np.all((local >= prep_b.lo) & (local <= prep_b.hi), axis=1)]  # outside b's box: not in b
+    if not len(local):
+        return 0.0
+    if floor > _ROUNDING:
+        near, _ = prep_b.tree.query(local, distance_upper_bound=floor - _ROUNDING)
+        local = local[~np.isfinite(near)]  # no probe of b within floor: possibly deeper than floor
+        if not len(local):
+            return 0.0
+    inside = local[points_inside_tree(prep_b.grid, b, local)]
     best = 0.0
     req, res = coal.DistanceRequest(), coal.DistanceResult()
     probe = coal.Sphere(1e-9)
@@ -91,17 +161,6 @@ def overlap_warnings(instances: Sequence[Instance], meshes: Mapping[str, MeshDat
                      bvhs: Mapping[str, coal.BVHModelOBBRSS] | None = None) -> list[str]:
     """One warning per pair of instances interpenetrating by more than ``tol`` (m)."""
     bvhs = dict(bvhs or {})
-    grids: dict[str, RayGrid] = {}
-    probes: dict[str, np.ndarray] = {}
-
-    def prep(name: str) -> None:
-        if name not in grids:
-            m = meshes[name]
-            grids[name] = RayGrid(m.vertices, m.faces)
-            probes[name] = surface_samples(m, spacing=PROBE_SPACING, max_samples=20_000)
-            if name not in bvhs:
-                bvhs[name] = bvh(m.vertices, m.faces)
-
     for name in meshes:
         if name not in bvhs:
             bvhs[name] = bvh(meshes[name].vertices, meshes[name].faces)
@@ -111,6 +170,14 @@ def overlap_warnings(instances: Sequence[Instance], meshes: Mapping[str, MeshDat
         w = np.asarray(meshes[inst.part].vertices) @ T[:3, :3].T + T[:3, 3]
         boxes.append((w.min(axis=0), w.max(axis=0)))
     req, res = coal.CollisionRequest(), coal.CollisionResult()
+    probes: dict[int, np.ndarray] = {}  # per instance: its probe points in the world, once
+
+    def world_probes(k: int) -> np.ndarray:
+        if k not in probes:
+            T = instances[k].T_world_part
+            probes[k] = _prepared(meshes[instances[k].part]).probes @ T[:3, :3].T + T[:3, 3]
+        return probes[k]
+
     out = []
     for i, a in enumerate(instances):
         for j in range(i + 1, len(instances)):
@@ -124,12 +191,10 @@ def overlap_warnings(instances: Sequence[Instance], meshes: Mapping[str, MeshDat
                                 bvhs[b.part], coal.Transform3s(b.T_world_part[:3, :3].copy(), b.T_world_part[:3, 3].copy()),
                                 req, res):
                 continue
-            prep(a.part)
-            prep(b.part)
-            d = max(_depth_into(probes[a.part], a.T_world_part, meshes[b.part], grids[b.part], bvhs[b.part],
-                                b.T_world_part, lo, hi),
-                    _depth_into(probes[b.part], b.T_world_part, meshes[a.part], grids[a.part], bvhs[a.part],
-                                a.T_world_part, lo, hi))
+            d = max(_depth_into(world_probes(i), meshes[b.part], _prepared(meshes[b.part]), bvhs[b.part],
+                                b.T_world_part, lo, hi, tol),
+                    _depth_into(world_probes(j), meshes[a.part], _prepared(meshes[a.part]), bvhs[a.part],
+                                a.T_world_part, lo, hi, tol))
             if d > tol:
                 out.append(f"instances {a.id!r} and {b.id!r} interpenetrate by about {d * 1e3:.1f} mm (more than "
                            f"{tol * 1e3:g} mm of pose noise); their picks are planned as given")

@@ -102,20 +102,87 @@ def test_bind_warning(tmp_path):
     assert ServeConfig(parts_dir=tmp_path, host="0.0.0.0", token=TOKEN).bind_warning() is None
 
 
-def test_workers_rebuild_the_app_from_the_settings(tmp_path, monkeypatch):
-    """``--workers N``: each uvicorn worker builds its app from the settings in the environment."""
-    from fastapi import FastAPI
-
+def test_config_travels_as_json(tmp_path):
+    """``--workers N``: each planner process gets the settings as JSON."""
     from grasplan.serve.config import config_from_json, config_to_json
-    from grasplan.serve.run import CONFIG_ENV, app_from_env
 
     cfg = ServeConfig(parts_dir=parts_folder(tmp_path, ("box",)), token=TOKEN, time_limit_s=12.5, databases=False,
                       config_dirs=(str(tmp_path),), workers=2)
-    text = json.dumps(config_to_json(cfg))
-    assert config_from_json(json.loads(text)) == cfg
-    monkeypatch.setenv(CONFIG_ENV, text)
-    app = app_from_env()
-    assert isinstance(app, FastAPI) and app.state.service.config == cfg and list(app.state.service.parts) == ["box"]
+    assert config_from_json(json.loads(json.dumps(config_to_json(cfg)))) == cfg
+
+
+def test_planner_processes(tmp_path):
+    """``--workers 2``: two planner processes behind the HTTP process, a request to a free one; a
+    planner that died while idle is replaced before a request reaches it; one killed mid-request
+    costs that request a one-line 500; a stuck one is answered 504 at the time limit and replaced;
+    beyond the queue 503 at once; /health answers throughout and the service plans again after."""
+    import os
+    import signal
+
+    cfg = ServeConfig(parts_dir=parts_folder(tmp_path / "parts", ("box",)), token=TOKEN, databases=False, workers=2,
+                      time_limit_s=8.0, max_queue=1)
+    app = create_app(cfg)
+    pool = app.state.pool
+    with LoopbackServer(app) as srv:
+        def ask(body: dict | None = None) -> tuple[int, dict]:
+            return Client(srv.port, token=TOKEN).json("POST", "/plan", body or {"part": "box", "options": FAST_PLAN})
+
+        def asked_together(n: int, body: dict | None = None) -> list[tuple[int, dict]]:
+            out: dict[int, tuple[int, dict]] = {}
+            threads = [threading.Thread(target=lambda k=k: out.__setitem__(k, ask(body))) for k in range(n)]
+            for t in threads:
+                t.start()
+                time.sleep(0.05)
+            for t in threads:
+                t.join()
+            return [out[k] for k in range(n)]
+
+        def until_replaced(gone: list[int], timeout_s: float = 120.0) -> None:
+            """Until two planners, none of ``gone``, plan again."""
+            t_end = time.monotonic() + timeout_s
+            while time.monotonic() < t_end:
+                # answered by the planners (a refusal: quick); a dead idle planner is found by a request
+                ok = [s for s, _ in asked_together(2, {"part": "nosuch"})] == [422, 422]
+                pids = pool.pids()
+                if ok and len(pids) == 2 and not set(gone) & set(pids):
+                    return
+                time.sleep(0.5)
+            raise AssertionError(f"the planners {gone} were not replaced: {pool.pids()}")
+
+        status, h = Client(srv.port).json("GET", "/health")
+        assert status == 200 and h["planners"] == 2 and h["pick"] is False
+        assert [s for s, _ in asked_together(2)] == [200, 200]
+        status, doc = ask({"part": "nosuch"})  # refusals come back from the planner as 422
+        assert status == 422 and "unknown part" in doc["detail"]
+        first = pool.pids()
+        os.kill(first[0], signal.SIGKILL)  # dies while idle: replaced, the request goes to a live one
+        time.sleep(0.3)
+        assert ask({"part": "nosuch"})[0] == 422 and ask({"part": "nosuch"})[0] == 422
+        until_replaced(first[:1])
+        for pid in pool.pids():  # both stuck
+            os.kill(pid, signal.SIGSTOP)
+        stuck = pool.pids()
+        got = asked_together(4, {"part": "nosuch"})
+        assert Client(srv.port).json("GET", "/health")[0] == 200
+        kinds = sorted((s, d["error"]) for s, d in got)
+        assert kinds == [(503, "busy"), (503, "busy"), (504, "time_limit"), (504, "time_limit")], kinds
+        assert any("queued" in d["detail"] for _, d in got) and any("waited" in d["detail"] for _, d in got)
+        until_replaced(stuck)
+        busy: dict[str, tuple[int, dict]] = {}
+        slow = threading.Thread(target=lambda: busy.__setitem__("r", ask({"part": "box", "options": {"spacing": "0.3mm"}})))
+        slow.start()
+        time.sleep(1.0)
+        killed = pool.pids()
+        for pid in killed:  # killed while planning (a crash, the OOM killer)
+            os.kill(pid, signal.SIGKILL)
+        slow.join()
+        status, doc = busy["r"]
+        assert status == 500 and doc["error"] == "internal" and "\n" not in doc["detail"], doc
+        until_replaced(killed)
+        assert ask()[0] == 200  # the fresh planners plan
+        status, h = Client(srv.port).json("GET", "/health")
+        assert status == 200 and h["queued"] == 0
+    assert all(p.proc.poll() is not None for p in pool._planners)  # stopped with the service
 
 
 def test_config_needs_a_parts_folder(tmp_path):

@@ -90,6 +90,22 @@ def test_pick_matches_the_library(client, service, scenes):
     assert np.allclose(doc["picks"][0]["path"], ref.picks[0].motion.path)
 
 
+def test_picks_text_is_the_documents_json(service, scenes):
+    """The served serialisation (robot, gripper and cell serialised once per object) is byte for
+    byte the JSON of the grasplan.picks/1 document, with the parts' paths reduced to file names."""
+    from grasplan.io import to_json_text
+    from grasplan.scenefile import scene_from_dict
+    from grasplan.serve.handlers import public_parts
+
+    res = service.picker.plan(scene_from_dict({**scenes.scene(seed=11), "cell": "bin"}), max_picks=2, seed=1)
+    assert res.picks and res.robot is not None and res.gripper is not None and res.cell is not None
+    for _ in range(2):  # the first call serialises the robot, gripper and cell, the second reuses them
+        assert res.to_json_text() == to_json_text(res.to_json())
+    parts = public_parts(res.parts, service)
+    assert parts["box"]["path"] == "box.stl" and res.parts["box"]["path"] != "box.stl"
+    assert res.to_json_text(parts=parts) == to_json_text({**res.to_json(), "parts": parts})
+
+
 def test_pick_defaults_to_every_instance_that_has_one(client, scenes):
     scene = scenes.scene(seed=2)
     status, doc = client.json("POST", "/pick", {**scene, "instances": scene["instances"][:3]})

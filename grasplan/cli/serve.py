@@ -13,6 +13,7 @@ from ..serve.config import (
     DEFAULT_MAX_QUEUE,
     DEFAULT_PORT,
     DEFAULT_TIME_LIMIT_S,
+    MAX_AUTO_WORKERS,
     TOKEN_ENV,
 )
 from .common import info, units_option
@@ -43,11 +44,11 @@ from .options import FLOAT, INT, config_dir_option, robot_option
 @click.option("--time-limit", "time_limit_s", type=FLOAT, default=DEFAULT_TIME_LIMIT_S, show_default=True,
               help="Seconds a request may take, queueing included: 503 when it could not start in time, 504 when "
                    "its planning ran past it.")
-@click.option("--workers", type=INT, default=1, show_default=True,
-              help="Worker processes, each with its own warm planner (requests are planned one at a time per "
-                   "worker).")
+@click.option("--workers", type=INT, default=None, show_default=f"one per core, at most {MAX_AUTO_WORKERS}",
+              help="Planners, each with its own warm state and one request at a time: N > 1 starts N planner "
+                   "processes and hands each request to a free one; 1 plans on a thread of the HTTP process.")
 @click.option("--max-queue", type=INT, default=DEFAULT_MAX_QUEUE, show_default=True,
-              help="Requests waiting per worker beyond this are refused at once with 503.")
+              help="Requests waiting for a free planner beyond this are refused at once with 503.")
 @click.option("--pick/--no-pick", "databases", default=True, show_default=True,
               help="Compute or load every part's grasp database at start for POST /pick (--no-pick: /plan and "
                    "/export only, a faster start).")
@@ -70,9 +71,11 @@ def command(parts_dir, host, port, robot, gripper, cell, units, config_dir, toke
       curl -H 'Authorization: Bearer s3cret-token' localhost:8765/parts
     """
     from ..serve.config import ServeConfig, parse_size, require_serve_packages, token_from_env
-    from ..serve.run import serve
+    from ..serve.run import default_workers, serve
 
     require_serve_packages()
+    if workers is None:
+        workers = default_workers()
     config = ServeConfig(parts_dir=parts_dir, robot=robot, gripper=gripper, cell=cell, units=units,
                          token=token_from_env(token), max_body=parse_size(max_body), time_limit_s=time_limit_s,
                          workers=workers, max_queue=max_queue, host=host, port=port, databases=databases,
@@ -82,5 +85,6 @@ def command(parts_dir, host, port, robot, gripper, cell, units, config_dir, toke
     if warning:
         info(f"grasplan: warning: {warning}")
     info(f"grasplan serve: starting (parts {parts_dir}, robot {robot}, gripper {gripper}, cell {cell}; "
-         f"token {'required' if config.requires_token else 'not required'})")
+         f"token {'required' if config.requires_token else 'not required'}; {workers} "
+         f"planner{'s' if workers > 1 else ''})")
     serve(config, lambda line: info(f"grasplan serve: {line}"))

@@ -11,16 +11,18 @@ loaded scene to the first feasible pick).
 """
 from __future__ import annotations
 
+import json
 import os
+import weakref
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from ..cell import Cell
 from ..gripper.model import Gripper
-from ..io import write_json
+from ..io import to_json_text, write_json
 from ..motion import Motion
 from ..robot_model import Robot
 from ..scenefile import Scene
@@ -30,6 +32,35 @@ PICKS_SCHEMA = "grasplan.picks/1"
 #: instance statuses, in the order the counts list them
 INSTANCE_STATUSES = ("picked", "blocked", "cloud", "bin", "unreachable", "ik_collision", "lift_collision",
                      "no_path", "place", "no_grasp", "not_tried")
+
+
+class _Text(NamedTuple):
+    """A value already serialised (JSON text)."""
+
+    text: str
+
+
+#: the JSON text of each robot, gripper and cell a picks document embedded, kept while the object
+#: lives (they are frozen; a warm picker's are the same in every document)
+_STATIC: dict[str, weakref.WeakKeyDictionary[Any, str]] = {k: weakref.WeakKeyDictionary()
+                                                          for k in ("robot", "gripper", "cell")}
+
+
+def _static_json(kind: str, obj: Any) -> dict[str, Any]:
+    """The document's record of the robot (with its source), gripper (with its shapes) or cell."""
+    if kind == "robot":
+        return obj.to_json(source=True)
+    if kind == "gripper":
+        return obj.to_json(definition=True)
+    return obj.to_json()
+
+
+def _static_text(kind: str, obj: Any) -> str:
+    cache = _STATIC[kind]
+    text = cache.get(obj)
+    if text is None:
+        text = cache[obj] = to_json_text(_static_json(kind, obj))
+    return text
 
 
 def _m(a: np.ndarray) -> list:
@@ -125,25 +156,34 @@ class PickResult:
         st = [r.status for r in self.instances]
         return {s: st.count(s) for s in INSTANCE_STATUSES if s in st}
 
+    def _items(self, parts: dict[str, dict[str, Any]] | None, static_text: bool) -> list[tuple[str, Any]]:
+        """The document's (key, value) pairs in order; ``static_text``: the robot, gripper and cell
+        as their JSON text (:class:`_Text`, made once per object)."""
+        items: list[tuple[str, Any]] = [
+            ("schema", PICKS_SCHEMA), ("scene", self.scene.to_json()),
+            ("parts", {k: dict(v) for k, v in (self.parts if parts is None else parts).items()})]
+        for key, obj in (("robot", self.robot), ("gripper", self.gripper), ("cell", self.cell)):
+            if obj is not None:
+                items.append((key, _Text(_static_text(key, obj)) if static_text else _static_json(key, obj)))
+        items += [("params", self.params.to_json()), ("sequence", bool(self.sequence)),
+                  ("counts", {"instances": len(self.instances), "picks": len(self.picks), **self.counts(),
+                              **{k: int(v) for k, v in self.stats.items()}}),
+                  ("timing_s", {k: float(v) for k, v in self.timing_s.items()}),
+                  ("warnings", list(self.warnings)), ("instances", [r.to_json() for r in self.instances]),
+                  ("picks", [p.to_json() for p in self.picks])]
+        return items
+
     def to_json(self) -> dict[str, Any]:
         """The ``grasplan.picks/1`` document."""
-        doc: dict[str, Any] = {"schema": PICKS_SCHEMA, "scene": self.scene.to_json(),
-                               "parts": {k: dict(v) for k, v in self.parts.items()}}
-        if self.robot is not None:
-            doc["robot"] = self.robot.to_json(source=True)
-        if self.gripper is not None:
-            doc["gripper"] = self.gripper.to_json(definition=True)
-        if self.cell is not None:
-            doc["cell"] = self.cell.to_json()
-        doc["params"] = self.params.to_json()
-        doc["sequence"] = bool(self.sequence)
-        doc["counts"] = {"instances": len(self.instances), "picks": len(self.picks), **self.counts(),
-                         **{k: int(v) for k, v in self.stats.items()}}
-        doc["timing_s"] = {k: float(v) for k, v in self.timing_s.items()}
-        doc["warnings"] = list(self.warnings)
-        doc["instances"] = [r.to_json() for r in self.instances]
-        doc["picks"] = [p.to_json() for p in self.picks]
-        return doc
+        return dict(self._items(None, False))
+
+    def to_json_text(self, *, parts: dict[str, dict[str, Any]] | None = None) -> str:
+        """``grasplan.io.to_json_text(self.to_json())``, byte for byte, with the robot, gripper and
+        cell serialised once per object (a warm picker embeds the same ones in every document);
+        ``parts``: these part records instead of :attr:`parts` (the pick service's, without its
+        folder's paths). ValueError for NaN or infinity, as json's."""
+        return "{" + ", ".join(f"{json.dumps(k)}: {v.text if isinstance(v, _Text) else to_json_text(v)}"
+                               for k, v in self._items(parts, True)) + "}"
 
     def write(self, path: str | os.PathLike) -> Path:
         """Write :meth:`to_json` atomically (a temporary file, then a rename)."""

@@ -7,8 +7,9 @@ by name -> ``grasplan.plan/1``), ``POST /export`` (a plan -> program text), ``GE
 
 Modules: :mod:`~grasplan.serve.config` (settings), :mod:`~grasplan.serve.state` (the warm robot,
 gripper, cell, parts and picker), :mod:`~grasplan.serve.bodies` (reading request bodies),
-:mod:`~grasplan.serve.handlers` (the work), :mod:`~grasplan.serve.jobs` (one request at a time,
-time limits), :mod:`~grasplan.serve.guard` (token, body limit), :mod:`~grasplan.serve.app`
+:mod:`~grasplan.serve.handlers` (the work), :mod:`~grasplan.serve.jobs` (one request at a time on
+a thread, time limits), :mod:`~grasplan.serve.pool` (``--workers N``: N planner processes, each
+request to a free one), :mod:`~grasplan.serve.guard` (token, body limit), :mod:`~grasplan.serve.app`
 (FastAPI), :mod:`~grasplan.serve.run` (uvicorn). FastAPI and uvicorn are the optional ``serve``
 extra: only ``app`` and ``run`` import them.
 

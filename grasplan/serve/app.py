@@ -2,10 +2,12 @@
 bodies: docs/serve.md.
 
 Every planning route reads its body itself (at most ``--max-body`` bytes, counted while it
-arrives), parses it strictly (400), hands the document to the planning thread
-(:class:`~grasplan.serve.jobs.JobQueue`: one request at a time, a time limit each: 503/504) where
-:mod:`grasplan.serve.handlers` validates it (422 naming the field) and plans. Any other exception
-is a bug: logged with its traceback, answered 500 with one line, and the service keeps serving.
+arrives), parses it strictly (400), hands the document to the planner: with one worker the
+planning thread of this process (:class:`~grasplan.serve.jobs.JobQueue`), with ``--workers N`` the
+first free of N planner processes (:class:`~grasplan.serve.pool.PlannerPool`); one request at a
+time per planner, a time limit each (503/504), where :mod:`grasplan.serve.handlers` validates it
+(422 naming the field), plans and serialises. Any other exception is a bug: logged with its
+traceback, answered 500 with one line, and the service keeps serving.
 """
 from __future__ import annotations
 
@@ -15,6 +17,7 @@ import uuid
 import zlib
 from collections.abc import AsyncIterator, Callable
 from contextlib import asynccontextmanager
+from dataclasses import replace
 from typing import Any
 
 from fastapi import FastAPI, Request
@@ -27,6 +30,7 @@ from . import handlers
 from .config import ServeConfig
 from .guard import Guard
 from .jobs import Busy, JobQueue, TimedOut
+from .pool import PlannerError, PlannerPool
 from .openapi import export_body, pick_body, plan_body
 from .bodies import BadRequest, parse_json
 from .state import Service
@@ -93,21 +97,35 @@ def create_app(config: ServeConfig, *, service: Service | None = None,
     """The service's app (OpenAPI at ``/docs``), behind the token and body-size guard.
 
     ``service``: an already started :class:`Service` whose warm state to use with this config's
-    limits (tests share one); by default it is started here (robot, gripper, cell, parts, grasp databases: seconds to minutes), reporting on
-    ``progress``. Raises InputError/ConfigError for a configuration that cannot start."""
-    service = Service.start(config, progress or log.info) if service is None else service.with_config(config)
+    limits, planned on this process's planning thread (tests share one); by default it is started
+    here (robot, gripper, cell, parts, grasp databases: seconds to minutes), reporting on
+    ``progress``: with ``config.workers`` > 1 in that many planner processes
+    (:class:`~grasplan.serve.pool.PlannerPool`, stopped when the app's lifespan ends). Raises
+    InputError/ConfigError for a configuration that cannot start."""
+    pool: PlannerPool | None = None
+    if service is not None:
+        service = service.with_config(config)
+    elif config.workers > 1:  # N planner processes; this one parses, checks and answers
+        service = Service.start(replace(config, databases=False))
+        pool = PlannerPool(config, config.workers, progress or log.info)
+    else:
+        service = Service.start(config, progress or log.info)
     jobs = JobQueue(time_limit_s=config.time_limit_s, max_queue=config.max_queue)
+    can_pick = service.picker is not None if pool is None else pool.picks
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         yield
         jobs.close()
+        if pool is not None:
+            pool.close()
 
     api = FastAPI(title="grasplan", version=__version__, lifespan=lifespan,
                   description="Grasps, plans and picks for the parts in this service's parts folder "
                               "(docs/serve.md). Bodies are JSON; errors are {error, detail}.")
     api.state.service = service
     api.state.jobs = jobs
+    api.state.pool = pool
     api.add_middleware(Guard, token=config.token, max_body=config.max_body)
 
     @api.exception_handler(StarletteHTTPException)
@@ -128,6 +146,8 @@ def create_app(config: ServeConfig, *, service: Service | None = None,
         try:
             body = await read_body(request, config.max_body)
             doc = await asyncio.to_thread(parse_json, body) if len(body) > _BIG_BODY else parse_json(body)
+            if pool is not None:
+                return await pool.run(what, doc, what=what)
             return await jobs.run(fn, service, doc, what=what)
         except TooLarge as exc:
             return error(413, "too_large", str(exc))
@@ -143,6 +163,11 @@ def create_app(config: ServeConfig, *, service: Service | None = None,
             return error(503, "busy", str(exc))
         except TimedOut as exc:
             return error(504, "time_limit", str(exc))
+        except PlannerError as exc:  # a bug in a planner process: its traceback to the log
+            log.error("%s %s [%s]: internal error in a planner process:\n%s", request.method, request.url.path, rid,
+                      exc.traceback)
+            return error(500, "internal", f"internal error ({exc.type_name}) [{rid}]; it is logged and the "
+                                          "service keeps serving; please report it with the request")
         except MemoryError:
             log.error("%s %s [%s]: out of memory", request.method, request.url.path, rid)
             return error(507, "out_of_memory", f"the request needs more memory than this machine has [{rid}]")
@@ -156,7 +181,8 @@ def create_app(config: ServeConfig, *, service: Service | None = None,
 
     @api.get("/health", summary="Liveness: status, robot, gripper, cell, parts, queue (no token needed)")
     async def health() -> dict[str, Any]:
-        return {"status": "ok", "version": __version__, **service.info(), "queued": jobs.pending}
+        return {"status": "ok", "version": __version__, **service.info(), "pick": can_pick,
+                "queued": jobs.pending if pool is None else pool.pending, "planners": 1 if pool is None else pool.n}
 
     @api.get("/robots", summary="The robot this service plans for, and the robots grasplan knows")
     async def robots() -> dict[str, Any]:
@@ -178,7 +204,7 @@ def create_app(config: ServeConfig, *, service: Service | None = None,
     @api.post("/pick", summary="Plan picks from a scene: grasplan.picks/1", openapi_extra=pick_body(),
               responses={200: {"description": "A grasplan.picks/1 document"}})
     async def pick(request: Request) -> Response:
-        if service.picker is None:
+        if not can_pick:
             return error(503, "unavailable", "this service has no picker (started without grasp databases, or "
                                              "this build has no grasplan.pick); POST /plan still works")
         return json_bytes(await run(request, handlers.pick, "pick"))

@@ -29,6 +29,8 @@ DEFAULT_TIME_LIMIT_S = 60.0
 #: requests waiting for a worker's planner beyond this are refused at once with 503
 DEFAULT_MAX_QUEUE = 64
 MAX_WORKERS = 64
+#: ``grasplan serve`` without ``--workers``: one planner process per core, at most this many
+MAX_AUTO_WORKERS = 4
 #: the packages of the ``serve`` extra (pyproject.toml)
 SERVE_PACKAGES = ("fastapi", "uvicorn")
 SERVE_EXTRA_HINT = "install the serve extra: pip install 'grasplan[serve]' (fastapi, uvicorn)"
@@ -84,8 +86,9 @@ class ServeConfig:
     ``gripper``, ``cell``: names or YAML paths (given by whoever starts the service, never by a
     client); ``units``: of every mesh in ``parts_dir``; ``token``: the bearer token every request
     but ``/health`` and the docs must carry (None: none required); ``max_body``: bytes;
-    ``time_limit_s``: per request, queue included; ``workers``: uvicorn worker processes, each
-    with its own warm planner; ``max_queue``: requests waiting per worker before 503;
+    ``time_limit_s``: per request, queue included; ``workers``: planners, each with its own warm
+    state (1: a thread of the HTTP process; N > 1: N planner processes); ``max_queue``: requests
+    waiting for a planner before 503;
     ``databases``: compute or load the grasp databases (and the picker) at start; ``config_dirs``:
     looked in first for robot, gripper and cell names (``--config-dir``)."""
 
@@ -153,7 +156,7 @@ def token_from_env(token: str | None) -> str | None:
 
 
 def config_to_json(config: ServeConfig) -> dict:
-    """The settings as JSON (how the uvicorn workers of ``--workers N`` receive them)."""
+    """The settings as JSON (how the planner processes of ``--workers N`` receive them)."""
     from dataclasses import fields
 
     d = {f.name: getattr(config, f.name) for f in fields(config)}

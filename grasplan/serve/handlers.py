@@ -41,17 +41,18 @@ def pick(service: Service, doc: Any) -> bytes:
     if service.picker is None:
         raise RuntimeError("pick requested from a service without a picker")  # the app answers 503 before
     result = service.picker.plan(req.scene, max_picks=req.max_picks, sequence=req.sequence, seed=req.seed)
-    return to_json_text(_public_picks(result.to_json(), service)).encode("utf-8")
+    return result.to_json_text(parts=public_parts(result.parts, service)).encode("utf-8")
 
 
-def _public_picks(doc: dict[str, Any], service: Service) -> dict[str, Any]:
-    """A picks document with every part's recorded path reduced to its file name."""
-    parts = doc.get("parts")
-    if isinstance(parts, dict):
-        for name, rec in parts.items():
-            if isinstance(rec, dict) and "path" in rec and name in service.parts:
-                rec["path"] = service.parts[name].path.name
-    return doc
+def public_parts(parts: dict[str, dict[str, Any]], service: Service) -> dict[str, dict[str, Any]]:
+    """A picks document's part records with each recorded path reduced to its file name."""
+    out = {}
+    for name, rec in parts.items():
+        rec = dict(rec)
+        if "path" in rec and name in service.parts:
+            rec["path"] = service.parts[name].path.name
+        out[name] = rec
+    return out
 
 
 def export(service: Service, doc: Any) -> dict[str, Any]:
