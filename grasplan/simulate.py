@@ -22,7 +22,7 @@ for the whole patch, and their spread added the torque tangential friction gives
 twist according to how many points it got (a box face: 4 corners, twice the patch's torsion; a
 grasp and its mirror image split). Each finger therefore sits on a **hinge about the closing axis**
 (``pad0``/``pad1``) whose dry friction (``frictionloss``) is the pad patch's soft-finger torsion
-under the pad's present contact forces, updated every control period (:func:`_pad_twist_caps`):
+under the pad's present contact forces, updated every control period (:func:`pad_twist_caps`):
 ``mu (2/3) a sqrt(N^2 - (|t| / mu)^2)`` with ``a = sqrt(area / pi)`` of the patch between the pad
 and the part (:func:`grasplan.patches.contact_patches`, :func:`grasplan.wrench.torsion_length`), ``N``
 the pad's normal force and ``t`` the vector sum of its tangential forces: the soft-finger ellipse
@@ -174,12 +174,14 @@ def _arena(n_pieces: int) -> str:
     return f"{32 + n_pieces // 2}M"
 
 
-def _pad_xml(j: int, geom: str) -> str:
-    """Jaw ``j``'s finger on its pad hinge: a body turning about the closing axis (the TCP's x axis)
-    whose dry friction (``frictionloss``, set per grasp and control period by :func:`_pad_twist_caps`)
-    is the pad patch's torsional friction (module docstring)."""
-    return (f'<body name="pad{j}" pos="0 0 0"><inertial pos="0 0 0" mass="{PAD_MASS}" '
-            f'diaginertia="{_fmt([PAD_INERTIA] * 3)}"/><joint name="pad{j}" type="hinge" axis="1 0 0" pos="0 0 0" '
+def pad_xml(name: str, geom: str, body_attrs: str = "") -> str:
+    """A jaw's finger on its pad hinge: a body ``name`` (its hinge joint too) turning about the
+    closing axis (the x axis of its parent, the jaw, through the jaw's origin) whose dry friction
+    (``frictionloss``, set per grasp and control period by :func:`pad_twist_caps`) is the pad patch's
+    torsional friction (module docstring); ``geom`` the finger's shape. Also the clutter world's pads
+    (:mod:`grasplan.clutter.world`)."""
+    return (f'<body name="{name}" pos="0 0 0" {body_attrs}><inertial pos="0 0 0" mass="{PAD_MASS}" '
+            f'diaginertia="{_fmt([PAD_INERTIA] * 3)}"/><joint name="{name}" type="hinge" axis="1 0 0" pos="0 0 0" '
             f'frictionloss="0" armature="{PAD_ARMATURE:.6g}" solreffriction="{SOLREF_TIMECONST:.6g} 1" '
             f'solimpfriction="{_fmt(PAD_SOLIMP)}"/>{geom}</body>')
 
@@ -219,13 +221,13 @@ def build_model_xml(pieces: list[np.ndarray], mass_props: MassProperties, grippe
       <inertial pos="0 0 0" mass="{JAW_MASS}" diaginertia="{jaw_inertia}"/>
       <joint name="jaw0" type="slide" axis="-1 0 0" range="0 {half:.9g}" limited="true" damping="{damping:.6g}"
              armature="{armature:.6g}"/>
-      {_pad_xml(0, jaw0)}
+      {pad_xml("pad0", jaw0)}
     </body>
     <body name="jaw1" pos="0 0 0">
       <inertial pos="0 0 0" mass="{JAW_MASS}" diaginertia="{jaw_inertia}"/>
       <joint name="jaw1" type="slide" axis="1 0 0" range="0 {half:.9g}" limited="true" damping="{damping:.6g}"
              armature="{armature:.6g}"/>
-      {_pad_xml(1, jaw1)}
+      {pad_xml("pad1", jaw1)}
     </body>
     <body name="part">
       <freejoint name="part"/>
@@ -270,7 +272,7 @@ def _profile() -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     return acc, z, close, n_settle + n_close
 
 
-def _pad_twist_caps(model, data, jaw_geom: list[int], part_body: int, torsion: np.ndarray, mu: float,
+def pad_twist_caps(model, data, jaw_geom: list[int], part_body: int, torsion: np.ndarray, mu: float,
                     nominal: np.ndarray) -> np.ndarray:
     """(2,) twist capacity (N m) of each pad's hinge now: the soft-finger ellipse of the pad's patch
     under its present contact forces, ``torsion * sqrt(N^2 - (|t| / mu)^2)`` (``N``: the pad's total
@@ -428,7 +430,7 @@ def _run_grasps(model, data, pieces, Twp, T, w, gripper, F, q_part, q_jaw, part_
         for p in range(len(acc)):
             model.opt.gravity[:] = gravity[p]
             if close[p]:
-                model.dof_frictionloss[pad_dof] = _pad_twist_caps(model, data, jaw_geom, part_body, jaw_torsion[i],
+                model.dof_frictionloss[pad_dof] = pad_twist_caps(model, data, jaw_geom, part_body, jaw_torsion[i],
                                                                   mu, nominal)
             data.mocap_pos[0] = T_tcp_table0[:3, 3] + lift_z[p] * down_tcp
             data.ctrl[:] = F / CONTACTS_PER_GRIP if close[p] else 0.0

@@ -5,6 +5,7 @@ The checks read the world through MuJoCo's own state (body positions, contacts),
 executor's verdict, and a miss must fail with a reason."""
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -266,3 +267,50 @@ def test_a_lift_into_a_wall_is_a_collision(lone_box, gripper, cell):
     assert out.outcome == COLLIDED and "lift" in out.reason and "off its path" in out.reason, out.reason
     cw.world.restore(snap)
     cw.park_hand()
+
+
+@pytest.mark.parametrize("gripper_name", ["schunk_egp_c_40", "robotiq_2f_85"])
+def test_twist_slips_at_the_pad_patch_torsion(cell, tmp_path, gripper_name):
+    """Issue 22 in the clutter world: a 120 x 30 x 30 mm block in the middle of the bin picked from
+    above 40 mm off its centre of mass, so its weight twists it about the closing axis. Analytic
+    holding limit (the soft-finger ellipse of each pad patch, as grasplan.simulate: the torque m g d
+    shared by the pads' capacities ``c sqrt(N^2 - (m g / (2 mu))^2)``, c = mu (2/3) sqrt(area / pi),
+    N = F / 2): the grip force F* = 2 sqrt((m g d / 2c)^2 + (m g / 2 mu)^2). At 0.8 F* the block turns
+    in the jaws (about 40 deg), at 1.2 F* it comes up square (MuJoCo's poses); the old per-contact-point
+    torsion held it within 4 deg down to 0.6 F*. Parallel jaws and a linkage gripper's pads on their arc."""
+    import trimesh
+
+    from grasplan.patches import contact_patches
+    from grasplan.pileworld import part_body
+    from grasplan.wrench import torsion_length
+
+    g = load_gripper(gripper_name)
+    path = tmp_path / "block.stl"
+    trimesh.creation.box((0.12, 0.03, 0.03)).export(path)
+    part = load_part(path, units="m")
+    mu, d = 0.3, 0.04
+    body = part_body("block", part.mesh, density=2700.0, decomposition="hull")
+    T_wp = np.array(cell.bin.T_world_bin, dtype=np.float64)  # lying flat in the middle of the bin floor
+    T_wp[:3, 3] += T_wp[:3, 2] * (0.015 + 1e-4)
+    T_pt = np.eye(4)  # from above, closing across the block (part y), 40 mm along it
+    T_pt[:3, :3] = np.diag([1.0, -1.0, -1.0])[:, [1, 0, 2]]
+    T_pt[:3, 1] = np.cross(T_pt[:3, 2], T_pt[:3, 0])
+    T_pt[:3, 3] = [d, 0.0, 0.008]  # 8 mm above the middle: a 2F-85's fingertips clear the floor
+    C = np.array([T_pt[:3, 3] - 0.015 * T_pt[:3, 0], T_pt[:3, 3] + 0.015 * T_pt[:3, 0]])
+    area = contact_patches(part.mesh, g, T_pt[None], C[None])[0][0]
+    assert np.all(area > 1e-4)  # a flat pad on a flat face
+    torsion = mu * torsion_length(area)
+    mg = body.mass.mass * 9.81
+    f_star = 2.0 * math.sqrt((mg * d / (2.0 * torsion.mean())) ** 2 + (mg / (2.0 * mu)) ** 2)
+    assert 10.0 < f_star < 100.0
+    turned = {}
+    for factor in (0.8, 1.2):
+        cw = ClutterWorld(cell, [body], g, mu=mu, grip_force=factor * f_star)
+        cw.world.place(0, T_wp)
+        out = execute_pick(cw, 0, _pick(T_wp @ T_pt, 0.03, g), jaw_torsion=torsion, record=True, settle=False)
+        assert out.held_at_close, out.reason
+        assert np.all(cw.pad_twist() > 0)
+        k = [k for k, s in enumerate(out.track) if s[2] < 0.031][0]  # the jaws closed on the block
+        R0, R1 = out.track[k][3][0][:3, :3], out.track[-1][3][0][:3, :3]
+        turned[factor] = math.degrees(math.acos(np.clip((np.trace(R0.T @ R1) - 1.0) / 2.0, -1.0, 1.0)))
+    assert turned[1.2] < 2.0 < 10.0 < turned[0.8], turned

@@ -215,8 +215,9 @@ def execute_pick(cw: ClutterWorld, target: int, pick: PickLike, *, jaw_torsion=N
                  settle: bool = True) -> Outcome:
     """Execute ``pick`` on part body ``target`` of the clutter world (module docstring) and leave
     the world ready for the next one (the target parked when picked, the gripper parked, the pile
-    settled unless ``settle`` is False). ``jaw_torsion`` (2,): each jaw's torsional friction (m,
-    ``mu`` included) for this pick; ``record``: keep replay samples (``Outcome.track``)."""
+    settled unless ``settle`` is False). ``jaw_torsion`` (2,): each pad's torsional friction per newton
+    (m, ``mu`` included) for this pick, its hinge's friction following the pad's contact forces on
+    the target (:meth:`ClutterWorld.set_jaw_torsion`); ``record``: keep replay samples (``Outcome.track``)."""
     import mujoco
 
     w = cw.world
@@ -230,7 +231,7 @@ def execute_pick(cw: ClutterWorld, target: int, pick: PickLike, *, jaw_torsion=N
     T_lift = check_transform(pick.T_world_lifted, "T_world_lifted") @ T_g
     timestep = float(cw.model.opt.timestep)
     cw.model.opt.timestep = PICK_TIMESTEP
-    cw.set_jaw_torsion(jaw_torsion)
+    cw.set_jaw_torsion(jaw_torsion, target)
     run = _Run(cw, target, record)
     try:
         T0 = w.pose(target)

@@ -16,9 +16,19 @@ While the gripper is not in use it is parked far below the table (:meth:`Clutter
 Physics of a pick: :data:`PICK_TIMESTEP` (1 ms, as :mod:`grasplan.simulate`; the drop itself runs
 at the pile world's 2 ms); the gripper's contacts use :data:`grasplan.simulate.SOLREF_TIMECONST`
 (stiff: the grip force indents well below 1 mm) and win the mix against the parts' softer
-contacts (``solmix``); each jaw's torsional friction is set per pick from its pad's contact
-patch (:func:`grasplan.patches.contact_patches`, :func:`grasplan.wrench.torsion_length`), as the
-lift-and-shake check does.
+contacts (``solmix``).
+
+**Twist: one torsional resistance per pad**, as :mod:`grasplan.simulate` models it (issue 22):
+each jaw's finger sits on a hinge about the closing axis (:func:`grasplan.simulate.pad_xml`,
+bodies :data:`PADS`) whose dry friction (``frictionloss``) is the pad patch's soft-finger torsion
+under the pad's present contact forces on the target part, ``torsion * sqrt(N^2 - (|t| / mu)^2)``,
+set before every control period by :func:`grasplan.simulate.pad_twist_caps` (the same function);
+``torsion`` (m, ``mu`` included) is set per pick from the pick's contact patches
+(:func:`grasplan.patches.contact_patches`, :func:`grasplan.wrench.torsion_length`;
+:meth:`ClutterWorld.set_jaw_torsion`). The pads' own contacts grip in twist: the pad geoms have the
+higher ``priority``, so every pad contact takes their parameters (``condim`` 4, torsional friction
+``mu`` x :data:`grasplan.simulate.PAD_GRIP_TORSION`, no rolling friction, the gripper's stiff
+``solref``), and the twist slips at the hinge whatever the number of contact points MuJoCo makes.
 """
 from __future__ import annotations
 
@@ -30,7 +40,8 @@ import numpy as np
 from ..cell import Cell
 from ..gripper.model import Box, Gripper, MeshShape, rz180
 from ..pileworld import PILE_BIT, ROLLING_LENGTH, PartBody, PileWorld, pile_mjcf
-from ..simulate import CLOSE_SPEED, DRIVE_TAU, JAW_MASS, SOLREF_TIMECONST, TORSION_LENGTH
+from ..simulate import (CLOSE_SPEED, DRIVE_TAU, JAW_MASS, PAD_GRIP_TORSION, SOLREF_TIMECONST, TORSION_LENGTH,
+                        pad_twist_caps, pad_xml)
 from ..transforms import quaternions
 from ..wrench import CONTACTS_PER_GRIP
 
@@ -43,6 +54,8 @@ HAND_PARK = (0.0, 0.0, -4.0)
 #: weight of the gripper's contact parameters against a part's when MuJoCo mixes them
 GRIPPER_SOLMIX = 1000.0
 HAND, JAWS = "#hand", ("#jaw0", "#jaw1")
+#: each jaw's finger on its pad hinge about the closing axis (body and hinge names)
+PADS = ("#pad0", "#pad1")
 #: a linkage gripper's pads also slide along the approach axis, on these joints (coupled to the jaws')
 JAWS_Z = ("#jaw0z", "#jaw1z")
 #: largest error (m) of the quartic fit of a linkage gripper's pad arc (z as a function of x)
@@ -88,8 +101,11 @@ def gripper_mjcf(gripper: Gripper, *, mu: float, grip_force: float) -> tuple[str
              f'friction="{mu:.9g} {mu * TORSION_LENGTH:.6g} {mu * ROLLING_LENGTH:.6g}" '
              f'solref="{SOLREF_TIMECONST:.6g} 1"')
     body = "".join(_shape_xml(s, f"{HAND}#{i}", assets, attrs) for i, s in enumerate(gripper.body))
-    jaw1 = _shape_xml(gripper.finger, JAWS[1], assets, attrs)
-    jaw0 = _shape_xml(gripper.finger.moved(rz180()), JAWS[0], assets, attrs)
+    # the pads grip in twist (their parameters win by priority); the twist slips at each pad's hinge
+    pad = (f'contype="{PILE_BIT}" conaffinity="{PILE_BIT}" condim="4" priority="1" '
+           f'friction="{mu:.9g} {mu * PAD_GRIP_TORSION:.6g} 0" solref="{SOLREF_TIMECONST:.6g} 1"')
+    jaw1 = pad_xml(PADS[1], _shape_xml(gripper.finger, JAWS[1], assets, pad), 'gravcomp="1"')
+    jaw0 = pad_xml(PADS[0], _shape_xml(gripper.finger.moved(rz180()), JAWS[0], assets, pad), 'gravcomp="1"')
     half = 0.5 * gripper.max_opening
     jaw_force = grip_force / CONTACTS_PER_GRIP
     damping = jaw_force / CLOSE_SPEED
@@ -109,7 +125,8 @@ def gripper_mjcf(gripper: Gripper, *, mu: float, grip_force: float) -> tuple[str
     world = (f'<body name="{HAND}" pos="{_fmt(HAND_PARK)}" gravcomp="1"><freejoint name="{HAND}"/>'
              f'<inertial pos="0 0 0" mass="{HAND_MASS:g}" diaginertia="{hand_inertia}"/>{body}'
              f'{jaw(0, "-1 0 0", jaw0)}{jaw(1, "1 0 0", jaw1)}</body>')
-    extra = (f'<contact><exclude body1="{JAWS[0]}" body2="{JAWS[1]}"/></contact>'
+    extra = (f'<contact><exclude body1="{PADS[0]}" body2="{PADS[1]}"/><exclude body1="{HAND}" body2="{PADS[0]}"/>'
+             f'<exclude body1="{HAND}" body2="{PADS[1]}"/></contact>'
              f'<equality><joint joint1="{JAWS[0]}" joint2="{JAWS[1]}" polycoef="0 1 0 0 0" '
              f'solref="{SOLREF_TIMECONST:.6g} 1"/>'
              + ("" if arc is None else "".join(  # the pads on their arc: z = quartic(x) (arc_polynomial)
@@ -157,12 +174,20 @@ class ClutterWorld:
         self._jaw_q = [int(m.jnt_qposadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n)]) for n in JAWS]
         self._jaw_v = [int(m.jnt_dofadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n)]) for n in JAWS]
         self._jaw_geom = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, n) for n in JAWS]
+        self._pad_body = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, n) for n in PADS]
+        pad_joints = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n) for n in PADS]
+        self._pad_q = [int(m.jnt_qposadr[j]) for j in pad_joints]
+        self._pad_v = [int(m.jnt_dofadr[j]) for j in pad_joints]
+        #: per pick: each pad's torsional friction per newton (m, mu included) and the target's body (-1: none)
+        self._torsion = np.full(2, self.mu * TORSION_LENGTH)
+        self._target_body = -1
         self._arc = arc_polynomial(gripper)
         self._jaw_z = [] if self._arc is None else [
             (int(m.jnt_qposadr[j]), int(m.jnt_dofadr[j]))
             for j in (mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n) for n in JAWS_Z)]
         # per geom: which gripper body it belongs to ("" none) and which part body (-1 none)
-        gripper_bodies = {self._hand: "hand", self._jaw_body[0]: "jaw0", self._jaw_body[1]: "jaw1"}
+        gripper_bodies = {self._hand: "hand", self._jaw_body[0]: "jaw0", self._jaw_body[1]: "jaw1",
+                          self._pad_body[0]: "jaw0", self._pad_body[1]: "jaw1"}
         self._geom_gripper = np.array([gripper_bodies.get(int(b), "") for b in m.geom_bodyid], dtype=object)
         part_of_body = np.full(m.nbody, -1, dtype=int)
         part_of_body[self.world.body_ids] = np.arange(len(self.world.bodies))
@@ -194,6 +219,9 @@ class ClutterWorld:
         for q, v in zip(self._jaw_q, self._jaw_v):
             self.data.qpos[q] = half
             self.data.qvel[v] = 0.0
+        for q, v in zip(self._pad_q, self._pad_v):  # the pads back square on their hinges
+            self.data.qpos[q] = 0.0
+            self.data.qvel[v] = 0.0
         for q, v in self._jaw_z:  # a linkage's pads on their arc
             assert self._arc is not None
             self.data.qpos[q] = float(np.polynomial.polynomial.polyval(half, self._arc))
@@ -224,15 +252,34 @@ class ClutterWorld:
         self.set_jaws(self.gripper.max_opening)
         mujoco.mj_forward(self.model, self.data)
 
-    def set_jaw_torsion(self, torsion: Sequence[float] | None) -> None:
-        """Each jaw's torsional friction length (m: torque per newton of normal force, ``mu``
-        included); None: the default ``mu * TORSION_LENGTH``."""
-        t = [self.mu * TORSION_LENGTH] * 2 if torsion is None else list(torsion)
-        for g, x in zip(self._jaw_geom, t):
-            self.model.geom_friction[g, 1] = float(x)
+    def set_jaw_torsion(self, torsion: Sequence[float] | None, target: int | None = None) -> None:
+        """For the next pick: each pad's torsional friction per newton of normal force (m, ``mu``
+        included: ``mu * torsion_length(patch area)``; None: ``mu * TORSION_LENGTH``) and the
+        ``target`` part (body index in :attr:`world`) whose contacts with a pad set that pad's hinge
+        friction every control period (module docstring); the hinges start at the capacity under the
+        nominal grip (half the grip force per pad)."""
+        t = np.full(2, self.mu * TORSION_LENGTH) if torsion is None else np.asarray(torsion, dtype=np.float64)
+        if t.shape != (2,) or not np.all(np.isfinite(t)) or np.any(t < 0):
+            raise ValueError(f"set_jaw_torsion: expected two torsional friction lengths >= 0 (m), got {torsion!r}")
+        self._torsion = t
+        self._target_body = -1 if target is None else int(self.world.body_ids[target])
+        self.model.dof_frictionloss[self._pad_v] = self._nominal_twist()
+
+    def _nominal_twist(self) -> np.ndarray:
+        return self._torsion * (self.grip_force / CONTACTS_PER_GRIP)
+
+    def pad_twist(self) -> np.ndarray:
+        """(2,) each pad hinge's dry friction now (N m): its twist capacity."""
+        return np.array(self.model.dof_frictionloss[self._pad_v])
 
     def step(self, seconds: float) -> None:
-        self.world.step(seconds)
+        """Advance ``seconds`` in control periods (:data:`CONTROL_DT`), each pad hinge's friction set
+        before each from its present contacts with the target (:func:`grasplan.simulate.pad_twist_caps`)."""
+        n = max(1, round(seconds / CONTROL_DT))
+        for _ in range(n):
+            self.model.dof_frictionloss[self._pad_v] = pad_twist_caps(
+                self.model, self.data, self._jaw_geom, self._target_body, self._torsion, self.mu, self._nominal_twist())
+            self.world.step(seconds / n)
 
     # -- contacts ----------------------------------------------------------------------------------
     def contacts(self) -> list[Contact]:
