@@ -9,7 +9,7 @@ import click
 
 from ..drop import DropParams
 from ..errors import InputError
-from ..params import DEFAULT_GRIPPER, DEFAULT_ROBOT
+from ..params import DEFAULT_GRIPPER, DEFAULT_ROBOT, GraspParams
 from ..pick.params import PickParams
 from .common import check_output, info, table, units_option, warn_all
 from .options import apply_config_dirs, config_dir_option, output_option, param_options
@@ -85,7 +85,9 @@ def command(cell: str, parts: tuple[str, ...], units: str, rounds: int, pose_noi
     items = load_items(specs, units=units, info=info, warn=lambda w: warn_all([w]))
     # the planner refuses parts below the bin floor by more than overlap_tol: pose noise moves them by up to this
     tol = PickParams.default("overlap_tol") + noise_reach([it.part for it in items], noise)
-    picker = Picker(robot, gripper=g, cell=c, params=PickParams(overlap_tol=min(tol, 0.05), **pick_kw))
+    # the grasp databases ranked for the parts' simulated mass (the gravity margin and the score depend on it)
+    picker = Picker(robot, gripper=g, cell=c, params=PickParams(overlap_tol=min(tol, 0.05), **pick_kw),
+                    database=GraspParams(density=drop.density))
     for it in items:
         picker.add_part(it.name, it.part)
     n = sum(it.count for it in items)

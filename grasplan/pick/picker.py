@@ -43,7 +43,7 @@ from ..errors import InputError
 from ..gripper import load_gripper
 from ..gripper.model import Gripper
 from ..mesh import Part, load_part
-from ..params import DEFAULT_GRIPPER
+from ..params import DEFAULT_GRIPPER, GraspParams
 from ..pickplace import LINE_SAMPLE, lift_pose, unit_direction
 from ..robot import load_robot
 from ..robot_model import Robot
@@ -94,16 +94,20 @@ class Picker:
     """Plans picks from piles (see the module docstring).
 
     ``robot``, ``gripper``: models or names/paths; ``cell``: a model, name or path, or None for
-    each scene's own cell; ``params``: :class:`~grasplan.pick.params.PickParams`; ``progress``:
-    gets a line when a grasp database is computed."""
+    each scene's own cell; ``params``: :class:`~grasplan.pick.params.PickParams`; ``database``:
+    the options of the grasp databases it computes (:class:`~grasplan.params.GraspParams`, e.g. the
+    parts' ``density``: the gravity margin and the score depend on the mass); ``progress``: gets
+    a line when a grasp database is computed."""
 
     def __init__(self, robot: Robot | str = "ur5", *, gripper: Gripper | str = DEFAULT_GRIPPER,
                  cell: Cell | str | None = None, params: PickParams = PickParams(),
+                 database: GraspParams = GraspParams(),
                  progress: Callable[[str], None] | None = None):
         self.robot = robot if isinstance(robot, Robot) else load_robot(robot)
         self.gripper = gripper if isinstance(gripper, Gripper) else load_gripper(gripper)
         self.cell = None if cell is None else (cell if isinstance(cell, Cell) else load_cell(cell))
         self.params = params
+        self.database = database
         self.progress = progress
         self._parts: dict[str, Part] = {}
         self._grasps: dict[str, GraspDatabase] = {}
@@ -120,7 +124,7 @@ class Picker:
         gripper; default: :func:`grasplan.graspdb.database_for`, cached)."""
         part = mesh if isinstance(mesh, Part) else load_part(mesh, units=units)
         if grasps is None:
-            db = database_for(part, self.gripper, progress=self.progress)
+            db = database_for(part, self.gripper, grasps=self.database, progress=self.progress)
         elif isinstance(grasps, GraspDatabase):
             grasps.check_for(part, self.gripper)
             db = grasps

@@ -1,0 +1,30 @@
+"""``Picker(database=GraspParams(...))``: the grasp databases it computes use those options (the
+clutter benchmark plans plastic parts with the density it simulates, not the default steel)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from grasplan.mesh import load_part
+from grasplan.params import DEFAULT_DENSITY, GraspParams
+from grasplan.pick import Picker
+
+BOX = Path(__file__).resolve().parents[1] / "examples" / "parts" / "box.stl"
+
+
+def test_database_density_reaches_the_margin(tmp_path, monkeypatch):
+    monkeypatch.setenv("GRASPLAN_CACHE_DIR", str(tmp_path))
+    part = load_part(BOX)
+    steel = Picker("ur5", database=GraspParams())
+    plastic = Picker("ur5", database=GraspParams(density=1200.0))
+    steel.add_part("box", part)
+    plastic.add_part("box", part)
+    a, b = steel._grasps["box"], plastic._grasps["box"]
+    assert a.mass_props is not None and b.mass_props is not None
+    assert np.isclose(a.mass_props.mass / b.mass_props.mass, DEFAULT_DENSITY / 1200.0, rtol=1e-9)
+    assert a.params_key != b.params_key  # cached apart
+    assert len(list(tmp_path.rglob("*.graspdb.npz"))) == 2
+    up = np.eye(4)
+    ga, gb = a.quality_at(up).gravity_margin, b.quality_at(up).gravity_margin
+    assert np.all(gb >= ga - 1e-12) and np.any(gb > ga * 1.5)  # lighter part, larger margins
