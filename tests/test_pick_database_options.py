@@ -28,3 +28,27 @@ def test_database_density_reaches_the_margin(tmp_path, monkeypatch):
     up = np.eye(4)
     ga, gb = a.quality_at(up).gravity_margin, b.quality_at(up).gravity_margin
     assert np.all(gb >= ga - 1e-12) and np.any(gb > ga * 1.5)  # lighter part, larger margins
+
+
+def test_cli_pick_density(tmp_path, monkeypatch):
+    """``grasplan pick --density``: the database it computes and caches is for that density."""
+    import yaml
+    from click.testing import CliRunner
+
+    from grasplan.cli import main
+    from grasplan.graspdb import load_database
+
+    monkeypatch.setenv("GRASPLAN_CACHE_DIR", str(tmp_path / "cache"))
+    doc = {"schema": "grasplan.scene/1", "cell": "table", "parts": {"box": {"mesh": str(BOX)}},
+           "instances": [{"id": "a", "part": "box", "T": {"xyz": [0.45, 0.0, 0.05], "rpy_deg": [0, 0, 0]}}]}
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(doc))
+    r = CliRunner().invoke(main, ["pick", str(tmp_path / "s.yaml"), "-o", str(tmp_path / "p.json"),
+                                  "--density", "1200", "--max-picks", "1"])
+    assert r.exit_code in (0, 4), r.output
+    dbs = list((tmp_path / "cache").rglob("*.graspdb.npz"))
+    assert len(dbs) == 1
+    db = load_database(dbs[0])
+    assert db.mass_props is not None and np.isclose(db.mass_props.mass, 1200.0 * db.mass_props.volume, rtol=1e-9)
+    bad = CliRunner().invoke(main, ["pick", str(tmp_path / "s.yaml"), "-o", str(tmp_path / "q.json"),
+                                    "--density", "-5"])
+    assert bad.exit_code == 3 and "--density" in bad.output and not (tmp_path / "q.json").exists()  # as grasps

@@ -7,7 +7,7 @@ import time
 import click
 
 from ..errors import PlanningError
-from ..params import DEFAULT_GRIPPER
+from ..params import DEFAULT_GRIPPER, GraspParams
 from ..pick.params import PickParams
 from .common import check_output, info, table, warn_all
 from .options import apply_config_dirs, config_dir_option, output_option, param_options, robot_option
@@ -25,6 +25,7 @@ from .options import apply_config_dirs, config_dir_option, output_option, param_
 @click.option("--max-picks", type=click.IntRange(1, 100000), default=None,
               help="Stop after this many picks (the other instances are not_tried).")
 @param_options(PickParams)
+@param_options(GraspParams, only=("density",))
 @config_dir_option
 @output_option("Output JSON (grasplan.picks/1): the scene, robot, gripper and cell, every pick in pick order and "
                "every instance's status and reason.")
@@ -39,6 +40,7 @@ def command(scene, robot, gripper, cell, sequence, max_picks, output, **kwargs):
 
     t0 = time.perf_counter()
     apply_config_dirs(kwargs)
+    database = GraspParams(density=kwargs.pop("density"))  # the grasp databases computed (and cached) for the parts
     params = PickParams(**kwargs)
     sc = load_scene(scene)  # bad input: exit 3 before anything is computed
     # -o must not be any file the scene reads: meshes, grasp databases, the cloud, the cell, the YAMLs
@@ -49,7 +51,7 @@ def command(scene, robot, gripper, cell, sequence, max_picks, output, **kwargs):
     scene_cell = sc.resolve(sc.cell) if ("/" in sc.cell or sc.cell.endswith((".yaml", ".yml"))) else sc.cell
     output = check_output(output, *reads, gripper=gripper, cell=cell if cell is not None else str(scene_cell),
                           robot=robot)
-    picker = Picker(robot, gripper=gripper, cell=cell, params=params, progress=info)
+    picker = Picker(robot, gripper=gripper, cell=cell, params=params, database=database, progress=info)
     info(f"scene {scene}: {len(sc.instances)} instances of {len(sc.part_names())} parts")
     result = picker.plan(sc, sequence=sequence, max_picks=max_picks)
     warn_all(result.warnings)
