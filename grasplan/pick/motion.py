@@ -347,6 +347,10 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
     drop = _drop_pairs(att) if T_line is not None and ctx.lift_part_checked is not None else None
     T_flange_part = ctx.T_flange_tcp @ T_tcp_part_of(T_part_tcp)
     n_touch = int(np.ceil(p.lift_contact / LINE_SAMPLE - 1e-9))
+    flange_at_grasp = (T_world_tcp @ ctx.T_tcp_flange)[:3, 3]
+
+    def resting(q: np.ndarray) -> bool:  # TCP travel from the grasp (FK) within lift_contact
+        return bool(np.linalg.norm(robot.fk(q)[:3, 3] - flange_at_grasp) <= p.lift_contact + 1e-9)
     why: dict[str, str] = {}
     blockers: set[str] = set()
     count = {"grasp": 0, "approach": 0, "approach_kin": 0, "lift": 0, "lift_kin": 0, "path": 0, "place": 0}
@@ -392,10 +396,6 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
             def shallow(q: np.ndarray, names: list[str]) -> bool:
                 return bool(ctx.lift_depth(robot.fk(q) @ T_flange_part, names) <= p.lift_depth)
         covered = None if drop is None or T_line is None else _lift_covered(ctx, lift, T_line, T_flange_part)
-        T_grasp_flange = T_world_tcp @ ctx.T_tcp_flange
-
-        def resting(q: np.ndarray) -> bool:  # TCP travel from the grasp (FK) within lift_contact
-            return bool(np.linalg.norm(robot.fk(q)[:3, 3] - T_grasp_flange[:3, 3]) <= p.lift_contact + 1e-9)
         pairs = lift_collision(att, lift, width, n_touch, shallow, covered, drop, resting)
         timing["collision"] += time.perf_counter() - t
         if pairs is not None:
