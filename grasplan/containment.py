@@ -130,18 +130,14 @@ class RayGrid:
             b = e
 
 
-def points_inside_tree(grid: RayGrid, mesh: TriangleMesh, points: np.ndarray) -> np.ndarray:
-    """(k,) bool: inside a closed mesh, by the signed count of crossings of the ray from each point
-    along +x (= the winding number of a closed mesh). Points whose ray passes within rounding of an
-    edge, a vertex or a triangle seen edge-on, or that lie on the surface, are decided by the
-    generalised winding number (:func:`points_inside`) instead."""
-    pts0 = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    pts = pts0 @ grid.Q.T
-    k = len(pts)
-    wind = np.zeros(k, dtype=np.int64)
-    tie = np.zeros(k, dtype=bool)
-    if k == 0:
-        return np.zeros(0, dtype=bool)
+def ray_crossings(grid: RayGrid, pts: np.ndarray) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+    """The crossings of the rays along +x from ``pts`` (already rotated by ``grid.Q``) with the
+    mesh's triangles, in chunks: ``(point index, x of the crossing, +1/-1 by the triangle's
+    orientation, tie)``, where tie marks a ray passing within rounding of an edge or a vertex, or a
+    triangle seen edge-on (its sign and x then mean nothing). Triangles wholly behind a point are
+    left out; the caller decides about crossings behind it or at it."""
+    if not len(pts):
+        return
     scale = float(np.abs(grid.tri).max()) if len(grid.tri) else 1.0
     eps = 1e-12 * scale * scale
     for q, t in grid.pairs(pts):
@@ -163,11 +159,28 @@ def points_inside_tree(grid: RayGrid, mesh: TriangleMesh, points: np.ndarray) ->
         flat = np.abs(area) <= eps
         w = ef / np.where(flat, 1.0, area)[:, None]  # barycentric weight of vertex k+2
         xh = np.einsum("pk,pk->p", np.roll(w, -1, axis=1), tri[:, :, 0])
+        yield q, xh, np.where(area > 0, 1, -1), near | flat
+
+
+def points_inside_tree(grid: RayGrid, mesh: TriangleMesh, points: np.ndarray) -> np.ndarray:
+    """(k,) bool: inside a closed mesh, by the signed count of crossings of the ray from each point
+    along +x (= the winding number of a closed mesh). Points whose ray passes within rounding of an
+    edge, a vertex or a triangle seen edge-on, or that lie on the surface, are decided by the
+    generalised winding number (:func:`points_inside`) instead."""
+    pts0 = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    pts = pts0 @ grid.Q.T
+    k = len(pts)
+    wind = np.zeros(k, dtype=np.int64)
+    tie = np.zeros(k, dtype=bool)
+    if k == 0:
+        return np.zeros(0, dtype=bool)
+    scale = float(np.abs(grid.tri).max()) if len(grid.tri) else 1.0
+    for q, xh, sign, bad in ray_crossings(grid, pts):
         ahead = xh - pts[q, 0]
         on = np.abs(ahead) <= 1e-12 * scale
-        cross = ~near & ~flat & ~on & (ahead > 0)
-        np.add.at(wind, q[cross], np.where(area[cross] > 0, 1, -1))
-        tie[q[near | flat | on]] = True
+        cross = ~bad & ~on & (ahead > 0)
+        np.add.at(wind, q[cross], sign[cross])
+        tie[q[bad | on]] = True
     out = wind != 0
     if tie.any():
         out[tie] = points_inside(mesh, pts0[tie])

@@ -9,7 +9,8 @@ do not):
 * two instances interpenetrating by more than ``tol`` (pose-estimator noise): a warning naming
   the pairs and the depth. The depth is estimated from surface samples of each mesh (its vertices
   and a grid of :data:`PROBE_SPACING` on its faces, :func:`grasplan.containment.surface_samples`)
-  inside the other (signed ray crossings) and their distance to the other's surface (coal): a lower
+  inside the other (its voxel grid, :mod:`grasplan.insidegrid`, and near its surface signed ray
+  crossings) and their distance to the other's surface (coal): a lower
   bound, within about the sample spacing of the true depth.
 """
 from __future__ import annotations
@@ -26,6 +27,7 @@ from .cell import Cell, Obstacle
 from .containment import RayGrid, points_inside_tree, surface_samples
 from .errors import InputError
 from .geometry import bvh
+from .insidegrid import inside_grid
 from .meshdata import MeshData
 from .scenefile import Instance
 
@@ -141,12 +143,18 @@ def _depth_into(pts: np.ndarray, b: MeshData, prep_b: _Prepared, b_bvh: coal.BVH
     local = local[np.all((local >= prep_b.lo) & (local <= prep_b.hi), axis=1)]  # outside b's box: not in b
     if not len(local):
         return 0.0
-    if floor > _ROUNDING:
+    state, _ = inside_grid(b).lookup(local)  # the voxel grid decides most points (grasplan.insidegrid)
+    local, unsure = local[state >= 0], state[state >= 0] == 0
+    if floor > _ROUNDING and len(local):
         near, _ = prep_b.tree.query(local, distance_upper_bound=floor - _ROUNDING)
-        local = local[~np.isfinite(near)]  # no probe of b within floor: possibly deeper than floor
-        if not len(local):
-            return 0.0
-    inside = local[points_inside_tree(prep_b.grid, b, local)]
+        far = ~np.isfinite(near)  # no probe of b within floor: possibly deeper than floor
+        local, unsure = local[far], unsure[far]
+    if not len(local):
+        return 0.0
+    inside_mask = ~unsure
+    if unsure.any():
+        inside_mask[unsure] = points_inside_tree(prep_b.grid, b, local[unsure])
+    inside = local[inside_mask]
     best = 0.0
     req, res = coal.DistanceRequest(), coal.DistanceResult()
     probe = coal.Sphere(1e-9)

@@ -5,8 +5,10 @@ surface point of either one lying inside the other: the points are each mesh's v
 barycentric grid of :data:`SAMPLE_SPACING` on its faces (:func:`grasplan.containment.surface_samples`),
 so a penetration is found to within about that spacing (the deepest point of two touching
 polyhedra is a vertex of one of them, except where two edges cross). Inside is decided by the
-crossing count of :func:`grasplan.containment.points_inside_tree`; the distance of an inside point
-to the surface is coal's exact point-to-BVH distance.
+part's voxel grid (:mod:`grasplan.insidegrid`) and, near its surface, by the crossing count of
+:func:`grasplan.containment.points_inside_tree`; the distance of an inside point to the surface is
+coal's exact point-to-BVH distance, except that a point the grid proves deeper than ``stop`` ends
+the search at once.
 
 Everything per part (samples, their k-d tree, ray grid, BVH) is built once (:class:`PartDepth`)
 and kept on the :class:`grasplan.Picker`. A query (only for pairs coal reports in contact) keeps
@@ -25,6 +27,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..containment import RayGrid, points_inside_tree, surface_samples
+from ..insidegrid import InsideGrid, inside_grid
 from ..meshdata import MeshData
 
 #: surface sample spacing (m) of the depth probes
@@ -45,13 +48,15 @@ class PartDepth:
     hi: np.ndarray
     hull: np.ndarray  #: convex hull vertices (world boxes)
     tree: cKDTree  #: of the samples
+    inside: InsideGrid  #: inside / outside / depth bounds on a voxel grid
 
     @classmethod
     def build(cls, mesh: MeshData, bvh: coal.BVHModelOBBRSS, hull: np.ndarray) -> "PartDepth":
         V = np.asarray(mesh.vertices, dtype=np.float64)
         samples = surface_samples(mesh, spacing=SAMPLE_SPACING, max_samples=MAX_SAMPLES)
         return cls(mesh=mesh, samples=samples, grid=RayGrid(V, np.asarray(mesh.faces)), bvh=bvh, lo=V.min(axis=0),
-                   hi=V.max(axis=0), hull=np.asarray(hull, dtype=np.float64), tree=cKDTree(samples))
+                   hi=V.max(axis=0), hull=np.asarray(hull, dtype=np.float64), tree=cKDTree(samples),
+                   inside=inside_grid(mesh))
 
 
 def _into(a: PartDepth, T_a: np.ndarray, b: PartDepth, T_b: np.ndarray, lo: np.ndarray, hi: np.ndarray,
@@ -64,12 +69,23 @@ def _into(a: PartDepth, T_a: np.ndarray, b: PartDepth, T_b: np.ndarray, lo: np.n
         return 0.0
     pts = (w - T_b[:3, 3]) @ T_b[:3, :3]  # b's frame
     pts = pts[np.all((pts >= b.lo) & (pts <= b.hi), axis=1)]
-    if len(pts) and np.isfinite(stop):  # within stop of b's surface: at most stop deep, inside or not
-        r, _ = b.tree.query(pts, distance_upper_bound=stop)
-        pts = pts[~np.isfinite(r)]
     if not len(pts):
         return 0.0
-    inside = pts[points_inside_tree(b.grid, b.mesh, pts)]
+    state, deep = b.inside.lookup(pts)  # the voxel grid decides most points (grasplan.insidegrid)
+    if np.isfinite(stop) and deep.max() > stop:
+        return float(deep.max())  # a point certainly deeper than stop (a lower bound of its depth)
+    keep = state >= 0
+    pts, unsure = pts[keep], state[keep] == 0
+    if len(pts) and np.isfinite(stop):  # within stop of b's surface: at most stop deep, inside or not
+        r, _ = b.tree.query(pts, distance_upper_bound=stop)
+        far = ~np.isfinite(r)
+        pts, unsure = pts[far], unsure[far]
+    if not len(pts):
+        return 0.0
+    inside_mask = ~unsure
+    if unsure.any():
+        inside_mask[unsure] = points_inside_tree(b.grid, b.mesh, pts[unsure])
+    inside = pts[inside_mask]
     if not len(inside):
         return 0.0
     # deepest first is unknown: probe the points farthest from b's box faces first (a cheap bound)
