@@ -187,6 +187,24 @@ def points_inside_tree(grid: RayGrid, mesh: TriangleMesh, points: np.ndarray) ->
     return out
 
 
+def placed_in_box(points: np.ndarray, T: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """The points (k, 3) moved by ``T`` (4, 4), ``points @ R.T + t``, of those that land in the box
+    ``lo``..``hi`` (m, 3): one axis at a time (the points left after one axis are few), with a
+    rounding margin, then exactly as a whole."""
+    T = np.asarray(T, dtype=np.float64)
+    R, t = T[:3, :3], T[:3, 3]
+    pad = 1e-9 * (1.0 + float(np.max(np.abs(hi - lo))))
+    idx: np.ndarray | None = None
+    for ax in (2, 0, 1):
+        v = (points if idx is None else points[idx]) @ R[ax] + t[ax]
+        keep = (v >= lo[ax] - pad) & (v <= hi[ax] + pad)
+        idx = np.flatnonzero(keep) if idx is None else idx[keep]
+        if not len(idx):
+            return np.zeros((0, 3))
+    w = points[idx] @ R.T + t
+    return w[np.all((w >= lo) & (w <= hi), axis=1)]
+
+
 def _rotation_generic() -> np.ndarray:
     """A fixed rotation about an axis and by an angle of no special value (Rodrigues)."""
     k = np.array([0.2718281828, 0.5772156649, 0.7071067812])

@@ -24,7 +24,7 @@ import coal
 import numpy as np
 
 from .cell import Cell, Obstacle
-from .containment import RayGrid, points_inside_tree, surface_samples
+from .containment import RayGrid, placed_in_box, points_inside_tree, surface_samples
 from .errors import InputError
 from .geometry import bvh
 from .insidegrid import inside_grid
@@ -124,17 +124,17 @@ def check_cell(instances: Sequence[Instance], meshes: Mapping[str, MeshData], ce
                                  f"{tol * 1e3:g} mm is pose noise: check its T (z up, metres)")
 
 
-def _depth_into(pts: np.ndarray, b: MeshData, prep_b: _Prepared, b_bvh: coal.BVHModelOBBRSS, Tb: np.ndarray,
-                lo: np.ndarray, hi: np.ndarray, floor: float) -> float:
-    """Largest distance to ``b``'s surface of the probe points ``pts`` (world) inside ``b`` (pose
-    ``Tb``) among those in the box ``lo``..``hi`` when it is more than ``floor``; otherwise some
-    value at most ``floor``.
+def _depth_into(probes: np.ndarray, Ta: np.ndarray, b: MeshData, prep_b: _Prepared, b_bvh: coal.BVHModelOBBRSS,
+                Tb: np.ndarray, lo: np.ndarray, hi: np.ndarray, floor: float) -> float:
+    """Largest distance to ``b``'s surface of the probe points ``probes`` of a part at pose ``Ta``
+    inside ``b`` (pose ``Tb``) among those in the world box ``lo``..``hi`` when it is more than
+    ``floor``; otherwise some value at most ``floor``.
 
     Points outside ``b``'s bounding box are not inside it. A point's distance to ``b``'s surface is
     at most its distance to ``b``'s nearest probe point (which lies on that surface), so the points
     within ``floor`` of one are skipped: none of them can be deeper than ``floor``, and the largest
     depth beyond it is found among the others."""
-    pts = pts[np.all((pts >= lo) & (pts <= hi), axis=1)]
+    pts = placed_in_box(probes, Ta, lo, hi)
     if not len(pts):
         return 0.0
     local = (pts - Tb[:3, 3]) @ Tb[:3, :3]
@@ -178,14 +178,6 @@ def overlap_warnings(instances: Sequence[Instance], meshes: Mapping[str, MeshDat
         w = np.asarray(meshes[inst.part].vertices) @ T[:3, :3].T + T[:3, 3]
         boxes.append((w.min(axis=0), w.max(axis=0)))
     req, res = coal.CollisionRequest(), coal.CollisionResult()
-    probes: dict[int, np.ndarray] = {}  # per instance: its probe points in the world, once
-
-    def world_probes(k: int) -> np.ndarray:
-        if k not in probes:
-            T = instances[k].T_world_part
-            probes[k] = _prepared(meshes[instances[k].part]).probes @ T[:3, :3].T + T[:3, 3]
-        return probes[k]
-
     out = []
     for i, a in enumerate(instances):
         for j in range(i + 1, len(instances)):
@@ -199,10 +191,10 @@ def overlap_warnings(instances: Sequence[Instance], meshes: Mapping[str, MeshDat
                                 bvhs[b.part], coal.Transform3s(b.T_world_part[:3, :3].copy(), b.T_world_part[:3, 3].copy()),
                                 req, res):
                 continue
-            d = max(_depth_into(world_probes(i), meshes[b.part], _prepared(meshes[b.part]), bvhs[b.part],
-                                b.T_world_part, lo, hi, tol),
-                    _depth_into(world_probes(j), meshes[a.part], _prepared(meshes[a.part]), bvhs[a.part],
-                                a.T_world_part, lo, hi, tol))
+            pa, pb = _prepared(meshes[a.part]), _prepared(meshes[b.part])
+            d = max(_depth_into(pa.probes, a.T_world_part, meshes[b.part], pb, bvhs[b.part], b.T_world_part, lo, hi, tol),
+                    _depth_into(pb.probes, b.T_world_part, meshes[a.part], pa, bvhs[a.part], a.T_world_part, lo, hi,
+                                tol))
             if d > tol:
                 out.append(f"instances {a.id!r} and {b.id!r} interpenetrate by about {d * 1e3:.1f} mm (more than "
                            f"{tol * 1e3:g} mm of pose noise); their picks are planned as given")

@@ -127,3 +127,23 @@ def test_box_wholly_inside_a_closed_part_found_by_the_centre_test(example_part):
     hit = col.part_collision(T, np.full(3, 0.02))
     assert hit.tolist() == [True, True, False]
     assert col.coal_calls == 0 or col.certified["centre"] >= 2
+
+
+def test_placed_in_box_is_the_whole_transform_then_the_box():
+    """containment.placed_in_box (one axis at a time) gives exactly the rows of moving every point
+    and keeping those in the box, in their order, for boxes of every size and turned poses."""
+    from grasplan.containment import placed_in_box
+    from grasplan.transforms import rpy_matrix
+
+    rng = np.random.default_rng(7)
+    pts = rng.uniform(-0.05, 0.05, (5000, 3))
+    for k in range(40):
+        T = np.eye(4)
+        T[:3, :3] = rpy_matrix(*rng.uniform(-np.pi, np.pi, 3))
+        T[:3, 3] = rng.normal(size=3) * 0.1
+        c, h = T[:3, 3] + rng.normal(size=3) * 0.02, rng.uniform(0.0, 0.06, 3)
+        lo, hi = c - h, c + h
+        w = pts @ T[:3, :3].T + T[:3, 3]
+        want = w[np.all((w >= lo) & (w <= hi), axis=1)]
+        got = placed_in_box(pts, T, lo, hi)
+        assert got.shape == want.shape and np.array_equal(got, want), k

@@ -26,7 +26,7 @@ import coal
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..containment import RayGrid, points_inside_tree, surface_samples
+from ..containment import RayGrid, placed_in_box, points_inside_tree, surface_samples
 from ..insidegrid import InsideGrid, inside_grid
 from ..meshdata import MeshData
 
@@ -63,8 +63,7 @@ def _into(a: PartDepth, T_a: np.ndarray, b: PartDepth, T_b: np.ndarray, lo: np.n
           stop: float, step: int = 1) -> float:
     """Largest depth of ``a``'s samples (at ``T_a``) inside ``b`` (at ``T_b``), of those in the world
     box ``lo, hi`` (where the two parts' world boxes overlap); stops once above ``stop``."""
-    w = a.samples[::step] @ T_a[:3, :3].T + T_a[:3, 3]
-    w = w[np.all((w >= lo) & (w <= hi), axis=1)]
+    w = placed_in_box(a.samples[::step], T_a, lo, hi)
     if not len(w):
         return 0.0
     pts = (w - T_b[:3, 3]) @ T_b[:3, :3]  # b's frame
