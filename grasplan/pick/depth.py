@@ -63,11 +63,11 @@ def _into(a: PartDepth, T_a: np.ndarray, b: PartDepth, T_b: np.ndarray, lo: np.n
           stop: float, step: int = 1) -> float:
     """Largest depth of ``a``'s samples (at ``T_a``) inside ``b`` (at ``T_b``), of those in the world
     box ``lo, hi`` (where the two parts' world boxes overlap); stops once above ``stop``."""
-    w = placed_in_box(a.samples[::step], T_a, lo, hi)
-    if not len(w):
+    pts = placed_in_box(a.samples[::step], np.linalg.inv(T_b) @ T_a, b.lo, b.hi)  # b's frame, in b's box
+    if not len(pts):
         return 0.0
-    pts = (w - T_b[:3, 3]) @ T_b[:3, :3]  # b's frame
-    pts = pts[np.all((pts >= b.lo) & (pts <= b.hi), axis=1)]
+    w = pts @ T_b[:3, :3].T + T_b[:3, 3]
+    pts = pts[np.all((w >= lo) & (w <= hi), axis=1)]
     if not len(pts):
         return 0.0
     state, deep = b.inside.lookup(pts)  # the voxel grid decides most points (grasplan.insidegrid)
