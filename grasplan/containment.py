@@ -187,16 +187,23 @@ def points_inside_tree(grid: RayGrid, mesh: TriangleMesh, points: np.ndarray) ->
     return out
 
 
-def placed_in_box(points: np.ndarray, T: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+def placed_in_box(points: np.ndarray, T: np.ndarray, lo: np.ndarray, hi: np.ndarray, *,
+                  columns: np.ndarray | None = None) -> np.ndarray:
     """The points (k, 3) moved by ``T`` (4, 4), ``points @ R.T + t``, of those that land in the box
     ``lo``..``hi`` (m, 3): one axis at a time (the points left after one axis are few), with a
-    rounding margin, then exactly as a whole."""
+    rounding margin, then exactly as a whole. ``columns``: the same points as (3, k) rows (x, y, z;
+    a contiguous copy the caller keeps: the axis passes run on them)."""
     T = np.asarray(T, dtype=np.float64)
     R, t = T[:3, :3], T[:3, 3]
+    P = np.ascontiguousarray(np.asarray(points).T) if columns is None else columns
     pad = 1e-9 * (1.0 + float(np.max(np.abs(hi - lo))))
     idx: np.ndarray | None = None
     for ax in (2, 0, 1):
-        v = (points if idx is None else points[idx]) @ R[ax] + t[ax]
+        r = R[ax]
+        if idx is None:
+            v = r[0] * P[0] + r[1] * P[1] + r[2] * P[2] + t[ax]
+        else:
+            v = r[0] * P[0, idx] + r[1] * P[1, idx] + r[2] * P[2, idx] + t[ax]
         keep = (v >= lo[ax] - pad) & (v <= hi[ax] + pad)
         idx = np.flatnonzero(keep) if idx is None else idx[keep]
         if not len(idx):

@@ -49,6 +49,7 @@ class _Prepared:
     tree: Any
     lo: np.ndarray  #: the mesh's bounding box (part frame): no point outside it is inside the mesh
     hi: np.ndarray
+    columns: np.ndarray  #: the probes as (3, k) rows x, y, z
 
 
 #: the same for every scene, so a warm planner (the pick service) builds them once per part, not
@@ -65,7 +66,7 @@ def _prepared(m: MeshData) -> _Prepared:
         probes = surface_samples(m, spacing=PROBE_SPACING, max_samples=20_000)
         V = np.asarray(m.vertices, dtype=np.float64)
         out = _PREPARED[m] = _Prepared(RayGrid(m.vertices, m.faces), probes, cKDTree(probes), V.min(axis=0),
-                                       V.max(axis=0))
+                                       V.max(axis=0), np.ascontiguousarray(probes.T))
     return out
 
 
@@ -124,9 +125,9 @@ def check_cell(instances: Sequence[Instance], meshes: Mapping[str, MeshData], ce
                                  f"{tol * 1e3:g} mm is pose noise: check its T (z up, metres)")
 
 
-def _depth_into(probes: np.ndarray, Ta: np.ndarray, b: MeshData, prep_b: _Prepared, b_bvh: coal.BVHModelOBBRSS,
+def _depth_into(prep_a: _Prepared, Ta: np.ndarray, b: MeshData, prep_b: _Prepared, b_bvh: coal.BVHModelOBBRSS,
                 Tb: np.ndarray, lo: np.ndarray, hi: np.ndarray, floor: float) -> float:
-    """Largest distance to ``b``'s surface of the probe points ``probes`` of a part at pose ``Ta``
+    """Largest distance to ``b``'s surface of the probe points of a part (``prep_a``) at pose ``Ta``
     inside ``b`` (pose ``Tb``) among those in the world box ``lo``..``hi`` when it is more than
     ``floor``; otherwise some value at most ``floor``.
 
@@ -134,7 +135,7 @@ def _depth_into(probes: np.ndarray, Ta: np.ndarray, b: MeshData, prep_b: _Prepar
     at most its distance to ``b``'s nearest probe point (which lies on that surface), so the points
     within ``floor`` of one are skipped: none of them can be deeper than ``floor``, and the largest
     depth beyond it is found among the others."""
-    pts = placed_in_box(probes, Ta, lo, hi)
+    pts = placed_in_box(prep_a.probes, Ta, lo, hi, columns=prep_a.columns)
     if not len(pts):
         return 0.0
     local = (pts - Tb[:3, 3]) @ Tb[:3, :3]
@@ -192,9 +193,8 @@ def overlap_warnings(instances: Sequence[Instance], meshes: Mapping[str, MeshDat
                                 req, res):
                 continue
             pa, pb = _prepared(meshes[a.part]), _prepared(meshes[b.part])
-            d = max(_depth_into(pa.probes, a.T_world_part, meshes[b.part], pb, bvhs[b.part], b.T_world_part, lo, hi, tol),
-                    _depth_into(pb.probes, b.T_world_part, meshes[a.part], pa, bvhs[a.part], a.T_world_part, lo, hi,
-                                tol))
+            d = max(_depth_into(pa, a.T_world_part, meshes[b.part], pb, bvhs[b.part], b.T_world_part, lo, hi, tol),
+                    _depth_into(pb, b.T_world_part, meshes[a.part], pa, bvhs[a.part], a.T_world_part, lo, hi, tol))
             if d > tol:
                 out.append(f"instances {a.id!r} and {b.id!r} interpenetrate by about {d * 1e3:.1f} mm (more than "
                            f"{tol * 1e3:g} mm of pose noise); their picks are planned as given")

@@ -34,8 +34,8 @@ def test_skipped_probes_change_no_warning(name):
         lo, hi = np.maximum(wa.min(0), wb.min(0)), np.minimum(wa.max(0), wb.max(0))
         if np.any(lo > hi):
             continue
-        every = pc._depth_into(prep.probes, Ta, mesh, prep, b_bvh, Tb, lo, hi, floor=0.0)  # none skipped but outside b's box
-        fast = pc._depth_into(prep.probes, Ta, mesh, prep, b_bvh, Tb, lo, hi, floor=tol)
+        every = pc._depth_into(prep, Ta, mesh, prep, b_bvh, Tb, lo, hi, floor=0.0)  # none skipped but outside b's box
+        fast = pc._depth_into(prep, Ta, mesh, prep, b_bvh, Tb, lo, hi, floor=tol)
         if every > tol:
             deeper += 1
             assert fast == every, (k, fast, every)

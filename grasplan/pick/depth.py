@@ -48,6 +48,7 @@ class PartDepth:
     hi: np.ndarray
     hull: np.ndarray  #: convex hull vertices (world boxes)
     tree: cKDTree  #: of the samples
+    columns: np.ndarray  #: the samples as (3, k) rows x, y, z
     inside: InsideGrid  #: inside / outside / depth bounds on a voxel grid
 
     @classmethod
@@ -56,6 +57,7 @@ class PartDepth:
         samples = surface_samples(mesh, spacing=SAMPLE_SPACING, max_samples=MAX_SAMPLES)
         return cls(mesh=mesh, samples=samples, grid=RayGrid(V, np.asarray(mesh.faces)), bvh=bvh, lo=V.min(axis=0),
                    hi=V.max(axis=0), hull=np.asarray(hull, dtype=np.float64), tree=cKDTree(samples),
+                   columns=np.ascontiguousarray(samples.T),
                    inside=inside_grid(mesh))
 
 
@@ -63,7 +65,8 @@ def _into(a: PartDepth, T_a: np.ndarray, b: PartDepth, T_b: np.ndarray, lo: np.n
           stop: float, step: int = 1) -> float:
     """Largest depth of ``a``'s samples (at ``T_a``) inside ``b`` (at ``T_b``), of those in the world
     box ``lo, hi`` (where the two parts' world boxes overlap); stops once above ``stop``."""
-    pts = placed_in_box(a.samples[::step], np.linalg.inv(T_b) @ T_a, b.lo, b.hi)  # b's frame, in b's box
+    pts = placed_in_box(a.samples[::step], np.linalg.inv(T_b) @ T_a, b.lo, b.hi,  # b's frame, in b's box
+                        columns=a.columns[:, ::step])
     if not len(pts):
         return 0.0
     w = pts @ T_b[:3, :3].T + T_b[:3, 3]
