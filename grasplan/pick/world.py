@@ -144,16 +144,17 @@ class PickWorld:
         # distance of each TCP to each body's box, against each shape's reach from the TCP (a
         # bounding sphere): only the poses within reach get the exact box test
         tcp = T_world_tcp[:, :3, 3]
-        gap = np.stack([np.linalg.norm(np.maximum(np.abs(tcp - b.center) - b.half, 0.0), axis=1) for b in bodies])
+        centres = np.array([b.center for b in bodies], dtype=np.float64)
+        halves = np.array([b.half for b in bodies], dtype=np.float64)
+        gap = np.linalg.norm(np.maximum(np.abs(tcp[None] - centres[:, None]) - halves[:, None], 0.0), axis=2)  # (B, M)
         for si, s in enumerate(sets):
             reach = float(np.max(np.linalg.norm(s.T_tcp_bb[:, :3, 3], axis=1) + np.linalg.norm(s.half_bb, axis=1)))
             Tbb = T_world_tcp @ s.T_tcp_bb[s.index]
             h = s.half_bb[s.index]
-            for bi, b in enumerate(bodies):
-                idx = np.flatnonzero(gap[bi] <= reach)
-                if len(idx):
-                    need[bi, si, idx] = ~obb_aabb_separated(Tbb[idx, :3, 3], Tbb[idx, :3, :3], h[idx], b.center,
-                                                            b.half)
+            bi_, m_ = np.nonzero(gap <= reach)  # every (body, pose) within reach in one separating-axis test
+            if len(m_):
+                need[bi_, si, m_] = ~obb_aabb_separated(Tbb[m_, :3, 3], Tbb[m_, :3, :3], h[m_], centres[bi_],
+                                                        halves[bi_])
             Tgs.append(T_world_tcp @ s.T_tcp_geom[s.index] if s.is_box else T_world_tcp)
         collide, req, res = coal.collide, self.request, self.result
         tf = coal.Transform3s()
