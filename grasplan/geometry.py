@@ -23,6 +23,15 @@ def bvh(vertices: np.ndarray, faces: np.ndarray) -> coal.BVHModelOBBRSS:
     return m
 
 
+def convex_geometry(points: np.ndarray) -> coal.ConvexBase:
+    """The convex hull of ``points`` (k, 3) as a coal convex shape (GJK against it takes
+    microseconds: a mesh whose hull is apart from something is apart from it)."""
+    pts = coal.StdVec_Vec3s()
+    for v in np.asarray(points, dtype=np.float64).reshape(-1, 3):
+        pts.append(v)
+    return coal.Convex.convexHull(pts, False, "")
+
+
 def shape_geometry(shape: Shape) -> tuple[coal.CollisionGeometry, np.ndarray]:
     """(coal geometry, T_tcp_geom (4, 4)) for a gripper shape (:mod:`grasplan.gripper`): a
     :class:`~grasplan.gripper.Box` (``extents`` (3,), ``T_tcp_box`` (4, 4)) or a

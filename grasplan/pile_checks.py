@@ -26,7 +26,7 @@ import numpy as np
 from .cell import Cell, Obstacle
 from .containment import RayGrid, placed_in_box, points_inside_tree, surface_samples
 from .errors import InputError
-from .geometry import bvh
+from .geometry import bvh, convex_geometry
 from .insidegrid import inside_grid
 from .meshdata import MeshData
 from .scenefile import Instance
@@ -50,6 +50,7 @@ class _Prepared:
     lo: np.ndarray  #: the mesh's bounding box (part frame): no point outside it is inside the mesh
     hi: np.ndarray
     columns: np.ndarray  #: the probes as (3, k) rows x, y, z
+    convex: coal.ConvexBase  #: the mesh's convex hull (two hulls apart: the meshes are apart)
 
 
 #: the same for every scene, so a warm planner (the pick service) builds them once per part, not
@@ -66,7 +67,7 @@ def _prepared(m: MeshData) -> _Prepared:
         probes = surface_samples(m, spacing=PROBE_SPACING, max_samples=20_000)
         V = np.asarray(m.vertices, dtype=np.float64)
         out = _PREPARED[m] = _Prepared(RayGrid(m.vertices, m.faces), probes, cKDTree(probes), V.min(axis=0),
-                                       V.max(axis=0), np.ascontiguousarray(probes.T))
+                                       V.max(axis=0), np.ascontiguousarray(probes.T), convex_geometry(V))
     return out
 
 
@@ -179,6 +180,7 @@ def overlap_warnings(instances: Sequence[Instance], meshes: Mapping[str, MeshDat
         w = np.asarray(meshes[inst.part].vertices) @ T[:3, :3].T + T[:3, 3]
         boxes.append((w.min(axis=0), w.max(axis=0)))
     req, res = coal.CollisionRequest(), coal.CollisionResult()
+    hreq, hres = coal.CollisionRequest(), coal.CollisionResult()
     out = []
     for i, a in enumerate(instances):
         for j in range(i + 1, len(instances)):
@@ -187,12 +189,15 @@ def overlap_warnings(instances: Sequence[Instance], meshes: Mapping[str, MeshDat
             hi = np.minimum(boxes[i][1], boxes[j][1])
             if np.any(lo > hi):
                 continue
-            res.clear()
-            if not coal.collide(bvhs[a.part], coal.Transform3s(a.T_world_part[:3, :3].copy(), a.T_world_part[:3, 3].copy()),
-                                bvhs[b.part], coal.Transform3s(b.T_world_part[:3, :3].copy(), b.T_world_part[:3, 3].copy()),
-                                req, res):
-                continue
             pa, pb = _prepared(meshes[a.part]), _prepared(meshes[b.part])
+            tfa = coal.Transform3s(a.T_world_part[:3, :3].copy(), a.T_world_part[:3, 3].copy())
+            tfb = coal.Transform3s(b.T_world_part[:3, :3].copy(), b.T_world_part[:3, 3].copy())
+            hres.clear()
+            if not coal.collide(pa.convex, tfa, pb.convex, tfb, hreq, hres):  # hulls apart: meshes apart
+                continue
+            res.clear()
+            if not coal.collide(bvhs[a.part], tfa, bvhs[b.part], tfb, req, res):
+                continue
             d = max(_depth_into(pa, a.T_world_part, meshes[b.part], pb, bvhs[b.part], b.T_world_part, lo, hi, tol),
                     _depth_into(pb, b.T_world_part, meshes[a.part], pa, bvhs[a.part], a.T_world_part, lo, hi, tol))
             if d > tol:

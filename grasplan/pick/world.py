@@ -22,7 +22,7 @@ import numpy as np
 from ..cell import Cell
 from ..collision import GripperCollider
 from ..containment import obb_aabb_separated
-from ..geometry import bvh, obstacle_geometry, shape_geometry
+from ..geometry import bvh, convex_geometry, obstacle_geometry, shape_geometry
 from ..gripper.model import Gripper
 from ..mesh import Part
 from ..scene import TABLE, TABLE_SIZE
@@ -43,6 +43,7 @@ class Body:
     tf: coal.Transform3s
     center: np.ndarray
     half: np.ndarray
+    convex: coal.CollisionGeometry | None = None  #: a convex shape holding the body (an instance's hull), or None
 
 
 def _tf(T: np.ndarray) -> coal.Transform3s:
@@ -66,6 +67,7 @@ class PartGeometry:
     bvh: coal.BVHModelOBBRSS
     hull: np.ndarray
     collider: GripperCollider
+    convex: coal.CollisionGeometry  #: the hull as a coal convex shape: apart from it is apart from the mesh
 
 
 class PickWorld:
@@ -89,6 +91,7 @@ class PickWorld:
         self.request.enable_contact = True  # see grasplan.collision: contacts on for shallow hits
         self.request.num_max_contacts = 1
         self.result = coal.CollisionResult()
+        self.hull_request, self.hull_result = coal.CollisionRequest(), coal.CollisionResult()
         self.coal_calls = 0
         self._closed: dict[float, list] = {}  # gripper shapes with the jaws at one opening (the last asked)
 
@@ -99,7 +102,8 @@ class PickWorld:
         mesh = part.mesh
         hull = np.asarray(convex_hull(np.asarray(mesh.vertices)).vertices, dtype=np.float64)
         g = PartGeometry(part=part, bvh=bvh(mesh.vertices, mesh.faces), hull=hull,
-                         collider=GripperCollider(mesh, self.gripper, self.cell, np.eye(4)))
+                         collider=GripperCollider(mesh, self.gripper, self.cell, np.eye(4)),
+                         convex=convex_geometry(hull))
         self.parts[name] = g
         return g
 
@@ -117,7 +121,7 @@ class PickWorld:
         for inst in instances:
             g = self.parts[inst.part]
             c, h = world_box(g.hull, inst.T_world_part)
-            out[inst.id] = Body(INSTANCE_PREFIX + inst.id, g.bvh, _tf(inst.T_world_part), c, h)
+            out[inst.id] = Body(INSTANCE_PREFIX + inst.id, g.bvh, _tf(inst.T_world_part), c, h, g.convex)
         self.instances = out
 
     def bodies(self, target: str | None) -> list[Body]:
@@ -188,7 +192,8 @@ class PickWorld:
         body)`` is true (a shallow one) is no hit. ``first_only``: stop at the first shift hitting
         anything (the later shifts stay -1); with ``far_first`` the shifts are taken from the last
         one back (whether any hits is the same; a part dragged through a neighbour is usually
-        deepest at the far end, so that hit is found first)."""
+        deepest at the far end, so that hit is found first). A pair whose convex hulls are apart
+        (coal's GJK on :attr:`PartGeometry.convex`) is apart without the mesh test."""
         g = self.parts[part]
         T = np.asarray(T_world_part, dtype=np.float64)
         shifts = np.asarray(shifts, dtype=np.float64).reshape(-1, 3)
@@ -201,6 +206,7 @@ class PickWorld:
         bh = np.array([b.half for b in bodies])
         near = np.all(np.abs(centres[:, None, :] - bc[None]) <= h + bh[None], axis=2)  # (k, bodies)
         req, res = self.request, self.result
+        hreq, hres = self.hull_request, self.hull_result
         tf = coal.Transform3s(T[:3, :3].copy(), T[:3, 3].copy())
         ks, bis = np.nonzero(near)
         if far_first:
@@ -209,9 +215,13 @@ class PickWorld:
             if first[k] >= 0:
                 continue
             tf.setTranslation(T[:3, 3] + shifts[k])
+            b = bodies[bi]
+            if b.convex is not None:  # the two hulls apart (GJK, microseconds): the meshes are apart
+                hres.clear()
+                if not coal.collide(g.convex, tf, b.convex, b.tf, hreq, hres):
+                    continue
             res.clear()
             self.coal_calls += 1
-            b = bodies[bi]
             if coal.collide(g.bvh, tf, b.geometry, b.tf, req, res):
                 if allowed is not None:
                     Tk = T.copy()
