@@ -157,13 +157,20 @@ def _depth_into(prep_a: _Prepared, Ta: np.ndarray, b: MeshData, prep_b: _Prepare
     if unsure.any():
         inside_mask[unsure] = points_inside_tree(prep_b.grid, b, local[unsure])
     inside = local[inside_mask]
+    if not len(inside):
+        return 0.0
+    # measured from the largest upper bound of the depth down (the distance to b's nearest probe),
+    # until no bound left exceeds the deepest found: the same largest depth, fewer distances
+    upper, _ = prep_b.tree.query(inside)
     best = 0.0
     req, res = coal.DistanceRequest(), coal.DistanceResult()
-    probe = coal.Sphere(1e-9)
-    for p in inside:
+    probe, tf, eye = coal.Sphere(1e-9), coal.Transform3s(), coal.Transform3s()
+    for k in np.argsort(-upper, kind="stable"):
+        if upper[k] + _ROUNDING < best:
+            break
+        tf.setTranslation(inside[k])
         res.clear()
-        d = coal.distance(probe, coal.Transform3s(np.eye(3), p), b_bvh, coal.Transform3s(), req, res)
-        best = max(best, float(d))
+        best = max(best, float(coal.distance(probe, tf, b_bvh, eye, req, res)))
     return best
 
 
