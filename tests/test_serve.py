@@ -151,6 +151,10 @@ def test_planner_processes(tmp_path):
 
         status, h = Client(srv.port).json("GET", "/health")
         assert status == 200 and h["planners"] == 2 and h["pick"] is False
+        for pid in pool.pids():  # single-threaded BLAS in each planner (the planners are the parallelism)
+            env = dict(kv.split("=", 1) for kv in open(f"/proc/{pid}/environ").read().split("\0") if "=" in kv)
+            for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+                assert env.get(name) == os.environ.get(name, "1"), (name, env.get(name))
         assert [s for s, _ in asked_together(2)] == [200, 200]
         status, doc = ask({"part": "nosuch"})  # refusals come back from the planner as 422
         assert status == 422 and "unknown part" in doc["detail"]
