@@ -1,8 +1,8 @@
 """grasplan serve, POST /pick (issue 23): picks from a warm Picker over real HTTP on 127.0.0.1,
 the same picks as the library, export of a pick, refusals naming the field, and the load test:
 10-instance scenes with max_picks 1 from 4 concurrent clients, 0 errors, p50/p95 printed
-(GRASPLAN_SERVE_LOAD sets the request count, default 24; the issue's figure is 500:
-``GRASPLAN_SERVE_LOAD=500``; timing targets are benchmarks/bench_serve.py's)."""
+(the issue's 500 requests; GRASPLAN_SERVE_LOAD=N sends N; timing targets are
+benchmarks/bench_serve.py's)."""
 from __future__ import annotations
 
 import json
@@ -29,7 +29,7 @@ from serve_support import (  # noqa: E402
 )
 
 ROOT = Path(__file__).resolve().parents[1]
-LOAD_REQUESTS = int(os.environ.get("GRASPLAN_SERVE_LOAD", "24"))
+LOAD_REQUESTS = int(os.environ.get("GRASPLAN_SERVE_LOAD", "500"))
 LOAD_CLIENTS = 4
 
 
