@@ -68,6 +68,9 @@ def test_pair_depth_agrees_with_independent_depth(bracket, rest, axis, overlap):
     assert pair_depth(model, rest, model, Tb, stop=ref + 3e-4) <= ref + 3e-4
     apart = pair_depth(model, rest, model, at(Tb, *(0.01 * np.eye(3)[axis])))
     assert apart == 0.0
+    # capped: exact below the cap, at least the cap otherwise (the resting depth's use)
+    for cap in (0.25 * got, 0.9 * got, got + 1e-4, 2 * got + 1e-3):
+        assert min(pair_depth(model, rest, model, Tb, cap=cap), cap) == pytest.approx(min(got, cap), abs=1e-12)
 
 
 def _scene(rest, gap_axis: int, dz_b: float, overlap: float, mesh):

@@ -62,9 +62,10 @@ class PartDepth:
 
 
 def _into(a: PartDepth, T_a: np.ndarray, b: PartDepth, T_b: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-          stop: float, step: int = 1) -> float:
+          stop: float, step: int = 1, cap: float = np.inf) -> float:
     """Largest depth of ``a``'s samples (at ``T_a``) inside ``b`` (at ``T_b``), of those in the world
-    box ``lo, hi`` (where the two parts' world boxes overlap); stops once above ``stop``."""
+    box ``lo, hi`` (where the two parts' world boxes overlap); stops once above ``stop`` or at
+    ``cap`` or beyond (see :func:`pair_depth`)."""
     pts = placed_in_box(a.samples[::step], np.linalg.inv(T_b) @ T_a, b.lo, b.hi,  # b's frame, in b's box
                         columns=a.columns[:, ::step])
     if not len(pts):
@@ -74,7 +75,7 @@ def _into(a: PartDepth, T_a: np.ndarray, b: PartDepth, T_b: np.ndarray, lo: np.n
     if not len(pts):
         return 0.0
     state, deep = b.inside.lookup(pts)  # the voxel grid decides most points (grasplan.insidegrid)
-    if np.isfinite(stop) and deep.max() > stop:
+    if deep.max() > stop or deep.max() >= cap:
         return float(deep.max())  # a point certainly deeper than stop (a lower bound of its depth)
     keep = state >= 0
     pts, unsure = pts[keep], state[keep] == 0
@@ -90,38 +91,41 @@ def _into(a: PartDepth, T_a: np.ndarray, b: PartDepth, T_b: np.ndarray, lo: np.n
     inside = pts[inside_mask]
     if not len(inside):
         return 0.0
-    # deepest first is unknown: probe the points farthest from b's box faces first (a cheap bound)
-    margin = np.minimum(inside - b.lo, b.hi - inside).min(axis=1)
+    # deepest first is unknown: probe the points with the largest upper bound of their depth first
+    # (the distance to b's nearest surface sample and to b's box faces: at least that to b's surface)
+    margin = np.minimum(b.tree.query(inside)[0], np.minimum(inside - b.lo, b.hi - inside).min(axis=1))
     req, res = coal.DistanceRequest(), coal.DistanceResult()
     probe = coal.Sphere(1e-12)
     tf, eye = coal.Transform3s(), coal.Transform3s()
     best = 0.0
     for k in np.argsort(-margin):
-        if margin[k] <= best:  # the distance to b's surface is at most the distance to its box
+        if margin[k] <= best:  # no point left can be deeper
             break
         tf.setTranslation(inside[k])
         res.clear()
         best = max(best, float(coal.distance(probe, tf, b.bvh, eye, req, res)))
-        if best > stop:
+        if best > stop or best >= cap:
             break
     return best
 
 
 def pair_depth(a: PartDepth, T_a: np.ndarray, b: PartDepth, T_b: np.ndarray, *, stop: float = np.inf,
-               step: int = 1) -> float:
+               step: int = 1, cap: float = np.inf) -> float:
     """Penetration depth (m, 0 when apart or touching) of ``a`` at ``T_a`` and ``b`` at ``T_b`` (see
     the module docstring). With a finite ``stop`` it answers "deeper than ``stop``?": the result is
     a depth found above ``stop`` (a lower bound: the search stops there) when there is one, else a
     value at most ``stop`` (points within ``stop`` of the other surface are not measured).
     ``step``: only every step-th surface sample of each part is a probe (a lower bound of the depth,
-    so a value above ``stop`` found this way is one the full search finds too)."""
+    so a value above ``stop`` found this way is one the full search finds too). ``cap``: exact below
+    it, some depth at or beyond it otherwise (``min(pair_depth(..., cap=c), c)`` is the exact
+    depth capped at ``c``; the search stops at the first point at least ``c`` deep)."""
     T_a, T_b = np.asarray(T_a, dtype=np.float64), np.asarray(T_b, dtype=np.float64)
     wa = a.hull @ T_a[:3, :3].T + T_a[:3, 3]
     wb = b.hull @ T_b[:3, :3].T + T_b[:3, 3]
     lo, hi = np.maximum(wa.min(axis=0), wb.min(axis=0)), np.minimum(wa.max(axis=0), wb.max(axis=0))
     if np.any(lo > hi):
         return 0.0
-    d = _into(a, T_a, b, T_b, lo, hi, stop, step)
-    if d > stop:
+    d = _into(a, T_a, b, T_b, lo, hi, stop, step, cap)
+    if d > stop or d >= cap:
         return d
-    return max(d, _into(b, T_b, a, T_a, lo, hi, stop, step))
+    return max(d, _into(b, T_b, a, T_a, lo, hi, stop, step, cap))

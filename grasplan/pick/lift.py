@@ -136,7 +136,7 @@ class RestDepth:
         d = self._rest.get(name)
         if d is None:
             b, T_b = self.depth_of(name)
-            d = self._rest[name] = min(pair_depth(self.part, self.T_rest, b, T_b), self.cap)  # exact: no stop
+            d = self._rest[name] = min(pair_depth(self.part, self.T_rest, b, T_b, cap=self.cap), self.cap)  # exact to cap
         return d
 
     def exceeds(self, T_world_part: np.ndarray, names: list[str]) -> bool:
