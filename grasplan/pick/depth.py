@@ -10,13 +10,15 @@ part's voxel grid (:mod:`grasplan.insidegrid`) and, near its surface, by the cro
 coal's exact point-to-BVH distance, except that a point the grid proves deeper than ``stop`` ends
 the search at once.
 
-Everything per part (samples, their k-d tree, ray grid, BVH) is built once (:class:`PartDepth`)
-and kept on the :class:`grasplan.Picker`. A query (only for pairs coal reports in contact) keeps
-the samples of one part inside the overlap of the two world boxes, then drops those within
-``stop`` of the other part's surface samples (k-d tree): a point that close to the surface is at
-most that deep whether inside or not. Only the rest (none when two neighbours touch side by side)
-get the inside test and coal's distance, so deciding "deeper than the tolerance?" is a few NumPy
-and k-d tree calls.
+Everything per part (samples, their k-d tree, ray grid, voxel grid, BVH) is built once
+(:class:`PartDepth`) and kept on the :class:`grasplan.Picker`. A query (only for pairs coal reports
+in contact) keeps the samples of one part inside the other part's own box and the overlap of the
+two world boxes, drops those the other's voxel grid puts outside it (and stops at once when the
+grid proves one deeper than ``stop``), then those within ``stop`` of the other part's surface
+samples (k-d tree): a point that close to the surface is at most that deep whether inside or not.
+Only the rest (none when two neighbours touch side by side) get the exact inside test where the
+grid is unsure, and coal's distance, so deciding "deeper than the tolerance?" is a few NumPy and
+k-d tree calls.
 """
 from __future__ import annotations
 
