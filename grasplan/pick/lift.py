@@ -151,14 +151,14 @@ class RestDepth:
                 return True
         return self.excess(T_world_part, names) > self.tol
 
-    def excess(self, T_world_part: np.ndarray, names: list[str]) -> float:
+    def excess(self, T_world_part: np.ndarray, names: list[str], *, exact: bool = False) -> float:
         """Largest depth beyond the resting one (m) of the part at ``T_world_part`` into ``names``;
-        stops once above ``tol`` (the answer is then a lower bound)."""
+        stops once above ``tol`` (the answer is then a lower bound) unless ``exact`` (for a report)."""
         out = -np.inf
         for n in names:
             r = self.rest(n)
             b, T_b = self.depth_of(n)
-            out = max(out, pair_depth(self.part, T_world_part, b, T_b, stop=self.tol + r) - r)
-            if out > self.tol:
+            out = max(out, pair_depth(self.part, T_world_part, b, T_b, stop=np.inf if exact else self.tol + r) - r)
+            if out > self.tol and not exact:
                 break
         return float(max(out, 0.0)) if names else 0.0

@@ -152,11 +152,36 @@ def _part_vs_instances(pairs: list[tuple[str, str, str]]) -> list[str] | None:
     return out
 
 
+_SUPPORT: "weakref.WeakKeyDictionary[Any, np.ndarray]" = weakref.WeakKeyDictionary()
+
+
+def _support_pairs(scene: CollisionScene) -> np.ndarray:
+    """Indices of the pairs of ``scene`` (an attached variant) between the carried part and what it
+    may rest on (:data:`SUPPORT_BODIES`), once per scene model."""
+    idx = _SUPPORT.get(scene._shared)
+    if idx is None:
+        idx = _SUPPORT[scene._shared] = np.array(
+            [k for k, (a, b, _, _, _) in enumerate(scene.pair_rows())
+             if (a == "part" and b.startswith(SUPPORT_BODIES)) or (b == "part" and a.startswith(SUPPORT_BODIES))],
+            dtype=np.int64)
+    return idx
+
+
 def _sample_ok(scene: CollisionScene, q: np.ndarray, width: float, support: bool,
                shallow: Callable[[np.ndarray, list[str]], bool] | None) -> bool:
     """Configuration ``q`` of the lift is free, or its contacts are allowed (module docstring)."""
     if scene.is_free(q, width):
         return True
+    if support:  # free but for the part on its supports: allowed (one broad-phase check, not every pair)
+        off = _support_pairs(scene)
+        off = off[scene._active[off]]
+        if len(off):
+            scene.switch_pairs(off, False)
+            try:
+                if scene.is_free(q, width):
+                    return True
+            finally:
+                scene.switch_pairs(off, True)
     pairs = scene.colliding_pairs(q, width)
     if support and _support_only(pairs):
         return True

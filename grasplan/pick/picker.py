@@ -433,7 +433,7 @@ class Picker:
             if name in by_name and p.lift_depth > 0:
                 T_hit = inst.T_world_part.copy()
                 T_hit[:3, 3] += hit_first["step"] * retreat
-                deep = lift_depth(T_hit, [name])
+                deep = rest.excess(T_hit, [name], exact=True)  # the whole depth for the report
             rd = rest.rest(name) if name in by_name else 0.0
             yield None, InstanceReport(
                 inst.id, inst.part, "blocked" if name.startswith(INSTANCE_PREFIX) else "cloud",
