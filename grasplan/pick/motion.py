@@ -172,7 +172,8 @@ def _sample_ok(scene: CollisionScene, q: np.ndarray, width: float, support: bool
     """Configuration ``q`` of the lift is free, or its contacts are allowed (module docstring)."""
     if scene.is_free(q, width):
         return True
-    if support:  # free but for the part on its supports: allowed (one broad-phase check, not every pair)
+    if support and isinstance(scene, CollisionScene):  # free but for the part on its supports: allowed
+        # (one broad-phase check with those pairs off, not every pair's narrow phase)
         off = _support_pairs(scene)
         off = off[scene._active[off]]
         if len(off):
