@@ -333,3 +333,44 @@ def test_lift_shortcut_still_checks_the_arm(picker, rest):
         pairs = lift_collision(att, lift, pk.width, 1, None, cov, d)
         assert pairs and any("instance:x" in (p[0], p[1]) and "link" in p[0] + p[1] for p in pairs), pairs
     assert np.array_equal(att._active, active)  # every pair switched back on
+
+
+def test_resting_shortcut_matches_every_pair(picker, rest, monkeypatch):
+    """motion._sample_ok decides a resting lift sample with the part's support pairs switched off
+    (one broad-phase check): on every resting sample of these lifts it agrees with the reference,
+    every colliding pair listed and each one the part against a support."""
+    import grasplan.pick.motion as motion
+
+    seen = []
+    orig = motion._sample_ok
+
+    def both(sc, q, width, support, shallow):
+        got = orig(sc, q, width, support, shallow)
+        if support and isinstance(sc, motion.CollisionScene):
+            pairs = sc.colliding_pairs(q, width)
+            ref = not pairs or motion._support_only(pairs) or bool(
+                shallow is not None and (names := motion._part_vs_instances(pairs)) and shallow(q, names))
+            assert got == ref, pairs
+            seen.append(bool(pairs))
+            scenes.append((sc, np.array(q), width))
+        return got
+
+    scenes: list = []
+
+    monkeypatch.setattr(motion, "_sample_ok", both)
+    w = np.asarray(load_part(BRACKET).mesh.vertices) @ rest[:3, :3].T
+    dx, dy = (w.max(axis=0) - w.min(axis=0))[:2] - 0.0003  # neighbours touching it, 0.3 mm into it
+    res = picker.plan(scene(("a", "bracket", rest), ("b", "bracket", at(rest, dx)), ("c", "bracket", at(rest, -dx)),
+                            ("d", "bracket", at(rest, 0.0, dy))))
+    assert res.picks and any(seen)  # resting samples in contact were met
+    # and a resting sample where the arm is in the table or the bin as well: not allowed either way
+    sc, q, width = scenes[-1]
+    bad = 0
+    for k in range(1, 40):
+        qb = q.copy()
+        qb[1 + k % 3] += 0.05 * k * (-1) ** k
+        pairs = sc.colliding_pairs(qb, width)
+        if pairs and not motion._support_only(pairs):
+            assert orig(sc, qb, width, True, None) is False
+            bad += 1
+    assert bad >= 3
