@@ -71,6 +71,12 @@ def _prepared(m: MeshData) -> _Prepared:
     return out
 
 
+def prepare(m: MeshData) -> None:
+    """Build ``m``'s probe data and voxel grid now (they are kept while the mesh lives)."""
+    _prepared(m)
+    inside_grid(m)
+
+
 def _inside_depth(o: Obstacle, pts: np.ndarray) -> float:
     """Largest depth (m) of ``pts`` (world) inside a box, cylinder or sphere obstacle (0: none)."""
     T = np.asarray(o.T_world_obstacle, dtype=np.float64)

@@ -374,3 +374,27 @@ def test_resting_shortcut_matches_every_pair(picker, rest, monkeypatch):
             assert orig(sc, qb, width, True, None) is False
             bad += 1
     assert bad >= 3
+
+
+def test_warm_builds_what_the_first_plan_needs(rest, monkeypatch):
+    """Picker.warm() (the service calls it at start): afterwards a first plan builds no depth probes,
+    voxel grid or scene-check probe data (each builder here refuses to run)."""
+    import grasplan.insidegrid as ig
+    import grasplan.pick.depth as depth
+    import grasplan.pile_checks as pc
+    from grasplan.cell import load_cell as _load_cell
+
+    pk = Picker("ur5", cell=_load_cell("bin"), params=PickParams(grasps_per_instance=8))
+    pk.add_part("bracket", load_part(BRACKET))
+    pk.warm()
+
+    def refuse(*a, **k):
+        raise AssertionError("built during the plan")
+
+    monkeypatch.setattr(ig.InsideGrid, "build", classmethod(refuse))
+    monkeypatch.setattr(depth.PartDepth, "build", classmethod(refuse))
+    monkeypatch.setattr(pc, "surface_samples", refuse)
+    w = np.asarray(load_part(BRACKET).mesh.vertices) @ rest[:3, :3].T
+    dx = float(np.ptp(w[:, 0])) - 0.0003
+    res = pk.plan(scene(("a", "bracket", rest), ("b", "bracket", at(rest, dx))))
+    assert res.picks

@@ -170,14 +170,30 @@ class Picker:
             if cached is None or cached[0] != stamp:
                 cached = self._cell_refs[ref] = (stamp, load_cell(ref))
             cell = cached[1]
-        key = cell
-        st = self._cells.get(key)
+        return self._state_of(cell)
+
+    def _state_of(self, cell: Cell) -> _Cell:
+        st = self._cells.get(cell)
         if st is None:
             world = PickWorld(self.gripper, cell)
             for name, part in self._parts.items():
                 world.add_part(name, part)
-            st = self._cells[key] = _Cell(cell=cell, world=world)
+            st = self._cells[cell] = _Cell(cell=cell, world=world)
         return st
+
+    def warm(self) -> None:
+        """Build now what the first plan would build for every part: the scene checks' probe data,
+        the depth probes and each part's voxel grid (:mod:`grasplan.insidegrid`; with a fixed
+        ``cell`` also its pick world), so that the first plan is as fast as the next (the pick
+        service calls this at start)."""
+        from ..pile_checks import prepare
+
+        for part in self._parts.values():
+            prepare(part.mesh)
+        if self.cell is not None:
+            st = self._state_of(self.cell)
+            for name in self._parts:
+                self._depth_of(st, name)
 
     def _cloud(self, scene: Scene) -> tuple[Any, np.ndarray, float] | None:
         if scene.cloud is None:

@@ -162,4 +162,7 @@ def _warm_picker(config: ServeConfig, robot: Any, gripper: Any, cell: Any, parts
         picker.add_part(name, e.part, grasps=side if side.is_file() else None)
         how = f"from {side.name}" if side.is_file() else "from the cache or computed"
         progress(f"part {name}: grasp database ready ({how}, {time.perf_counter() - t:.1f} s)")
+    t = time.perf_counter()
+    picker.warm()  # the parts' depth probes and voxel grids now, not in the first request
+    progress(f"depth probes and voxel grids of {len(parts)} part(s) ready ({time.perf_counter() - t:.1f} s)")
     return picker
