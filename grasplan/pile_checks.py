@@ -24,7 +24,7 @@ import coal
 import numpy as np
 
 from .cell import Cell, Obstacle
-from .containment import RayGrid, placed_in_box, points_inside_tree, surface_samples
+from .containment import RayGrid, placed_in_box, surface_samples
 from .errors import InputError
 from .geometry import bvh, convex_geometry
 from .insidegrid import inside_grid
@@ -151,18 +151,15 @@ def _depth_into(prep_a: _Prepared, Ta: np.ndarray, b: MeshData, prep_b: _Prepare
     local = local[np.all((local >= prep_b.lo) & (local <= prep_b.hi), axis=1)]  # outside b's box: not in b
     if not len(local):
         return 0.0
-    state, _ = inside_grid(b).lookup(local)  # the voxel grid decides most points (grasplan.insidegrid)
-    local, unsure = local[state >= 0], state[state >= 0] == 0
+    grid = inside_grid(b)  # the voxel grid decides most points (grasplan.insidegrid)
+    state, _ = grid.lookup(local)
+    local = local[state >= 0]  # outside b
     if floor > _ROUNDING and len(local):
         near, _ = prep_b.tree.query(local, distance_upper_bound=floor - _ROUNDING)
-        far = ~np.isfinite(near)  # no probe of b within floor: possibly deeper than floor
-        local, unsure = local[far], unsure[far]
+        local = local[~np.isfinite(near)]  # no probe of b within floor: possibly deeper than floor
     if not len(local):
         return 0.0
-    inside_mask = ~unsure
-    if unsure.any():
-        inside_mask[unsure] = points_inside_tree(prep_b.grid, b, local[unsure])
-    inside = local[inside_mask]
+    inside = local[grid.inside(prep_b.grid, b, local)]
     if not len(inside):
         return 0.0
     # measured from the largest upper bound of the depth down (the distance to b's nearest probe),

@@ -28,7 +28,7 @@ import coal
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..containment import RayGrid, placed_in_box, points_inside_tree, surface_samples
+from ..containment import RayGrid, placed_in_box, surface_samples
 from ..insidegrid import InsideGrid, inside_grid
 from ..meshdata import MeshData
 
@@ -79,18 +79,13 @@ def _into(a: PartDepth, T_a: np.ndarray, b: PartDepth, T_b: np.ndarray, lo: np.n
     state, deep = b.inside.lookup(pts)  # the voxel grid decides most points (grasplan.insidegrid)
     if deep.max() > stop or deep.max() >= cap:
         return float(deep.max())  # a point certainly deeper than stop (a lower bound of its depth)
-    keep = state >= 0
-    pts, unsure = pts[keep], state[keep] == 0
+    pts = pts[state >= 0]  # outside b: not measured
     if len(pts) and np.isfinite(stop):  # within stop of b's surface: at most stop deep, inside or not
         r, _ = b.tree.query(pts, distance_upper_bound=stop)
-        far = ~np.isfinite(r)
-        pts, unsure = pts[far], unsure[far]
+        pts = pts[~np.isfinite(r)]
     if not len(pts):
         return 0.0
-    inside_mask = ~unsure
-    if unsure.any():
-        inside_mask[unsure] = points_inside_tree(b.grid, b.mesh, pts[unsure])
-    inside = pts[inside_mask]
+    inside = pts[b.inside.inside(b.grid, b.mesh, pts)]
     if not len(inside):
         return 0.0
     # deepest first is unknown: probe the points with the largest upper bound of their depth first
