@@ -90,13 +90,13 @@ def _into(a: PartDepth, T_a: np.ndarray, b: PartDepth, T_b: np.ndarray, lo: np.n
         return 0.0
     # deepest first is unknown: probe the points with the largest upper bound of their depth first
     # (the distance to b's nearest surface sample and to b's box faces: at least that to b's surface)
-    margin = np.minimum(b.tree.query(inside)[0], np.minimum(inside - b.lo, b.hi - inside).min(axis=1))
+    upper = np.minimum(b.tree.query(inside)[0], np.minimum(inside - b.lo, b.hi - inside).min(axis=1))
     req, res = coal.DistanceRequest(), coal.DistanceResult()
     probe = coal.Sphere(1e-12)
     tf, eye = coal.Transform3s(), coal.Transform3s()
     best = 0.0
-    for k in np.argsort(-margin):
-        if margin[k] <= best:  # no point left can be deeper
+    for k in np.argsort(-upper):
+        if upper[k] <= best:  # no point left can be deeper
             break
         tf.setTranslation(inside[k])
         res.clear()
