@@ -42,6 +42,28 @@ def test_default_gripper_matches_issue_geometry():
     assert g.symmetric
 
 
+def test_shallow_variant_is_the_same_hardware_grasping_nearer_the_fingertips():
+    """schunk_egp_c_40_shallow: every shape of schunk_egp_c_40 in the flange frame, the TCP (the
+    contacts) 4 mm further out, so the fingertips reach 4 mm past the contacts instead of 8 mm."""
+    deep, shallow = load_gripper("schunk_egp_c_40"), load_gripper("schunk_egp_c_40_shallow")
+    np.testing.assert_allclose(shallow.T_flange_tcp[2, 3] - deep.T_flange_tcp[2, 3], 0.004, atol=1e-12)
+
+    def in_flange(g, shape):
+        c = shape.corners()
+        return c @ g.T_flange_tcp[:3, :3].T + g.T_flange_tcp[:3, 3]
+
+    for a, b in zip(deep.body, shallow.body, strict=True):
+        np.testing.assert_allclose(in_flange(shallow, b), in_flange(deep, a), atol=1e-12)
+    for opening in (0.0, 0.021, 0.05):
+        for a, b in zip(deep.fingers(opening), shallow.fingers(opening), strict=True):
+            np.testing.assert_allclose(in_flange(shallow, b), in_flange(deep, a), atol=1e-12)
+        assert _span(deep.fingers(opening)[1])[1][2] == pytest.approx(0.008)
+        assert _span(shallow.fingers(opening)[1])[1][2] == pytest.approx(0.004)
+    for f in ("max_opening", "grip_force", "mass", "stroke", "symmetric"):
+        assert getattr(shallow, f) == getattr(deep, f), f
+    np.testing.assert_allclose(shallow.com, deep.com)
+
+
 def test_swept_jaws_are_union_of_end_placements():
     g = load_gripper()
     left, right = g.swept_fingers(0.04, 0.022)
