@@ -1,9 +1,10 @@
 """Clutter removal of the paper parts in physics (issue 21's targets), driving ``grasplan clutter``.
 
     python benchmarks/clutter.py [--rounds 20] [--seed 0] [--noise 0,0 --noise 2mm,2deg] [--lift-depth 1mm]
-        [--max-lift-tilt 45] [--gripper NAME] [--out out/clutter]
+        [--max-lift-tilt 45] [--gripper NAME ...] [--out out/clutter]
 
-Each setting runs ``grasplan clutter --cell bin --part P:1`` for the five paper parts (TLess20,
+Each setting (each gripper, by default ``grasplan clutter``'s and ``schunk_egp_c_40_shallow``, times
+each pose noise) runs ``grasplan clutter --cell bin --part P:1`` for the five paper parts (TLess20,
 TLess22, SileanePepper, IPARingScrew, SileaneGear: 5-part mixed piles), plastic (1200 kg/m^3),
 ``--rounds`` rounds from ``--seed``, in its own process (its peak RSS is that process's), and
 reads its report (kept in ``--out``). Printed per setting: attempts, GSR and DR against the
@@ -37,6 +38,8 @@ PARTS = ["TLess20.stl", "TLess22.stl", "SileanePepper.stl", "IPARingScrew.stl", 
 #: (GSR, DR) targets by pose noise
 TARGETS = {"0,0": (0.95, 0.95), "2mm,2deg": (0.85, 0.90)}
 PLAN_TARGET_MS, ROUND_TARGET_S = 100.0, 60.0
+#: the second gripper measured by default: the paper's, grasping 4 mm from its fingertips (docs/clutter.md)
+SHALLOW = "schunk_egp_c_40_shallow"
 #: VGN (Breyer et al., CoRL 2020, arXiv:2101.01132, abstract): real-robot clutter removal clears 92 % of the
 #: objects, grasps planned in 10 ms; its other figures (GSR, simulated piles) are in the paper's tables
 VGN = (("VGN, real robot, unknown objects (abstract)", "-", "92", "10"),)
@@ -95,7 +98,8 @@ def main() -> int:
     ap.add_argument("--out", type=Path, default=ROOT / "out" / "clutter", help="folder for the reports")
     ap.add_argument("--lift-depth", default=None, help="the planner's --lift-depth (default: grasplan pick's)")
     ap.add_argument("--max-lift-tilt", default=None, help="the planner's --max-lift-tilt (0: straight lifts only)")
-    ap.add_argument("--gripper", default=None, help="gripper name or YAML (default: grasplan clutter's)")
+    ap.add_argument("--gripper", action="append",
+                    help="gripper name or YAML, repeatable (default: grasplan clutter's, then " + SHALLOW + ")")
     args = ap.parse_args()
     missing = [p for p in PARTS if not (PAPER_DIR / p).exists()]
     if missing:
@@ -103,32 +107,33 @@ def main() -> int:
         return 0
     args.out.mkdir(parents=True, exist_ok=True)
     rows, fails, left = [], [], []
-    for noise in args.noise or list(TARGETS):
+    for gripper, noise in [(g, n) for g in (args.gripper or [None, SHALLOW]) for n in (args.noise or list(TARGETS))]:
         load0 = os.getloadavg()[0]
         doc, wall, rss = run(noise, args.rounds, args.seed, args.out, args.density, args.lift_depth,
-                             args.max_lift_tilt, args.gripper)
+                             args.max_lift_tilt, gripper)
+        g_name = doc["gripper"]["name"]
         t = doc["total"]
         gsr_t, dr_t = TARGETS.get(noise, (None, None))
         pm, rs, rc = t["plan_ms"], t["round_seconds"], t["round_cpu_s"]
         ok = "-" if gsr_t is None else ("yes" if (t["gsr"] or 0) >= gsr_t and (t["dr"] or 0) >= dr_t else "NO")
-        rows.append((noise, t["rounds"], t["parts"], t["attempts"], _pct(t["gsr"]), _pct(t["dr"]),
+        rows.append((g_name, noise, t["rounds"], t["parts"], t["attempts"], _pct(t["gsr"]), _pct(t["dr"]),
                      "-" if gsr_t is None else f"{100 * gsr_t:.0f}/{100 * dr_t:.0f}", ok,
                      "-" if pm["median"] is None else round(pm["median"], 1),
                      "-" if pm["p95"] is None else round(pm["p95"], 1),
                      round(pm["cold_ms"] or 0.0), round(rs["median"], 1), round(rs["max"], 1), round(rc["median"], 1),
                      round(rc["max"], 1), round(rss), f"{load0:.1f}-{os.getloadavg()[0]:.1f}", round(wall)))
-        fails.append((noise, *[t["failures"][k] for k in t["failures"]], *[t["ended"][k] for k in t["ended"]]))
+        fails.append((g_name, noise, *[t["failures"][k] for k in t["failures"]], *[t["ended"][k] for k in t["ended"]]))
         keys = (list(t["failures"]), list(t["ended"]))
-        left.append((noise, left_by_status(doc)))
-    print(table(rows, header=("pose_noise", "rounds", "parts", "attempts", "GSR_%", "DR_%", "target_%", "met",
+        left.append((f"{g_name} {noise}", left_by_status(doc)))
+    print(table(rows, header=("gripper", "pose_noise", "rounds", "parts", "attempts", "GSR_%", "DR_%", "target_%", "met",
                               "plan_ms_median", "plan_ms_p95", "plan_ms_cold", "round_s_median", "round_s_max",
                               "round_cpu_s_median", "round_cpu_s_max", "peak_rss_MB", "load", "run_s")))
     print()
-    print(table(fails, header=("pose_noise", *[f"fail:{k}" for k in keys[0]], *[f"ended:{k}" for k in keys[1]])))
+    print(table(fails, header=("gripper", "pose_noise", *[f"fail:{k}" for k in keys[0]], *[f"ended:{k}" for k in keys[1]])))
     print()
     sts = sorted({k for _, d in left for k in d})
     print("parts left when nothing was feasible, by the planner's instance status:")
-    print(table([(n, *[d.get(k, 0) for k in sts]) for n, d in left], header=("pose_noise", *sts)))
+    print(table([(n, *[d.get(k, 0) for k in sts]) for n, d in left], header=("gripper, pose_noise", *sts)))
     print()
     print(table(list(VGN), header=("for comparison", "GSR_%", "DR_%", "plan_ms")))
     print(f"targets: planning median < {PLAN_TARGET_MS:g} ms, a round < {ROUND_TARGET_S:g} s; reports in {args.out}")
