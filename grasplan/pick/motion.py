@@ -170,19 +170,18 @@ def _support_pairs(scene: CollisionScene) -> np.ndarray:
 def _sample_ok(scene: CollisionScene, q: np.ndarray, width: float, support: bool,
                shallow: Callable[[np.ndarray, list[str]], bool] | None) -> bool:
     """Configuration ``q`` of the lift is free, or its contacts are allowed (module docstring)."""
-    if scene.is_free(q, width):
+    off = _support_pairs(scene) if support and isinstance(scene, CollisionScene) else None
+    if off is not None and len(off := off[scene._active[off]]):
+        # free but for the part on its supports: allowed. One broad-phase check with those pairs
+        # off decides it (free with every pair is free with fewer), not every pair's narrow phase
+        scene.switch_pairs(off, False)
+        try:
+            if scene.is_free(q, width):
+                return True
+        finally:
+            scene.switch_pairs(off, True)
+    elif scene.is_free(q, width):
         return True
-    if support and isinstance(scene, CollisionScene):  # free but for the part on its supports: allowed
-        # (one broad-phase check with those pairs off, not every pair's narrow phase)
-        off = _support_pairs(scene)
-        off = off[scene._active[off]]
-        if len(off):
-            scene.switch_pairs(off, False)
-            try:
-                if scene.is_free(q, width):
-                    return True
-            finally:
-                scene.switch_pairs(off, True)
     pairs = scene.colliding_pairs(q, width)
     if support and _support_only(pairs):
         return True
