@@ -53,6 +53,13 @@ from .params import PickParams
 SUPPORT_BODIES = ("table", "obstacle:", "instance:")
 #: largest per-joint change (rad) between consecutive line waypoints (more: a branch jump)
 MAX_JOINT_STEP = 0.1
+#: the lift's TCP waypoints are this far apart (m), half the approach's
+#: (:data:`~grasplan.pickplace.LINE_SAMPLE`): on the UR5 in the bench piles the joints then move at
+#: most 0.0085 rad between two of them, less than ``interpolation.STEP``, so the lift has no
+#: configuration between waypoints to check and every waypoint is one the checks before IK covered
+#: (:func:`lift_collision`); at 4 mm half the lift's configurations lay between waypoints and were
+#: checked with every pair (docs/pick.md, timing)
+LIFT_SAMPLE = 0.5 * LINE_SAMPLE
 
 
 def line_path(robot: Robot, T_from: np.ndarray, T_to: np.ndarray, q_from: np.ndarray, *, max_dev: float,
@@ -207,7 +214,7 @@ def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touc
     first failing configuration in path order is the one reported).
 
     ``resting(q)``: whether configuration ``q`` of the first ``n_touch`` waypoints is still within
-    ``lift_contact`` of TCP travel (the waypoints are :data:`~grasplan.pickplace.LINE_SAMPLE` apart,
+    ``lift_contact`` of TCP travel (the waypoints are :data:`LIFT_SAMPLE` apart,
     so the last of them may lie beyond it); where it is not, resting contact is not allowed
     either. None: every configuration up to waypoint ``n_touch`` may rest."""
     n_touch = int(min(max(n_touch, 0), len(path) - 1))
@@ -350,7 +357,7 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
     T_line = None
     if ctx.lift_gripper_check is not None:  # the closed gripper along the lift: the same for every IK branch
         t = time.perf_counter()
-        m = max(1, int(np.ceil(ctx.retreat_dist / LINE_SAMPLE - 1e-12)))
+        m = max(1, int(np.ceil(ctx.retreat_dist / LIFT_SAMPLE - 1e-12)))
         T_line = np.broadcast_to(T_world_tcp, (m + 1, 4, 4)).copy()
         T_line[:, :3, 3] += (ctx.retreat_dist * np.arange(m + 1) / m)[:, None] * ctx.retreat_dir
         hit = ctx.lift_gripper_check(T_line, width)
@@ -371,7 +378,7 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
     att.move_attached(T_tcp_part_of(T_part_tcp))
     drop = _drop_pairs(att) if T_line is not None and ctx.lift_part_checked is not None else None
     T_flange_part = ctx.T_flange_tcp @ T_tcp_part_of(T_part_tcp)
-    n_touch = int(np.ceil(p.lift_contact / LINE_SAMPLE - 1e-9))
+    n_touch = int(np.ceil(p.lift_contact / LIFT_SAMPLE - 1e-9))
     flange_at_grasp = (T_world_tcp @ ctx.T_tcp_flange)[:3, 3]
 
     def resting(q: np.ndarray) -> bool:  # TCP travel from the grasp (FK) within lift_contact
@@ -409,7 +416,8 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
                 blockers |= _blockers(pairs_a)
             continue
         t = time.perf_counter()
-        lift, reason = line_path(robot, T_world_tcp, T_lift, q_grasp, max_dev=p.max_dev, T_flange_tcp=ctx.T_flange_tcp)
+        lift, reason = line_path(robot, T_world_tcp, T_lift, q_grasp, max_dev=p.max_dev, T_flange_tcp=ctx.T_flange_tcp,
+                                 sample=LIFT_SAMPLE)
         timing["lift"] += time.perf_counter() - t
         if lift is None:
             count["lift_kin"] += 1

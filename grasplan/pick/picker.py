@@ -44,7 +44,7 @@ from ..gripper import load_gripper
 from ..gripper.model import Gripper
 from ..mesh import Part, load_part
 from ..params import DEFAULT_GRIPPER, GraspParams
-from ..pickplace import LINE_SAMPLE, lift_pose, unit_direction
+from ..pickplace import lift_pose, unit_direction
 from ..robot import load_robot
 from ..robot_model import Robot
 from ..scene import CollisionScene, ExtraBody
@@ -52,7 +52,7 @@ from ..scenefile import Instance, Scene, load_scene
 from ..graspdb import GraspDatabase, database_for, load_database
 from .depth import PartDepth
 from .lift import LIFT_TILTS_DEG, LIFTS_PER_GRASP, RestDepth, inside_walls, lift_directions, wall_away
-from .motion import MotionContext, Outcome, plan_pick_motion
+from .motion import LIFT_SAMPLE, MotionContext, Outcome, plan_pick_motion
 from .params import PickParams
 from .rank import instance_order, rank_grasps
 from .result import InstanceReport, Pick, PickResult
@@ -368,11 +368,15 @@ class Picker:
                                                                   else np.asarray(st.cell.place, dtype=np.float64))
         retreat = unit_direction(st.cell.retreat_direction)
         dist = float(st.cell.retreat_distance)
-        n_lift = max(1, int(np.ceil(dist / LINE_SAMPLE - 1e-12)))
-        steps = dist * np.arange(n_lift + 1) / n_lift
+        n_lift = max(1, int(np.ceil(dist / LIFT_SAMPLE - 1e-12)))
+        fine = dist * np.arange(n_lift + 1) / n_lift  # the lift's waypoints (plan_pick_motion's)
         # the line's waypoints beyond lift_contact, and the lift_contact point itself (where resting
-        # contact stops being allowed: between it and the next waypoint a part may be deep already)
-        steps = np.unique(np.append(steps[steps >= min(p.lift_contact, steps[-1]) - 1e-12], min(p.lift_contact, dist)))
+        # contact stops being allowed: between it and the next waypoint a part may be deep already);
+        # every second one (`steps`) decides whether a direction is free for the part alone, the
+        # others (`between`) are checked once a grasp is motion-planned along it (_between_free)
+        lc = min(p.lift_contact, dist)
+        steps = np.unique(np.append(fine[::2][fine[::2] >= lc - 1e-12], [lc, dist]))
+        between = np.setdiff1d(fine[fine >= lc - 1e-12], steps)
         # the carried part against the neighbours and the cloud (the cell's boxes: the robot's check,
         # which lets the part slide along a wall it touches within ATTACHED_CONTACT_TOL)
         pile = [b for b in bodies if b.name.startswith(INSTANCE_PREFIX) or b.name == CLOUD]
@@ -493,11 +497,16 @@ class Picker:
                     ctx = ctxs.get(j)
                     if ctx is None:
                         static, att = self._variants(st, inst, present, with_cloud)
+                        t_b = time.perf_counter()  # the lift's other waypoints, the part alone (as lift_ok)
+                        hits_b = st.world.part_hits(inst.part, inst.T_world_part, between[:, None] * dirs[j][1], pile,
+                                                    shallow_hit)
+                        timing["lift_check"] += time.perf_counter() - t_b
+                        checked = np.concatenate([steps, between[hits_b < 0]])
                         ctx = ctxs[j] = MotionContext(
                             self.robot, self.gripper, p, static, att, dirs[j][1], dist, timing, T_place=T_place,
                             lift_gripper_check=lambda T, w: st.world.gripper_at_hits(T, w, bodies),
                             body_names=tuple(b.name for b in bodies), lift_depth=lift_depth if p.lift_depth > 0 else None,
-                            lift_part_checked=(inst.T_world_part, steps[:, None] * dirs[j][1]))  # by lift_ok(j)
+                            lift_part_checked=(inst.T_world_part, checked[:, None] * dirs[j][1]))  # lift_ok(j), above
                     out = plan_pick_motion(ctx, T_plan[k], T_part_g, float(db.width[r]),
                                            seed=p.seed * 1_000_003 + seed_base * 10_007 + r)
                     grasp_blocker[:] = list(out.blockers[:1])
