@@ -12,7 +12,7 @@ from grasplan.gripper import load_gripper
 from grasplan.ik import get_solver, solve_ik
 from grasplan.mesh import load_part
 from grasplan.paths import approach_path_reason
-from grasplan.pick.motion import line_path
+from grasplan.pick.motion import _fk_batch, line_path
 from grasplan.pile_checks import check_cell, overlap_warnings
 from grasplan.robot import load_robot
 from grasplan.scenefile import Instance
@@ -116,3 +116,11 @@ def test_ur_line_branch_named_by_the_start_signs_is_the_best_match(ur5):
             np.testing.assert_allclose(np.cos(got[0][1:]), np.cos(Q[b, 1:]), atol=1e-12)
             np.testing.assert_allclose(np.sin(got[0][1:]), np.sin(Q[b, 1:]), atol=1e-12)
     assert named >= 55
+
+
+def test_closed_form_fk_batch_matches_pinocchio(ur5):
+    """The lift's coverage test compares poses within 1e-7 m: the closed-form FK it uses must agree
+    with Pinocchio's far closer than that (and fall back to Pinocchio for robots without one)."""
+    robot, _ = ur5
+    qs = np.random.default_rng(3).uniform(robot.lower, robot.upper, (300, robot.nq))
+    np.testing.assert_allclose(_fk_batch(robot, qs), robot.fk_batch(qs), atol=1e-9, rtol=0)

