@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from grasplan.pick.motion import lift_collision
+from grasplan.pick.motion import LIFT_SAMPLE, lift_collision, touch_waypoints
 
 
 class _TableScene:
@@ -45,3 +45,25 @@ def test_resting_within_lift_contact_is_allowed():
     sc = _TableScene((0.0, 0.0015))  # leaves the table 1.5 mm up
     assert lift_collision(sc, _lift(), 0.02, 1, None, None, None, lambda q: sc._travel(q) <= 0.002 + 1e-9) is None
     assert any(0.0015 < t < 0.004 for t in sc.checked)  # configurations between grasp and waypoint 1 were checked
+
+
+def test_a_waypoint_at_lift_contact_itself_may_rest():
+    """With the lift's 2 mm waypoints one lies at lift_contact (2 mm) exactly: it is inside the
+    window (a part whose estimated pose sinks it 3 mm into the floor still touches it there and is
+    clear 4 mm up), and the next one is the first that may not rest."""
+    assert touch_waypoints(0.002, 0.002) == 2 and touch_waypoints(0.003, 0.002) == 2
+    assert touch_waypoints(0.0019, 0.002) == 1 and touch_waypoints(0.0, 0.002) == 0
+    assert touch_waypoints(0.002, 0.004) == 1  # the approach's 4 mm spacing: the first waypoint is beyond
+    path = np.zeros((6, 6))
+    path[:, 0] = 10 * LIFT_SAMPLE * np.arange(6)  # the stand-in's joint 0 is travel x 10
+    window = touch_waypoints(0.002, LIFT_SAMPLE)
+
+    def resting(q: np.ndarray) -> bool:
+        return float(q[0]) / 10.0 <= 0.002 + 1e-9
+
+    assert lift_collision(_TableScene((0.0, 0.002)), path, 0.02, window, None, None, None, resting) is None
+    assert lift_collision(_TableScene((0.0, 0.0031)), path, 0.02, window, None, None, None, resting) == [
+        ("part", "table", "attached")]
+    # the first waypoint beyond the window checked as a resting one would have let this through
+    assert lift_collision(_TableScene((0.0, 0.002)), path, 0.02, window - 1, None, None, None, resting) == [
+        ("part", "table", "attached")]

@@ -196,6 +196,14 @@ def _sample_ok(scene: CollisionScene, q: np.ndarray, width: float, support: bool
     return bool(names and shallow is not None and shallow(q, names))
 
 
+def touch_waypoints(lift_contact: float, sample: float) -> int:
+    """``n_touch`` of :func:`lift_collision` for a lift whose waypoints are ``sample`` apart: the
+    index of the first waypoint beyond ``lift_contact`` of travel (0 when no contact is allowed).
+    The waypoints before it, one lying at ``lift_contact`` itself included, may rest where
+    ``resting(q)`` says so; from it on none may."""
+    return int(np.floor(lift_contact / sample + 1e-9)) + 1 if lift_contact > 0 else 0
+
+
 def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touch: int,
                    shallow: Callable[[np.ndarray, list[str]], bool] | None = None,
                    covered: np.ndarray | None = None, drop: np.ndarray | None = None,
@@ -390,7 +398,7 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
     att.move_attached(T_tcp_part_of(T_part_tcp))
     drop = _drop_pairs(att) if T_line is not None and ctx.lift_part_checked is not None else None
     T_flange_part = ctx.T_flange_tcp @ T_tcp_part_of(T_part_tcp)
-    n_touch = int(np.ceil(p.lift_contact / LIFT_SAMPLE - 1e-9))
+    n_touch = touch_waypoints(p.lift_contact, LIFT_SAMPLE)
     flange_at_grasp = (T_world_tcp @ ctx.T_tcp_flange)[:3, 3]
 
     def resting(q: np.ndarray) -> bool:  # TCP travel from the grasp (FK) within lift_contact
