@@ -62,16 +62,23 @@ MAX_JOINT_STEP = 0.1
 LIFT_SAMPLE = 0.5 * LINE_SAMPLE
 
 
+def _ur_closed_form(robot: Robot) -> Any:
+    """The robot's UR closed form (:class:`grasplan.ik.ur.URAnalytic`) when it has a working one, else None."""
+    from ..ik.ur import URAnalytic
+
+    closed = get_solver(robot).analytic
+    return closed if isinstance(closed, URAnalytic) and closed.ok else None
+
+
 def line_path(robot: Robot, T_from: np.ndarray, T_to: np.ndarray, q_from: np.ndarray, *, max_dev: float,
               T_flange_tcp: np.ndarray, sample: float = LINE_SAMPLE) -> tuple[np.ndarray | None, str]:
     """Joint waypoints moving the TCP straight ``T_from -> T_to`` (same orientation) from
     ``q_from`` (which reaches ``T_from``): ``(path (k, n), "ok")`` or ``(None, why)`` with why in
     ``ik``, ``limits``, ``jump``, ``deviation`` (see the module docstring)."""
-    from ..ik.ur import URAnalytic
     from .lines import fk_base_tool, ur_line
 
-    closed = get_solver(robot).analytic
-    if not isinstance(closed, URAnalytic) or not closed.ok:
+    closed = _ur_closed_form(robot)
+    if closed is None:
         return approach_path_reason(robot, None, T_from, T_to, q_from, opening=0.0, max_dev=max_dev,
                                     T_flange_tcp=T_flange_tcp, sample=sample)
     T_base = np.linalg.inv(np.asarray(robot.T_world_base, dtype=np.float64))
@@ -302,11 +309,10 @@ def _lift_covered(ctx: MotionContext, lift: np.ndarray, T_line: np.ndarray, T_fl
 def _fk_batch(robot: Robot, qs: np.ndarray) -> np.ndarray:
     """``robot.fk_batch(qs)``: with the UR closed form in one NumPy pass (within 2e-11 m of
     Pinocchio's, a third of its time for a lift's 51 waypoints)."""
-    from ..ik.ur import URAnalytic
     from .lines import fk_base_tool
 
-    closed = get_solver(robot).analytic
-    if isinstance(closed, URAnalytic) and closed.ok:
+    closed = _ur_closed_form(robot)
+    if closed is not None:
         return np.asarray(robot.T_world_base, dtype=np.float64) @ fk_base_tool(closed, np.asarray(qs, dtype=np.float64))
     return robot.fk_batch(qs)
 

@@ -372,8 +372,8 @@ class Picker:
         fine = dist * np.arange(n_lift + 1) / n_lift  # the lift's waypoints (plan_pick_motion's)
         # the line's waypoints beyond lift_contact, and the lift_contact point itself (where resting
         # contact stops being allowed: between it and the next waypoint a part may be deep already);
-        # every second one (`steps`) decides whether a direction is free for the part alone, the
-        # others (`between`) are checked once a grasp is motion-planned along it (_between_free)
+        # every second one and the far end (`steps`) decide whether a direction is free for the part
+        # alone; the others (`between`) are checked when a grasp is first motion-planned along it
         lc = min(p.lift_contact, dist)
         steps = np.unique(np.append(fine[::2][fine[::2] >= lc - 1e-12], [lc, dist]))
         between = np.setdiff1d(fine[fine >= lc - 1e-12], steps)
