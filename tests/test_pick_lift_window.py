@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from grasplan.pick.motion import LIFT_SAMPLE, lift_collision, touch_waypoints
+from grasplan.pick.motion import lift_collision, lift_travel, touch_waypoints
 
 
 class _TableScene:
@@ -51,12 +51,16 @@ def test_a_waypoint_at_lift_contact_itself_may_rest():
     """With the lift's 2 mm waypoints one lies at lift_contact (2 mm) exactly: it is inside the
     window (a part whose estimated pose sinks it 3 mm into the floor still touches it there and is
     clear 4 mm up), and the next one is the first that may not rest."""
-    assert touch_waypoints(0.002, 0.002) == 2 and touch_waypoints(0.003, 0.002) == 2
-    assert touch_waypoints(0.0019, 0.002) == 1 and touch_waypoints(0.0, 0.002) == 0
-    assert touch_waypoints(0.002, 0.004) == 1  # the approach's 4 mm spacing: the first waypoint is beyond
+    travel = lift_travel(0.1)  # 2 mm apart
+    np.testing.assert_allclose(np.diff(travel), 0.002)
+    assert touch_waypoints(0.002, travel) == 2 and touch_waypoints(0.003, travel) == 2
+    assert touch_waypoints(0.0019, travel) == 1 and touch_waypoints(0.0, travel) == 0
+    assert touch_waypoints(0.002, 0.004 * np.arange(26)) == 1  # the approach's 4 mm spacing: the first is beyond
+    odd = lift_travel(0.0045)  # 1.5 mm apart: the waypoint at 3 mm is within a 3 mm window
+    assert len(odd) == 4 and touch_waypoints(0.003, odd) == 3
     path = np.zeros((6, 6))
-    path[:, 0] = 10 * LIFT_SAMPLE * np.arange(6)  # the stand-in's joint 0 is travel x 10
-    window = touch_waypoints(0.002, LIFT_SAMPLE)
+    path[:, 0] = 10 * travel[:6]  # the stand-in's joint 0 is travel x 10
+    window = touch_waypoints(0.002, travel)
 
     def resting(q: np.ndarray) -> bool:
         return float(q[0]) / 10.0 <= 0.002 + 1e-9

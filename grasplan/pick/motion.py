@@ -203,12 +203,20 @@ def _sample_ok(scene: CollisionScene, q: np.ndarray, width: float, support: bool
     return bool(names and shallow is not None and shallow(q, names))
 
 
-def touch_waypoints(lift_contact: float, sample: float) -> int:
-    """``n_touch`` of :func:`lift_collision` for a lift whose waypoints are ``sample`` apart: the
-    index of the first waypoint beyond ``lift_contact`` of travel (0 when no contact is allowed).
-    The waypoints before it, one lying at ``lift_contact`` itself included, may rest where
-    ``resting(q)`` says so; from it on none may."""
-    return int(np.floor(lift_contact / sample + 1e-9)) + 1 if lift_contact > 0 else 0
+def lift_travel(dist: float) -> np.ndarray:
+    """TCP travel (m) at each waypoint of a straight lift of ``dist`` (:func:`line_path` with
+    :data:`LIFT_SAMPLE`: equal steps of at most that), from 0 to ``dist``: the one definition the
+    lift's line, its gripper check before IK and the picker's part-alone checks share."""
+    m = max(1, int(np.ceil(dist / LIFT_SAMPLE - 1e-12)))
+    return dist * np.arange(m + 1) / m
+
+
+def touch_waypoints(lift_contact: float, travel: np.ndarray) -> int:
+    """``n_touch`` of :func:`lift_collision` for a lift whose waypoints lie at ``travel``
+    (:func:`lift_travel`): the index of the first waypoint beyond ``lift_contact`` of travel (0
+    when no contact is allowed). The waypoints before it, one lying at ``lift_contact`` itself
+    included, may rest where ``resting(q)`` says so; from it on none may."""
+    return int(np.searchsorted(travel, lift_contact + 1e-9, side="right")) if lift_contact > 0 else 0
 
 
 def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touch: int,
@@ -380,18 +388,18 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
     T_pre = T_world_tcp.copy()
     T_pre[:3, 3] -= p.backoff * T_world_tcp[:3, 2]
     T_lift = lift_pose(T_world_tcp, ctx.retreat_dir, ctx.retreat_dist)
+    travel = lift_travel(ctx.retreat_dist)  # the lift's waypoints, as line_path makes them
     T_line = None
     if ctx.lift_gripper_check is not None:  # the closed gripper along the lift: the same for every IK branch
         t = time.perf_counter()
-        m = max(1, int(np.ceil(ctx.retreat_dist / LIFT_SAMPLE - 1e-12)))
-        T_line = np.broadcast_to(T_world_tcp, (m + 1, 4, 4)).copy()
-        T_line[:, :3, 3] += (ctx.retreat_dist * np.arange(m + 1) / m)[:, None] * ctx.retreat_dir
+        T_line = np.broadcast_to(T_world_tcp, (len(travel), 4, 4)).copy()
+        T_line[:, :3, 3] += travel[:, None] * ctx.retreat_dir
         hit = ctx.lift_gripper_check(T_line, width)
         timing["lift_check"] += time.perf_counter() - t
         if np.any(hit >= 0):
             k = int(np.flatnonzero(hit >= 0)[0])
             name = ctx.body_names[int(hit[k])]
-            return Outcome("lift_collision", f"lift: the closed gripper hits {name} {1e3 * ctx.retreat_dist * k / m:.0f} "
+            return Outcome("lift_collision", f"lift: the closed gripper hits {name} {1e3 * travel[k]:.0f} "
                            f"mm up (any IK solution)", opening=opening,
                            blockers=(name,) if name.startswith("instance:") else ())
     t = time.perf_counter()
@@ -404,7 +412,7 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
     att.move_attached(T_tcp_part_of(T_part_tcp))
     drop = _drop_pairs(att) if T_line is not None and ctx.lift_part_checked is not None else None
     T_flange_part = ctx.T_flange_tcp @ T_tcp_part_of(T_part_tcp)
-    n_touch = touch_waypoints(p.lift_contact, LIFT_SAMPLE)
+    n_touch = touch_waypoints(p.lift_contact, travel)
     flange_at_grasp = (T_world_tcp @ ctx.T_tcp_flange)[:3, 3]
 
     def resting(q: np.ndarray) -> bool:  # TCP travel from the grasp (FK) within lift_contact

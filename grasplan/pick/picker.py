@@ -52,7 +52,7 @@ from ..scenefile import Instance, Scene, load_scene
 from ..graspdb import GraspDatabase, database_for, load_database
 from .depth import PartDepth
 from .lift import LIFT_TILTS_DEG, LIFTS_PER_GRASP, RestDepth, inside_walls, lift_directions, wall_away
-from .motion import LIFT_SAMPLE, MotionContext, Outcome, plan_pick_motion
+from .motion import MotionContext, Outcome, lift_travel, plan_pick_motion
 from .params import PickParams
 from .rank import instance_order, rank_grasps
 from .result import InstanceReport, Pick, PickResult
@@ -368,8 +368,7 @@ class Picker:
                                                                   else np.asarray(st.cell.place, dtype=np.float64))
         retreat = unit_direction(st.cell.retreat_direction)
         dist = float(st.cell.retreat_distance)
-        n_lift = max(1, int(np.ceil(dist / LIFT_SAMPLE - 1e-12)))
-        fine = dist * np.arange(n_lift + 1) / n_lift  # the lift's waypoints (plan_pick_motion's)
+        fine = lift_travel(dist)  # the lift's waypoints (plan_pick_motion's)
         # the line's waypoints beyond lift_contact, and the lift_contact point itself (where resting
         # contact stops being allowed: between it and the next waypoint a part may be deep already);
         # every second one and the far end (`steps`) decide whether a direction is free for the part
