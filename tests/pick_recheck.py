@@ -17,12 +17,15 @@ point of the cloud as the cube of its octree leaf (``floor(p / resolution)`` cel
   the planner's ``overlap_tol``; 0: the absolute depth), measured here independently of grasplan
   (:func:`mesh_depth`: trimesh's random surface samples and vertices, a generalised winding number
   for inside, trimesh's exact closest point on the triangles for the distance); nothing else may
-  touch. The lift is the motion's own ``lift`` segment, whatever its direction.
+  touch. The lift is the motion's own ``lift`` segment, whatever its direction. A neighbour the pick
+  says its lift raises (``pick.carries``, ``lift_carry``) may be touched by the carried instance
+  (not by the robot or the gripper) when :func:`rises_freely` finds it lying on it, free to rise.
 """
 from __future__ import annotations
 
 from dataclasses import replace
 
+import fcl
 import numpy as np
 
 from fcl_recheck import FclWorld, Report, densify
@@ -114,6 +117,13 @@ def recheck_pick(robot, gripper, cell, pick, instances, meshes, *, cloud=None, r
     rep.lift_depths = []  # type: ignore[attr-defined]  # depths of the accepted and refused lift contacts
     by_id = {i.id: i for i in instances if i.id != pick.instance}
     rest: dict[str, float] = {}  # resting depth per neighbour touched
+    carried = set(getattr(pick, "carries", ()))
+    for iid in sorted(carried):
+        why = rises_freely(by_id[iid], instances, meshes, up=np.asarray(cell.retreat_direction, dtype=np.float64),
+                           dist=float(cell.retreat_distance), lift_contact=lift_contact, lift_depth=lift_depth,
+                           rest_cap=rest_cap)
+        if why:
+            rep.problems.append(f"lift raises {iid}, which is not free to rise: {why}")
 
     def at_rest(iid: str) -> float:
         if iid not in rest:
@@ -146,6 +156,8 @@ def recheck_pick(robot, gripper, cell, pick, instances, meshes, *, cloud=None, r
                     keep = []
                     for h in hits:
                         iid = h[len("part (attached) vs obstacle:instance_"):]
+                        if h.startswith("part (attached) vs obstacle:instance_") and iid in carried:
+                            continue
                         if h.startswith("part (attached) vs obstacle:instance_") and iid in by_id:
                             d = mesh_depth(meshes[pick.part], T_part, meshes[by_id[iid].part],
                                            by_id[iid].T_world_part) - at_rest(iid)
@@ -159,3 +171,38 @@ def recheck_pick(robot, gripper, cell, pick, instances, meshes, *, cloud=None, r
                 rep.problems.append(f"{mode} q={np.round(q, 4).tolist()}: " + ", ".join(hits[:3]))
                 break
     return rep
+
+
+def rises_freely(inst, instances, meshes, *, up: np.ndarray, dist: float, lift_contact: float, lift_depth: float,
+                 rest_cap: float, step: float = 0.002) -> str:
+    """"" (it is free) or the first problem: instance ``inst`` moved alone along ``up`` by
+    ``lift_contact`` .. ``dist`` (every ``step``) against every other instance (python-fcl meshes),
+    a contact allowed only within ``lift_depth`` (+ :data:`DEPTH_SLACK`) beyond the resting depth
+    (:func:`mesh_depth`, counted up to ``rest_cap``)."""
+
+    def bvh(m):
+        b = fcl.BVHModel()
+        b.beginModel(len(m.vertices), len(m.faces))
+        b.addSubModel(np.asarray(m.vertices, dtype=np.float64), np.asarray(m.faces, dtype=np.int32))
+        b.endModel()
+        return b
+    u = up / np.linalg.norm(up)
+    me = fcl.CollisionObject(bvh(meshes[inst.part]), fcl.Transform(inst.T_world_part[:3, :3], inst.T_world_part[:3, 3]))
+    for o in instances:
+        if o.id == inst.id:
+            continue
+        other = fcl.CollisionObject(bvh(meshes[o.part]), fcl.Transform(o.T_world_part[:3, :3], o.T_world_part[:3, 3]))
+        rest = None
+        for t in np.arange(lift_contact, dist + 1e-12, step):
+            T = np.array(inst.T_world_part, dtype=np.float64)
+            T[:3, 3] += t * u
+            me.setTransform(fcl.Transform(T[:3, :3], T[:3, 3]))
+            if not fcl.collide(me, other, fcl.CollisionRequest(), fcl.CollisionResult()):
+                continue
+            if rest is None:
+                rest = 0.0 if rest_cap <= 0 else min(rest_cap, mesh_depth(meshes[inst.part], inst.T_world_part,
+                                                                          meshes[o.part], o.T_world_part))
+            d = mesh_depth(meshes[inst.part], T, meshes[o.part], o.T_world_part) - rest
+            if lift_depth <= 0 or d > lift_depth + DEPTH_SLACK:
+                return f"{1e3 * t:.0f} mm up it is {1e3 * d:.2f} mm deeper in {o.id} than at rest"
+    return ""

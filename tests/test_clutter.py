@@ -24,7 +24,7 @@ from grasplan.clutter.world import ClutterWorld
 from grasplan.drop import DropParams, PileItem
 from grasplan.gripper import load_gripper
 from grasplan.mesh import load_part
-from grasplan.pick import Picker
+from grasplan.pick import Picker, PickParams
 from grasplan.pileworld import part_body
 from grasplan.scenefile import Instance, Scene, ScenePart
 
@@ -44,8 +44,8 @@ def gripper():
     return load_gripper("schunk_egp_c_40")
 
 
-def _picker(cell, gripper, **parts):
-    p = Picker("ur5", gripper=gripper, cell=cell)
+def _picker(cell, gripper, params: PickParams | None = None, **parts):
+    p = Picker("ur5", gripper=gripper, cell=cell, params=params or PickParams())
     for name, part in parts.items():
         p.add_part(name, part)
     return p
@@ -64,7 +64,8 @@ def test_a_lone_part_is_picked_on_the_first_attempt(cell, gripper):
 
 def test_a_part_under_another_is_not_picked_before_the_one_on_top(cell, gripper):
     """Two boxes stacked flat and crossed at the bin's centre: the top one is picked first (the
-    planner sees that lifting the bottom one would drag the top one), then the bottom one."""
+    planner sees that lifting the bottom one would raise the top one: a pick that raises a
+    neighbour comes after every clean one; without lift_carry it is blocked), then the bottom one."""
     part = load_part(BOX)
     body = part_body("box", part.mesh, density=1200.0, decomposition="hull")
     names = ("box_under", "box_on_top")
@@ -83,8 +84,11 @@ def test_a_part_under_another_is_not_picked_before_the_one_on_top(cell, gripper)
                   parts=(ScenePart("box", mesh=str(BOX)),))
     picker = _picker(cell, gripper, box=part)
     first = picker.plan(scene)
-    under = next(i for i in first.instances if i.id == "box_under")
-    assert [p.instance for p in first.picks] == ["box_on_top"]
+    assert [p.instance for p in first.picks] == ["box_on_top", "box_under"]
+    assert [p.carries for p in first.picks] == [(), ("box_on_top",)]
+    assert picker.plan(scene, max_picks=1).picks[0].instance == "box_on_top"
+    strict = _picker(cell, gripper, PickParams(lift_carry=False), box=part)
+    under = strict.plan(scene).report("box_under")
     assert under.status == "blocked" and "box_on_top" in under.blocked_by, under
     rr = clear_pile(cw, scene, {"box": part}, lambda s: picker.plan(s, max_picks=1))
     assert [(a.instance, a.outcome) for a in rr.attempts] == [("box_on_top", SUCCESS), ("box_under", SUCCESS)], \

@@ -104,7 +104,8 @@ def test_sliding_up_beside_a_touching_neighbour_is_picked_and_rechecked(bracket,
 
 
 def test_dragged_through_a_neighbour_deeper_than_the_tolerance_is_refused(bracket, rest):
-    pk = Picker("ur5", params=PickParams(grasps_per_instance=8, lift_depth=0.001))
+    # lift_carry off: b lying on a would be raised (tests/test_pick_carry.py)
+    pk = Picker("ur5", params=PickParams(grasps_per_instance=8, lift_depth=0.001, lift_carry=False))
     pk.add_part("bracket", bracket)
     lo, hi = _world_extent(bracket.mesh, rest)
     # b lies across a's far half, resting on it (0.2 mm of pose noise): lifting a pushes into b
@@ -133,7 +134,8 @@ def leaning():
 
 def test_straight_lift_through_a_leaning_neighbour_is_replaced_by_a_tilted_one(leaning, tmp_path):
     box, sc = leaning
-    straight = Picker("ur5", params=PickParams(grasps_per_instance=8, max_lift_tilt_deg=0.0))
+    # straight lifts only, none raising b (lift_carry: tests/test_pick_carry.py)
+    straight = Picker("ur5", params=PickParams(grasps_per_instance=8, max_lift_tilt_deg=0.0, lift_carry=False))
     straight.add_part("box", box)
     a = straight.plan(sc).report("a")
     assert a.status == "blocked" and a.blocked_by == ("b",) and "tilted" not in a.reason, a
@@ -143,6 +145,7 @@ def test_straight_lift_through_a_leaning_neighbour_is_replaced_by_a_tilted_one(l
     rep = res.report("a")
     assert rep.status == "picked" and "deg from the retreat" in rep.reason, rep
     pick = res.pick("a")
+    assert pick.carries == ()  # a clean tilted lift comes before one raising b
     lift = pick.T_world_lifted[:3, 3] - pick.T_world_tcp[:3, 3]
     assert np.linalg.norm(lift) == pytest.approx(res.cell.retreat_distance)
     tilt = np.degrees(np.arccos(lift[2] / np.linalg.norm(lift)))

@@ -15,7 +15,7 @@ from .common import check_output, info, table, units_option, warn_all
 from .options import apply_config_dirs, config_dir_option, output_option, param_options
 
 #: the planner's options a clutter run passes on (the others are grasplan pick's defaults)
-PICK_OPTIONS = ("lift_depth", "lift_contact", "max_lift_tilt_deg")
+PICK_OPTIONS = ("lift_depth", "lift_contact", "lift_carry", "max_lift_tilt_deg")
 
 
 def _pct(x) -> str:

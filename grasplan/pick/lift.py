@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -162,3 +163,42 @@ class RestDepth:
             if out > self.tol and not exact:
                 break
         return float(max(out, 0.0)) if names else 0.0
+
+
+def free_to_rise(world: Any, part: str, T_world_part: np.ndarray, shifts: np.ndarray, pile: list[Any],
+                 rest: RestDepth, neighbours: set[str]) -> bool:
+    """Whether a part (``part`` at ``T_world_part``, in a :class:`grasplan.pick.world.PickWorld`)
+    moved alone by each of ``shifts`` (its straight lift) touches none of ``pile`` (the other
+    instances and the cloud) deeper than ``rest`` allows (the neighbours in ``neighbours``; any
+    contact with the others): nothing lies on it or holds it down, so a part under it that rises
+    raises it (``lift_carry``, docs/pick.md)."""
+    hits = world.part_hits(part, T_world_part, shifts, pile,
+                           lambda T, b: b.name in neighbours and not rest.exceeds(T, [b.name]), first_only=True)
+    return not bool(np.any(np.asarray(hits) >= 0))
+
+
+class Carry:
+    """``lift_carry`` for one instance: while :attr:`on` (a lift tried after the clean ones), a
+    neighbour whose contact with the lifted part is too deep is raised, not dragged through, when it
+    lies on the part (:meth:`free`: ``is_free(name)``, :func:`free_to_rise`, asked once per
+    neighbour); :attr:`raised` lists them per lift direction (the one checked is :attr:`direction`)."""
+
+    def __init__(self, is_free: Callable[[str], bool]):
+        self.on, self.direction = False, 0
+        self._is_free = is_free
+        self._free: dict[str, bool] = {}
+        self.raised: dict[int, set[str]] = {}
+
+    def free(self, name: str) -> bool:
+        """Whether neighbour ``name`` lies on the part, free to rise."""
+        v = self._free.get(name)
+        if v is None:
+            v = self._free[name] = bool(self._is_free(name))
+        return v
+
+    def raises(self, name: str) -> bool:
+        """:attr:`on` and :meth:`free`, recording ``name`` as raised by the lift along :attr:`direction`."""
+        if self.on and self.free(name):
+            self.raised.setdefault(self.direction, set()).add(name)
+            return True
+        return False

@@ -112,6 +112,12 @@ class Outcome:
     opening: float = 0.0
     blockers: tuple[str, ...] = ()  #: neighbours (``instance:<id>``) the lift or approach hit
 
+    @property
+    def lift_may_help(self) -> bool:
+        """Whether another lift direction may plan the grasp: its lift collided or could not be
+        followed (not: no IK solution, a collision at the grasp or on the approach, no transit)."""
+        return self.status == "lift_collision" or (self.status == "unreachable" and not self.reason.startswith("no IK"))
+
 
 @dataclass
 class MotionContext:

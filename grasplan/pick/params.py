@@ -45,6 +45,10 @@ class PickParams(OptionSet):
                              "rests against in a settled pile), deeper than the two already interpenetrate at rest (pose "
                              "noise; counted up to --overlap-tol); deeper is a collision (dragged through it). 0: any "
                              "contact beyond --lift-contact is a collision.", hi=0.01, show="1mm")
+    lift_carry: bool = spec(True, "bool", "Lift: when the part's straight lift is blocked by a neighbour, a "
+                            "neighbour lying on the part (its own straight lift free of the part and of everything "
+                            "else) may be raised with it: pushed up, not dragged through; such picks come after "
+                            "every clean one and name it (lift_carries). --no-lift-carry: every neighbour blocks.")
     max_lift_tilt_deg: float = spec(45.0, "angle", "Lift: when the straight lift along the cell's retreat is "
                                     "blocked (by a neighbour, or for a grasp's gripper or arm), lifts tilted "
                                     "15/30/45 deg from it up to this many degrees are tried (docs/pick.md, the "

@@ -51,18 +51,14 @@ from ..scene import CollisionScene, ExtraBody
 from ..scenefile import Instance, Scene, load_scene
 from ..graspdb import GraspDatabase, database_for, load_database
 from .depth import PartDepth
-from .lift import LIFT_TILTS_DEG, LIFTS_PER_GRASP, RestDepth, inside_walls, lift_directions, wall_away
+from .lift import LIFTS_PER_GRASP, Carry, RestDepth, free_to_rise, inside_walls, lift_directions, wall_away
 from .motion import MotionContext, Outcome, lift_travel, plan_pick_motion
 from .params import PickParams
-from .rank import instance_order, rank_grasps
+from .rank import check_chunks, instance_order, rank_grasps
+from .reasons import blockers_of, hits_text, tilts_text
 from .result import InstanceReport, Pick, PickResult
 from .world import CLOUD, INSTANCE_PREFIX, PickWorld
 
-#: grasps gripper-checked per step while looking for collision-free ones
-CHECK_CHUNK = 256
-#: the first steps are smaller (the best-ranked grasps are often free, and a pick waits for its
-#: step's check: 32 grasps take ~1.5 ms, 256 ~12 ms); then CHECK_CHUNK
-FIRST_CHUNKS = (32, 32, 64, 128)
 #: the first pass over the instances checks this many grasps of each (best ranked) before any
 #: instance's further grasps: a part whose good grasps are free is found before the deep search
 #: of a boxed-in one
@@ -378,17 +374,25 @@ class Picker:
         between = np.setdiff1d(fine[fine >= lc - 1e-12], steps)
         # the carried part against the neighbours and the cloud (the cell's boxes: the robot's check,
         # which lets the part slide along a wall it touches within ATTACHED_CONTACT_TOL)
-        pile = [b for b in bodies if b.name.startswith(INSTANCE_PREFIX) or b.name == CLOUD]
         by_name = {INSTANCE_PREFIX + i.id: i for i in present}
-        rest = RestDepth(self._depth_of(st, inst.part), inst.T_world_part,
-                         lambda n: (self._depth_of(st, by_name[n].part), by_name[n].T_world_part),
-                         tol=p.lift_depth, cap=p.overlap_tol)
 
-        def lift_depth(T_world_part: np.ndarray, names: list[str]) -> float:
+        def pile_of(i: Instance) -> tuple[list[Any], RestDepth]:
+            """The bodies the part of ``i`` lifted alone may hit (the other instances, the cloud) and
+            its depth into them beyond the resting one."""
+            return ([b for b in st.world.bodies(i.id) if b.name.startswith(INSTANCE_PREFIX) or b.name == CLOUD],
+                    RestDepth(self._depth_of(st, i.part), i.T_world_part,
+                              lambda n: (self._depth_of(st, by_name[n].part), by_name[n].T_world_part),
+                              tol=p.lift_depth, cap=p.overlap_tol))
+        pile, rest = pile_of(inst)
+        carry = Carry(lambda n: free_to_rise(st.world, by_name[n].part, by_name[n].T_world_part,  # --lift-carry
+                                             steps[:, None] * retreat, *pile_of(by_name[n]), set(by_name)))
+
+        def lift_depth(T_world_part: np.ndarray, names: list[str], carrying: bool = False) -> float:
             """Deepest penetration of the carried part at ``T_world_part`` into the neighbours
-            ``names`` beyond their resting one (:class:`grasplan.pick.lift.RestDepth`)."""
+            ``names`` beyond their resting one (:class:`grasplan.pick.lift.RestDepth`); ``carrying``:
+            but into those lying on it (:class:`grasplan.pick.lift.Carry`)."""
             t_d = time.perf_counter()
-            d = rest.excess(T_world_part, names)
+            d = rest.excess(T_world_part, [n for n in names if not (carrying and n in by_name and carry.free(n))])
             timing["lift_depth"] += time.perf_counter() - t_d
             return d
 
@@ -398,10 +402,11 @@ class Picker:
             t_d = time.perf_counter()  # lift_depth(...) <= lift_depth, a deep contact found on coarse samples first
             deep = rest.exceeds(T_world_part, [b.name])
             timing["lift_depth"] += time.perf_counter() - t_d
-            return not deep
+            return not deep or carry.raises(b.name)
 
         hull_w = st.world.parts[inst.part].hull @ inst.T_world_part[:3, :3].T + inst.T_world_part[:3, 3]
         dirs: list[tuple[float, np.ndarray]] = [(0.0, retreat)]
+        carrying: list[bool] = [False]  # per direction: lifted raising the neighbours lying on the part
         lift_free: list[bool | None] = [None]
         hit_first: dict[str, Any] = {}
 
@@ -411,6 +416,7 @@ class Picker:
             a tilted one through a bin wall, no grasp can lift it that way)."""
             if lift_free[j] is None:
                 t = time.perf_counter()
+                carry.on, carry.direction = carrying[j], j
                 shifts = steps[:, None] * dirs[j][1]
                 ok = j == 0 or inside_walls(hull_w, shifts, st.cell.bin)
                 if ok:
@@ -430,7 +436,9 @@ class Picker:
         def lifts() -> Iterator[int]:
             """Indices of the free lift directions, the straight one first, then the tilted ones
             (:func:`grasplan.pick.lift.lift_directions`) leading away from the walls and the
-            neighbour that blocked the straight lift (the part alone, else the last grasp's)."""
+            neighbour that blocked the straight lift (the part alone, else the last grasp's); with
+            ``lift_carry``, when a neighbour blocked the part's straight lift, then the same lifts
+            again raising the neighbours lying on the part."""
             if lift_ok(0):
                 yield 0
             if len(dirs) == 1:
@@ -440,6 +448,10 @@ class Picker:
                     v = st.world.instances[inst.id].center - st.world.instances[b.id].center
                     away = away + v / max(float(np.linalg.norm(v)), 1e-9)
                 dirs[:] = lift_directions(retreat, away, p.max_lift_tilt_deg)
+                n = len(dirs)
+                if p.lift_carry and p.lift_depth > 0 and hit_first.get("name") in by_name:
+                    dirs.extend(dirs[:n])
+                carrying[:] = [False] * n + [True] * (len(dirs) - n)
                 lift_free.extend([None] * (len(dirs) - 1))
             for j in range(1, len(dirs)):
                 if lift_ok(j):
@@ -462,13 +474,15 @@ class Picker:
                      f" ({1e3 * deep:.1f} mm deeper than the {1e3 * rd:.1f} mm of resting overlap counted")
                     + f"; at most {1e3 * p.lift_depth:g} mm allowed)" if deep is not None else
                     f" (more than the {1e3 * p.lift_contact:g} mm of resting contact allowed)")
-                + (f", and so does every one of the {len(dirs) - 1} tilted lifts ({_tilts_text(p)})" if len(dirs) > 1 else "")
+                + (f", and so does every one of the {carrying.count(False) - 1} tilted lifts "
+                   f"({tilts_text(p.max_lift_tilt_deg)})" if carrying.count(False) > 1 else "")
+                + (", raising what lies on it or not" if any(carrying) else "")
                 + ", whatever the grasp",
-                _blockers({name: 1}))
+                blockers_of({name: 1}))
             return
         ctxs: dict[int, MotionContext] = {}
         paused = False
-        for c0, c1 in _chunks(len(rows)):
+        for c0, c1 in check_chunks(len(rows)):
             if c0 >= FIRST_PASS and not paused:
                 paused = True
                 yield None, None  # paused: the other instances' best grasps first
@@ -490,13 +504,18 @@ class Picker:
                 stats["grasps_tried"] += 1
                 T_part_g = db.T_part_tcp[r] if T_tcp_g is None else db.T_part_tcp[r] @ T_tcp_g[k]
                 out = None
-                for n_dir, j in enumerate(lifts()):
-                    if n_dir >= LIFTS_PER_GRASP or (out is not None and not _lift_may_help(out)):
+                n_dirs = [0, 0]  # per grasp LIFTS_PER_GRASP clean lifts, then as many raising a neighbour
+                for j in lifts():
+                    if (out is not None and not out.lift_may_help) or n_dirs[1] >= LIFTS_PER_GRASP:
                         break
+                    if n_dirs[carrying[j]] >= LIFTS_PER_GRASP:
+                        continue
+                    n_dirs[carrying[j]] += 1
                     ctx = ctxs.get(j)
                     if ctx is None:
                         static, att = self._variants(st, inst, present, with_cloud)
                         t_b = time.perf_counter()  # the lift's other waypoints, the part alone (as lift_ok)
+                        carry.on, carry.direction = carrying[j], j
                         hits_b = st.world.part_hits(inst.part, inst.T_world_part, between[:, None] * dirs[j][1], pile,
                                                     shallow_hit)
                         timing["lift_check"] += time.perf_counter() - t_b
@@ -504,19 +523,22 @@ class Picker:
                         ctx = ctxs[j] = MotionContext(
                             self.robot, self.gripper, p, static, att, dirs[j][1], dist, timing, T_place=T_place,
                             lift_gripper_check=lambda T, w: st.world.gripper_at_hits(T, w, bodies),
-                            body_names=tuple(b.name for b in bodies), lift_depth=lift_depth if p.lift_depth > 0 else None,
+                            body_names=tuple(b.name for b in bodies), lift_depth=None if p.lift_depth <= 0 else
+                            lambda T, names, c=carrying[j]: lift_depth(T, names, c),
                             lift_part_checked=(inst.T_world_part, checked[:, None] * dirs[j][1]))  # lift_ok(j), above
                     out = plan_pick_motion(ctx, T_plan[k], T_part_g, float(db.width[r]),
                                            seed=p.seed * 1_000_003 + seed_base * 10_007 + r)
                     grasp_blocker[:] = list(out.blockers[:1])
                     if out.motion is not None:
                         tilt = dirs[j][0]
-                        yield self._pick(inst, db, r, k, T_wt[k], out, dirs[j][1], dist), InstanceReport(
+                        up = tuple(sorted(by_name[n].id for n in carry.raised.get(j, ())))
+                        yield self._pick(inst, db, r, k, T_wt[k], out, dirs[j][1], dist, up), InstanceReport(
                             inst.id, inst.part, "picked", f"grasp ranked {k} of {len(rows)}: {out.reason}"
-                            + ("" if j == 0 else f"; lifted {tilt:g} deg from the retreat (the straight lift "
+                            + ("" if not up else f"; the lift raises {', '.join(up)} lying on it")
+                            + ("" if tilt == 0 else f"; lifted {tilt:g} deg from the retreat (the straight lift "
                                + ("drags the part through " + hit_first["name"] if "name" in hit_first
                                   else "is blocked for this grasp") + ")")
-                            + _hits_text(hit_counts, " better-ranked grasps"), _blockers(hit_counts))
+                            + hits_text(hit_counts, " better-ranked grasps"), blockers_of(hit_counts))
                         return
                 assert out is not None
                 first_fail = first_fail or out
@@ -530,15 +552,15 @@ class Picker:
             status = "blocked" if first_fail.blockers else first_fail.status
             yield None, InstanceReport(inst.id, inst.part, status,
                                        f"{tried} collision-free grasps tried, none planned; the best: "
-                                       f"{first_fail.reason}" + _hits_text(hit_counts, " grasps"),
-                                       _blockers(hit_counts))
+                                       f"{first_fail.reason}" + hits_text(hit_counts, " grasps"),
+                                       blockers_of(hit_counts))
             return
-        blockers = _blockers(hit_counts)
+        blockers = blockers_of(hit_counts)
         n_cloud = hit_counts.get(CLOUD, 0)
         status = "blocked" if blockers else "cloud" if n_cloud else "bin"
         yield None, InstanceReport(inst.id, inst.part, status,
                                    f"every one of the {len(rows)} best-ranked grasps from above collides"
-                                   + _hits_text(hit_counts, " grasps"), blockers)
+                                   + hits_text(hit_counts, " grasps"), blockers)
 
     def _depth_of(self, st: _Cell, part: str) -> PartDepth:
         d = self._depth.get(part)
@@ -548,7 +570,7 @@ class Picker:
         return d
 
     def _pick(self, inst: Instance, db: GraspDatabase, r: int, k: int, T_world_tcp: np.ndarray, out: Outcome,
-              lift_dir: np.ndarray, lift_dist: float) -> Pick:
+              lift_dir: np.ndarray, lift_dist: float, carries: tuple[str, ...] = ()) -> Pick:
         assert out.motion is not None
         T_pre = T_world_tcp.copy()
         T_pre[:3, 3] -= self.params.backoff * T_world_tcp[:3, 2]
@@ -562,35 +584,4 @@ class Picker:
                     T_part_tcp=db.T_part_tcp[r].copy(), contacts=db.contacts[r].copy(), normals=db.normals[r].copy(),
                     width=float(db.width[r]), opening=out.opening, score=score, quality=quality,
                     motion=out.motion, T_world_tcp=T_world_tcp.copy(), T_world_pregrasp=T_pre,
-                    T_world_lifted=lift_pose(T_world_tcp, lift_dir, lift_dist), rank=k)
-
-
-def _lift_may_help(out: Outcome) -> bool:
-    """Whether another lift direction may plan a grasp that failed with ``out``: its lift collided
-    or could not be followed (not: no IK solution, a collision at the grasp or on the approach,
-    no transit)."""
-    return out.status == "lift_collision" or (out.status == "unreachable" and not out.reason.startswith("no IK"))
-
-
-def _tilts_text(p: PickParams) -> str:
-    return "/".join(f"{t:g}" for t in LIFT_TILTS_DEG if t <= p.max_lift_tilt_deg + 1e-9) + " deg from the retreat"
-
-
-def _chunks(n: int) -> Iterator[tuple[int, int]]:
-    """``(start, end)`` of the gripper-check steps over ``n`` ranked grasps: FIRST_CHUNKS, then CHECK_CHUNK."""
-    c0, sizes = 0, iter(FIRST_CHUNKS)
-    while c0 < n:
-        c1 = c0 + next(sizes, CHECK_CHUNK)
-        yield c0, min(c1, n)
-        c0 = c1
-
-
-def _blockers(hits: dict[str, int]) -> tuple[str, ...]:
-    return tuple(sorted(n[len(INSTANCE_PREFIX):] for n in hits if n.startswith(INSTANCE_PREFIX)))
-
-
-def _hits_text(hits: dict[str, int], what: str) -> str:
-    if not hits:
-        return ""
-    rows = sorted(hits.items(), key=lambda kv: (-kv[1], kv[0]))
-    return f"; {sum(hits.values())}{what} collide: " + ", ".join(f"{n} ({c})" for n, c in rows[:8])
+                    T_world_lifted=lift_pose(T_world_tcp, lift_dir, lift_dist), rank=k, carries=carries)

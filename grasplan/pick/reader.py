@@ -94,7 +94,8 @@ def result_from_picks(doc: Any, *, where: str = "picks", base: Path | None = Non
                           quality={q: float("nan") if v is None else float(v) for q, v in d["quality"].items()},
                           motion=m, T_world_tcp=np.asarray(d["T_world_tcp"], dtype=np.float64),
                           T_world_pregrasp=np.asarray(d["T_world_pregrasp"], dtype=np.float64),
-                          T_world_lifted=np.asarray(d["T_world_lifted"], dtype=np.float64), rank=int(d["rank"])))
+                          T_world_lifted=np.asarray(d["T_world_lifted"], dtype=np.float64), rank=int(d["rank"]),
+                          carries=tuple(d.get("lift_carries", ()))))
     reports = tuple(InstanceReport(r["id"], r["part"], r["status"], r["reason"], tuple(r["blocked_by"]))
                     for r in doc["instances"])
     return PickResult(picks=tuple(picks), instances=reports, timing_s=dict(doc["timing_s"]), scene=scene,

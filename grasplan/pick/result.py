@@ -86,6 +86,8 @@ class Pick:
     T_world_pregrasp: np.ndarray
     T_world_lifted: np.ndarray
     rank: int = 0  #: the grasp's place in the instance's ranking (0 = best)
+    #: ids of the neighbours lying on the part that the lift raises with it (``lift_carry``)
+    carries: tuple[str, ...] = ()
 
     def to_json(self) -> dict[str, Any]:
         d: dict[str, Any] = {
@@ -95,7 +97,7 @@ class Pick:
             "score": float(self.score), "rank": int(self.rank),
             "quality": {k: (None if not np.isfinite(v) else float(v)) for k, v in self.quality.items()},
             "T_world_tcp": _m(self.T_world_tcp), "T_world_pregrasp": _m(self.T_world_pregrasp),
-            "T_world_lifted": _m(self.T_world_lifted)}
+            "T_world_lifted": _m(self.T_world_lifted), "lift_carries": list(self.carries)}
         d.update(self.motion.to_json())
         return d
 
