@@ -98,6 +98,16 @@ def test_a_neighbour_lying_on_the_part_is_raised_by_its_lift(pile, tmp_path):
     assert [p["lift_carries"] for p in doc["picks"]] == [[], ["b"]]
     back = load_picks(out)
     assert back.pick("a").carries == ("b",)
+    # a robot program and the viewer of that pick
+    from click.testing import CliRunner
+
+    from grasplan.cli import main
+
+    for args in (["export", str(out), "--format", "urscript", "--instance", "a", "-o", str(tmp_path / "a.script")],
+                 ["view", str(out), "--instance", "a", "-o", str(tmp_path / "a.html")]):
+        r = CliRunner().invoke(main, args)
+        assert r.exit_code == 0, r.output
+    assert "movel" in (tmp_path / "a.script").read_text()
 
 
 def test_a_neighbour_held_down_is_not_raised(pile):

@@ -418,44 +418,57 @@ class Picker:
                 t = time.perf_counter()
                 carry.on, carry.direction = carrying[j], j
                 shifts = steps[:, None] * dirs[j][1]
-                ok = j == 0 or inside_walls(hull_w, shifts, st.cell.bin)
+                ok = dirs[j][0] == 0.0 or inside_walls(hull_w, shifts, st.cell.bin)
                 if ok:
                     # the straight lift's first hit names the blocker; a tilted one only needs yes or no
                     lh = st.world.part_hits(inst.part, inst.T_world_part, shifts, pile, shallow_hit, first_only=True,
-                                            far_first=j > 0)
+                                            far_first=dirs[j][0] > 0.0)
                     ok = not np.any(lh >= 0)
-                    if j == 0 and not ok:
+                    if dirs[j][0] == 0.0 and not ok:  # what blocks the straight lift (raising nothing / some)
                         k_hit = int(np.flatnonzero(lh >= 0)[0])
-                        hit_first.update(name=pile[int(lh[k_hit])].name, step=float(steps[k_hit]))
+                        if j == 0:
+                            hit_first.update(name=pile[int(lh[k_hit])].name, step=float(steps[k_hit]))
+                        else:
+                            hit_first["carry_name"] = pile[int(lh[k_hit])].name
                 lift_free[j] = ok
                 timing["lift_check"] += time.perf_counter() - t
             return bool(lift_free[j])
 
         grasp_blocker: list[str] = []  # the neighbour the last grasp's lift (or approach) hit
 
+        def tilted(blocker: str, carrying_: bool) -> None:
+            """Add the tilted lifts leading away from the walls and the neighbour ``blocker``."""
+            away = wall_away(hull_w, st.cell.bin)
+            b = by_name.get(blocker)
+            if b is not None:
+                v = st.world.instances[inst.id].center - st.world.instances[b.id].center
+                away = away + v / max(float(np.linalg.norm(v)), 1e-9)
+            more = lift_directions(retreat, away, p.max_lift_tilt_deg)[1:]
+            dirs.extend(more)
+            carrying.extend([carrying_] * len(more))
+            lift_free.extend([None] * len(more))
+
         def lifts() -> Iterator[int]:
             """Indices of the free lift directions, the straight one first, then the tilted ones
             (:func:`grasplan.pick.lift.lift_directions`) leading away from the walls and the
             neighbour that blocked the straight lift (the part alone, else the last grasp's); with
-            ``lift_carry``, when a neighbour blocked the part's straight lift, then the same lifts
-            again raising the neighbours lying on the part."""
+            ``lift_carry`` (a neighbour blocked the part's straight lift) then the same raising the
+            neighbours lying on the part, the tilted ones leading away from what still blocks."""
             if lift_ok(0):
                 yield 0
             if len(dirs) == 1:
-                away = wall_away(hull_w, st.cell.bin)
-                b = by_name.get(hit_first.get("name") or (grasp_blocker[0] if grasp_blocker else ""))
-                if b is not None:
-                    v = st.world.instances[inst.id].center - st.world.instances[b.id].center
-                    away = away + v / max(float(np.linalg.norm(v)), 1e-9)
-                dirs[:] = lift_directions(retreat, away, p.max_lift_tilt_deg)
-                n = len(dirs)
+                tilted(hit_first.get("name") or (grasp_blocker[0] if grasp_blocker else ""), False)
                 if p.lift_carry and p.lift_depth > 0 and hit_first.get("name") in by_name:
-                    dirs.extend(dirs[:n])
-                carrying[:] = [False] * n + [True] * (len(dirs) - n)
-                lift_free.extend([None] * (len(dirs) - 1))
-            for j in range(1, len(dirs)):
+                    dirs.append((0.0, retreat))
+                    carrying.append(True)
+                    lift_free.append(None)
+            j = 1
+            while j < len(dirs):
                 if lift_ok(j):
                     yield j
+                if carrying[j] and dirs[j][0] == 0.0 and j == len(dirs) - 1:
+                    tilted(hit_first.get("carry_name") or hit_first["name"], True)
+                j += 1
 
         if not lift_ok(0):
             yield None, None  # deferred: the tilted-lift search after every instance's first pass
