@@ -89,6 +89,18 @@ def left_by_status(doc: dict) -> dict[str, int]:
     return out
 
 
+def raising(doc: dict) -> tuple[int, int]:
+    """(attempts whose planned lift raised a neighbour lying on the part (``lift_carries``, docs/pick.md),
+    how many of them held)."""
+    n = held = 0
+    for rd in doc["rounds"]:
+        for pk in rd["picks"]:
+            if (pk.get("pick") or {}).get("lift_carries"):
+                n += 1
+                held += pk["outcome"] == "success"
+    return n, held
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rounds", type=int, default=20)
@@ -122,14 +134,16 @@ def main() -> int:
                      "-" if pm["p95"] is None else round(pm["p95"], 1),
                      round(pm["cold_ms"] or 0.0), round(rs["median"], 1), round(rs["max"], 1), round(rc["median"], 1),
                      round(rc["max"], 1), round(rss), f"{load0:.1f}-{os.getloadavg()[0]:.1f}", round(wall)))
-        fails.append((g_name, noise, *[t["failures"][k] for k in t["failures"]], *[t["ended"][k] for k in t["ended"]]))
+        fails.append((g_name, noise, *[t["failures"][k] for k in t["failures"]], *[t["ended"][k] for k in t["ended"]],
+                      *raising(doc)))
         keys = (list(t["failures"]), list(t["ended"]))
         left.append((f"{g_name} {noise}", left_by_status(doc)))
     print(table(rows, header=("gripper", "pose_noise", "rounds", "parts", "attempts", "GSR_%", "DR_%", "target_%", "met",
                               "plan_ms_median", "plan_ms_p95", "plan_ms_cold", "round_s_median", "round_s_max",
                               "round_cpu_s_median", "round_cpu_s_max", "peak_rss_MB", "load", "run_s")))
     print()
-    print(table(fails, header=("gripper", "pose_noise", *[f"fail:{k}" for k in keys[0]], *[f"ended:{k}" for k in keys[1]])))
+    print(table(fails, header=("gripper", "pose_noise", *[f"fail:{k}" for k in keys[0]], *[f"ended:{k}" for k in keys[1]],
+                                  "raising_neighbour", "raising_held")))
     print()
     sts = sorted({k for _, d in left for k in d})
     print("parts left when nothing was feasible, by the planner's instance status:")

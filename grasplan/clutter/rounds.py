@@ -216,6 +216,8 @@ def _pick_json(pick) -> dict:
            "opening": float(pick.opening), "width": float(pick.width)}
     if getattr(pick, "score", None) is not None:
         out["score"] = float(pick.score)
+    if getattr(pick, "carries", None) is not None:
+        out["lift_carries"] = list(pick.carries)
     return out
 
 
