@@ -1,7 +1,7 @@
 """Clutter removal of the paper parts in physics (issue 21's targets), driving ``grasplan clutter``.
 
     python benchmarks/clutter.py [--rounds 20] [--seed 0] [--noise 0,0 --noise 2mm,2deg] [--lift-depth 1mm]
-        [--max-lift-tilt 45] [--gripper NAME ...] [--out out/clutter]
+        [--max-lift-tilt 45] [--no-lift-carry] [--gripper NAME ...] [--out out/clutter]
 
 Each setting (each gripper, by default ``grasplan clutter``'s and ``schunk_egp_c_40_shallow``, times
 each pose noise) runs ``grasplan clutter --cell bin --part P:1`` for the five paper parts (TLess20,
@@ -50,17 +50,17 @@ def _pct(x) -> str:
 
 
 def run(noise: str, rounds: int, seed: int, out: Path, density: float, lift_depth: str | None = None,
-        max_lift_tilt: str | None = None, gripper: str | None = None) -> tuple[dict, float, float]:
+        max_lift_tilt: str | None = None, gripper: str | None = None, carry: bool = True) -> tuple[dict, float, float]:
     """One ``grasplan clutter`` run in a child process: (report, wall s, peak RSS MB of the child)."""
     tag = ("" if lift_depth is None else f"_d{lift_depth}") + ("" if max_lift_tilt is None else f"_t{max_lift_tilt}") \
-        + ("" if gripper is None else f"_{Path(gripper).stem}")
+        + ("" if gripper is None else f"_{Path(gripper).stem}") + ("" if carry else "_nocarry")
     report = out / f"clutter_{noise.replace(',', '_')}_s{seed}_r{rounds}{tag}.json"
     cmd = [sys.executable, "-c", "from grasplan.cli import main; main()", "clutter", "--cell", "bin",
            *[a for p in PARTS for a in ("--part", f"{PAPER_DIR / p}:1")], "--rounds", str(rounds), "--seed", str(seed),
            "--density", str(density), "--pose-noise", noise, "-o", str(report),
            *(() if lift_depth is None else ("--lift-depth", lift_depth)),
            *(() if max_lift_tilt is None else ("--max-lift-tilt", max_lift_tilt)),
-           *(() if gripper is None else ("--gripper", gripper))]
+           *(() if gripper is None else ("--gripper", gripper)), *(() if carry else ("--no-lift-carry",))]
     env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
     t = time.perf_counter()
     before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
@@ -110,6 +110,8 @@ def main() -> int:
     ap.add_argument("--out", type=Path, default=ROOT / "out" / "clutter", help="folder for the reports")
     ap.add_argument("--lift-depth", default=None, help="the planner's --lift-depth (default: grasplan pick's)")
     ap.add_argument("--max-lift-tilt", default=None, help="the planner's --max-lift-tilt (0: straight lifts only)")
+    ap.add_argument("--no-lift-carry", action="store_true",
+                    help="the planner's --no-lift-carry: no lift raises a neighbour lying on the part")
     ap.add_argument("--gripper", action="append",
                     help="gripper name or YAML, repeatable (default: grasplan clutter's, then " + SHALLOW + ")")
     args = ap.parse_args()
@@ -122,7 +124,7 @@ def main() -> int:
     for gripper, noise in [(g, n) for g in (args.gripper or [None, SHALLOW]) for n in (args.noise or list(TARGETS))]:
         load0 = os.getloadavg()[0]
         doc, wall, rss = run(noise, args.rounds, args.seed, args.out, args.density, args.lift_depth,
-                             args.max_lift_tilt, gripper)
+                             args.max_lift_tilt, gripper, carry=not args.no_lift_carry)
         g_name = doc["gripper"]["name"]
         t = doc["total"]
         gsr_t, dr_t = TARGETS.get(noise, (None, None))
