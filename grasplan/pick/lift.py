@@ -131,6 +131,7 @@ class RestDepth:
         self.part, self.T_rest, self.depth_of = part, np.asarray(T_rest, dtype=np.float64), depth_of
         self.tol, self.cap = float(tol), float(cap)
         self._rest: dict[str, float] = {}
+        self._exceeds: dict[tuple[bytes, tuple[str, ...]], bool] = {}  # a lift raising a neighbour redoes a clean one's
 
     def rest(self, name: str) -> float:
         """How deep (m, at most ``cap``) the part at rest is in neighbour ``name``."""
@@ -144,7 +145,14 @@ class RestDepth:
         """``excess(T_world_part, names) > tol``, decided first on every :data:`COARSE`-th surface
         sample of both parts (a depth found among some samples is at most the one found among all,
         so "deeper" there is "deeper" for :meth:`excess` too; a deep contact is found in a fraction
-        of the time), else by :meth:`excess` itself."""
+        of the time), else by :meth:`excess` itself; remembered per pose and names."""
+        key = (np.asarray(T_world_part, dtype=np.float64).tobytes(), tuple(names))
+        v = self._exceeds.get(key)
+        if v is None:
+            v = self._exceeds[key] = self._exceeds_now(T_world_part, names)
+        return v
+
+    def _exceeds_now(self, T_world_part: np.ndarray, names: list[str]) -> bool:
         for n in names:
             r = self.rest(n)
             b, T_b = self.depth_of(n)
@@ -179,14 +187,15 @@ def free_to_rise(world: Any, part: str, T_world_part: np.ndarray, shifts: np.nda
 
 class Carry:
     """``lift_carry`` for one instance: while :attr:`on` (a lift tried after the clean ones), a
-    neighbour whose contact with the lifted part is too deep is raised, not dragged through, when it
-    lies on the part (:meth:`free`: ``is_free(name)``, :func:`free_to_rise`, asked once per
-    neighbour); :attr:`raised` lists them per lift direction (the one checked is :attr:`direction`)."""
+    neighbour the lifted part touches beyond ``lift_contact`` is raised, not dragged through, when
+    it lies on the part (:meth:`free`: ``is_free(name)``, :func:`free_to_rise`, asked once per
+    neighbour; ``known`` caches the answers, shared by the instances of one plan: it is the
+    neighbour's alone); :attr:`raised` lists them per lift direction (:attr:`direction`)."""
 
-    def __init__(self, is_free: Callable[[str], bool]):
+    def __init__(self, is_free: Callable[[str], bool], known: dict[str, bool] | None = None):
         self.on, self.direction = False, 0
         self._is_free = is_free
-        self._free: dict[str, bool] = {}
+        self._free: dict[str, bool] = {} if known is None else known
         self.raised: dict[int, set[str]] = {}
 
     def free(self, name: str) -> bool:

@@ -275,6 +275,7 @@ class Picker:
             order = instance_order([i.id for i in present], boxes)
             by_id = {i.id: i for i in present}
             picked_now: str | None = None
+            rises: dict[str, bool] = {}  # per instance: free to rise (lift_carry), whichever part is lifted
             paused: list[tuple[str, Iterator[tuple[Pick | None, InstanceReport | None]]]] = []
 
             def out_of_budget() -> bool:
@@ -300,7 +301,7 @@ class Picker:
                     break
                 if iid in reports and reports[iid].status == "picked":
                     continue
-                gen = self._plan_instance(st, by_id[iid], present, cloud is not None, p, timing, stats, seed_base=k)
+                gen = self._plan_instance(st, by_id[iid], present, cloud is not None, p, timing, stats, k, rises)
                 pick, rep = next(gen)
                 if rep is None:
                     paused.append((iid, gen))
@@ -339,7 +340,7 @@ class Picker:
                           sequence=sequence, stats=stats)
 
     def _plan_instance(self, st: _Cell, inst: Instance, present: list[Instance], with_cloud: bool, p: PickParams,
-                       timing: dict[str, float], stats: dict[str, int], seed_base: int
+                       timing: dict[str, float], stats: dict[str, int], seed_base: int, rises: dict[str, bool]
                        ) -> Iterator[tuple[Pick | None, InstanceReport | None]]:
         """Yields ``(pick or None, report)`` once the instance is decided, before that ``(None, None)``
         when its straight lift is blocked (before the tilted-lift search) and when its best
@@ -372,20 +373,18 @@ class Picker:
         lc = min(p.lift_contact, dist)
         steps = np.unique(np.append(fine[::2][fine[::2] >= lc - 1e-12], [lc, dist]))
         between = np.setdiff1d(fine[fine >= lc - 1e-12], steps)
-        # the carried part against the neighbours and the cloud (the cell's boxes: the robot's check,
-        # which lets the part slide along a wall it touches within ATTACHED_CONTACT_TOL)
         by_name = {INSTANCE_PREFIX + i.id: i for i in present}
 
         def pile_of(i: Instance) -> tuple[list[Any], RestDepth]:
-            """The bodies the part of ``i`` lifted alone may hit (the other instances, the cloud) and
-            its depth into them beyond the resting one."""
+            """The bodies the part of ``i`` lifted alone may hit (the other instances, the cloud; the
+            cell's boxes are the robot check's) and its depth into them beyond the resting one."""
             return ([b for b in st.world.bodies(i.id) if b.name.startswith(INSTANCE_PREFIX) or b.name == CLOUD],
                     RestDepth(self._depth_of(st, i.part), i.T_world_part,
                               lambda n: (self._depth_of(st, by_name[n].part), by_name[n].T_world_part),
                               tol=p.lift_depth, cap=p.overlap_tol))
         pile, rest = pile_of(inst)
         carry = Carry(lambda n: free_to_rise(st.world, by_name[n].part, by_name[n].T_world_part,  # --lift-carry
-                                             steps[:, None] * retreat, *pile_of(by_name[n]), set(by_name)))
+                                             steps[:, None] * retreat, *pile_of(by_name[n]), set(by_name)), rises)
 
         def lift_depth(T_world_part: np.ndarray, names: list[str], carrying: bool = False) -> float:
             """Deepest penetration of the carried part at ``T_world_part`` into the neighbours
@@ -399,10 +398,12 @@ class Picker:
         def shallow_hit(T_world_part: np.ndarray, b: Any) -> bool:
             if not (p.lift_depth > 0 and b.name in by_name):
                 return False
+            if carry.raises(b.name):  # lying on the part: any contact raises it
+                return True
             t_d = time.perf_counter()  # lift_depth(...) <= lift_depth, a deep contact found on coarse samples first
             deep = rest.exceeds(T_world_part, [b.name])
             timing["lift_depth"] += time.perf_counter() - t_d
-            return not deep or carry.raises(b.name)
+            return not deep
 
         hull_w = st.world.parts[inst.part].hull @ inst.T_world_part[:3, :3].T + inst.T_world_part[:3, 3]
         dirs: list[tuple[float, np.ndarray]] = [(0.0, retreat)]
@@ -415,8 +416,7 @@ class Picker:
             grasp: when it drags the part through a neighbour or the cloud beyond lift_contact, or
             a tilted one through a bin wall, no grasp can lift it that way)."""
             if lift_free[j] is None:
-                t = time.perf_counter()
-                carry.on, carry.direction = carrying[j], j
+                t, (carry.on, carry.direction) = time.perf_counter(), (carrying[j], j)
                 shifts = steps[:, None] * dirs[j][1]
                 ok = dirs[j][0] == 0.0 or inside_walls(hull_w, shifts, st.cell.bin)
                 if ok:
@@ -527,8 +527,8 @@ class Picker:
                     ctx = ctxs.get(j)
                     if ctx is None:
                         static, att = self._variants(st, inst, present, with_cloud)
-                        t_b = time.perf_counter()  # the lift's other waypoints, the part alone (as lift_ok)
-                        carry.on, carry.direction = carrying[j], j
+                        # the lift's other waypoints, the part alone (as lift_ok)
+                        t_b, (carry.on, carry.direction) = time.perf_counter(), (carrying[j], j)
                         hits_b = st.world.part_hits(inst.part, inst.T_world_part, between[:, None] * dirs[j][1], pile,
                                                     shallow_hit)
                         timing["lift_check"] += time.perf_counter() - t_b
