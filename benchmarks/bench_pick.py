@@ -1,6 +1,6 @@
 """Speed and memory of ``grasplan pick`` / ``grasplan.Picker`` on piles of the paper parts (issue 20).
 
-    python benchmarks/bench_pick.py [--scenes 20] [--no-cold]
+    python benchmarks/bench_pick.py [--scenes 20] [--no-cold] [--no-lift-carry] [--recheck]
 
 Scenes: piles of 10 instances of one part (TLess20, SileanePepper, IPARingScrew in turn) dropped
 into the packaged bin by ``grasplan scene drop``'s physics (:func:`grasplan.drop.drop_pile`, seeds
@@ -18,6 +18,9 @@ tried; its CPU column is the process's CPU seconds inside the per-grasp motion p
 shared machine wall time grows with the load, CPU time does not). Then ``grasplan pick`` cold in a fresh process (databases cached) on a 10-instance scene,
 and on the 30-instance scene with its peak RSS. Targets (issue 20): first_pick median < 100 ms and
 p95 < 300 ms; every instance < 1 s median; <= 5 ms per grasp; cold < 5 s; 30 instances < 1 GB.
+Also printed: how many picks raise a neighbour lying on the part (``lift_carries``, docs/pick.md).
+``--recheck`` then re-checks every pick of the measured plans independently (tests/pick_recheck.py:
+python-fcl, an independent depth, the raised neighbours' freedom to rise), outside the timings.
 """
 from __future__ import annotations
 
@@ -121,6 +124,8 @@ def main() -> int:
     ap.add_argument("--lift-depth", type=float, default=None,
                     help="PickParams.lift_depth in m (default the picker's; 0: the strict lift rule)")
     ap.add_argument("--profile", metavar="FILE", help="write a cProfile of the measured plans to FILE")
+    ap.add_argument("--no-lift-carry", action="store_true", help="PickParams.lift_carry off (no lift raises a neighbour)")
+    ap.add_argument("--recheck", action="store_true", help="re-check every pick independently (tests/pick_recheck.py)")
     args = ap.parse_args()
     missing = [p for p in PARTS if not (PAPER_DIR / p).exists()]
     if missing:
@@ -132,10 +137,12 @@ def main() -> int:
 
     from grasplan.pick.params import PickParams
 
-    params = PickParams() if args.lift_depth is None else PickParams(lift_depth=args.lift_depth)
+    params = PickParams(**({} if args.lift_depth is None else {"lift_depth": args.lift_depth}),
+                        lift_carry=not args.no_lift_carry)
     picker = Picker("ur5", params=params, progress=lambda s: print(" ", s, flush=True))
-    for p in PARTS:
-        picker.add_part(Path(p).stem.lower(), load_part(PAPER_DIR / p))
+    loaded = {Path(p).stem.lower(): load_part(PAPER_DIR / p) for p in PARTS}
+    for name, part in loaded.items():
+        picker.add_part(name, part)
     import grasplan.pick.picker as picker_mod
 
     motion_cpu = [0.0]  # CPU seconds inside plan_pick_motion (IK, approach, lift, transit, their checks)
@@ -152,7 +159,8 @@ def main() -> int:
     load0 = os.getloadavg()[0]
     picker.plan(paths[-1])  # warm-up on a scene not measured
     rows, first, first_cpu, whole, per_grasp, per_grasp_cpu, cpu = [], [], [], [], [], [], []
-    n_inst = n_picked = 0
+    n_inst = n_picked = n_raising = 0
+    results = []
     prof = None
     if args.profile:
         import cProfile
@@ -168,6 +176,9 @@ def main() -> int:
         c = time.process_time() - c
         n_inst += len(res.instances)
         n_picked += len(res.picks)
+        n_raising += sum(bool(q.carries) for q in res.picks)
+        if args.recheck:
+            results.append(res)
         t = res.timing_s
         tried = res.stats.get("grasps_tried", 0)
         motion = sum(t.get(k, 0.0) for k in MOTION_KEYS)
@@ -185,7 +196,8 @@ def main() -> int:
                      round(1e3 * motion_cpu[0] / max(tried, 1), 2), round(1e3 * t["gripper_check"], 1)))
     print(table(rows, header=("scene", "instances", "picked", "first_pick_ms", "plan_s", "cpu_s", "grasps_tried",
                               "ms/grasp", "cpu_ms/grasp", "gripper_check_ms")))
-    print(f"picked {n_picked} of {n_inst} instances (lift_depth {1e3 * picker.params.lift_depth:g} mm)")
+    print(f"picked {n_picked} of {n_inst} instances (lift_depth {1e3 * picker.params.lift_depth:g} mm, lift_carry "
+          f"{'on' if picker.params.lift_carry else 'off'}); {n_raising} of the picks raise a neighbour lying on the part")
     if prof is not None:
         prof.dump_stats(args.profile)
     med = statistics.median
@@ -213,7 +225,30 @@ def main() -> int:
             summary.append((f"  its peak RSS (MB), exit {rc}", round(rss), 1024, round(rss / 1024, 2)))
     print(table(summary, header=("metric", "value", "target", "ratio")))
     print(f"{len(paths) - 1} scenes; load average {load0:.1f} -> {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
+    if args.recheck:
+        recheck(picker, results, {name: part.mesh for name, part in loaded.items()})
     return 0
+
+
+def recheck(picker, results, meshes) -> None:
+    """Every pick of ``results`` re-checked by tests/pick_recheck.py (independent of grasplan's checks)."""
+    sys.path.insert(0, str(ROOT / "tests"))
+    from pick_recheck import recheck_pick
+
+    n = n_raising = 0
+    failed = []
+    for res in results:
+        for q in res.picks:
+            rc = recheck_pick(picker.robot, picker.gripper, res.cell, q, res.scene.instances, meshes,
+                              lift_contact=res.params.lift_contact, lift_depth=res.params.lift_depth,
+                              rest_cap=res.params.overlap_tol)
+            n += 1
+            n_raising += bool(q.carries)
+            if not rc.ok:
+                failed.append(f"{q.instance}: {rc.problems[0]}")
+    print(f"re-checked independently: {n} picks ({n_raising} raising a neighbour), {len(failed)} failed")
+    for f in failed[:10]:
+        print("  FAILED", f)
 
 
 if __name__ == "__main__":
