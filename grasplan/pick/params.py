@@ -48,7 +48,8 @@ class PickParams(OptionSet):
     lift_carry: bool = spec(True, "bool", "Lift: when the part's straight lift is blocked by a neighbour, a "
                             "neighbour lying on the part (its own straight lift free of the part and of everything "
                             "else) may be raised with it: pushed up, not dragged through; such picks come after "
-                            "every clean one and name it (lift_carries). --no-lift-carry: every neighbour blocks.")
+                            "every clean one and name it (lift_carries); needs --lift-depth > 0. --no-lift-carry: "
+                            "every neighbour blocks.")
     max_lift_tilt_deg: float = spec(45.0, "angle", "Lift: when the straight lift along the cell's retreat is "
                                     "blocked (by a neighbour, or for a grasp's gripper or arm), lifts tilted "
                                     "15/30/45 deg from it up to this many degrees are tried (docs/pick.md, the "
