@@ -175,3 +175,23 @@ def test_view_renders_every_pick_in_chromium(cli_run, tmp_path):
     img = read_png(png)[CANVAS_Y0:CANVAS_Y1, CANVAS_X0:, :3].astype(float)
     assert img.std(axis=(0, 1)).max() > 10  # the bin, the parts and the gripper, not a blank canvas
     assert math.isfinite(img.mean())
+
+
+@needs_chromium
+def test_view_names_and_colours_the_neighbour_a_lift_raises(cli_run, tmp_path):
+    """A pick whose lift raises a neighbour (``lift_carries`` in the report) shows it: the page's
+    data for pick 0 of round 0 made to raise another instance of the round, rendered in Chromium."""
+    _, doc, page = cli_run
+    text = page.read_text()
+    m = re.search(r'(<script id="grasplan-data" type="application/json">)(.*?)(</script>)', text, re.S)
+    data = json.loads(m.group(2))
+    rd, a = data["rounds"][0], data["rounds"][0]["attempts"][0]
+    assert a["pick"]["raises"] == doc["rounds"][0]["picks"][0]["pick"]["lift_carries"]  # the report's, as written
+    other = next(i for i in rd["ids"] if i != a["instance"])
+    a["pick"]["raises"] = [other]
+    edited = tmp_path / "raised.html"
+    edited.write_text(text[:m.start(2)] + json.dumps(data).replace("</", "<\\/") + text[m.end(2):])
+    r = run_chromium(edited, tmp_path, "--dump-dom", fragment="#pick=0:0")
+    assert 'data-ok="1"' in re.search(r'<div id="render-status"([^>]*)>', r.stdout).group(1), r.stdout[-2000:]
+    assert f"the lift raises {other} lying on it (violet)" in r.stdout
+

@@ -95,6 +95,7 @@
     for (const [name, block] of Object.entries(D.parts)) geoms[name] = await geometryOf(block);
     const partMat = new THREE.MeshStandardMaterial({ color: 0xb0b8c4, metalness: 0.1, roughness: 0.6, flatShading: true });
     const targetMat = new THREE.MeshStandardMaterial({ color: 0xffb74d, metalness: 0.1, roughness: 0.6, flatShading: true });
+    const raisedMat = new THREE.MeshStandardMaterial({ color: 0x9575cd, metalness: 0.1, roughness: 0.6, flatShading: true });
     const seenMat = new THREE.MeshBasicMaterial({ color: 0x00897b, wireframe: true, transparent: true, opacity: 0.5 });
     const pileGroup = new THREE.Group();
     scene.add(pileGroup);
@@ -217,10 +218,11 @@
     showSeen.addEventListener('change', () => { seenMesh.visible = showSeen.checked && !!sel; requestRender(); });
     document.getElementById('frame-all').addEventListener('click', frameView);
 
-    function pileMeshes(R, ids, target) {
+    function pileMeshes(R, ids, target, raised = []) {  // the target orange, the neighbours its lift raises violet
       pileGroup.clear();
       return ids.map((i) => {
-        const m = new THREE.Mesh(geoms[R.part_of[i]], R.ids[i] === target ? targetMat : partMat);
+        const mat = R.ids[i] === target ? targetMat : raised.includes(R.ids[i]) ? raisedMat : partMat;
+        const m = new THREE.Mesh(geoms[R.part_of[i]], mat);
         pileGroup.add(m);
         return m;
       });
@@ -237,7 +239,7 @@
         A.dec = A.samples ? await Promise.all([dec(A.t, Float32Array), dec(A.hand, Float32Array), dec(A.opening, Float32Array), dec(A.parts, Float32Array)])
           : [new Float32Array(0), new Float32Array(0), new Float32Array(0), new Float32Array(0)];
       }
-      sel = { r: R.r, k, R, A, meshes: pileMeshes(R, A.ids, A.instance) };
+      sel = { r: R.r, k, R, A, meshes: pileMeshes(R, A.ids, A.instance, A.pick.raises || []) };
       statusEl.dataset.selected = `${sel.r}:${sel.k}`;  // at once, not on the next frame (a page dump may come first)
       sel.meshes.forEach((m, j) => setPose(m, A.before, 7 * j));
       seenMesh.geometry = geoms[A.part];
@@ -249,7 +251,8 @@
       rowsInOrder.forEach(([, , row]) => row.classList.toggle('sel', row.dataset.round === String(R.r) && row.dataset.attempt === String(k)));
       document.getElementById('selected').textContent =
         `round ${R.r + 1}, pick ${k + 1}: ${A.instance} (${A.part})\n${A.outcome}: ${A.reason}\n` +
-        `planned in ${A.plan_ms.toFixed(1)} ms; pose error ${A.pose_error_mm.toFixed(1)} mm, ${A.pose_error_deg.toFixed(1)} deg`;
+        `planned in ${A.plan_ms.toFixed(1)} ms; pose error ${A.pose_error_mm.toFixed(1)} mm, ${A.pose_error_deg.toFixed(1)} deg` +
+        ((A.pick.raises || []).length ? `\nthe lift raises ${A.pick.raises.join(', ')} lying on it (violet)` : '');
       scrub.max = String(Math.max(0, A.samples - 1));
       scrub.disabled = playBtn.disabled = A.samples === 0;
       setSample(0);

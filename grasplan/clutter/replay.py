@@ -58,7 +58,8 @@ def _attempt_data(a, replay: Mapping[str, Any] | None, names: list[str]) -> dict
     ids = [names.index(n) for n in a.execution.track_parts]
     before = replay["before"]
     d.update(pick={"pre": _p7(a.pick["T_world_pregrasp"]), "tcp": _p7(a.pick["T_world_tcp"]),
-                   "lifted": _p7(a.pick["T_world_lifted"]), "opening": a.pick["opening"]},
+                   "lifted": _p7(a.pick["T_world_lifted"]), "opening": a.pick["opening"],
+                   "raises": list(a.pick.get("lift_carries", ()))},
              seen=_p7(replay["seen"]), ids=ids, before=_p7s(np.stack([before[names[i]] for i in ids])).reshape(-1).tolist(),
              samples=len(track), pose_error_mm=round(a.pose_error_mm, 3), pose_error_deg=round(a.pose_error_deg, 3))
     if track:
