@@ -98,6 +98,14 @@ def test_a_neighbour_lying_on_the_part_is_raised_by_its_lift(pile, tmp_path):
     assert [p["lift_carries"] for p in doc["picks"]] == [[], ["b"]]
     back = load_picks(out)
     assert back.pick("a").carries == ("b",)
+    # a file naming an instance that is not another one of the scene is refused, naming the field
+    from grasplan.errors import InputError
+
+    for bad in (["zz"], ["a"]):
+        doc["picks"][1]["lift_carries"] = bad
+        (tmp_path / "bad.json").write_text(json.dumps(doc))
+        with pytest.raises(InputError, match=r"picks\[1\]: lift_carries names"):
+            load_picks(tmp_path / "bad.json")
     # a robot program and the viewer of that pick
     from click.testing import CliRunner
 

@@ -81,6 +81,10 @@ def result_from_picks(doc: Any, *, where: str = "picks", base: Path | None = Non
         w = f"{where}: picks[{k}]"
         if d["instance"] not in ids:
             raise InputError(f"{w}: instance {d['instance']!r} is not in the scene ({', '.join(sorted(ids))})")
+        odd = [i for i in d.get("lift_carries", ()) if i not in ids or i == d["instance"]]
+        if odd:
+            raise InputError(f"{w}: lift_carries names {odd[0]!r}, not another instance of the scene "
+                             f"({', '.join(sorted(ids - {d['instance']}))})")
         m = _motion(d, robot.nq, w)
         if not np.all(robot.within_limits(m.path, tol=1e-6)):
             raise InputError(f"{w}: the path leaves the joint limits of robot {robot.name!r}")
