@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..cell import Cell
+from ..errors import InputError
 from ..gripper.model import Box, Gripper, MeshShape, rz180
 from ..pileworld import PILE_BIT, ROLLING_LENGTH, PartBody, PileWorld, pile_mjcf
 from ..simulate import (CLOSE_SPEED, DRIVE_TAU, JAW_MASS, PAD_GRIP_TORSION, SOLREF_TIMECONST, TORSION_LENGTH,
@@ -58,26 +59,68 @@ HAND, JAWS = "#hand", ("#jaw0", "#jaw1")
 PADS = ("#pad0", "#pad1")
 #: a linkage gripper's pads also slide along the approach axis, on these joints (coupled to the jaws')
 JAWS_Z = ("#jaw0z", "#jaw1z")
-#: largest error (m) of the quartic fit of a linkage gripper's pad arc (z as a function of x)
+#: a linkage whose pad path z(x) is no quartic: each pad's arc length on its path, a joint of its own
+#: (a weightless body without shapes) that both the jaw's x and its z follow (:class:`PadArc`)
+ARCS = ("#arc0", "#arc1")
+#: largest error (m) of the quartic fits of a linkage gripper's pad path
 ARC_FIT_TOL = 1e-4
 
 
-def arc_polynomial(gripper: Gripper) -> np.ndarray | None:
-    """For a gripper whose pads move on an arc (``moving_tcp``: the fingertips move along the approach
-    axis as the jaws close, :mod:`grasplan.gripper.linkage`): the coefficients ``a0..a4`` of the
-    quartic ``z(q) = sum a_k q^k`` giving each pad's offset along the approach axis at half-opening
-    ``q`` (MuJoCo's joint-equality ``polycoef``), fitted to ``tcp_offset(2 q)`` over the stroke
-    within :data:`ARC_FIT_TOL`; None for jaws that slide straight."""
+@dataclass(frozen=True)
+class PadArc:
+    """Where a linkage gripper's pad lies along the approach axis as its jaw opens (``moving_tcp``:
+    the fingertips move on an arc, :mod:`grasplan.gripper.linkage`), as MuJoCo's joint equalities
+    (``polycoef``: one joint a quartic of another) can hold it, each fit within :data:`ARC_FIT_TOL`
+    over the whole stroke:
+
+    - ``z_of_x``: the pad's offset along the approach axis a quartic of the jaw's half-opening x
+      (the Robotiq 2F-85 and 2F-140); else
+    - ``x_of_s``, ``z_of_s``: both quartics of the arc length s along the pad's path, a joint of
+      its own (:data:`ARCS`). A path whose slope grows without bound (the OnRobot RG2 and RG6: a
+      circle followed nearly to its side, 1 mm off a quartic z(x)) is smooth in its arc length.
+
+    ``x_grid``, ``s_grid``: the arc length at each half-opening (to place the joints)."""
+
+    z_of_x: np.ndarray | None
+    x_of_s: np.ndarray | None
+    z_of_s: np.ndarray | None
+    x_grid: np.ndarray
+    s_grid: np.ndarray
+
+    @property
+    def chained(self) -> bool:
+        return self.z_of_x is None
+
+    def s_at(self, half: float) -> float:
+        return float(np.interp(half, self.x_grid, self.s_grid))
+
+    def z_at(self, half: float) -> float:
+        poly = np.polynomial.polynomial.polyval
+        return float(poly(half, self.z_of_x) if self.z_of_x is not None else poly(self.s_at(half), self.z_of_s))
+
+
+def pad_arc(gripper: Gripper) -> PadArc | None:
+    """The :class:`PadArc` of a gripper whose pads move on an arc, fitted to ``tcp_offset(2 x)``
+    over the stroke; None for jaws that slide straight. InputError when neither fit holds."""
     if not getattr(gripper, "moving_tcp", False):
         return None
-    q = np.linspace(0.0, 0.5 * gripper.max_opening, 201)
-    z = np.asarray(gripper.tcp_offset(2.0 * q), dtype=np.float64)
-    c = np.polynomial.polynomial.polyfit(q, z, 4)
-    err = float(np.max(np.abs(np.polynomial.polynomial.polyval(q, c) - z)))
-    if err > ARC_FIT_TOL:
-        raise ValueError(f"gripper {gripper.name}: its pad arc is not a quartic in the opening within "
-                         f"{ARC_FIT_TOL * 1e3:g} mm ({err * 1e3:.3f} mm); the clutter world cannot model it")
-    return c
+    P = np.polynomial.polynomial
+    x = np.linspace(0.0, 0.5 * gripper.max_opening, 2001)
+    z = np.asarray(gripper.tcp_offset(2.0 * x), dtype=np.float64)
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(x), np.diff(z)))])
+    c = P.polyfit(x, z, 4)
+    err = float(np.max(np.abs(P.polyval(x, c) - z)))
+    if err <= ARC_FIT_TOL:
+        return PadArc(c, None, None, x, s)
+    cx, cz = P.polyfit(s, x, 4), P.polyfit(s, z, 4)
+    err_s = max(float(np.max(np.abs(P.polyval(s, cx) - x))), float(np.max(np.abs(P.polyval(s, cz) - z))))
+    if err_s > ARC_FIT_TOL:
+        raise InputError(f"gripper {gripper.name}: its pads' path is neither a quartic in the opening "
+                         f"({err * 1e3:.3f} mm off) nor in its arc length ({err_s * 1e3:.3f} mm off), within "
+                         f"{ARC_FIT_TOL * 1e3:g} mm; the clutter world cannot model it: use a gripper whose "
+                         f"jaws slide straight (e.g. schunk_egp_c_40) or one of robotiq_2f_85, robotiq_2f_140, "
+                         f"onrobot_rg2, onrobot_rg6")
+    return PadArc(None, cx, cz, x, s)
 
 
 def _fmt(a) -> str:
@@ -113,7 +156,7 @@ def gripper_mjcf(gripper: Gripper, *, mu: float, grip_force: float) -> tuple[str
     inertia = _fmt([JAW_MASS * 1e-4] * 3)
     hand_inertia = _fmt([HAND_MASS * 0.01] * 3)
 
-    arc = arc_polynomial(gripper)
+    arc = pad_arc(gripper)
 
     def jaw(k: int, axis: str, geom: str) -> str:
         z = "" if arc is None else (f'<joint name="{JAWS_Z[k]}" type="slide" axis="0 0 1" limited="false" '
@@ -122,17 +165,29 @@ def gripper_mjcf(gripper: Gripper, *, mu: float, grip_force: float) -> tuple[str
                 f'<joint name="{JAWS[k]}" type="slide" axis="{axis}" range="0 {half:.9g}" limited="true" '
                 f'damping="{damping:.6g}" armature="{armature:.6g}"/>{z}{geom}</body>')
 
+    # a chained arc: each pad's arc length on a weightless body of its own, no shapes (PadArc)
+    arcs = "" if arc is None or not arc.chained else "".join(
+        f'<body name="{ARCS[k]}" gravcomp="1"><inertial pos="0 0 0" mass="{JAW_MASS}" diaginertia="{inertia}"/>'
+        f'<joint name="{ARCS[k]}" type="slide" axis="0 0 1" range="0 {arc.s_grid[-1]:.9g}" limited="true" '
+        f'armature="{JAW_MASS:.6g}"/></body>' for k in (0, 1))
     world = (f'<body name="{HAND}" pos="{_fmt(HAND_PARK)}" gravcomp="1"><freejoint name="{HAND}"/>'
              f'<inertial pos="0 0 0" mass="{HAND_MASS:g}" diaginertia="{hand_inertia}"/>{body}'
-             f'{jaw(0, "-1 0 0", jaw0)}{jaw(1, "1 0 0", jaw1)}</body>')
+             f'{jaw(0, "-1 0 0", jaw0)}{jaw(1, "1 0 0", jaw1)}{arcs}</body>')
+    sol = f'solref="{SOLREF_TIMECONST:.6g} 1"'
+    if arc is None:
+        on_arc = ""
+    elif not arc.chained:  # the pads on their arc: z = quartic(x)
+        on_arc = "".join(f'<joint joint1="{JAWS_Z[k]}" joint2="{JAWS[k]}" polycoef="{_fmt(arc.z_of_x)}" {sol}/>'
+                         for k in (0, 1))
+    else:  # x = quartic(s), z = quartic(s)
+        on_arc = "".join(f'<joint joint1="{JAWS[k]}" joint2="{ARCS[k]}" polycoef="{_fmt(arc.x_of_s)}" {sol}/>'
+                         f'<joint joint1="{JAWS_Z[k]}" joint2="{ARCS[k]}" polycoef="{_fmt(arc.z_of_s)}" {sol}/>'
+                         for k in (0, 1))
     extra = (f'<contact><exclude body1="{PADS[0]}" body2="{PADS[1]}"/><exclude body1="{HAND}" body2="{PADS[0]}"/>'
              f'<exclude body1="{HAND}" body2="{PADS[1]}"/></contact>'
              f'<equality><joint joint1="{JAWS[0]}" joint2="{JAWS[1]}" polycoef="0 1 0 0 0" '
              f'solref="{SOLREF_TIMECONST:.6g} 1"/>'
-             + ("" if arc is None else "".join(  # the pads on their arc: z = quartic(x) (arc_polynomial)
-                 f'<joint joint1="{JAWS_Z[k]}" joint2="{JAWS[k]}" polycoef="{_fmt(arc)}" '
-                 f'solref="{SOLREF_TIMECONST:.6g} 1"/>' for k in (0, 1)))
-             + '</equality>'
+             + on_arc + '</equality>'
              f'<actuator><motor name="close0" joint="{JAWS[0]}" gear="-1" ctrlrange="{-jaw_force:.9g} {jaw_force:.9g}" '
              f'ctrllimited="true"/><motor name="close1" joint="{JAWS[1]}" gear="-1" '
              f'ctrlrange="{-jaw_force:.9g} {jaw_force:.9g}" ctrllimited="true"/></actuator>')
@@ -181,10 +236,13 @@ class ClutterWorld:
         #: per pick: each pad's torsional friction per newton (m, mu included) and the target's body (-1: none)
         self._torsion = np.full(2, self.mu * TORSION_LENGTH)
         self._target_body = -1
-        self._arc = arc_polynomial(gripper)
-        self._jaw_z = [] if self._arc is None else [
-            (int(m.jnt_qposadr[j]), int(m.jnt_dofadr[j]))
-            for j in (mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n) for n in JAWS_Z)]
+        self._arc = pad_arc(gripper)
+
+        def adr(names: Sequence[str]) -> list[tuple[int, int]]:
+            ids = (mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n) for n in names)
+            return [(int(m.jnt_qposadr[j]), int(m.jnt_dofadr[j])) for j in ids]
+        self._jaw_z = [] if self._arc is None else adr(JAWS_Z)
+        self._arc_s = [] if self._arc is None or not self._arc.chained else adr(ARCS)
         # per geom: which gripper body it belongs to ("" none) and which part body (-1 none)
         gripper_bodies = {self._hand: "hand", self._jaw_body[0]: "jaw0", self._jaw_body[1]: "jaw1",
                           self._pad_body[0]: "jaw0", self._pad_body[1]: "jaw1"}
@@ -224,7 +282,11 @@ class ClutterWorld:
             self.data.qvel[v] = 0.0
         for q, v in self._jaw_z:  # a linkage's pads on their arc
             assert self._arc is not None
-            self.data.qpos[q] = float(np.polynomial.polynomial.polyval(half, self._arc))
+            self.data.qpos[q] = self._arc.z_at(half)
+            self.data.qvel[v] = 0.0
+        for q, v in self._arc_s:  # and where on it (a chained arc)
+            assert self._arc is not None
+            self.data.qpos[q] = self._arc.s_at(half)
             self.data.qvel[v] = 0.0
         self.data.ctrl[:] = 0.0
 
