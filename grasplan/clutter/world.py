@@ -96,7 +96,10 @@ class PadArc:
 
     def z_at(self, half: float) -> float:
         poly = np.polynomial.polynomial.polyval
-        return float(poly(half, self.z_of_x) if self.z_of_x is not None else poly(self.s_at(half), self.z_of_s))
+        if self.z_of_x is not None:
+            return float(poly(half, self.z_of_x))
+        assert self.z_of_s is not None
+        return float(poly(self.s_at(half), self.z_of_s))
 
 
 def pad_arc(gripper: Gripper) -> PadArc | None:
