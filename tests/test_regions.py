@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
-from hypothesis import HealthCheck, Phase, given, settings
+from hypothesis import HealthCheck, Phase, example, given, settings
 from hypothesis import strategies as st
 import regions_reference
 from regions_reference import find_regions_pairs
@@ -45,6 +45,20 @@ def _sorted(c: Candidates):
     key = np.round(c.contacts.reshape(len(c), 6) / 1e-9).astype(np.int64)
     o = np.lexsort(key.T[::-1])
     return c.contacts[o]
+
+
+def _same_pairs(a: np.ndarray, b: np.ndarray, atol: float) -> bool:
+    """The contact pairs ``a`` and ``b`` (n, 2, 3) are the same set within ``atol`` (m, per
+    coordinate): a one-to-one matching exists (not a sort, whose order two contacts within
+    ``atol`` of a rounding boundary can swap)."""
+    from scipy.optimize import linear_sum_assignment
+
+    if a.shape != b.shape:
+        return False
+    A, B = a.reshape(len(a), 6), b.reshape(len(b), 6)
+    D = np.abs(A[:, None, :] - B[None, :, :]).max(axis=2)
+    rows, cols = linear_sum_assignment(D)
+    return bool(np.all(D[rows, cols] <= atol))
 
 
 def test_samples_on_both_areas_inside_friction_cone():
@@ -96,6 +110,8 @@ def test_region_centroid_is_sampled_for_a_strip_thinner_than_the_pitch():
 
 @settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow],
           phases=[Phase.explicit, Phase.generate])
+@example(quat=(-1.192092896e-07, 1.5121473584271007e-178, -0.5159052053362955, 0.4303415655092875),
+         shift=(-1.5440332287494821e-117, 1.8005810977333151e-124, 0.4218199235097695))  # a sort once swapped two
 @given(quat=st.tuples(*[st.floats(-1, 1) for _ in range(4)]).filter(lambda q: np.linalg.norm(q) > 0.1),
        shift=st.tuples(*[st.floats(-0.5, 0.5) for _ in range(3)]))
 def test_invariant_under_rigid_motion(quat, shift):
@@ -111,7 +127,7 @@ def test_invariant_under_rigid_motion(quat, shift):
     assert len(a) > 0 and len(a) == len(b)
     assert np.array_equal(a.region, b.region)
     back = a.transformed(T)
-    assert np.allclose(_sorted(back), _sorted(b), atol=tol.distance)
+    assert _same_pairs(back.contacts, b.contacts, tol.distance)
 
 
 def test_chunked_search_equals_unchunked(monkeypatch, example_part):
@@ -278,7 +294,7 @@ def test_square_faces_invariant_under_rotation():
         moved.apply_transform(T)
         b = _regions(moved, tol=tol)
         assert len(a) == len(b) > 0
-        assert np.allclose(_sorted(a.transformed(T)), _sorted(b), atol=tol.distance)
+        assert _same_pairs(a.transformed(T).contacts, b.contacts, tol.distance)
 
 
 def test_fast_edge_adjacency_matches_trimesh_and_sparse_neighbourhood(example_part):
