@@ -108,13 +108,15 @@ def pad_arc(gripper: Gripper) -> PadArc | None:
     if not getattr(gripper, "moving_tcp", False):
         return None
     P = np.polynomial.polynomial
-    x = np.linspace(0.0, 0.5 * gripper.max_opening, 2001)
+    x = np.linspace(0.0, 0.5 * gripper.max_opening, 201)
     z = np.asarray(gripper.tcp_offset(2.0 * x), dtype=np.float64)
-    s = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(x), np.diff(z)))])
     c = P.polyfit(x, z, 4)
     err = float(np.max(np.abs(P.polyval(x, c) - z)))
     if err <= ARC_FIT_TOL:
-        return PadArc(c, None, None, x, s)
+        return PadArc(c, None, None, x, np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(x), np.diff(z)))]))
+    x = np.linspace(0.0, 0.5 * gripper.max_opening, 2001)  # the arc length: finer
+    z = np.asarray(gripper.tcp_offset(2.0 * x), dtype=np.float64)
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(x), np.diff(z)))])
     cx, cz = P.polyfit(s, x, 4), P.polyfit(s, z, 4)
     err_s = max(float(np.max(np.abs(P.polyval(s, cx) - x))), float(np.max(np.abs(P.polyval(s, cz) - z))))
     if err_s > ARC_FIT_TOL:
