@@ -64,6 +64,8 @@ def read_document(path: str | os.PathLike[str]) -> Any:
 
 
 def _arr(grasps: list[Any], key: str, shape: tuple[int, ...], dtype: Any, where: str, *, default: Any = None) -> np.ndarray:
+    if not grasps:  # a result with no grasp at all (no candidate fits the gripper): written so, read so
+        return np.zeros((0, *shape), dtype=dtype)
     try:
         if default is not None:
             vals = [g.get(key, default) if isinstance(g, dict) else None for g in grasps]

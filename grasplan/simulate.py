@@ -516,7 +516,9 @@ def simulate_result(result, top: int, *, mass_props: MassProperties | None = Non
                               min_angle_deg=pp.distinct_angle_deg)[:top]
     if len(rows) == 0:
         st = sorted(set(np.asarray(g.status).astype(str)))
-        raise InputError(f"simulate: no collision-free or planned grasp to simulate (statuses: {', '.join(st) or 'none'})")
+        raise InputError("simulate: no collision-free or planned grasp to simulate ("
+                         + (f"statuses: {', '.join(st)}" if st else "the file has no grasp at all: no contact pair "
+                            "fits the gripper; try another gripper") + ")")
     area = getattr(g, "contact_area", None)  # the recorded patches (NaN rows are computed)
     sim = simulate_grasps(mesh, result.gripper, result.T_world_part, g.T_part_tcp[rows], g.width[rows],
                           table_z=float(result.cell.table_z), mass_props=mp, grip_force=grip_force, mu=mu, seed=seed,

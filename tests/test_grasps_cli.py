@@ -185,3 +185,12 @@ def test_nothing_collision_free_is_exit_4_and_file_still_written(tmp_path, examp
     assert "no collision-free grasp" in r.output
     doc = json.loads(out.read_text())
     assert doc["counts"]["ok"] == 0 and doc["grasps"] == []
+    # the file reads back (it once read as "'T_part_tcp' malformed": an empty list is no (0, 4, 4) array)
+    from grasplan.result_reader import load_result
+
+    assert len(load_result(out).grasps) == 0
+    r = CliRunner().invoke(main, ["simulate", str(out), "-o", str(tmp_path / "sim.json")])
+    assert r.exit_code == 3 and "has no grasp at all" in r.output and "malformed" not in r.output, r.output
+    assert not (tmp_path / "sim.json").exists()
+    r = CliRunner().invoke(main, ["view", str(out), "-o", str(tmp_path / "v.html")])
+    assert r.exit_code == 0, r.output
