@@ -243,6 +243,9 @@ def test_cli_pick_writes_picks_and_exit_4_when_nothing_can_be_picked(tmp_path, r
     assert r.exit_code == 4, r.output
     d2 = json.loads(out2.read_text())
     assert d2["picks"] == [] and d2["instances"][0]["status"] == "unreachable"
+    r = CliRunner().invoke(main, ["export", str(out2), "--format", "urscript", "-o", str(tmp_path / "far.script")])
+    assert r.exit_code == 3 and "has no pick (1 instances: 1 unreachable; e.g. far: " in r.output, r.output
+    assert not (tmp_path / "far.script").exists()
 
 
 def test_broad_phase_agrees_with_every_pair(picker, rest):

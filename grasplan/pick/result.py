@@ -143,7 +143,10 @@ class PickResult:
         from ..errors import InputError
 
         if not self.picks:
-            raise InputError("the picks file has no pick (every instance's status says why)")
+            counts = ", ".join(f"{n} {st}" for st, n in self.counts().items())
+            first = f"; e.g. {self.instances[0].id}: {self.instances[0].reason[:160]}" if self.instances else ""
+            raise InputError(f"the picks file has no pick ({len(self.instances)} instances: {counts or 'none'}"
+                             f"{first}); every instance's status and reason are in its 'instances'")
         if instance is None:
             return self.picks[0]
         for p in self.picks:
