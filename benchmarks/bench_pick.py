@@ -143,6 +143,7 @@ def main() -> int:
     loaded = {Path(p).stem.lower(): load_part(PAPER_DIR / p) for p in PARTS}
     for name, part in loaded.items():
         picker.add_part(name, part)
+    picker.warm()  # every part's probes and voxel grid, as the pick service does at start
     import grasplan.pick.picker as picker_mod
 
     motion_cpu = [0.0]  # CPU seconds inside plan_pick_motion (IK, approach, lift, transit, their checks)

@@ -401,3 +401,9 @@ def test_warm_builds_what_the_first_plan_needs(rest, monkeypatch):
     dx = float(np.ptp(w[:, 0])) - 0.0003
     res = pk.plan(scene(("a", "bracket", rest), ("b", "bracket", at(rest, dx))))
     assert res.picks
+    # without a fixed cell (the scene names it) warm() still builds every part's voxel grid
+    free = Picker("ur5", params=PickParams(grasps_per_instance=8))
+    free.add_part("box", load_part(BOX))
+    monkeypatch.undo()
+    free.warm()
+    assert free._parts["box"].mesh in ig._GRIDS
