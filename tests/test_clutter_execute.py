@@ -276,6 +276,16 @@ def test_every_shipped_gripper_has_a_clutter_world(cell, path):
     assert (pad_arc(g) is not None) == bool(g.moving_tcp)
 
 
+def test_a_pad_path_no_quartic_fits_is_refused_naming_the_gripper():
+    """A linkage whose pads' path has a kink (neither a quartic in the opening nor in the arc length):
+    InputError naming the gripper and the grippers that work, not an internal error."""
+    kinked = SimpleNamespace(name="kinked", moving_tcp=True, max_opening=0.1,
+                             tcp_offset=lambda o: np.where(np.asarray(o) > 0.05, 0.02, 0.0) + 0.1 * np.asarray(o))
+    with pytest.raises(InputError, match=r"gripper kinked: .*neither a quartic.*onrobot_rg2"):
+        pad_arc(kinked)
+    assert pad_arc(load_gripper("schunk_egp_c_40")) is None
+
+
 def test_a_lift_into_a_wall_is_a_collision(lone_box, gripper, cell):
     """A lift tilted 45 deg towards the nearest bin wall drives the gripper's housing into it: the
     kinematic hand is pushed back off its path within a control period (MuJoCo's hand frame), a

@@ -82,6 +82,9 @@ def command(cell: str, parts: tuple[str, ...], units: str, rounds: int, pose_noi
         raise InputError(f"--cell {cell}: the cell has no bin to drop parts into; use a cell with a bin "
                          f"(e.g. --cell bin; docs/cells.md)")
     g = load_gripper(gripper)
+    from ..clutter.world import pad_arc
+
+    pad_arc(g)  # a linkage the clutter world cannot model: refused now (exit 3), not after the first drop
     items = load_items(specs, units=units, info=info, warn=lambda w: warn_all([w]))
     # the planner refuses parts below the bin floor by more than overlap_tol: pose noise moves them by up to this
     tol = PickParams.default("overlap_tol") + noise_reach([it.part for it in items], noise)
