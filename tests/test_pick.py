@@ -7,6 +7,7 @@ instance present, the cloud's leaf cubes, the carried part during the lift)."""
 from __future__ import annotations
 
 import json
+import re
 import sys
 from pathlib import Path
 
@@ -246,6 +247,14 @@ def test_cli_pick_writes_picks_and_exit_4_when_nothing_can_be_picked(tmp_path, r
     r = CliRunner().invoke(main, ["export", str(out2), "--format", "urscript", "-o", str(tmp_path / "far.script")])
     assert r.exit_code == 3 and "has no pick (1 instances: 1 unreachable; e.g. far: " in r.output, r.output
     assert not (tmp_path / "far.script").exists()
+    # the viewer shows the pile and why each instance cannot be picked
+    r = CliRunner().invoke(main, ["view", str(out2), "-o", str(tmp_path / "far.html")])
+    assert r.exit_code == 0, r.output
+    page = (tmp_path / "far.html").read_text()
+    data = json.loads(re.search(r'<script id="grasplan-data" type="application/json">(.*?)</script>', page,
+                                re.S).group(1))
+    assert data["counts"].get("planned", 0) == 0 and data["part"]["nf"] == len(load_part(BRACKET).mesh.faces)
+    assert any(n.startswith(f"far (bracket): unreachable: {d2['instances'][0]['reason'][:40]}") for n in data["notes"])
 
 
 def test_broad_phase_agrees_with_every_pair(picker, rest):

@@ -19,7 +19,8 @@ from .common import check_output, info, warn_all
               help="Draw a part whose sha256 differs from RESULT's (the grasps may not belong to it).")
 @click.option("--instance", default=None,
               help="RESULT is a picks file (grasplan.picks/1, `grasplan pick`): show this instance's pick "
-                   "(default: the first pick) with every other instance of the pile.")
+                   "(default: the first pick) with every other instance of the pile; a picks file without "
+                   "a pick shows the pile and every instance's status and reason.")
 def command(result: str, output: str, part: str | None, allow_other_part: bool, instance: str | None) -> None:
     """Write a self-contained HTML viewer for a grasps or plan file (RESULT).
 
@@ -35,10 +36,15 @@ def command(result: str, output: str, part: str | None, allow_other_part: bool, 
 
     output = check_output(output, result, part)
     info(f"view: {result}")
-    from ..pick.reader import is_picks_file, load_picks, pick_as_plan
+    from ..pick.reader import is_picks_file, load_picks, pick_as_plan, pile_as_plan
 
+    notes: list[str] = []
     if is_picks_file(result):  # the pick as a one-grasp plan; the other instances are cell obstacles
-        res = pick_as_plan(load_picks(result), instance)
+        picks = load_picks(result)
+        if picks.picks or instance is not None:
+            res = pick_as_plan(picks, instance)
+        else:  # no pick: the pile, and why each instance cannot be picked
+            res, notes = pile_as_plan(picks)
     elif instance is not None:
         from ..errors import InputError
 
@@ -47,6 +53,6 @@ def command(result: str, output: str, part: str | None, allow_other_part: bool, 
         res = load_result(result, part=part, allow_other_part=allow_other_part, verify_part=True)  # re-pointed part: refused
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        path = write_viewer(res, output, part_path=part, allow_other_part=allow_other_part)
+        path = write_viewer(res, output, part_path=part, allow_other_part=allow_other_part, notes=notes)
     warn_all(str(w.message) for w in caught)
     click.echo(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB)")

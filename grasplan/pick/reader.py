@@ -130,17 +130,12 @@ def load_picks(path: str | os.PathLike) -> PickResult:
     return result_from_picks(read_document(p), where=str(p), base=p.resolve().parent)
 
 
-def pick_as_plan(res: PickResult, instance: str | None = None) -> PlanResult:
-    """The pick of ``instance`` (default: the first pick) as a ``grasplan.plan/1`` result with one
-    planned grasp: the instance is the plan's part, every other instance of the scene (with
-    ``sequence``: still in the pile when it was planned) is an obstacle (mesh ``instance_<id>``) of
-    its cell, so exports and the viewer see the whole pile; the cell's retreat is the pick's own lift
-    (``T_world_tcp -> T_world_lifted``: a lift tilted away from a neighbour, docs/pick.md)."""
+def _part_meshes(res: PickResult) -> dict[str, Any]:
+    """Each part's mesh, loaded from its recorded path (sha256 checked)."""
     from ..mesh import load_recorded_part
 
-    p = res.pick(instance)
     if res.robot is None or res.gripper is None or res.cell is None:
-        raise InputError("pick_as_plan: the picks result has no robot, gripper or cell")
+        raise InputError("the picks result has no robot, gripper or cell")
     meshes: dict[str, Any] = {}
     for name, rec in res.parts.items():
         loaded = load_recorded_part(rec, search_dirs=(str(res.scene.base),) if res.scene.base else ())
@@ -148,29 +143,70 @@ def pick_as_plan(res: PickResult, instance: str | None = None) -> PlanResult:
             raise InputError(f"{loaded.path}: sha256 {loaded.sha256[:12]}... differs from the picks file's part "
                              f"{name} ({str(rec['sha256'])[:12]}...)")
         meshes[name] = loaded.mesh
+    return meshes
+
+
+def _as_plan(res: PickResult, meshes: dict[str, Any], instance: str, gone: set[str], cell: Cell,
+             table: GraspTable, motions: dict[int, Motion], T_world_part: np.ndarray | None = None) -> PlanResult:
+    """A plan/1 result whose part is ``instance`` at its pose and whose cell (``cell``, the picks
+    file's) has every other instance not in ``gone`` as an obstacle (mesh ``instance_<id>``)."""
+    inst = next(i for i in res.scene.instances if i.id == instance)
+    others = tuple(Obstacle(f"instance_{i.id}", "mesh", np.asarray(i.T_world_part),
+                            vertices=np.asarray(meshes[i.part].vertices), faces=np.asarray(meshes[i.part].faces))
+                   for i in res.scene.instances if i.id != instance and i.id not in gone and i.part in meshes)
+    rec = res.parts[inst.part]
+    part = PartRecord(path=str(rec["path"]), sha256=str(rec["sha256"]), scale_to_m=float(rec["scale_to_m"]),
+                      triangles=int(rec.get("triangles", len(meshes[inst.part].faces))),
+                      T_world_part=np.asarray(inst.T_world_part if T_world_part is None else T_world_part,
+                                              dtype=np.float64))
+    assert res.gripper is not None
+    return PlanResult(part=part, gripper=res.gripper, cell=replace(cell, obstacles=tuple(cell.obstacles) + others),
+                      robot=res.robot, grasps=table, motions=motions, part_pose_source="given",
+                      part_mesh=meshes[inst.part])
+
+
+def pick_as_plan(res: PickResult, instance: str | None = None) -> PlanResult:
+    """The pick of ``instance`` (default: the first pick) as a ``grasplan.plan/1`` result with one
+    planned grasp: the instance is the plan's part, every other instance of the scene (with
+    ``sequence``: still in the pile when it was planned) is an obstacle (mesh ``instance_<id>``) of
+    its cell, so exports and the viewer see the whole pile; the cell's retreat is the pick's own lift
+    (``T_world_tcp -> T_world_lifted``: a lift tilted away from a neighbour, docs/pick.md)."""
+    p = res.pick(instance)
+    meshes = _part_meshes(res)
     gone = set()  # --sequence: the instances picked before this one are out of the pile
     if res.sequence:
         for q in res.picks:
             if q.instance == p.instance:
                 break
             gone.add(q.instance)
-    others = tuple(Obstacle(f"instance_{i.id}", "mesh", np.asarray(i.T_world_part),
-                            vertices=np.asarray(meshes[i.part].vertices), faces=np.asarray(meshes[i.part].faces))
-                   for i in res.scene.instances if i.id != p.instance and i.id not in gone and i.part in meshes)
     lift = np.asarray(p.T_world_lifted, dtype=np.float64)[:3, 3] - np.asarray(p.T_world_tcp, dtype=np.float64)[:3, 3]
     dist = float(np.linalg.norm(lift))
-    cell = replace(res.cell, obstacles=tuple(res.cell.obstacles) + others,
-                   place=p.motion.T_world_part_place if p.motion.T_world_part_place is not None else res.cell.place)
+    assert res.cell is not None
+    cell = replace(res.cell, place=p.motion.T_world_part_place if p.motion.T_world_part_place is not None else res.cell.place)
     if dist > 0:
         u = lift / dist
         cell = replace(cell, retreat_direction=(float(u[0]), float(u[1]), float(u[2])), retreat_distance=dist)
-    rec = res.parts[p.part]
-    part = PartRecord(path=str(rec["path"]), sha256=str(rec["sha256"]), scale_to_m=float(rec["scale_to_m"]),
-                      triangles=int(rec.get("triangles", len(meshes[p.part].faces))), T_world_part=p.T_world_part)
     table = GraspTable(candidate=np.zeros(1, dtype=np.int64), region=np.full(1, -1, dtype=np.int64),
                        contacts=p.contacts[None], normals=p.normals[None], width=np.array([p.width]),
                        T_part_tcp=p.T_part_tcp[None], roll=np.zeros(1), status=np.array([Status.PLANNED.value], dtype=object),
                        score=np.array([p.score]), rank=np.zeros(1, dtype=np.int64),
                        reason=np.array([res.report(p.instance).reason], dtype=object))
-    return PlanResult(part=part, gripper=res.gripper, cell=cell, robot=res.robot, grasps=table, motions={0: p.motion},
-                      part_pose_source="given", part_mesh=meshes[p.part])
+    return _as_plan(res, meshes, p.instance, gone, cell, table, {0: p.motion}, p.T_world_part)
+
+
+def pile_as_plan(res: PickResult) -> tuple[PlanResult, list[str]]:
+    """A picks result with no pick, for the viewer: a ``grasplan.plan/1`` result without grasps whose
+    part is the scene's first instance and whose cell holds every other one (as :func:`pick_as_plan`),
+    and one line per instance: ``id (part): status: reason``."""
+    if not res.scene.instances:
+        raise InputError("the picks file's scene has no instance")
+    meshes = _part_meshes(res)
+    assert res.cell is not None
+    first = res.scene.instances[0].id
+    table = GraspTable(candidate=np.zeros(0, dtype=np.int64), region=np.zeros(0, dtype=np.int64),
+                       contacts=np.zeros((0, 2, 3)), normals=np.zeros((0, 2, 3)), width=np.zeros(0),
+                       T_part_tcp=np.zeros((0, 4, 4)), roll=np.zeros(0), status=np.zeros(0, dtype=object),
+                       score=np.zeros(0), rank=np.zeros(0, dtype=np.int64), reason=np.zeros(0, dtype=object))
+    lines = [f"no pick: the part shown is {first}, every other instance is drawn as an obstacle"]
+    lines += [f"{r.id} ({r.part}): {r.status}: {r.reason}" for r in res.instances]
+    return _as_plan(res, meshes, first, set(), res.cell, table, {}), lines

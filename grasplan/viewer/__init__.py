@@ -31,6 +31,7 @@ import os
 import re
 import warnings
 import zlib
+from collections.abc import Sequence
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -418,8 +419,9 @@ def script_safe(text: str) -> str:
     return text.replace("</script", "<\\/script").replace("</SCRIPT", "<\\/SCRIPT")
 
 
-def build_html(result, *, part_path=None, allow_other_part: bool = False) -> str:
-    """The viewer page for a grasps or plan result, as one HTML string.
+def build_html(result, *, part_path=None, allow_other_part: bool = False, notes: Sequence[str] = ()) -> str:
+    """The viewer page for a grasps or plan result, as one HTML string (``notes``: lines shown under
+    the page's summary, e.g. why a pile has no pick).
 
     Parameters
     ----------
@@ -439,9 +441,10 @@ def build_html(result, *, part_path=None, allow_other_part: bool = False) -> str
     from ..result_reader import load_result
 
     res = load_result(result)
-    data, notes = build_data(res, part_path=part_path, allow_other_part=allow_other_part)
-    for note in notes:
+    data, found = build_data(res, part_path=part_path, allow_other_part=allow_other_part)
+    for note in found:
         warnings.warn(note, stacklevel=2)
+    data["notes"] = [*(str(n) for n in notes), *found]
     # every "<" escaped: no input string (a part or gripper name holding "</script>" or "<!--<script>")
     # can end the script block or switch the HTML parser's script state
     payload = json.dumps(data, separators=(",", ":"), allow_nan=False).replace("<", "\\u003c")
@@ -459,9 +462,10 @@ def build_html(result, *, part_path=None, allow_other_part: bool = False) -> str
     return re.sub(r"\{\{([A-Z_]+)\}\}", lambda m: values[m.group(1)], template)
 
 
-def write_viewer(result, out_path, *, part_path=None, allow_other_part: bool = False) -> Path:
+def write_viewer(result, out_path, *, part_path=None, allow_other_part: bool = False, notes: Sequence[str] = ()) -> Path:
     """Write :func:`build_html`'s page atomically to ``out_path``; returns the path."""
-    return write_atomic_text(out_path, build_html(result, part_path=part_path, allow_other_part=allow_other_part))
+    return write_atomic_text(out_path, build_html(result, part_path=part_path, allow_other_part=allow_other_part,
+                                                  notes=notes))
 
 
 __all__ = ["build_html", "write_viewer", "build_data", "densify_path", "decimate_mesh", "STATUS_COLORS",
