@@ -52,3 +52,19 @@ def test_cli_pick_density(tmp_path, monkeypatch):
     bad = CliRunner().invoke(main, ["pick", str(tmp_path / "s.yaml"), "-o", str(tmp_path / "q.json"),
                                     "--density", "-5"])
     assert bad.exit_code == 3 and "--density" in bad.output and not (tmp_path / "q.json").exists()  # as grasps
+
+
+def test_an_empty_database_is_named_as_such(tmp_path, monkeypatch):
+    """A gripper whose stroke takes no contact pair of the part (the EGP 25: 34-40 mm, the box is
+    10 x 20 x 30 mm): an empty database, the instance's reason says so (not "none of 0 grasps")."""
+    from grasplan.scenefile import Instance, Scene
+
+    monkeypatch.setenv("GRASPLAN_CACHE_DIR", str(tmp_path))
+    pk = Picker("ur5", gripper="schunk_egp_25", cell="bin")
+    pk.add_part("box", load_part(BOX))
+    assert len(pk._grasps["box"]) == 0
+    T = np.eye(4)
+    T[:3, 3] = [0.45, 0.0, 0.03]
+    res = pk.plan(Scene(instances=(Instance("a", "box", T),), cell="bin"))
+    assert not res.picks and res.instances[0].status == "no_grasp"
+    assert res.instances[0].reason == "its grasp database is empty: no contact pair fits the gripper schunk_egp_25"

@@ -348,9 +348,9 @@ class Picker:
         db = self._grasps[inst.part]
         rows, T_wt = rank_grasps(inst.T_world_part, db.T_part_tcp, db.score, p)
         if len(rows) == 0:
-            yield None, InstanceReport(inst.id, inst.part, "no_grasp",
-                                       f"none of the part's {len(db)} grasps approaches within {p.max_tilt_deg:g} deg "
-                                       f"of straight down at this pose")
+            yield None, InstanceReport(inst.id, inst.part, "no_grasp", (
+                f"none of the part's {len(db)} grasps approaches within {p.max_tilt_deg:g} deg of straight down at this pose"
+                if len(db) else f"its grasp database is empty: no contact pair fits the gripper {self.gripper.name}"))
             return
         bodies = st.world.bodies(inst.id)
         hit_counts: dict[str, int] = {}
