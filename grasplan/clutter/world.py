@@ -141,9 +141,10 @@ def _shape_xml(shape: Box | MeshShape, name: str, assets: list[str], attrs: str)
     return f'<geom name="{name}" type="mesh" mesh="{name}" {attrs}/>'
 
 
-def gripper_mjcf(gripper: Gripper, *, mu: float, grip_force: float) -> tuple[str, str, str]:
+def gripper_mjcf(gripper: Gripper, *, mu: float, grip_force: float, arc: PadArc | None = None) -> tuple[str, str, str]:
     """MJCF fragments ``(asset, worldbody, extra)`` of the hand, its body shapes and its two jaws
-    (module docstring), for :func:`grasplan.pileworld.pile_mjcf`."""
+    (module docstring), for :func:`grasplan.pileworld.pile_mjcf`; ``arc``: the gripper's
+    :func:`pad_arc` when the caller already has it."""
     assets: list[str] = []
     attrs = (f'contype="{PILE_BIT}" conaffinity="{PILE_BIT}" condim="6" solmix="{GRIPPER_SOLMIX:g}" '
              f'friction="{mu:.9g} {mu * TORSION_LENGTH:.6g} {mu * ROLLING_LENGTH:.6g}" '
@@ -161,7 +162,7 @@ def gripper_mjcf(gripper: Gripper, *, mu: float, grip_force: float) -> tuple[str
     inertia = _fmt([JAW_MASS * 1e-4] * 3)
     hand_inertia = _fmt([HAND_MASS * 0.01] * 3)
 
-    arc = pad_arc(gripper)
+    arc = pad_arc(gripper) if arc is None else arc
 
     def jaw(k: int, axis: str, geom: str) -> str:
         z = "" if arc is None else (f'<joint name="{JAWS_Z[k]}" type="slide" axis="0 0 1" limited="false" '
@@ -223,7 +224,8 @@ class ClutterWorld:
         self.gripper = gripper
         self.mu = float(mu)
         self.grip_force = float(gripper.grip_force if grip_force is None else grip_force)
-        asset, worldbody, extra = gripper_mjcf(gripper, mu=self.mu, grip_force=self.grip_force)
+        self._arc = pad_arc(gripper)  # one fit: the MJCF's equalities and set_jaws use the same
+        asset, worldbody, extra = gripper_mjcf(gripper, mu=self.mu, grip_force=self.grip_force, arc=self._arc)
         xml = pile_mjcf(cell, bodies, mu=self.mu, extra_asset=asset, extra_worldbody=worldbody, extra=extra)
         self.world = PileWorld.from_xml(xml, cell, bodies)
         m = self.model
@@ -241,7 +243,6 @@ class ClutterWorld:
         #: per pick: each pad's torsional friction per newton (m, mu included) and the target's body (-1: none)
         self._torsion = np.full(2, self.mu * TORSION_LENGTH)
         self._target_body = -1
-        self._arc = pad_arc(gripper)
 
         def adr(names: Sequence[str]) -> list[tuple[int, int]]:
             ids = (mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n) for n in names)
