@@ -58,6 +58,7 @@ The checks before planning (part in the table or an obstacle, ...) are :mod:`gra
 """
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -576,8 +577,9 @@ def no_path_reason(scene: CollisionScene, q_start, q_goal, opening: float, time_
             f"or its path failed the 0.01 rad re-check")
 
 
-def _bisection_order(n: int) -> list[int]:
-    """Indices 1..n-1 in coarse-to-fine order (midpoint first)."""
+@functools.lru_cache(maxsize=1024)
+def _bisection_order(n: int) -> tuple[int, ...]:
+    """Indices 1..n-1 in coarse-to-fine order (midpoint first); the same few n come back often."""
     out: list[int] = []
     seen = {0, n}
     level = [(0, n)]
@@ -593,4 +595,4 @@ def _bisection_order(n: int) -> list[int]:
             nxt.append((lo, mid))
             nxt.append((mid, hi))
         level = nxt
-    return out
+    return tuple(out)

@@ -114,6 +114,11 @@ def inside_walls(hull_world: np.ndarray, shifts: np.ndarray, b: BinSpec | None) 
     s = np.asarray(shifts, dtype=np.float64) @ T[:3, :3]  # bin-frame shifts
     half = 0.5 * np.asarray(b.inner, dtype=np.float64)
     out0 = np.maximum(np.abs(p0[:, :2]) - half, 0.0)  # (k, 2) how far each point is already outside
+    # a point moves towards a wall at most by the shifts' largest component that way: the points
+    # that do not reach past a wall so (most of them) are not moved one by one
+    room = half + out0 + WALL_SLACK - 1e-12
+    near = np.any((p0[:, :2] + s[:, :2].max(axis=0) > room) | (p0[:, :2] + s[:, :2].min(axis=0) < -room), axis=1)
+    p0, out0 = p0[near], out0[near]
     p = p0[None] + s[:, None]  # (m, k, 3)
     beyond = np.abs(p[..., :2]) - half - out0[None] - WALL_SLACK
     below = p[..., 2] < b.height
