@@ -55,3 +55,38 @@ def test_hull_precheck_changes_no_lift_hit():
             assert hull or not mesh
             apart += int(not hull)
     assert hits > 5 and apart > 5  # both kinds of cases were met
+
+
+def test_box_bodies_decided_without_coal_agree_with_coal():
+    """A gripper box deep in one of the bin's boxes or the table is a hit without a coal call
+    (grasplan/pick/world.py, CERTAIN_OVERLAP); the first body hit per pose is the one coal names
+    when every box body goes through coal, on random poses around the floor and the walls, some
+    grazing them within a micrometre."""
+    part = load_part(BRACKET)
+    world = PickWorld(load_gripper("schunk_egp_c_40"), load_cell("bin"))
+    world.add_part("bracket", part)
+    rng = np.random.default_rng(11)
+    world.set_instances([Instance(f"i{j}", "bracket", _pose(rng, 0.05)) for j in range(3)])  # meshes, first in order
+    bodies = world.bodies(None)
+    assert [b.box for b in bodies] == [False] * 3 + [True] * 6  # the bin's floor and four walls, the table
+    plain = [dataclasses.replace(b, box=False) for b in bodies]
+    M = 3000
+    T = np.zeros((M, 4, 4))
+    for m in range(M):
+        T[m] = _pose(rng, 0.2)
+    # some poses put a fingertip exactly onto the floor's top (z = 0.01) or a wall's inner face, +- 1 um
+    tip = np.array([0.0, 0.0, 0.008])  # the fingertip's centre, TCP frame (schunk_egp_c_40: 8 mm beyond it)
+    for m in range(0, M, 3):
+        T[m, :3, :3] = rpy_matrix(np.pi, 0.0, rng.uniform(-np.pi, np.pi))  # pointing down
+        z_tip = 0.01 + rng.choice([-1e-6, 0.0, 1e-6, -0.003])
+        T[m, 2, 3] = z_tip - (T[m, :3, :3] @ tip)[2]
+    width = rng.uniform(0.0, 0.05, M)
+    c0 = world.coal_calls
+    fast, _ = world.gripper_hits("bracket", None, T, width, bodies)
+    c1 = world.coal_calls
+    slow, _ = world.gripper_hits("bracket", None, T, width, plain)
+    c2 = world.coal_calls
+    assert np.array_equal(fast, slow)
+    names = {bodies[i].name for i in fast[fast >= 0]}
+    assert {"instance:i0", "obstacle:bin_floor", "table"} <= names, names
+    assert (c2 - c1) - (c1 - c0) > 500  # most box hits were decided without coal

@@ -31,6 +31,8 @@ from ..scenefile import Instance
 #: body name prefixes in reports
 INSTANCE_PREFIX = "instance:"
 CLOUD = "cloud"
+#: a gripper box overlapping a box body by this much (m) along every separating axis hits it
+CERTAIN_OVERLAP = 1e-6
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,6 +46,7 @@ class Body:
     center: np.ndarray
     half: np.ndarray
     convex: coal.CollisionGeometry | None = None  #: a convex shape holding the body (an instance's hull), or None
+    box: bool = False  #: the geometry is a coal Box that is exactly the world box (axis-aligned)
 
 
 def _tf(T: np.ndarray) -> coal.Transform3s:
@@ -83,9 +86,12 @@ class PickWorld:
         self.cell_bodies: list[Body] = []
         for o in cell.obstacles:
             lo, hi = o.aabb()
-            self.cell_bodies.append(Body(o.body, obstacle_geometry(o), _tf(o.T_world_obstacle), 0.5 * (lo + hi),
-                                         0.5 * (hi - lo)))
-        self.cell_bodies.append(Body(TABLE, coal.Box(*TABLE_SIZE), _tf(T_table), T_table[:3, 3].copy(), half))
+            geom = obstacle_geometry(o)
+            exact = isinstance(geom, coal.Box) and np.allclose(  # its world box is the box itself
+                np.sort(hi - lo), np.sort(2.0 * np.asarray(geom.halfSide)), rtol=0.0, atol=1e-12)
+            self.cell_bodies.append(Body(o.body, geom, _tf(o.T_world_obstacle), 0.5 * (lo + hi), 0.5 * (hi - lo),
+                                         box=bool(exact)))
+        self.cell_bodies.append(Body(TABLE, coal.Box(*TABLE_SIZE), _tf(T_table), T_table[:3, 3].copy(), half, box=True))
         self.instances: dict[str, Body] = {}
         self.request = coal.CollisionRequest()
         self.request.enable_contact = True  # see grasplan.collision: contacts on for shallow hits
@@ -144,6 +150,10 @@ class PickWorld:
             return first, bodies
         sets = self.parts[part].collider.shape_sets(np.asarray(width, dtype=np.float64).reshape(-1))
         need = np.zeros((len(bodies), len(sets), M), dtype=bool)
+        # a box shape overlapping an axis-aligned box body even with both shrunk by CERTAIN_OVERLAP
+        # hits it (the separating-axis test is exact for two boxes): no coal call; touching ones go to coal
+        hit = np.zeros((len(bodies), len(sets), M), dtype=bool)
+        boxes = np.array([b.box for b in bodies], dtype=bool)
         Tgs = []
         # distance of each TCP to each body's box, against each shape's reach from the TCP (a
         # bounding sphere): only the poses within reach get the exact box test
@@ -159,6 +169,12 @@ class PickWorld:
             if len(m_):
                 need[bi_, si, m_] = ~obb_aabb_separated(Tbb[m_, :3, 3], Tbb[m_, :3, :3], h[m_], centres[bi_],
                                                         halves[bi_])
+                if s.is_box:
+                    k = np.flatnonzero(boxes[bi_] & need[bi_, si, m_])
+                    mk, bk = m_[k], bi_[k]
+                    hit[bk, si, mk] = ~obb_aabb_separated(Tbb[mk, :3, 3], Tbb[mk, :3, :3],
+                                                          np.maximum(h[mk] - CERTAIN_OVERLAP, 0.0), centres[bk],
+                                                          np.maximum(halves[bk] - CERTAIN_OVERLAP, 0.0))
             Tgs.append(T_world_tcp @ s.T_tcp_geom[s.index] if s.is_box else T_world_tcp)
         collide, req, res = coal.collide, self.request, self.result
         tf = coal.Transform3s()
@@ -170,6 +186,10 @@ class PickWorld:
         done = -1
         for m, bi, si in zip(m_i.tolist(), b_i.tolist(), s_i.tolist()):
             if m == done:
+                continue
+            if hit[bi, si, m]:
+                first[m] = bi
+                done = m
                 continue
             T = Tgs[si][m]
             tf.setRotation(T[:3, :3])
