@@ -28,7 +28,7 @@ import importlib
 
 from .errors import ConfigError, GrasplanError, InputError, MeshError, PlanningError
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 # public name -> (module, attribute), imported on first use
 _LAZY = {
