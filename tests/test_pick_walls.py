@@ -48,3 +48,4 @@ def test_inside_walls_matches_moving_every_point():
         seen[want] += 1
     assert min(seen.values()) > 50, seen  # both verdicts were exercised
     assert inside_walls(np.zeros((3, 3)), np.zeros((1, 3)), None)
+    assert inside_walls(np.zeros((3, 3)), np.zeros((0, 3)), b)  # no shift: nothing moves

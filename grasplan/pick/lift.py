@@ -107,11 +107,11 @@ def inside_walls(hull_world: np.ndarray, shifts: np.ndarray, b: BinSpec | None) 
     """True when the part (its hull vertices ``hull_world`` (k, 3)) moved by each shift (m, 3)
     stays within the bin's inner walls wherever it is below their top (each point at most
     :data:`WALL_SLACK` beyond where it already was outside them)."""
-    if b is None:
+    if b is None or not len(shifts):
         return True
     p0 = _in_bin(hull_world, b)
     T = np.asarray(b.T_world_bin, dtype=np.float64)
-    s = np.asarray(shifts, dtype=np.float64) @ T[:3, :3]  # bin-frame shifts
+    s = np.asarray(shifts, dtype=np.float64).reshape(-1, 3) @ T[:3, :3]  # bin-frame shifts
     half = 0.5 * np.asarray(b.inner, dtype=np.float64)
     out0 = np.maximum(np.abs(p0[:, :2]) - half, 0.0)  # (k, 2) how far each point is already outside
     # a point moves towards a wall at most by the shifts' largest component that way: the points
