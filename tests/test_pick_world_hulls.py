@@ -74,7 +74,7 @@ def test_box_bodies_decided_without_coal_agree_with_coal():
     T = np.zeros((M, 4, 4))
     for m in range(M):
         T[m] = _pose(rng, 0.2)
-    # some poses put a fingertip exactly onto the floor's top (z = 0.01) or a wall's inner face, +- 1 um
+    # every third pose points down with a fingertip on the floor's top (z = 0.01) +- 1 um, or 3 mm into it
     tip = np.array([0.0, 0.0, 0.008])  # the fingertip's centre, TCP frame (schunk_egp_c_40: 8 mm beyond it)
     for m in range(0, M, 3):
         T[m, :3, :3] = rpy_matrix(np.pi, 0.0, rng.uniform(-np.pi, np.pi))  # pointing down
