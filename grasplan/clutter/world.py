@@ -108,15 +108,19 @@ def pad_arc(gripper: Gripper) -> PadArc | None:
     if not getattr(gripper, "moving_tcp", False):
         return None
     P = np.polynomial.polynomial
-    x = np.linspace(0.0, 0.5 * gripper.max_opening, 201)
-    z = np.asarray(gripper.tcp_offset(2.0 * x), dtype=np.float64)
+
+    def path(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``n`` half-openings x, the pad's offset z at each and the arc length s along the path."""
+        x = np.linspace(0.0, 0.5 * gripper.max_opening, n)
+        z = np.asarray(gripper.tcp_offset(2.0 * x), dtype=np.float64)
+        return x, z, np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(x), np.diff(z)))])
+
+    x, z, s = path(201)
     c = P.polyfit(x, z, 4)
     err = float(np.max(np.abs(P.polyval(x, c) - z)))
     if err <= ARC_FIT_TOL:
-        return PadArc(c, None, None, x, np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(x), np.diff(z)))]))
-    x = np.linspace(0.0, 0.5 * gripper.max_opening, 2001)  # the arc length: finer
-    z = np.asarray(gripper.tcp_offset(2.0 * x), dtype=np.float64)
-    s = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(x), np.diff(z)))])
+        return PadArc(c, None, None, x, s)
+    x, z, s = path(2001)  # the arc length: finer
     cx, cz = P.polyfit(s, x, 4), P.polyfit(s, z, 4)
     err_s = max(float(np.max(np.abs(P.polyval(s, cx) - x))), float(np.max(np.abs(P.polyval(s, cz) - z))))
     if err_s > ARC_FIT_TOL:
@@ -191,8 +195,7 @@ def gripper_mjcf(gripper: Gripper, *, mu: float, grip_force: float, arc: PadArc 
                          for k in (0, 1))
     extra = (f'<contact><exclude body1="{PADS[0]}" body2="{PADS[1]}"/><exclude body1="{HAND}" body2="{PADS[0]}"/>'
              f'<exclude body1="{HAND}" body2="{PADS[1]}"/></contact>'
-             f'<equality><joint joint1="{JAWS[0]}" joint2="{JAWS[1]}" polycoef="0 1 0 0 0" '
-             f'solref="{SOLREF_TIMECONST:.6g} 1"/>'
+             f'<equality><joint joint1="{JAWS[0]}" joint2="{JAWS[1]}" polycoef="0 1 0 0 0" {sol}/>'
              + on_arc + '</equality>'
              f'<actuator><motor name="close0" joint="{JAWS[0]}" gear="-1" ctrlrange="{-jaw_force:.9g} {jaw_force:.9g}" '
              f'ctrllimited="true"/><motor name="close1" joint="{JAWS[1]}" gear="-1" '
