@@ -11,6 +11,21 @@ from .errors import InputError
 from .gripper.model import Box, MeshShape, Shape
 
 
+#: m: the table, a box this wide, deep and high whose top face lies on the table plane, centred
+#: under the world origin (a half-space within reach of any arm; coal prunes BVH nodes against a box)
+TABLE_SIZE = (20.0, 20.0, 2.0)
+
+
+def table_pose(table_z: float, shrink: float = 0.0) -> np.ndarray:
+    """``T_world_table`` (4, 4) of the :data:`TABLE_SIZE` box whose top face lies at ``table_z``,
+    lowered by ``shrink`` (m: the copy the part held in the jaws may touch by that much)."""
+    T = np.eye(4)
+    T[2, 3] = float(table_z) - TABLE_SIZE[2] / 2
+    if shrink:
+        T[2, 3] -= shrink
+    return T
+
+
 def bvh(vertices: np.ndarray, faces: np.ndarray) -> coal.BVHModelOBBRSS:
     """An OBBRSS bounding-volume hierarchy of a triangle mesh (vertices (V, 3) m, faces (F, 3))."""
     v = np.ascontiguousarray(vertices, dtype=np.float64)

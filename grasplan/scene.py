@@ -69,7 +69,7 @@ import pinocchio as pin
 
 from .cell import Cell
 from .errors import InputError
-from .geometry import bvh, obstacle_geometry, shape_geometry
+from .geometry import TABLE_SIZE, bvh, obstacle_geometry, shape_geometry, table_pose
 from .gripper.model import Gripper
 from .interpolation import STEP, interpolate_path
 from .meshdata import TriangleMesh
@@ -79,7 +79,6 @@ from .transforms import check_transform, to_se3, translation
 TABLE = "table"
 PART = "part"
 PART_ATTACHED = "part_attached"
-TABLE_SIZE = (20.0, 20.0, 2.0)  # m: the table box (top face at z = table_z, centred under the world origin)
 #: the attached part may touch the table or an obstacle by this much (m) without colliding: it
 #: rests on them at the grasp and at the place (IK error is ~1e-6 m)
 ATTACHED_CONTACT_TOL = 1e-4
@@ -143,8 +142,7 @@ class _SceneModel:
             # a coal Halfspace would be exact, but coal cannot prune BVH nodes against it (every
             # triangle of every link gets tested, ~150 us per link); a box TABLE_SIZE wide and deep
             # with its top face on the table plane is the same solid within reach of any arm
-            T_world_table = np.eye(4)
-            T_world_table[2, 3] = z - TABLE_SIZE[2] / 2
+            T_world_table = table_pose(z)
             gid = gm.addGeometryObject(pin.GeometryObject(TABLE, 0, 0, to_se3(self.T_base_world @ T_world_table),
                                                           coal.Box(*TABLE_SIZE)))
             self.env_ids[TABLE] = gid
@@ -169,9 +167,8 @@ class _SceneModel:
             self.attached_env: list[int] = []
             if cell is not None:
                 tol = ATTACHED_CONTACT_TOL
-                T_world_table[2, 3] -= tol
                 gid = gm.addGeometryObject(pin.GeometryObject(
-                    "table_shrunk", 0, 0, to_se3(self.T_base_world @ T_world_table), coal.Box(*TABLE_SIZE)))
+                    "table_shrunk", 0, 0, to_se3(self.T_base_world @ table_pose(z, tol)), coal.Box(*TABLE_SIZE)))
                 self.attached_env.append(gid)
                 self.body[gid] = TABLE
                 for o in cell.obstacles:

@@ -46,7 +46,7 @@ from ..pickplace import (
     transfer_path,
 )
 from ..robot_model import Robot
-from ..scene import CollisionScene, describe_pairs
+from ..scene import PART, CollisionScene, describe_pairs
 from .params import PickParams
 
 #: what the part in the jaws may rest on at the start of the lift (body name or prefix)
@@ -141,9 +141,11 @@ class MotionContext:
     #: (:mod:`grasplan.pick.depth`); None: any contact beyond ``lift_contact`` is a collision
     lift_depth: Any = None
     #: ``(T_world_part, shifts (s, 3))``: before any grasp, the carried part was checked against the
-    #: neighbours and the cloud at ``T_world_part`` moved by each shift and found free, a contact
-    #: with a neighbour accepted only when ``lift_depth`` accepts it (the rule :func:`lift_collision`
-    #: applies with ``shallow``); None: not checked (every pair is then checked at every waypoint)
+    #: neighbours, the cloud and the cell's table and obstacles (shrunk by
+    #: :data:`grasplan.scene.ATTACHED_CONTACT_TOL`, as the attached variant has them) at
+    #: ``T_world_part`` moved by each shift and found free, a contact with a neighbour accepted only
+    #: when ``lift_depth`` accepts it (the rule :func:`lift_collision` applies with ``shallow``);
+    #: None: not checked (every pair is then checked at every waypoint)
     lift_part_checked: Any = None
 
     def __post_init__(self) -> None:
@@ -281,10 +283,11 @@ def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touc
 def lift_precheck_drop(scene: CollisionScene) -> np.ndarray:
     """Per pair of ``scene``: decided at the lift's waypoints by the checks before IK, the closed
     gripper (body and jaws) against the world (``MotionContext.lift_gripper_check``: the same
-    shapes at the same poses) and the carried part against the neighbours and the cloud
-    (``MotionContext.lift_part_checked``, the picker's straight lift)."""
+    shapes at the same poses) and the carried part against all but the robot's links: the
+    neighbours, the cloud, the table and the obstacles (``MotionContext.lift_part_checked``, the
+    picker's straight lift)."""
     return np.array([(a.startswith("gripper:") or b.startswith("gripper:")) and kind != "self"
-                     or (group == "attached" and extra != "") for a, b, kind, group, extra in scene.pair_rows()])
+                     or (group == "attached" and kind != PART) for a, b, kind, group, extra in scene.pair_rows()])
 
 
 _DROP: "weakref.WeakKeyDictionary[Any, np.ndarray]" = weakref.WeakKeyDictionary()

@@ -13,12 +13,12 @@ Per :meth:`Picker.plan` call:
 2. instances are tried in the accessibility order (:mod:`grasplan.pick.rank`), in passes (the
    best :data:`FIRST_PASS` grasps of every instance whose straight lift is free, then, in the same
    order, the deferred and paused ones: the tilted-lift search of those whose straight lift is
-   blocked, the rest of the undecided ones' grasps); per instance first
-   the lift: the part moved along the cell's retreat, at the line's waypoints beyond
-   ``lift_contact``, against the neighbours and the cloud (the same for every grasp: a hit there
-   fails the robot's lift check whatever the arm does, so only tilted lifts can pick the instance,
-   :mod:`grasplan.pick.lift`); then its grasps posed in the world are ranked, gripper-checked in chunks against neighbours, cloud, bin
-   and table (the first body hit names the blocker), and the collision-free ones motion-planned
+   blocked, the rest of the undecided ones' grasps); per instance first the lift: the part moved along the
+   cell's retreat, at the line's waypoints beyond ``lift_contact``, against the neighbours and the cloud (the
+   same for every grasp: a hit there fails the robot's lift check whatever the arm does, so only tilted lifts
+   can pick the instance, :mod:`grasplan.pick.lift`; and the cell, when a grasp first uses that lift); then
+   its grasps posed in the world are ranked, gripper-checked in chunks against neighbours, cloud, bin and
+   table (the first body hit names the blocker), and the collision-free ones motion-planned
    (:mod:`grasplan.pick.motion`) until one is planned or ``grasps_per_instance`` were tried;
 3. ``sequence``: after each pick the instance is removed and the rest re-planned (the next pick is
    the first feasible one in the new order), until none is left or none is feasible. Otherwise each
@@ -252,8 +252,7 @@ class Picker:
         self._ensure_parts(sc)
         st = self._cell_for(sc)
         cloud = self._cloud(sc)
-        st.world.set_cloud(None if cloud is None else cloud[0], None if cloud is None else cloud[1],
-                           0.0 if cloud is None else cloud[2])
+        st.world.set_cloud(*(cloud or (None, None, 0.0)))
         self._scenes(st, sc, cloud)
         timing: dict[str, float] = {"load": time.perf_counter() - t0}
         t = time.perf_counter()
@@ -527,12 +526,13 @@ class Picker:
                     ctx = ctxs.get(j)
                     if ctx is None:
                         static, att = self._variants(st, inst, present, with_cloud)
-                        # the lift's other waypoints, the part alone (as lift_ok)
+                        # the lift's other waypoints, the part alone (as lift_ok); then all against the cell
                         t_b, (carry.on, carry.direction) = time.perf_counter(), (carrying[j], j)
                         hits_b = st.world.part_hits(inst.part, inst.T_world_part, between[:, None] * dirs[j][1], pile,
                                                     shallow_hit)
-                        timing["lift_check"] += time.perf_counter() - t_b
                         checked = np.concatenate([steps, between[hits_b < 0]])
+                        checked = checked[st.world.clear_of_cell(inst.part, inst.T_world_part, checked, dirs[j][1])]
+                        timing["lift_check"] += time.perf_counter() - t_b
                         ctx = ctxs[j] = MotionContext(
                             self.robot, self.gripper, p, static, att, dirs[j][1], dist, timing, T_place=T_place,
                             lift_gripper_check=lambda T, w: st.world.gripper_at_hits(T, w, bodies),

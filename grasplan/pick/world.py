@@ -22,10 +22,10 @@ import numpy as np
 from ..cell import Cell
 from ..collision import GripperCollider
 from ..containment import obb_aabb_separated
-from ..geometry import bvh, convex_geometry, obstacle_geometry, shape_geometry
+from ..geometry import TABLE_SIZE, bvh, convex_geometry, obstacle_geometry, shape_geometry, table_pose
 from ..gripper.model import Gripper
 from ..mesh import Part
-from ..scene import TABLE, TABLE_SIZE
+from ..scene import ATTACHED_CONTACT_TOL, TABLE
 from ..scenefile import Instance
 
 #: body name prefixes in reports
@@ -80,10 +80,12 @@ class PickWorld:
         self.gripper, self.cell = gripper, cell
         self.parts: dict[str, PartGeometry] = {}
         self.cloud: Body | None = None
-        T_table = np.eye(4)
-        T_table[2, 3] = float(cell.table_z) - TABLE_SIZE[2] / 2
+        T_table = table_pose(cell.table_z)
         half = 0.5 * np.asarray(TABLE_SIZE)
         self.cell_bodies: list[Body] = []
+        #: the cell as the robot scene's carried part meets it (:meth:`grasplan.scene.CollisionScene.attached`):
+        #: obstacles and table shrunk by ATTACHED_CONTACT_TOL (their world boxes: the unshrunk ones)
+        self.cell_shrunk: list[Body] = []
         for o in cell.obstacles:
             lo, hi = o.aabb()
             geom = obstacle_geometry(o)
@@ -91,7 +93,13 @@ class PickWorld:
                 np.sort(hi - lo), np.sort(2.0 * np.asarray(geom.halfSide)), rtol=0.0, atol=1e-12)
             self.cell_bodies.append(Body(o.body, geom, _tf(o.T_world_obstacle), 0.5 * (lo + hi), 0.5 * (hi - lo),
                                          box=bool(exact)))
+            low = obstacle_geometry(o, shrink=ATTACHED_CONTACT_TOL)
+            self.cell_shrunk.append(Body(o.body, low, _tf(o.T_world_obstacle), 0.5 * (lo + hi), 0.5 * (hi - lo),
+                                         low if isinstance(low, (coal.Box, coal.Cylinder, coal.Sphere)) else None))
         self.cell_bodies.append(Body(TABLE, coal.Box(*TABLE_SIZE), _tf(T_table), T_table[:3, 3].copy(), half, box=True))
+        T_low = table_pose(cell.table_z, ATTACHED_CONTACT_TOL)
+        low = coal.Box(*TABLE_SIZE)
+        self.cell_shrunk.append(Body(TABLE, low, _tf(T_low), T_table[:3, 3].copy(), half, low))
         self.instances: dict[str, Body] = {}
         self.request = coal.CollisionRequest()
         self.request.enable_contact = True  # see grasplan.collision: contacts on for shallow hits
@@ -252,6 +260,14 @@ class PickWorld:
                 if first_only:
                     break
         return first
+
+    def clear_of_cell(self, part: str, T_world_part: np.ndarray, travel: np.ndarray, direction: np.ndarray
+                      ) -> np.ndarray:
+        """Per lift ``travel`` (k,) m along ``direction`` (3,): the part at ``T_world_part`` moved that
+        far touches none of :attr:`cell_shrunk` (the table and obstacles as the robot scene's carried
+        part meets them), so the robot scene's lift need not check those pairs there."""
+        shifts = np.asarray(travel, dtype=np.float64)[:, None] * np.asarray(direction, dtype=np.float64)
+        return self.part_hits(part, T_world_part, shifts, self.cell_shrunk) < 0
 
     def gripper_at_hits(self, T_world_tcp: np.ndarray, opening: float, bodies: list[Body]) -> np.ndarray:
         """First body (index into ``bodies``, -1 none) the gripper hits at each world TCP pose
