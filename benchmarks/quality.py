@@ -191,7 +191,7 @@ def main() -> None:
         part = load_part(p)
         t = time.perf_counter()
         # SileaneGear's most probable pose has no grasp for a 50 mm gripper (hub 53 mm, rim on the
-        # table): it is evaluated on its other face, as in benchmarks/coverage.py
+        # table): it is evaluated on its other face, as in benchmarks/bench_coverage.py
         pose = GraspParams(pose_index=1) if p.name == "SileaneGear.stl" else GraspParams()
         gr = compute_grasps(part, gripper="schunk_egp_c_40", cell="table", grasps=pose)
         print(f"{p.name}: compute_grasps {time.perf_counter() - t:.1f} s, quality step "

@@ -35,6 +35,7 @@ from ..gripper.model import Gripper
 from ..ik import get_solver, solve_ik
 from ..interpolation import interpolate_path
 from ..motion import Motion
+from ..pathboxes import scene_clear
 from ..paths import _dist_to_segment, approach_path_reason, plan_joint_path
 from ..pickplace import (
     LINE_SAMPLE,
@@ -259,13 +260,16 @@ def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touc
             reduced[rows[covered[k0:k1]]] = True
         bad: int | None = None
         for on_reduced in (True, False):
-            idx = np.flatnonzero(reduced == on_reduced).tolist()
-            if not idx:
+            idx = np.flatnonzero(reduced == on_reduced)
+            if not len(idx):
                 continue
             if on_reduced:
                 scene.switch_pairs(drop, False)  # type: ignore[arg-type]
             try:
-                for i in idx:
+                # free by the oriented boxes of the pairs on (grasplan.pathboxes): free for coal too
+                if isinstance(scene, CollisionScene):
+                    idx = idx[~scene_clear(scene, dense[idx], width)]
+                for i in idx.tolist():
                     if bad is not None and i > bad:
                         break
                     rests = support and (resting is None or resting(dense[i]))

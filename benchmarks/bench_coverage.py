@@ -1,6 +1,6 @@
 """Coverage of the emitted grasps against an independent dense ground truth (issue 10).
 
-    .venv/bin/python benchmarks/coverage.py [--method regions] [--parts NAME ...] [--points 4000]
+    .venv/bin/python benchmarks/bench_coverage.py [--method regions] [--parts NAME ...] [--points 4000]
 
 Per part (every paper part in ../shared/parts/paper/ or $GRASPLAN_PAPER_PARTS, SileaneGear in its
 stable pose 1; every part in examples/parts/; the 60 x 45 x 14 mm box as 12 triangles and

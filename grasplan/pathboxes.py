@@ -1,0 +1,277 @@
+"""Oriented boxes over whole paths: a compiled, conservative broad phase in front of coal for
+:meth:`grasplan.scene.CollisionScene.path_free` and the pick's lift
+(:func:`grasplan.pick.motion.lift_collision`).
+
+coal reports a collision of two geometries only where they overlap or come within the security
+margin, and every geometry lies inside its local bounding box (coal's ``aabb_local``: a mesh's
+vertices' box, a primitive's exact extent) placed by its joint. So at a configuration where, for
+every active pair, the two oriented boxes lie more than the margin apart, nothing collides.
+:func:`free_mask` decides that per configuration in one numba-compiled loop: forward kinematics of
+the chain (revolute and prismatic joints), each box's world pose, then per pair the world-axis
+boxes and, where those overlap, the separating-axis test of the two oriented boxes (15 axes),
+stopping at the first pair it cannot separate. The configurations it cannot clear go to coal, so
+a path is free exactly when coal says every one of its configurations is: the boxes only spare
+coal the calls whose answer they already know (tests/test_pathboxes.py checks both against coal).
+
+Measured on the bench piles (docs/pick.md): the boxes clear about 92 % of a path's configurations
+at well under a microsecond each, against ~13 us for coal's check through Pinocchio's broad phase
+(~26 us on the lift). The same test in plain NumPy cost 5-10 us per configuration and saved
+nothing. A model with another joint kind, or a geometry whose box is not finite, is never cleared.
+"""
+from __future__ import annotations
+
+import weakref
+from typing import Any
+
+import numba
+import numpy as np
+import pinocchio as pin
+
+#: the boxes must lie this much (m) beyond the security margin apart: float rounding of the box
+#: arithmetic (~1e-15 m) and coal's own tolerances are far below it
+SLACK = 1e-7
+#: fewer configurations than this go to coal alone
+MIN_BATCH = 4
+
+_AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
+
+
+class PathBoxes:
+    """The chain and the boxes of one collision model (a ``pin.Model`` and its
+    ``pin.GeometryModel``), built once: per joint its parent, placement, kind and axis; per
+    geometry its joint and local box. ``ok`` is False for a model with a joint other than
+    revolute or prismatic (then nothing is ever cleared)."""
+
+    def __init__(self, model: pin.Model, gm: pin.GeometryModel):
+        J = int(model.njoints)
+        self.parent = np.array([max(int(p), 0) for p in model.parents], dtype=np.int64)
+        self.R0 = np.zeros((J, 3, 3))
+        self.t0 = np.zeros((J, 3))
+        self.kind = np.zeros(J, dtype=np.int64)  # 0 universe, 1 revolute, 2 prismatic
+        self.axis = np.zeros((J, 3))
+        self.iq = np.zeros(J, dtype=np.int64)
+        self.ok = True
+        for j in range(J):
+            M = model.jointPlacements[j]
+            self.R0[j], self.t0[j] = M.rotation, M.translation
+            if j == 0:
+                continue
+            jm = model.joints[j]
+            name = jm.shortname()
+            self.iq[j] = int(model.idx_qs[j])
+            if name in ("JointModelRX", "JointModelRY", "JointModelRZ"):
+                self.kind[j], self.axis[j] = 1, _AXES[name[-1]]
+            elif name in ("JointModelPX", "JointModelPY", "JointModelPZ"):
+                self.kind[j], self.axis[j] = 2, _AXES[name[-1]]
+            elif name in ("JointModelRevoluteUnaligned", "JointModelPrismaticUnaligned"):
+                a = np.asarray(jm.extract().axis, dtype=np.float64)
+                self.kind[j], self.axis[j] = (1 if "Revolute" in name else 2), a / np.linalg.norm(a)
+            else:
+                self.ok = False
+        n = len(gm.geometryObjects)
+        self.joint = np.zeros(n, dtype=np.int64)
+        self.center = np.zeros((n, 3))
+        self.half = np.zeros((n, 3))
+        self.finite = np.ones(n, dtype=bool)
+        for k, g in enumerate(gm.geometryObjects):
+            g.geometry.computeLocalAABB()
+            box = g.geometry.aabb_local
+            lo, hi = np.array(box.min_, dtype=np.float64), np.array(box.max_, dtype=np.float64)
+            self.joint[k] = int(g.parentJoint)
+            fin = bool(np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)) and np.all(hi >= lo))
+            self.finite[k] = fin
+            if fin:
+                self.center[k], self.half[k] = 0.5 * (lo + hi), 0.5 * (hi - lo)
+
+    def select(self, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(used geometry ids, pairs as indices into them)`` for ``pairs`` ((P, 2) geometry ids),
+        or None when nothing can be cleared (a joint or a box the kernel cannot take)."""
+        pairs = np.ascontiguousarray(pairs, dtype=np.int64).reshape(-1, 2)
+        if not self.ok or (len(pairs) and not np.all(self.finite[pairs])):
+            return None
+        used = np.unique(pairs)
+        slot = np.full(len(self.joint), -1, dtype=np.int64)
+        slot[used] = np.arange(len(used))
+        return used, np.ascontiguousarray(slot[pairs])
+
+    def prepare(self, selected: tuple[np.ndarray, np.ndarray] | None, placements: np.ndarray, margin: float
+                ) -> tuple | None:
+        """The kernel's arguments for the pairs :meth:`select` made, the used geometries at
+        ``placements`` ((len(used), 4, 4), each in its joint's frame)."""
+        if selected is None:
+            return None
+        used, pair_slots = selected
+        P = np.asarray(placements, dtype=np.float64).reshape(-1, 4, 4)
+        R_loc = np.ascontiguousarray(P[:, :3, :3])
+        c_loc = np.ascontiguousarray(P[:, :3, 3] + (R_loc @ self.center[used][:, :, None])[:, :, 0])
+        return (self.parent, self.R0, self.t0, self.kind, self.axis, self.iq, np.ascontiguousarray(self.joint[used]),
+                R_loc, c_loc, np.ascontiguousarray(self.half[used]), pair_slots, float(margin) + SLACK)
+
+    def free_mask(self, qs: np.ndarray, placements: np.ndarray, pairs: np.ndarray, margin: float) -> np.ndarray:
+        """Per configuration of ``qs`` (N, nq): True where every pair of ``pairs`` ((P, 2) geometry
+        ids) has its boxes more than ``margin`` + :data:`SLACK` apart, so that coal finds no
+        collision there. ``placements`` (G, 4, 4): each geometry's placement in its joint's frame."""
+        selected = self.select(pairs)
+        if selected is None:
+            return np.zeros(len(qs), dtype=bool)
+        return run(self.prepare(selected, np.asarray(placements)[selected[0]], margin), qs)
+
+
+def run(prepared: tuple | None, qs: np.ndarray) -> np.ndarray:
+    """:meth:`PathBoxes.free_mask` with the arguments :meth:`PathBoxes.prepare` made."""
+    qs = np.ascontiguousarray(qs, dtype=np.float64)
+    if prepared is None:
+        return np.zeros(len(qs), dtype=bool)
+    return _free_mask(qs, *prepared)
+
+
+@numba.njit(cache=True, nogil=True)
+def _free_mask(qs, parent, R0, t0, kind, axis, iq, gjoint, R_loc, c_loc, half, pairs, tol):  # pragma: no cover
+    n, J, G, P = qs.shape[0], parent.shape[0], gjoint.shape[0], pairs.shape[0]
+    out = np.zeros(n, dtype=np.bool_)
+    oR = np.zeros((J, 3, 3))
+    ot = np.zeros((J, 3))
+    R = np.zeros((G, 3, 3))
+    c = np.zeros((G, 3))
+    hw = np.zeros((G, 3))
+    rot = np.zeros((3, 3))
+    RM = np.zeros((3, 3))
+    for k in range(n):
+        for i in range(3):
+            for j in range(3):
+                oR[0, i, j] = 1.0 if i == j else 0.0
+            ot[0, i] = 0.0
+        for jj in range(1, J):
+            p = parent[jj]
+            for i in range(3):  # parent pose times the joint placement
+                ot[jj, i] = ot[p, i]
+                for j in range(3):
+                    ot[jj, i] += oR[p, i, j] * t0[jj, j]
+                    s = 0.0
+                    for m in range(3):
+                        s += oR[p, i, m] * R0[jj, m, j]
+                    RM[i, j] = s
+            x = qs[k, iq[jj]]
+            if kind[jj] == 1:  # Rodrigues: rot = I + sin K + (1 - cos) K^2
+                a0, a1, a2 = axis[jj, 0], axis[jj, 1], axis[jj, 2]
+                sn, cs = np.sin(x), 1.0 - np.cos(x)
+                rot[0, 0] = 1.0 - cs * (a1 * a1 + a2 * a2)
+                rot[1, 1] = 1.0 - cs * (a0 * a0 + a2 * a2)
+                rot[2, 2] = 1.0 - cs * (a0 * a0 + a1 * a1)
+                rot[0, 1] = -sn * a2 + cs * a0 * a1
+                rot[1, 0] = sn * a2 + cs * a0 * a1
+                rot[0, 2] = sn * a1 + cs * a0 * a2
+                rot[2, 0] = -sn * a1 + cs * a0 * a2
+                rot[1, 2] = -sn * a0 + cs * a1 * a2
+                rot[2, 1] = sn * a0 + cs * a1 * a2
+                for i in range(3):
+                    for j in range(3):
+                        oR[jj, i, j] = RM[i, 0] * rot[0, j] + RM[i, 1] * rot[1, j] + RM[i, 2] * rot[2, j]
+            else:
+                for i in range(3):
+                    for j in range(3):
+                        oR[jj, i, j] = RM[i, j]
+                if kind[jj] == 2:
+                    for i in range(3):
+                        ot[jj, i] += x * (RM[i, 0] * axis[jj, 0] + RM[i, 1] * axis[jj, 1] + RM[i, 2] * axis[jj, 2])
+        for g in range(G):  # each box in the world, and the world-axis box around it
+            jg = gjoint[g]
+            for i in range(3):
+                cc = ot[jg, i]
+                for j in range(3):
+                    cc += oR[jg, i, j] * c_loc[g, j]
+                    s = 0.0
+                    for m in range(3):
+                        s += oR[jg, i, m] * R_loc[g, m, j]
+                    R[g, i, j] = s
+                c[g, i] = cc
+            for i in range(3):
+                hw[g, i] = abs(R[g, i, 0]) * half[g, 0] + abs(R[g, i, 1]) * half[g, 1] + abs(R[g, i, 2]) * half[g, 2]
+        clear = True
+        for pp in range(P):
+            a, b = pairs[pp, 0], pairs[pp, 1]
+            apart = False
+            for i in range(3):
+                if abs(c[a, i] - c[b, i]) - hw[a, i] - hw[b, i] > tol:
+                    apart = True
+                    break
+            if not apart:
+                apart = _obb_apart(R[a], c[a], half[a], R[b], c[b], half[b], tol)
+            if not apart:
+                clear = False
+                break
+        out[k] = clear
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _obb_apart(Ra, ca, ha, Rb, cb, hb, tol):  # pragma: no cover
+    """Separating-axis test of two oriented boxes in box A's frame (Gottschalk et al.'s OBBTree):
+    one of the 15 axes separates them by more than ``tol``. ``|C|`` is padded by 1e-12 and edge
+    axes of nearly parallel edges (length < 1e-6) are skipped, so rounding never separates
+    touching boxes."""
+    C = np.zeros((3, 3))
+    AC = np.zeros((3, 3))
+    t = np.zeros(3)
+    for i in range(3):
+        t[i] = Ra[0, i] * (cb[0] - ca[0]) + Ra[1, i] * (cb[1] - ca[1]) + Ra[2, i] * (cb[2] - ca[2])
+        for j in range(3):
+            C[i, j] = Ra[0, i] * Rb[0, j] + Ra[1, i] * Rb[1, j] + Ra[2, i] * Rb[2, j]
+            AC[i, j] = abs(C[i, j]) + 1e-12
+    for i in range(3):  # A's faces
+        if abs(t[i]) - ha[i] - (AC[i, 0] * hb[0] + AC[i, 1] * hb[1] + AC[i, 2] * hb[2]) > tol:
+            return True
+    for j in range(3):  # B's faces
+        tb = t[0] * C[0, j] + t[1] * C[1, j] + t[2] * C[2, j]
+        if abs(tb) - (AC[0, j] * ha[0] + AC[1, j] * ha[1] + AC[2, j] * ha[2]) - hb[j] > tol:
+            return True
+    for i in range(3):  # edges: axis e_i x C[:, j]
+        i1, i2 = (i + 1) % 3, (i + 2) % 3
+        for j in range(3):
+            j1, j2 = (j + 1) % 3, (j + 2) % 3
+            nL = np.sqrt(C[i1, j] * C[i1, j] + C[i2, j] * C[i2, j])
+            if nL < 1e-6:
+                continue
+            tl = t[i2] * C[i1, j] - t[i1] * C[i2, j]
+            ra = ha[i1] * AC[i2, j] + ha[i2] * AC[i1, j]
+            rb = hb[j1] * AC[i, j2] + hb[j2] * AC[i, j1]
+            if abs(tl) - ra - rb > tol * nL:
+                return True
+    return False
+
+
+_BOXES: "weakref.WeakKeyDictionary[Any, PathBoxes]" = weakref.WeakKeyDictionary()
+
+
+def scene_clear(scene: Any, qs: np.ndarray, opening: float | None = None) -> np.ndarray:
+    """Per configuration of ``qs`` (N, n): True where the oriented boxes of every pair active in
+    ``scene`` (a :class:`grasplan.scene.CollisionScene`; jaws at ``opening``, default as they are)
+    lie apart, so ``scene.is_free`` says free; False: coal must decide. Fewer than
+    :data:`MIN_BATCH` configurations: all False."""
+    qs = np.asarray(qs, dtype=np.float64)
+    if len(qs) < MIN_BATCH:
+        return np.zeros(len(qs), dtype=bool)
+    if opening is not None:
+        scene.set_opening(opening)
+    scene._apply()
+    sh = scene._shared
+    # the kernel's arguments: the active pairs' geometries (cached per active set), then their
+    # placements (cached per jaw opening and attached part's pose)
+    boxes = _BOXES.get(sh)
+    if boxes is None:
+        boxes = _BOXES[sh] = PathBoxes(sh.model, sh.gm)
+    active = scene._active.tobytes()
+    cache = scene.__dict__.setdefault("_boxes_cache", {})  # a few active sets (the lift switches pairs off)
+    if len(cache) > 16:
+        cache.clear()
+    sel = cache.get(active)
+    if sel is None:
+        sel = cache[active] = boxes.select(np.asarray(sh.pairs, dtype=np.int64)[scene._active])
+    key = (active, sh.opening, None if scene.T_tcp_part is None else scene.T_tcp_part.tobytes())
+    prep = cache.get(key)
+    if prep is None:
+        objs = sh.gm.geometryObjects
+        used = [] if sel is None else sel[0].tolist()
+        placements = np.array([objs[k].placement.homogeneous for k in used], dtype=np.float64)
+        prep = cache[key] = boxes.prepare(sel, placements, sh.margin)
+    return run(prep, qs)

@@ -1,0 +1,116 @@
+"""The compiled oriented-box broad phase (grasplan/pathboxes.py) in front of coal: a configuration
+it clears must be free for coal (on random configurations of a pile scene for two robots, with
+the part static and held in the jaws, every pair and a lift's reduced pair set), it must clear a
+good share of the free ones (else it is useless and a broken kernel returning nothing would pass),
+its box test must agree with coal's distance between two boxes, and ``path_free`` with it must
+decide random paths as checking every interpolated configuration with coal does."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import coal
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from grasplan.cell import load_cell
+from grasplan.geometry import bvh
+from grasplan.gripper import load_gripper
+from grasplan.interpolation import interpolate_path
+from grasplan.mesh import load_part
+from grasplan.pathboxes import SLACK, _obb_apart, scene_clear
+from grasplan.pick.motion import lift_precheck_drop
+from grasplan.robot import load_robot
+from grasplan.scene import CollisionScene, ExtraBody
+
+BRACKET = Path(__file__).resolve().parents[1] / "examples" / "parts" / "bracket.stl"
+
+
+def _pile_scene(robot_name: str) -> CollisionScene:
+    part = load_part(BRACKET)
+    geom = bvh(part.mesh.vertices, part.mesh.faces)
+    extras = [ExtraBody(f"instance:{k}", geom, "instance") for k in range(3)]
+    scene = CollisionScene(load_robot(robot_name), load_gripper("schunk_egp_c_40"), part.mesh, np.eye(4),
+                           load_cell("bin"), extras=extras)
+    T = np.eye(4)
+    T[:3, 3] = [0.45, 0.0, 0.03]
+    poses = {}
+    for k in range(3):
+        Tk = np.eye(4)
+        Tk[:3, :3] = Rotation.from_euler("z", 40 * k, degrees=True).as_matrix()
+        Tk[:3, 3] = [0.42 + 0.04 * k, 0.05 * (k - 1), 0.03]
+        poses[f"instance:{k}"] = Tk
+    return scene.arranged(T, poses)
+
+
+def _configs(robot, rng, n):
+    """Uniform in the joint limits (many collide: table, self) and near the bin (the arm bent down
+    over it: near misses)."""
+    lo, hi = np.maximum(robot.lower, -2 * np.pi), np.minimum(robot.upper, 2 * np.pi)
+    uni = rng.uniform(lo, hi, (n, robot.nq))
+    home = np.asarray(robot.q_home, dtype=np.float64)
+    near = home + rng.normal(0.0, 0.6, (n, robot.nq))
+    return np.clip(np.vstack([uni, near]), robot.lower, robot.upper)
+
+
+@pytest.mark.parametrize("robot_name", ["ur5", "panda"])
+def test_cleared_configurations_are_free_for_coal(robot_name):
+    scene = _pile_scene(robot_name)
+    rng = np.random.default_rng(7)
+    qs = _configs(scene.robot, rng, 400)
+    variants = [(scene, 0.03, None)]
+    att = scene.attached(np.eye(4))  # the part at the TCP
+    variants.append((att, 0.02, None))
+    variants.append((att, 0.02, np.flatnonzero(att._active & lift_precheck_drop(att))))  # the lift's reduced set
+    for sc, opening, off in variants:
+        if off is not None:
+            sc.switch_pairs(off, False)
+        try:
+            clear = scene_clear(sc, qs, opening)
+            free = np.array([sc.is_free_exhaustive(q, opening) for q in qs])
+        finally:
+            if off is not None:
+                sc.switch_pairs(off, True)
+        assert not np.any(clear & ~free), np.flatnonzero(clear & ~free)[:5]  # never clears a collision
+        assert free.sum() > 40 and (~free).sum() > 40  # both kinds met
+        assert clear[free].mean() > 0.3, clear[free].mean()  # and clears a good share of the free ones
+
+
+def test_box_test_agrees_with_coal():
+    rng = np.random.default_rng(0)
+    K = 4000
+    Ra = Rotation.random(K, random_state=1).as_matrix()
+    Rb = Rotation.random(K, random_state=2).as_matrix()
+    Rb[:500] = Ra[:500]  # parallel edges
+    Rb[500:1000] = Ra[500:1000] @ Rotation.from_euler("z", rng.uniform(0, 3, (500, 1))).as_matrix()
+    ha, hb = rng.uniform(0.01, 0.3, (K, 3)), rng.uniform(0.01, 0.3, (K, 3))
+    ca, cb = rng.uniform(-0.5, 0.5, (K, 3)), rng.uniform(-0.5, 0.5, (K, 3))
+    req = coal.DistanceRequest()
+    n_apart = 0
+    for k in range(K):
+        res = coal.DistanceResult()
+        d = coal.distance(coal.Box(*(2 * ha[k])), coal.Transform3s(Ra[k], ca[k]), coal.Box(*(2 * hb[k])),
+                          coal.Transform3s(Rb[k], cb[k]), req, res)
+        apart = _obb_apart(Ra[k], ca[k], ha[k], Rb[k], cb[k], hb[k], SLACK)
+        if d <= SLACK:
+            assert not apart, (k, d)
+        elif d > 1e-6:  # the separating-axis test is exact for two boxes
+            assert apart, (k, d)
+        n_apart += apart
+    assert 300 < n_apart < K - 300
+
+
+def test_path_free_decides_as_coal_at_every_step():
+    scene = _pile_scene("ur5")
+    robot = scene.robot
+    rng = np.random.default_rng(3)
+    home = np.asarray(robot.q_home, dtype=np.float64)
+    n_free = n_hit = 0
+    for _ in range(30):
+        qs = np.clip(home + rng.normal(0.0, 0.5, (3, robot.nq)), robot.lower, robot.upper)
+        qs[0] = home
+        want = all(scene.is_free_exhaustive(q, 0.03) for q in interpolate_path(qs))
+        assert scene.path_free(qs, 0.03) == want
+        n_free += want
+        n_hit += not want
+    assert n_free > 3 and n_hit > 3
