@@ -6,7 +6,7 @@ coal reports a collision of two geometries only where they overlap or come withi
 margin, and every geometry lies inside its local bounding box (coal's ``aabb_local``: a mesh's
 vertices' box, a primitive's exact extent) placed by its joint. So at a configuration where, for
 every active pair, the two oriented boxes lie more than the margin apart, nothing collides.
-:meth:`PathBoxes.free_mask` (for a scene: :func:`scene_clear`) decides that per configuration in
+:func:`scene_clear` decides that per configuration of a scene's path in
 one numba-compiled loop: forward kinematics of the chain (revolute and prismatic joints), each
 box's world pose, then per pair the world-axis boxes and, where those overlap, the separating-axis
 test of the two oriented boxes (15 axes), stopping at the first pair it cannot separate. The
@@ -108,18 +108,10 @@ class PathBoxes:
         return (self.parent, self.R0, self.t0, self.kind, self.axis, self.iq, np.ascontiguousarray(self.joint[used]),
                 R_loc, c_loc, np.ascontiguousarray(self.half[used]), pair_slots, float(margin) + SLACK)
 
-    def free_mask(self, qs: np.ndarray, placements: np.ndarray, pairs: np.ndarray, margin: float) -> np.ndarray:
-        """Per configuration of ``qs`` (N, nq): True where every pair of ``pairs`` ((P, 2) geometry
-        ids) has its boxes more than ``margin`` + :data:`SLACK` apart, so that coal finds no
-        collision there. ``placements`` (G, 4, 4): each geometry's placement in its joint's frame."""
-        selected = self.select(pairs)
-        if selected is None:
-            return np.zeros(len(qs), dtype=bool)
-        return run(self.prepare(selected, np.asarray(placements)[selected[0]], margin), qs)
-
 
 def run(prepared: tuple | None, qs: np.ndarray) -> np.ndarray:
-    """:meth:`PathBoxes.free_mask` with the arguments :meth:`PathBoxes.prepare` made."""
+    """Per configuration of ``qs`` (N, nq): True where every pair :meth:`PathBoxes.prepare` was given
+    has its boxes more than the margin + :data:`SLACK` apart, so that coal finds no collision there."""
     qs = np.ascontiguousarray(qs, dtype=np.float64)
     if prepared is None:
         return np.zeros(len(qs), dtype=bool)
