@@ -70,6 +70,8 @@ class PathBoxes:
             else:
                 self.ok = False
         n = len(gm.geometryObjects)
+        self.pairs = np.zeros((0, 2), dtype=np.int64)  #: the collision pairs of the scene it serves (set by it)
+        self.placements = np.zeros((0, 4, 4))  #: the geometries' placements as that scene was built (set by it)
         self.joint = np.zeros(n, dtype=np.int64)
         self.center = np.zeros((n, 3))
         self.half = np.zeros((n, 3))
@@ -115,13 +117,18 @@ def run(prepared: tuple | None, qs: np.ndarray) -> np.ndarray:
     qs = np.ascontiguousarray(qs, dtype=np.float64)
     if prepared is None:
         return np.zeros(len(qs), dtype=bool)
-    return _free_mask(qs, *prepared)
+    starts, _ = _open_pairs(qs, *prepared)
+    return starts[1:] == starts[:-1]
 
 
 @numba.njit(cache=True, nogil=True)
-def _free_mask(qs, parent, R0, t0, kind, axis, iq, gjoint, R_loc, c_loc, half, pairs, tol):  # pragma: no cover
+def _open_pairs(qs, parent, R0, t0, kind, axis, iq, gjoint, R_loc, c_loc, half, pairs, tol):  # pragma: no cover
+    """Per configuration, the pairs (indices into ``pairs``) whose boxes the tests cannot put
+    apart: ``(starts (n + 1,), flat)``, configuration k's in ``flat[starts[k]:starts[k + 1]]``."""
     n, J, G, P = qs.shape[0], parent.shape[0], gjoint.shape[0], pairs.shape[0]
-    out = np.zeros(n, dtype=np.bool_)
+    starts = np.zeros(n + 1, dtype=np.int64)
+    flat = np.empty(max(16, 2 * n), dtype=np.int64)
+    nf = 0
     oR = np.zeros((J, 3, 3))
     ot = np.zeros((J, 3))
     R = np.zeros((G, 3, 3))
@@ -169,6 +176,8 @@ def _free_mask(qs, parent, R0, t0, kind, axis, iq, gjoint, R_loc, c_loc, half, p
                         ot[jj, i] += x * (RM[i, 0] * axis[jj, 0] + RM[i, 1] * axis[jj, 1] + RM[i, 2] * axis[jj, 2])
         for g in range(G):  # each box in the world, and the world-axis box around it
             jg = gjoint[g]
+            if jg == 0 and k > 0:  # fixed in the world: as at the first configuration
+                continue
             for i in range(3):
                 cc = ot[jg, i]
                 for j in range(3):
@@ -180,7 +189,6 @@ def _free_mask(qs, parent, R0, t0, kind, axis, iq, gjoint, R_loc, c_loc, half, p
                 c[g, i] = cc
             for i in range(3):
                 hw[g, i] = abs(R[g, i, 0]) * half[g, 0] + abs(R[g, i, 1]) * half[g, 1] + abs(R[g, i, 2]) * half[g, 2]
-        clear = True
         for pp in range(P):
             a, b = pairs[pp, 0], pairs[pp, 1]
             apart = False
@@ -189,16 +197,20 @@ def _free_mask(qs, parent, R0, t0, kind, axis, iq, gjoint, R_loc, c_loc, half, p
                     apart = True
                     break
             if not apart:
-                apart = _obb_apart(R[a], c[a], half[a], R[b], c[b], half[b], tol)
+                apart = obb_apart(R[a], c[a], half[a], R[b], c[b], half[b], tol)
             if not apart:
-                clear = False
-                break
-        out[k] = clear
-    return out
+                if nf == flat.shape[0]:
+                    grown = np.empty(2 * nf, dtype=np.int64)
+                    grown[:nf] = flat
+                    flat = grown
+                flat[nf] = pp
+                nf += 1
+        starts[k + 1] = nf
+    return starts, flat[:nf]
 
 
 @numba.njit(cache=True, nogil=True)
-def _obb_apart(Ra, ca, ha, Rb, cb, hb, tol):  # pragma: no cover
+def obb_apart(Ra, ca, ha, Rb, cb, hb, tol):  # pragma: no cover
     """Separating-axis test of two oriented boxes in box A's frame (Gottschalk et al.'s OBBTree):
     one of the 15 axes separates them by more than ``tol``. ``|C|`` is padded by 1e-12 and edge
     axes of nearly parallel edges (length < 1e-6) are skipped, so rounding never separates
@@ -236,6 +248,50 @@ def _obb_apart(Ra, ca, ha, Rb, cb, hb, tol):  # pragma: no cover
 _BOXES: "weakref.WeakKeyDictionary[Any, PathBoxes]" = weakref.WeakKeyDictionary()
 
 
+def _prepared(scene: Any, opening: float | None) -> tuple[PathBoxes, tuple | None]:
+    """The kernel's arguments for ``scene``'s active pairs (jaws at ``opening``, default as they
+    are), cached per active set, jaw opening and attached part's pose."""
+    if opening is not None:
+        scene.set_opening(opening)
+    scene._apply()
+    sh = scene._shared
+    boxes = _BOXES.get(sh)
+    if boxes is None:
+        boxes = _BOXES[sh] = PathBoxes(sh.model, sh.gm)
+        boxes.pairs = np.asarray(sh.pairs, dtype=np.int64).reshape(-1, 2)  # the scene's pairs, in its order
+        boxes.placements = np.array([g.placement.homogeneous for g in sh.gm.geometryObjects],
+                                    dtype=np.float64).reshape(-1, 4, 4)  # as built (variants move some)
+    active = scene._active.tobytes()
+    # a few active sets per scene (the lift and the approach switch pairs off), many openings
+    sels, preps = scene.__dict__.setdefault("_boxes_cache", ({}, {}))
+    found = sels.get(active)
+    objs = sh.gm.geometryObjects
+    if found is None:
+        if len(sels) >= 8:
+            sels.clear()
+        sel = boxes.select(boxes.pairs[scene._active])
+        used = [] if sel is None else sel[0].tolist()
+        # the used geometries' placements: the robot's and the cell's as the model was built, the
+        # part's and the extras' this variant's; the jaws and the carried part move (per opening
+        # and grasp)
+        placements = boxes.placements[used]
+        for i, k in enumerate(used):
+            if k in scene._placements:
+                placements[i] = objs[k].placement.homogeneous
+        moving = [i for i, k in enumerate(used) if k in sh.moving_ids]
+        found = sels[active] = (sel, used, moving, placements)
+    sel, used, moving, placements = found
+    key = (active, sh.opening, None if scene.T_tcp_part is None else scene.T_tcp_part.tobytes())
+    prep = preps.get(key)
+    if prep is None:
+        if len(preps) >= 32:
+            preps.clear()
+        for i in moving:
+            placements[i] = objs[used[i]].placement.homogeneous
+        prep = preps[key] = boxes.prepare(sel, placements, sh.margin)
+    return boxes, prep
+
+
 def scene_clear(scene: Any, qs: np.ndarray, opening: float | None = None) -> np.ndarray:
     """Per configuration of ``qs`` (N, n): True where the oriented boxes of every pair active in
     ``scene`` (a :class:`grasplan.scene.CollisionScene`; jaws at ``opening``, default as they are)
@@ -244,27 +300,17 @@ def scene_clear(scene: Any, qs: np.ndarray, opening: float | None = None) -> np.
     qs = np.asarray(qs, dtype=np.float64)
     if len(qs) < MIN_BATCH:
         return np.zeros(len(qs), dtype=bool)
-    if opening is not None:
-        scene.set_opening(opening)
-    scene._apply()
-    sh = scene._shared
-    # the kernel's arguments: the active pairs' geometries (cached per active set), then their
-    # placements (cached per jaw opening and attached part's pose)
-    boxes = _BOXES.get(sh)
-    if boxes is None:
-        boxes = _BOXES[sh] = PathBoxes(sh.model, sh.gm)
-    active = scene._active.tobytes()
-    cache = scene.__dict__.setdefault("_boxes_cache", {})  # a few active sets (the lift switches pairs off)
-    if len(cache) > 16:
-        cache.clear()
-    sel = cache.get(active)
-    if sel is None:
-        sel = cache[active] = boxes.select(np.asarray(sh.pairs, dtype=np.int64)[scene._active])
-    key = (active, sh.opening, None if scene.T_tcp_part is None else scene.T_tcp_part.tobytes())
-    prep = cache.get(key)
+    return run(_prepared(scene, opening)[1], qs)
+
+
+def scene_open(scene: Any, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """Per configuration of ``qs`` (N, n) of ``scene`` (jaws as they are), the active pairs whose
+    oriented boxes do not lie apart, the only ones coal can find colliding there: ``(starts (N +
+    1,), pair ids)`` (indices into the scene's pairs, configuration k's in ``pair_ids[starts[k]:
+    starts[k + 1]]``), or None when the boxes cannot serve this scene (a joint or a box the
+    kernel cannot take)."""
+    boxes, prep = _prepared(scene, None)
     if prep is None:
-        objs = sh.gm.geometryObjects
-        used = [] if sel is None else sel[0].tolist()
-        placements = np.array([objs[k].placement.homogeneous for k in used], dtype=np.float64)
-        prep = cache[key] = boxes.prepare(sel, placements, sh.margin)
-    return run(prep, qs)
+        return None
+    starts, flat = _open_pairs(np.ascontiguousarray(qs, dtype=np.float64).reshape(-1, scene.model.nq), *prep)
+    return starts, np.flatnonzero(scene._active)[flat]

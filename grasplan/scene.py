@@ -58,9 +58,8 @@ The checks before planning (part in the table or an obstacle, ...) are :mod:`gra
 """
 from __future__ import annotations
 
-import functools
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import coal
@@ -71,9 +70,9 @@ from .cell import Cell
 from .errors import InputError
 from .geometry import TABLE_SIZE, bvh, obstacle_geometry, shape_geometry, table_pose
 from .gripper.model import Gripper
-from .interpolation import STEP, interpolate_path
+from .interpolation import STEP, check_order, interpolate_path
 from .meshdata import TriangleMesh
-from .pathboxes import scene_clear
+from .pathboxes import scene_open
 from .robot_model import Robot
 from .transforms import check_transform, to_se3, translation
 
@@ -277,6 +276,8 @@ class _SceneModel:
         self.extra_of = np.array(extra_of, dtype=object)
         self.geom_names = [(gm.geometryObjects[a].name, gm.geometryObjects[b].name) for a, b in pairs]
         self.body_names = [(self.body[a], self.body[b]) for a, b in pairs]
+        #: geometries whose placement changes within a variant: the jaws, the carried part
+        self.moving_ids = {*self.finger_ids, *(self.env_ids[k] for k in (PART_ATTACHED,) if k in self.env_ids)}
 
     def set_opening(self, o: float) -> None:
         if o == self.opening:
@@ -486,7 +487,7 @@ class CollisionScene:
         """True when configuration q (n,) with the jaws at ``opening`` (m; default max_opening)
         collides with nothing (early stop at the first colliding pair)."""
         q = self._prep(q, opening)
-        return not self._collides(q)
+        return self.configs_free(q[None])
 
     def is_free_exhaustive(self, q, opening: float | None = None) -> bool:
         """:meth:`is_free` checking every active pair (no broad phase): the reference of the tests."""
@@ -520,11 +521,14 @@ class CollisionScene:
         hits = self._hits(q, opening, True)
         return self._shared.kinds[hits[0]] if hits else None
 
-    def path_free(self, qs, opening: float | None = None, *, step: float = STEP) -> bool:
+    def path_free(self, qs, opening: float | None = None, *, step: float = STEP,
+                  reduced: tuple[Callable[[np.ndarray], np.ndarray], np.ndarray] | None = None) -> bool:
         """True when the piecewise-linear joint path qs (k, n) is collision-free, checked at every
         waypoint and at interpolated configurations so that no joint moves more than ``step`` rad
-        between two checks (segment i is split into ceil(max|dq| / step) equal parts); coal checks
-        the configurations :func:`grasplan.pathboxes.scene_clear` cannot call free."""
+        between two checks (:func:`grasplan.interpolation.check_order`); coal checks the
+        configurations :func:`grasplan.pathboxes.scene_clear` cannot call free. ``reduced =
+        (covered, drop)``: at the configurations where ``covered(qs)`` (bool per row) holds, the
+        pairs ``drop`` (indices into :meth:`pair_rows`) were decided free before and are skipped."""
         qs = np.asarray(qs, dtype=float)
         if qs.ndim != 2 or qs.shape[1] != self.model.nq:
             raise InputError(f"qs: expected shape (k, {self.model.nq}), got {qs.shape}")
@@ -532,18 +536,36 @@ class CollisionScene:
             raise InputError(f"step: expected > 0 rad, got {step}")
         self.set_opening(self.gripper.max_opening if opening is None else opening)
         self._apply()
-        collides = self._collides
-        for q in qs:  # waypoints first: cheap rejection
-            if collides(q):
-                return False
-        inner = []  # each segment's inner configurations, coarse-to-fine (bisection: a collision midway is met early)
-        for a, b in zip(qs[:-1], qs[1:]):
-            n = int(math.ceil(float(np.max(np.abs(b - a))) / step - 1e-12))
-            if n > 1:
-                inner.append(a + (b - a) * (np.array(_bisection_order(n))[:, None] / n))
-        dense = np.concatenate(inner) if inner else qs[:0]
-        # coal only where the oriented boxes cannot tell (grasplan.pathboxes: apart there means free)
-        return not any(collides(q) for q in dense[~scene_clear(self, dense)])
+        every = check_order(qs, step)
+        if reduced is not None:  # the covered configurations with the pairs ``drop`` off
+            covered, drop = reduced
+            cov = np.asarray(covered(every), dtype=bool)
+            if cov.any():
+                self.switch_pairs(drop, False)
+                try:
+                    if not self.configs_free(every[cov]):
+                        return False
+                finally:
+                    self.switch_pairs(drop, True)
+                every = every[~cov]
+        return self.configs_free(every)
+
+    def configs_free(self, qs: np.ndarray) -> bool:
+        """Every configuration of ``qs`` (k, n) free with the pairs now active: coal only for the
+        pairs whose oriented boxes do not lie apart (:func:`grasplan.pathboxes.scene_open`), the
+        others cannot collide; without the boxes, every pair through the broad phase."""
+        if (found := scene_open(self, qs)) is None:
+            return not any(map(self._collides, qs))
+        starts, pair_ids = found
+        return not any(self.pairs_collide(qs[k], pair_ids[starts[k]:starts[k + 1]])
+                       for k in np.flatnonzero(starts[1:] > starts[:-1]).tolist())
+
+    def pairs_collide(self, q: np.ndarray, pair_ids: np.ndarray) -> bool:
+        """Any of the pairs ``pair_ids`` (indices into :meth:`pair_rows`) in collision at ``q``
+        (coal's narrow phase alone, jaws as they are; early stop)."""
+        m, d, gm, gd = self.model, self.data, self.geom_model, self.geom_data
+        pin.updateGeometryPlacements(m, d, gm, gd, q)
+        return any(pin.computeCollision(gm, gd, p) for p in pair_ids.tolist())
 
     def path_collisions(self, qs, opening: float | None = None, *, step: float = STEP
                         ) -> tuple[int, list[tuple[str, str, str]]] | None:
@@ -573,24 +595,3 @@ def no_path_reason(scene: CollisionScene, q_start, q_goal, opening: float, time_
             return f"{what} invalid: {describe_pairs(pairs, 2)}"
     return (f"start and goal valid; RRTConnect ran out of time ({time_limit:g} s x {attempts} attempts per query) "
             f"or its path failed the 0.01 rad re-check")
-
-
-@functools.lru_cache(maxsize=1024)
-def _bisection_order(n: int) -> tuple[int, ...]:
-    """Indices 1..n-1 in coarse-to-fine order (midpoint first); the same few n come back often."""
-    out: list[int] = []
-    seen = {0, n}
-    level = [(0, n)]
-    while level:
-        nxt = []
-        for lo, hi in level:
-            if hi - lo < 2:
-                continue
-            mid = (lo + hi) // 2
-            if mid not in seen:
-                seen.add(mid)
-                out.append(mid)
-            nxt.append((lo, mid))
-            nxt.append((mid, hi))
-        level = nxt
-    return tuple(out)

@@ -18,7 +18,7 @@ from grasplan.geometry import bvh
 from grasplan.gripper import load_gripper
 from grasplan.interpolation import interpolate_path
 from grasplan.mesh import load_part
-from grasplan.pathboxes import SLACK, _obb_apart, scene_clear
+from grasplan.pathboxes import SLACK, obb_apart, scene_clear
 from grasplan.pick.motion import lift_precheck_drop
 from grasplan.robot import load_robot
 from grasplan.scene import CollisionScene, ExtraBody
@@ -91,7 +91,7 @@ def test_box_test_agrees_with_coal():
         res = coal.DistanceResult()
         d = coal.distance(coal.Box(*(2 * ha[k])), coal.Transform3s(Ra[k], ca[k]), coal.Box(*(2 * hb[k])),
                           coal.Transform3s(Rb[k], cb[k]), req, res)
-        apart = _obb_apart(Ra[k], ca[k], ha[k], Rb[k], cb[k], hb[k], SLACK)
+        apart = obb_apart(Ra[k], ca[k], ha[k], Rb[k], cb[k], hb[k], SLACK)
         if d <= SLACK:
             assert not apart, (k, d)
         elif d > 1e-6:  # the separating-axis test is exact for two boxes
@@ -114,3 +114,54 @@ def test_path_free_decides_as_coal_at_every_step():
         n_free += want
         n_hit += not want
     assert n_free > 3 and n_hit > 3
+
+
+@pytest.mark.parametrize("robot_name", ["ur5", "panda"])
+def test_open_pairs_hold_every_colliding_pair(robot_name):
+    """``scene_open`` lists, per configuration, the pairs whose boxes overlap: every pair coal finds
+    colliding (all pairs, no broad phase) is among them, so ``is_free`` (coal on those pairs alone)
+    decides as checking every pair does, with the part static, held, and the lift's reduced set."""
+    from grasplan.pathboxes import scene_open
+
+    scene = _pile_scene(robot_name)
+    rng = np.random.default_rng(11)
+    qs = _configs(scene.robot, rng, 150)
+    att = scene.attached(np.eye(4))
+    n_hit = n_open = 0
+    for sc, opening, off in [(scene, 0.03, None), (att, 0.02, None),
+                             (att, 0.02, np.flatnonzero(att._active & lift_precheck_drop(att)))]:
+        if off is not None:
+            sc.switch_pairs(off, False)
+        try:
+            sc.set_opening(opening)
+            starts, pair_ids = scene_open(sc, qs)
+            for k, q in enumerate(qs):
+                hit = set(sc._hits(q, opening, False))  # every colliding active pair
+                listed = set(pair_ids[starts[k]:starts[k + 1]].tolist())
+                assert hit <= listed, (k, hit - listed)
+                assert sc.is_free(q, opening) == (not hit) == sc.is_free_exhaustive(q, opening)
+                n_hit += bool(hit)
+                n_open += len(listed)
+        finally:
+            if off is not None:
+                sc.switch_pairs(off, True)
+    assert n_hit > 30 and n_open < 0.5 * len(qs) * 3 * len(scene.pair_rows())  # both kinds met; a real filter
+
+
+def test_check_order_visits_the_interpolated_configurations():
+    """The path check's configurations are interpolate_path's (to rounding), the waypoints first,
+    then each segment's coarse-to-fine (its midpoint before its quarter points)."""
+    from grasplan.interpolation import check_order
+
+    rng = np.random.default_rng(12)
+    for k in (1, 2, 3, 7):
+        qs = np.cumsum(rng.normal(0.0, 0.08, (k, 6)), axis=0)
+        got = check_order(qs)
+        want = interpolate_path(qs)
+        np.testing.assert_array_equal(got[:k], qs)
+        assert len(got) == len(want)
+        key = lambda a: np.lexsort(np.round(a, 9).T[::-1])  # noqa: E731
+        np.testing.assert_allclose(got[key(got)], want[key(want)], atol=1e-12)
+    a, b = np.zeros(6), np.full(6, 0.08)  # 8 parts: 4/8 first, then 2/8 and 6/8
+    got = check_order(np.stack([a, b]))
+    np.testing.assert_allclose(got[2:5, 0], [0.04, 0.02, 0.06])

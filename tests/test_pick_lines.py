@@ -12,7 +12,8 @@ from grasplan.gripper import load_gripper
 from grasplan.ik import get_solver, solve_ik
 from grasplan.mesh import load_part
 from grasplan.paths import approach_path_reason
-from grasplan.pick.motion import _fk_batch, line_path
+from grasplan.pick.lines import world_fk
+from grasplan.pick.motion import line_path
 from grasplan.pile_checks import check_cell, overlap_warnings
 from grasplan.robot import load_robot
 from grasplan.scenefile import Instance
@@ -123,4 +124,4 @@ def test_closed_form_fk_batch_matches_pinocchio(ur5):
     with Pinocchio's far closer than that (and fall back to Pinocchio for robots without one)."""
     robot, _ = ur5
     qs = np.random.default_rng(3).uniform(robot.lower, robot.upper, (300, robot.nq))
-    np.testing.assert_allclose(_fk_batch(robot, qs), robot.fk_batch(qs), atol=1e-9, rtol=0)
+    np.testing.assert_allclose(world_fk(robot, qs), robot.fk_batch(qs), atol=1e-9, rtol=0)

@@ -77,19 +77,35 @@ def wrap_to_limits(q: np.ndarray, lower: np.ndarray, upper: np.ndarray, q_ref: n
 
     q: (n,) -> (n,) or None when some joint has no 2 pi-equivalent within its limits.
     """
-    k = np.round((q_ref - q) / TWO_PI)
-    out = q + k * TWO_PI
-    # the closest may be outside the limits: try the neighbours
-    for j in np.nonzero((out < lower - 1e-12) | (out > upper + 1e-12))[0]:
-        cands = out[j] + TWO_PI * np.array([-2, -1, 1, 2])
-        cands = cands[(cands >= lower[j] - 1e-12) & (cands <= upper[j] + 1e-12)]
-        if len(cands) == 0:
-            return None
-        out[j] = cands[np.argmin(np.abs(cands - q_ref[j]))]
-    return np.clip(out, lower, upper)
+    out, ok = wrap_many(np.asarray(q, dtype=np.float64)[None], lower, upper, q_ref)
+    return out[0] if ok[0] else None
 
 
-def _dedup_sort(sols: list[np.ndarray], q_ref: np.ndarray, n: int, tol: float = 1e-5) -> np.ndarray:
+#: the 2 pi shifts tried for a joint whose nearest equivalent lies outside its limits
+_SHIFTS = TWO_PI * np.array([-2.0, -1.0, 1.0, 2.0])
+
+
+def wrap_many(Q: np.ndarray, lower: np.ndarray, upper: np.ndarray, q_ref: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`wrap_to_limits` of every row of ``Q`` (k, n): ``(wrapped (k, n), ok (k,))``; a row
+    is not ok when some joint has no 2 pi-equivalent within its limits."""
+    out = Q + np.round((q_ref - Q) / TWO_PI) * TWO_PI
+    ok = np.ones(len(Q), dtype=bool)
+    bad = (out < lower - 1e-12) | (out > upper + 1e-12)
+    if bad.any():  # the closest may be outside the limits: try the neighbours
+        cands = out[:, :, None] + _SHIFTS
+        inside = (cands >= (lower - 1e-12)[:, None]) & (cands <= (upper + 1e-12)[:, None])
+        pick = np.argmin(np.where(inside, np.abs(cands - q_ref[:, None]), np.inf), axis=2)
+        out = np.where(bad, np.take_along_axis(cands, pick[:, :, None], axis=2)[:, :, 0], out)
+        ok = ~np.any(bad & ~inside.any(axis=2), axis=1)
+    return np.clip(out, lower, upper), ok
+
+
+#: two solutions closer than this in every joint (rad) are one
+DEDUP_TOL = 1e-5
+
+
+def _dedup_sort(sols: list[np.ndarray], q_ref: np.ndarray, n: int, tol: float = DEDUP_TOL) -> np.ndarray:
     if not sols:
         return np.zeros((0, n))
     S = np.array(sols)
@@ -159,22 +175,24 @@ class IKSolver:
         if closed is not None and method in ("auto", "analytic"):
             used.append("analytic")
             raw, reason = closed.solve(T_base_tool)
-            n_lim = 0
-            for q in raw:
-                qw = wrap_to_limits(q, r.lower, r.upper, q_ref)
-                if qw is None:
-                    n_lim += 1
-                    continue
-                if self._verify(qw, T_base_tool, pos_tol, rot_tol):
-                    sols.append(qw)
-            if raw and not sols:
-                reason = (f"joint_limits: all {len(raw)} closed-form solutions are outside the limits"
-                          if n_lim == len(raw) else "no_convergence: closed-form solutions failed the FK check")
+            if raw:
+                W, in_limits = wrap_many(np.array(raw), r.lower, r.upper, q_ref)
+                W = W[in_limits]
+                # nearest q_ref first; a solution within the dedup tolerance of one kept is not
+                # verified (it would be dropped); stop once max_solutions are verified
+                for i in np.argsort(np.linalg.norm(W - q_ref, axis=1), kind="stable"):
+                    if sols and np.any(np.max(np.abs(np.array(sols) - W[i]), axis=1) <= DEDUP_TOL):
+                        continue
+                    if self._verify(W[i], T_base_tool, pos_tol, rot_tol):
+                        sols.append(W[i])
+                        if max_solutions is not None and len(sols) >= max_solutions:
+                            break
+                if not sols:
+                    reason = (f"joint_limits: all {len(raw)} closed-form solutions are outside the limits"
+                              if not in_limits.any() else "no_convergence: closed-form solutions failed the FK check")
             # CLIK only when the closed form found a candidate that failed (numerical edge cases)
             if sols or not raw or method == "analytic":
-                out = _dedup_sort(sols, q_ref, r.nq)
-                if max_solutions is not None:
-                    out = out[:max_solutions]
+                out = np.array(sols).reshape(-1, r.nq)
                 return IKResult(out, "ok" if len(out) else reason, "analytic")
         used.append("clik")
         oMdes = pin.SE3(T_base_tool[:3, :3].copy(), T_base_tool[:3, 3].copy())

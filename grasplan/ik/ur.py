@@ -21,6 +21,8 @@ import pinocchio as pin
 from ..robot_model import Robot
 from ..transforms import inv_rigid, pose_error
 from .registry import IKFamily, register
+from .ur_batch import Chain, fk_dh, make_chain, solve_one
+
 
 def ur_eligibility(robot: Robot) -> str:
     """Why the UR closed form cannot serve ``robot`` ("" when its structure fits)."""
@@ -32,17 +34,6 @@ def ur_eligibility(robot: Robot) -> str:
     if m.joints[6].shortname() != "JointModelRY":
         return f"wrist 3 axis is not y ({m.joints[6].shortname()})"
     return ""
-
-
-def _dh(theta: float, d: float, a: float, alpha: float) -> np.ndarray:
-    ct, st, ca, sa = math.cos(theta), math.sin(theta), math.cos(alpha), math.sin(alpha)
-    return np.array([[ct, -st * ca, st * sa, a * ct],
-                     [st, ct * ca, -ct * sa, a * st],
-                     [0.0, sa, ca, d],
-                     [0.0, 0.0, 0.0, 1.0]])
-
-
-_ALPHA = (math.pi / 2, 0.0, 0.0, math.pi / 2, -math.pi / 2, 0.0)
 
 
 class URAnalytic:
@@ -72,13 +63,17 @@ class URAnalytic:
         T_j6_tool = m.frames[robot.tool_frame_id].placement
         self.d6 = float(T_j6_tool.translation @ np.array([0.0, 1.0, 0.0]))
         self.T_urdf_dh0 = np.diag([-1.0, -1.0, 1.0, 1.0])  # base_link -> DH frame 0 ("base")
+        lengths = (self.d1, self.a2, self.a3, self.d4, self.d5, self.d6)
         # DH frame 6 -> tool frame, measured at q = 0
         data = m.createData()
         q0 = np.zeros(6)
         pin.forwardKinematics(m, data, q0)
         T_tool0 = pin.updateFramePlacement(m, data, robot.tool_frame_id).homogeneous
-        self.T_dh6_tool = inv_rigid(self.fk_dh(q0)) @ inv_rigid(self.T_urdf_dh0) @ T_tool0
+        T_dh6_0 = fk_dh(make_chain(*lengths, self.T_urdf_dh0, np.eye(4)), q0)
+        self.T_dh6_tool = inv_rigid(T_dh6_0) @ inv_rigid(self.T_urdf_dh0) @ T_tool0
         self.T_tool_dh6 = inv_rigid(self.T_dh6_tool)
+        #: the kernels' view of this arm (:mod:`grasplan.ik.ur_batch`)
+        self.chain: Chain = make_chain(*lengths, self.T_urdf_dh0, self.T_dh6_tool)
         # prove the chain against Pinocchio on random configurations
         rng = np.random.default_rng(12345)
         for q in rng.uniform(-math.pi, math.pi, size=(20, 6)):
@@ -92,56 +87,18 @@ class URAnalytic:
         self.ok = True
 
     def fk_dh(self, q: np.ndarray) -> np.ndarray:
-        d = (self.d1, 0.0, 0.0, self.d4, self.d5, self.d6)
-        a = (0.0, self.a2, self.a3, 0.0, 0.0, 0.0)
-        T = np.eye(4)
-        for i in range(6):
-            T = T @ _dh(q[i], d[i], a[i], _ALPHA[i])
-        return T
+        """DH frame 0 -> DH frame 6 (4, 4) at ``q`` (6,)."""
+        return fk_dh(self.chain, q)
 
     def solve(self, T_base_tool: np.ndarray) -> tuple[list[np.ndarray], str]:
-        """Up to eight raw solutions (angles in (-pi, pi]) for T_base_tool (the robot's model
-        frame, i.e. base_link) and a reason when there are none."""
-        T = inv_rigid(self.T_urdf_dh0) @ T_base_tool @ self.T_tool_dh6  # DH0 -> DH6
-        d1, a2, a3, d4, d5, d6 = self.d1, self.a2, self.a3, self.d4, self.d5, self.d6
-        R, p = T[:3, :3], T[:3, 3]
-        p05 = p - d6 * R[:, 2]
-        r = math.hypot(p05[0], p05[1])
-        if r < abs(d4) - 1e-12:
+        """Up to eight raw solutions (angles in [-pi, pi), in :data:`~grasplan.ik.ur_batch.BRANCHES`
+        order) for T_base_tool (the robot's model frame, i.e. base_link) and a reason when there
+        are none (:func:`grasplan.ik.ur_batch.solve_one`)."""
+        q, ok_r, ok3 = solve_one(self.chain, T_base_tool)
+        if not ok_r:
             return [], "out_of_reach: wrist centre inside the shoulder cylinder (|p05_xy| < d4)"
-        phi = math.atan2(p05[1], p05[0])
-        s = max(-1.0, min(1.0, d4 / r)) if r > 0 else 0.0
-        th1s = (phi + math.asin(s), phi + math.pi - math.asin(s))
-        sols: list[np.ndarray] = []
-        reason = "out_of_reach: target beyond the arm's reach"
-        for th1 in th1s:
-            s1, c1 = math.sin(th1), math.cos(th1)
-            a6 = R.T @ np.array([s1, -c1, 0.0])  # common axis of joints 2-4, in frame 6
-            c5 = max(-1.0, min(1.0, a6[2]))
-            for sign5 in (1.0, -1.0):
-                th5 = sign5 * math.acos(c5)
-                s5 = math.sin(th5)
-                if abs(s5) < 1e-10:
-                    th6 = 0.0  # wrist singularity: theta6 is free; theta4 absorbs it
-                else:
-                    th6 = math.atan2(-a6[1] / s5, a6[0] / s5)
-                T01 = _dh(th1, d1, 0.0, _ALPHA[0])
-                T45 = _dh(th5, d5, 0.0, _ALPHA[4])
-                T56 = _dh(th6, d6, 0.0, _ALPHA[5])
-                T14 = inv_rigid(T01) @ T @ inv_rigid(T45 @ T56)
-                x, y = T14[0, 3], T14[1, 3]
-                c3 = (x * x + y * y - a2 * a2 - a3 * a3) / (2.0 * a2 * a3)
-                if c3 > 1.0 + 1e-9 or c3 < -1.0 - 1e-9:
-                    continue
-                c3 = max(-1.0, min(1.0, c3))
-                for sign3 in (1.0, -1.0):
-                    th3 = sign3 * math.acos(c3)
-                    th2 = math.atan2(y, x) - math.atan2(a3 * math.sin(th3), a2 + a3 * math.cos(th3))
-                    th234 = math.atan2(T14[1, 0], T14[0, 0])
-                    th4 = th234 - th2 - th3
-                    q = np.array([th1, th2, th3, th4, th5, th6])
-                    sols.append((q + math.pi) % math.tau - math.pi)
-        return sols, ("ok" if sols else reason)
+        sols = [q[b] for b in np.flatnonzero(ok3)]
+        return sols, ("ok" if sols else "out_of_reach: target beyond the arm's reach")
 
 
 FAMILY = register(IKFamily(

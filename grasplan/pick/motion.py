@@ -32,11 +32,12 @@ from typing import Any
 import numpy as np
 
 from ..gripper.model import Gripper
-from ..ik import get_solver, solve_ik
+from ..ik import solve_ik
+from ..ik.ur_batch import line_deviation
 from ..interpolation import interpolate_path
 from ..motion import Motion
-from ..pathboxes import scene_clear
-from ..paths import _dist_to_segment, approach_path_reason, plan_joint_path
+from ..pathboxes import MIN_BATCH, scene_open
+from ..paths import approach_path_reason, plan_joint_path
 from ..pickplace import (
     LINE_SAMPLE,
     T_tcp_part_of,
@@ -48,6 +49,9 @@ from ..pickplace import (
 )
 from ..robot_model import Robot
 from ..scene import PART, CollisionScene, describe_pairs
+from ..transforms import inv_rigid
+from .cover import APPROACH_PAD, covered_check, gripper_world_pairs, is_free_covered
+from .lines import fk_base_tool, ur_closed_form, ur_line, world_fk
 from .params import PickParams
 
 #: what the part in the jaws may rest on at the start of the lift (body name or prefix)
@@ -63,27 +67,17 @@ MAX_JOINT_STEP = 0.1
 LIFT_SAMPLE = 0.5 * LINE_SAMPLE
 
 
-def _ur_closed_form(robot: Robot) -> Any:
-    """The robot's UR closed form (:class:`grasplan.ik.ur.URAnalytic`) when it has a working one, else None."""
-    from ..ik.ur import URAnalytic
-
-    closed = get_solver(robot).analytic
-    return closed if isinstance(closed, URAnalytic) and closed.ok else None
-
-
 def line_path(robot: Robot, T_from: np.ndarray, T_to: np.ndarray, q_from: np.ndarray, *, max_dev: float,
               T_flange_tcp: np.ndarray, sample: float = LINE_SAMPLE) -> tuple[np.ndarray | None, str]:
     """Joint waypoints moving the TCP straight ``T_from -> T_to`` (same orientation) from
     ``q_from`` (which reaches ``T_from``): ``(path (k, n), "ok")`` or ``(None, why)`` with why in
     ``ik``, ``limits``, ``jump``, ``deviation`` (see the module docstring)."""
-    from .lines import fk_base_tool, ur_line
-
-    closed = _ur_closed_form(robot)
+    closed = ur_closed_form(robot)
     if closed is None:
         return approach_path_reason(robot, None, T_from, T_to, q_from, opening=0.0, max_dev=max_dev,
                                     T_flange_tcp=T_flange_tcp, sample=sample)
-    T_base = np.linalg.inv(np.asarray(robot.T_world_base, dtype=np.float64))
-    T_tcp_flange = np.linalg.inv(T_flange_tcp)
+    T_base = inv_rigid(np.asarray(robot.T_world_base, dtype=np.float64))
+    T_tcp_flange = inv_rigid(T_flange_tcp)
     a, b = T_from[:3, 3], T_to[:3, 3]
     m = max(1, int(np.ceil(float(np.linalg.norm(b - a)) / sample - 1e-12)))
     T = np.broadcast_to(np.asarray(T_from, dtype=np.float64), (m, 4, 4)).copy()
@@ -95,9 +89,7 @@ def line_path(robot: Robot, T_from: np.ndarray, T_to: np.ndarray, q_from: np.nda
     path, why = ur_line(closed, T_base @ T @ T_tcp_flange, q_from, robot.lower, robot.upper, MAX_JOINT_STEP)
     if path is None:
         return None, why
-    mids = 0.5 * (path[:-1] + path[1:])
-    tcp = (np.asarray(robot.T_world_base) @ fk_base_tool(closed, mids) @ T_flange_tcp)[:, :3, 3]
-    if np.max(_dist_to_segment(tcp, a, b)) > max_dev:
+    if line_deviation(closed.chain, path, robot.T_world_base, T_flange_tcp, a, b) > max_dev:
         return None, "deviation"
     return path, "ok"
 
@@ -148,6 +140,9 @@ class MotionContext:
     #: when ``lift_depth`` accepts it (the rule :func:`lift_collision` applies with ``shallow``);
     #: None: not checked (every pair is then checked at every waypoint)
     lift_part_checked: Any = None
+    #: the gripper along the approach in Cartesian space (branch-independent, before any IK):
+    #: ``(T_pre, T_grasp, opening, pad) -> SweptGripper or None`` (:mod:`grasplan.pick.cover`)
+    approach_sweep: Any = None
 
     def __post_init__(self) -> None:
         self.q_home = np.asarray(self.robot.q_home, dtype=np.float64)
@@ -266,12 +261,18 @@ def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touc
             if on_reduced:
                 scene.switch_pairs(drop, False)  # type: ignore[arg-type]
             try:
-                # free by the oriented boxes of the pairs on (grasplan.pathboxes): free for coal too
-                if isinstance(scene, CollisionScene):
-                    idx = idx[~scene_clear(scene, dense[idx], width)]
-                for i in idx.tolist():
+                # free where coal finds none of the pairs whose oriented boxes overlap colliding
+                # (grasplan.pathboxes: the others cannot); only the rest needs the allowances
+                found = None
+                if isinstance(scene, CollisionScene) and len(idx) >= MIN_BATCH:
+                    scene.set_opening(width)
+                    found = scene_open(scene, dense[idx])
+                for j, i in enumerate(idx.tolist()):
                     if bad is not None and i > bad:
                         break
+                    if found is not None and (found[0][j] == found[0][j + 1] or not scene.pairs_collide(
+                            dense[i], found[1][found[0][j]:found[0][j + 1]])):
+                        continue
                     rests = support and (resting is None or resting(dense[i]))
                     if not _sample_ok(scene, dense[i], width, rests, shallow):
                         bad = i
@@ -290,8 +291,8 @@ def lift_precheck_drop(scene: CollisionScene) -> np.ndarray:
     shapes at the same poses) and the carried part against all but the robot's links: the
     neighbours, the cloud, the table and the obstacles (``MotionContext.lift_part_checked``, the
     picker's straight lift)."""
-    return np.array([(a.startswith("gripper:") or b.startswith("gripper:")) and kind != "self"
-                     or (group == "attached" and kind != PART) for a, b, kind, group, extra in scene.pair_rows()])
+    return gripper_world_pairs(scene) | np.array([group == "attached" and kind != PART
+                                                  for _, _, kind, group, _ in scene.pair_rows()], dtype=bool)
 
 
 _DROP: "weakref.WeakKeyDictionary[Any, np.ndarray]" = weakref.WeakKeyDictionary()
@@ -317,7 +318,7 @@ def _lift_covered(ctx: MotionContext, lift: np.ndarray, T_line: np.ndarray, T_fl
     if ctx.lift_gripper_check is None or ctx.lift_part_checked is None or len(lift) != len(T_line):
         return None
     T_part0, shifts = ctx.lift_part_checked
-    F = _fk_batch(ctx.robot, lift)
+    F = world_fk(ctx.robot, lift)
     tcp = F @ ctx.T_flange_tcp
     part = F @ T_flange_part
     ok = (np.abs(tcp[:, :3, :] - T_line[:, :3, :]).max(axis=(1, 2)) <= COVER_TOL)
@@ -325,17 +326,6 @@ def _lift_covered(ctx: MotionContext, lift: np.ndarray, T_line: np.ndarray, T_fl
     off = part[:, :3, 3] - T_part0[:3, 3]
     near = np.abs(off[:, None, :] - np.asarray(shifts)[None]).max(axis=2) <= COVER_TOL
     return ok & near.any(axis=1)
-
-
-def _fk_batch(robot: Robot, qs: np.ndarray) -> np.ndarray:
-    """``robot.fk_batch(qs)``: with the UR closed form in one NumPy pass (within 2e-11 m of
-    Pinocchio's, a third of its time for a lift's 51 waypoints)."""
-    from .lines import fk_base_tool
-
-    closed = _ur_closed_form(robot)
-    if closed is not None:
-        return np.asarray(robot.T_world_base, dtype=np.float64) @ fk_base_tool(closed, np.asarray(qs, dtype=np.float64))
-    return robot.fk_batch(qs)
 
 
 def _blockers(pairs: list[tuple[str, str, str]]) -> set[str]:
@@ -408,15 +398,22 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
         T_line = np.broadcast_to(T_world_tcp, (len(travel), 4, 4)).copy()
         T_line[:, :3, 3] += travel[:, None] * ctx.retreat_dir
         hit = ctx.lift_gripper_check(T_line, width)
-        timing["lift_check"] += time.perf_counter() - t
+        timing["lift"] += time.perf_counter() - t
         if np.any(hit >= 0):
             k = int(np.flatnonzero(hit >= 0)[0])
             name = ctx.body_names[int(hit[k])]
             return Outcome("lift_collision", f"lift: the closed gripper hits {name} {1e3 * travel[k]:.0f} "
                            f"mm up (any IK solution)", opening=opening,
                            blockers=(name,) if name.startswith("instance:") else ())
+    cover = None
+    if ctx.approach_sweep is not None:  # the open gripper along the approach: the same for every IK branch
+        t = time.perf_counter()
+        swept = ctx.approach_sweep(T_pre, T_world_tcp, opening, APPROACH_PAD)
+        if swept is not None:
+            cover = covered_check(robot, ctx.T_flange_tcp, ctx.static, swept)
+        timing["approach"] += time.perf_counter() - t
     t = time.perf_counter()
-    ik = solve_ik(robot, T_world_tcp @ ctx.T_tcp_flange, seed=p.seed)
+    ik = solve_ik(robot, T_world_tcp @ ctx.T_tcp_flange, seed=p.seed, max_solutions=p.max_ik_solutions)
     timing["ik"] += time.perf_counter() - t
     sols = np.asarray(ik.q, dtype=np.float64).reshape(-1, robot.nq)[: p.max_ik_solutions]
     if len(sols) == 0:
@@ -435,7 +432,7 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
     count = {"grasp": 0, "approach": 0, "approach_kin": 0, "lift": 0, "lift_kin": 0, "path": 0, "place": 0}
     for j, q_grasp in enumerate(sols):
         t = time.perf_counter()
-        free = static.is_free(q_grasp, opening)
+        free = is_free_covered(static, q_grasp, opening, cover)
         timing["collision"] += time.perf_counter() - t
         if not free:
             count["grasp"] += 1
@@ -452,7 +449,7 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
             why.setdefault("approach_kin", reason)
             continue
         t = time.perf_counter()
-        free = static.path_free(back, opening)
+        free = static.path_free(back, opening, reduced=cover)
         timing["collision"] += time.perf_counter() - t
         if not free:
             count["approach"] += 1

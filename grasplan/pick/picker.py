@@ -59,9 +59,8 @@ from .reasons import blockers_of, hits_text, tilts_text
 from .result import InstanceReport, Pick, PickResult
 from .world import CLOUD, INSTANCE_PREFIX, PickWorld
 
-#: the first pass over the instances checks this many grasps of each (best ranked) before any
-#: instance's further grasps: a part whose good grasps are free is found before the deep search
-#: of a boxed-in one
+#: the first pass over the instances checks this many grasps of each (best ranked) before any instance's
+#: further grasps: a part whose good grasps are free is found before the deep search of a boxed-in one
 FIRST_PASS = 256
 #: scene variants (one per instance and arrangement of its neighbours, ~3.7 MB each) kept between
 #: plan() calls: enough for a 30-instance --sequence to reuse them, bounded for a long-running
@@ -528,14 +527,15 @@ class Picker:
                         static, att = self._variants(st, inst, present, with_cloud)
                         # the lift's other waypoints, the part alone (as lift_ok); then all against the cell
                         t_b, (carry.on, carry.direction) = time.perf_counter(), (carrying[j], j)
-                        hits_b = st.world.part_hits(inst.part, inst.T_world_part, between[:, None] * dirs[j][1], pile,
-                                                    shallow_hit)
+                        hits_b = st.world.part_hits(inst.part, inst.T_world_part, between[:, None] * dirs[j][1],
+                                                    pile, shallow_hit)
                         checked = np.concatenate([steps, between[hits_b < 0]])
                         checked = checked[st.world.clear_of_cell(inst.part, inst.T_world_part, checked, dirs[j][1])]
                         timing["lift_check"] += time.perf_counter() - t_b
                         ctx = ctxs[j] = MotionContext(
                             self.robot, self.gripper, p, static, att, dirs[j][1], dist, timing, T_place=T_place,
                             lift_gripper_check=lambda T, w: st.world.gripper_at_hits(T, w, bodies),
+                            approach_sweep=st.world.gripper_swept_free,  # against every body, the grasped part's too
                             body_names=tuple(b.name for b in bodies), lift_depth=None if p.lift_depth <= 0 else
                             lambda T, names, c=carrying[j]: lift_depth(T, names, c),
                             lift_part_checked=(inst.T_world_part, checked[:, None] * dirs[j][1]))  # lift_ok(j), above

@@ -23,10 +23,11 @@ from ..cell import Cell
 from ..collision import GripperCollider
 from ..containment import obb_aabb_separated
 from ..geometry import TABLE_SIZE, bvh, convex_geometry, obstacle_geometry, shape_geometry, table_pose
-from ..gripper.model import Gripper
+from ..gripper.model import Box, Gripper
 from ..mesh import Part
 from ..scene import ATTACHED_CONTACT_TOL, TABLE
 from ..scenefile import Instance
+from .gripboxes import SweptGripper, sweep
 
 #: body name prefixes in reports
 INSTANCE_PREFIX = "instance:"
@@ -52,6 +53,13 @@ class Body:
 def _tf(T: np.ndarray) -> coal.Transform3s:
     T = np.asarray(T, dtype=np.float64)
     return coal.Transform3s(T[:3, :3].copy(), T[:3, 3].copy())
+
+
+def _with_local_box(geom: coal.CollisionGeometry) -> tuple[coal.CollisionGeometry, np.ndarray, np.ndarray]:
+    """``(geom, centre, half extents)`` of coal's local box of ``geom``."""
+    geom.computeLocalAABB()
+    lo, hi = np.asarray(geom.aabb_local.min_), np.asarray(geom.aabb_local.max_)
+    return geom, 0.5 * (lo + hi), 0.5 * (hi - lo)
 
 
 def world_box(vertices: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -107,7 +115,8 @@ class PickWorld:
         self.result = coal.CollisionResult()
         self.hull_request, self.hull_result = coal.CollisionRequest(), coal.CollisionResult()
         self.coal_calls = 0
-        self._closed: dict[float, list] = {}  # gripper shapes with the jaws at one opening (the last asked)
+        self._closed: dict[float, list] = {}  # gripper shapes per jaw opening (the last few asked)
+        self._boxes: dict[tuple[float, ...], tuple] = {}  # a box shape's coal geometry and local box, per size
 
     # -- contents -----------------------------------------------------------------------------------
     def add_part(self, name: str, part: Part) -> PartGeometry:
@@ -269,35 +278,98 @@ class PickWorld:
         shifts = np.asarray(travel, dtype=np.float64)[:, None] * np.asarray(direction, dtype=np.float64)
         return self.part_hits(part, T_world_part, shifts, self.cell_shrunk) < 0
 
-    def gripper_at_hits(self, T_world_tcp: np.ndarray, opening: float, bodies: list[Body]) -> np.ndarray:
-        """First body (index into ``bodies``, -1 none) the gripper hits at each world TCP pose
-        (k, 4, 4) with its jaws at ``opening`` (m; not swept): body shapes and both jaws, world boxes
-        first (each shape's local box), then coal. The robot scene checks the same shapes at the
-        same poses, so a hit here is a hit there."""
-        T_all = np.asarray(T_world_tcp, dtype=np.float64).reshape(-1, 4, 4)
-        first = np.full(len(T_all), -1, dtype=np.int64)
-        if not bodies or not len(T_all):
-            return first
+    def _shapes(self, opening: float) -> list[tuple[coal.CollisionGeometry, np.ndarray, np.ndarray, np.ndarray]]:
+        """The gripper's shapes with the jaws at ``opening``: ``(coal geometry, T_tcp_geom, local
+        box centre, half extents)``, cached for the last few openings."""
         key = round(float(opening), 12)
         shapes = self._closed.get(key)
         if shapes is None:
             shapes = []
             for shape in (*self.gripper.body, *self.gripper.fingers(opening)):
-                geom, T_tcp_geom = shape_geometry(shape)
-                geom.computeLocalAABB()
-                lo, hi = np.asarray(geom.aabb_local.min_), np.asarray(geom.aabb_local.max_)
-                shapes.append((geom, np.asarray(T_tcp_geom, dtype=np.float64), 0.5 * (lo + hi), 0.5 * (hi - lo)))
-            self._closed = {key: shapes}
+                if isinstance(shape, Box):  # its coal geometry and local box depend on its size alone
+                    size = tuple(np.asarray(shape.extents, dtype=np.float64).tolist())
+                    made = self._boxes.get(size)
+                    if made is None:
+                        made = self._boxes[size] = _with_local_box(shape_geometry(shape)[0])
+                    shapes.append((made[0], np.asarray(shape.T_tcp_box, dtype=np.float64), made[1], made[2]))
+                else:
+                    geom, T_tcp_geom = shape_geometry(shape)
+                    _, c_loc, h_loc = _with_local_box(geom)
+                    shapes.append((geom, np.asarray(T_tcp_geom, dtype=np.float64), c_loc, h_loc))
+            if len(self._closed) >= 4:
+                self._closed.clear()
+            self._closed[key] = shapes
+        return shapes
+
+    def gripper_swept_free(self, T_a: np.ndarray, T_b: np.ndarray, opening: float, pad: float,
+                           bodies: list[Body] | None = None) -> SweptGripper | None:
+        """The gripper with its jaws at ``opening`` moved straight from the TCP pose ``T_a`` to
+        ``T_b`` (same orientation): per shape, its local box swept from one to the other and
+        grown by ``pad`` (m), when every such box is apart from every body of ``bodies`` (default:
+        every body, the grasped part's included; world boxes, the separating-axis test, then coal
+        for a body that is no box); else None (a box touches a body: nothing is known)."""
+        bodies = self.bodies(None) if bodies is None else bodies
+        T2 = np.stack([np.asarray(T_a, dtype=np.float64), np.asarray(T_b, dtype=np.float64)])
+        bc = np.array([b.center for b in bodies]).reshape(-1, 3)
+        bh = np.array([b.half for b in bodies]).reshape(-1, 3)
+        box = np.array([b.box for b in bodies], dtype=bool)
+        hreq, hres = self.hull_request, self.hull_result
+        tf = coal.Transform3s()
+        out = []
+        for _, T_tcp_geom, c_loc, h_loc in self._shapes(opening):
+            _, _, _, status, R, cs, hs = sweep(T2, T_tcp_geom, c_loc, h_loc, bc, bh, box, pad)
+            if np.any(status == 2) or not np.any(hs):  # a box body overlaps, or no sweep (turning)
+                return None
+            tf.setRotation(R)
+            tf.setTranslation(cs)
+            swept = coal.Box(*(2.0 * hs))
+            for bi in np.flatnonzero(status == 1).tolist():
+                b = bodies[bi]
+                hres.clear()
+                self.coal_calls += 1
+                if coal.collide(swept, tf, b.geometry, b.tf, hreq, hres):
+                    return None
+            out.append((T_tcp_geom, c_loc, h_loc, R, cs, hs))
+        return SweptGripper(*(np.ascontiguousarray(np.array([o[i] for o in out], dtype=np.float64)) for i in range(6)))
+
+    def gripper_at_hits(self, T_world_tcp: np.ndarray, opening: float, bodies: list[Body]) -> np.ndarray:
+        """First body (index into ``bodies``, -1 none) the gripper hits at each world TCP pose
+        (k, 4, 4) with its jaws at ``opening`` (m; not swept): body shapes and both jaws, world boxes
+        first (each shape's local box), then coal. The robot scene checks the same shapes at the
+        same poses, so a hit here is a hit there.
+
+        Poses that share one orientation (a straight lift) are first checked together, per shape
+        and body (:func:`grasplan.pick.gripboxes.sweep`): the oriented box holding that shape's box
+        at every pose against the body (the separating-axis test on the body's world box, then
+        coal for a body that is no box); where it is apart, that body is apart from the shape at
+        every pose and needs no per-pose call."""
+        T_all = np.asarray(T_world_tcp, dtype=np.float64).reshape(-1, 4, 4)
+        first = np.full(len(T_all), -1, dtype=np.int64)
+        if not bodies or not len(T_all):
+            return first
+        shapes = self._shapes(opening)
         bc = np.array([b.center for b in bodies])
         bh = np.array([b.half for b in bodies])
+        box = np.array([b.box for b in bodies], dtype=bool)
         req, res = self.request, self.result
+        hreq, hres = self.hull_request, self.hull_result
         tf = coal.Transform3s()
         for geom, T_tcp_geom, c_loc, h_loc in shapes:
-            Tg = T_all @ T_tcp_geom
-            c = np.einsum("kij,j->ki", Tg[:, :3, :3], c_loc) + Tg[:, :3, 3]
-            h = np.einsum("kij,j->ki", np.abs(Tg[:, :3, :3]), h_loc)
-            near = np.all(np.abs(c[:, None, :] - bc[None]) <= h[:, None, :] + bh[None], axis=2)
-            for k, bi in zip(*np.nonzero(near)):
+            Tg, ks, bis, status, R, cs, hs = sweep(T_all, T_tcp_geom, c_loc, h_loc, bc, bh, box)
+            check = np.flatnonzero(status == 1)
+            if len(check):  # bodies overlapping the swept box that are no box: coal decides
+                tf.setRotation(R)
+                tf.setTranslation(cs)
+                swept = coal.Box(*(2.0 * hs))
+                for bi in check.tolist():
+                    b = bodies[bi]
+                    hres.clear()
+                    self.coal_calls += 1
+                    if not coal.collide(swept, tf, b.geometry, b.tf, hreq, hres):
+                        status[bi] = 0
+                keep = status[bis] != 0
+                ks, bis = ks[keep], bis[keep]
+            for k, bi in zip(ks.tolist(), bis.tolist()):
                 if first[k] >= 0:
                     continue
                 tf.setRotation(Tg[k, :3, :3])
@@ -308,3 +380,4 @@ class PickWorld:
                 if coal.collide(geom, tf, b.geometry, b.tf, req, res):
                     first[k] = bi
         return first
+

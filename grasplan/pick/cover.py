@@ -1,0 +1,66 @@
+"""The gripper's pairs a grasp's approach need not check again: what the Cartesian check before
+IK decided (:meth:`grasplan.pick.world.PickWorld.gripper_swept_free`).
+
+Before any IK, the picker sweeps each of the gripper's shapes (jaws at the pre-grasp opening)
+along the straight approach, pre-grasp to grasp, as an oriented box grown by
+:data:`APPROACH_PAD`, and checks those boxes against every body of the pile (the grasped part
+included). When all are apart, the gripper touches nothing at any TCP pose whose shapes lie inside
+them, whatever the arm does: at such a configuration (forward kinematics, then the containment
+test of :class:`grasplan.pick.gripboxes.SweptGripper`) the robot scene skips the gripper's pairs
+with the world (:func:`gripper_world_pairs`) and checks the arm's alone. That covers the grasp
+configuration and every configuration of the approach's path, the ones between waypoints
+included (they stray from the line by micrometres; a configuration whose shapes leave the boxes
+is checked with every pair). tests/test_pick_cover.py checks that a covered configuration is
+free for the robot scene with every pair exactly when it is with the arm's pairs alone.
+"""
+from __future__ import annotations
+
+import weakref
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from ..robot_model import Robot
+from ..scene import CollisionScene
+from .gripboxes import SweptGripper
+from .lines import world_fk
+
+#: the approach's swept boxes are this much (m) larger than the shapes' boxes along the line, so
+#: that the configurations between waypoints (micrometres off the line) lie inside them too
+APPROACH_PAD = 2e-4
+
+
+def gripper_world_pairs(scene: CollisionScene) -> np.ndarray:
+    """Per pair of ``scene`` (:meth:`~grasplan.scene.CollisionScene.pair_rows`): a gripper shape
+    (body or jaw) against anything but the robot itself."""
+    return np.array([(a.startswith("gripper:") or b.startswith("gripper:")) and kind != "self"
+                     for a, b, kind, _, _ in scene.pair_rows()], dtype=bool)
+
+
+_PAIRS: "weakref.WeakKeyDictionary[Any, np.ndarray]" = weakref.WeakKeyDictionary()
+
+
+def covered_check(robot: Robot, T_flange_tcp: np.ndarray, scene: CollisionScene, swept: SweptGripper
+                  ) -> tuple[Callable[[np.ndarray], np.ndarray], np.ndarray]:
+    """``(covered, drop)`` for :meth:`grasplan.scene.CollisionScene.path_free`'s ``reduced``:
+    ``covered(qs)`` is True at the configurations (k, n) whose gripper shapes lie inside
+    ``swept``; ``drop``: the active pairs of ``scene`` between the gripper and the world."""
+    mask = _PAIRS.get(scene._shared)
+    if mask is None:
+        mask = _PAIRS[scene._shared] = gripper_world_pairs(scene)
+    drop = np.flatnonzero(scene._active & mask)
+    T_ft = np.asarray(T_flange_tcp, dtype=np.float64)
+    return (lambda qs: swept.holds(world_fk(robot, np.asarray(qs, dtype=np.float64).reshape(-1, robot.nq)) @ T_ft)), drop
+
+
+def is_free_covered(scene: CollisionScene, q: np.ndarray, opening: float,
+                    cover: tuple[Callable[[np.ndarray], np.ndarray], np.ndarray] | None) -> bool:
+    """``scene.is_free(q, opening)``, skipping the pairs ``cover`` drops where it covers ``q``."""
+    if cover is None or not len(cover[1]) or not cover[0](np.asarray(q)[None])[0]:
+        return scene.is_free(q, opening)
+    scene.switch_pairs(cover[1], False)
+    try:
+        return scene.is_free(q, opening)
+    finally:
+        scene.switch_pairs(cover[1], True)
