@@ -1,23 +1,24 @@
-"""Oriented boxes over whole paths: a compiled, conservative broad phase in front of coal for
-:meth:`grasplan.scene.CollisionScene.path_free` and the pick's lift
-(:func:`grasplan.pick.motion.lift_collision`).
+"""Oriented boxes in front of coal: which pairs of a collision scene can collide at a
+configuration, decided for many configurations in one compiled pass
+(:meth:`grasplan.scene.CollisionScene.configs_free`, and through it ``is_free`` and ``path_free``;
+the pick's lift, :func:`grasplan.pick.motion.lift_collision`).
 
 coal reports a collision of two geometries only where they overlap or come within the security
 margin, and every geometry lies inside its local bounding box (coal's ``aabb_local``: a mesh's
-vertices' box, a primitive's exact extent) placed by its joint. So at a configuration where, for
-every active pair, the two oriented boxes lie more than the margin apart, nothing collides.
-:func:`scene_clear` decides that per configuration of a scene's path in
-one numba-compiled loop: forward kinematics of the chain (revolute and prismatic joints), each
-box's world pose, then per pair the world-axis boxes and, where those overlap, the separating-axis
-test of the two oriented boxes (15 axes), stopping at the first pair it cannot separate. The
-configurations it cannot clear go to coal, so a path is free exactly when coal says every one of
-its configurations is: the boxes only spare coal the calls whose answer they already know
-(tests/test_pathboxes.py checks both against coal).
+vertices' box, a primitive's exact extent) placed by its joint. So a pair whose two oriented boxes
+lie more than the margin apart cannot collide. :func:`scene_open` lists, per configuration, the
+active pairs whose boxes do not lie apart, in one numba-compiled loop: forward kinematics of the
+chain (revolute and prismatic joints), each box's world pose (the world's fixed boxes once), then
+per pair the world-axis boxes and, where those overlap, the separating-axis test of the two
+oriented boxes (15 axes). coal's narrow phase then runs on those pairs alone: a configuration is
+free exactly when coal finds none of them colliding, and one with none listed needs no coal call
+(tests/test_pathboxes.py checks both against coal on every pair).
 
-Measured on the bench piles (docs/pick.md): the boxes clear 92-94 % of a path's configurations at
-about 2 us each, against ~13 us for coal's check through Pinocchio's broad phase (~26 us on the
-lift). The same test in plain NumPy cost 5-10 us per configuration and saved nothing.
-A model with another joint kind, or a geometry whose box is not finite, is never cleared.
+Measured on the bench piles (docs/pick.md): the boxes leave no pair at 92-94 % of a path's
+configurations, at about 2 us per configuration, against ~13 us for coal's check through
+Pinocchio's broad phase (~26 us on the lift), which they replace. The same test in plain NumPy
+cost 5-10 us per configuration and saved nothing. A model with another joint kind, or a geometry
+whose box is not finite, is left to that broad phase.
 """
 from __future__ import annotations
 
@@ -31,8 +32,6 @@ import pinocchio as pin
 #: the boxes must lie this much (m) beyond the security margin apart: float rounding of the box
 #: arithmetic (~1e-15 m) and coal's own tolerances are far below it
 SLACK = 1e-7
-#: fewer configurations than this go to coal alone
-MIN_BATCH = 4
 
 _AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
 
@@ -92,10 +91,10 @@ class PathBoxes:
         pairs = np.ascontiguousarray(pairs, dtype=np.int64).reshape(-1, 2)
         if not self.ok or (len(pairs) and not np.all(self.finite[pairs])):
             return None
-        used = np.unique(pairs)
-        slot = np.full(len(self.joint), -1, dtype=np.int64)
-        slot[used] = np.arange(len(used))
-        return used, np.ascontiguousarray(slot[pairs])
+        mask = np.zeros(len(self.joint), dtype=bool)
+        mask[pairs] = True
+        slot = np.cumsum(mask) - 1  # each used geometry's index among the used ones
+        return np.flatnonzero(mask), np.ascontiguousarray(slot[pairs])
 
     def prepare(self, selected: tuple[np.ndarray, np.ndarray] | None, placements: np.ndarray, margin: float
                 ) -> tuple | None:
@@ -109,16 +108,6 @@ class PathBoxes:
         c_loc = np.ascontiguousarray(P[:, :3, 3] + (R_loc @ self.center[used][:, :, None])[:, :, 0])
         return (self.parent, self.R0, self.t0, self.kind, self.axis, self.iq, np.ascontiguousarray(self.joint[used]),
                 R_loc, c_loc, np.ascontiguousarray(self.half[used]), pair_slots, float(margin) + SLACK)
-
-
-def run(prepared: tuple | None, qs: np.ndarray) -> np.ndarray:
-    """Per configuration of ``qs`` (N, nq): True where every pair :meth:`PathBoxes.prepare` was given
-    has its boxes more than the margin + :data:`SLACK` apart, so that coal finds no collision there."""
-    qs = np.ascontiguousarray(qs, dtype=np.float64)
-    if prepared is None:
-        return np.zeros(len(qs), dtype=bool)
-    starts, _ = _open_pairs(qs, *prepared)
-    return starts[1:] == starts[:-1]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -290,17 +279,6 @@ def _prepared(scene: Any, opening: float | None) -> tuple[PathBoxes, tuple | Non
             placements[i] = objs[used[i]].placement.homogeneous
         prep = preps[key] = boxes.prepare(sel, placements, sh.margin)
     return boxes, prep
-
-
-def scene_clear(scene: Any, qs: np.ndarray, opening: float | None = None) -> np.ndarray:
-    """Per configuration of ``qs`` (N, n): True where the oriented boxes of every pair active in
-    ``scene`` (a :class:`grasplan.scene.CollisionScene`; jaws at ``opening``, default as they are)
-    lie apart, so ``scene.is_free`` says free; False: coal must decide. Fewer than
-    :data:`MIN_BATCH` configurations: all False."""
-    qs = np.asarray(qs, dtype=np.float64)
-    if len(qs) < MIN_BATCH:
-        return np.zeros(len(qs), dtype=bool)
-    return run(_prepared(scene, opening)[1], qs)
 
 
 def scene_open(scene: Any, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:

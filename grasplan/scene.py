@@ -526,7 +526,7 @@ class CollisionScene:
         """True when the piecewise-linear joint path qs (k, n) is collision-free, checked at every
         waypoint and at interpolated configurations so that no joint moves more than ``step`` rad
         between two checks (:func:`grasplan.interpolation.check_order`); coal checks the
-        configurations :func:`grasplan.pathboxes.scene_clear` cannot call free. ``reduced =
+        configurations :func:`grasplan.pathboxes.scene_open` cannot call free. ``reduced =
         (covered, drop)``: at the configurations where ``covered(qs)`` (bool per row) holds, the
         pairs ``drop`` (indices into :meth:`pair_rows`) were decided free before and are skipped."""
         qs = np.asarray(qs, dtype=float)

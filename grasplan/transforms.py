@@ -41,6 +41,15 @@ def check_transform(T, name: str = "T", *, batch: bool = False, error: type[Exce
     Checks shape, finiteness, last row ``0 0 0 1``, orthonormal rotation with det +1; raises
     ``error`` with a message naming ``name`` and what is wrong.
     """
+    if not batch and type(T) is np.ndarray and T.shape == (4, 4) and T.dtype == np.float64:
+        (r0, r1, r2, x), (r3, r4, r5, y), (r6, r7, r8, z), last = T.tolist()  # one matrix: in floats
+        rows = ((r0, r1, r2), (r3, r4, r5), (r6, r7, r8))
+        if (all(map(math.isfinite, (r0, r1, r2, r3, r4, r5, r6, r7, r8, x, y, z, *last)))
+                and max(abs(last[0]), abs(last[1]), abs(last[2]), abs(last[3] - 1.0)) <= tol
+                and all(abs(sum(a * b for a, b in zip(rows[i], rows[j])) - (i == j)) <= tol
+                        for i in range(3) for j in range(i, 3))
+                and r0 * (r4 * r8 - r5 * r7) - r1 * (r3 * r8 - r5 * r6) + r2 * (r3 * r7 - r4 * r6) >= 0.0):
+            return T
     try:
         A = np.asarray(T, dtype=np.float64)
     except (TypeError, ValueError):

@@ -1,5 +1,5 @@
 """The compiled oriented-box broad phase (grasplan/pathboxes.py) in front of coal: a configuration
-it clears must be free for coal (on random configurations of a pile scene for two robots, with
+it leaves no pair at must be free for coal (on random configurations of a pile scene for two robots, with
 the part static and held in the jaws, every pair and a lift's reduced pair set), it must clear a
 good share of the free ones (else it is useless and a broken kernel returning nothing would pass),
 its box test must agree with coal's distance between two boxes, and ``path_free`` with it must
@@ -18,7 +18,7 @@ from grasplan.geometry import bvh
 from grasplan.gripper import load_gripper
 from grasplan.interpolation import interpolate_path
 from grasplan.mesh import load_part
-from grasplan.pathboxes import SLACK, obb_apart, scene_clear
+from grasplan.pathboxes import SLACK, obb_apart, scene_open
 from grasplan.pick.motion import lift_precheck_drop
 from grasplan.robot import load_robot
 from grasplan.scene import CollisionScene, ExtraBody
@@ -66,7 +66,9 @@ def test_cleared_configurations_are_free_for_coal(robot_name):
         if off is not None:
             sc.switch_pairs(off, False)
         try:
-            clear = scene_clear(sc, qs, opening)
+            sc.set_opening(opening)
+            starts, _ = scene_open(sc, qs)
+            clear = starts[1:] == starts[:-1]  # no pair left to coal
             free = np.array([sc.is_free_exhaustive(q, opening) for q in qs])
         finally:
             if off is not None:
@@ -121,8 +123,6 @@ def test_open_pairs_hold_every_colliding_pair(robot_name):
     """``scene_open`` lists, per configuration, the pairs whose boxes overlap: every pair coal finds
     colliding (all pairs, no broad phase) is among them, so ``is_free`` (coal on those pairs alone)
     decides as checking every pair does, with the part static, held, and the lift's reduced set."""
-    from grasplan.pathboxes import scene_open
-
     scene = _pile_scene(robot_name)
     rng = np.random.default_rng(11)
     qs = _configs(scene.robot, rng, 150)

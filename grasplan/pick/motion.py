@@ -36,7 +36,7 @@ from ..ik import solve_ik
 from ..ik.ur_batch import line_deviation
 from ..interpolation import interpolate_path
 from ..motion import Motion
-from ..pathboxes import MIN_BATCH, scene_open
+from ..pathboxes import scene_open
 from ..paths import approach_path_reason, plan_joint_path
 from ..pickplace import (
     LINE_SAMPLE,
@@ -264,7 +264,7 @@ def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touc
                 # free where coal finds none of the pairs whose oriented boxes overlap colliding
                 # (grasplan.pathboxes: the others cannot); only the rest needs the allowances
                 found = None
-                if isinstance(scene, CollisionScene) and len(idx) >= MIN_BATCH:
+                if isinstance(scene, CollisionScene):
                     scene.set_opening(width)
                     found = scene_open(scene, dense[idx])
                 for j, i in enumerate(idx.tolist()):
@@ -426,7 +426,7 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
     flange_at_grasp = (T_world_tcp @ ctx.T_tcp_flange)[:3, 3]
 
     def resting(q: np.ndarray) -> bool:  # TCP travel from the grasp (FK) within lift_contact
-        return bool(np.linalg.norm(robot.fk(q)[:3, 3] - flange_at_grasp) <= p.lift_contact + 1e-9)
+        return bool(np.linalg.norm(world_fk(robot, q[None])[0, :3, 3] - flange_at_grasp) <= p.lift_contact + 1e-9)
     why: dict[str, str] = {}
     blockers: set[str] = set()
     count = {"grasp": 0, "approach": 0, "approach_kin": 0, "lift": 0, "lift_kin": 0, "path": 0, "place": 0}
