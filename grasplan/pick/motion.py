@@ -267,11 +267,15 @@ def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touc
                 if isinstance(scene, CollisionScene):
                     scene.set_opening(width)
                     found = scene_open(scene, dense[idx])
+                if found is not None:  # only the configurations with pairs left to coal
+                    starts, pair_ids = found
+                    keep = np.flatnonzero(starts[1:] > starts[:-1])
+                    spans = list(zip(starts[keep].tolist(), starts[keep + 1].tolist()))
+                    idx = idx[keep]
                 for j, i in enumerate(idx.tolist()):
                     if bad is not None and i > bad:
                         break
-                    if found is not None and (found[0][j] == found[0][j + 1] or not scene.pairs_collide(
-                            dense[i], found[1][found[0][j]:found[0][j + 1]])):
+                    if found is not None and not scene.pairs_collide(dense[i], pair_ids[spans[j][0]:spans[j][1]]):
                         continue
                     rests = support and (resting is None or resting(dense[i]))
                     if not _sample_ok(scene, dense[i], width, rests, shallow):
