@@ -47,6 +47,14 @@ def convex_geometry(points: np.ndarray) -> coal.ConvexBase:
     return coal.Convex.convexHull(pts, False, "")
 
 
+def local_box(geom: coal.CollisionGeometry) -> tuple[np.ndarray, np.ndarray]:
+    """``(centre (3,), half extents (3,))`` of coal's local box of ``geom`` (a mesh's vertices' box, a
+    primitive's exact extent; not finite for an unbounded shape)."""
+    geom.computeLocalAABB()
+    lo, hi = np.array(geom.aabb_local.min_, dtype=np.float64), np.array(geom.aabb_local.max_, dtype=np.float64)
+    return 0.5 * (lo + hi), 0.5 * (hi - lo)
+
+
 def shape_geometry(shape: Shape) -> tuple[coal.CollisionGeometry, np.ndarray]:
     """(coal geometry, T_tcp_geom (4, 4)) for a gripper shape (:mod:`grasplan.gripper`): a
     :class:`~grasplan.gripper.Box` (``extents`` (3,), ``T_tcp_box`` (4, 4)) or a

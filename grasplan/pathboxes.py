@@ -29,6 +29,8 @@ import numba
 import numpy as np
 import pinocchio as pin
 
+from .geometry import local_box
+
 #: the boxes must lie this much (m) beyond the security margin apart: float rounding of the box
 #: arithmetic (~1e-15 m) and coal's own tolerances are far below it
 SLACK = 1e-7
@@ -42,7 +44,7 @@ class PathBoxes:
     geometry its joint and local box. ``ok`` is False for a model with a joint other than
     revolute or prismatic (then nothing is ever cleared)."""
 
-    def __init__(self, model: pin.Model, gm: pin.GeometryModel):
+    def __init__(self, model: pin.Model, gm: pin.GeometryModel, pairs: Any = ()):
         J = int(model.njoints)
         self.parent = np.array([max(int(p), 0) for p in model.parents], dtype=np.int64)
         self.R0 = np.zeros((J, 3, 3))
@@ -69,21 +71,22 @@ class PathBoxes:
             else:
                 self.ok = False
         n = len(gm.geometryObjects)
-        self.pairs = np.zeros((0, 2), dtype=np.int64)  #: the collision pairs of the scene it serves (set by it)
-        self.placements = np.zeros((0, 4, 4))  #: the geometries' placements as that scene was built (set by it)
+        #: the collision pairs ``pairs`` ((P, 2) geometry ids) of the scene it serves, in its order
+        self.pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+        #: the geometries' placements now (a variant moves its parts, extras and jaws: it updates those)
+        self.placements = np.array([g.placement.homogeneous for g in gm.geometryObjects],
+                                   dtype=np.float64).reshape(-1, 4, 4)
         self.joint = np.zeros(n, dtype=np.int64)
         self.center = np.zeros((n, 3))
         self.half = np.zeros((n, 3))
         self.finite = np.ones(n, dtype=bool)
         for k, g in enumerate(gm.geometryObjects):
-            g.geometry.computeLocalAABB()
-            box = g.geometry.aabb_local
-            lo, hi = np.array(box.min_, dtype=np.float64), np.array(box.max_, dtype=np.float64)
+            c, h = local_box(g.geometry)
             self.joint[k] = int(g.parentJoint)
-            fin = bool(np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)) and np.all(hi >= lo))
+            fin = bool(np.all(np.isfinite(c)) and np.all(np.isfinite(h)) and np.all(h >= 0.0))
             self.finite[k] = fin
             if fin:
-                self.center[k], self.half[k] = 0.5 * (lo + hi), 0.5 * (hi - lo)
+                self.center[k], self.half[k] = c, h
 
     def select(self, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
         """``(used geometry ids, pairs as indices into them)`` for ``pairs`` ((P, 2) geometry ids),
@@ -246,10 +249,7 @@ def _prepared(scene: Any, opening: float | None) -> tuple[PathBoxes, tuple | Non
     sh = scene._shared
     boxes = _BOXES.get(sh)
     if boxes is None:
-        boxes = _BOXES[sh] = PathBoxes(sh.model, sh.gm)
-        boxes.pairs = np.asarray(sh.pairs, dtype=np.int64).reshape(-1, 2)  # the scene's pairs, in its order
-        boxes.placements = np.array([g.placement.homogeneous for g in sh.gm.geometryObjects],
-                                    dtype=np.float64).reshape(-1, 4, 4)  # as built (variants move some)
+        boxes = _BOXES[sh] = PathBoxes(sh.model, sh.gm, sh.pairs)
     active = scene._active.tobytes()
     # a few active sets per scene (the lift and the approach switch pairs off), many openings
     sels, preps = scene.__dict__.setdefault("_boxes_cache", ({}, {}))

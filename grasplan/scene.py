@@ -472,7 +472,8 @@ class CollisionScene:
         return [k for k, res in enumerate(self.geom_data.collisionResults) if self._active[k] and res.isCollision()]
 
     def _collides(self, q: np.ndarray) -> bool:
-        """Any active pair in collision at q (early stop). A scene with extra bodies (many pairs)
+        """Any active pair in collision at q (early stop), without the boxes (:meth:`configs_free`
+        falls back to it for a model they cannot serve). A scene with extra bodies (many pairs)
         goes through a broad phase first: coal's sweep and prune (SSaP) over the placed geometries
         (Pinocchio's ``BroadPhaseManager``; only the active pairs whose world boxes overlap reach
         the narrow phase; the same answer, several times faster with a pile)."""

@@ -96,6 +96,7 @@ def test_ur_line_branch_named_by_the_start_signs_is_the_best_match(ur5):
     """ur_line solves only the branch the start's signs name (start_branch); the paths are those of
     comparing all eight branches, on random lines from random starts."""
     import grasplan.pick.lines as lines
+    from grasplan.ik.ur_batch import branch_many, solve_one
 
     robot, _ = ur5
     ur = get_solver(robot).analytic
@@ -108,7 +109,11 @@ def test_ur_line_branch_named_by_the_start_signs_is_the_best_match(ur5):
         T = np.broadcast_to(T0, (20, 4, 4)).copy()
         T[:, :3, 3] = T0[:3, 3] + 0.1 * d / np.linalg.norm(d) * (np.arange(1, 21) / 20)[:, None]
         got = lines.ur_line(ur, T, q0, robot.lower, robot.upper, 0.1)
-        Q, valid = lines.branches(ur, np.concatenate([T0[None], T]))
+        b_all = [branch_many(ur.chain, np.concatenate([T0[None], T]), b) for b in range(8)]  # every branch
+        Q, valid = np.array([q for q, _ in b_all]), np.array([v for _, v in b_all])
+        Q0, ok_r, ok3 = solve_one(ur.chain, T0)  # at the start, as IK solves it
+        np.testing.assert_array_equal(Q[:, 0], Q0)
+        np.testing.assert_array_equal(valid[:, 0], ok_r & ok3)
         gap = Q[:, 0, :] - q0
         b = int(np.argmin(np.where(valid[:, 0], np.abs(gap - 2 * np.pi * np.round(gap / (2 * np.pi))).max(axis=1),
                                    np.inf)))

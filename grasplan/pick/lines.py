@@ -16,7 +16,7 @@ import numpy as np
 
 from ..ik import get_solver
 from ..ik.ur import URAnalytic
-from ..ik.ur_batch import BRANCHES, branch_many, fk_many, follow, solve_one
+from ..ik.ur_batch import BRANCHES, fk_many, follow, solve_one
 from ..robot_model import Robot
 
 TWO_PI = 2.0 * np.pi
@@ -27,15 +27,6 @@ BRANCH_TOL = 1e-6
 #: a start configuration this close (sine of the wrist or elbow angle, shoulder distance in m) to a
 #: singularity gets every branch compared (:func:`ur_line`), not the one its signs name
 SINGULAR = 1e-3
-
-
-def branches(ur: URAnalytic, T_base_tool: np.ndarray, only: tuple[int, ...] = tuple(range(8))
-             ) -> tuple[np.ndarray, np.ndarray]:
-    """``(q (b, m, 6), valid (b, m))``: the closed-form branches ``only`` (indices into
-    :data:`~grasplan.ik.ur_batch.BRANCHES`, default all eight) for the tool poses ``T_base_tool``
-    (m, 4, 4), angles in (-pi, pi] (:func:`grasplan.ik.ur_batch.branch_many`)."""
-    out = [branch_many(ur.chain, T_base_tool, b) for b in only]
-    return np.array([q for q, _ in out]), np.array([v for _, v in out])
 
 
 def start_branch(ur: URAnalytic, q0: np.ndarray, T0_base_tool: np.ndarray) -> int | None:

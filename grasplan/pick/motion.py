@@ -409,6 +409,12 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
             return Outcome("lift_collision", f"lift: the closed gripper hits {name} {1e3 * travel[k]:.0f} "
                            f"mm up (any IK solution)", opening=opening,
                            blockers=(name,) if name.startswith("instance:") else ())
+    t = time.perf_counter()
+    ik = solve_ik(robot, T_world_tcp @ ctx.T_tcp_flange, seed=p.seed, max_solutions=p.max_ik_solutions)
+    timing["ik"] += time.perf_counter() - t
+    sols = np.asarray(ik.q, dtype=np.float64).reshape(-1, robot.nq)[: p.max_ik_solutions]
+    if len(sols) == 0:
+        return Outcome("unreachable", f"no IK solution within the joint limits ({ik.reason})", opening=opening)
     cover = None
     if ctx.approach_sweep is not None:  # the open gripper along the approach: the same for every IK branch
         t = time.perf_counter()
@@ -416,12 +422,6 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
         if swept is not None:
             cover = covered_check(robot, ctx.T_flange_tcp, ctx.static, swept)
         timing["approach"] += time.perf_counter() - t
-    t = time.perf_counter()
-    ik = solve_ik(robot, T_world_tcp @ ctx.T_tcp_flange, seed=p.seed, max_solutions=p.max_ik_solutions)
-    timing["ik"] += time.perf_counter() - t
-    sols = np.asarray(ik.q, dtype=np.float64).reshape(-1, robot.nq)[: p.max_ik_solutions]
-    if len(sols) == 0:
-        return Outcome("unreachable", f"no IK solution within the joint limits ({ik.reason})", opening=opening)
     static, att = ctx.static, ctx.attached
     att.move_attached(T_tcp_part_of(T_part_tcp))
     drop = _drop_pairs(att) if T_line is not None and ctx.lift_part_checked is not None else None

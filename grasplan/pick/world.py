@@ -22,7 +22,7 @@ import numpy as np
 from ..cell import Cell
 from ..collision import GripperCollider
 from ..containment import obb_aabb_separated
-from ..geometry import TABLE_SIZE, bvh, convex_geometry, obstacle_geometry, shape_geometry, table_pose
+from ..geometry import TABLE_SIZE, bvh, convex_geometry, local_box, obstacle_geometry, shape_geometry, table_pose
 from ..gripper.model import Box, Gripper
 from ..mesh import Part
 from ..scene import ATTACHED_CONTACT_TOL, TABLE
@@ -53,13 +53,6 @@ class Body:
 def _tf(T: np.ndarray) -> coal.Transform3s:
     T = np.asarray(T, dtype=np.float64)
     return coal.Transform3s(T[:3, :3].copy(), T[:3, 3].copy())
-
-
-def _with_local_box(geom: coal.CollisionGeometry) -> tuple[coal.CollisionGeometry, np.ndarray, np.ndarray]:
-    """``(geom, centre, half extents)`` of coal's local box of ``geom``."""
-    geom.computeLocalAABB()
-    lo, hi = np.asarray(geom.aabb_local.min_), np.asarray(geom.aabb_local.max_)
-    return geom, 0.5 * (lo + hi), 0.5 * (hi - lo)
 
 
 def world_box(vertices: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -290,11 +283,12 @@ class PickWorld:
                     size = tuple(np.asarray(shape.extents, dtype=np.float64).tolist())
                     made = self._boxes.get(size)
                     if made is None:
-                        made = self._boxes[size] = _with_local_box(shape_geometry(shape)[0])
+                        geom = shape_geometry(shape)[0]
+                        made = self._boxes[size] = (geom, *local_box(geom))
                     shapes.append((made[0], np.asarray(shape.T_tcp_box, dtype=np.float64), made[1], made[2]))
                 else:
                     geom, T_tcp_geom = shape_geometry(shape)
-                    _, c_loc, h_loc = _with_local_box(geom)
+                    c_loc, h_loc = local_box(geom)
                     shapes.append((geom, np.asarray(T_tcp_geom, dtype=np.float64), c_loc, h_loc))
             if len(self._closed) >= 4:
                 self._closed.clear()
