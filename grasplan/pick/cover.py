@@ -1,7 +1,8 @@
-"""The gripper's pairs a grasp's approach need not check again: what the Cartesian check before
-IK decided (:meth:`grasplan.pick.world.PickWorld.gripper_swept_free`).
+"""The gripper's pairs a grasp's approach need not check again: what the Cartesian check of the
+whole approach decided (:meth:`grasplan.pick.world.PickWorld.gripper_swept_free`).
 
-Before any IK, the picker sweeps each of the gripper's shapes (jaws at the pre-grasp opening)
+Once IK has found the grasp reachable, and before any of its solutions is checked, the picker
+sweeps each of the gripper's shapes (jaws at the pre-grasp opening)
 along the straight approach, pre-grasp to grasp, as an oriented box grown by
 :data:`APPROACH_PAD`, and checks those boxes against every body of the pile (the grasped part
 included). When all are apart, the gripper touches nothing at any TCP pose whose shapes lie inside

@@ -140,7 +140,7 @@ class MotionContext:
     #: when ``lift_depth`` accepts it (the rule :func:`lift_collision` applies with ``shallow``);
     #: None: not checked (every pair is then checked at every waypoint)
     lift_part_checked: Any = None
-    #: the gripper along the approach in Cartesian space (branch-independent, before any IK):
+    #: the gripper along the approach in Cartesian space (branch-independent, once IK found solutions):
     #: ``(T_pre, T_grasp, opening, pad) -> SweptGripper or None`` (:mod:`grasplan.pick.cover`)
     approach_sweep: Any = None
 
