@@ -107,7 +107,7 @@ class PathBoxes:
             return None
         used, pair_slots = selected
         P = np.asarray(placements, dtype=np.float64).reshape(-1, 4, 4)
-        R_loc = np.ascontiguousarray(P[:, :3, :3])
+        R_loc = np.array(P[:, :3, :3], order="C")  # a copy: the caller reuses its placements array
         c_loc = np.ascontiguousarray(P[:, :3, 3] + (R_loc @ self.center[used][:, :, None])[:, :, 0])
         return (self.parent, self.R0, self.t0, self.kind, self.axis, self.iq, np.ascontiguousarray(self.joint[used]),
                 R_loc, c_loc, np.ascontiguousarray(self.half[used]), pair_slots, float(margin) + SLACK)
