@@ -295,6 +295,27 @@ class PickWorld:
             self._closed[key] = shapes
         return shapes
 
+    def _box_apart(self, R: np.ndarray, centre: np.ndarray, half: np.ndarray, bodies: list[Body],
+                   which: np.ndarray, stop: bool = False) -> np.ndarray:
+        """Per body index of ``which``: coal finds the oriented box (axes ``R`` (3, 3), ``centre``,
+        ``half`` extents) apart from that body; with ``stop``, the check ends at the first body it
+        touches (the later ones stay False)."""
+        out = np.zeros(len(which), dtype=bool)
+        if not len(which):
+            return out
+        tf = coal.Transform3s()
+        tf.setRotation(R)
+        tf.setTranslation(centre)
+        box, req, res = coal.Box(*(2.0 * np.asarray(half))), self.hull_request, self.hull_result
+        for i, bi in enumerate(which.tolist()):
+            b = bodies[bi]
+            res.clear()
+            self.coal_calls += 1
+            out[i] = not coal.collide(box, tf, b.geometry, b.tf, req, res)
+            if stop and not out[i]:
+                break
+        return out
+
     def gripper_swept_free(self, T_a: np.ndarray, T_b: np.ndarray, opening: float, pad: float,
                            bodies: list[Body] | None = None) -> SweptGripper | None:
         """The gripper with its jaws at ``opening`` moved straight from the TCP pose ``T_a`` to
@@ -307,22 +328,13 @@ class PickWorld:
         bc = np.array([b.center for b in bodies]).reshape(-1, 3)
         bh = np.array([b.half for b in bodies]).reshape(-1, 3)
         box = np.array([b.box for b in bodies], dtype=bool)
-        hreq, hres = self.hull_request, self.hull_result
-        tf = coal.Transform3s()
         out = []
         for _, T_tcp_geom, c_loc, h_loc in self._shapes(opening):
             _, _, _, status, R, cs, hs = sweep(T2, T_tcp_geom, c_loc, h_loc, bc, bh, box, pad)
             if np.any(status == 2) or not np.any(hs):  # a box body overlaps, or no sweep (turning)
                 return None
-            tf.setRotation(R)
-            tf.setTranslation(cs)
-            swept = coal.Box(*(2.0 * hs))
-            for bi in np.flatnonzero(status == 1).tolist():
-                b = bodies[bi]
-                hres.clear()
-                self.coal_calls += 1
-                if coal.collide(swept, tf, b.geometry, b.tf, hreq, hres):
-                    return None
+            if not self._box_apart(R, cs, hs, bodies, np.flatnonzero(status == 1), stop=True).all():
+                return None
             out.append((T_tcp_geom, c_loc, h_loc, R, cs, hs))
         return SweptGripper(*(np.ascontiguousarray(np.array([o[i] for o in out], dtype=np.float64)) for i in range(6)))
 
@@ -346,21 +358,12 @@ class PickWorld:
         bh = np.array([b.half for b in bodies])
         box = np.array([b.box for b in bodies], dtype=bool)
         req, res = self.request, self.result
-        hreq, hres = self.hull_request, self.hull_result
         tf = coal.Transform3s()
         for geom, T_tcp_geom, c_loc, h_loc in shapes:
             Tg, ks, bis, status, R, cs, hs = sweep(T_all, T_tcp_geom, c_loc, h_loc, bc, bh, box)
             check = np.flatnonzero(status == 1)
             if len(check):  # bodies overlapping the swept box that are no box: coal decides
-                tf.setRotation(R)
-                tf.setTranslation(cs)
-                swept = coal.Box(*(2.0 * hs))
-                for bi in check.tolist():
-                    b = bodies[bi]
-                    hres.clear()
-                    self.coal_calls += 1
-                    if not coal.collide(swept, tf, b.geometry, b.tf, hreq, hres):
-                        status[bi] = 0
+                status[check[self._box_apart(R, cs, hs, bodies, check)]] = 0
                 keep = status[bis] != 0
                 ks, bis = ks[keep], bis[keep]
             for k, bi in zip(ks.tolist(), bis.tolist()):
