@@ -14,7 +14,7 @@ from grasplan.gripper import load_gripper
 from grasplan.ik import solve_ik
 from grasplan.interpolation import check_order
 from grasplan.mesh import load_part
-from grasplan.pick.cover import APPROACH_PAD, covered_check, is_free_covered
+from grasplan.pick.cover import APPROACH_PAD, covered_check
 from grasplan.pick.motion import line_path
 from grasplan.pick.world import INSTANCE_PREFIX, PickWorld
 from grasplan.robot import load_robot
@@ -70,7 +70,7 @@ def test_covered_configurations_skip_only_free_pairs():
                 pin.updateGeometryPlacements(scene.model, scene.data, scene.geom_model, scene.geom_data, qk)
                 hits = [p for p in drop.tolist() if pin.computeCollision(scene.geom_model, scene.geom_data, p)]
                 assert not hits, [scene.pair_rows()[p][:2] for p in hits]
-                assert is_free_covered(scene, qk, opening, (covered, drop)) == scene.is_free_exhaustive(qk, opening)
+                assert scene.path_free(qk[None], opening, reduced=(covered, drop)) == scene.is_free_exhaustive(qk, opening)
                 n_cov += 1
     for _ in range(40):  # a grasp whose closed jaws meet the grasped part: its sweep is never free
         T = np.eye(4)

@@ -53,15 +53,3 @@ def covered_check(robot: Robot, T_flange_tcp: np.ndarray, scene: CollisionScene,
     drop = np.flatnonzero(scene._active & mask)
     T_ft = np.asarray(T_flange_tcp, dtype=np.float64)
     return (lambda qs: swept.holds(world_fk(robot, np.asarray(qs, dtype=np.float64).reshape(-1, robot.nq)) @ T_ft)), drop
-
-
-def is_free_covered(scene: CollisionScene, q: np.ndarray, opening: float,
-                    cover: tuple[Callable[[np.ndarray], np.ndarray], np.ndarray] | None) -> bool:
-    """``scene.is_free(q, opening)``, skipping the pairs ``cover`` drops where it covers ``q``."""
-    if cover is None or not len(cover[1]) or not cover[0](np.asarray(q)[None])[0]:
-        return scene.is_free(q, opening)
-    scene.switch_pairs(cover[1], False)
-    try:
-        return scene.is_free(q, opening)
-    finally:
-        scene.switch_pairs(cover[1], True)

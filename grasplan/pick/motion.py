@@ -50,7 +50,7 @@ from ..pickplace import (
 from ..robot_model import Robot
 from ..scene import PART, CollisionScene, describe_pairs
 from ..transforms import inv_rigid
-from .cover import APPROACH_PAD, covered_check, gripper_world_pairs, is_free_covered
+from .cover import APPROACH_PAD, covered_check, gripper_world_pairs
 from .lines import fk_base_tool, ur_closed_form, ur_line, world_fk
 from .params import PickParams
 
@@ -436,7 +436,7 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
     count = {"grasp": 0, "approach": 0, "approach_kin": 0, "lift": 0, "lift_kin": 0, "path": 0, "place": 0}
     for j, q_grasp in enumerate(sols):
         t = time.perf_counter()
-        free = is_free_covered(static, q_grasp, opening, cover)
+        free = static.path_free(q_grasp[None], opening, reduced=cover)  # the grasp alone
         timing["collision"] += time.perf_counter() - t
         if not free:
             count["grasp"] += 1
