@@ -50,6 +50,8 @@ def check_order(qs: np.ndarray, step: float = STEP) -> np.ndarray:
     ``qs`` (k, n) first (cheap rejection), then each segment's inner configurations (segment i
     split into ceil(max|dq| / step) equal parts, as :func:`interpolate_path` splits it)
     coarse-to-fine (:func:`_fractions`), so that a collision midway is met early."""
+    if len(qs) < 2:
+        return qs
     d = qs[1:] - qs[:-1]
     n = np.ceil(np.max(np.abs(d), axis=1, initial=0.0) / step - 1e-12).astype(np.int64)
     inner = [qs[i] + d[i] * _fractions(int(n[i])) for i in np.flatnonzero(n > 1).tolist()]

@@ -22,6 +22,7 @@ whose box is not finite, is left to that broad phase.
 """
 from __future__ import annotations
 
+import functools
 import weakref
 from typing import Any
 
@@ -88,29 +89,27 @@ class PathBoxes:
             if fin:
                 self.center[k], self.half[k] = c, h
 
-    def select(self, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-        """``(used geometry ids, pairs as indices into them)`` for ``pairs`` ((P, 2) geometry ids),
-        or None when nothing can be cleared (a joint or a box the kernel cannot take)."""
-        pairs = np.ascontiguousarray(pairs, dtype=np.int64).reshape(-1, 2)
-        if not self.ok or (len(pairs) and not np.all(self.finite[pairs])):
+    @functools.cached_property
+    def selected(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """``(used geometry ids, every pair as indices into them, per pair: both boxes finite)`` for
+        all the model's pairs, or None when nothing can be cleared (a joint the kernel cannot take).
+        A scene's active pairs are a subset: the kernel gets their rows (:func:`scene_open`)."""
+        if not self.ok:
             return None
         mask = np.zeros(len(self.joint), dtype=bool)
-        mask[pairs] = True
+        fin: np.ndarray = np.all(self.finite[self.pairs], axis=1)
+        mask[self.pairs[fin]] = True
         slot = np.cumsum(mask) - 1  # each used geometry's index among the used ones
-        return np.flatnonzero(mask), np.ascontiguousarray(slot[pairs])
+        return np.flatnonzero(mask), np.ascontiguousarray(np.where(fin[:, None], slot[self.pairs], -1)), fin
 
-    def prepare(self, selected: tuple[np.ndarray, np.ndarray] | None, placements: np.ndarray, margin: float
-                ) -> tuple | None:
-        """The kernel's arguments for the pairs :meth:`select` made, the used geometries at
-        ``placements`` ((len(used), 4, 4), each in its joint's frame)."""
-        if selected is None:
-            return None
-        used, pair_slots = selected
+    def prepare(self, used: np.ndarray, placements: np.ndarray, margin: float) -> tuple:
+        """The kernel's arguments but the pairs and the tolerance, the used geometries (:attr:`selected`)
+        at ``placements`` ((len(used), 4, 4), each in its joint's frame)."""
         P = np.asarray(placements, dtype=np.float64).reshape(-1, 4, 4)
         R_loc = np.array(P[:, :3, :3], order="C")  # a copy: the caller reuses its placements array
         c_loc = np.ascontiguousarray(P[:, :3, 3] + (R_loc @ self.center[used][:, :, None])[:, :, 0])
         return (self.parent, self.R0, self.t0, self.kind, self.axis, self.iq, np.ascontiguousarray(self.joint[used]),
-                R_loc, c_loc, np.ascontiguousarray(self.half[used]), pair_slots, float(margin) + SLACK)
+                R_loc, c_loc, np.ascontiguousarray(self.half[used]), float(margin) + SLACK)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -240,45 +239,48 @@ def obb_apart(Ra, ca, ha, Rb, cb, hb, tol):  # pragma: no cover
 _BOXES: "weakref.WeakKeyDictionary[Any, PathBoxes]" = weakref.WeakKeyDictionary()
 
 
-def _prepared(scene: Any, opening: float | None) -> tuple[PathBoxes, tuple | None]:
-    """The kernel's arguments for ``scene``'s active pairs (jaws at ``opening``, default as they
-    are), cached per active set, jaw opening and attached part's pose."""
-    if opening is not None:
-        scene.set_opening(opening)
+def _prepared(scene: Any) -> tuple[tuple, np.ndarray, np.ndarray] | None:
+    """``(the kernel's arguments but the pairs and the tolerance, every pair's rows into the used
+    geometries, per pair: the kernel can take it)`` for ``scene`` with its jaws and carried part as
+    they are; cached per variant, jaw opening and attached part's pose. None when the boxes cannot
+    serve the model."""
     scene._apply()
     sh = scene._shared
     boxes = _BOXES.get(sh)
     if boxes is None:
         boxes = _BOXES[sh] = PathBoxes(sh.model, sh.gm, sh.pairs)
-    active = scene._active.tobytes()
-    # a few active sets per scene (the lift and the approach switch pairs off), many openings
-    sels, preps = scene.__dict__.setdefault("_boxes_cache", ({}, {}))
-    found = sels.get(active)
+    found = scene.__dict__.get("_boxes_sel")
     objs = sh.gm.geometryObjects
     if found is None:
-        if len(sels) >= 8:
-            sels.clear()
-        sel = boxes.select(boxes.pairs[scene._active])
-        used = [] if sel is None else sel[0].tolist()
-        # the used geometries' placements: the robot's and the cell's as the model was built, the
-        # part's and the extras' this variant's; the jaws and the carried part move (per opening
-        # and grasp)
-        placements = boxes.placements[used]
-        for i, k in enumerate(used):
-            if k in scene._placements:
-                placements[i] = objs[k].placement.homogeneous
-        moving = [i for i, k in enumerate(used) if k in sh.moving_ids]
-        found = sels[active] = (sel, used, moving, placements)
+        sel = boxes.selected
+        if sel is None:
+            found = (None, [], [], np.zeros((0, 4, 4)))
+        else:
+            used = sel[0].tolist()
+            # the used geometries' placements: the robot's and the cell's as the model was built,
+            # the part's and the extras' this variant's; the jaws and the carried part move (per
+            # opening and grasp)
+            placements = boxes.placements[used]
+            for i, k in enumerate(used):
+                if k in scene._placements:
+                    placements[i] = objs[k].placement.homogeneous
+            moving = [i for i, k in enumerate(used) if k in sh.moving_ids]
+            found = (sel, used, moving, placements)
+        scene.__dict__["_boxes_sel"] = found
+        scene.__dict__["_boxes_prep"] = {}
     sel, used, moving, placements = found
-    key = (active, sh.opening, None if scene.T_tcp_part is None else scene.T_tcp_part.tobytes())
+    if sel is None:
+        return None
+    preps = scene.__dict__["_boxes_prep"]
+    key = (sh.opening, None if scene.T_tcp_part is None else scene.T_tcp_part.tobytes())
     prep = preps.get(key)
     if prep is None:
         if len(preps) >= 32:
             preps.clear()
         for i in moving:
             placements[i] = objs[used[i]].placement.homogeneous
-        prep = preps[key] = boxes.prepare(sel, placements, sh.margin)
-    return boxes, prep
+        prep = preps[key] = boxes.prepare(sel[0], placements, sh.margin)
+    return prep, sel[1], sel[2]
 
 
 def scene_open(scene: Any, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
@@ -287,8 +289,13 @@ def scene_open(scene: Any, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray] | No
     1,), pair ids)`` (indices into the scene's pairs, configuration k's in ``pair_ids[starts[k]:
     starts[k + 1]]``), or None when the boxes cannot serve this scene (a joint or a box the
     kernel cannot take)."""
-    boxes, prep = _prepared(scene, None)
-    if prep is None:
+    found = _prepared(scene)
+    if found is None:
         return None
-    starts, flat = _open_pairs(np.ascontiguousarray(qs, dtype=np.float64).reshape(-1, scene.model.nq), *prep)
-    return starts, np.flatnonzero(scene._active)[flat]
+    prep, rows, finite = found
+    active = np.flatnonzero(scene._active)
+    if not finite[active].all():
+        return None
+    args = (*prep[:-1], rows[active], prep[-1])
+    starts, flat = _open_pairs(np.ascontiguousarray(qs, dtype=np.float64).reshape(-1, scene.model.nq), *args)
+    return starts, active[flat]

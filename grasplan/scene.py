@@ -18,8 +18,7 @@ Variants share that geometry model and differ in their scratch data (``pin.Data`
 ``pin.GeometryData``: a scene is not thread-safe, its variants are independent objects) and in
 which pairs are active:
 
-* the scene itself: the part is static at ``T_world_part``;
-* :meth:`CollisionScene.with_part_at` ``(T_world_part)``: the part static at another pose (after release);
+* the scene itself: the part static at ``T_world_part``; :meth:`CollisionScene.with_part_at`: at another pose;
 * :meth:`CollisionScene.attached` ``(T_tcp_part)``: the part rides in the jaws (its pose =
   FK(TCP) @ T_tcp_part) and is checked against the table, the obstacles and every robot link not
   moving with the tool joint; not against the gripper (it is rigidly held). A resting contact of
@@ -31,29 +30,24 @@ Collision pairs (geometry names are Pinocchio's ``<link>_<k>`` plus ``gripper_bo
 ``finger_left`` (the -x jaw), ``finger_right`` (the +x jaw), ``table``, ``obstacle:<name>``,
 ``part`` and ``part_attached``):
 
-* gripper body/fingers vs static part, table and obstacles;
-* every robot link vs the static part; every robot link vs the table except ``robot.mounted_links``
-  (for the UR5 base_link and shoulder_link, for the Panda panda_link0 and panda_link1); every
-  robot link vs every obstacle;
+* gripper body/fingers vs static part, table and obstacles; every robot link vs the static part and
+  every obstacle, and vs the table except ``robot.mounted_links`` (UR5: base_link, shoulder_link);
 * the attached part vs table, obstacles and the robot links not moving with the tool joint;
 * gripper vs every robot link except those moving with the tool joint (the flange link: the
   UR5's wrist_3_link and ee_link, the Panda's panda_link7);
 * robot self-collision: all link pairs except those on the same or adjacent joints and the SRDF's
   ``disable_collisions`` pairs.
 
-Reports use body names: the robot link name, ``gripper:<element>`` (``gripper:body_0``,
-``gripper:finger_left``, ``gripper:finger_right``), ``part``, ``table``, ``obstacle:<name>``.
-Kinds: ``table``, ``part``, ``obstacle``, ``self``.
+Reports use body names: the robot link name, ``gripper:<element>`` (``gripper:body_0``, ``gripper:finger_left``,
+``gripper:finger_right``), ``part``, ``table``, ``obstacle:<name>``. Kinds: ``table``, ``part``, ``obstacle``, ``self``.
 
-All geometry is in the robot model's frame (its URDF root link), world objects placed through
-``inv(robot.T_world_base)``.
+All geometry is in the robot model's frame (its URDF root link), world objects placed through ``inv(T_world_base)``.
 
 Extra bodies (``extras``: :class:`ExtraBody`, e.g. the other instances of a pile and a point
 cloud's octree for ``grasplan pick``): static geometry checked against the gripper, every robot
 link and the attached part, reported by their own body names (``instance:<id>``, ``cloud``). They
 are built once; :meth:`CollisionScene.arranged` makes a variant with the part at a pose and each
 extra placed or switched off, so a scene serves every instance of every pile of the same parts.
-
 The checks before planning (part in the table or an obstacle, ...) are :mod:`grasplan.start_checks`.
 """
 from __future__ import annotations
@@ -345,8 +339,9 @@ class CollisionScene:
             # 51 micrometre box-into-mesh penetration; EPA only runs on pairs already in collision
             req.enable_contact = True
             req.num_max_contacts = 1
-        self.geom_data = gd
+        self._gd = gd
         self._active = active
+        self._gd_active = active.copy()  # the pairs ``gd`` has active (:meth:`switch_pairs` is lazy)
         self._broadphase: pin.BroadPhaseManager_SSaPCollisionManager | None = None
         self._placements: dict[int, pin.SE3] = {}
         env = shared.env_ids
@@ -394,10 +389,17 @@ class CollisionScene:
         return other
 
     def switch_pairs(self, pairs: np.ndarray, on: bool) -> None:
-        """Switch the pairs ``pairs`` (indices into :meth:`pair_rows`) of this variant off or back on."""
-        for k in np.asarray(pairs, dtype=np.int64).tolist():
-            (self.geom_data.activateCollisionPair if on else self.geom_data.deactivateCollisionPair)(k)
+        """Switch the pairs ``pairs`` (indices into :meth:`pair_rows`) of this variant off or back on
+        (Pinocchio's data learns it when next read, :attr:`geom_data`: off and on again is free)."""
         self._active[pairs] = on
+
+    @property
+    def geom_data(self) -> pin.GeometryData:
+        """This variant's ``pin.GeometryData``, its active pairs those of :attr:`_active`."""
+        for k in np.flatnonzero(self._active != self._gd_active).tolist():
+            (self._gd.activateCollisionPair if self._active[k] else self._gd.deactivateCollisionPair)(k)
+            self._gd_active[k] = self._active[k]
+        return self._gd
 
     def pair_rows(self) -> list[tuple[str, str, str, str, str]]:
         """Every pair: ``(body, body, kind, group (static, attached, ""), extra body name or "")``."""
@@ -477,11 +479,11 @@ class CollisionScene:
         goes through a broad phase first: coal's sweep and prune (SSaP) over the placed geometries
         (Pinocchio's ``BroadPhaseManager``; only the active pairs whose world boxes overlap reach
         the narrow phase; the same answer, several times faster with a pile)."""
+        gd = self.geom_data  # its active pairs brought up to date, for the broad phase too
         if not self._shared.extra_ids:
-            return bool(pin.computeCollisions(self.model, self.data, self.geom_model, self.geom_data, q, True))
+            return bool(pin.computeCollisions(self.model, self.data, self.geom_model, gd, q, True))
         if self._broadphase is None:
-            self._broadphase = pin.BroadPhaseManager_SSaPCollisionManager(
-                self.model, self.geom_model, self.geom_data)
+            self._broadphase = pin.BroadPhaseManager_SSaPCollisionManager(self.model, self.geom_model, gd)
         return bool(pin.computeCollisions(self.model, self.data, self._broadphase, q, True))
 
     def is_free(self, q, opening: float | None = None) -> bool:
@@ -564,7 +566,7 @@ class CollisionScene:
     def pairs_collide(self, q: np.ndarray, pair_ids: np.ndarray) -> bool:
         """Any of the pairs ``pair_ids`` (indices into :meth:`pair_rows`) in collision at ``q``
         (coal's narrow phase alone, jaws as they are; early stop)."""
-        m, d, gm, gd = self.model, self.data, self.geom_model, self.geom_data
+        m, d, gm, gd = self.model, self.data, self.geom_model, self._gd  # the narrow phase: activation plays no part
         pin.updateGeometryPlacements(m, d, gm, gd, q)
         return any(pin.computeCollision(gm, gd, p) for p in pair_ids.tolist())
 

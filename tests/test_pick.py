@@ -333,7 +333,7 @@ def test_lift_shortcut_still_checks_the_arm(picker, rest):
         gripper_world = (a.startswith("gripper:") or b.startswith("gripper:")) and kind != "self"
         part_world = group == "attached" and not (a.endswith("_link") or b.endswith("_link"))  # not the arm
         assert d == (gripper_world or part_world), (a, b)
-    ids = _drop_pairs(att)
+    ids = _drop_pairs(att)[1]  # level 2: every pair the checks before IK decide
     active = att._active.copy()
     att.switch_pairs(ids, False)
     at_x = att.colliding_pairs(lift[len(lift) // 2], pk.width)  # the waypoint next to x, the pairs kept
@@ -349,28 +349,46 @@ def test_lift_shortcut_still_checks_the_arm(picker, rest):
 
 
 def test_resting_shortcut_matches_every_pair(picker, rest, monkeypatch):
-    """motion._sample_ok decides a resting lift sample with the part's support pairs switched off
-    (one broad-phase check): on every resting sample of these lifts it agrees with the reference,
-    every colliding pair listed and each one the part against a support."""
+    """motion.lift_collision decides a resting lift configuration with the part's support pairs
+    switched off (and the pairs the checks before IK decided): on every lift of these plans its
+    answer is the reference's, every configuration checked with every pair (a resting one may touch
+    only supports, the others only neighbours within the depth rule), the same first colliding
+    configuration reported; resting configurations in contact were met."""
     import grasplan.pick.motion as motion
+    from grasplan.interpolation import interpolate_path
 
     seen = []
-    orig = motion._sample_ok
+    orig = motion.lift_collision
 
-    def both(sc, q, width, support, shallow):
-        got = orig(sc, q, width, support, shallow)
-        if support and isinstance(sc, motion.CollisionScene):
-            pairs = sc.colliding_pairs(q, width)
-            ref = not pairs or motion._support_only(pairs) or bool(
-                shallow is not None and (names := motion._part_vs_instances(pairs)) and shallow(q, names))
-            assert got == ref, pairs
-            seen.append(bool(pairs))
-            scenes.append((sc, np.array(q), width))
+    def reference(sc, path, width, n_touch, shallow, resting, record):
+        n_touch = int(min(max(n_touch, 0), len(path) - 1))
+        for k0, k1, support in ((n_touch, len(path), False), (0, n_touch + 1, True)):
+            if support and n_touch == 0:
+                continue
+            for q in interpolate_path(path[k0:k1]):
+                pairs = sc.colliding_pairs(q, width)
+                rests = support and (resting is None or resting(q))
+                if rests and record:
+                    seen.append(bool(pairs))
+                    scenes.append((sc, np.array(q), width))
+                if pairs and not (rests and motion._support_only(pairs)) and not (
+                        shallow is not None and (names := motion._part_vs_instances(pairs)) and shallow(q, names)):
+                    return pairs
+        return None
+
+    def both(sc, path, width, n_touch, shallow=None, covered=None, drop=None, resting=None):
+        got = orig(sc, path, width, n_touch, shallow, covered, drop, resting)
+        assert got == reference(sc, path, width, n_touch, shallow, resting, True)
+        # no configuration may rest and no depth rule: a contact with a support is a hit (the pairs
+        # the checks before IK decided stay off: they decided with the depth rule, so not here)
+        never = lambda q: False  # noqa: E731
+        for n in (n_touch, len(path) - 1):  # the lift's own split, and every waypoint a support one
+            assert orig(sc, path, width, n, None, None, None, never) == reference(sc, path, width, n, None, never, False)
         return got
 
     scenes: list = []
 
-    monkeypatch.setattr(motion, "_sample_ok", both)
+    monkeypatch.setattr(motion, "lift_collision", both)
     w = np.asarray(load_part(BRACKET).mesh.vertices) @ rest[:3, :3].T
     dx, dy = (w.max(axis=0) - w.min(axis=0))[:2] - 0.0003  # neighbours touching it, 0.3 mm into it
     res = picker.plan(scene(("a", "bracket", rest), ("b", "bracket", at(rest, dx)), ("c", "bracket", at(rest, -dx)),
@@ -384,9 +402,12 @@ def test_resting_shortcut_matches_every_pair(picker, rest, monkeypatch):
         qb[1 + k % 3] += 0.05 * k * (-1) ** k
         pairs = sc.colliding_pairs(qb, width)
         if pairs and not motion._support_only(pairs):
-            assert orig(sc, qb, width, True, None) is False
+            assert motion._sample_ok(sc, qb, width, True, None) is False
+            # a path resting all along (the far end free: the arm at home): qb's pairs are still reported
+            assert orig(sc, np.stack([qb, picker.robot.q_home]), width, 1) is not None
             bad += 1
     assert bad >= 3
+    assert orig(sc, np.stack([picker.robot.q_home, picker.robot.q_home]), width, 1) is None
 
 
 def test_warm_builds_what_the_first_plan_needs(rest, monkeypatch):

@@ -26,7 +26,7 @@ from __future__ import annotations
 import time
 import weakref
 from dataclasses import dataclass
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -133,12 +133,12 @@ class MotionContext:
     #: ``(T_world_part of the carried part, neighbour names) -> deepest penetration (m)``
     #: (:mod:`grasplan.pick.depth`); None: any contact beyond ``lift_contact`` is a collision
     lift_depth: Any = None
-    #: ``(T_world_part, shifts (s, 3))``: before any grasp, the carried part was checked against the
-    #: neighbours, the cloud and the cell's table and obstacles (shrunk by
-    #: :data:`grasplan.scene.ATTACHED_CONTACT_TOL`, as the attached variant has them) at
-    #: ``T_world_part`` moved by each shift and found free, a contact with a neighbour accepted only
-    #: when ``lift_depth`` accepts it (the rule :func:`lift_collision` applies with ``shallow``);
-    #: None: not checked (every pair is then checked at every waypoint)
+    #: ``(T_world_part, shifts (s, 3), clear (s,))``: before any grasp, the carried part was checked
+    #: against the neighbours and the cloud at ``T_world_part`` moved by each shift and found free,
+    #: a contact with a neighbour accepted only when ``lift_depth`` accepts it (the rule
+    #: :func:`lift_collision` applies with ``shallow``); where ``clear``, also against the cell's
+    #: table and obstacles (shrunk by :data:`grasplan.scene.ATTACHED_CONTACT_TOL`, as the attached
+    #: variant has them); None: not checked (every pair is then checked at every waypoint)
     lift_part_checked: Any = None
     #: the gripper along the approach in Cartesian space (branch-independent, once IK found solutions):
     #: ``(T_pre, T_grasp, opening, pad) -> SweptGripper or None`` (:mod:`grasplan.pick.cover`)
@@ -225,7 +225,7 @@ def touch_waypoints(lift_contact: float, travel: np.ndarray) -> int:
 
 def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touch: int,
                    shallow: Callable[[np.ndarray, list[str]], bool] | None = None,
-                   covered: np.ndarray | None = None, drop: np.ndarray | None = None,
+                   covered: np.ndarray | None = None, drop: np.ndarray | Sequence[np.ndarray] | None = None,
                    resting: Callable[[np.ndarray], bool] | None = None
                    ) -> list[tuple[str, str, str]] | None:
     """The colliding pairs where the lift ``path`` (k, n) first hits something with the part
@@ -234,32 +234,41 @@ def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touc
     neighbours only for which ``shallow(q, names)`` is true (their penetration depth within the
     tolerance, :mod:`grasplan.pick.depth`).
 
-    ``covered`` (bool per waypoint), ``drop`` (pair indices of ``scene``): at the waypoints marked
-    covered, the pairs ``drop`` that the checks before IK already decided the same way
-    (:func:`lift_precheck_drop`) are switched off; those waypoints are checked first, then the
-    configurations between waypoints with every pair, up to the first waypoint that failed (the
-    first failing configuration in path order is the one reported).
+    ``covered`` (per waypoint a level, 0 none; a bool array: level 1), ``drop`` (pair indices of
+    ``scene``, one array per level, or one array for level 1): at the waypoints of level ``l`` the
+    pairs ``drop[l - 1]`` that the checks before IK already decided the same way
+    (:func:`lift_precheck_drop`) are switched off; those waypoints are checked first, the highest
+    level first, then the configurations between waypoints with every pair, up to the first
+    waypoint that failed (the first failing configuration in path order is the one reported).
 
     ``resting(q)``: whether configuration ``q`` of the first ``n_touch`` waypoints is still within
     ``lift_contact`` of TCP travel (the waypoints are :data:`LIFT_SAMPLE` apart,
     so the last of them may lie beyond it); where it is not, resting contact is not allowed
     either. None: every configuration up to waypoint ``n_touch`` may rest."""
     n_touch = int(min(max(n_touch, 0), len(path) - 1))
+    drops: list[np.ndarray] = [] if drop is None else [drop] if isinstance(drop, np.ndarray) else list(drop)
     for k0, k1, support in ((n_touch, len(path), False), (0, n_touch + 1, True)):
         part = path[k0:k1]
         if support and n_touch == 0:
             continue
         dense, rows = interpolate_path(part, return_index=True)
-        reduced = np.zeros(len(dense), dtype=bool)
-        if covered is not None and drop is not None and len(drop):
-            reduced[rows[covered[k0:k1]]] = True
+        level = np.zeros(len(dense), dtype=np.int64)
+        if covered is not None and drops:
+            level[rows] = np.minimum(np.asarray(covered[k0:k1], dtype=np.int64), len(drops))
+        # a configuration that may rest (within lift_contact of travel) is free exactly when it is
+        # with the part's support pairs off (:func:`_sample_ok`): those are switched off for it too
+        rests = np.zeros(len(dense), dtype=bool)
+        support_ids = _support_pairs(scene) if isinstance(scene, CollisionScene) else None
+        if support and support_ids is not None:
+            rests[:] = [resting is None or resting(q) for q in dense]
+            support_ids = support_ids[scene._active[support_ids]]
         bad: int | None = None
-        for on_reduced in (True, False):
-            idx = np.flatnonzero(reduced == on_reduced)
-            if not len(idx):
-                continue
-            if on_reduced:
-                scene.switch_pairs(drop, False)  # type: ignore[arg-type]
+        for lv, rest in sorted({(int(a), bool(b)) for a, b in zip(level, rests)}, reverse=True):
+            idx = np.flatnonzero((level == lv) & (rests == rest))
+            offs = ([drops[lv - 1]] if lv else []) + ([support_ids] if rest and support_ids is not None else [])
+            off = np.union1d(*offs) if len(offs) == 2 else offs[0] if offs else None
+            if off is not None:
+                scene.switch_pairs(off, False)
             try:
                 # free where coal finds none of the pairs whose oriented boxes overlap colliding
                 # (grasplan.pathboxes: the others cannot); only the rest needs the allowances
@@ -277,37 +286,38 @@ def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touc
                         break
                     if found is not None and not scene.pairs_collide(dense[i], pair_ids[spans[j][0]:spans[j][1]]):
                         continue
-                    rests = support and (resting is None or resting(dense[i]))
-                    if not _sample_ok(scene, dense[i], width, rests, shallow):
+                    if rest or not _sample_ok(scene, dense[i], width, support and (resting is None or resting(dense[i])),
+                                              shallow):
                         bad = i
                         break
             finally:
-                if on_reduced:
-                    scene.switch_pairs(drop, True)  # type: ignore[arg-type]
+                if off is not None:
+                    scene.switch_pairs(off, True)
         if bad is not None:
             return scene.colliding_pairs(dense[bad], width)
     return None
 
 
-def lift_precheck_drop(scene: CollisionScene) -> np.ndarray:
+def lift_precheck_drop(scene: CollisionScene, cell: bool = True) -> np.ndarray:
     """Per pair of ``scene``: decided at the lift's waypoints by the checks before IK, the closed
     gripper (body and jaws) against the world (``MotionContext.lift_gripper_check``: the same
     shapes at the same poses) and the carried part against all but the robot's links: the
-    neighbours, the cloud, the table and the obstacles (``MotionContext.lift_part_checked``, the
-    picker's straight lift)."""
-    return gripper_world_pairs(scene) | np.array([group == "attached" and kind != PART
-                                                  for _, _, kind, group, _ in scene.pair_rows()], dtype=bool)
+    neighbours and the cloud, and with ``cell`` the table and the obstacles
+    (``MotionContext.lift_part_checked``, the picker's straight lift)."""
+    return gripper_world_pairs(scene) | np.array([group == "attached" and kind != PART and (cell or extra != "")
+                                                  for _, _, kind, group, extra in scene.pair_rows()], dtype=bool)
 
 
-_DROP: "weakref.WeakKeyDictionary[Any, np.ndarray]" = weakref.WeakKeyDictionary()
+_DROP: "weakref.WeakKeyDictionary[Any, tuple[np.ndarray, np.ndarray]]" = weakref.WeakKeyDictionary()
 
 
-def _drop_pairs(att: CollisionScene) -> np.ndarray:
-    """The active pairs of ``att`` that :func:`lift_precheck_drop` names (the mask once per scene model)."""
-    drop = _DROP.get(att._shared)
-    if drop is None:
-        drop = _DROP[att._shared] = lift_precheck_drop(att)
-    return np.flatnonzero(att._active & drop)
+def _drop_pairs(att: CollisionScene) -> tuple[np.ndarray, np.ndarray]:
+    """The active pairs of ``att`` that :func:`lift_precheck_drop` names: without the cell (the
+    waypoints of level 1 of :func:`_lift_covered`) and with it (level 2); the masks once per scene model."""
+    masks = _DROP.get(att._shared)
+    if masks is None:
+        masks = _DROP[att._shared] = (lift_precheck_drop(att, cell=False), lift_precheck_drop(att))
+    return np.flatnonzero(att._active & masks[0]), np.flatnonzero(att._active & masks[1])
 
 
 #: a lift waypoint is covered by the checks before IK when its TCP and part poses are theirs within this (m)
@@ -316,20 +326,31 @@ COVER_TOL = 1e-7
 
 def _lift_covered(ctx: MotionContext, lift: np.ndarray, T_line: np.ndarray, T_flange_part: np.ndarray
                   ) -> np.ndarray | None:
-    """Per lift waypoint: the TCP is at the pose the gripper check used (``T_line``) and the
-    carried part at a pose of ``ctx.lift_part_checked`` (rotation and position within
-    :data:`COVER_TOL`); None when the checks before IK did not run."""
+    """Per lift waypoint, what the checks before IK decided there (the levels of
+    :func:`lift_collision`, pairs :func:`_drop_pairs`): 1 when the TCP is at the pose the gripper
+    check used (``T_line``) and the carried part at a pose of ``ctx.lift_part_checked`` (rotation
+    and position within :data:`COVER_TOL`), 2 when the part alone was also clear of the cell there,
+    else 0; None when the checks before IK did not run."""
     if ctx.lift_gripper_check is None or ctx.lift_part_checked is None or len(lift) != len(T_line):
         return None
-    T_part0, shifts = ctx.lift_part_checked
+    T_part0, shifts, clear = ctx.lift_part_checked
     F = world_fk(ctx.robot, lift)
     tcp = F @ ctx.T_flange_tcp
     part = F @ T_flange_part
     ok = (np.abs(tcp[:, :3, :] - T_line[:, :3, :]).max(axis=(1, 2)) <= COVER_TOL)
     ok &= np.abs(part[:, :3, :3] - T_part0[:3, :3]).max(axis=(1, 2)) <= COVER_TOL
     off = part[:, :3, 3] - T_part0[:3, 3]
-    near = np.abs(off[:, None, :] - np.asarray(shifts)[None]).max(axis=2) <= COVER_TOL
-    return ok & near.any(axis=1)
+    S = np.asarray(shifts, dtype=np.float64).reshape(-1, 3)
+    # candidates by the offsets' projections on the lift direction (a match within COVER_TOL in
+    # every coordinate differs there by at most sqrt(3) COVER_TOL |u|), then each one exactly
+    u = np.asarray(ctx.retreat_dir, dtype=np.float64)
+    ki, si = np.nonzero(np.abs((off @ u)[:, None] - (S @ u)[None]) <= 2.0 * COVER_TOL * max(1.0, float(u @ u)))
+    hit = np.abs(off[ki] - S[si]).max(axis=1, initial=0.0) <= COVER_TOL
+    ki, si = ki[hit], si[hit]
+    level = np.zeros(len(lift), dtype=np.int64)
+    level[ki] = 1
+    level[ki[np.asarray(clear, dtype=bool)[si]]] = 2
+    return level * ok
 
 
 def _blockers(pairs: list[tuple[str, str, str]]) -> set[str]:

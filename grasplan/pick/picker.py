@@ -530,7 +530,7 @@ class Picker:
                         hits_b = st.world.part_hits(inst.part, inst.T_world_part, between[:, None] * dirs[j][1],
                                                     pile, shallow_hit)
                         checked = np.concatenate([steps, between[hits_b < 0]])
-                        checked = checked[st.world.clear_of_cell(inst.part, inst.T_world_part, checked, dirs[j][1])]
+                        clear = st.world.clear_of_cell(inst.part, inst.T_world_part, checked, dirs[j][1])
                         timing["lift_check"] += time.perf_counter() - t_b
                         ctx = ctxs[j] = MotionContext(
                             self.robot, self.gripper, p, static, att, dirs[j][1], dist, timing, T_place=T_place,
@@ -538,7 +538,7 @@ class Picker:
                             approach_sweep=st.world.gripper_swept_free,  # against every body, the grasped part's too
                             body_names=tuple(b.name for b in bodies), lift_depth=None if p.lift_depth <= 0 else
                             lambda T, names, c=carrying[j]: lift_depth(T, names, c),
-                            lift_part_checked=(inst.T_world_part, checked[:, None] * dirs[j][1]))  # lift_ok(j), above
+                            lift_part_checked=(inst.T_world_part, checked[:, None] * dirs[j][1], clear))  # lift_ok(j)
                     out = plan_pick_motion(ctx, T_plan[k], T_part_g, float(db.width[r]),
                                            seed=p.seed * 1_000_003 + seed_base * 10_007 + r)
                     grasp_blocker[:] = list(out.blockers[:1])
