@@ -10,7 +10,8 @@ lie more than the margin apart cannot collide. :func:`scene_open` lists, per con
 active pairs whose boxes do not lie apart, in one numba-compiled loop: forward kinematics of the
 chain (revolute and prismatic joints), each box's world pose (the world's fixed boxes once), then
 per pair the world-axis boxes and, where those overlap, the separating-axis test of the two
-oriented boxes (15 axes). coal's narrow phase then runs on those pairs alone: a configuration is
+oriented boxes (15 axes). Configurations go in chunks of :data:`CHUNK` (a path's neighbours): a
+pair whose world-axis boxes around a whole chunk lie apart is skipped at all of its configurations. coal's narrow phase then runs on those pairs alone: a configuration is
 free exactly when coal finds none of them colliding, and one with none listed needs no coal call
 (tests/test_pathboxes.py checks both against coal on every pair).
 
@@ -112,91 +113,160 @@ class PathBoxes:
                 R_loc, c_loc, np.ascontiguousarray(self.half[used]), float(margin) + SLACK)
 
 
+#: configurations per chunk of :func:`_open_pairs`: the pairs whose boxes lie apart over a whole
+#: chunk (each geometry's world-axis box around its boxes at all of them) are not tested per configuration
+CHUNK = 16
+
+
+@numba.njit(cache=True, nogil=True)
+def _chain(q, parent, R0, t0, kind, axis, iq, oR, ot, RM, rot):  # pragma: no cover
+    """Forward kinematics of the chain at ``q``: each joint's world rotation ``oR`` and origin ``ot``."""
+    J = parent.shape[0]
+    for i in range(3):
+        for j in range(3):
+            oR[0, i, j] = 1.0 if i == j else 0.0
+        ot[0, i] = 0.0
+    for jj in range(1, J):
+        p = parent[jj]
+        for i in range(3):  # parent pose times the joint placement
+            ot[jj, i] = ot[p, i]
+            for j in range(3):
+                ot[jj, i] += oR[p, i, j] * t0[jj, j]
+                s = 0.0
+                for m in range(3):
+                    s += oR[p, i, m] * R0[jj, m, j]
+                RM[i, j] = s
+        x = q[iq[jj]]
+        if kind[jj] == 1:  # Rodrigues: rot = I + sin K + (1 - cos) K^2
+            a0, a1, a2 = axis[jj, 0], axis[jj, 1], axis[jj, 2]
+            sn, cs = np.sin(x), 1.0 - np.cos(x)
+            rot[0, 0] = 1.0 - cs * (a1 * a1 + a2 * a2)
+            rot[1, 1] = 1.0 - cs * (a0 * a0 + a2 * a2)
+            rot[2, 2] = 1.0 - cs * (a0 * a0 + a1 * a1)
+            rot[0, 1] = -sn * a2 + cs * a0 * a1
+            rot[1, 0] = sn * a2 + cs * a0 * a1
+            rot[0, 2] = sn * a1 + cs * a0 * a2
+            rot[2, 0] = -sn * a1 + cs * a0 * a2
+            rot[1, 2] = -sn * a0 + cs * a1 * a2
+            rot[2, 1] = sn * a0 + cs * a1 * a2
+            for i in range(3):
+                for j in range(3):
+                    oR[jj, i, j] = RM[i, 0] * rot[0, j] + RM[i, 1] * rot[1, j] + RM[i, 2] * rot[2, j]
+        else:
+            for i in range(3):
+                for j in range(3):
+                    oR[jj, i, j] = RM[i, j]
+            if kind[jj] == 2:
+                for i in range(3):
+                    ot[jj, i] += x * (RM[i, 0] * axis[jj, 0] + RM[i, 1] * axis[jj, 1] + RM[i, 2] * axis[jj, 2])
+
+
+@numba.njit(cache=True, nogil=True)
+def _place(g, jg, oR, ot, R_loc, c_loc, half, R, c, hw):  # pragma: no cover
+    """Box ``g`` on joint ``jg`` in the world: its axes ``R[g]``, centre ``c[g]`` and the
+    half-widths ``hw[g]`` of the world-axis box around it."""
+    for i in range(3):
+        cc = ot[jg, i]
+        for j in range(3):
+            cc += oR[jg, i, j] * c_loc[g, j]
+            s = 0.0
+            for m in range(3):
+                s += oR[jg, i, m] * R_loc[g, m, j]
+            R[g, i, j] = s
+        c[g, i] = cc
+    for i in range(3):
+        hw[g, i] = abs(R[g, i, 0]) * half[g, 0] + abs(R[g, i, 1]) * half[g, 1] + abs(R[g, i, 2]) * half[g, 2]
+
+
 @numba.njit(cache=True, nogil=True)
 def _open_pairs(qs, parent, R0, t0, kind, axis, iq, gjoint, R_loc, c_loc, half, pairs, tol):  # pragma: no cover
     """Per configuration, the pairs (indices into ``pairs``) whose boxes the tests cannot put
-    apart: ``(starts (n + 1,), flat)``, configuration k's in ``flat[starts[k]:starts[k + 1]]``."""
+    apart: ``(starts (n + 1,), flat)``, configuration k's in ``flat[starts[k]:starts[k + 1]]``.
+
+    The configurations go in chunks of :data:`CHUNK`: per chunk, each geometry's world-axis box
+    around its boxes at all of the chunk's configurations; a pair whose two such boxes lie more
+    than ``tol`` apart lies apart at every one of them (the per-configuration test would say so:
+    its boxes lie inside those), so only the others are tested per configuration."""
     n, J, G, P = qs.shape[0], parent.shape[0], gjoint.shape[0], pairs.shape[0]
     starts = np.zeros(n + 1, dtype=np.int64)
     flat = np.empty(max(16, 2 * n), dtype=np.int64)
+    if n == 0:
+        return starts, flat[:0]
+    C = min(CHUNK, n)
     nf = 0
-    oR = np.zeros((J, 3, 3))
-    ot = np.zeros((J, 3))
-    R = np.zeros((G, 3, 3))
-    c = np.zeros((G, 3))
-    hw = np.zeros((G, 3))
-    rot = np.zeros((3, 3))
-    RM = np.zeros((3, 3))
-    for k in range(n):
-        for i in range(3):
-            for j in range(3):
-                oR[0, i, j] = 1.0 if i == j else 0.0
-            ot[0, i] = 0.0
-        for jj in range(1, J):
-            p = parent[jj]
-            for i in range(3):  # parent pose times the joint placement
-                ot[jj, i] = ot[p, i]
-                for j in range(3):
-                    ot[jj, i] += oR[p, i, j] * t0[jj, j]
-                    s = 0.0
-                    for m in range(3):
-                        s += oR[p, i, m] * R0[jj, m, j]
-                    RM[i, j] = s
-            x = qs[k, iq[jj]]
-            if kind[jj] == 1:  # Rodrigues: rot = I + sin K + (1 - cos) K^2
-                a0, a1, a2 = axis[jj, 0], axis[jj, 1], axis[jj, 2]
-                sn, cs = np.sin(x), 1.0 - np.cos(x)
-                rot[0, 0] = 1.0 - cs * (a1 * a1 + a2 * a2)
-                rot[1, 1] = 1.0 - cs * (a0 * a0 + a2 * a2)
-                rot[2, 2] = 1.0 - cs * (a0 * a0 + a1 * a1)
-                rot[0, 1] = -sn * a2 + cs * a0 * a1
-                rot[1, 0] = sn * a2 + cs * a0 * a1
-                rot[0, 2] = sn * a1 + cs * a0 * a2
-                rot[2, 0] = -sn * a1 + cs * a0 * a2
-                rot[1, 2] = -sn * a0 + cs * a1 * a2
-                rot[2, 1] = sn * a0 + cs * a1 * a2
+    oR = np.empty((J, 3, 3))
+    ot = np.empty((J, 3))
+    R = np.empty((C, G, 3, 3))  # a slot per configuration of the chunk (the fixed boxes: slot 0)
+    c = np.empty((C, G, 3))
+    hw = np.empty((C, G, 3))
+    lo = np.empty((G, 3))
+    hi = np.empty((G, 3))
+    rot = np.empty((3, 3))
+    RM = np.empty((3, 3))
+    live = np.empty(P, dtype=np.int64)
+    for i in range(3):  # the universe joint: the world frame
+        for j in range(3):
+            oR[0, i, j] = 1.0 if i == j else 0.0
+        ot[0, i] = 0.0
+    slot = np.zeros((C, G), dtype=np.int64)  # where geometry g's box at the chunk's kk-th configuration is
+    for g in range(G):  # fixed in the world: placed once, in slot 0
+        if gjoint[g] == 0:
+            _place(g, 0, oR, ot, R_loc, c_loc, half, R[0], c[0], hw[0])
+        else:
+            for kk in range(C):
+                slot[kk, g] = kk
+    for k0 in range(0, n, C):
+        m = min(C, n - k0)
+        for kk in range(m):
+            _chain(qs[k0 + kk], parent, R0, t0, kind, axis, iq, oR, ot, RM, rot)
+            for g in range(G):
+                if gjoint[g] != 0:
+                    _place(g, gjoint[g], oR, ot, R_loc, c_loc, half, R[kk], c[kk], hw[kk])
+        nl = 0
+        if m == 1:
+            for pp in range(P):
+                live[pp] = pp
+            nl = P
+        else:
+            for g in range(G):
                 for i in range(3):
-                    for j in range(3):
-                        oR[jj, i, j] = RM[i, 0] * rot[0, j] + RM[i, 1] * rot[1, j] + RM[i, 2] * rot[2, j]
-            else:
+                    lo[g, i] = c[0, g, i] - hw[0, g, i]
+                    hi[g, i] = c[0, g, i] + hw[0, g, i]
+                if gjoint[g] != 0:
+                    for kk in range(1, m):
+                        for i in range(3):
+                            lo[g, i] = min(lo[g, i], c[kk, g, i] - hw[kk, g, i])
+                            hi[g, i] = max(hi[g, i], c[kk, g, i] + hw[kk, g, i])
+            for pp in range(P):
+                a, b = pairs[pp, 0], pairs[pp, 1]
+                apart = False
                 for i in range(3):
-                    for j in range(3):
-                        oR[jj, i, j] = RM[i, j]
-                if kind[jj] == 2:
-                    for i in range(3):
-                        ot[jj, i] += x * (RM[i, 0] * axis[jj, 0] + RM[i, 1] * axis[jj, 1] + RM[i, 2] * axis[jj, 2])
-        for g in range(G):  # each box in the world, and the world-axis box around it
-            jg = gjoint[g]
-            if jg == 0 and k > 0:  # fixed in the world: as at the first configuration
-                continue
-            for i in range(3):
-                cc = ot[jg, i]
-                for j in range(3):
-                    cc += oR[jg, i, j] * c_loc[g, j]
-                    s = 0.0
-                    for m in range(3):
-                        s += oR[jg, i, m] * R_loc[g, m, j]
-                    R[g, i, j] = s
-                c[g, i] = cc
-            for i in range(3):
-                hw[g, i] = abs(R[g, i, 0]) * half[g, 0] + abs(R[g, i, 1]) * half[g, 1] + abs(R[g, i, 2]) * half[g, 2]
-        for pp in range(P):
-            a, b = pairs[pp, 0], pairs[pp, 1]
-            apart = False
-            for i in range(3):
-                if abs(c[a, i] - c[b, i]) - hw[a, i] - hw[b, i] > tol:
-                    apart = True
-                    break
-            if not apart:
-                apart = obb_apart(R[a], c[a], half[a], R[b], c[b], half[b], tol)
-            if not apart:
-                if nf == flat.shape[0]:
-                    grown = np.empty(2 * nf, dtype=np.int64)
-                    grown[:nf] = flat
-                    flat = grown
-                flat[nf] = pp
-                nf += 1
-        starts[k + 1] = nf
+                    if lo[a, i] - hi[b, i] > tol or lo[b, i] - hi[a, i] > tol:
+                        apart = True
+                        break
+                if not apart:
+                    live[nl] = pp
+                    nl += 1
+        for kk in range(m):
+            for li in range(nl):
+                pp = live[li]
+                a, b = pairs[pp, 0], pairs[pp, 1]
+                sa, sb = slot[kk, a], slot[kk, b]
+                apart = False
+                for i in range(3):
+                    if abs(c[sa, a, i] - c[sb, b, i]) - hw[sa, a, i] - hw[sb, b, i] > tol:
+                        apart = True
+                        break
+                if not apart:
+                    apart = obb_apart(R[sa, a], c[sa, a], half[a], R[sb, b], c[sb, b], half[b], tol)
+                if not apart:
+                    if nf == flat.shape[0]:
+                        grown = np.empty(2 * nf, dtype=np.int64)
+                        grown[:nf] = flat
+                        flat = grown
+                    flat[nf] = pp
+                    nf += 1
+            starts[k0 + kk + 1] = nf
     return starts, flat[:nf]
 
 

@@ -148,6 +148,32 @@ def test_open_pairs_hold_every_colliding_pair(robot_name):
     assert n_hit > 30 and n_open < 0.5 * len(qs) * 3 * len(scene.pair_rows())  # both kinds met; a real filter
 
 
+def test_chunks_list_what_each_configuration_lists():
+    """Along continuous paths (the pile close by), the kernel's chunks (pairs whose boxes lie apart
+    over a whole chunk skipped) list per configuration exactly the pairs a call with that
+    configuration alone lists (no chunk), with the part static and held."""
+    from grasplan.pathboxes import CHUNK
+
+    scene = _pile_scene("ur5")
+    robot = scene.robot
+    rng = np.random.default_rng(5)
+    home = np.asarray(robot.q_home, dtype=np.float64)
+    att = scene.attached(np.eye(4))
+    n_open = n_cfg = 0
+    for sc, opening in ((scene, 0.03), (att, 0.02)):
+        sc.set_opening(opening)
+        for _ in range(6):
+            qs = interpolate_path(np.clip(home + rng.normal(0.0, 0.6, (3, robot.nq)), robot.lower, robot.upper))
+            assert len(qs) > 3 * CHUNK
+            starts, ids = scene_open(sc, qs)
+            for k in range(len(qs)):
+                s1, i1 = scene_open(sc, qs[k:k + 1])
+                assert ids[starts[k]:starts[k + 1]].tolist() == i1.tolist(), k
+            n_open += int(np.sum(starts[1:] > starts[:-1]))
+            n_cfg += len(qs)
+    assert 0 < n_open < n_cfg  # configurations with pairs open and without both met
+
+
 def test_check_order_visits_the_interpolated_configurations():
     """The path check's configurations are interpolate_path's (to rounding), the waypoints first,
     then each segment's coarse-to-fine (its midpoint before its quarter points)."""
