@@ -11,9 +11,10 @@ active pairs whose boxes do not lie apart, in one numba-compiled loop: forward k
 chain (revolute and prismatic joints), each box's world pose (the world's fixed boxes once), then
 per pair the world-axis boxes and, where those overlap, the separating-axis test of the two
 oriented boxes (15 axes). Configurations go in chunks of :data:`CHUNK` (a path's neighbours): a
-pair whose world-axis boxes around a whole chunk lie apart is skipped at all of its configurations. coal's narrow phase then runs on those pairs alone: a configuration is
-free exactly when coal finds none of them colliding, and one with none listed needs no coal call
-(tests/test_pathboxes.py checks both against coal on every pair).
+pair whose world-axis boxes around a whole chunk lie apart is skipped at all of its configurations.
+coal's narrow phase then runs on those pairs alone: a configuration is free exactly when coal finds
+none of them colliding, and one with none listed needs no coal call (tests/test_pathboxes.py
+checks both against coal on every pair).
 
 Measured on the bench piles (docs/pick.md): the boxes leave no pair at 92-94 % of a path's
 configurations, at about 2 us per configuration, against ~13 us for coal's check through
@@ -319,28 +320,24 @@ def _prepared(scene: Any) -> tuple[tuple, np.ndarray, np.ndarray] | None:
     boxes = _BOXES.get(sh)
     if boxes is None:
         boxes = _BOXES[sh] = PathBoxes(sh.model, sh.gm, sh.pairs)
-    found = scene.__dict__.get("_boxes_sel")
-    objs = sh.gm.geometryObjects
-    if found is None:
-        sel = boxes.selected
-        if sel is None:
-            found = (None, [], [], np.zeros((0, 4, 4)))
-        else:
-            used = sel[0].tolist()
-            # the used geometries' placements: the robot's and the cell's as the model was built,
-            # the part's and the extras' this variant's; the jaws and the carried part move (per
-            # opening and grasp)
-            placements = boxes.placements[used]
-            for i, k in enumerate(used):
-                if k in scene._placements:
-                    placements[i] = objs[k].placement.homogeneous
-            moving = [i for i, k in enumerate(used) if k in sh.moving_ids]
-            found = (sel, used, moving, placements)
-        scene.__dict__["_boxes_sel"] = found
-        scene.__dict__["_boxes_prep"] = {}
-    sel, used, moving, placements = found
+    sel = boxes.selected
     if sel is None:
         return None
+    objs = sh.gm.geometryObjects
+    found = scene.__dict__.get("_boxes_sel")
+    if found is None:
+        used = sel[0].tolist()
+        # the used geometries' placements: the robot's and the cell's as the model was built, the
+        # part's and the extras' this variant's; the jaws and the carried part move (per opening
+        # and grasp)
+        placements = boxes.placements[used]
+        for i, k in enumerate(used):
+            if k in scene._placements:
+                placements[i] = objs[k].placement.homogeneous
+        moving = [i for i, k in enumerate(used) if k in sh.moving_ids]
+        found = scene.__dict__["_boxes_sel"] = (used, moving, placements)
+        scene.__dict__["_boxes_prep"] = {}
+    used, moving, placements = found
     preps = scene.__dict__["_boxes_prep"]
     key = (sh.opening, None if scene.T_tcp_part is None else scene.T_tcp_part.tobytes())
     prep = preps.get(key)

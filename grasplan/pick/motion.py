@@ -187,18 +187,12 @@ def _support_pairs(scene: CollisionScene) -> np.ndarray:
 
 def _sample_ok(scene: CollisionScene, q: np.ndarray, width: float, support: bool,
                shallow: Callable[[np.ndarray, list[str]], bool] | None) -> bool:
-    """Configuration ``q`` of the lift is free, or its contacts are allowed (module docstring)."""
-    off = _support_pairs(scene) if support and isinstance(scene, CollisionScene) else None
-    if off is not None and len(off := off[scene._active[off]]):
-        # free but for the part on its supports: allowed. One broad-phase check with those pairs
-        # off decides it (free with every pair is free with fewer), not every pair's narrow phase
-        scene.switch_pairs(off, False)
-        try:
-            if scene.is_free(q, width):
-                return True
-        finally:
-            scene.switch_pairs(off, True)
-    elif scene.is_free(q, width):
+    """Configuration ``q`` of the lift is free, or its contacts are allowed (module docstring):
+    with ``support`` (it may rest) every pair the carried part against what it may rest on
+    (:data:`SUPPORT_BODIES`), else every pair the part against neighbours within the depth rule
+    ``shallow``. :func:`lift_collision` checks a resting configuration of a CollisionScene with
+    those pairs switched off instead (the same answer, without coal finding the contacts)."""
+    if scene.is_free(q, width):
         return True
     pairs = scene.colliding_pairs(q, width)
     if support and _support_only(pairs):
@@ -257,11 +251,11 @@ def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touc
             level[rows] = np.minimum(np.asarray(covered[k0:k1], dtype=np.int64), len(drops))
         # a configuration that may rest (within lift_contact of travel) is free exactly when it is
         # with the part's support pairs off (:func:`_sample_ok`): those are switched off for it too
-        rests = np.zeros(len(dense), dtype=bool)
+        may_rest = np.array([support and (resting is None or resting(q)) for q in dense], dtype=bool)
         support_ids = _support_pairs(scene) if isinstance(scene, CollisionScene) else None
-        if support and support_ids is not None:
-            rests[:] = [resting is None or resting(q) for q in dense]
+        if support_ids is not None:
             support_ids = support_ids[scene._active[support_ids]]
+        rests = may_rest & (support_ids is not None)
         bad: int | None = None
         for lv, rest in sorted({(int(a), bool(b)) for a, b in zip(level, rests)}, reverse=True):
             idx = np.flatnonzero((level == lv) & (rests == rest))
@@ -286,8 +280,7 @@ def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touc
                         break
                     if found is not None and not scene.pairs_collide(dense[i], pair_ids[spans[j][0]:spans[j][1]]):
                         continue
-                    if rest or not _sample_ok(scene, dense[i], width, support and (resting is None or resting(dense[i])),
-                                              shallow):
+                    if rest or not _sample_ok(scene, dense[i], width, bool(may_rest[i]), shallow):
                         bad = i
                         break
             finally:
