@@ -384,6 +384,12 @@ def test_resting_shortcut_matches_every_pair(picker, rest, monkeypatch):
         never = lambda q: False  # noqa: E731
         for n in (n_touch, len(path) - 1):  # the lift's own split, and every waypoint a support one
             assert orig(sc, path, width, n, None, None, None, never) == reference(sc, path, width, n, None, never, False)
+        # a model the boxes cannot serve (scene_open None): coal alone, the same answer
+        with monkeypatch.context() as m:
+            m.setattr(motion, "scene_open", lambda *a: None)
+            assert orig(sc, path, width, n_touch, shallow, covered, drop, resting) == got
+            assert orig(sc, path, width, len(path) - 1, None, None, None, None) == reference(
+                sc, path, width, len(path) - 1, None, None, False)
         return got
 
     scenes: list = []

@@ -280,9 +280,13 @@ def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touc
                         break
                     if found is not None and not scene.pairs_collide(dense[i], pair_ids[spans[j][0]:spans[j][1]]):
                         continue
-                    if rest or not _sample_ok(scene, dense[i], width, bool(may_rest[i]), shallow):
-                        bad = i
-                        break
+                    if rest:  # with its support pairs off: colliding is a hit (no boxes: coal decides)
+                        if found is None and scene.is_free(dense[i], width):
+                            continue
+                    elif _sample_ok(scene, dense[i], width, bool(may_rest[i]), shallow):
+                        continue
+                    bad = i
+                    break
             finally:
                 if off is not None:
                     scene.switch_pairs(off, True)
