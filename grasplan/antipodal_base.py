@@ -134,7 +134,7 @@ _CLASS_RATIO = 4.0
 
 
 def stream_pairs(c: np.ndarray, n: np.ndarray, lateral: np.ndarray, *, reach: float, beta_deg: float,
-                 tol: Tolerance) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+                 tol: Tolerance, progress: dict | None = None) -> Iterator[tuple[np.ndarray, np.ndarray]]:
     """Chunks ``(a, b)`` (int64 index arrays, ``a < b``) of the pairs of oriented elements that may be
     anti-parallel within beta with lateral offset ``<= lateral[a] + lateral[b]``.
 
@@ -147,7 +147,8 @@ def stream_pairs(c: np.ndarray, n: np.ndarray, lateral: np.ndarray, *, reach: fl
     classes (``lateral`` within a factor :data:`_CLASS_RATIO`), so one large piece does not widen the
     radius for all small ones, and each range query holds at most :data:`_QUERY_ROWS` elements:
     no array grows with k^2. Every qualifying pair is yielded exactly once (a superset of the
-    pairs passing the exact tests; the tests check it against brute force)."""
+    pairs passing the exact tests; the tests check it against brute force). ``progress`` (a dict)
+    gets ``"done"``, the share of the query rows searched so far, after each chunk."""
     k = len(c)
     if k < 2:
         return
@@ -169,6 +170,10 @@ def stream_pairs(c: np.ndarray, n: np.ndarray, lateral: np.ndarray, *, reach: fl
     band = ~(inA ^ inB)
     classes = np.unique(cls)
     lat_max = {int(q): float(lat[cls == q].max()) for q in classes}
+    n_a = {int(q): int(np.count_nonzero(inA & (cls == q))) for q in classes}
+    n_b = {int(q): int(np.count_nonzero(inB & (cls == q))) for q in classes}
+    total = max(1, sum(n_a[int(qa)] for qa in classes for qb in classes if n_b[int(qb)]))
+    done = 0
     for qa in classes:
         A = np.flatnonzero(inA & (cls == qa))
         if len(A) == 0:
@@ -187,8 +192,11 @@ def stream_pairs(c: np.ndarray, n: np.ndarray, lateral: np.ndarray, *, reach: fl
                     a, b = As[i], B[j]
                     keep = (a != b) & ~(band[a] & band[b] & (a > b))
                     a, b = a[keep], b[keep]
+                    if progress is not None:
+                        progress["done"] = (done + (int(i[-1]) + 1 if len(i) else 0)) / total
                     if len(a):
                         yield np.minimum(a, b), np.maximum(a, b)
+                done += len(As)
 
 
 def perpendicular_frame(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

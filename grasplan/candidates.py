@@ -18,6 +18,7 @@ from .antipodal import find_face_pairs
 from .antipodal_base import Candidates, FaceGeometry
 from .blm import BLMResult, boundary_layer
 from .convexity import classify_convexity
+from .errors import InputError
 from .mesh import Part
 from .params import DEFAULT_MAX_OPENING, CandidateParams
 from .regions import find_regions
@@ -43,6 +44,7 @@ def find_candidates(
     search: Literal["index", "brute"] = "index",
     method: Method = "paper",
     spacing: float = 0.002,
+    notes: list[str] | None = None,
 ) -> Candidates:
     """Antipodal candidates among the convex faces of ``mesh`` by either method.
 
@@ -69,6 +71,9 @@ def find_candidates(
         et al. 2021); ``"regions"``: sampled contact regions (:mod:`grasplan.regions`).
     spacing : float
         ``method="regions"``: lattice pitch of the samples, metres.
+    notes : list of str, optional
+        ``method="regions"``: receives a line when the search bounded its work
+        (:func:`grasplan.regions.find_regions`; a part over its limits raises an InputError).
 
     Returns
     -------
@@ -102,7 +107,8 @@ def find_candidates(
         return Candidates.empty()
     if method == "regions":
         contacts, normals, width, faces, region = find_regions(
-            mesh, convex, geo, max_opening=max_opening, beta_deg=beta_deg, mu=mu, spacing=spacing, tol=tol)
+            mesh, convex, geo, max_opening=max_opening, beta_deg=beta_deg, mu=mu, spacing=spacing, tol=tol,
+            notes=notes)
         return Candidates(contacts, normals, width, faces, region)
     return find_face_pairs(geo, ids, max_opening=max_opening, beta_deg=beta_deg, epsilon=epsilon, mu=mu, tol=tol,
                            search=search)
@@ -117,6 +123,8 @@ class CandidateResult:
     convex: np.ndarray                 #: (m,) bool, per face of ``mesh``
     candidates: Candidates
     timing_s: dict = field(default_factory=dict)
+    #: what the search did to bound its work (one line each; empty for almost every part)
+    notes: tuple[str, ...] = ()
 
     def counts(self) -> dict:
         return {
@@ -160,16 +168,22 @@ def compute_candidates(part: Part, params: CandidateParams = CandidateParams(), 
     timing["convexity"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    cands = find_candidates(
-        mesh,
-        convex,
-        max_opening=max_opening,
-        beta_deg=params.beta_deg,
-        epsilon=params.epsilon,
-        mu=params.mu,
-        tol=part.tol,
-        method=cast(Method, params.method),   # a valid name: CandidateParams validates its choices
-        spacing=params.spacing,
-    )
+    notes: list[str] = []
+    try:
+        cands = find_candidates(
+            mesh,
+            convex,
+            max_opening=max_opening,
+            beta_deg=params.beta_deg,
+            epsilon=params.epsilon,
+            mu=params.mu,
+            tol=part.tol,
+            method=cast(Method, params.method),   # a valid name: CandidateParams validates its choices
+            spacing=params.spacing,
+            notes=notes,
+        )
+    except InputError as e:  # a work limit of the search: name the part
+        raise InputError(f"{part.path}: {e}") from None
     timing["antipodal"] = time.perf_counter() - t
-    return CandidateResult(part=part, params=params, mesh=mesh, blm=blm_result, convex=convex, candidates=cands, timing_s=timing)
+    return CandidateResult(part=part, params=params, mesh=mesh, blm=blm_result, convex=convex, candidates=cands,
+                           timing_s=timing, notes=tuple(notes))

@@ -124,7 +124,7 @@ class GripperCollider:
         self.gripper = gripper
         self.cell = cell
         self.T_world_part = T_world_part
-        self.part_bvh = bvh(part_mesh.vertices, part_mesh.faces)
+        self._bvh: coal.BVHModelOBBRSS | None = None   # built on first use (a part without poses needs none)
         self._grid: RayGrid | None = None
         self._samples: Any = None             # scipy.spatial.cKDTree of the surface samples, on first use
         lo, hi = part_mesh.bounds
@@ -157,6 +157,13 @@ class GripperCollider:
         bounds = [o.aabb() for o in self.obstacles]
         self._obs_center = [0.5 * (lo + hi) for lo, hi in bounds]
         self._obs_half = [0.5 * (hi - lo) for lo, hi in bounds]
+
+    @property
+    def part_bvh(self) -> coal.BVHModelOBBRSS:
+        """coal OBBRSS hierarchy of the part's triangles (built on first use)."""
+        if self._bvh is None:
+            self._bvh = bvh(self.part_mesh.vertices, self.part_mesh.faces)
+        return self._bvh
 
     @property
     def sample_tree(self) -> Any:

@@ -298,13 +298,14 @@ MAX_CONFIG_MESH_BYTES = 100_000_000
 
 
 def read_config_mesh(spec: dict[str, Any], base: Path, where: str, owner: str, *,
-                     max_triangles: int = 1_000_000, limit_name: str = "grasplan.mesh.MAX_TRIANGLES") -> tuple[np.ndarray, np.ndarray, Path]:
+                     max_triangles: int | None = None, limit_name: str = "grasplan.mesh.MAX_TRIANGLES"
+                     ) -> tuple[np.ndarray, np.ndarray, Path]:
     """``(vertices (n, 3) m, faces (m, 3), path)`` of the mesh file a config YAML names in ``spec``
     (``path`` relative to ``base``, the YAML's folder; ``scale``, default 1, to metres). ``where``
     names the field in errors, ``owner`` the YAML ("gripper", "cell"). Read by the part's reader
     (:func:`grasplan.meshfile.read_mesh`: regular files only, the files an OBJ or glTF names read
     through the same guard, at most ``max_triangles`` triangles, refused from the header where the
-    format declares a count). Any problem is a ConfigError naming the field and the file."""
+    format declares a count; None: the part's limit, :data:`grasplan.mesh.MAX_TRIANGLES`). Any problem is a ConfigError naming the field and the file."""
     if not isinstance(spec.get("path"), str) or not spec["path"] or "\x00" in spec["path"]:
         raise ConfigError(f"{where}.path: expected a mesh file name relative to the {owner} YAML")
     path = Path(os.path.normpath(base / spec["path"]))
@@ -312,8 +313,10 @@ def read_config_mesh(spec: dict[str, Any], base: Path, where: str, owner: str, *
     from .errors import InputError
     from .meshfile import ReadLimits, read_mesh
 
+    from .mesh import MAX_TRIANGLES
+
     try:
-        v, f, _ = read_mesh(path, ReadLimits(max_triangles=max_triangles, max_bytes=MAX_CONFIG_MESH_BYTES,
+        v, f, _ = read_mesh(path, ReadLimits(max_triangles=MAX_TRIANGLES if max_triangles is None else max_triangles, max_bytes=MAX_CONFIG_MESH_BYTES,
                                          limit_name=limit_name))
     except InputError as exc:
         raise ConfigError(f"{where}.path: mesh file {exc} (paths are relative to the {owner} YAML)") from None

@@ -6,7 +6,7 @@ surface (:func:`surface_samples`) whose presence inside a gripper box proves a h
 """
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -162,25 +162,42 @@ def ray_crossings(grid: RayGrid, pts: np.ndarray) -> Iterator[tuple[np.ndarray, 
         yield q, xh, np.where(area > 0, 1, -1), near | flat
 
 
+def crossing_counts(grid: RayGrid, pts: np.ndarray, *, check: Callable[[], None] | None = None,
+                    chunk: int = 2048) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(wind, tie, on)`` for points already rotated by ``grid.Q``: the signed count of the
+    crossings of each point's ray along +x (the winding number of a closed mesh), whether a
+    crossing passed within rounding of an edge, a vertex or a triangle seen edge-on or lay at the
+    point itself (the count cannot decide: ``tie``), and whether the ray met a triangle at the point
+    itself, well inside its edges (``on``: the point lies on the surface). ``check`` is called
+    before every ``chunk`` points (a budget's check, which raises when spent)."""
+    k = len(pts)
+    wind = np.zeros(k, dtype=np.int64)
+    tie = np.zeros(k, dtype=bool)
+    on_surface = np.zeros(k, dtype=bool)
+    scale = float(np.abs(grid.tri).max()) if len(grid.tri) else 1.0
+    for c0 in range(0, k, chunk):
+        if check is not None:
+            check()
+        for q, xh, sign, bad in ray_crossings(grid, pts[c0:c0 + chunk]):
+            q = q + c0
+            ahead = xh - pts[q, 0]
+            on = np.abs(ahead) <= 1e-12 * scale
+            cross = ~bad & ~on & (ahead > 0)
+            np.add.at(wind, q[cross], sign[cross])
+            tie[q[bad | on]] = True
+            on_surface[q[on & ~bad]] = True
+    return wind, tie, on_surface
+
+
 def points_inside_tree(grid: RayGrid, mesh: TriangleMesh, points: np.ndarray) -> np.ndarray:
     """(k,) bool: inside a closed mesh, by the signed count of crossings of the ray from each point
     along +x (= the winding number of a closed mesh). Points whose ray passes within rounding of an
     edge, a vertex or a triangle seen edge-on, or that lie on the surface, are decided by the
     generalised winding number (:func:`points_inside`) instead."""
     pts0 = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    pts = pts0 @ grid.Q.T
-    k = len(pts)
-    wind = np.zeros(k, dtype=np.int64)
-    tie = np.zeros(k, dtype=bool)
-    if k == 0:
+    if len(pts0) == 0:
         return np.zeros(0, dtype=bool)
-    scale = float(np.abs(grid.tri).max()) if len(grid.tri) else 1.0
-    for q, xh, sign, bad in ray_crossings(grid, pts):
-        ahead = xh - pts[q, 0]
-        on = np.abs(ahead) <= 1e-12 * scale
-        cross = ~bad & ~on & (ahead > 0)
-        np.add.at(wind, q[cross], sign[cross])
-        tie[q[bad | on]] = True
+    wind, tie, _ = crossing_counts(grid, pts0 @ grid.Q.T, chunk=max(len(pts0), 1))
     out = wind != 0
     if tie.any():
         out[tie] = points_inside(mesh, pts0[tie])

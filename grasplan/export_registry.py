@@ -18,19 +18,17 @@ from __future__ import annotations
 import importlib
 import math
 import os
-import re
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
 from .errors import InputError
+from .program_names import program_name_problem, suggest_program_name
 
 #: joint acceleration limit of the joint trajectory when none is given, rad/s^2 (all joints): the
 #: URDF has none; 1.4 rad/s^2 is the UR controller's default ``movej`` acceleration
 DEFAULT_MAX_ACCEL = 1.4
-#: a KRL/RAPID program name: a letter, then letters, digits or _, at most 24 characters
-PROGRAM_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,23}")
 #: the shipped formats (modules of :mod:`grasplan.export`), imported (and so registered) on the
 #: first look-up; adding a format is a module plus one name here
 BUILTIN_MODULES = ("urscript", "trajectory", "csvfile", "pathcsv", "krl", "rapid", "moveit_grasp")
@@ -51,9 +49,9 @@ class ExportOptions:
         if self.grasp_id is not None and (isinstance(self.grasp_id, bool) or not isinstance(self.grasp_id, int)
                                           or not 0 <= self.grasp_id < 2**62):
             raise InputError(f"--grasp: expected a grasp id >= 0, got {self.grasp_id!r}")
-        if not PROGRAM_NAME.fullmatch(self.program_name):
-            raise InputError(f"program name {self.program_name!r}: use a letter then letters, digits or _ "
-                             "(at most 24 characters)")
+        problem = program_name_problem(self.program_name)
+        if problem is not None:
+            raise InputError(f"program_name: {problem}; use e.g. {suggest_program_name(self.program_name)!r}")
         if not (isinstance(self.max_accel, (int, float)) and math.isfinite(self.max_accel) and 0 < self.max_accel <= 1000):
             raise InputError(f"--max-accel: expected rad/s^2 in (0, 1000], got {self.max_accel!r}")
         if not (isinstance(self.velocity_scale, (int, float)) and 0 < self.velocity_scale <= 1):
@@ -127,15 +125,17 @@ def output_paths(fmt: str, path: str | os.PathLike[str]) -> list[Path]:
 
 def program_options(fmt: str, path: str | os.PathLike[str], options: dict[str, Any]) -> dict[str, Any]:
     """``options`` with ``program_name`` = the file's stem for a format whose program is named
-    after its file (unless given); InputError when the stem is no program name."""
+    after its file (unless given); InputError when the stem is no program name
+    (:func:`grasplan.program_names.program_name_problem`), naming a file name that would pass."""
     f = get_format(fmt)
     if not f.program_named_by_file or "program_name" in options:
         return options
     path = Path(path)
-    if not PROGRAM_NAME.fullmatch(path.stem):
-        raise InputError(f"{path.name}: a {fmt} program is named after its file; use -o NAME{f.extension} with "
-                         "NAME a letter then letters, digits or _ (at most 24 characters), e.g. pick_part1"
-                         f"{f.extension}")
+    problem = program_name_problem(path.stem)
+    if problem is not None:
+        good = path.with_name(suggest_program_name(path.stem) + path.suffix)
+        raise InputError(f"{path.name}: a {fmt} program is named after its file, and {problem}; "
+                         f"write it as {good.name}")
     return {**options, "program_name": path.stem}
 
 

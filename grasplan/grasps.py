@@ -19,7 +19,8 @@ from .candidates import CandidateResult, compute_candidates
 from .cell import NO_CELL_NAME, Cell, load_cell
 from .collision import GripperCollider
 from .errors import InputError
-from .frames import GraspFrames, grasp_frames
+from .antipodal_base import Candidates
+from .frames import GraspFrames, grasp_frames, roll_angles
 from .grasp_table import GraspTable
 from .gripper import load_gripper
 from .gripper.model import Gripper
@@ -73,9 +74,11 @@ class GraspResult:
     lazy: LazyGrasps | None = None
 
     def quality_warnings(self) -> list[str]:
-        """What to tell the user about the quality step: the mass properties' warnings (or why
-        there is no quality) and :func:`grasplan.quality.holding_warning`."""
-        out = list(self.mass_props.warnings) if self.mass_props is not None else \
+        """What to tell the user: the work bounds the candidate and pose stages applied
+        (``cand.notes``), the mass properties' warnings (or why there is no quality) and
+        :func:`grasplan.quality.holding_warning`."""
+        out = list(self.cand.notes)   # work bounds applied (grasplan.regions, MAX_POSES)
+        out += list(self.mass_props.warnings) if self.mass_props is not None else \
             [self.quality_note] if self.quality_note else []
         w = holding_warning(self.quality, self.mass_props, part=Path(self.cand.part.path).name)
         return out + [w] if w else out
@@ -149,6 +152,49 @@ class GraspResult:
 
 #: poses collision-checked and scored per step of the rank-order evaluation
 LAZY_CHUNK = 2000
+#: at most this many poses (posed candidates x rolls) per part: more are thinned (see
+#: :func:`bounded_selection`). The paper parts pose up to ~100 k (SileaneGear, pose 1).
+MAX_POSES = 200_000
+#: and at most this many (poses x part triangles): a pose's collision check costs about in
+#: proportion to the triangles near the gripper, so a part of 500 k triangles poses at most 40 k
+#: (the paper parts, up to 21 k triangles, stay under MAX_POSES)
+MAX_POSE_TRIANGLES = 20_000_000_000
+
+
+def pose_limit(n_triangles: int) -> int:
+    """The most poses a part of ``n_triangles`` triangles gets: :data:`MAX_POSES`, or fewer for a
+    large part (:data:`MAX_POSE_TRIANGLES`)."""
+    return int(min(MAX_POSES, MAX_POSE_TRIANGLES // max(1, int(n_triangles))))
+
+
+def bounded_selection(cands: Candidates, select: np.ndarray | None, params: GraspParams, gripper: Gripper,
+                      n_triangles: int = 0) -> tuple[np.ndarray | None, str]:
+    """``(select, note)``: the candidates to pose so that (posable candidates) x (rolls) stays within
+    :func:`pose_limit` of the part's ``n_triangles``. Unchanged (note "") when it does already; else one candidate per cluster of
+    :func:`grasplan.thinning.thin_candidates` at the smallest pitch ``max(--thin, 1 mm) x 2^(k/2)`` that
+    fits (axis step ``params.thin_axis_deg``), and, should even a pitch of a metre not fit, the first
+    candidates of that selection; the note says what was posed and how to choose."""
+    n_rolls = len(roll_angles(params.roll_step_deg))
+    posable = (cands.width <= gripper.max_opening) & (cands.width >= gripper.min_opening)
+    base = np.flatnonzero(posable) if select is None else np.asarray(select, dtype=np.int64)[posable[select]]
+    cap = pose_limit(n_triangles)
+    if len(base) * n_rolls <= cap:
+        return select, ""
+    sub = cands.subset(base)
+    pitch = max(float(params.thin_spacing), 1e-3)
+    while True:
+        keep = base[thin_candidates(sub, spacing=pitch, axis_step_deg=float(params.thin_axis_deg))]
+        if len(keep) * n_rolls <= cap or pitch >= 1.0:
+            break
+        pitch *= np.sqrt(2.0)
+    keep = keep[: max(1, cap // n_rolls)]
+    why = (f"grasplan.grasps.MAX_POSES ({MAX_POSES:,})" if cap == MAX_POSES else
+           f"{cap:,} (grasplan.grasps.MAX_POSE_TRIANGLES {MAX_POSE_TRIANGLES:.0e} / {n_triangles:,} triangles)")
+    note = (f"grasps: {len(base):,} candidates x {n_rolls} rolls = {len(base) * n_rolls:,} poses, more than "
+            f"{why}: posing {len(keep):,} candidates, one per {pitch * 1e3:.3g} mm x "
+            f"{params.thin_axis_deg:g} deg cluster (as --thin {pitch * 1e3:.3g}mm); choose with --thin, a larger "
+            f"--roll-step, or --spacing")
+    return keep, note
 #: added to every score upper bound (float rounding of the two ways of summing the terms)
 _BOUND_SLACK = 1e-9
 
@@ -214,6 +260,9 @@ def compute_grasps(
     if grasps.thin_spacing > 0:
         select = thin_candidates(cand.candidates, spacing=float(grasps.thin_spacing),
                                  axis_step_deg=float(grasps.thin_axis_deg))
+    select, cap_note = bounded_selection(cand.candidates, select, grasps, g, n_triangles=len(part.mesh.faces))
+    if cap_note:
+        cand = replace(cand, notes=(*cand.notes, cap_note))
     frames = grasp_frames(cand.candidates, roll_step_deg=grasps.roll_step_deg, reference=down_in_part,
                           max_width=g.max_opening, min_width=g.min_opening, dedupe_swapped=g.symmetric,
                           merge_distance=grasps.merge_distance, select=select)

@@ -1,16 +1,26 @@
 """Output files: atomic writes and JSON encoding shared by every command.
 
 No command ever leaves a half-written output: everything is written to a temporary file in the
-destination folder and renamed into place.
+destination folder and renamed into place. A terminating signal arriving during a write (SIGTERM,
+SIGHUP, SIGQUIT, SIGUSR1, SIGALRM, ...: :data:`CLEANUP_SIGNALS`) removes the temporary file first,
+then ends the process as that signal would have (:func:`signals_raise`).
+
+Outputs are never written among installed files (:func:`installed_root`): grasplan's own package
+folder (code and packaged data) and the folders the running Python installs distributions into.
 """
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
 import json
 import os
 import signal
+import _signal
+import site
 import stat
+import sys
+import sysconfig
 import tempfile
 import threading
 from collections.abc import Iterable, Iterator
@@ -47,7 +57,8 @@ def check_output_path(out: str | os.PathLike, *, inputs: Iterable[str | os.PathL
     :data:`FORBIDDEN_OUTPUT_ROOTS` (after resolving symbolic links), an existing folder or
     non-regular file (FIFO, device), a parent folder that is a file, is missing (unless
     ``create_parents``: then the nearest existing ancestor must be a writable folder) or is not
-    writable, and ``out`` being the same file as one of ``inputs`` (it would overwrite it).
+    writable, a path among installed files (:func:`installed_root`), and ``out`` being the same
+    file as one of ``inputs`` (it would overwrite it).
     """
     text = os.fsdecode(out) if isinstance(out, bytes) else str(out)
     if not text.strip():
@@ -68,6 +79,13 @@ def check_output_path(out: str | os.PathLike, *, inputs: Iterable[str | os.PathL
         if real == Path(root) or Path(root) in real.parents:
             raise InputError(f"{option}: {show_path(path)} is under {root} (system files, not documents); write the "
                              f"output to a normal folder")
+    installed = installed_root(real)
+    if installed is not None:
+        folder, what = installed
+        which = "is an installed file" if os.path.lexists(path) else "would be written among installed files"
+        raise InputError(f"{option}: {show_path(path)} {which} (in {show_path(folder)}, {what}); grasplan never "
+                         f"writes there: give an output path in a folder of your own (the current folder, your "
+                         f"project, /tmp)")
     try:
         st = os.stat(path)
     except (FileNotFoundError, NotADirectoryError):  # the parent checks below say which part is wrong
@@ -107,38 +125,133 @@ def check_output_path(out: str | os.PathLike, *, inputs: Iterable[str | os.PathL
     return path
 
 
+#: the folders of each Python prefix (``sys.prefix``, ``sys.base_prefix``) holding installed files
+INSTALLED_PREFIX_FOLDERS = ("lib", "lib64", "share", "include", "bin")
+
+
+def _installed_folders() -> list[tuple[str, str]]:
+    """``(folder, what)`` for every folder :func:`installed_root` protects, before resolving."""
+    dist = "installed distributions' files"
+    out = [(os.path.dirname(os.path.abspath(__file__)), "grasplan's package folder: its code and packaged data")]
+    what = {"purelib": dist, "platlib": dist, "stdlib": "Python's standard library",
+            "platstdlib": "Python's standard library", "include": "Python's C headers",
+            "platinclude": "Python's C headers", "scripts": "installed distributions' scripts"}
+    paths = sysconfig.get_paths()
+    out += [(paths[key], text) for key, text in what.items() if paths.get(key)]
+    with contextlib.suppress(AttributeError):  # site.getsitepackages is missing in some virtualenv builds
+        out += [(d, dist) for d in site.getsitepackages()]
+    with contextlib.suppress(AttributeError):
+        out += [(site.getusersitepackages(), dist)]
+    out += [(d, dist) for d in sys.path if d and os.path.basename(os.path.normpath(d)) in ("site-packages", "dist-packages")]
+    for prefix in {sys.prefix, sys.base_prefix, sys.exec_prefix, sys.base_exec_prefix}:
+        out += [(os.path.join(prefix, sub), f"the Python installation's {sub}/ folder") for sub in INSTALLED_PREFIX_FOLDERS]
+    return out
+
+
+@functools.lru_cache(maxsize=1)
+def installed_roots() -> tuple[tuple[Path, str], ...]:
+    """The folders no output may be written into, resolved (symbolic links followed): grasplan's
+    package folder, the running Python's ``site-packages`` (``sysconfig`` purelib/platlib,
+    :func:`site.getsitepackages`, the user site, ``site-packages``/``dist-packages`` entries of
+    ``sys.path``), its standard library, include and scripts folders, and the :data:`INSTALLED_PREFIX_FOLDERS`
+    of ``sys.prefix`` and ``sys.base_prefix`` (data files such as ``share/``). A prefix itself is
+    not protected (a project folder may hold its ``.venv``), nor is any folder holding the home or
+    the temporary folder. Computed once per process."""
+    keep: dict[Path, str] = {}
+    open_ = {Path(os.path.realpath(d)) for d in (os.path.expanduser("~"), tempfile.gettempdir())}
+    for folder, what in _installed_folders():
+        try:
+            real = Path(os.path.realpath(folder))
+        except (OSError, ValueError):
+            continue
+        if real == real.parent or any(real == o or real in o.parents for o in open_):
+            continue  # "/" or a folder around the home or the temporary folder: never refused whole
+        keep.setdefault(real, what)
+    return tuple(sorted(keep.items(), key=lambda kv: -len(kv[0].parts)))
+
+
+def installed_root(real: str | os.PathLike) -> tuple[Path, str] | None:
+    """``(folder, what)`` of the :func:`installed_roots` folder holding the resolved path ``real``,
+    else None (a prefix check: no scan of installed files)."""
+    p = Path(real)
+    for folder, what in installed_roots():
+        if p == folder or folder in p.parents:
+            return folder, what
+    return None
+
+
 class _Terminated(BaseException):
-    """Raised by the temporary SIGTERM handler inside :func:`write_atomic_bytes`."""
+    """Raised by the temporary signal handler of :func:`signals_raise`."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+#: signals whose default action ends the process and that can arrive from outside at any time
+#: (synchronous faults such as SIGSEGV, and SIGKILL/SIGSTOP, are not caught); real-time signals too
+CLEANUP_SIGNALS: tuple[int, ...] = tuple(sorted({
+    int(getattr(signal, name)) for name in
+    ("SIGHUP", "SIGINT", "SIGQUIT", "SIGABRT", "SIGUSR1", "SIGUSR2", "SIGPIPE", "SIGALRM", "SIGTERM", "SIGSTKFLT",
+     "SIGXCPU", "SIGXFSZ", "SIGVTALRM", "SIGPROF", "SIGIO", "SIGPOLL", "SIGPWR", "SIGLOST", "SIGEMT", "SIGINFO")
+    if hasattr(signal, name)} | (set(range(signal.SIGRTMIN, signal.SIGRTMAX + 1)) if hasattr(signal, "SIGRTMIN")
+                                 else set())))
 
 
 @contextlib.contextmanager
-def _sigterm_raises() -> Iterator[None]:
-    """While active, SIGTERM raises :class:`_Terminated` (so the caller's cleanup runs); on exit the
-    previous handler is restored and a SIGTERM that arrived is re-delivered to it. A no-op outside
-    the main thread or when SIGTERM is ignored."""
-    if threading.current_thread() is not threading.main_thread():
+def signals_raise() -> Iterator[None]:
+    """While active, every signal of :data:`CLEANUP_SIGNALS` whose action is the default one (end
+    the process) raises :class:`_Terminated` instead, so the caller's cleanup (``finally``,
+    ``except BaseException``) runs; then the default action is restored and the signal sent again,
+    so the process ends exactly as the signal would have ended it (killed by it: status 128 + its
+    number in a shell). Signals that are ignored or have a Python handler (SIGINT's
+    KeyboardInterrupt, a caller's own handler) keep it: that handler decides, and an exception it
+    raises runs the same cleanup. A no-op outside the main thread. Nested uses are fine (the outermost one handles the
+    signal); a second signal during the cleanup of the first is ignored."""
+    global _depth
+    if threading.current_thread() is not threading.main_thread() or _depth:  # an enclosing use is active
         yield
         return
-    previous = signal.getsignal(signal.SIGTERM)
-    if previous is signal.SIG_IGN or previous is None:  # ignored, or installed outside Python
-        yield
-        return
+    pending: list[int] = []
 
     def handler(signum, frame):
-        raise _Terminated()
+        if pending:  # a later signal during the cleanup of the first: the first one ends the process
+            return
+        pending.append(signum)
+        raise _Terminated(signum)
 
-    signal.signal(signal.SIGTERM, handler)
+    replaced: list[int] = []
+    _depth += 1
     try:
+        for sig in CLEANUP_SIGNALS:
+            with contextlib.suppress(OSError, ValueError):
+                if _signal.getsignal(sig) == _signal.SIG_DFL:  # the C module: no enum conversion per call
+                    _signal.signal(sig, handler)
+                    replaced.append(sig)
         yield
-    except _Terminated:
-        signal.signal(signal.SIGTERM, previous)
-        if callable(previous):
-            previous(signal.SIGTERM, None)
-        else:  # SIG_DFL: end the process the way SIGTERM would have
-            os.kill(os.getpid(), signal.SIGTERM)
-        raise
+    except _Terminated as exc:
+        if exc.signum not in replaced:  # raised by a handler installed elsewhere: that one decides
+            raise
+        _restore(replaced)
+        replaced = []
+        if hasattr(signal, "pthread_kill"):  # to this thread: delivered before the call returns
+            signal.pthread_kill(threading.get_ident(), exc.signum)
+        else:
+            os.kill(os.getpid(), exc.signum)
+        raise SystemExit(128 + exc.signum) from None  # the signal is blocked here: the shell's status for it
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        _depth -= 1
+        _restore(replaced)
+
+
+#: active :func:`signals_raise` contexts (main thread only; the outermost installs the handlers)
+_depth = 0
+
+
+def _restore(sigs: list[int]) -> None:
+    for sig in sigs:
+        with contextlib.suppress(OSError, ValueError):
+            _signal.signal(sig, _signal.SIG_DFL)
 
 
 def sha256_file(path: str | os.PathLike) -> str:
@@ -167,7 +280,7 @@ def to_json_text(data: Any, *, indent: int | None = None) -> str:
 def write_atomic_bytes(path: str | os.PathLike, payload: bytes) -> Path:
     """Write ``payload`` to ``path`` via a temporary file in the same folder + rename; returns the
     path. Missing parent folders are created. The file gets the permissions a plain ``open()``
-    would (umask applied). On any error, KeyboardInterrupt or SIGTERM the temporary file is removed
+    would (umask applied). On any error, KeyboardInterrupt or terminating signal the temporary file is removed
     and an existing ``path`` is left untouched; operating-system errors become InputError."""
     return write_atomic_chunks(path, (payload,))
 
@@ -179,7 +292,7 @@ def write_atomic_chunks(path: str | os.PathLike, chunks: Iterable[bytes | str]) 
     existing ``path`` untouched: nothing is written unless every chunk was."""
     path = Path(path)
     parent = path.parent if str(path.parent) else Path(".")
-    with _sigterm_raises():
+    with signals_raise():
         tmp = None
         try:
             parent.mkdir(parents=True, exist_ok=True)

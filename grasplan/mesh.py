@@ -36,9 +36,10 @@ Units = Literal["auto", "m", "cm", "mm", "um", "in", "ft"]
 UNIT_CHOICES: tuple[str, ...] = ("auto", *LENGTH_UNITS)
 #: largest extent (file units) from which ``auto`` reads a file as millimetres
 AUTO_MM_THRESHOLD = 2.0
-#: parts with more triangles are refused before they are read (the candidate search and the
-#: collision checks need memory roughly proportional to the triangle count; decimate first)
-MAX_TRIANGLES = 1_000_000
+#: parts with more triangles are refused before they are read (decimate first): time and memory of
+#: ``candidates`` and ``grasps`` grow with the triangle count, and up to this many they finish
+#: within a minute on two cores with margin (benchmarks/bench_large.py)
+MAX_TRIANGLES = 750_000
 #: mesh files larger than this (bytes) are refused before they are read
 MAX_FILE_BYTES = 1 << 30
 #: a part's largest extent in metres must lie in this range (outside it the units are wrong or

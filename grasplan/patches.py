@@ -29,6 +29,7 @@ import math
 import numpy as np
 
 from .errors import ConfigError
+from .grouping import expand
 from .gripper.model import Gripper
 from .meshdata import TriangleMesh, edge_adjacency
 from .polygons import clip_polygons, equivalent_widths, polygon_moments
@@ -43,6 +44,11 @@ MIN_SIDE = 2e-3
 LINE_ASPECT = 2.0
 #: largest (grasp, face) pairs held at once by the patch computation
 MAX_PAIRS = 400_000
+#: parts with at least this many elements find the faces near each contact by visiting the grid
+#: cells its slab crosses (:func:`_near_faces_slab`) instead of the dense (faces x contacts) test, and take the moments of an element lying within the disc the pad
+#: covers at every roll once per contact, turned to each roll (:func:`_rotated`), instead of
+#: clipping it once per roll (the same moments up to rounding)
+GRID_FACES = 50_000
 #: exactly coplanar edge-connected areas of at least this many faces are merged into their
 #: boundary loops (one polygon instead of thousands of triangles on finely tessellated faces)
 MERGE_MIN_FACES = 3
@@ -238,10 +244,42 @@ def gather_polygons(pts: np.ndarray, first: np.ndarray, count: np.ndarray, idx: 
     return pts[first[idx][:, None] + j]
 
 
+def _rotated(mom, j, poly, n, nx, w, gu, gsize, gstart, members, o, R, cos_flat, M) -> None:
+    """Moments of slab-clipped polygons ``poly`` (K, V, 3) of contacts ``gu`` that lie inside jaw
+    ``j``'s pad at every roll: computed once per contact in the frame of its first pose, summed per
+    contact, then turned to each pose of the contact (area kept, first moments as a vector, second
+    moments as a tensor) and added. Every pose of a contact shares its TCP origin."""
+    ref = members[gstart[gu]]
+    P = np.matmul(poly - o[ref][:, None], R[ref])
+    m6 = polygon_moments(P[..., 1], P[..., 2], n) * w[:, None]
+    flat = np.abs(nx) >= cos_flat
+    used, inv = np.unique(gu, return_inverse=True)
+    inv = inv.reshape(-1)
+    own, k = expand(gsize[used])
+    g = members[gstart[used][own] + k]
+    Rr, Rg = R[members[gstart[used]]][own], R[g]
+    b11 = np.einsum("ki,ki->k", Rg[:, :, 1], Rr[:, :, 1])
+    b12 = np.einsum("ki,ki->k", Rg[:, :, 1], Rr[:, :, 2])
+    b21 = np.einsum("ki,ki->k", Rg[:, :, 2], Rr[:, :, 1])
+    b22 = np.einsum("ki,ki->k", Rg[:, :, 2], Rr[:, :, 2])
+    for slot, wt in ((0, m6), (1, m6 * flat[:, None])):
+        S = np.stack([np.bincount(inv, weights=wt[:, c], minlength=len(used)) for c in range(6)], axis=1)[own]
+        a, my, mz, yy, zz, yz = S.T
+        out = (a, b11 * my + b12 * mz, b21 * my + b22 * mz,
+               b11 * b11 * yy + 2 * b11 * b12 * yz + b12 * b12 * zz,
+               b21 * b21 * yy + 2 * b21 * b22 * yz + b22 * b22 * zz,
+               b11 * b21 * yy + (b11 * b22 + b12 * b21) * yz + b12 * b22 * zz)
+        for c in range(6):
+            mom[:, j, slot, c] += np.bincount(g, weights=out[c], minlength=M)
+
+
 def _patch_pairs(mom, j, f, gu, nx, pts, first, count, weight, cu, axu, gsize, gstart, members, o, R, depth,
-                 rect, cos_flat, M, max_pairs) -> None:
+                 rect, cos_flat, M, max_pairs, disc: float = 0.0, same_origin: np.ndarray | None = None) -> None:
     """Elements ``f`` near distinct contacts ``gu``: cull and clip on the contact slab once, then
-    expand to every roll of the contact (at most ``max_pairs`` pairs at once) and accumulate."""
+    expand to every roll of the contact (at most ``max_pairs`` pairs at once) and accumulate.
+    ``disc`` > 0: elements within that distance of the closing axis through the TCP (inside the pad
+    at every roll) of a contact whose poses share their origin (``same_origin`` per contact) go
+    through :func:`_rotated` instead."""
     # exact cull and clip on the contact slab (x only, the same for every roll): once per
     # (contact, element), in the part frame with x = (v - contact) . axis as a clip coordinate
     polys = gather_polygons(pts, first, count, f)  # padding repeats a vertex: min / max unchanged
@@ -253,6 +291,18 @@ def _patch_pairs(mom, j, f, gu, nx, pts, first, count, weight, cu, axu, gsize, g
     Px, npx = clip_polygons(Px, npx, 0, np.full(len(Px), -depth), keep_below=False)
     Px, npx = clip_polygons(Px, npx, 0, np.full(len(Px), depth), keep_below=True)
     poly = Px[..., 1:]
+    if disc > 0 and same_origin is not None and len(gu):
+        ref = members[gstart[gu]]
+        d = poly - o[ref][:, None]
+        along = np.einsum("kvi,ki->kv", d, R[ref][:, :, 0])
+        rho2 = np.einsum("kvi,kvi->kv", d, d) - along * along
+        valid = np.arange(poly.shape[1])[None, :] < npx[:, None]
+        fast = (npx > 0) & same_origin[gu] & (np.where(valid, rho2, 0.0).max(axis=1, initial=0.0) < disc * disc)
+        if fast.any():
+            _rotated(mom, j, poly[fast], npx[fast], nx[fast], weight[f[fast]], gu[fast], gsize, gstart, members, o, R,
+                     cos_flat, M)
+            slow = ~fast
+            gu, f, nx, poly, npx = gu[slow], f[slow], nx[slow], poly[slow], npx[slow]
     # expand the survivors to every roll of their contact, in bounded sub-chunks
     nrep = gsize[gu]
     ends = np.cumsum(nrep)
@@ -265,6 +315,91 @@ def _patch_pairs(mom, j, f, gu, nx, pts, first, count, weight, cu, axu, gsize, g
         g = members[gstart[gu[pu]] + within]
         _accumulate(mom, j, poly[pu], npx[pu], nx[pu], weight[f[pu]], o[g], R[g], g, rect, cos_flat, M)
         s0 = s1
+
+
+#: contacts per step of :func:`_near_faces_slab` (bounds its cell and pair arrays)
+_SLAB_CONTACTS = 256
+
+
+def _near_faces_slab(cent: np.ndarray, fn: np.ndarray, face_rad: np.ndarray, cu: np.ndarray, axu: np.ndarray,
+                     slab_tol: np.ndarray, lat_tol: np.ndarray, pad_reach: float, j: int
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(face, contact, n . axis)`` of every element whose centroid passes the near test of
+    :func:`contact_patches` (within ``slab_tol`` of the plane through contact ``cu`` normal to its
+    axis ``axu``, laterally within ``sqrt(lat_tol)``, facing the jaw), sorted by (face, contact).
+
+    Centroids are binned on a grid (faces in classes of radii within a factor 2, each with cells at
+    least twice its slab thick); for each contact only the cells the slab crosses are visited: per
+    column along the axis' dominant coordinate, the few cells within the slab's half-thickness (plus
+    the plane's rise across a cell) of the plane at the column's centre. Every face passing the test
+    lies in a visited cell; the same exact test then decides. Work: the visited cells and the faces
+    in them, not faces x contacts."""
+    fs: list[np.ndarray] = []
+    bs: list[np.ndarray] = []
+    ns: list[np.ndarray] = []
+    base = max(float(face_rad.min(initial=0.0)), 1e-9)
+    cls = np.floor(np.log2(np.maximum(face_rad, base) / base)).astype(np.int64)
+    for c in np.unique(cls):
+        rows = np.flatnonzero(cls == c)
+        slab = float(slab_tol[rows].max())
+        r3 = float(np.sqrt(slab * slab + lat_tol[rows].max()))
+        h = max(2.0 * slab, r3 / 16.0)
+        lo = cent[rows].min(axis=0)
+        cell = np.floor((cent[rows] - lo) / h).astype(np.int64)
+        dims = cell.max(axis=0) + 1
+        key = np.ravel_multi_index(cell.T, tuple(int(d) for d in dims))
+        order = np.argsort(key, kind="stable")
+        ks = key[order]
+        first = np.flatnonzero(np.r_[True, ks[1:] != ks[:-1]])
+        ukey, ucount = ks[first], np.diff(np.r_[first, len(ks)])
+        for s in range(0, len(cu), _SLAB_CONTACTS):
+            b_all = np.arange(s, min(len(cu), s + _SLAB_CONTACTS))
+            a = axu[b_all]
+            k = np.argmax(np.abs(a), axis=1)
+            i1, i2 = (k + 1) % 3, (k + 2) % 3
+            r = np.arange(len(b_all))
+            p = cu[b_all] - lo
+            c1_lo = np.floor((p[r, i1] - r3) / h).astype(np.int64)
+            c2_lo = np.floor((p[r, i2] - r3) / h).astype(np.int64)
+            n1 = np.floor((p[r, i1] + r3) / h).astype(np.int64) - c1_lo + 1
+            n2 = np.floor((p[r, i2] + r3) / h).astype(np.int64) - c2_lo + 1
+            own, q = expand(n1 * n2)
+            c1 = c1_lo[own] + q // n2[own]
+            c2 = c2_lo[own] + q % n2[own]
+            ak, a1, a2 = a[own, k[own]], a[own, i1[own]], a[own, i2[own]]
+            t = np.einsum("ki,ki->k", p, a)[own]
+            xk = (t - a1 * (c1 + 0.5) * h - a2 * (c2 + 0.5) * h) / ak          # the plane at the column centre
+            ht = (slab + 0.5 * h * (np.abs(a1) + np.abs(a2))) / np.abs(ak) * (1 + 1e-9) + 1e-12
+            k0 = np.floor((xk - ht) / h).astype(np.int64)
+            own2, q2 = expand(np.floor((xk + ht) / h).astype(np.int64) - k0 + 1)
+            ck = k0[own2] + q2
+            o3 = own[own2]
+            cc = np.zeros((len(o3), 3), dtype=np.int64)
+            rr = np.arange(len(o3))
+            cc[rr, k[o3]], cc[rr, i1[o3]], cc[rr, i2[o3]] = ck, c1[own2], c2[own2]
+            inside = np.all((cc >= 0) & (cc < dims), axis=1)
+            cc, o3 = cc[inside], o3[inside]
+            qk = np.ravel_multi_index(cc.T, tuple(int(d) for d in dims)) if len(cc) else np.zeros(0, np.int64)
+            pos = np.minimum(np.searchsorted(ukey, qk), max(len(ukey) - 1, 0))
+            hit = (ukey[pos] == qk) if len(ukey) else np.zeros(len(qk), dtype=bool)
+            pos, o3 = pos[hit], o3[hit]
+            ow, q3 = expand(ucount[pos])
+            f = rows[order[first[pos][ow] + q3]]
+            b = b_all[o3[ow]]
+            d = cent[f] - cu[b]
+            xs = np.einsum("ki,ki->k", d, axu[b])
+            nx = np.einsum("ki,ki->k", fn[f], axu[b])
+            near = (np.abs(xs) <= slab_tol[f]) & (np.einsum("ki,ki->k", d, d) - xs * xs <= lat_tol[f]) & \
+                ((nx < 0) if j == 0 else (nx > 0))
+            fs.append(f[near])
+            bs.append(b[near])
+            ns.append(nx[near])
+    if not fs:
+        z = np.zeros(0, dtype=np.int64)
+        return z, z, np.zeros(0)
+    f, b, nx = np.concatenate(fs), np.concatenate(bs), np.concatenate(ns)
+    o = np.lexsort((b, f))
+    return f[o], b[o], nx[o]
 
 
 def contact_patches(part_mesh: TriangleMesh, gripper: Gripper, T_part_tcp: np.ndarray, contacts: np.ndarray,
@@ -315,6 +450,19 @@ def contact_patches(part_mesh: TriangleMesh, gripper: Gripper, T_part_tcp: np.nd
         gsize = np.bincount(inv, minlength=U)
         gstart = np.cumsum(gsize) - gsize
         cu, axu = C[rep, j], R[rep, :, 0]
+        if F >= GRID_FACES:
+            f, b, nx = _near_faces_slab(cent, fn, face_rad, cu, axu, slab_tol, lat_tol, pad_reach, j)
+            # the disc the pad covers at every roll; contacts whose poses share the TCP origin
+            disc = (1.0 - 1e-9) * min(-y_lo, y_hi, -z_lo, z_hi)
+            ref_o = o[members[gstart[inv]]]
+            same = np.bincount(inv, weights=np.any(o != ref_o, axis=1), minlength=U) == 0
+            for cls in np.unique(vclass[f]):
+                sel = vclass[f] == cls
+                budget = max(1, (max_pairs * 3) // VERTEX_CLASSES[cls])
+                _patch_pairs(mom, j, f[sel], b[sel], nx[sel], pts, first, count, weight, cu, axu, gsize, gstart,
+                             members, o, R, depth, (y_lo, y_hi, z_lo, z_hi), cos_flat, M, budget,
+                             disc=disc, same_origin=same)
+            continue
         # faces near each contact's pad: a dense (faces x contacts) test on centroids, chunked so
         # that at most max_pairs (face, contact) pairs exist at once
         step = max(1, max_pairs // max(F, 1))

@@ -308,12 +308,16 @@ def obb_apart(Ra, ca, ha, Rb, cb, hb, tol):  # pragma: no cover
 
 
 _BOXES: "weakref.WeakKeyDictionary[Any, PathBoxes]" = weakref.WeakKeyDictionary()
+#: kernel arguments kept per scene variant (one per jaw opening and carried part's pose; a grasp
+#: reuses its own through its approach, lift and transit, the next grasp has others)
+MAX_PREPARED = 8
 
 
 def _prepared(scene: Any) -> tuple[tuple, np.ndarray, np.ndarray] | None:
     """``(the kernel's arguments but the pairs and the tolerance, every pair's rows into the used
     geometries, per pair: the kernel can take it)`` for ``scene`` with its jaws and carried part as
-    they are; cached per variant, jaw opening and attached part's pose. None when the boxes cannot
+    they are; cached per variant, jaw opening and attached part's pose (the last :data:`MAX_PREPARED`
+    of a variant). None when the boxes cannot
     serve the model."""
     scene._apply()
     sh = scene._shared
@@ -342,8 +346,8 @@ def _prepared(scene: Any) -> tuple[tuple, np.ndarray, np.ndarray] | None:
     key = (sh.opening, None if scene.T_tcp_part is None else scene.T_tcp_part.tobytes())
     prep = preps.get(key)
     if prep is None:
-        if len(preps) >= 32:
-            preps.clear()
+        if len(preps) >= MAX_PREPARED:
+            del preps[next(iter(preps))]
         for i in moving:
             placements[i] = objs[used[i]].placement.homogeneous
         prep = preps[key] = boxes.prepare(sel[0], placements, sh.margin)

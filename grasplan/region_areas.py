@@ -183,13 +183,14 @@ def area_edges(F: np.ndarray, label: np.ndarray, n_areas: int, adjacency: tuple 
 
 
 def area_pairs(areas: Areas, geo: FaceGeometry, ids: np.ndarray, *, max_opening: float, beta_deg: float,
-               tol: Tolerance) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+               tol: Tolerance, progress: dict | None = None) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Chunks ``(P, Q, a)`` of area pairs that can form a region: normals anti-parallel within
     ``beta + spread_P + spread_Q`` (so every pair of their faces anti-parallel within beta is among
     them; the samples are held to beta on their own faces' normals, :func:`grasplan.regions.finish_samples`)
     and the two areas' discs (centroid, radius = farthest face corner) able to overlap along the
     closing axis ``a = (n_P - n_Q) / |n_P - n_Q|`` within ``max_opening``. ``ids``: the faces that
-    belong to an area. Streams the 6D line search (:func:`grasplan.antipodal_base.stream_pairs`)."""
+    belong to an area. Streams the 6D line search (:func:`grasplan.antipodal_base.stream_pairs`;
+    ``progress`` as there)."""
     nA = len(areas.area)
     lab = areas.label
     beta = np.radians(beta_deg)
@@ -197,7 +198,8 @@ def area_pairs(areas: Areas, geo: FaceGeometry, ids: np.ndarray, *, max_opening:
     eps = tol.distance
     # area radius: largest distance of its faces' corners from the area centroid
     arad = group_max(lab[ids], max3(np.linalg.norm(geo.tri[ids] - areas.centroid[lab[ids]][:, None], axis=2)), nA)
-    for P, Q in stream_pairs(areas.centroid, areas.normal, arad, reach=max_opening, beta_deg=wide_deg, tol=tol):
+    for P, Q in stream_pairs(areas.centroid, areas.normal, arad, reach=max_opening, beta_deg=wide_deg, tol=tol,
+                             progress=progress):
         limit = np.minimum(beta + areas.spread[P] + areas.spread[Q], np.pi)
         ok = np.einsum("ij,ij->i", areas.normal[P], areas.normal[Q]) <= -np.cos(limit) + 1e-12
         P, Q, limit = P[ok], Q[ok], limit[ok]

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .grouping import expand, group_pairs, max3, min3, row_keys
+from .grouping import expand, group_pairs, max3, min3, row_keys, unique_values
 
 
 def region_edges(RP: np.ndarray, RQ: np.ndarray, eu: np.ndarray, ev: np.ndarray, estart: np.ndarray, ecount: np.ndarray
@@ -85,7 +85,7 @@ def inside_parts(reg: np.ndarray, poly: np.ndarray, x0: np.ndarray, y0: np.ndarr
     ia, ib = group_pairs(key[isP], key[~isP])
     s, e = row[isP][ia], row[~isP][ib]
     if len(s):
-        u = np.unique(s * n + e)
+        u = unique_values(s * n + e)
         s, e = u // n, u % n
     dsx, dsy = x1[s] - x0[s], y1[s] - y0[s]
     dex, dey = x1[e] - x0[e], y1[e] - y0[e]
@@ -151,27 +151,64 @@ def row_intervals(reg: np.ndarray, poly: np.ndarray, x0: np.ndarray, y0: np.ndar
         x = x0[row] + (y - y0[row]) * (x1[row] - x0[row]) / (y1[row] - y0[row])
         outs.append((reg[row], j, np.full(len(row), k_off), poly[row], x))
     reg_, j, oi, pl, x = (np.concatenate(v) for v in zip(*outs))
-    o = np.lexsort((x, pl, oi, j, reg_))
-    reg_, j, oi, pl, x = reg_[o], j[o], oi[o], pl[o], x[o]
-    # even-odd pairing within each (region, j, offset, polygon) group
-    g = np.r_[True, (reg_[1:] != reg_[:-1]) | (j[1:] != j[:-1]) | (oi[1:] != oi[:-1]) | (pl[1:] != pl[:-1])]
-    gid = np.cumsum(g) - 1
-    gstart = np.flatnonzero(g)
-    rank = np.arange(len(x)) - gstart[gid]
-    size = np.bincount(gid)
-    even = (size[gid] % 2 == 0)
-    st = np.flatnonzero(even & (rank % 2 == 0))
+    # group the crossings by (region, j, offset, polygon): one int64 key, mostly in order already
+    group = row_keys(reg_, j, oi, pl)
+    o = np.argsort(group, kind="stable")
+    group, reg_, j, x = group[o], reg_[o], j[o], x[o]
+    gstart = np.flatnonzero(np.r_[True, group[1:] != group[:-1]]) if len(group) else np.zeros(0, np.int64)
+    size = np.diff(np.r_[gstart, len(group)])
+    # only groups of more than two crossings need their x sorted (a pair is one interval: min, max)
+    big = np.flatnonzero(size > 2)
+    if len(big):
+        own, k = expand(size[big])
+        idx = gstart[big][own] + k
+        x[idx] = x[idx][np.lexsort((x[idx], own))]
+    # even-odd pairing within each group (a group of odd size is dropped)
+    own, k = expand(np.where(size % 2 == 0, size // 2, 0))
+    st = gstart[own] + 2 * k
+    xa, xb = np.minimum(x[st], x[st + 1]), np.maximum(x[st], x[st + 1])
+    ireg, ij = reg_[st], j[st]
     need = len(offsets) * 2
-    # coverage count: +1 at each interval start, -1 at each end; covered by all where count == need
-    ev_reg = np.concatenate([reg_[st], reg_[st]])
-    ev_j = np.concatenate([j[st], j[st]])
-    ev_x = np.concatenate([x[st], x[st + 1]])
-    ev_d = np.concatenate([np.ones(len(st), np.int64), -np.ones(len(st), np.int64)])
-    o = np.lexsort((ev_d, ev_x, ev_j, ev_reg))
-    ev_reg, ev_j, ev_x, ev_d = ev_reg[o], ev_j[o], ev_x[o], ev_d[o]
-    cnt = np.cumsum(ev_d)
-    full = np.flatnonzero((cnt[:-1] == need) & (ev_reg[1:] == ev_reg[:-1]) & (ev_j[1:] == ev_j[:-1]))
-    return ev_reg[full], ev_j[full], ev_x[full], ev_x[full + 1]
+    # lines (region, j): covered where all `need` groups cover. A line of exactly one interval per
+    # group: [max start, min end]; any other line: a sweep over its interval ends
+    lstart = np.flatnonzero(np.r_[True, (ireg[1:] != ireg[:-1]) | (ij[1:] != ij[:-1])]) if len(st) else st
+    n_int = np.diff(np.r_[lstart, len(st)])
+    n_single = np.add.reduceat((size[own] == 2).astype(np.int64), lstart) if len(st) else n_int
+    simple = (n_int == need) & (n_single == need)
+    out_reg, out_j, out_a, out_b = [], [], [], []
+    if simple.any():
+        ls = lstart[simple]
+        a_max = np.maximum.reduceat(xa, lstart)[simple] if len(st) else xa
+        b_min = np.minimum.reduceat(xb, lstart)[simple] if len(st) else xb
+        hit = a_max < b_min
+        out_reg.append(ireg[ls][hit])
+        out_j.append(ij[ls][hit])
+        out_a.append(a_max[hit])
+        out_b.append(b_min[hit])
+    if (~simple).any():
+        own_l, k_l = expand(n_int[~simple])
+        sel = lstart[~simple][own_l] + k_l
+        s_reg, s_j, s_a, s_b = ireg[sel], ij[sel], xa[sel], xb[sel]
+        # coverage count: +1 at each interval start, -1 at each end; covered by all where count == need
+        ev_reg = np.concatenate([s_reg, s_reg])
+        ev_j = np.concatenate([s_j, s_j])
+        ev_x = np.concatenate([s_a, s_b])
+        ev_d = np.concatenate([np.ones(len(sel), np.int64), -np.ones(len(sel), np.int64)])
+        line = row_keys(ev_reg, ev_j)                  # ordered as (region, j)
+        o = np.lexsort((ev_d, ev_x, line))
+        ev_reg, ev_j, ev_x, ev_d, line = ev_reg[o], ev_j[o], ev_x[o], ev_d[o], line[o]
+        cnt = np.cumsum(ev_d)
+        full = np.flatnonzero((cnt[:-1] == need) & (line[1:] == line[:-1]))
+        out_reg.append(ev_reg[full])
+        out_j.append(ev_j[full])
+        out_a.append(ev_x[full])
+        out_b.append(ev_x[full + 1])
+    if not out_reg:
+        z = np.zeros(0)
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), z, z
+    r_, j_, a_, b_ = (np.concatenate(v) for v in (out_reg, out_j, out_a, out_b))
+    o = np.lexsort((a_, j_, r_))
+    return r_[o], j_[o], a_[o], b_[o]
 
 
 def locate(qreg: np.ndarray, q: np.ndarray, face_rows: np.ndarray, tri2: np.ndarray) -> np.ndarray:

@@ -60,11 +60,12 @@ import numpy as np
 
 from .antipodal_base import Candidates, FaceGeometry, perpendicular_frame
 from .convexity import mesh_edge_adjacency
-from .grouping import expand, weight_batches
-from .region_areas import area_edges, area_pairs, convex_areas
+from .errors import InputError
+from .grouping import expand, unique_values, weight_batches
+from .region_areas import Areas, area_edges, area_pairs, convex_areas
 from .region_creases import admitted_faces, near_creases
 from .region_overlap import green_moments, inside_parts, locate, region_edges, row_intervals
-from .thinning import thin_candidates
+from .thinning import closest_to_mean, cluster_ids, thin_candidates
 from .tolerance import Tolerance
 
 if TYPE_CHECKING:
@@ -80,16 +81,112 @@ _SHIFT = 1e-10
 _SHIFT_DIR = (np.cos(1.0), np.sin(1.0))
 #: boundary-edge rows per region batch (bounds every temporary array)
 _EDGE_CHUNK = 400_000
+#: the streamed area pairs may not exceed this many (else InputError naming what would run): a
+#: triangle soup's pairs grow with the square of its triangles; a finely tessellated sphere has ~3.6 M
+MAX_AREA_PAIRS = 5_000_000
+#: sub-cell pairs (both areas smaller than a lattice cell: patches of curved surfaces) whose outlines
+#: hold more boundary rows than this are thinned before their overlaps are computed: at most
+#: :data:`CURVED_PAIRS_PER_CELL` per cell of the curved-surface deduplication (grasp centre predicted
+#: as the midpoint of the two areas' centroids), those nearest the cell's mean. The paper parts stay
+#: far below (SileaneGear 54 k rows, TLess22 61 k); a 20 mm sphere of 200 k triangles has 9.7 M
+CURVED_ROWS_BUDGET = 2_000_000
+#: sub-cell pairs kept per deduplication cell when :data:`CURVED_ROWS_BUDGET` is exceeded
+CURVED_PAIRS_PER_CELL = 8
+#: lattice samples (estimated from the overlaps' areas before sampling) allowed per part; above it an
+#: InputError names the ``--spacing`` that fits
+MAX_SAMPLES = 500_000
+
+
+def _bounded_pairs(RP: np.ndarray, RQ: np.ndarray, areas: Areas, ecount: np.ndarray, spacing: float,
+                   notes: list[str] | None) -> tuple[np.ndarray, np.ndarray]:
+    """The area pairs whose overlaps are computed: all of them, unless the sub-cell pairs' outlines
+    exceed :data:`CURVED_ROWS_BUDGET` rows; then at most :data:`CURVED_PAIRS_PER_CELL` sub-cell pairs per
+    deduplication cell (:func:`grasplan.thinning.cluster_ids` of the centroids' midpoint and the
+    closing axis), nearest the cell's mean. Order kept (sorted ``(P, Q)``)."""
+    sub = np.minimum(areas.area[RP], areas.area[RQ]) < spacing * spacing
+    rows = int((ecount[RP] + ecount[RQ])[sub].sum())
+    if rows <= CURVED_ROWS_BUDGET:
+        return RP, RQ
+    idx = np.flatnonzero(sub)
+    centre = 0.5 * (areas.centroid[RP[idx]] + areas.centroid[RQ[idx]])
+    cl = cluster_ids(centre, areas.normal[RP[idx]] - areas.normal[RQ[idx]], spacing=spacing,
+                     axis_step_deg=CURVED_AXIS_STEP_DEG)
+    keep = ~sub
+    keep[idx[closest_to_mean(centre, cl, per_cluster=CURVED_PAIRS_PER_CELL)]] = True
+    if notes is not None:
+        notes.append(f"regions: {len(idx):,} pairs of sub-cell areas (curved surfaces, {rows:,} outline edges, over "
+                     f"grasplan.regions.CURVED_ROWS_BUDGET {CURVED_ROWS_BUDGET:,}): examined the "
+                     f"{int(keep[idx].sum()):,} nearest the middle of each {spacing * 1e3:g} mm x "
+                     f"{CURVED_AXIS_STEP_DEG:g} deg cell ({CURVED_PAIRS_PER_CELL} per cell)")
+    return RP[keep], RQ[keep]
+
+
+def _lattice_angle(S: np.ndarray, reg: np.ndarray, xa: np.ndarray, ya: np.ndarray, area_tol: float) -> np.ndarray:
+    """(r,) lattice angle of regions with moments ``S`` (r, 6): their principal axes; isotropic second
+    moments (squares, disks): the direction to the overlap's farthest corner (start points ``xa, ya``
+    of the clipped outline segments of region ``reg``), turned by 45 deg (a square gets an
+    edge-aligned lattice); ties: smallest angle mod 90 deg."""
+    R = len(S)
+    A = S[:, 0]
+    live = A > area_tol
+    A = np.where(live, A, 1.0)
+    gx, gy = S[:, 1] / A, S[:, 2] / A
+    cxx, cyy, cxy = S[:, 3] / A - gx * gx, S[:, 4] / A - gy * gy, S[:, 5] / A - gx * gy
+    aniso = np.hypot(cxx - cyy, 2 * cxy) > 1e-6 * np.abs(cxx + cyy)
+    theta = 0.5 * np.arctan2(2 * cxy, cxx - cyy)
+    iso = live & ~aniso
+    if iso.any():
+        sel = iso[reg]
+        c_r, dx, dy = reg[sel], xa[sel] - gx[reg[sel]], ya[sel] - gy[reg[sel]]
+        d2 = dx * dx + dy * dy
+        far_d = np.full(R, -np.inf)
+        np.maximum.at(far_d, c_r, d2)
+        tied = d2 >= far_d[c_r] * (1 - 1e-9)
+        far_t = np.full(R, np.inf)
+        np.minimum.at(far_t, c_r[tied], np.mod(np.arctan2(dy[tied], dx[tied]), np.pi / 2))
+        theta[iso] = far_t[iso] + np.pi / 4
+    return theta
+
+
+def _check_samples(area: np.ndarray, spacing: float, n_faces: int) -> None:
+    """InputError when the overlaps of ``area`` (m^2, one per region) would give more than
+    :data:`MAX_SAMPLES` lattice samples (about ``max(1, area / spacing^2)`` each); the message names the
+    smallest ``--spacing`` (0.1 mm steps) that fits, or asks for a repaired or decimated mesh when even
+    one sample per region is too many."""
+    def estimate(sp: float) -> float:
+        return float(np.maximum(1.0, area / (sp * sp)).sum())
+
+    est = estimate(spacing)
+    if est <= MAX_SAMPLES:
+        return
+    head = (f"the contact regions would give about {int(est):,} candidate samples at --spacing {spacing * 1e3:g}mm, "
+            f"more than grasplan.regions.MAX_SAMPLES ({MAX_SAMPLES:,})")
+    if len(area) > MAX_SAMPLES // 2:
+        raise InputError(f"{head}, with {len(area):,} overlapping pairs of surface areas among {n_faces:,} triangles "
+                         f"(a triangle soup?): repair the mesh or decimate it (quadric decimation in MeshLab or "
+                         f"Blender) to at most {max(1000, n_faces // 2000 * 1000):,} triangles")
+    lo, hi = spacing, spacing * max(2.0, np.sqrt(est / MAX_SAMPLES) * 2.0)
+    while estimate(hi) > 0.8 * MAX_SAMPLES:
+        hi *= 2.0
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if estimate(mid) > 0.8 * MAX_SAMPLES else (lo, mid)
+    fit = np.ceil(hi * 1e4 - 1e-9) / 1e4
+    raise InputError(f"{head}: use --spacing {fit * 1e3:.1f}mm or more (samples grow with the overlaps' area over "
+                     f"spacing^2), or repair the mesh if its surfaces should not overlap")
 
 
 def find_regions(mesh: TriangleMesh, convex: np.ndarray, geo: FaceGeometry, *, max_opening: float, beta_deg: float,
-                 mu: float, spacing: float, tol: Tolerance
+                 mu: float, spacing: float, tol: Tolerance, notes: list[str] | None = None
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Region samples (see the module docstring): ``contacts (n, 2, 3)``, ``normals (n, 2, 3)``,
     ``width (n,)``, ``faces (n, 2)``, ``region (n,)`` for :class:`grasplan.antipodal_base.Candidates`.
 
     Works on the areas' boundary edges only (exact overlap moments by Green's theorem, lattice by
     scanlines), so the cost follows the length of the areas' outlines, not their triangle count.
+    The work is bounded (:data:`MAX_AREA_PAIRS`, :data:`CURVED_ROWS_BUDGET`, :data:`MAX_SAMPLES`): an
+    :class:`~grasplan.errors.InputError` says what would run; ``notes`` (a list) receives a line when
+    sub-cell pairs were thinned before their overlaps were computed.
     ``geo``: the mesh's :class:`grasplan.antipodal_base.FaceGeometry`; lengths in metres."""
     adjacency = mesh_edge_adjacency(mesh)
     admit, creases = admitted_faces(mesh, convex, geo, tol, adjacency)
@@ -104,20 +201,33 @@ def find_regions(mesh: TriangleMesh, convex: np.ndarray, geo: FaceGeometry, *, m
     nA = len(areas.area)
     eps = tol.distance
     # ---- candidate regions: area pairs anti-parallel within beta whose discs can overlap ----
-    keys = [P * nA + Q for P, Q, _ in area_pairs(areas, geo, ids, max_opening=max_opening, beta_deg=beta_deg,
-                                                 tol=tol)]
-    key = np.unique(np.concatenate(keys)) if keys else np.zeros(0, np.int64)
+    keys, n_pairs, progress = [], 0, {"done": 0.0}
+    for P, Q, _ in area_pairs(areas, geo, ids, max_opening=max_opening, beta_deg=beta_deg, tol=tol,
+                              progress=progress):
+        keys.append(P * nA + Q)
+        n_pairs += len(P)
+        if n_pairs > MAX_AREA_PAIRS:
+            # overlapping pairs grow with the square of the triangles; the estimate from the share of the
+            # search done runs low on mixed triangle sizes, hence the margin
+            est = n_pairs / max(progress["done"], 1e-3)
+            fit = max(1000, int(len(F) * np.sqrt(0.25 * MAX_AREA_PAIRS / est)) // 1000 * 1000)
+            raise InputError(
+                f"more than {MAX_AREA_PAIRS:,} pairs of opposing surface areas (grasplan.regions.MAX_AREA_PAIRS; "
+                f"about {int(est):,} in all) among {len(F):,} triangles: the surfaces overlap many times (a triangle "
+                f"soup?) or are tessellated very finely; repair the mesh or decimate it (quadric decimation in "
+                f"MeshLab or Blender) to at most {fit:,} triangles")
+    key = unique_values(np.concatenate(keys)) if keys else np.zeros(0, np.int64)
     if len(key) == 0:
         return empty
-    RP, RQ = key // nA, key % nA
-    R = len(key)
+    eu, ev, estart, ecount = area_edges(F, lab, nA, adjacency)
+    RP, RQ = _bounded_pairs(key // nA, key % nA, areas, ecount, spacing, notes)
+    R = len(RP)
     a = areas.normal[RP] - areas.normal[RQ]
     a /= np.linalg.norm(a, axis=1, keepdims=True)
     t1, t2 = perpendicular_frame(a)
     org = areas.centroid[RP]
     scale = 1e6 * eps
     shift3 = _SHIFT * scale * (_SHIFT_DIR[0] * t1 + _SHIFT_DIR[1] * t2)      # Q's generic shift (3D)
-    eu, ev, estart, ecount = area_edges(F, lab, nA, adjacency)
     batches = weight_batches(ecount[RP] + ecount[RQ], _EDGE_CHUNK)
 
     def segments(s, e, origin, b1, b2):
@@ -130,7 +240,7 @@ def find_regions(mesh: TriangleMesh, convex: np.ndarray, geo: FaceGeometry, *, m
 
     # ---- pass 1: exact moments of every overlap (Green's theorem over the clipped outlines) ----
     S = np.zeros((R, 6))
-    corners = []
+    theta = np.zeros(R)
     for s, e in batches:
         reg, poly, x0, y0, x1, y1 = segments(s, e, org, t1, t2)
         L = np.hypot(x1 - x0, y1 - y0)
@@ -141,29 +251,12 @@ def find_regions(mesh: TriangleMesh, convex: np.ndarray, geo: FaceGeometry, *, m
         M = green_moments(xa, ya, xb, yb)
         for c in range(6):
             S[s:e, c] += np.bincount(reg[r], weights=M[:, c], minlength=nr)
-        corners.append((reg[r] + s, xa, ya))
+        theta[s:e] = _lattice_angle(S[s:e], reg[r], xa, ya, tol.area)
     A = S[:, 0]
     live = A > tol.area
     A = np.where(live, A, 1.0)
     gx, gy = S[:, 1] / A, S[:, 2] / A
-    cxx, cyy, cxy = S[:, 3] / A - gx * gx, S[:, 4] / A - gy * gy, S[:, 5] / A - gx * gy
-    aniso = np.hypot(cxx - cyy, 2 * cxy) > 1e-6 * np.abs(cxx + cyy)
-    theta = 0.5 * np.arctan2(2 * cxy, cxx - cyy)
-    iso = live & ~aniso
-    if iso.any():
-        # isotropic second moments (squares, disks): the direction to the overlap's farthest corner,
-        # turned by 45 deg (a square gets an edge-aligned lattice); ties: smallest angle mod 90 deg
-        c_r, c_x, c_y = (np.concatenate(v) for v in zip(*corners))
-        sel = iso[c_r]
-        c_r, dx, dy = c_r[sel], c_x[sel] - gx[c_r[sel]], c_y[sel] - gy[c_r[sel]]
-        d2 = dx * dx + dy * dy
-        far_d = np.full(R, -np.inf)
-        np.maximum.at(far_d, c_r, d2)
-        tied = d2 >= far_d[c_r] * (1 - 1e-9)
-        far_t = np.full(R, np.inf)
-        np.minimum.at(far_t, c_r[tied], np.mod(np.arctan2(dy[tied], dx[tied]), np.pi / 2))
-        theta[iso] = far_t[iso] + np.pi / 4
-    del corners
+    _check_samples(A[live], spacing, len(F))
     ct, st = np.cos(theta)[:, None], np.sin(theta)[:, None]
     e1, e2 = ct * t1 + st * t2, -st * t1 + ct * t2
     g3 = org + gx[:, None] * t1 + gy[:, None] * t2      # centroid, in the plane through P's centroid
@@ -217,7 +310,7 @@ def find_regions(mesh: TriangleMesh, convex: np.ndarray, geo: FaceGeometry, *, m
         ar = side[reg]
         n_a, c_a = areas.normal[ar], areas.centroid[ar]
         y = x + (np.einsum("ij,ij->i", n_a, c_a - x) / np.einsum("ij,ij->i", n_a, ax))[:, None] * ax
-        used = np.unique(ar)
+        used = unique_values(ar)
         b1, b2 = perpendicular_frame(areas.normal[used])
         pos = np.searchsorted(used, ar)
         qa = np.column_stack([np.einsum("ij,ij->i", y - areas.centroid[ar], b1[pos]),

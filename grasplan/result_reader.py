@@ -11,7 +11,6 @@ gripper, cell and robot are rebuilt from the definitions the file embeds. Every 
 """
 from __future__ import annotations
 
-import json
 import math
 import os
 import re
@@ -24,6 +23,7 @@ import numpy as np
 from .cell import Cell
 from .errors import InputError
 from .inputs import read_input_bytes
+from .jsontext import DuplicateKeyError, loads_strict
 from .io import show_path
 from .grasp_table import GraspTable
 from .gripper import Gripper, gripper_from_json
@@ -47,46 +47,100 @@ MAX_JSON_BYTES = 2 * 1024**3
 
 
 def read_document(path: str | os.PathLike[str]) -> Any:
-    """Parse a grasplan JSON file; InputError for anything that is not one."""
+    """Parse a grasplan JSON file (a plan, grasps or picks file); InputError for anything that is
+    not one, also for an object naming one key twice (:func:`grasplan.jsontext.loads_strict`)."""
     p = Path(path)
     try:
         if not p.exists():
             raise InputError(f"{show_path(p)}: no such file (expected a grasplan grasps or plan JSON file)")
         # a regular file only (a FIFO or a device is refused before reading), at most MAX_JSON_BYTES
-        doc = json.loads(read_input_bytes(p, what="result", max_bytes=MAX_JSON_BYTES))
+        doc = loads_strict(read_input_bytes(p, what="result", max_bytes=MAX_JSON_BYTES))
     except OSError as exc:
         raise InputError(f"{show_path(p)}: cannot read it ({exc.strerror or exc})") from None
     except RecursionError:
         raise InputError(f"{p}: JSON nested too deeply; not a grasplan result") from None
+    except DuplicateKeyError as exc:
+        raise InputError(f"{show_path(p)}: {exc}") from None
     except (UnicodeDecodeError, ValueError) as exc:
         raise InputError(f"{p}: not a JSON file ({str(exc)[:80]}); expected a result written by grasplan") from None
     return doc
 
 
-def _arr(grasps: list[Any], key: str, shape: tuple[int, ...], dtype: Any, where: str, *, default: Any = None) -> np.ndarray:
-    if not grasps:  # a result with no grasp at all (no candidate fits the gripper): written so, read so
+def rows_array(rows: list[Any], key: str, shape: tuple[int, ...], dtype: Any, where: str, *, default: Any = None,
+               what: str = "grasps", id_key: str = "id") -> np.ndarray:
+    """``rows[*][key]`` (a plan's grasps, a picks file's picks) as one array ``(len(rows), *shape)``
+    of finite numbers (any value for ``dtype=object``), vectorised; InputError naming the first
+    bad row (``what[i]``, its ``id_key``) and what would pass. ``default``: the value of a missing key."""
+    if not rows:  # a result with no grasp at all (no candidate fits the gripper): written so, read so
         return np.zeros((0, *shape), dtype=dtype)
     try:
         if default is not None:
-            vals = [g.get(key, default) if isinstance(g, dict) else None for g in grasps]
+            vals = [g.get(key, default) if isinstance(g, dict) else None for g in rows]
         else:
-            vals = [g[key] for g in grasps]
+            vals = [g[key] for g in rows]
         a = np.array(vals, dtype=dtype)
-        if a.shape == (len(grasps), *shape) and (dtype is object or np.all(np.isfinite(a))):
+        if a.shape == (len(rows), *shape) and (dtype is object or np.all(np.isfinite(a))):
             return a
     except (KeyError, TypeError, ValueError, OverflowError):
         pass
-    for i, g in enumerate(grasps):
+    for i, g in enumerate(rows):
         try:
             v = np.asarray(g[key] if default is None else g.get(key, default), dtype=dtype)
             ok = v.shape == shape and (dtype is object or bool(np.all(np.isfinite(v))))
         except (KeyError, TypeError, ValueError, OverflowError, AttributeError):
             ok = False
         if not ok:
-            gid = g.get("id") if isinstance(g, dict) else None
-            raise InputError(f"{where}: grasps[{i}] (id {str(gid)[:20]}): {key!r} missing or malformed; expected "
+            gid = g.get(id_key) if isinstance(g, dict) else None
+            raise InputError(f"{where}: {what}[{i}] ({id_key} {str(gid)[:20]}): {key!r} missing or malformed; expected "
                              f"{'a finite number' if not shape else 'finite numbers of shape ' + str(shape)}")
-    raise InputError(f"{where}: grasps: {key!r} malformed")
+    raise InputError(f"{where}: {what}: {key!r} malformed")
+
+
+def check_poses(T: Any, name: str, *, batch: bool = False) -> np.ndarray:
+    """``T`` as rigid transforms ((4, 4), or (N, 4, 4) with ``batch``) whose translations lie within
+    :data:`grasplan.mesh.MAX_COORD_M` of the origin: the entries are bounded first (no overflow in
+    the rigidity check or in FK comparisons), then :func:`grasplan.transforms.check_transform`.
+    InputError naming ``name`` and what is wrong."""
+    from .mesh import MAX_COORD_M
+
+    try:
+        A = np.asarray(T, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError):
+        raise InputError(f"{name}: expected a 4x4 matrix of numbers") from None
+    if A.shape[-2:] == (4, 4) and A.size and np.all(np.isfinite(A)):
+        rot = float(np.abs(A[..., :3, :3]).max())
+        far = float(np.abs(A[..., :3, 3]).max())
+        if rot > 1.0 + 1e-6:
+            raise InputError(f"{name}: rotation entries up to {rot:.3g}: not a rotation matrix (entries in [-1, 1])")
+        if far > MAX_COORD_M:
+            raise InputError(f"{name}: a translation of {far:.3g} m, beyond the {MAX_COORD_M:g} m any pose lies within")
+    return check_transform(A, name, batch=batch)
+
+
+#: a score is a weighted mean of terms in [0, 1] (grasplan.scoring): it lies in [0, 1] within this
+SCORE_SLACK = 1e-6
+#: a contact normal is a unit vector within this
+NORMAL_TOL = 1e-3
+
+
+def check_grasp_values(width: np.ndarray, score: np.ndarray, normals: np.ndarray, where: str,
+                       what: str = "grasps") -> None:
+    """The values a grasp carries into exports, checked for a plan's grasps and a picks file's
+    picks alike: widths (M,) in [0, 10] m, scores (M,) in [0, 1] (NaN: none), normals (M, 2, 3)
+    unit vectors. InputError naming the first bad row (``what[i]``) and what would pass."""
+    with np.errstate(over="ignore", invalid="ignore"):  # 1e300 has no norm: it is bad, not a warning
+        unit = np.all(np.abs(np.linalg.norm(normals, axis=-1) - 1.0) <= NORMAL_TOL, axis=-1) if len(normals) \
+            else np.ones(0, dtype=bool)
+    for name, bad, want in (
+            ("width", ~((width >= 0) & (width <= 10)), "a length in [0, 10] m"),
+            ("score", ~np.isnan(score) & ~((score >= -SCORE_SLACK) & (score <= 1 + SCORE_SLACK)),
+             "a number in [0, 1] (a weighted mean of terms in [0, 1]) or null"),
+            ("normals", ~unit, "two unit vectors")):
+        rows = np.flatnonzero(bad)
+        if len(rows):
+            i = int(rows[0])
+            shown = np.round(np.asarray(normals[i]), 6).tolist() if name == "normals" else f"{float((width if name == 'width' else score)[i]):.6g}"
+            raise InputError(f"{where}: {what}[{i}].{name} = {shown}: expected {want}")
 
 
 def result_from_document(doc: Any, *, where: str = "document", part_mesh: TriangleMesh | None = None) -> PlanResult:
@@ -109,7 +163,7 @@ def result_from_document(doc: Any, *, where: str = "document", part_mesh: Triang
     else:
         _validate(doc, schema, where)
     M = len(grasps)
-    ids = _arr(grasps, "id", (), np.float64, where)
+    ids = rows_array(grasps, "id", (), np.float64, where)
     id_values = None
     if M and not np.array_equal(ids, np.arange(M)):
         filtered = doc.get("only_ok") is True and schema == GRASPS_SCHEMA
@@ -119,38 +173,35 @@ def result_from_document(doc: Any, *, where: str = "document", part_mesh: Triang
                              "strictly increasing ids)")
         id_values = ids.astype(np.int64)
     names = PLAN_STATUSES if schema == PLAN_SCHEMA else GRASP_STATUSES
-    status = _arr(grasps, "status", (), object, where)
+    status = rows_array(grasps, "status", (), object, where)
     bad = sorted(set(status.tolist()) - set(names)) if M else []
     if bad:
         raise InputError(f"{where}: unknown grasp status {str(bad[:3])[:80]}; expected one of {', '.join(names)}")
-    T = _arr(grasps, "T_part_tcp", (4, 4), np.float64, where)
+    T = rows_array(grasps, "T_part_tcp", (4, 4), np.float64, where)
     if M:
-        check_transform(T, f"{where}: grasps[*].T_part_tcp", batch=True)
-    width = _arr(grasps, "width", (), np.float64, where)
-    if np.any(width < 0) or np.any(width > 10):
-        raise InputError(f"{where}: grasp widths must be in [0, 10] m")
+        check_poses(T, f"{where}: grasps[*].T_part_tcp", batch=True)
+    width = rows_array(grasps, "width", (), np.float64, where)
     table = GraspTable(
-        candidate=_arr(grasps, "candidate", (), np.float64, where).astype(np.int64),
-        region=_arr(grasps, "region", (), np.float64, where, default=-1).astype(np.int64),
-        contacts=_arr(grasps, "contacts", (2, 3), np.float64, where),
-        normals=_arr(grasps, "normals", (2, 3), np.float64, where),
+        candidate=rows_array(grasps, "candidate", (), np.float64, where).astype(np.int64),
+        region=rows_array(grasps, "region", (), np.float64, where, default=-1).astype(np.int64),
+        contacts=rows_array(grasps, "contacts", (2, 3), np.float64, where),
+        normals=rows_array(grasps, "normals", (2, 3), np.float64, where),
         width=width, T_part_tcp=T.reshape(M, 4, 4),
-        roll=_arr(grasps, "roll", (), np.float64, where),
+        roll=rows_array(grasps, "roll", (), np.float64, where),
         status=status,
         score=np.array([np.nan if (s := g.get("score")) is None else s for g in grasps], dtype=np.float64)
         if M else np.full(M, np.nan),
         rank=np.array([-1 if (r := g.get("rank")) is None else r for g in grasps], dtype=np.int64)
         if schema == PLAN_SCHEMA else np.full(M, -1, dtype=np.int64),
-        reason=_arr(grasps, "reason", (), object, where, default="") if M else np.zeros(0, dtype=object),
+        reason=rows_array(grasps, "reason", (), object, where, default="") if M else np.zeros(0, dtype=object),
         id_values=id_values,
         **parse_quality_sim(grasps, where),
     )
-    if M and not np.all(np.isfinite(table.score[~np.isnan(table.score)])):
-        raise InputError(f"{where}: grasp scores must be finite numbers or null")
+    check_grasp_values(table.width, table.score, table.normals, where)
     p = doc["part"]
     part = PartRecord(path=str(p["path"]), sha256=str(p["sha256"]), scale_to_m=float(p["scale_to_m"]),
                       triangles=int(p["triangles"]),
-                      T_world_part=check_transform(p["T_world_part"], f"{where}: part.T_world_part"))
+                      T_world_part=check_poses(p["T_world_part"], f"{where}: part.T_world_part"))
     if not (math.isfinite(part.scale_to_m) and 0 < part.scale_to_m <= 1e3):
         raise InputError(f"{where}: part.scale_to_m must be a positive scale, got {part.scale_to_m!r}")
     gripper = gripper_from_json(doc["gripper"], where=f"{where}: gripper")
@@ -199,38 +250,50 @@ def _params_from_doc(doc: dict[str, Any], where: str) -> tuple[CandidateParams, 
 
 
 def _motions(grasps: list[Any], status: np.ndarray, robot: Robot, where: str) -> dict[int, Motion]:
+    return {i: motion_from_json(grasps[i], robot, f"{where}: planned grasp {i}")
+            for i in np.flatnonzero(status == Status.PLANNED.value).tolist()}
+
+
+def motion_from_json(g: Any, robot: Robot, where: str) -> Motion:
+    """The :class:`Motion` of one planned grasp (a plan's grasp, a picks file's pick), checked:
+    numeric ``q_grasp``, ``q_pregrasp``, ``path`` (>= 2 rows) of the robot's joints, all finite and
+    within its limits (1e-6 rad), ``pregrasp_index`` an index into the path, ``path[0]`` at the
+    robot's ``q_home``, ``q_pregrasp`` and ``q_grasp`` the path's rows (1e-6 rad), segments and
+    gripper events as :func:`_motion_extras` checks them. InputError naming ``where`` and the field."""
     n = robot.nq
-    out: dict[int, Motion] = {}
-    for i in np.flatnonzero(status == Status.PLANNED.value).tolist():
-        g = grasps[i]
-        try:
-            path = np.asarray(g["path"], dtype=np.float64)
-            qg = np.asarray(g["q_grasp"], dtype=np.float64)
-            qp = np.asarray(g["q_pregrasp"], dtype=np.float64)
-            k = g["pregrasp_index"]
-        except (KeyError, TypeError, ValueError, OverflowError):
-            raise InputError(f"{where}: planned grasp {i} needs numeric q_grasp, q_pregrasp, path and pregrasp_index") from None
-        if path.ndim != 2 or path.shape[1] != n or len(path) < 2 or qg.shape != (n,) or qp.shape != (n,):
-            raise InputError(f"{where}: planned grasp {i}: joint vectors must have the robot's {n} joints "
-                             f"({', '.join(robot.joint_names)}) and the path >= 2 of them")
-        if not (np.all(np.isfinite(path)) and np.all(np.isfinite(qg)) and np.all(np.isfinite(qp))):
-            raise InputError(f"{where}: planned grasp {i}: joint values must be finite numbers")
-        if isinstance(k, bool) or not isinstance(k, int) or not 0 <= k < len(path):
-            raise InputError(f"{where}: planned grasp {i}: pregrasp_index must be an index into its path")
-        if not np.all(robot.within_limits(path, tol=1e-6)):
-            raise InputError(f"{where}: planned grasp {i}: the path leaves the joint limits of robot {robot.name!r}")
-        segments, events, T_place, T_tcp_part = _motion_extras(g, len(path), k, f"{where}: planned grasp {i}")
-        m = Motion(q_grasp=qg, q_pregrasp=qp, path=path, pregrasp_index=int(k), segments=segments, gripper=events,
-                   T_world_part_place=T_place, T_tcp_part=T_tcp_part)
-        gi = m.grasp_index
-        for a_name, a, b_name, b in (("path[0]", path[0], "q_home", robot.q_home),
-                                     ("path[pregrasp_index]", path[k], "q_pregrasp", qp),
-                                     (f"path[{gi}] (the end of the approach)", path[gi], "q_grasp", qg)):
-            if np.max(np.abs(a - b)) > 1e-6:
-                raise InputError(f"{where}: planned grasp {i}: {a_name} differs from {b_name} by "
-                                 f"{np.max(np.abs(a - b)):.3g} rad; the plan file is inconsistent")
-        out[i] = m
-    return out
+    if not isinstance(g, dict):
+        raise InputError(f"{where}: expected an object")
+    try:
+        path = np.asarray(g["path"], dtype=np.float64)
+        qg = np.asarray(g["q_grasp"], dtype=np.float64)
+        qp = np.asarray(g["q_pregrasp"], dtype=np.float64)
+        k = g["pregrasp_index"]
+    except (KeyError, TypeError, ValueError, OverflowError):
+        raise InputError(f"{where} needs numeric q_grasp, q_pregrasp, path and pregrasp_index") from None
+    if path.ndim != 2 or path.shape[1] != n or len(path) < 2 or qg.shape != (n,) or qp.shape != (n,):
+        raise InputError(f"{where}: joint vectors must have the robot's {n} joints "
+                         f"({', '.join(robot.joint_names)}) and the path >= 2 of them")
+    for name, a in (("path", path), ("q_grasp", qg), ("q_pregrasp", qp)):
+        if not np.all(np.isfinite(a)):
+            raise InputError(f"{where}: {name}: joint values must be finite numbers")
+        if not np.all(robot.within_limits(a, tol=1e-6)):
+            bad = np.argwhere(~((a >= robot.lower - 1e-6) & (a <= robot.upper + 1e-6)))[0]
+            j = int(bad[-1])
+            raise InputError(f"{where}: {name}: joint {robot.joint_names[j]} = {float(a[tuple(bad)]):.6g} rad leaves the "
+                             f"joint limits of robot {robot.name!r} ([{robot.lower[j]:.6g}, {robot.upper[j]:.6g}] rad)")
+    if isinstance(k, bool) or not isinstance(k, int) or not 0 <= k < len(path):
+        raise InputError(f"{where}: pregrasp_index must be an index into its path")
+    segments, events, T_place, T_tcp_part = _motion_extras(g, len(path), k, where)
+    m = Motion(q_grasp=qg, q_pregrasp=qp, path=path, pregrasp_index=int(k), segments=segments, gripper=events,
+               T_world_part_place=T_place, T_tcp_part=T_tcp_part)
+    gi = m.grasp_index
+    for a_name, a, b_name, b in (("path[0]", path[0], "q_home", robot.q_home),
+                                 ("path[pregrasp_index]", path[k], "q_pregrasp", qp),
+                                 (f"path[{gi}] (the end of the approach)", path[gi], "q_grasp", qg)):
+        if np.max(np.abs(a - b)) > 1e-6:
+            raise InputError(f"{where}: {a_name} differs from {b_name} by {np.max(np.abs(a - b)):.3g} rad; the file "
+                             "is inconsistent")
+    return m
 
 
 def _index(v: Any, k: int) -> int | None:
@@ -298,11 +361,11 @@ def _motion_extras(g: dict[str, Any], k: int, pregrasp_index: int, where: str) -
     if "T_tcp_part" in g or "lift" in bounds:
         if "T_tcp_part" not in g:
             raise InputError(f"{where}: a motion with a lift needs T_tcp_part (the part in the jaws)")
-        T_tcp = check_transform(g["T_tcp_part"], f"{where}: T_tcp_part")
+        T_tcp = check_poses(g["T_tcp_part"], f"{where}: T_tcp_part")
     if "T_world_part_place" in g or "descend" in bounds:
         if "T_world_part_place" not in g or "descend" not in bounds:
             raise InputError(f"{where}: T_world_part_place and the transfer/descend/retreat segments go together")
-        T_place = check_transform(g["T_world_part_place"], f"{where}: T_world_part_place")
+        T_place = check_poses(g["T_world_part_place"], f"{where}: T_world_part_place")
     return (tuple(segs) if explicit else ()), tuple(events), T_place, T_tcp
 
 
@@ -329,7 +392,7 @@ def check_fk(robot: Robot, gripper: Gripper, T_world_part: np.ndarray, T_part_tc
     dp = np.linalg.norm(T_fk[:, :3, 3] - T_rec[:, :3, 3], axis=1)
     cos = np.clip((np.einsum("nij,nij->n", T_fk[:, :3, :3], T_rec[:, :3, :3]) - 1.0) / 2.0, -1.0, 1.0)
     dr = np.arccos(cos)
-    bad = np.flatnonzero((dp > FK_POS_TOL) | (dr > FK_ROT_TOL))
+    bad = np.flatnonzero(~((dp <= FK_POS_TOL) & (dr <= FK_ROT_TOL)))
     if len(bad):
         b = int(bad[0])
         raise InputError(f"{where}: planned grasp {int(ids[b])}: FK(q_grasp) is {dp[b] * 1000:.1f} mm / {dr[b]:.3f} rad "
@@ -341,7 +404,7 @@ def check_fk(robot: Robot, gripper: Gripper, T_world_part: np.ndarray, T_part_tc
         if m.T_tcp_part is None:
             continue
         d_att = pose_error(m.T_tcp_part @ T_part_tcp[i], np.eye(4))
-        if d_att[0] > FK_POS_TOL or d_att[1] > FK_ROT_TOL:
+        if not (d_att[0] <= FK_POS_TOL and d_att[1] <= FK_ROT_TOL):
             raise InputError(f"{where}: planned grasp {i}: T_tcp_part is not the inverse of its T_part_tcp "
                              f"({d_att[0] * 1000:.1f} mm / {d_att[1]:.3f} rad); the plan file was edited")
         if m.T_world_part_place is not None:
@@ -351,7 +414,7 @@ def check_fk(robot: Robot, gripper: Gripper, T_world_part: np.ndarray, T_part_tc
             o = opened.index
             T_part = robot.fk_batch(m.path[o][None])[0] @ gripper.T_flange_tcp @ m.T_tcp_part
             d_pl = pose_error(T_part, m.T_world_part_place)
-            if d_pl[0] > FK_POS_TOL or d_pl[1] > FK_ROT_TOL:
+            if not (d_pl[0] <= FK_POS_TOL and d_pl[1] <= FK_ROT_TOL):
                 raise InputError(f"{where}: planned grasp {i}: at the open event (row {o}) the part is "
                                  f"{d_pl[0] * 1000:.1f} mm / {d_pl[1]:.3f} rad from T_world_part_place with robot "
                                  f"{robot.name!r}; the plan was made with another robot or gripper, or was edited")

@@ -27,9 +27,6 @@ YAML schema (all lengths m, angles rad; angles may be written as expressions suc
 from __future__ import annotations
 
 import hashlib
-import importlib.metadata
-import sys
-import xml.etree.ElementTree as ET
 from dataclasses import replace
 from functools import lru_cache
 from pathlib import Path
@@ -42,61 +39,10 @@ from .config_files import available, config_number, config_vector, resolve_yaml
 from .errors import ConfigError, unknown_name
 from .ik.registry import get_family  # importing grasplan.ik registers the built-in families
 from .params import DEFAULT_ROBOT
+from .robot_files import check_robot_meshes, package_share_dir, parse_srdf_disabled_pairs
 from .robot_model import DEFAULT_IK_FAMILY, Robot, read_only
 from .transforms import to_se3, xyz_rpy
 
-_PKG_SHARE = "cmeel.prefix/share"
-
-
-# --------------------------------------------------------------------------------------------
-# Finding the installed example-robot-data
-# --------------------------------------------------------------------------------------------
-@lru_cache(maxsize=None)
-def package_share_dir(package: str = "example-robot-data") -> Path:
-    """The ``share`` directory holding ``<package>/robots/...`` (the ``package://`` root).
-
-    Looks the package up in its installed-files record (cmeel wheels install under
-    ``site-packages/cmeel.prefix/share``), then in every ``sys.path`` entry.
-    """
-    try:
-        for f in importlib.metadata.files(package) or []:
-            parts = Path(str(f)).parts
-            if package in parts and "robots" in parts:
-                full = Path(f.locate()).resolve()
-                idx = len(full.parts) - len(parts) + parts.index(package)
-                share = Path(*full.parts[:idx])
-                if (share / package / "robots").is_dir():
-                    return share
-    except importlib.metadata.PackageNotFoundError:
-        pass
-    for entry in sys.path:
-        cand = Path(entry) / _PKG_SHARE
-        if (cand / package / "robots").is_dir():
-            return cand
-    raise ConfigError(f"package {package!r} with robot descriptions is not installed "
-                      f"(pip install {package}); looked in its installed files and in sys.path")
-
-
-# --------------------------------------------------------------------------------------------
-# Small YAML helpers
-# --------------------------------------------------------------------------------------------
-def parse_srdf_disabled_pairs(srdf_path: Path) -> tuple[tuple[str, str], ...]:
-    """``<disable_collisions link1 link2>`` entries of an SRDF, each pair sorted."""
-    try:
-        root = ET.parse(srdf_path).getroot()
-    except (OSError, ET.ParseError) as exc:
-        raise ConfigError(f"cannot read SRDF {srdf_path}: {exc}") from None
-    pairs: set[tuple[str, str]] = set()
-    for el in root.iter("disable_collisions"):
-        a, b = el.get("link1"), el.get("link2")
-        if a and b:
-            pairs.add((a, b) if a <= b else (b, a))
-    return tuple(sorted(pairs))
-
-
-# --------------------------------------------------------------------------------------------
-# Robot geometry
-# --------------------------------------------------------------------------------------------
 def _remove_link_geometry(gm: pin.GeometryModel, model: pin.Model, link: str) -> None:
     """Drop the geometry objects of ``gm`` attached to the frame ``link`` of ``model``."""
     names = [str(g.name) for g in gm.geometryObjects if model.frames[g.parentFrame].name == link]
@@ -245,6 +191,7 @@ def _build_robot_text(text: str, path: Path | str, yaml_dir: Path | None,
         raise ConfigError(f"{path}: field 'urdf' must be a path string, got null")
     srdf_path = _file("srdf", False)
 
+    check_robot_meshes(urdf_path, package_dirs, "collision", path)  # before Pinocchio loads them
     try:  # the collision geometry now; the visual geometry when first asked for (Robot.visual_model)
         model = pin.buildModelFromUrdf(str(urdf_path))
         cmodel = pin.buildGeomFromUrdf(model, str(urdf_path), pin.GeometryType.COLLISION,
@@ -355,6 +302,7 @@ def _build_robot_text(text: str, path: Path | str, yaml_dir: Path | None,
 
     def visual_loader(urdf=str(urdf_path), dirs=list(package_dirs), locked=(list(ids), q0.copy()) if lock else None,
                       removed=tuple(remove), base=full_model):
+        check_robot_meshes(Path(urdf), dirs, "visual", path)
         vm = pin.buildGeomFromUrdf(base, urdf, pin.GeometryType.VISUAL, package_dirs=dirs)
         if locked is not None:
             _, vm = pin.buildReducedModel(base, vm, locked[0], locked[1])

@@ -53,6 +53,7 @@ The checks before planning (part in the table or an obstacle, ...) are :mod:`gra
 from __future__ import annotations
 
 import math
+import weakref
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
@@ -188,7 +189,7 @@ class _SceneModel:
             self.body[r] = self.link(r)
         self._build_pairs()
         self.opening: float | None = None
-        self.owner: CollisionScene | None = None  # the variant whose part placements the model holds
+        self.owner: weakref.ref[CollisionScene] | None = None  # the variant placed (weak: no reference cycle)
 
     def link(self, gid: int) -> str:
         return self.model.frames[self.gm.geometryObjects[gid].parentFrame].name
@@ -414,7 +415,7 @@ class CollisionScene:
         self.T_tcp_part = check_transform(T_tcp_part, "T_tcp_part").astype(np.float64)
         sh = self._shared
         self._placements[sh.env_ids[PART_ATTACHED]] = to_se3(sh.T_joint_tcp @ self.T_tcp_part)
-        if sh.owner is self:
+        if sh.owner is not None and sh.owner() is self:
             sh.owner = None
         self._apply()
 
@@ -435,14 +436,13 @@ class CollisionScene:
                                  "-opening/2 (first jaw) and +opening/2 (second jaw)")
 
     def _apply(self) -> None:
-        """Put this variant's part placements into the shared geometry model (when another variant
-        was queried last)."""
+        """Put this variant's part placements into the shared geometry model (another one's may be there)."""
         sh = self._shared
-        if sh.owner is self:
+        if sh.owner is not None and sh.owner() is self:
             return
         for gid, M in self._placements.items():
             sh.gm.geometryObjects[gid].placement = M
-        sh.owner = self
+        sh.owner = weakref.ref(self)
 
     @property
     def pair_names(self) -> list[tuple[str, str]]:

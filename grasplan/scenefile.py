@@ -34,6 +34,7 @@ import numpy as np
 
 from .errors import ConfigError, InputError
 from .inputs import read_input_bytes
+from .jsontext import DuplicateKeyError, loads_strict
 from .transforms import MAX_ANGLE_DEG, MAX_CELL_COORD_M, check_transform, parse_pose
 from .units import LENGTH_UNITS
 from .yamlfile import load_yaml_text
@@ -307,7 +308,9 @@ def load_scene(source: str | os.PathLike | Mapping[str, Any] | Scene) -> Scene:
         raise InputError(f"scene {p}: not a UTF-8 text file; a scene is YAML or JSON") from None
     if p.suffix.lower() == ".json":
         try:
-            doc = json.loads(text)
+            doc = loads_strict(text)
+        except DuplicateKeyError as exc:
+            raise InputError(f"scene {p}: {exc}") from None
         except (json.JSONDecodeError, RecursionError) as exc:
             raise InputError(f"scene {p}: not valid JSON ({str(exc)[:80]})") from None
     else:

@@ -205,10 +205,15 @@ def _check_duplicates(root: yaml.Node, where: str) -> None:
             stack += node.value
 
 
+def structural_entries(text: str) -> int:
+    """What the entry limit counts in a YAML text: commas, colons, dashes, brackets and line breaks."""
+    return sum(text.count(c) for c in _STRUCTURE)
+
+
 def load_yaml_text(text: str, where: str, *, max_entries: int = MAX_ENTRIES) -> Any:
     """The Python value of the YAML ``text`` (see the module docstring); ``where`` names the input
     in errors (``"cell /path/x.yaml"``)."""
-    entries = sum(text.count(c) for c in _STRUCTURE)
+    entries = structural_entries(text)
     if entries > max_entries:
         raise InputError(f"{where}: {entries:,} entries (commas, colons, dashes, brackets, lines) is more than a "
                          f"grasplan YAML input holds (limit {max_entries:,}); split the file")
@@ -251,5 +256,5 @@ def read_yaml_file(path: str | os.PathLike, *, what: str, max_bytes: int = DEFAU
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError:
-        raise InputError(f"{what} {path}: not a UTF-8 text file; a {what} file is YAML") from None
+        raise InputError(f"{what} {path}: not a UTF-8 text file; {what.removesuffix(' file')} files are YAML") from None
     return load_yaml_text(text, f"{what} {path}", max_entries=max_entries)

@@ -385,3 +385,21 @@ def representative(cases: list[MeshCase], per_family: int, seed: int = DEFAULT_S
                 (c.family != "degenerate" or not c.name.endswith("-obj")):
             keep[c.name] = c
     return [c for c in cases if c.name in keep]
+
+
+def uv_sphere(n_target: int, radius: float = 0.02) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (in the units of ``radius``) and outward faces of a UV sphere of about ``n_target`` triangles (plain NumPy)."""
+    nlat = int(round((n_target / 4) ** 0.5))
+    nlon = 2 * nlat
+    th = np.linspace(0, np.pi, nlat + 1)[1:-1]
+    ph = np.linspace(0, 2 * np.pi, nlon, endpoint=False)
+    T, P = np.meshgrid(th, ph, indexing="ij")
+    v = radius * np.c_[np.sin(T).ravel() * np.cos(P).ravel(), np.sin(T).ravel() * np.sin(P).ravel(), np.cos(T).ravel()]
+    v = np.vstack([v, [[0, 0, radius], [0, 0, -radius]]])
+    top, bot = len(v) - 2, len(v) - 1
+    idx = np.arange((nlat - 1) * nlon).reshape(nlat - 1, nlon)
+    nxt = np.roll(idx, -1, axis=1)
+    f = np.vstack([np.c_[np.full(nlon, top), idx[0], nxt[0]], np.c_[np.full(nlon, bot), nxt[-1], idx[-1]],
+                   np.c_[idx[:-1].ravel(), idx[1:].ravel(), nxt[:-1].ravel()],
+                   np.c_[nxt[:-1].ravel(), idx[1:].ravel(), nxt[1:].ravel()]])
+    return v, f

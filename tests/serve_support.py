@@ -213,3 +213,85 @@ def run_load(port: int, bodies: list[bytes], n_requests: int, clients: int, toke
     for t in threads:
         t.join()
     return lat, errors, responses
+
+
+# ------------------------------------------------------------------------------ raw connections
+def connect(port: int, *, source: str = "127.0.0.1", timeout_s: float = 5.0) -> Any:
+    """A TCP connection to the loopback service from ``source`` (any 127.x.y.z address: the server
+    sees a different client address for each)."""
+    import socket
+
+    s = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    s.settimeout(timeout_s)
+    if source != "127.0.0.1":
+        s.bind((source, 0))
+    s.connect(("127.0.0.1", port))
+    return s
+
+
+def read_answer(sock: Any, timeout_s: float = 5.0) -> tuple[int, dict[str, str], bytes]:
+    """The next response on ``sock``: ``(status, headers lower-cased, body)``; status 0 when the
+    server closed the connection without one. ``socket.timeout`` when nothing came in ``timeout_s``."""
+    import time
+
+    sock.settimeout(timeout_s)
+    t_end = time.monotonic() + timeout_s
+    data = b""
+    while b"\r\n\r\n" not in data:
+        if time.monotonic() > t_end:
+            raise TimeoutError("no response")
+        try:
+            chunk = sock.recv(65536)
+        except ConnectionResetError:
+            chunk = b""
+        if not chunk:
+            return 0, {}, data
+        data += chunk
+    head, _, body = data.partition(b"\r\n\r\n")
+    lines = head.decode("latin-1").split("\r\n")
+    status = int(lines[0].split(" ", 2)[1])
+    headers = {k.strip().lower(): v.strip() for k, _, v in (line.partition(":") for line in lines[1:])}
+    length = int(headers.get("content-length", "0"))
+    while len(body) < length:
+        try:
+            chunk = sock.recv(65536)
+        except ConnectionResetError:
+            break
+        if not chunk:
+            break
+        body += chunk
+    return status, headers, body[:length]
+
+
+def closed_by_server(sock: Any, within_s: float) -> bool:
+    """True when the server closes ``sock`` within ``within_s`` seconds (what it still sends is
+    read and dropped)."""
+    import socket
+    import time
+
+    t_end = time.monotonic() + within_s
+    while True:
+        left = t_end - time.monotonic()
+        if left <= 0:
+            return False
+        sock.settimeout(left)
+        try:
+            if not sock.recv(65536):
+                return True
+        except (ConnectionResetError, BrokenPipeError):
+            return True
+        except socket.timeout:
+            return False
+
+
+def health_s(port: int, timeout_s: float = 5.0) -> float:
+    """Seconds a ``GET /health`` takes on a fresh connection (AssertionError unless it is a 200)."""
+    import time
+
+    t = time.perf_counter()
+    with connect(port, timeout_s=timeout_s) as s:
+        s.sendall(b"GET /health HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n")
+        status, _, body = read_answer(s, timeout_s)
+    dt = time.perf_counter() - t
+    assert status == 200 and json.loads(body)["status"] == "ok", (status, body[:200])
+    return dt

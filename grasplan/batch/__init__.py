@@ -39,10 +39,17 @@ Exit code (:attr:`grasplan.batch.report.BatchSummary.exit_code`): 0 when at leas
 planned grasp, 4 when no part has any; bad batch inputs (no parts found, a bad manifest, unknown
 option) raise :class:`~grasplan.errors.InputError` (exit 3) before anything is written.
 
+Signals: Ctrl-C writes the summary and raises KeyboardInterrupt; every other catchable ending
+signal (SIGTERM, SIGHUP, SIGQUIT, ...) stops the workers, removes ``.staging`` and ends the process
+as the signal would (:func:`grasplan.io.signals_raise`). Local workers end with this process,
+``kill -9`` included (:mod:`~grasplan.batch.lifeline`).
+
 Modules: :mod:`~grasplan.batch.options` (BatchOptions, the options hash), :mod:`~grasplan.batch.manifest`
-(parts, manifests, jobs), :mod:`~grasplan.batch.worker` (one part), :mod:`~grasplan.batch.engines`
-(local pool, Ray), :mod:`~grasplan.batch.report` (summary files, index.html),
-:mod:`~grasplan.batch.layout` (statuses, file names); this module: :func:`run_batch`, the driver.
+(parts, manifests, descriptions checked, jobs), :mod:`~grasplan.batch.outdir` (the output folder
+checked), :mod:`~grasplan.batch.worker` (one part), :mod:`~grasplan.batch.engines` (local pool,
+Ray), :mod:`~grasplan.batch.lifeline` (workers end with the batch), :mod:`~grasplan.batch.report`
+(summary files, index.html), :mod:`~grasplan.batch.layout` (statuses, file names); this module:
+:func:`run_batch`, the driver.
 """
 from __future__ import annotations
 
@@ -61,7 +68,7 @@ from typing import Any
 
 from ..errors import GrasplanError, InputError
 from ..inputs import read_input_bytes
-from ..io import _sigterm_raises, show_path, write_atomic_bytes, write_json
+from ..io import show_path, signals_raise, write_atomic_bytes, write_json
 from .engines import ENGINES
 from .layout import (
     DONE_FILE,
@@ -105,6 +112,14 @@ def run_batch(parts: Sequence[str | os.PathLike], out_dir: str | os.PathLike, *,
     Raises InputError (nothing written) for bad inputs; KeyboardInterrupt after writing the summary
     of what finished (the interrupted parts are left out of ``out_dir``).
     """
+    with signals_raise():  # SIGHUP, SIGTERM, ...: the workers stopped and .staging removed on the way out
+        return _run(parts, out_dir, options, engine, workers, ray_address, config_dirs, progress)
+
+
+def _run(parts: Sequence[str | os.PathLike], out_dir: str | os.PathLike, options: BatchOptions, engine: str,
+         workers: int | None, ray_address: str | None, config_dirs: Sequence[str | os.PathLike],
+         progress: Callable[[dict[str, Any]], None] | None) -> BatchSummary:
+    """:func:`run_batch` once the signals are set: check, lock, run."""
     if engine not in ENGINES:
         raise InputError(f"--engine {engine!r}: use one of {', '.join(ENGINES)}")
     if ray_address and engine != "ray":
@@ -119,12 +134,12 @@ def run_batch(parts: Sequence[str | os.PathLike], out_dir: str | os.PathLike, *,
         entries = discover_parts(parts)
         jobs = make_jobs(entries, options)
         out = check_out_dir(out_dir, jobs, inputs=[*parts, *(e.path for e in entries), *config_inputs(jobs)])
-    with _sigterm_raises(), _lock(out):
+    with _lock(out):
         staging = out / STAGING_DIR
         try:
             return _run_locked(out, staging, jobs, options, engine, workers, ray_address, cdirs, progress)
         finally:
-            shutil.rmtree(staging, ignore_errors=True)  # also on SIGTERM or an engine failure
+            shutil.rmtree(staging, ignore_errors=True)  # also on a signal or an engine failure
 
 
 def _run_locked(out: Path, staging: Path, jobs: list[PartJob], options: BatchOptions, engine: str,
@@ -135,16 +150,19 @@ def _run_locked(out: Path, staging: Path, jobs: list[PartJob], options: BatchOpt
     staging.mkdir()
     rows: dict[int, dict[str, Any]] = {}
     todo: list[PartJob] = []
+    out_text = os.fspath(out)
+    with os.scandir(out) as listing:  # one listing, not one lookup per part
+        present = {e.name for e in listing}
     for i, job in enumerate(jobs):
         if job.duplicate_of is not None:
             continue
-        row = _read_done(out / job.dir_name, job)
+        row = _read_done(os.path.join(out_text, job.dir_name), job) if job.dir_name in present else None
         if row is not None:
             rows[i] = {**row, "part": job.path, "resumed": True}
         else:
             todo.append(job)
     # largest files first: the long parts do not end up alone at the tail (rows keep input order)
-    todo.sort(key=lambda j: -_file_size(j.path))
+    todo.sort(key=lambda j: -(j.size if j.size is not None else _file_size(j.path)))
     position = {id(j): i for i, j in enumerate(jobs)}
     t0 = time.perf_counter()
     state = {"done": len(rows), "failed": sum(r["status"] in FAILED_STATUSES for r in rows.values()),
@@ -185,12 +203,14 @@ def _run_locked(out: Path, staging: Path, jobs: list[PartJob], options: BatchOpt
     return summary
 
 
-def _read_done(folder: Path, job: PartJob) -> dict[str, Any] | None:
+def _read_done(folder: str, job: PartJob) -> dict[str, Any] | None:
     """The finished row in ``folder/done.json`` when it matches ``job`` (sha256 and options hash)
     and every file it lists is still there with its recorded size; None (plan the part again)
     otherwise, whatever ``done.json`` holds: a damaged record affects only its part."""
+    if not os.path.isdir(folder):  # not planned yet
+        return None
     try:
-        raw = read_input_bytes(folder / DONE_FILE, what="done.json", max_bytes=MAX_DONE_BYTES)
+        raw = read_input_bytes(os.path.join(folder, DONE_FILE), what="done.json", max_bytes=MAX_DONE_BYTES)
         done = json.loads(raw)
     except (GrasplanError, ValueError, RecursionError, MemoryError):
         return None
@@ -205,7 +225,7 @@ def _read_done(folder: Path, job: PartJob) -> dict[str, Any] | None:
         if not isinstance(name, str) or "/" in name or name.startswith("."):
             return None
         try:
-            st = os.stat(folder / name)
+            st = os.stat(os.path.join(folder, name))
         except OSError:
             return None
         if not stat.S_ISREG(st.st_mode) or (isinstance(size, int) and st.st_size != size):

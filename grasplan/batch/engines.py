@@ -3,15 +3,17 @@
 ``(job, outcome, folder holding the part's files or None)`` as parts finish."""
 from __future__ import annotations
 
+import contextlib
+import os
 import shutil
 import uuid
-import os
 from collections.abc import Callable, Generator, Sequence
 from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
 from .layout import MAX_CRASHES
+from .lifeline import bind_to_parent
 from .manifest import PartJob
 from .worker import died_outcome, job_payload, ray_failed_outcome, run_part
 
@@ -37,6 +39,7 @@ def iter_local(jobs: Sequence[PartJob], *, workers: int | None, staging: Path, c
     """Run ``jobs`` on a spawn process pool of ``workers`` processes (default: one per CPU, at most
     one per job); yields (job, outcome, folder the files are in). ``address`` is not used.
 
+    The workers end with this process, ``kill -9`` included (:func:`~grasplan.batch.lifeline.bind_to_parent`).
     At most ``2 * workers`` parts are in flight. A worker that dies (killed, out of memory) breaks
     the pool: a new pool is started and the parts that were in flight are resubmitted; a part in
     flight during :data:`~grasplan.batch.layout.MAX_CRASHES` deaths is recorded as ``error``."""
@@ -48,7 +51,8 @@ def iter_local(jobs: Sequence[PartJob], *, workers: int | None, staging: Path, c
     pending = list(reversed(jobs))
     crashes: dict[int, int] = {}
     while pending:
-        pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"))
+        pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
+                                      initializer=bind_to_parent, initargs=(os.getpid(),))
         in_flight: dict[cf.Future, tuple[PartJob, Path]] = {}
         broken = finished = False
         try:
@@ -148,18 +152,50 @@ def iter_ray(jobs: Sequence[PartJob], *, workers: int | None, address: str | Non
             while pending and len(in_flight) < limit:
                 job = pending.pop()
                 in_flight[remote.remote(job_payload(job, ship_bytes=True, config_dirs=config_dirs))] = job
-            ready, _ = ray.wait(list(in_flight), num_returns=1)
+            ready, _ = _signal_safe(ray.wait, list(in_flight), num_returns=1)
             for ref in ready:
                 job = in_flight.pop(ref)
                 try:
-                    outcome = ray.get(ref)
+                    outcome = _signal_safe(ray.get, ref)
                 except RayError as exc:
                     outcome = ray_failed_outcome(exc)
                 yield job, outcome, None
         finished = True
     finally:
-        if not finished:  # Ctrl-C or the caller stopped: free the cluster's CPUs
-            for ref in in_flight:
-                ray.cancel(ref, force=True)
+        if not finished:  # Ctrl-C, a signal or the caller stopped: free the cluster's CPUs
+            _cancel_ray(ray, list(in_flight))
         if started:
             ray.shutdown()
+
+
+#: seconds the tasks of a stopped batch get to end by themselves (removing their temporary folders)
+RAY_CANCEL_S = 3.0
+
+
+def _cancel_ray(ray: Any, refs: list[Any]) -> None:
+    """Cancel ``refs``: first as Ctrl-C would (each task's temporary folders are removed on its way
+    out), then, after :data:`RAY_CANCEL_S`, by killing the workers of those still running."""
+    from ray.exceptions import RayError
+
+    refused = (RayError, ValueError, TypeError)  # a task already finished, or gone with its worker
+    for ref in refs:
+        with contextlib.suppress(*refused):
+            ray.cancel(ref, force=False)
+    with contextlib.suppress(*refused):
+        ray.wait(refs, num_returns=len(refs), timeout=RAY_CANCEL_S)
+    for ref in refs:
+        with contextlib.suppress(*refused):
+            ray.cancel(ref, force=True)
+
+
+def _signal_safe(call: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+    """``call(*args, **kwargs)``, a Ray function that waits in C++: a signal handler's exception
+    raised while it waits (SIGHUP, SIGTERM: :func:`grasplan.io.signals_raise`) comes back from Ray
+    wrapped in a SystemError; it is raised as itself, so the batch stops as the signal asks."""
+    try:
+        return call(*args, **kwargs)
+    except SystemError as exc:
+        cause = exc.__cause__
+        if isinstance(cause, BaseException) and not isinstance(cause, Exception):
+            raise cause from None
+        raise

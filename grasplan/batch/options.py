@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import uuid
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
@@ -62,9 +63,12 @@ class BatchOptions:
         """The options as JSON (``done.json``, ``summary.json``, the hash and the workers): the
         parameter classes' :meth:`~grasplan.params.CandidateParams.options_json`, so a place is
         included (a plan file records it in ``cell.place``) and a scoring file as its weights."""
+        return {**self.plain_json(), "candidates": self.candidates.options_json(),
+                "grasps": self.grasps.options_json(), "planning": self.planning.options_json()}
+
+    def plain_json(self) -> dict[str, Any]:
+        """:meth:`to_json` but the three parameter sets."""
         return {"robot": self.robot, "gripper": self.gripper, "cell": self.cell, "units": self.units,
-                "candidates": self.candidates.options_json(), "grasps": self.grasps.options_json(),
-                "planning": self.planning.options_json(),
                 "T_world_part": None if self.T_world_part is None else [list(r) for r in self.T_world_part],
                 "exports": list(self.exports), "view": self.view}
 
@@ -117,11 +121,49 @@ def _config_fingerprint(kind: str, name: str) -> str:
     return sha256_file(resolve_yaml(kind, name))
 
 
-def options_hash(options: BatchOptions) -> str:
+#: the canonical JSON the options hash is computed from: sorted keys, no spaces
+_SEP = (",", ":")
+
+
+def _canonical(value: Any) -> str:
+    return json.dumps(value, sort_keys=True, separators=_SEP)
+
+
+#: stands in a document for a member whose JSON is already encoded (random: no option value holds it)
+_SLOT = f"grasplan-encoded-{uuid.uuid4().hex}-"
+
+
+def _canonical_with(doc: dict[str, Any], encoded: dict[str, str]) -> str:
+    """:func:`_canonical` of ``doc`` where the values of the keys in ``encoded`` are given already
+    encoded (the same text: JSON with sorted keys is the concatenation of its members' JSON)."""
+    text = _canonical({k: _SLOT + k if k in encoded else v for k, v in doc.items()})
+    for k, value in encoded.items():
+        text = text.replace(f'"{_SLOT}{k}"', value, 1)  # keys are plain ASCII names
+    return text
+
+
+def options_hash(options: BatchOptions, *, fingerprints: dict[tuple[str, Any], str] | None = None) -> str:
     """sha256 (hex) of the canonical JSON of ``options``, the grasplan version and the robot,
-    gripper and cell YAML contents. Raises ConfigError for an unknown robot/gripper/cell."""
+    gripper and cell YAML contents. Raises ConfigError for an unknown robot/gripper/cell.
+
+    ``fingerprints``: a dict kept by the caller across calls, so each (kind, name) is read and
+    each parameter set encoded once however many option sets share them (the hash is the same)."""
     from .. import __version__
 
-    doc = {"schema": OPTIONS_SCHEMA, "grasplan": __version__, "options": options.to_json(),
-           "configs": {k: _config_fingerprint(k, getattr(options, k)) for k in ("robot", "gripper", "cell")}}
-    return hashlib.sha256(json.dumps(doc, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+    memo: dict[tuple[str, Any], str] = {} if fingerprints is None else fingerprints
+    configs = {}
+    for k in ("robot", "gripper", "cell"):
+        key = (k, getattr(options, k))
+        if key not in memo:
+            memo[key] = _config_fingerprint(k, getattr(options, k))
+        configs[k] = memo[key]
+    params = {}
+    for attr in ("candidates", "grasps", "planning"):
+        key = (attr, getattr(options, attr))
+        if key not in memo:
+            memo[key] = _canonical(getattr(options, attr).options_json())
+        params[attr] = memo[key]
+    opts = _canonical_with({**options.plain_json(), **dict.fromkeys(params)}, params)  # == _canonical(to_json())
+    text = _canonical_with({"schema": OPTIONS_SCHEMA, "grasplan": __version__, "configs": configs, "options": None},
+                           {"options": opts})
+    return hashlib.sha256(text.encode()).hexdigest()

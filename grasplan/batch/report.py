@@ -6,13 +6,14 @@ from __future__ import annotations
 import csv
 import html
 import io
-from collections.abc import Sequence
+import os
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 from urllib.parse import quote
 
-from ..io import write_atomic_text, write_json
+from ..io import to_json_text, write_atomic_chunks, write_atomic_text
 from .layout import FINAL_STATUSES, LOG_FILE, SUMMARY_SCHEMA, VIEW_FILE, BatchStatus
 from .manifest import PartJob
 from .options import BatchOptions
@@ -86,11 +87,20 @@ def write_summary(summary: BatchSummary, *, options: BatchOptions, engine: str) 
         vals.append(r.get("error", ""))
         w.writerow(vals)
     write_atomic_text(summary.out_dir / "summary.csv", buf.getvalue())
-    write_json(summary.out_dir / "summary.json",
-               {"schema": SUMMARY_SCHEMA, "engine": engine, "options": options.to_json(),
-                "interrupted": summary.interrupted, "exit_code": summary.exit_code, "counts": summary.counts,
-                "parts": rows}, indent=1)
+    head = {"schema": SUMMARY_SCHEMA, "engine": engine, "options": options.to_json(),
+            "interrupted": summary.interrupted, "exit_code": summary.exit_code, "counts": summary.counts}
+    write_atomic_chunks(summary.out_dir / "summary.json", _json_parts(head, rows))
     write_atomic_text(summary.out_dir / "index.html", index_html(summary))
+
+
+def _json_parts(head: dict[str, Any], rows: Sequence[dict[str, Any]]) -> Iterator[str]:
+    """The JSON text of ``{**head, "parts": rows}``: ``head`` indented, one part per line (each
+    encoded on its own: the time is linear in the rows, the memory one row at a time)."""
+    text = to_json_text(head, indent=1)
+    yield text[:-2] + ',\n "parts": ['  # text ends with "\n}"
+    for i, r in enumerate(rows):
+        yield ("\n  " if i == 0 else ",\n  ") + to_json_text(r)
+    yield "\n ]\n}\n" if rows else "]\n}\n"
 
 
 #: index.html sorts by status in this order (planned parts first)
@@ -102,12 +112,14 @@ def index_html(summary: BatchSummary) -> str:
     columns sort on click (status by default, planned parts first)."""
     e = html.escape
     trs = []
+    out_text = os.fspath(summary.out_dir)
     for r in summary.rows:
-        has_view = (summary.out_dir / r["dir"] / VIEW_FILE).is_file() if r["status"] != BatchStatus.PENDING else False
+        folder = os.path.join(out_text, r["dir"])
+        has_view = r["status"] != BatchStatus.PENDING and os.path.isfile(os.path.join(folder, VIEW_FILE))
         name = e(r["part"])
         link = f'<a href="{e(quote(r["dir"]))}/{VIEW_FILE}">{name}</a>' if has_view else name
         log = (f' <a class="log" href="{e(quote(r["dir"]))}/{LOG_FILE}">log</a>'
-               if (summary.out_dir / r["dir"] / LOG_FILE).is_file() else "")
+               if os.path.isfile(os.path.join(folder, LOG_FILE)) else "")
         score = "" if r["best_score"] is None else f"{r['best_score']:.3f}"
         secs = "" if r.get("seconds") is None else f"{r['seconds']:.2f}"
         trs.append(

@@ -40,7 +40,9 @@ def command(parts, out_dir, workers, engine, ray_address, exports, no_view, **kw
     Per part OUTDIR/<stem>-<sha8>/ gets plan.json (as `grasplan plan` writes it), the --export
     files, view.html and log.txt. A bad part is recorded in the summary and the batch goes on.
     Rerunning the same command skips finished parts (same file sha256 and options). Exit code 0
-    when some part has a planned grasp, 4 when none has, 3 for bad inputs (nothing written).
+    when some part has a planned grasp, 4 when none has, 3 for bad inputs (nothing written), 130
+    after Ctrl-C. Ctrl-C or a signal (SIGTERM, SIGHUP, ...) stops the workers and keeps the
+    finished parts; the workers also end if the batch is killed.
     """
     from ..batch import run_batch
     from ..batch.layout import BatchStatus

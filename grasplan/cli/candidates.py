@@ -38,6 +38,8 @@ def command(part: str, output: str, units: str, **kwargs) -> None:
     warn_all(p.warnings)
 
     result = compute_candidates(p, params, load_s=t_load)
+    for note in result.notes:
+        info(note)
     write_json(output, result.to_json())
 
     counts, timing = result.counts(), result.timing_s

@@ -66,15 +66,12 @@ def command(cell: str, parts: tuple[str, ...], units: str, rounds: int, pose_noi
     t0 = time.perf_counter()
     noise = parse_pose_noise(pose_noise)
     specs = [parse_part_count(p) for p in parts]
-    out = check_output(output, *[p for p, _ in specs])
-    page = None
-    if view is not None:
-        from ..io import check_output_path
-
-        page = check_output_path(view, inputs=[p for p, _ in specs], create_parents=True, option="--view")
+    apply_config_dirs(kwargs)  # first: --config-dir decides which files the names below read
+    reads = {"cell": cell, "gripper": gripper, "robot": robot}
+    out = check_output(output, *[p for p, _ in specs], **reads)
+    page = None if view is None else check_output(view, *[p for p, _ in specs], **reads, option="--view")
     if page is not None and Path(page).resolve() == Path(out).resolve():
         raise InputError(f"--view {view}: the same file as -o {output}; give the page its own name (e.g. clutter.html)")
-    apply_config_dirs(kwargs)
     pick_kw = {k: kwargs.pop(k) for k in PICK_OPTIONS if k in kwargs}
     drop = DropParams(**kwargs)
     c = load_cell(cell)

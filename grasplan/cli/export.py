@@ -58,15 +58,23 @@ def command(plan, fmt, grasp_id, out, max_accel, velocity_scale, part_path, inst
 
     t0 = time.perf_counter()
     from ..export import output_paths
+    from ..export_registry import program_options
+    from ..outputs import picks_files, result_files
     from ..pick.reader import is_picks_file, load_picks, pick_as_plan
 
-    out = check_output(out, plan, part_path, companions=output_paths(fmt, out)[1:])  # KRL's .dat too
-    if is_picks_file(plan):  # one pick as a one-grasp plan whose cell holds the other instances
-        res = pick_as_plan(load_picks(plan), instance)
+    companions = output_paths(fmt, out)[1:]  # KRL's .dat too
+    out = check_output(out, plan, part_path, companions=companions)
+    program_options(fmt, out, {})  # a program name from OUT's stem that the language refuses: before any work
+    if is_picks_file(plan):
+        picks = load_picks(plan)
+        # the files it names (parts, its scene's meshes, the robot's files) are inputs too
+        check_output(out, plan, *picks_files(picks), companions=companions)
+        res = pick_as_plan(picks, instance)  # one pick as a one-grasp plan whose cell holds the other instances
     elif instance is not None:
         raise InputError(f"--instance: {plan} is not a picks file (grasplan.picks/1 from `grasplan pick`)")
     else:
         res = load_result(plan, part=part_path, verify_part=True)  # a re-pointed part block is refused
+        check_output(out, plan, part_path, *result_files(res), companions=companions)  # its part, the robot's files
     ids = res.planned_ids()
     info(f"plan {plan}: {len(res.grasps)} grasps, {len(ids)} planned")
     path = write(res, fmt, out, grasp_id=grasp_id, part=part_path, max_accel=max_accel,

@@ -35,6 +35,7 @@ def command(scene, robot, gripper, cell, sequence, max_picks, output, **kwargs):
     and accessibility (parts on top first), then IK, the straight approach, the transit and the lift
     checked against the neighbours. Exit 4 (the file still written) when nothing can be picked.
     """
+    from ..outputs import scene_files
     from ..pick.picker import Picker
     from ..scenefile import load_scene
 
@@ -42,15 +43,12 @@ def command(scene, robot, gripper, cell, sequence, max_picks, output, **kwargs):
     apply_config_dirs(kwargs)
     database = GraspParams(density=kwargs.pop("density"))  # the grasp databases computed (and cached) for the parts
     params = PickParams(**kwargs)
+    check_output(output, scene, gripper=gripper, cell=cell, robot=robot)  # before the scene is read
     sc = load_scene(scene)  # bad input: exit 3 before anything is computed
     # -o must not be any file the scene reads: meshes, grasp databases, the cloud, the cell, the YAMLs
-    reads = [scene, *(sc.resolve(p.mesh) for p in sc.parts if p.mesh), *(sc.resolve(p.grasps) for p in sc.parts
-                                                                         if p.grasps)]
-    if sc.cloud is not None:
-        reads.append(sc.resolve(sc.cloud.path))
     scene_cell = sc.resolve(sc.cell) if ("/" in sc.cell or sc.cell.endswith((".yaml", ".yml"))) else sc.cell
-    output = check_output(output, *reads, gripper=gripper, cell=cell if cell is not None else str(scene_cell),
-                          robot=robot)
+    output = check_output(output, scene, *scene_files(sc), gripper=gripper,
+                          cell=cell if cell is not None else str(scene_cell), robot=robot)
     picker = Picker(robot, gripper=gripper, cell=cell, params=params, database=database, progress=info)
     info(f"scene {scene}: {len(sc.instances)} instances of {len(sc.part_names())} parts")
     result = picker.plan(sc, sequence=sequence, max_picks=max_picks)

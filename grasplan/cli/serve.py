@@ -7,8 +7,12 @@ import click
 
 from ..params import DEFAULT_GRIPPER
 from ..serve.config import (
+    DEFAULT_BODY_TIMEOUT_S,
     DEFAULT_CELL,
+    DEFAULT_HEADER_TIMEOUT_S,
     DEFAULT_HOST,
+    DEFAULT_MAX_CONNECTIONS,
+    DEFAULT_MAX_CONNECTIONS_PER_CLIENT,
     DEFAULT_MAX_BODY,
     DEFAULT_MAX_QUEUE,
     DEFAULT_PORT,
@@ -45,15 +49,28 @@ from .options import FLOAT, INT, config_dir_option, robot_option
               help="Seconds a request may take, queueing included: 503 when it could not start in time, 504 when "
                    "its planning ran past it.")
 @click.option("--workers", type=INT, default=None, show_default=f"one per core, at most {MAX_AUTO_WORKERS}",
-              help="Planners, each with its own warm state and one request at a time: N > 1 starts N planner "
-                   "processes and hands each request to a free one; 1 plans on a thread of the HTTP process.")
+              help="Planner processes, each with its own warm state and one request at a time; each request goes "
+                   "to a free one, and one past --time-limit is stopped.")
 @click.option("--max-queue", type=INT, default=DEFAULT_MAX_QUEUE, show_default=True,
               help="Requests waiting for a free planner beyond this are refused at once with 503.")
+@click.option("--header-timeout", "header_timeout_s", type=FLOAT, default=DEFAULT_HEADER_TIMEOUT_S,
+              show_default=True,
+              help="Seconds a connection may take to send a request's headers, from its opening or its previous "
+                   "response; an idle connection is closed after it (408 when a request had begun).")
+@click.option("--body-timeout", "body_timeout_s", type=FLOAT, default=DEFAULT_BODY_TIMEOUT_S, show_default=True,
+              help="Seconds a request body may pause; the whole body must arrive within --time-limit (else 408).")
+@click.option("--max-connections-per-client", type=INT, default=DEFAULT_MAX_CONNECTIONS_PER_CLIENT,
+              show_default=True,
+              help="Open connections from one client address; a new one beyond it replaces that address's oldest "
+                   "idle connection, or is refused (503) when all are busy with requests.")
+@click.option("--max-connections", type=INT, default=DEFAULT_MAX_CONNECTIONS, show_default=True,
+              help="Open connections in all (likewise); the open-file limit is raised to fit them.")
 @click.option("--pick/--no-pick", "databases", default=True, show_default=True,
               help="Compute or load every part's grasp database at start for POST /pick (--no-pick: /plan and "
                    "/export only, a faster start).")
 def command(parts_dir, host, port, robot, gripper, cell, units, config_dir, token, max_body, time_limit_s,
-            workers, max_queue, databases):
+            workers, max_queue, header_timeout_s, body_timeout_s, max_connections_per_client, max_connections,
+            databases):
     """Serve picks, plans and robot programs over HTTP (JSON) from a warm planner.
 
     \b
@@ -63,7 +80,8 @@ def command(parts_dir, host, port, robot, gripper, cell, units, config_dir, toke
     GET  /health, /robots, /grippers, /parts; OpenAPI at /docs
 
     Parts are named, never given as paths: a request can only use the meshes in --parts. Needs the
-    serve extra (pip install 'grasplan[serve]'). Stop with Ctrl-C.
+    serve extra (pip install 'grasplan[serve]'). Stop with Ctrl-C or SIGTERM: the requests in
+    progress are answered, then it exits 0.
 
     \b
     Example:
@@ -78,8 +96,10 @@ def command(parts_dir, host, port, robot, gripper, cell, units, config_dir, toke
         workers = default_workers()
     config = ServeConfig(parts_dir=parts_dir, robot=robot, gripper=gripper, cell=cell, units=units,
                          token=token_from_env(token), max_body=parse_size(max_body), time_limit_s=time_limit_s,
-                         workers=workers, max_queue=max_queue, host=host, port=port, databases=databases,
-                         config_dirs=tuple(config_dir))
+                         workers=workers, max_queue=max_queue, header_timeout_s=header_timeout_s,
+                         body_timeout_s=body_timeout_s, max_connections=max_connections,
+                         max_connections_per_client=max_connections_per_client, host=host, port=port,
+                         databases=databases, config_dirs=tuple(config_dir))
     logging.basicConfig(level=logging.INFO, format="grasplan serve: %(message)s")
     warning = config.bind_warning()
     if warning:

@@ -43,6 +43,7 @@ def command(ctx, result: Path, output: Path, top: int, part: Path | None, seed: 
     Density and mass default to those the file was made with."""
     from ..io import write_json
     from ..mass import mass_properties
+    from ..outputs import result_files
     from ..result_reader import load_result
     from ..simulate import (
         LIFT_HEIGHT,
@@ -58,6 +59,7 @@ def command(ctx, result: Path, output: Path, top: int, part: Path | None, seed: 
     if not result.exists():
         raise InputError(f"{result}: no such file (expected a grasplan grasps or plan JSON)")
     res = load_result(result, part=part, load_mesh=True)
+    check_output(output, result, part, *result_files(res))  # its part and robot files are inputs too
     gp = res.params.grasps
     given = {k for k in ("density", "mass")
              if ctx.get_parameter_source(k) not in (click.core.ParameterSource.DEFAULT, None)}

@@ -36,11 +36,13 @@ def command(result: str, output: str, part: str | None, allow_other_part: bool, 
 
     output = check_output(output, result, part)
     info(f"view: {result}")
+    from ..outputs import picks_files, result_files
     from ..pick.reader import is_picks_file, load_picks, pick_as_plan, pile_as_plan
 
     notes: list[str] = []
     if is_picks_file(result):  # the pick as a one-grasp plan; the other instances are cell obstacles
         picks = load_picks(result)
+        check_output(output, result, part, *picks_files(picks))  # the files it names are inputs too
         if picks.picks or instance is not None:
             res = pick_as_plan(picks, instance)
         else:  # no pick: the pile, and why each instance cannot be picked
@@ -51,6 +53,7 @@ def command(result: str, output: str, part: str | None, allow_other_part: bool, 
         raise InputError(f"--instance: {result} is not a picks file (grasplan.picks/1 from `grasplan pick`)")
     else:
         res = load_result(result, part=part, allow_other_part=allow_other_part, verify_part=True)  # re-pointed part: refused
+        check_output(output, result, part, *result_files(res))  # its part and robot files are inputs too
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         path = write_viewer(res, output, part_path=part, allow_other_part=allow_other_part, notes=notes)

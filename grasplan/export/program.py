@@ -397,8 +397,9 @@ def sequence_lines(mp: MotionProgram) -> list[str]:
 
 
 def check_program_name(name: str) -> str:
-    """``name`` if it is a valid program name (the rule of :class:`ExportOptions`: a letter, then
-    letters, digits or ``_``, at most 24 characters: a KRL name, and a RAPID one with a suffix)."""
+    """``name`` if it is a valid program name (:func:`grasplan.program_names.program_name_problem`,
+    the rule :class:`ExportOptions` applies: a letter, then letters, digits or ``_``, at most 24
+    characters, no KRL/RAPID reserved word, no name the program itself declares); InputError else."""
     return ExportOptions(program_name=name).program_name
 
 

@@ -6,7 +6,8 @@ barycentric grid of :data:`SAMPLE_SPACING` on its faces (:func:`grasplan.contain
 so a penetration is found to within about that spacing (the deepest point of two touching
 polyhedra is a vertex of one of them, except where two edges cross). Inside is decided by the
 part's voxel grid (:mod:`grasplan.insidegrid`) and, near its surface, by the crossing count of
-:func:`grasplan.containment.points_inside_tree`; the distance of an inside point to the surface is
+:func:`grasplan.pile_checks.inside_for_depth` (a point on the other's surface, undecided by the
+crossings, is outside: at most rounding deep); the distance of an inside point to the surface is
 coal's exact point-to-BVH distance, except that a point the grid proves deeper than ``stop`` ends
 the search at once.
 
@@ -31,11 +32,15 @@ from scipy.spatial import cKDTree
 from ..containment import RayGrid, placed_in_box, surface_samples
 from ..insidegrid import InsideGrid, inside_grid
 from ..meshdata import MeshData
+from ..pile_checks import inside_for_depth
+from .budget import UNLIMITED, Budget
 
 #: surface sample spacing (m) of the depth probes
 SAMPLE_SPACING = 0.001
 #: at most this many probes per part (coarser spacing beyond)
 MAX_SAMPLES = 30_000
+#: exact point distances (coal) between two looks at the planning budget
+BUDGET_EVERY = 256
 
 
 @dataclass(frozen=True, eq=False)
@@ -64,7 +69,7 @@ class PartDepth:
 
 
 def _into(a: PartDepth, T_a: np.ndarray, b: PartDepth, T_b: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-          stop: float, step: int = 1, cap: float = np.inf) -> float:
+          stop: float, step: int = 1, cap: float = np.inf, budget: Budget = UNLIMITED) -> float:
     """Largest depth of ``a``'s samples (at ``T_a``) inside ``b`` (at ``T_b``), of those in the world
     box ``lo, hi`` (where the two parts' world boxes overlap); stops once above ``stop`` or at
     ``cap`` or beyond (see :func:`pair_depth`)."""
@@ -85,7 +90,8 @@ def _into(a: PartDepth, T_a: np.ndarray, b: PartDepth, T_b: np.ndarray, lo: np.n
         pts = pts[~np.isfinite(r)]
     if not len(pts):
         return 0.0
-    inside = pts[b.inside.inside(b.grid, b.mesh, pts)]
+    budget.check()
+    inside = pts[inside_for_depth(b.inside, b.grid, b.mesh, b.bvh, pts, budget.check)]
     if not len(inside):
         return 0.0
     # deepest first is unknown: probe the points with the largest upper bound of their depth first
@@ -95,9 +101,11 @@ def _into(a: PartDepth, T_a: np.ndarray, b: PartDepth, T_b: np.ndarray, lo: np.n
     probe = coal.Sphere(1e-12)
     tf, eye = coal.Transform3s(), coal.Transform3s()
     best = 0.0
-    for k in np.argsort(-upper):
+    for n, k in enumerate(np.argsort(-upper).tolist()):
         if upper[k] <= best:  # no point left can be deeper
             break
+        if n % BUDGET_EVERY == BUDGET_EVERY - 1:
+            budget.check()
         tf.setTranslation(inside[k])
         res.clear()
         best = max(best, float(coal.distance(probe, tf, b.bvh, eye, req, res)))
@@ -107,7 +115,7 @@ def _into(a: PartDepth, T_a: np.ndarray, b: PartDepth, T_b: np.ndarray, lo: np.n
 
 
 def pair_depth(a: PartDepth, T_a: np.ndarray, b: PartDepth, T_b: np.ndarray, *, stop: float = np.inf,
-               step: int = 1, cap: float = np.inf) -> float:
+               step: int = 1, cap: float = np.inf, budget: Budget = UNLIMITED) -> float:
     """Penetration depth (m, 0 when apart or touching) of ``a`` at ``T_a`` and ``b`` at ``T_b`` (see
     the module docstring). With a finite ``stop`` it answers "deeper than ``stop``?": the result is
     a depth found above ``stop`` (a lower bound: the search stops there) when there is one, else a
@@ -115,14 +123,15 @@ def pair_depth(a: PartDepth, T_a: np.ndarray, b: PartDepth, T_b: np.ndarray, *, 
     ``step``: only every step-th surface sample of each part is a probe (a lower bound of the depth,
     so a value above ``stop`` found this way is one the full search finds too). ``cap``: exact below
     it, some depth at or beyond it otherwise (``min(pair_depth(..., cap=c), c)`` is the exact
-    depth capped at ``c``; the search stops at the first point at least ``c`` deep)."""
+    depth capped at ``c``; the search stops at the first point at least ``c`` deep). ``budget``:
+    checked before the exact inside test and every :data:`BUDGET_EVERY` exact distances."""
     T_a, T_b = np.asarray(T_a, dtype=np.float64), np.asarray(T_b, dtype=np.float64)
     wa = a.hull @ T_a[:3, :3].T + T_a[:3, 3]
     wb = b.hull @ T_b[:3, :3].T + T_b[:3, 3]
     lo, hi = np.maximum(wa.min(axis=0), wb.min(axis=0)), np.minimum(wa.max(axis=0), wb.max(axis=0))
     if np.any(lo > hi):
         return 0.0
-    d = _into(a, T_a, b, T_b, lo, hi, stop, step, cap)
+    d = _into(a, T_a, b, T_b, lo, hi, stop, step, cap, budget)
     if d > stop or d >= cap:
         return d
-    return max(d, _into(b, T_b, a, T_a, lo, hi, stop, step, cap))
+    return max(d, _into(b, T_b, a, T_a, lo, hi, stop, step, cap, budget))

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from ..cell import BinSpec
+from .budget import UNLIMITED, Budget
 from .depth import PartDepth, pair_depth
 
 #: tilts (deg) of the lifts tried when the straight one is blocked, smallest first
@@ -132,9 +133,9 @@ class RestDepth:
     ``cap``. ``depth_of(name) -> (PartDepth, T_world)`` gives a neighbour's probes and pose."""
 
     def __init__(self, part: PartDepth, T_rest: np.ndarray, depth_of: Callable[[str], tuple[PartDepth, np.ndarray]],
-                 *, tol: float, cap: float):
+                 *, tol: float, cap: float, budget: Budget = UNLIMITED):
         self.part, self.T_rest, self.depth_of = part, np.asarray(T_rest, dtype=np.float64), depth_of
-        self.tol, self.cap = float(tol), float(cap)
+        self.tol, self.cap, self.budget = float(tol), float(cap), budget
         self._rest: dict[str, float] = {}
         self._exceeds: dict[tuple[bytes, tuple[str, ...]], bool] = {}  # a lift raising a neighbour redoes a clean one's
 
@@ -143,7 +144,9 @@ class RestDepth:
         d = self._rest.get(name)
         if d is None:
             b, T_b = self.depth_of(name)
-            d = self._rest[name] = min(pair_depth(self.part, self.T_rest, b, T_b, cap=self.cap), self.cap)  # exact to cap
+            # exact up to cap
+            d = min(pair_depth(self.part, self.T_rest, b, T_b, cap=self.cap, budget=self.budget), self.cap)
+            self._rest[name] = d
         return d
 
     def exceeds(self, T_world_part: np.ndarray, names: list[str]) -> bool:
@@ -161,7 +164,8 @@ class RestDepth:
         for n in names:
             r = self.rest(n)
             b, T_b = self.depth_of(n)
-            if pair_depth(self.part, T_world_part, b, T_b, stop=self.tol + r, step=COARSE) - r > self.tol:
+            if pair_depth(self.part, T_world_part, b, T_b, stop=self.tol + r, step=COARSE, budget=self.budget) - r \
+                    > self.tol:
                 return True
         return self.excess(T_world_part, names) > self.tol
 
@@ -172,7 +176,8 @@ class RestDepth:
         for n in names:
             r = self.rest(n)
             b, T_b = self.depth_of(n)
-            out = max(out, pair_depth(self.part, T_world_part, b, T_b, stop=np.inf if exact else self.tol + r) - r)
+            out = max(out, pair_depth(self.part, T_world_part, b, T_b, stop=np.inf if exact else self.tol + r,
+                                      budget=self.budget) - r)
             if out > self.tol and not exact:
                 break
         return float(max(out, 0.0)) if names else 0.0

@@ -50,6 +50,7 @@ from ..pickplace import (
 from ..robot_model import Robot
 from ..scene import PART, CollisionScene, describe_pairs
 from ..transforms import inv_rigid
+from .budget import UNLIMITED, Budget
 from .cover import APPROACH_PAD, covered_check, gripper_world_pairs
 from .lines import fk_base_tool, ur_closed_form, ur_line, world_fk
 from .params import PickParams
@@ -143,6 +144,16 @@ class MotionContext:
     #: the gripper along the approach in Cartesian space (branch-independent, once IK found solutions):
     #: ``(T_pre, T_grasp, opening, pad) -> SweptGripper or None`` (:mod:`grasplan.pick.cover`)
     approach_sweep: Any = None
+    #: the plan's budget (:mod:`grasplan.pick.budget`): checked before each IK solution's checks and
+    #: each OMPL query, whose time it caps
+    budget: Budget = UNLIMITED
+
+    def rrt_time(self) -> float:
+        """Seconds per RRTConnect attempt: ``time_limit_per_query``, capped so that all
+        ``path_attempts`` fit in the budget left (:class:`grasplan.pick.budget.BudgetSpent` when none is)."""
+        p, n = self.params, max(self.params.path_attempts, 1)
+        left = self.budget.cap(p.time_limit_per_query * n)
+        return p.time_limit_per_query if left >= p.time_limit_per_query * n else left / n
 
     def __post_init__(self) -> None:
         self.q_home = np.asarray(self.robot.q_home, dtype=np.float64)
@@ -367,7 +378,7 @@ def _place(ctx: MotionContext, q_lifted: np.ndarray, T_part_tcp: np.ndarray, wid
                                      max_solutions=p.max_ik_solutions, limit=p.max_path_queries)
     for c in cands:
         transfer = transfer_path(ctx.attached, q_lifted, c, lower=robot.lower, upper=robot.upper, width=width,
-                                 seed=seed + 7, time_limit=p.time_limit_per_query, attempts=p.path_attempts)
+                                 seed=seed + 7, time_limit=ctx.rrt_time(), attempts=p.path_attempts)
         if transfer is not None:
             return c, transfer, ""
     if cands:
@@ -402,13 +413,14 @@ def _transit(ctx: MotionContext, q_pre: np.ndarray, T_pre: np.ndarray, opening: 
         if static.path_free(via, opening):
             return via
     return plan_joint_path(static, ctx.q_home, q_pre, lower=robot.lower, upper=robot.upper, opening=opening,
-                           seed=seed, time_limit=p.time_limit_per_query, attempts=p.path_attempts)
+                           seed=seed, time_limit=ctx.rrt_time(), attempts=p.path_attempts)
 
 
 def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np.ndarray, width: float,
                      seed: int) -> Outcome:
     """Plan one grasp (see the module docstring)."""
     p, robot, timing = ctx.params, ctx.robot, ctx.timing
+    ctx.budget.check()
     opening = float(ctx.gripper.pregrasp_opening(width))
     T_pre = T_world_tcp.copy()
     T_pre[:3, 3] -= p.backoff * T_world_tcp[:3, 2]
@@ -453,6 +465,7 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
     blockers: set[str] = set()
     count = {"grasp": 0, "approach": 0, "approach_kin": 0, "lift": 0, "lift_kin": 0, "path": 0, "place": 0}
     for j, q_grasp in enumerate(sols):
+        ctx.budget.check()
         t = time.perf_counter()
         free = static.path_free(q_grasp[None], opening, reduced=cover)  # the grasp alone
         timing["collision"] += time.perf_counter() - t

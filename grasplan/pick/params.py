@@ -61,8 +61,10 @@ class PickParams(OptionSet):
         None, "pose", "Pick-and-place: every picked part's pose after release, 'x,y,z,roll,pitch,yaw' (lengths m or "
         "with units, angles deg, R = Rz(yaw) Ry(pitch) Rx(roll)); the lifted part is carried there (OMPL, part in "
         "the jaws), lowered, released and the gripper retreats. Default: the cell's place, if any.", optional=True)
-    budget_s: float | None = spec(None, "seconds", "Wall-clock budget of one plan() call, seconds; instances not "
-                                  "reached are 'not_tried'.", cli="--budget", hi=86400.0, optional=True)
+    budget_s: float | None = spec(None, "seconds", "Wall-clock budget of one plan() call, seconds, counted from the "
+                                  "loaded parts and cell: a hard limit, checked inside every long stage; the instance "
+                                  "being planned and those not reached are 'not_tried'.", cli="--budget", hi=86400.0,
+                                  optional=True)
 
     def place_matrix(self) -> np.ndarray | None:
         """:attr:`place` as a (4, 4) ``T_world_part`` (None: the cell's place, if any)."""

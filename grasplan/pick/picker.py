@@ -25,14 +25,15 @@ Per :meth:`Picker.plan` call:
    instance gets its best pick with every other instance in place; picks are listed in trying order.
 
 ``timing_s["first_pick"]``: seconds from the ready scene (end of step 1 and the checks) to the
-first feasible pick.
+first feasible pick. ``budget_s`` (:mod:`grasplan.pick.budget`) counts from the loaded parts and
+cell (step 1 but the parts' meshes and grasp databases) and is checked inside every long stage.
+What stays warm between calls, and its bounds: :mod:`grasplan.pick.warm`.
 """
 from __future__ import annotations
 
 import os
 import time
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -47,9 +48,10 @@ from ..params import DEFAULT_GRIPPER, GraspParams
 from ..pickplace import lift_pose, unit_direction
 from ..robot import load_robot
 from ..robot_model import Robot
-from ..scene import CollisionScene, ExtraBody
+from ..scene import CollisionScene
 from ..scenefile import Instance, Scene, load_scene
 from ..graspdb import GraspDatabase, database_for, load_database
+from .budget import Budget, BudgetSpent
 from .depth import PartDepth
 from .lift import LIFTS_PER_GRASP, Carry, RestDepth, free_to_rise, inside_walls, lift_directions, wall_away
 from .motion import MotionContext, Outcome, lift_travel, plan_pick_motion
@@ -57,29 +59,15 @@ from .params import PickParams
 from .rank import check_chunks, instance_order, rank_grasps
 from .reasons import blockers_of, hits_text, tilts_text
 from .result import InstanceReport, Pick, PickResult
+from .warm import (MAX_CELLS, MAX_CLOUDS, MAX_SCENE_PARTS, MAX_SCENE_VARIANTS, LRU, CellState, arranged,
+                   build_scenes, scene_cloud)
 from .world import CLOUD, INSTANCE_PREFIX, PickWorld
 
 #: the first pass over the instances checks this many grasps of each (best ranked) before any instance's
 #: further grasps: a part whose good grasps are free is found before the deep search of a boxed-in one
 FIRST_PASS = 256
-#: scene variants (one per instance and arrangement of its neighbours, ~3.7 MB each) kept between
-#: plan() calls: enough for a 30-instance --sequence to reuse them, bounded for a long-running
-#: service whose every request brings new poses (256 grew a worker to ~940 MB)
-MAX_SCENE_VARIANTS = 64
+__all__ = ["FIRST_PASS", "MAX_SCENE_VARIANTS", "Picker"]
 _TIMING_KEYS = ("gripper_check", "lift_check", "lift_depth", "ik", "collision", "approach", "lift", "transit", "place")
-
-
-@dataclass
-class _Cell:
-    """Warm state per cell: the gripper world and the robot scenes (per part) with their extras."""
-
-    cell: Cell
-    world: PickWorld
-    scenes: dict[str, CollisionScene] = field(default_factory=dict)
-    extras: frozenset = frozenset()        # (instance id, part) pairs the scenes hold
-    cloud_key: Any = None
-    variants: dict[Any, tuple[CollisionScene, CollisionScene]] = field(default_factory=dict)
-
 
 def _looks_like_path(ref: str) -> bool:
     return "/" in ref or os.sep in ref or ref.lower().endswith((".yaml", ".yml"))
@@ -92,24 +80,27 @@ class Picker:
     each scene's own cell; ``params``: :class:`~grasplan.pick.params.PickParams`; ``database``:
     the options of the grasp databases it computes (:class:`~grasplan.params.GraspParams`, e.g. the
     parts' ``density``: the gravity margin and the score depend on the mass); ``progress``: gets
-    a line when a grasp database is computed."""
+    a line when a grasp database is computed; ``clock``: seconds (monotonic) the planning budget
+    is measured on."""
 
     def __init__(self, robot: Robot | str = "ur5", *, gripper: Gripper | str = DEFAULT_GRIPPER,
                  cell: Cell | str | None = None, params: PickParams = PickParams(),
                  database: GraspParams = GraspParams(),
-                 progress: Callable[[str], None] | None = None):
+                 progress: Callable[[str], None] | None = None, clock: Callable[[], float] = time.perf_counter):
         self.robot = robot if isinstance(robot, Robot) else load_robot(robot)
         self.gripper = gripper if isinstance(gripper, Gripper) else load_gripper(gripper)
         self.cell = None if cell is None else (cell if isinstance(cell, Cell) else load_cell(cell))
         self.params = params
         self.database = database
         self.progress = progress
+        self.clock = clock
         self._parts: dict[str, Part] = {}
         self._grasps: dict[str, GraspDatabase] = {}
-        self._cells: dict[Any, _Cell] = {}
-        self._clouds: dict[tuple, tuple[Any, np.ndarray, float]] = {}
-        self._cell_refs: dict[str, tuple[int, Cell]] = {}
+        self._cells: LRU[Cell, CellState] = LRU(MAX_CELLS)
+        self._clouds: LRU[tuple, tuple[Any, np.ndarray, float]] = LRU(MAX_CLOUDS)
+        self._cell_refs: LRU[str, tuple[int, Cell]] = LRU(MAX_CELLS)
         self._depth: dict[str, PartDepth] = {}  # per part name: depth probes (grasplan.pick.depth)
+        self._scene_parts: LRU[str, None] = LRU(1 << 30)  # parts added from scene files, least recent first
 
     # -- parts --------------------------------------------------------------------------------------
     def add_part(self, name: str, mesh: str | os.PathLike | Part, *, units: str = "auto",
@@ -128,11 +119,18 @@ class Picker:
         self._parts[name] = part
         self._grasps[name] = db
         self._depth.pop(name, None)
+        self._scene_parts.pop(name)
         for st in self._cells.values():  # scenes holding the old geometry are rebuilt
             st.world.add_part(name, part)
-            st.scenes.pop(name, None)
-            st.extras = frozenset()
-            st.variants.clear()
+            st.forget()
+
+    def _drop_part(self, name: str) -> None:
+        self._parts.pop(name, None)
+        self._grasps.pop(name, None)
+        self._depth.pop(name, None)
+        for st in self._cells.values():
+            st.world.parts.pop(name, None)
+            st.forget()
 
     def parts(self) -> list[str]:
         return list(self._parts)
@@ -143,16 +141,23 @@ class Picker:
             if sp is not None and sp.mesh is not None:
                 path = scene.resolve(sp.mesh)
                 if name in self._parts and Path(self._parts[name].path) == path:
+                    self._scene_parts.get(name)  # used again
                     continue
                 self.add_part(name, path, units=sp.units,
                               grasps=None if sp.grasps is None else scene.resolve(sp.grasps))
+                self._scene_parts.put(name, None)
             elif name not in self._parts:
                 known = ", ".join(self._parts) or "(none)"
                 raise InputError(f"scene: part {name!r} has no mesh in the scene and was not added to the picker "
                                  f"(Picker.add_part); known parts: {known}")
+        now = set(scene.part_names())  # parts of earlier scene files beyond MAX_SCENE_PARTS: dropped
+        for name in [n for n in self._scene_parts.keys() if n not in now][: max(len(self._scene_parts) - len(now)
+                                                                              - MAX_SCENE_PARTS, 0)]:
+            self._scene_parts.pop(name)
+            self._drop_part(name)
 
     # -- warm state ---------------------------------------------------------------------------------
-    def _cell_for(self, scene: Scene) -> _Cell:
+    def _cell_for(self, scene: Scene) -> CellState:
         if self.cell is not None:
             cell = self.cell
         else:  # by name or path, read once (a path again when the file changed)
@@ -163,17 +168,19 @@ class Picker:
                 stamp = -1
             cached = self._cell_refs.get(ref)
             if cached is None or cached[0] != stamp:
-                cached = self._cell_refs[ref] = (stamp, load_cell(ref))
+                cached = (stamp, load_cell(ref))
+                self._cell_refs.put(ref, cached)
             cell = cached[1]
         return self._state_of(cell)
 
-    def _state_of(self, cell: Cell) -> _Cell:
+    def _state_of(self, cell: Cell) -> CellState:
         st = self._cells.get(cell)
         if st is None:
             world = PickWorld(self.gripper, cell)
             for name, part in self._parts.items():
                 world.add_part(name, part)
-            st = self._cells[cell] = _Cell(cell=cell, world=world)
+            st = CellState(cell=cell, world=world)
+            self._cells.put(cell, st)
         return st
 
     def warm(self) -> None:
@@ -191,54 +198,11 @@ class Picker:
                 self._depth_of(st, name)
 
     def _cloud(self, scene: Scene) -> tuple[Any, np.ndarray, float] | None:
-        if scene.cloud is None:
-            return None
-        from ..cloud import cloud_octree, read_cloud
+        return scene_cloud(self._clouds, scene)
 
-        path = scene.resolve(scene.cloud.path)
-        try:
-            stt = path.stat()
-            key = (str(path), stt.st_mtime_ns, stt.st_size, scene.cloud.resolution)
-        except OSError:
-            key = None
-        if key is not None and key in self._clouds:
-            return self._clouds[key]
-        pts = read_cloud(path).points
-        out = (cloud_octree(pts, scene.cloud.resolution), pts, float(scene.cloud.resolution))
-        if key is not None:
-            self._clouds = {key: out}
-        return out
-
-    def _scenes(self, st: _Cell, scene: Scene, cloud: tuple | None) -> None:
-        need = frozenset((i.id, i.part) for i in scene.instances)
-        cloud_key = None if cloud is None else id(cloud[0])
-        if need <= st.extras and cloud_key == st.cloud_key and all(p in st.scenes for p in scene.part_names()):
-            return
-        extras_set = need | (st.extras if len(st.extras) < 4 * max(len(need), 8) else frozenset())
-        extras_set = frozenset(x for x in extras_set if x[0] not in {i for i, p in need} or x in need)
-        bodies = [ExtraBody(INSTANCE_PREFIX + i, st.world.parts[p].bvh, "instance") for i, p in sorted(extras_set)]
-        if cloud is not None:
-            bodies.append(ExtraBody(CLOUD, cloud[0], "cloud"))
-        st.scenes = {p: CollisionScene(self.robot, self.gripper, self._parts[p].mesh, np.eye(4), st.cell,
-                                       extras=bodies) for p in sorted({p for _, p in extras_set})}
-        st.extras, st.cloud_key = extras_set, cloud_key
-        st.variants.clear()
-
-    def _variants(self, st: _Cell, inst: Instance, present: list[Instance], with_cloud: bool
+    def _variants(self, st: CellState, inst: Instance, present: list[Instance], with_cloud: bool
                   ) -> tuple[CollisionScene, CollisionScene]:
-        key = (inst.id, inst.part, inst.T_world_part.tobytes(),
-               tuple((i.id, i.T_world_part.tobytes()) for i in present if i.id != inst.id), with_cloud)
-        v = st.variants.get(key)
-        if v is None:
-            extras: dict[str, np.ndarray] = {INSTANCE_PREFIX + i.id: i.T_world_part for i in present if i.id != inst.id}
-            if with_cloud:
-                extras[CLOUD] = np.eye(4)
-            static = st.scenes[inst.part].arranged(inst.T_world_part, extras)
-            v = (static, static.attached(np.eye(4)))
-            if len(st.variants) >= MAX_SCENE_VARIANTS:  # drop the oldest (dicts keep insertion order)
-                del st.variants[next(iter(st.variants))]
-            st.variants[key] = v
-        return v
+        return arranged(st, inst, present, with_cloud)
 
     # -- planning -----------------------------------------------------------------------------------
     def plan(self, scene: Scene | str | os.PathLike | Mapping, *, max_picks: int | None = None,
@@ -250,85 +214,38 @@ class Picker:
         sc = load_scene(scene)
         self._ensure_parts(sc)
         st = self._cell_for(sc)
-        cloud = self._cloud(sc)
-        st.world.set_cloud(*(cloud or (None, None, 0.0)))
-        self._scenes(st, sc, cloud)
-        timing: dict[str, float] = {"load": time.perf_counter() - t0}
-        t = time.perf_counter()
-        warnings = check_instances(sc.instances, {n: self._parts[n].mesh for n in sc.part_names()}, st.cell,
-                                   tol=self.params.overlap_tol,
-                                   bvhs={n: st.world.parts[n].bvh for n in sc.part_names()})
-        timing["checks"] = time.perf_counter() - t
-        t_ready, cpu_ready = time.perf_counter(), time.process_time()
-        timing.update({k: 0.0 for k in _TIMING_KEYS})
         p = self.params if seed is None else PickParams.from_json({**self.params.to_json(), "seed": int(seed)})
+        budget = Budget(p.budget_s, self.clock)  # the parts and the cell are loaded: the budget counts from here
+        timing: dict[str, float] = {k: 0.0 for k in ("load", "checks", *_TIMING_KEYS)}
         stats = {"grasps_checked": 0, "grasps_tried": 0}
         reports: dict[str, InstanceReport] = {}
         picks: list[Pick] = []
-        present = list(sc.instances)
-        first_pick: float | None = None
-        while present:
-            st.world.set_instances(present)
-            boxes = {i.id: (st.world.instances[i.id].center, st.world.instances[i.id].half) for i in present}
-            order = instance_order([i.id for i in present], boxes)
-            by_id = {i.id: i for i in present}
-            picked_now: str | None = None
-            rises: dict[str, bool] = {}  # per instance: free to rise (lift_carry), whichever part is lifted
-            paused: list[tuple[str, Iterator[tuple[Pick | None, InstanceReport | None]]]] = []
-
-            def out_of_budget() -> bool:
-                return (max_picks is not None and len(picks) >= max_picks) or \
-                    (p.budget_s is not None and time.perf_counter() - t_ready > p.budget_s)
-
-            def take(iid: str, pick: Pick | None, rep: InstanceReport) -> bool:
-                nonlocal first_pick
-                reports[iid] = rep
-                if pick is None:
-                    return False
-                picks.append(pick)
-                if first_pick is None:
-                    first_pick = time.perf_counter() - t_ready
-                    timing["first_pick_cpu"] = time.process_time() - cpu_ready
-                return sequence
-
-            # pass 1: every instance's best FIRST_PASS grasps with its straight lift, in order (an
-            # instance whose straight lift is blocked is deferred before its tilted-lift search); then
-            # the paused ones, in order, until each is decided
-            for k, iid in enumerate(order):
-                if out_of_budget():
-                    break
-                if iid in reports and reports[iid].status == "picked":
-                    continue
-                gen = self._plan_instance(st, by_id[iid], present, cloud is not None, p, timing, stats, k, rises)
-                pick, rep = next(gen)
-                if rep is None:
-                    paused.append((iid, gen))
-                elif take(iid, pick, rep):
-                    picked_now = iid
-                    break
-            while paused and picked_now is None and not out_of_budget():  # the next passes, in order
-                later: list[tuple[str, Iterator[tuple[Pick | None, InstanceReport | None]]]] = []
-                for iid, gen in paused:
-                    if out_of_budget():
-                        break
-                    pick, rep = next(gen)
-                    if rep is None:  # paused again (a deferred instance's own best grasps done)
-                        later.append((iid, gen))
-                    elif take(iid, pick, rep):
-                        picked_now = iid
-                        break
-                paused = later
-            if not sequence:
-                rank_of = {iid: n for n, iid in enumerate(order)}
-                picks.sort(key=lambda q: rank_of[q.instance])
-            if not sequence or picked_now is None:
-                break
-            present = [i for i in present if i.id != picked_now]
+        warnings: list[str] = []
+        cloud = None
+        t_ready = time.perf_counter()
+        try:
+            cloud = self._cloud(sc)
+            st.world.set_cloud(*(cloud or (None, None, 0.0)))
+            build_scenes(st, self.robot, self.gripper, {n: q.mesh for n, q in self._parts.items()}, sc, cloud, budget)
+            timing["load"] = time.perf_counter() - t0
+            t = time.perf_counter()
+            warnings = check_instances(sc.instances, {n: self._parts[n].mesh for n in sc.part_names()}, st.cell,
+                                       tol=self.params.overlap_tol,
+                                       bvhs={n: st.world.parts[n].bvh for n in sc.part_names()}, spent=budget.spent,
+                                       hulls={n: st.world.parts[n].hull for n in sc.part_names()})
+            timing["checks"] = time.perf_counter() - t
+            t_ready = time.perf_counter()
+            self._plan_pile(st, sc, cloud is not None, p, budget, max_picks, sequence, reports, picks, timing,
+                            stats, t_ready)
+        except BudgetSpent:
+            pass  # the instance being planned and those not reached: not_tried (below)
+        finally:
+            timing["load"] = timing["load"] or time.perf_counter() - t0
+        spent = "the planning budget spent" if budget.spent() else "max_picks reached"
         for i in sc.instances:
             if i.id not in reports:
-                reports[i.id] = InstanceReport(i.id, i.part, "not_tried",
-                                               "not tried: max_picks reached or the planning budget spent")
-        timing["first_pick"] = float("nan") if first_pick is None else first_pick
+                reports[i.id] = InstanceReport(i.id, i.part, "not_tried", f"not tried: {spent}")
+        timing.setdefault("first_pick", float("nan"))
         timing["plan"] = time.perf_counter() - t_ready
         timing["total"] = time.perf_counter() - t0
         timing_out = {k: v for k, v in timing.items() if np.isfinite(v)}
@@ -337,12 +254,80 @@ class Picker:
                           parts={n: self._parts[n].to_json() for n in sc.part_names()}, warnings=tuple(warnings),
                           sequence=sequence, stats=stats)
 
-    def _plan_instance(self, st: _Cell, inst: Instance, present: list[Instance], with_cloud: bool, p: PickParams,
-                       timing: dict[str, float], stats: dict[str, int], seed_base: int, rises: dict[str, bool]
-                       ) -> Iterator[tuple[Pick | None, InstanceReport | None]]:
+    def _plan_pile(self, st: CellState, sc: Scene, with_cloud: bool, p: PickParams, budget: Budget,
+                   max_picks: int | None, sequence: bool, reports: dict[str, InstanceReport], picks: list[Pick],
+                   timing: dict[str, float], stats: dict[str, int], t_ready: float) -> None:
+        """The passes over the instances (module docstring), filling ``reports`` and ``picks``;
+        :class:`BudgetSpent` leaves the instance being planned without a report."""
+        cpu_ready = time.process_time()
+        present = list(sc.instances)
+        rank_of: dict[str, int] = {}
+
+        def out_of_budget() -> bool:
+            return (max_picks is not None and len(picks) >= max_picks) or budget.spent()
+
+        def take(iid: str, pick: Pick | None, rep: InstanceReport) -> bool:
+            reports[iid] = rep
+            if pick is None:
+                return False
+            picks.append(pick)
+            if "first_pick" not in timing:
+                timing["first_pick"] = time.perf_counter() - t_ready
+                timing["first_pick_cpu"] = time.process_time() - cpu_ready
+            return sequence
+
+        try:
+            while present:
+                st.world.set_instances(present)
+                boxes = {i.id: (st.world.instances[i.id].center, st.world.instances[i.id].half) for i in present}
+                order = instance_order([i.id for i in present], boxes)
+                rank_of = {iid: n for n, iid in enumerate(order)}
+                by_id = {i.id: i for i in present}
+                picked_now: str | None = None
+                rises: dict[str, bool] = {}  # per instance: free to rise (lift_carry), whichever part is lifted
+                paused: list[tuple[str, Iterator[tuple[Pick | None, InstanceReport | None]]]] = []
+                # pass 1: every instance's best FIRST_PASS grasps with its straight lift, in order (an
+                # instance whose straight lift is blocked is deferred before its tilted-lift search);
+                # then the paused ones, in order, until each is decided
+                for k, iid in enumerate(order):
+                    if out_of_budget():
+                        break
+                    if iid in reports and reports[iid].status == "picked":
+                        continue
+                    gen = self._plan_instance(st, by_id[iid], present, with_cloud, p, timing, stats, k, rises, budget)
+                    pick, rep = next(gen)
+                    if rep is None:
+                        paused.append((iid, gen))
+                    elif take(iid, pick, rep):
+                        picked_now = iid
+                        break
+                while paused and picked_now is None and not out_of_budget():  # the next passes, in order
+                    later: list[tuple[str, Iterator[tuple[Pick | None, InstanceReport | None]]]] = []
+                    for iid, gen in paused:
+                        if out_of_budget():
+                            break
+                        pick, rep = next(gen)
+                        if rep is None:  # paused again (a deferred instance's own best grasps done)
+                            later.append((iid, gen))
+                        elif take(iid, pick, rep):
+                            picked_now = iid
+                            break
+                    paused = later
+                if not sequence or picked_now is None:
+                    break
+                present = [i for i in present if i.id != picked_now]
+        finally:
+            if not sequence:  # picks listed in the accessibility order, also when the budget stops the passes
+                picks.sort(key=lambda q: rank_of[q.instance])
+
+    def _plan_instance(self, st: CellState, inst: Instance, present: list[Instance], with_cloud: bool, p: PickParams,
+                       timing: dict[str, float], stats: dict[str, int], seed_base: int, rises: dict[str, bool],
+                       budget: Budget) -> Iterator[tuple[Pick | None, InstanceReport | None]]:
         """Yields ``(pick or None, report)`` once the instance is decided, before that ``(None, None)``
         when its straight lift is blocked (before the tilted-lift search) and when its best
-        :data:`FIRST_PASS` grasps gave nothing yet (the caller resumes it in a later pass)."""
+        :data:`FIRST_PASS` grasps gave nothing yet (the caller resumes it in a later pass).
+        :class:`BudgetSpent` once ``budget`` is spent (checked in every loop below)."""
+        budget.check()
         db = self._grasps[inst.part]
         rows, T_wt = rank_grasps(inst.T_world_part, db.T_part_tcp, db.score, p)
         if len(rows) == 0:
@@ -379,7 +364,7 @@ class Picker:
             return ([b for b in st.world.bodies(i.id) if b.name.startswith(INSTANCE_PREFIX) or b.name == CLOUD],
                     RestDepth(self._depth_of(st, i.part), i.T_world_part,
                               lambda n: (self._depth_of(st, by_name[n].part), by_name[n].T_world_part),
-                              tol=p.lift_depth, cap=p.overlap_tol))
+                              tol=p.lift_depth, cap=p.overlap_tol, budget=budget))
         pile, rest = pile_of(inst)
         carry = Carry(lambda n: free_to_rise(st.world, by_name[n].part, by_name[n].T_world_part,  # --lift-carry
                                              steps[:, None] * retreat, *pile_of(by_name[n]), set(by_name)), rises)
@@ -414,6 +399,7 @@ class Picker:
             grasp: when it drags the part through a neighbour or the cloud beyond lift_contact, or
             a tilted one through a bin wall, no grasp can lift it that way)."""
             if lift_free[j] is None:
+                budget.check()
                 t, (carry.on, carry.direction) = time.perf_counter(), (carrying[j], j)
                 shifts = steps[:, None] * dirs[j][1]
                 ok = dirs[j][0] == 0.0 or inside_walls(hull_w, shifts, st.cell.bin)
@@ -496,7 +482,9 @@ class Picker:
         for c0, c1 in check_chunks(len(rows)):
             if c0 >= FIRST_PASS and not paused:
                 paused = True
+                ctxs.clear()  # a paused instance holds no robot scene variant (rebuilt, or kept, for its next pass)
                 yield None, None  # paused: the other instances' best grasps first
+            budget.check()
             sel = slice(c0, c1)
             t = time.perf_counter()
             # the bodies that blocked most grasps so far first: a blocked grasp needs fewer coal calls
@@ -538,7 +526,8 @@ class Picker:
                             approach_sweep=st.world.gripper_swept_free,  # against every body, the grasped part's too
                             body_names=tuple(b.name for b in bodies), lift_depth=None if p.lift_depth <= 0 else
                             lambda T, names, c=carrying[j]: lift_depth(T, names, c),
-                            lift_part_checked=(inst.T_world_part, checked[:, None] * dirs[j][1], clear))  # lift_ok(j)
+                            lift_part_checked=(inst.T_world_part, checked[:, None] * dirs[j][1], clear),  # lift_ok(j)
+                            budget=budget)
                     out = plan_pick_motion(ctx, T_plan[k], T_part_g, float(db.width[r]),
                                            seed=p.seed * 1_000_003 + seed_base * 10_007 + r)
                     grasp_blocker[:] = list(out.blockers[:1])
@@ -575,7 +564,7 @@ class Picker:
                                    f"every one of the {len(rows)} best-ranked grasps from above collides"
                                    + hits_text(hit_counts, " grasps"), blockers)
 
-    def _depth_of(self, st: _Cell, part: str) -> PartDepth:
+    def _depth_of(self, st: CellState, part: str) -> PartDepth:
         d = self._depth.get(part)
         if d is None:
             d = self._depth[part] = PartDepth.build(self._parts[part].mesh, st.world.parts[part].bvh,

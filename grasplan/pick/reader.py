@@ -1,13 +1,17 @@
 """Reading a picks file back (:func:`load_picks`) and one pick as a one-grasp plan
 (:func:`pick_as_plan`), which ``grasplan export`` and ``grasplan view`` take with ``--instance``.
 
-Nothing the file says is trusted: the JSON Schema, the embedded robot, gripper, cell and scene
-(rebuilt and checked as when read from their own files), and every pick's motion (joint vectors of
-the robot's length within its limits, consecutive transit/approach/lift segments, the close event
-at the grasp) re-checked by forward kinematics (:func:`grasplan.result_reader.check_fk`).
+Nothing the file says is trusted: the JSON Schema (the file parsed refusing duplicate keys), the
+embedded robot, gripper, cell and scene (rebuilt and checked as when read from their own files),
+every pick's motion checked as a plan's planned grasp is
+(:func:`grasplan.result_reader.motion_from_json`: finite joint vectors of the robot's length within
+its limits, ``q_grasp``/``q_pregrasp`` the path's rows, consecutive transit/approach/lift segments,
+the close event at the grasp), every number it carries finite and in range, and its poses re-checked
+against each other, the scene and forward kinematics (:func:`grasplan.result_reader.check_fk`).
 """
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import replace
 from pathlib import Path
@@ -20,7 +24,7 @@ from ..errors import InputError
 from ..grasp_table import GraspTable
 from ..gripper import gripper_from_json
 from ..inputs import check_input_file
-from ..motion import GripperEvent, Motion
+from ..motion import Motion
 from ..result import PartRecord, PlanResult
 from ..scenefile import scene_from_dict
 from ..status import Status
@@ -28,41 +32,77 @@ from .params import PickParams
 from .result import PICKS_SCHEMA, InstanceReport, Pick, PickResult
 
 
-def _motion(d: dict[str, Any], nq: int, where: str) -> Motion:
-    try:
-        path = np.asarray(d["path"], dtype=np.float64)
-        segs = tuple((str(s["label"]), int(s["start"]), int(s["end"])) for s in d["segments"])
-        events = tuple(GripperEvent(int(g["index"]), str(g["action"]), float(g["width"])) for g in d["gripper"])
-        k = int(d["pregrasp_index"])
-        T_tcp_part = np.asarray(d["T_tcp_part"], dtype=np.float64)
-    except (KeyError, TypeError, ValueError):
-        raise InputError(f"{where}: a pick needs path, segments, gripper, pregrasp_index and T_tcp_part") from None
-    if path.ndim != 2 or path.shape[1] != nq or len(path) < 2 or not np.all(np.isfinite(path)):
-        raise InputError(f"{where}: path must be >= 2 finite joint vectors of the robot's {nq} joints")
-    labels = [s[0] for s in segs]
-    place = labels == ["transit", "approach", "lift", "transfer", "descend", "retreat"]
-    if (labels != ["transit", "approach", "lift"] and not place) or segs[0][1] != 0 or segs[-1][2] != len(path) - 1 \
-            or any(a[2] != b[1] for a, b in zip(segs[:-1], segs[1:])) or segs[0][2] != k:
-        raise InputError(f"{where}: segments must be consecutive transit, approach, lift (and transfer, descend, "
-                         f"retreat with a place) covering the path")
-    want = ["close", "open"] if place else ["close"]
-    if [e.action for e in events] != want or events[0].index != segs[1][2] or (place and events[1].index != segs[4][2]):
-        raise InputError(f"{where}: a pick closes the jaws at the end of the approach (and opens them at the end of "
-                         f"the descent with a place)")
-    T_place = None
-    if place:
-        try:
-            T_place = np.asarray(d["T_world_part_place"], dtype=np.float64)
-        except (KeyError, TypeError, ValueError):
-            raise InputError(f"{where}: a pick with a place needs T_world_part_place") from None
-    return Motion(q_grasp=path[segs[1][2]].copy(), q_pregrasp=path[k].copy(), path=path, pregrasp_index=k,
-                  segments=segs, gripper=events, T_tcp_part=T_tcp_part, T_world_part_place=T_place)
+#: a pick's transforms (4, 4), each rigid
+_POSES = ("T_world_part", "T_part_tcp", "T_world_tcp", "T_world_pregrasp", "T_world_lifted")
+#: the largest rank a pick may carry (a grasp's place in its instance's ranking)
+MAX_RANK = 2**31 - 1
+
+
+def _pick_numbers(picks: list[Any], where: str) -> dict[str, np.ndarray]:
+    """Every number the picks carry into an export or the viewer, vectorised over the picks and
+    checked as a plan's grasps are (:func:`grasplan.result_reader.rows_array`): finite, of their
+    shape, the transforms rigid, width, score and normals as
+    :func:`grasplan.result_reader.check_grasp_values` checks a plan's, the opening in [0, 10] m,
+    ``rank`` a whole number in [0, :data:`MAX_RANK`], ``quality`` values finite numbers >= 0 or null."""
+    from ..result_reader import check_grasp_values, check_poses, rows_array
+
+    def rows(key: str, shape: tuple[int, ...]) -> np.ndarray:
+        return rows_array(picks, key, shape, np.float64, where, what="picks", id_key="instance")
+
+    out = {k: rows(k, shape) for k, shape in (("contacts", (2, 3)), ("normals", (2, 3)), ("width", ()),
+                                               ("opening", ()), ("score", ()), ("rank", ()))}
+    for k in _POSES:
+        out[k] = check_poses(rows(k, (4, 4)), f"{where}: picks[*].{k}", batch=True).reshape(-1, 4, 4)
+    check_grasp_values(out["width"], out["score"], out["normals"], where, "picks")
+    bad = np.flatnonzero(~((out["opening"] >= 0) & (out["opening"] <= 10.0)))
+    if len(bad):
+        raise InputError(f"{where}: picks[{bad[0]}].opening = {out['opening'][bad[0]]:.6g} m: expected a length in "
+                         f"[0, 10] m")
+    bad = np.flatnonzero((out["rank"] < 0) | (out["rank"] > MAX_RANK) | (out["rank"] != np.round(out["rank"])))
+    if len(bad):
+        raise InputError(f"{where}: picks[{bad[0]}].rank = {out['rank'][bad[0]]:.6g}: expected a whole number in "
+                         f"[0, {MAX_RANK}]")
+    for i, d in enumerate(picks):  # as a plan's quality block: finite numbers >= 0 (or null)
+        q = d.get("quality")
+        if not isinstance(q, dict) or not all(v is None or (isinstance(v, (int, float)) and not isinstance(v, bool)
+                                                            and math.isfinite(v) and v >= 0) for v in q.values()):
+            raise InputError(f"{where}: picks[{i}].quality: expected {{name: a finite number >= 0, or null}}")
+    return out
+
+
+def _check_poses(robot: Any, gripper: Any, n: dict[str, np.ndarray], k: int, m: Motion, T_scene: np.ndarray,
+                 where: str) -> None:
+    """The poses pick ``k`` records against each other, the scene and forward kinematics (within
+    :data:`grasplan.result_reader.FK_POS_TOL` / ``FK_ROT_TOL``): its part at the scene instance's
+    pose, ``T_world_tcp = T_world_part @ T_part_tcp``, the pre-grasp and lifted TCPs at FK of
+    ``q_pregrasp`` and the lift's last row (the TCP at the grasp's width), the opening the
+    gripper's pre-grasp opening for that width. FK of ``q_grasp`` itself: :func:`check_fk`."""
+    from ..result_reader import FK_POS_TOL, FK_ROT_TOL
+    from ..transforms import pose_error
+
+    T_tcp = np.asarray(gripper.T_flange_tcp_at(float(n["width"][k])), dtype=np.float64)
+    lift_end = next(e for lab, _, e in m.segment_list() if lab == "lift")
+    fk = robot.fk_batch(np.stack([m.q_pregrasp, m.path[lift_end]])) @ T_tcp
+    for name, a, b_name, b in (("T_world_part", n["T_world_part"][k], "the scene's pose of the instance", T_scene),
+                               ("T_world_tcp", n["T_world_tcp"][k], "T_world_part @ T_part_tcp",
+                                n["T_world_part"][k] @ n["T_part_tcp"][k]),
+                               ("T_world_pregrasp", n["T_world_pregrasp"][k], "FK(q_pregrasp)", fk[0]),
+                               ("T_world_lifted", n["T_world_lifted"][k], f"FK(path[{lift_end}]) (the lift's end)", fk[1])):
+        dp, dr = pose_error(a, b)
+        if not (dp <= FK_POS_TOL and dr <= FK_ROT_TOL):
+            raise InputError(f"{where}: {name} is {dp * 1000:.3g} mm / {dr:.3g} rad from {b_name} (tolerance "
+                             f"{FK_POS_TOL * 1000:g} mm / {FK_ROT_TOL:g} rad); the picks file was edited or made "
+                             f"with another robot or gripper")
+    want = float(gripper.pregrasp_opening(float(n["width"][k])))
+    if abs(float(n["opening"][k]) - want) > 1e-6:
+        raise InputError(f"{where}: opening {float(n['opening'][k]):.6g} m is not the gripper's pre-grasp opening for "
+                         f"its width ({want:.6g} m); the picks file was edited")
 
 
 def result_from_picks(doc: Any, *, where: str = "picks", base: Path | None = None) -> PickResult:
     """A :class:`PickResult` from a parsed ``grasplan.picks/1`` document (see the module docstring)."""
     from ..robot import robot_from_json
-    from ..result_reader import check_fk
+    from ..result_reader import check_fk, motion_from_json
     from ..schemas import validate
 
     if not isinstance(doc, dict) or doc.get("schema") != PICKS_SCHEMA:
@@ -75,30 +115,31 @@ def result_from_picks(doc: Any, *, where: str = "picks", base: Path | None = Non
     gripper = gripper_from_json(doc["gripper"], where=f"{where}: gripper")
     cell = Cell.from_json(doc["cell"])
     scene = scene_from_dict(doc["scene"], source=f"{where}: scene", base=base)
-    ids = set(scene.ids)
+    poses = {i.id: np.asarray(i.T_world_part, dtype=np.float64) for i in scene.instances}
+    nums = _pick_numbers(doc["picks"], where)
     picks = []
     for k, d in enumerate(doc["picks"]):
         w = f"{where}: picks[{k}]"
-        if d["instance"] not in ids:
-            raise InputError(f"{w}: instance {d['instance']!r} is not in the scene ({', '.join(sorted(ids))})")
-        odd = [i for i in d.get("lift_carries", ()) if i not in ids or i == d["instance"]]
+        if d["instance"] not in poses:
+            raise InputError(f"{w}: instance {d['instance']!r} is not in the scene ({', '.join(sorted(poses))})")
+        odd = [i for i in d.get("lift_carries", ()) if i not in poses or i == d["instance"]]
         if odd:
             raise InputError(f"{w}: lift_carries names {odd[0]!r}, not another instance of the scene "
-                             f"({', '.join(sorted(ids - {d['instance']}))})")
-        m = _motion(d, robot.nq, w)
-        if not np.all(robot.within_limits(m.path, tol=1e-6)):
-            raise InputError(f"{w}: the path leaves the joint limits of robot {robot.name!r}")
-        T_wp = np.asarray(d["T_world_part"], dtype=np.float64)
-        T_pt = np.asarray(d["T_part_tcp"], dtype=np.float64)
-        check_fk(robot, gripper, T_wp, T_pt[None], {0: m}, w, width=np.array([float(d["width"])]))
-        picks.append(Pick(instance=d["instance"], part=d["part"], T_world_part=T_wp, T_part_tcp=T_pt,
-                          contacts=np.asarray(d["contacts"], dtype=np.float64),
-                          normals=np.asarray(d["normals"], dtype=np.float64), width=float(d["width"]),
-                          opening=float(d["opening"]), score=float(d["score"]),
+                             f"({', '.join(sorted(set(poses) - {d['instance']}))})")
+        m = motion_from_json(d, robot, w)
+        if "lift" not in {lab for lab, _, _ in m.segment_list()}:
+            raise InputError(f"{w}: a pick's segments are transit, approach, lift (and transfer, descend, retreat "
+                             "with a place)")
+        check_fk(robot, gripper, nums["T_world_part"][k], nums["T_part_tcp"][k][None], {0: m}, w,
+                 width=nums["width"][k:k + 1])
+        _check_poses(robot, gripper, nums, k, m, poses[d["instance"]], w)
+        picks.append(Pick(instance=d["instance"], part=d["part"], T_world_part=nums["T_world_part"][k],
+                          T_part_tcp=nums["T_part_tcp"][k], contacts=nums["contacts"][k], normals=nums["normals"][k],
+                          width=float(nums["width"][k]), opening=float(nums["opening"][k]),
+                          score=float(nums["score"][k]),
                           quality={q: float("nan") if v is None else float(v) for q, v in d["quality"].items()},
-                          motion=m, T_world_tcp=np.asarray(d["T_world_tcp"], dtype=np.float64),
-                          T_world_pregrasp=np.asarray(d["T_world_pregrasp"], dtype=np.float64),
-                          T_world_lifted=np.asarray(d["T_world_lifted"], dtype=np.float64), rank=int(d["rank"]),
+                          motion=m, T_world_tcp=nums["T_world_tcp"][k], T_world_pregrasp=nums["T_world_pregrasp"][k],
+                          T_world_lifted=nums["T_world_lifted"][k], rank=int(nums["rank"][k]),
                           carries=tuple(d.get("lift_carries", ()))))
     reports = tuple(InstanceReport(r["id"], r["part"], r["status"], r["reason"], tuple(r["blocked_by"]))
                     for r in doc["instances"])
@@ -170,7 +211,8 @@ def pick_as_plan(res: PickResult, instance: str | None = None) -> PlanResult:
     planned grasp: the instance is the plan's part, every other instance of the scene (with
     ``sequence``: still in the pile when it was planned) is an obstacle (mesh ``instance_<id>``) of
     its cell, so exports and the viewer see the whole pile; the cell's retreat is the pick's own lift
-    (``T_world_tcp -> T_world_lifted``: a lift tilted away from a neighbour, docs/pick.md)."""
+    (``T_world_tcp -> T_world_lifted``: a lift tilted away from a neighbour, docs/pick.md). The
+    pick's contacts must lie on its part's mesh (:func:`grasplan.result_reader.check_contacts_on_part`)."""
     p = res.pick(instance)
     meshes = _part_meshes(res)
     gone = set()  # --sequence: the instances picked before this one are out of the pile
@@ -191,7 +233,11 @@ def pick_as_plan(res: PickResult, instance: str | None = None) -> PlanResult:
                        T_part_tcp=p.T_part_tcp[None], roll=np.zeros(1), status=np.array([Status.PLANNED.value], dtype=object),
                        score=np.array([p.score]), rank=np.zeros(1, dtype=np.int64),
                        reason=np.array([res.report(p.instance).reason], dtype=object))
-    return _as_plan(res, meshes, p.instance, gone, cell, table, {0: p.motion}, p.T_world_part)
+    plan = _as_plan(res, meshes, p.instance, gone, cell, table, {0: p.motion}, p.T_world_part)
+    from ..result_reader import check_contacts_on_part
+
+    check_contacts_on_part(plan, f"pick of instance {p.instance!r}")  # as a plan's contacts are checked
+    return plan
 
 
 def pile_as_plan(res: PickResult) -> tuple[PlanResult, list[str]]:

@@ -283,6 +283,8 @@ class PickWorld:
                     size = tuple(np.asarray(shape.extents, dtype=np.float64).tolist())
                     made = self._boxes.get(size)
                     if made is None:
+                        if len(self._boxes) >= 16:  # a gripper has a few box sizes: bounded all the same
+                            self._boxes.clear()
                         geom = shape_geometry(shape)[0]
                         made = self._boxes[size] = (geom, *local_box(geom))
                     shapes.append((made[0], np.asarray(shape.T_tcp_box, dtype=np.float64), made[1], made[2]))

@@ -10,8 +10,10 @@ gripper, cell, parts and picker), :mod:`~grasplan.serve.bodies` (reading request
 :mod:`~grasplan.serve.handlers` (the work), :mod:`~grasplan.serve.jobs` (one request at a time on
 a thread, time limits), :mod:`~grasplan.serve.pool` (``--workers N``: N planner processes, each
 request to a free one), :mod:`~grasplan.serve.guard` (token, body limit), :mod:`~grasplan.serve.app`
-(FastAPI), :mod:`~grasplan.serve.run` (uvicorn). FastAPI and uvicorn are the optional ``serve``
-extra: only ``app`` and ``run`` import them.
+(FastAPI), :mod:`~grasplan.serve.protocol` (HTTP connections: timeouts, connection caps, malformed
+HTTP), :mod:`~grasplan.serve.run` (uvicorn, signals). FastAPI and uvicorn are the optional
+``serve`` extra: only ``app``, ``protocol``, ``run`` and ``loopback`` import them (``run`` and
+``loopback`` when called).
 
     from grasplan.serve import ServeConfig, create_app
     app = create_app(ServeConfig(parts_dir="parts", cell="bin"))    # any ASGI server runs it

@@ -1,13 +1,15 @@
 """The FastAPI application of ``grasplan serve`` (:func:`create_app`). Routes, status codes and
 bodies: docs/serve.md.
 
-Every planning route reads its body itself (at most ``--max-body`` bytes, counted while it
-arrives), parses it strictly (400), hands the document to the planner: with one worker the
-planning thread of this process (:class:`~grasplan.serve.jobs.JobQueue`), with ``--workers N`` the
-first free of N planner processes (:class:`~grasplan.serve.pool.PlannerPool`); one request at a
-time per planner, a time limit each (503/504), where :mod:`grasplan.serve.handlers` validates it
-(422 naming the field), plans and serialises. Any other exception is a bug: logged with its
-traceback, answered 500 with one line, and the service keeps serving.
+Every planning route takes ``Content-Type: application/json`` bodies only (415), reads its body
+itself (at most ``--max-body`` bytes, counted while it arrives), parses it strictly (400), hands
+the document to the first free of ``--workers`` planner processes
+(:class:`~grasplan.serve.pool.PlannerPool`; with an already started in-process ``service``, as the
+tests give, the planning thread of this process: :class:`~grasplan.serve.jobs.JobQueue`); one
+request at a time per planner, a time limit each (503/504), where :mod:`grasplan.serve.handlers`
+validates it (422 naming the field), plans and serialises. A client that hangs up is one info line.
+Any other exception is a bug: logged with its traceback, answered 500 with one line, and the
+service keeps serving. Every GET route answers HEAD too.
 """
 from __future__ import annotations
 
@@ -22,18 +24,20 @@ from typing import Any
 
 from fastapi import FastAPI, Request
 from fastapi.responses import JSONResponse, PlainTextResponse, Response
+from fastapi.routing import APIRoute
 from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.requests import ClientDisconnect
 
 from .. import __version__
 from ..errors import GrasplanError, InputError
 from . import handlers
 from .config import ServeConfig
-from .guard import Guard
+from .guard import CLOSED_KEY, Guard
 from .jobs import Busy, JobQueue, TimedOut
 from .pool import PlannerError, PlannerPool
 from .openapi import export_body, pick_body, plan_body
 from .bodies import BadRequest, parse_json
-from .state import Service
+from .state import Service, process_rss_mib
 
 log = logging.getLogger("grasplan.serve")
 #: bodies larger than this are parsed off the event loop
@@ -50,6 +54,33 @@ class TooLarge(Exception):
 
 class Unsupported(Exception):
     """A Content-Encoding the service does not read (HTTP 415)."""
+
+
+#: the charsets a JSON body may declare (bodies are UTF-8)
+_UTF8 = ("utf-8", "utf8")
+
+
+def media_type_problem(request: Request) -> str | None:
+    """Why the request's ``Content-Type`` is not a JSON body's (None: it is ``application/json``,
+    with parameters, charset UTF-8 if given). Any other type, form and multipart bodies included,
+    is refused: a web page can send those to the service from a browser without asking
+    (a cross-site request), a JSON body it cannot."""
+    fix = "send the body as JSON with 'Content-Type: application/json'"
+    given = request.headers.getlist("content-type")
+    if not given:
+        return f"Content-Type: missing; {fix}"
+    if len(given) > 1:
+        return f"Content-Type: given {len(given)} times; {fix}"
+    media, _, params = given[0].partition(";")
+    media = media.strip().lower()
+    if media != "application/json":
+        return f"Content-Type: {media[:60]!r} is not read; {fix}"
+    for param in params.split(";"):
+        name, _, value = param.partition("=")
+        if name.strip().lower() == "charset" and value.strip().strip('"').lower() not in _UTF8:
+            return (f"Content-Type: charset {value.strip()[:40]!r}: bodies are UTF-8; send 'Content-Type: "
+                    "application/json' with charset=utf-8 or none")
+    return None
 
 
 def error(status: int, kind: str, detail: str) -> JSONResponse:
@@ -97,19 +128,19 @@ def create_app(config: ServeConfig, *, service: Service | None = None,
     """The service's app (OpenAPI at ``/docs``), behind the token and body-size guard.
 
     ``service``: an already started :class:`Service` whose warm state to use with this config's
-    limits, planned on this process's planning thread (tests share one); by default it is started
-    here (robot, gripper, cell, parts, grasp databases: seconds to minutes), reporting on
-    ``progress``: with ``config.workers`` > 1 in that many planner processes
-    (:class:`~grasplan.serve.pool.PlannerPool`, stopped when the app's lifespan ends). Raises
-    InputError/ConfigError for a configuration that cannot start."""
+    limits, planned on this process's planning thread (tests share one; a plan past the time limit
+    is answered 504 but cannot be stopped, and later requests wait for it); by default the warm
+    state is started here in ``config.workers`` planner processes
+    (:class:`~grasplan.serve.pool.PlannerPool`: robot, gripper, cell, parts, grasp databases:
+    seconds to minutes, reported on ``progress``; a plan past the time limit is stopped with its
+    process; stopped when the app's lifespan ends). Raises InputError/ConfigError for a
+    configuration that cannot start."""
     pool: PlannerPool | None = None
     if service is not None:
         service = service.with_config(config)
-    elif config.workers > 1:  # N planner processes; this one parses, checks and answers
+    else:  # planner processes; this one parses, checks and answers
         service = Service.start(replace(config, databases=False))
         pool = PlannerPool(config, config.workers, progress or log.info)
-    else:
-        service = Service.start(config, progress or log.info)
     jobs = JobQueue(time_limit_s=config.time_limit_s, max_queue=config.max_queue)
     can_pick = service.picker is not None if pool is None else pool.picks
 
@@ -123,6 +154,7 @@ def create_app(config: ServeConfig, *, service: Service | None = None,
     api = FastAPI(title="grasplan", version=__version__, lifespan=lifespan,
                   description="Grasps, plans and picks for the parts in this service's parts folder "
                               "(docs/serve.md). Bodies are JSON; errors are {error, detail}.")
+    api.state.config = config
     api.state.service = service
     api.state.jobs = jobs
     api.state.pool = pool
@@ -131,8 +163,10 @@ def create_app(config: ServeConfig, *, service: Service | None = None,
     @api.exception_handler(StarletteHTTPException)
     async def http_error(request: Request, exc: StarletteHTTPException) -> JSONResponse:
         kinds = {404: "not_found", 405: "method_not_allowed"}
-        return error(exc.status_code, kinds.get(exc.status_code, "http_error"),
-                     f"{request.method} {request.url.path}: {exc.detail}; see /docs")
+        response = error(exc.status_code, kinds.get(exc.status_code, "http_error"),
+                         f"{request.method} {request.url.path}: {exc.detail}; see /docs")
+        response.headers.update(exc.headers or {})  # a 405's Allow
+        return response
 
     @api.exception_handler(Exception)
     async def unexpected(request: Request, exc: Exception) -> JSONResponse:  # outside the planning routes
@@ -143,12 +177,26 @@ def create_app(config: ServeConfig, *, service: Service | None = None,
         """Body -> JSON document -> ``fn(service, doc)`` on the planning thread; errors mapped to
         responses (the caller gets either the result or a Response)."""
         rid = uuid.uuid4().hex[:12]
+        problem = media_type_problem(request)
+        if problem is not None:
+            return error(415, "unsupported_media_type", problem)
         try:
             body = await read_body(request, config.max_body)
             doc = await asyncio.to_thread(parse_json, body) if len(body) > _BIG_BODY else parse_json(body)
+            if what == "pick" and not can_pick:
+                return error(503, "unavailable", "this service has no picker (started without grasp databases, or "
+                                                 "this build has no grasplan.pick); POST /plan still works")
             if pool is not None:
                 return await pool.run(what, doc, what=what)
             return await jobs.run(fn, service, doc, what=what)
+        except ClientDisconnect:  # the client hung up (or the connection layer answered and closed it)
+            if CLOSED_KEY not in request.scope:
+                log.info("%s %s [%s]: the client closed the connection before its body arrived", request.method,
+                         request.url.path, rid)
+            return error(400, "bad_request", "the connection closed before the body arrived")
+        except asyncio.CancelledError:  # the service stopped before this request could finish
+            log.info("%s %s [%s]: cancelled: the service is stopping", request.method, request.url.path, rid)
+            return error(503, "unavailable", "the service is stopping; retry on another instance")
         except TooLarge as exc:
             return error(413, "too_large", str(exc))
         except Unsupported as exc:
@@ -179,10 +227,12 @@ def create_app(config: ServeConfig, *, service: Service | None = None,
     def json_bytes(out: Any) -> Response:
         return out if isinstance(out, Response) else Response(out, media_type="application/json")
 
-    @api.get("/health", summary="Liveness: status, robot, gripper, cell, parts, queue (no token needed)")
+    @api.get("/health", summary="Liveness: status, robot, gripper, cell, parts, queue, memory (no token needed)")
     async def health() -> dict[str, Any]:
         return {"status": "ok", "version": __version__, **service.info(), "pick": can_pick,
-                "queued": jobs.pending if pool is None else pool.pending, "planners": 1 if pool is None else pool.n}
+                "queued": jobs.pending if pool is None else pool.pending, "planners": 1 if pool is None else pool.n,
+                "rss_mib": {"http": process_rss_mib(None),
+                            "planners": [] if pool is None else [process_rss_mib(p) for p in pool.pids()]}}
 
     @api.get("/robots", summary="The robot this service plans for, and the robots grasplan knows")
     async def robots() -> dict[str, Any]:
@@ -204,9 +254,6 @@ def create_app(config: ServeConfig, *, service: Service | None = None,
     @api.post("/pick", summary="Plan picks from a scene: grasplan.picks/1", openapi_extra=pick_body(),
               responses={200: {"description": "A grasplan.picks/1 document"}})
     async def pick(request: Request) -> Response:
-        if not can_pick:
-            return error(503, "unavailable", "this service has no picker (started without grasp databases, or "
-                                             "this build has no grasplan.pick); POST /plan still works")
         return json_bytes(await run(request, handlers.pick, "pick"))
 
     @api.post("/export", summary="A robot program of a plan: {format, extension, text, files}",
@@ -224,6 +271,10 @@ def create_app(config: ServeConfig, *, service: Service | None = None,
             return PlainTextResponse(out["text"])
         return JSONResponse(out)
 
+    api.openapi()  # the description is made (and kept) before HEAD joins the GET routes: it lists GET
+    for route in api.routes:
+        if isinstance(route, APIRoute) and route.methods and "GET" in route.methods:
+            route.methods.add("HEAD")
     return api
 
 

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ..jsontext import DuplicateKeyError, loads_strict
 from ..option_kinds import KINDS, OptionSpec, check_fields, option_spec, read_value
 from ..params import ALL_POSES, PARAM_CLASSES, PlanParams, option_fields
 from ..transforms import MAX_CELL_COORD_M
@@ -77,7 +78,8 @@ def _depth(doc: Any) -> int:
 
 def parse_json(body: bytes) -> Any:
     """The JSON document of a request body; :class:`BadRequest` for an empty body, bytes that are
-    not UTF-8, text that is not JSON, NaN/Infinity, numbers out of range or absurd nesting."""
+    not UTF-8, text that is not JSON, an object naming one key twice, NaN/Infinity, numbers out of
+    range or absurd nesting."""
     if not body.strip():
         raise BadRequest("body: empty; send a JSON document (Content-Type: application/json)")
     try:
@@ -85,9 +87,11 @@ def parse_json(body: bytes) -> Any:
     except UnicodeDecodeError as exc:
         raise BadRequest(f"body: not UTF-8 text (byte {exc.start}); send a JSON document") from None
     try:
-        doc = json.loads(text, parse_float=_float, parse_int=_int, parse_constant=_bad_number)
+        doc = loads_strict(text, parse_float=_float, parse_int=_int, parse_constant=_bad_number)
     except json.JSONDecodeError as exc:
         raise BadRequest(f"body: not valid JSON: {exc.msg} at line {exc.lineno} column {exc.colno}") from None
+    except DuplicateKeyError as exc:
+        raise BadRequest(f"body: {exc}") from None
     except RecursionError:
         raise BadRequest(f"body: JSON nested too deeply (more than {MAX_DEPTH} levels)") from None
     except ValueError as exc:  # int digits beyond the interpreter's limit

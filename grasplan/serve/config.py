@@ -29,6 +29,15 @@ DEFAULT_TIME_LIMIT_S = 60.0
 #: requests waiting for a worker's planner beyond this are refused at once with 503
 DEFAULT_MAX_QUEUE = 64
 MAX_WORKERS = 64
+#: seconds from a connection's opening (or its previous response) to its next request's complete
+#: headers; a connection idle or sending its headers slower is closed (408 when it had begun)
+DEFAULT_HEADER_TIMEOUT_S = 5.0
+#: seconds a request body may pause between two of its bytes before the connection is closed (408)
+DEFAULT_BODY_TIMEOUT_S = 5.0
+#: open connections from one client address; a new one beyond it replaces that address's oldest idle one
+DEFAULT_MAX_CONNECTIONS_PER_CLIENT = 32
+#: open connections in all; a new one beyond it replaces the oldest idle one
+DEFAULT_MAX_CONNECTIONS = 1024
 #: ``grasplan serve`` without ``--workers``: one planner process per core, at most this many
 MAX_AUTO_WORKERS = 4
 #: the packages of the ``serve`` extra (pyproject.toml)
@@ -88,7 +97,9 @@ class ServeConfig:
     but ``/health`` and the docs must carry (None: none required); ``max_body``: bytes;
     ``time_limit_s``: per request, queue included; ``workers``: planners, each with its own warm
     state (1: a thread of the HTTP process; N > 1: N planner processes); ``max_queue``: requests
-    waiting for a planner before 503;
+    waiting for a planner before 503; ``header_timeout_s``, ``body_timeout_s``,
+    ``max_connections``, ``max_connections_per_client``: what an HTTP connection may hold (idle or
+    slow connections are closed; :mod:`grasplan.serve.protocol`);
     ``databases``: compute or load the grasp databases (and the picker) at start; ``config_dirs``:
     looked in first for robot, gripper and cell names (``--config-dir``)."""
 
@@ -102,6 +113,10 @@ class ServeConfig:
     time_limit_s: float = DEFAULT_TIME_LIMIT_S
     workers: int = 1
     max_queue: int = DEFAULT_MAX_QUEUE
+    header_timeout_s: float = DEFAULT_HEADER_TIMEOUT_S
+    body_timeout_s: float = DEFAULT_BODY_TIMEOUT_S
+    max_connections: int = DEFAULT_MAX_CONNECTIONS
+    max_connections_per_client: int = DEFAULT_MAX_CONNECTIONS_PER_CLIENT
     host: str = DEFAULT_HOST
     port: int = DEFAULT_PORT
     databases: bool = True
@@ -123,14 +138,20 @@ class ServeConfig:
                     or " " in self.token:
                 raise InputError(f"--token / ${TOKEN_ENV}: expected 8-4096 printable characters without spaces")
         parse_size(self.max_body)
-        t = self.time_limit_s
-        if isinstance(t, bool) or not isinstance(t, (int, float)) or not math.isfinite(t) or not 0 < t <= 3600:
-            raise InputError(f"--time-limit: expected seconds in (0, 3600], got {t!r}")
+        for name, t, hi in (("--time-limit", self.time_limit_s, 3600), ("--header-timeout", self.header_timeout_s, 600),
+                            ("--body-timeout", self.body_timeout_s, 600)):
+            if isinstance(t, bool) or not isinstance(t, (int, float)) or not math.isfinite(t) or not 0 < t <= hi:
+                raise InputError(f"{name}: expected seconds in (0, {hi}], got {t!r}")
         for name, v, hi in (("--workers", self.workers, MAX_WORKERS), ("--max-queue", self.max_queue, 100000),
+                            ("--max-connections", self.max_connections, 1_000_000),
+                            ("--max-connections-per-client", self.max_connections_per_client, 1_000_000),
                             ("--port", self.port, 65535)):
             if isinstance(v, bool) or not isinstance(v, int) or not (0 if name == "--port" else 1) <= v <= hi:
                 raise InputError(f"{name}: expected a whole number in [{0 if name == '--port' else 1}, {hi}], "
                                  f"got {v!r}")
+        if self.max_connections_per_client > self.max_connections:
+            raise InputError(f"--max-connections-per-client: {self.max_connections_per_client} is more than "
+                             f"--max-connections {self.max_connections}; give at most {self.max_connections}")
         object.__setattr__(self, "config_dirs", tuple(str(d) for d in self.config_dirs))
         if not self.host or len(self.host) > 255:
             raise InputError(f"--host: expected a host name or address, got {self.host!r}")

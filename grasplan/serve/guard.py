@@ -4,9 +4,10 @@ both decided before a request's body is read.
 - ``--token``: every path but :data:`OPEN_PATHS` needs ``Authorization: Bearer <token>``, compared
   with :func:`hmac.compare_digest` (constant time); otherwise 401.
 - ``--max-body``: a ``Content-Length`` above the limit is answered 413 at once, without reading the
-  body; a malformed ``Content-Length`` is 400. A body without a length (chunked) is counted while
-  it arrives by the routes' reader (:func:`grasplan.serve.app.read_body`), 413 as soon as it
-  passes the limit.
+  body; a malformed ``Content-Length`` is 400. A body without a length (chunked) is refused by
+  the connection layer from a chunk size over the limit (:mod:`grasplan.serve.protocol`) and
+  counted while it arrives by the routes' reader (:func:`grasplan.serve.app.read_body`), 413 as
+  soon as it passes the limit.
 """
 from __future__ import annotations
 
@@ -23,6 +24,10 @@ ASGIApp = Callable[[Scope, Receive, Send], Awaitable[None]]
 
 #: paths anyone may read without the token: liveness and the API description (no data)
 OPEN_PATHS = frozenset({"/health", "/docs", "/docs/oauth2-redirect", "/openapi.json", "/redoc"})
+#: a key of a request's ASGI scope, set by the connection layer (:mod:`grasplan.serve.protocol`)
+#: when it answered the request itself and closed the connection: the route then does not log the
+#: closed connection again
+CLOSED_KEY = "grasplan.closed"
 
 
 async def send_error(send: Send, status: int, error: str, detail: str,

@@ -17,7 +17,8 @@ from typing import Any
 
 class LoopbackServer:
     """uvicorn serving ``app`` on 127.0.0.1 at a free port, in a daemon thread, until the ``with``
-    block ends (then it stops and the thread is joined)."""
+    block ends (then it stops and the thread is joined). An app of :func:`grasplan.serve.create_app`
+    is served as ``grasplan serve`` serves it (:func:`grasplan.serve.run.uvicorn_config`)."""
 
     def __init__(self, app: Any, *, start_timeout_s: float = 30.0):
         import uvicorn
@@ -28,7 +29,14 @@ class LoopbackServer:
         self._sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         self._sock.bind(("127.0.0.1", 0))
         self.port: int = self._sock.getsockname()[1]
-        self.server = uvicorn.Server(uvicorn.Config(app, log_level="warning", lifespan="on", timeout_keep_alive=30))
+        config = getattr(getattr(app, "state", None), "config", None)
+        if config is not None:  # the service's app: its connection protocol, timeouts and limits
+            from .run import uvicorn_config
+
+            uv = uvicorn_config(app, config, log_level="warning")
+        else:
+            uv = uvicorn.Config(app, log_level="warning", lifespan="on", timeout_keep_alive=30)
+        self.server = uvicorn.Server(uv)
         self._thread = threading.Thread(target=self.server.run, kwargs={"sockets": [self._sock]},
                                         name="grasplan-serve-loopback", daemon=True)
         self._timeout = start_timeout_s

@@ -1,5 +1,5 @@
-"""``--workers N`` (N >= 2): N planner processes behind the one HTTP process, each request handed
-to a free planner.
+"""``--workers N``: N planner processes (one or more) behind the one HTTP process, each request
+handed to a free planner.
 
 The HTTP process (uvicorn's event loop) reads, checks and parses every body (401, 413, 400 at once)
 and answers ``/health``, ``/parts``, ``/robots``, ``/grippers`` itself; ``/plan``, ``/pick`` and
@@ -9,7 +9,7 @@ databases, picker) and sends the response body back over a pipe. Requests wait i
 for a free planner (:class:`PlannerPool`), so 4 clients on 2 planners keep both busy whichever
 connection they came on.
 
-Per request, as with one worker (:class:`grasplan.serve.jobs.JobQueue`): the time limit counts from
+Per request, as on a planning thread (:class:`grasplan.serve.jobs.JobQueue`): the time limit counts from
 its arrival: still waiting for a planner when it passes -> :class:`~grasplan.serve.jobs.Busy`
 (503); planning past it -> :class:`~grasplan.serve.jobs.TimedOut` (504), and the planner process
 is killed and a fresh one started in its place (a process, unlike a thread, can be stopped
@@ -18,8 +18,9 @@ planners serve). More than ``max_queue`` requests waiting -> 503 at once. An exc
 is sent back as its kind (refusal 422, impossible request 422, out of memory 507, bug 500 with the
 traceback logged here); a planner that dies (a crash, the kernel's OOM killer) gives that request a
 500 and is replaced. The processes are fresh interpreters (nothing inherited from the HTTP process,
-which they talk to over a socket pair); they ignore Ctrl-C (the HTTP process stops them) and exit
-when its end of the socket closes.
+which they talk to over a socket pair); they ignore Ctrl-C and SIGTERM (sent to a whole process
+group, e.g. by systemd: the HTTP process finishes the requests in progress, then stops them) and
+exit when its end of the socket closes.
 """
 from __future__ import annotations
 
@@ -68,6 +69,7 @@ def planner_entry(fd: int) -> None:
     start the warm state, then answer ``(job, document)`` messages until ``None`` or the socket
     closes (the HTTP process is gone)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the whole process group: the parent stops us
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)  # so may SIGTERM: the parent finishes the request, then stops us
     from . import handlers
     from .state import Service
 
@@ -76,11 +78,17 @@ def planner_entry(fd: int) -> None:
         config_json = conn.recv()
         service = Service.start(config_from_json(config_json), lambda line: conn.send(("progress", line)))
     except BaseException as exc:  # noqa: BLE001 - reported to the parent, which stops the start
-        conn.send(("failed", f"{type(exc).__name__}: {exc}"))
+        try:
+            conn.send(("failed", f"{type(exc).__name__}: {exc}"))
+        except (EOFError, OSError):  # the parent is gone
+            pass
         return
     fns: dict[str, Callable[[Any, Any], Any]] = {"plan": handlers.plan, "pick": handlers.pick,
                                                  "export": handlers.export}
-    conn.send(("ready", service.picker is not None))
+    try:
+        conn.send(("ready", service.picker is not None))
+    except (EOFError, OSError):  # the parent is gone
+        return
     while True:
         try:
             msg = conn.recv()
@@ -221,7 +229,7 @@ class PlannerPool:
         except BaseException:
             self.close()
             raise
-        progress(f"{self.n} planner processes ready")
+        progress(f"{self.n} planner process{'es' if self.n > 1 else ''} ready")
         self.picks = first.picks
         self._idle: deque[_Planner] = deque(self._planners)
         self._waiters: deque[asyncio.Future] = deque()

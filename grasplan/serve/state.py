@@ -63,6 +63,19 @@ def scan_parts(folder: Path, warn: Callable[[str], None]) -> dict[str, Path]:
     return out
 
 
+def process_rss_mib(pid: int | None = None) -> float | None:
+    """The resident memory of process ``pid`` (None: this one) in MiB, from ``/proc``; None where
+    it cannot be read (no ``/proc``, the process is gone)."""
+    try:
+        with open(f"/proc/{'self' if pid is None else int(pid)}/status", encoding="ascii", errors="replace") as f:
+            for line in f:
+                if line.startswith("VmRSS:"):
+                    return round(int(line.split()[1]) / 1024.0, 1)
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
 def picker_available() -> bool:
     """True when this build has :mod:`grasplan.pick` (the picker of ``POST /pick``)."""
     return importlib.util.find_spec("grasplan.pick") is not None
