@@ -74,9 +74,9 @@ def make_catalogue(folder: Path, n: int, seed: int = 0) -> list[Path]:
 
 def run_one(catalogue: Path, out: Path, workers: int, top: int, engine: str) -> dict:
     """One batch in this process; returns seconds, rows and peak RSS (MiB)."""
-    from grasplan.batch import run_batch
+    from grasplan.batch.run import run_batch
     from grasplan.batch.options import BatchOptions
-    from grasplan.params import PlanParams
+    from grasplan.config.params import PlanParams
 
     load0 = os.getloadavg()[0]
     t0 = time.perf_counter()
@@ -237,7 +237,7 @@ def scaling_one(rows: int, fmt: str, folder: Path, *, fsync: bool = False) -> di
     in this process (see the module doc)."""
     import zlib
 
-    from grasplan.batch import run_batch
+    from grasplan.batch.run import run_batch
     from grasplan.batch.engines import ENGINES
 
     marks: dict[str, float] = {}

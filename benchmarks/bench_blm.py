@@ -18,10 +18,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from grasplan.blm import boundary_layer
+from grasplan.candidates.blm import boundary_layer
 from grasplan.cli.common import table
-from grasplan.mesh import load_part
-from grasplan.units import parse_length
+from grasplan.part.mesh import load_part
+from grasplan.geometry.units import parse_length
 
 PAPER_DIR = Path(os.environ.get("GRASPLAN_PAPER_PARTS", ROOT.parent / "shared" / "parts" / "paper"))
 PARTS = ["IPAGearShaft.stl", "IPARingScrew.stl", "SileaneBunny.obj", "SileaneGear.stl",

@@ -58,9 +58,9 @@ def scenes(folder: Path) -> dict[str, Path]:
     """The scene files (written to ``folder``; mix30 from bench_pick's cache, dropped when missing)."""
     import bench_pick
     from grasplan.cache import cache_dir
-    from grasplan.cell import load_cell
-    from grasplan.mesh import load_part
-    from grasplan.stable_poses import stable_pose
+    from grasplan.cell.model import load_cell
+    from grasplan.part.mesh import load_part
+    from grasplan.cell.resting import stable_pose
 
     tless = PAPER_DIR / "TLess20.stl"
     rest = stable_pose(load_part(tless).mesh, load_cell("bin"))
@@ -92,7 +92,7 @@ def main() -> int:
         return 0
     from grasplan.errors import InputError
     from grasplan.pick import Picker, PickParams
-    from grasplan.scenefile import load_scene
+    from grasplan.piles.scene_file import load_scene
 
     load0 = os.getloadavg()[0]
     rows, cold = [], []

@@ -30,10 +30,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from fresh import run_cli  # noqa: E402
 
-from grasplan.candidates import CandidateParams, compute_candidates, find_candidates  # noqa: E402
+from grasplan.candidates.pipeline import CandidateParams, compute_candidates, find_candidates  # noqa: E402
 from grasplan.cli.common import table  # noqa: E402
-from grasplan.convexity import classify_convexity  # noqa: E402
-from grasplan.mesh import load_part  # noqa: E402
+from grasplan.candidates.convexity import classify_convexity  # noqa: E402
+from grasplan.part.mesh import load_part  # noqa: E402
 
 PAPER_DIR = Path(os.environ.get("GRASPLAN_PAPER_PARTS", ROOT.parent / "shared" / "parts" / "paper"))
 TARGET_S = 1.0
@@ -74,10 +74,10 @@ def issue_parts(folder: Path) -> list[tuple[str, Path, float]]:
 _WORKER = r"""
 import json, sys, time
 t0 = time.perf_counter()
-from grasplan.candidates import compute_candidates
+from grasplan.candidates.pipeline import compute_candidates
 from grasplan.io import write_json
-from grasplan.mesh import load_part
-from grasplan.params import CandidateParams
+from grasplan.part.mesh import load_part
+from grasplan.config.params import CandidateParams
 t_import = time.perf_counter() - t0
 t = time.perf_counter()
 import trimesh  # noqa: F401  (loads scipy too; the grasplan modules import it on first use)

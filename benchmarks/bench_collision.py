@@ -22,16 +22,16 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from grasplan.candidates import compute_candidates
-from grasplan.cell import load_cell
-from grasplan.collision import GripperCollider
-from grasplan.frames import grasp_frames
-from grasplan.gripper import load_gripper
-from grasplan.mesh import load_part
-from grasplan.params import CandidateParams, GraspParams
-from grasplan.stable_poses import stable_pose
-from grasplan.thinning import thin_candidates
-from grasplan.units import parse_length
+from grasplan.candidates.pipeline import compute_candidates
+from grasplan.cell.model import load_cell
+from grasplan.grasps.collision import GripperCollider
+from grasplan.grasps.frames import grasp_frames
+from grasplan.gripper.load import load_gripper
+from grasplan.part.mesh import load_part
+from grasplan.config.params import CandidateParams, GraspParams
+from grasplan.cell.resting import stable_pose
+from grasplan.candidates.thinning import thin_candidates
+from grasplan.geometry.units import parse_length
 
 PAPER = Path(os.environ.get("GRASPLAN_PAPER_PARTS", ROOT.parent / "shared" / "parts" / "paper"))
 TARGET_PER_S = 20_000
@@ -55,7 +55,7 @@ def main() -> None:
             continue
         part = load_part(path)
         T = stable_pose(part.mesh, cell)
-        # the poses of grasplan.grasps.compute_grasps: search up to the gripper's opening, thinning,
+        # the poses of grasplan.grasps.pipeline.compute_grasps: search up to the gripper's opening, thinning,
         # swapped duplicates posed once for a symmetric gripper
         c = compute_candidates(part, CandidateParams(max_opening=g.max_opening)).candidates
         select = (thin_candidates(c, spacing=gp.thin_spacing, axis_step_deg=gp.thin_axis_deg)

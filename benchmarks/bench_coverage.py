@@ -216,9 +216,9 @@ class Checker:
 def run_one(name, path, units, method, n_points, n_check, seed):
     from dataclasses import replace
 
-    from grasplan.grasps import compute_grasps
-    from grasplan.mesh import load_part, part_from_trimesh
-    from grasplan.params import CandidateParams, GraspParams
+    from grasplan.grasps.pipeline import compute_grasps
+    from grasplan.part.mesh import load_part, part_from_trimesh
+    from grasplan.config.params import CandidateParams, GraspParams
 
     t0 = time.perf_counter()
     part = load_part(path, units=units) if path else part_from_trimesh(box_mesh(name), units="mm", path=name)

@@ -23,11 +23,11 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from grasplan.cell import load_cell  # noqa: E402
+from grasplan.cell.model import load_cell  # noqa: E402
 from grasplan.cli.common import table  # noqa: E402
-from grasplan.drop import DropParams, PileItem, drop_pile, part_name  # noqa: E402
-from grasplan.mesh import load_part  # noqa: E402
-from grasplan.simulate import convex_pieces  # noqa: E402
+from grasplan.sim.drop import DropParams, PileItem, drop_pile, part_name  # noqa: E402
+from grasplan.part.mesh import load_part  # noqa: E402
+from grasplan.sim.simulate import convex_pieces  # noqa: E402
 
 PAPER_DIR = Path(os.environ.get("GRASPLAN_PAPER_PARTS", ROOT.parent / "shared" / "parts" / "paper"))
 PARTS = ["TLess20.stl", "TLess22.stl", "SileanePepper.stl", "IPARingScrew.stl", "SileaneGear.stl"]

@@ -11,13 +11,13 @@ from pathlib import Path
 
 import numpy as np
 
-from grasplan.cell import load_cell
-from grasplan.gripper import load_gripper
-from grasplan.ik import solve_ik
-from grasplan.mesh import load_part
-from grasplan.robot import load_robot
-from grasplan.scene import CollisionScene
-from grasplan.stable_poses import stable_pose
+from grasplan.cell.model import load_cell
+from grasplan.gripper.load import load_gripper
+from grasplan.robot.ik.solve import solve_ik
+from grasplan.part.mesh import load_part
+from grasplan.robot.description import load_robot
+from grasplan.motion.collision_scene import CollisionScene
+from grasplan.cell.resting import stable_pose
 
 ROOT = Path(__file__).resolve().parents[1]
 TARGET_IK_MS = 1.0  #: UR5 closed-form solve, median ms

@@ -6,7 +6,7 @@
 Parts are generated in a temporary folder (never in the repository): UV spheres (``--radius``,
 default 20 mm so that a 50 mm gripper can hold them: every antipodal pair is a real candidate, the
 hard case for the curved-surface search) of the given triangle counts up to
-``grasplan.mesh.MAX_TRIANGLES``, and random triangle soups (vertices ~ N(0, 10 mm), seed 0, the
+``grasplan.part.mesh.MAX_TRIANGLES``, and random triangle soups (vertices ~ N(0, 10 mm), seed 0, the
 generator of the fuzz suite's soups). Each command runs as a whole process (``--units mm``), in a
 fresh interpreter; per run: exit code, wall time, CPU time (user + system of the process, from
 ``wait4``) and peak RSS (VmHWM); and the stage seconds the command prints. The table shows the
@@ -37,7 +37,7 @@ from fresh import _CLI  # noqa: E402
 from fuzz_cases import uv_sphere  # noqa: E402
 
 from grasplan.cli.common import table  # noqa: E402
-from grasplan.mesh import MAX_TRIANGLES  # noqa: E402
+from grasplan.part.mesh import MAX_TRIANGLES  # noqa: E402
 
 STAGES = ("load", "blm", "convexity", "antipodal", "stable_pose", "frames", "collision", "quality")
 _STAGE_ROW = re.compile(r"^(?:seconds: )?([a-z_]+)(?: \(s\))?\s+([0-9]+\.[0-9]+)\s*$")
@@ -93,7 +93,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeat", type=int, default=1, help="runs per part and command (medians)")
     ap.add_argument("--spheres", default="100k,250k,500k,750k,1m",
-                    help="sphere triangle counts (capped at grasplan.mesh.MAX_TRIANGLES, duplicates dropped)")
+                    help="sphere triangle counts (capped at grasplan.part.mesh.MAX_TRIANGLES, duplicates dropped)")
     ap.add_argument("--soups", default="5k,20k,50k", help="soup triangle counts")
     ap.add_argument("--radius", default="20", help="sphere radius, mm")
     ap.add_argument("--commands", default="candidates,grasps")
@@ -129,7 +129,7 @@ def main() -> int:
                     print(f"    exit {rc}: {runs[-1]['error']}", flush=True)
     load = os.getloadavg()
     print(f"\nmedians of {a.repeat} run(s); load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}; "
-          f"grasplan.mesh.MAX_TRIANGLES {MAX_TRIANGLES:,}")
+          f"grasplan.part.mesh.MAX_TRIANGLES {MAX_TRIANGLES:,}")
     print(table(rows, header=("part", "triangles", "command", "exit", "wall s", "CPU s", "peak RSS MiB",
                               "stage seconds (as printed)")))
     return 0

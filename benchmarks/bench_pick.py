@@ -3,7 +3,7 @@
     python benchmarks/bench_pick.py [--scenes 20] [--no-cold] [--no-lift-carry] [--recheck]
 
 Scenes: piles of 10 instances of one part (TLess20, SileanePepper, IPARingScrew in turn) dropped
-into the packaged bin by ``grasplan scene drop``'s physics (:func:`grasplan.drop.drop_pile`, seeds
+into the packaged bin by ``grasplan scene drop``'s physics (:func:`grasplan.sim.drop.drop_pile`, seeds
 0, 1, ...; a seed whose pile does not fit or settle is skipped), and one pile of 30 (10 of each)
 in a bin twice as long and wide (the packaged bin holds about 20 such parts). The scenes are made
 once and cached in ``<cache folder>/bench_pick/`` (:func:`grasplan.cache.cache_dir`), as are the
@@ -37,10 +37,10 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from grasplan.cache import cache_dir  # noqa: E402
-from grasplan.cell import load_cell  # noqa: E402
+from grasplan.cell.model import load_cell  # noqa: E402
 from grasplan.cli.common import table  # noqa: E402
 from grasplan.errors import GrasplanError  # noqa: E402
-from grasplan.mesh import load_part  # noqa: E402
+from grasplan.part.mesh import load_part  # noqa: E402
 
 PAPER_DIR = Path(os.environ.get("GRASPLAN_PAPER_PARTS", ROOT.parent / "shared" / "parts" / "paper"))
 PARTS = ["TLess20.stl", "SileanePepper.stl", "IPARingScrew.stl"]
@@ -55,8 +55,8 @@ bin: {inner: [0.60, 0.40], wall: 0.01, height: 0.15, T: {xyz: [0.45, 0.0, 0.01],
 
 def _drop(folder: Path, name: str, cell_ref: str, items: list[tuple[str, int]], seed: int) -> Path | None:
     """The cached scene ``name``, dropped now when missing (None: that seed's pile fails)."""
-    from grasplan.drop import DropParams, PileItem, drop_pile, part_name
-    from grasplan.scenewrite import write_scene
+    from grasplan.sim.drop import DropParams, PileItem, drop_pile, part_name
+    from grasplan.piles.scene_write import write_scene
 
     path, fail = folder / f"{name}.yaml", folder / f"{name}.failed"
     if path.exists():

@@ -56,8 +56,8 @@ def _table(rows, header):
 _WORKER = r"""
 import json, sys, time
 t0 = time.perf_counter()
-from grasplan.planning import plan
-from grasplan.mesh import load_part
+from grasplan.motion.planning import plan
+from grasplan.part.mesh import load_part
 t_import = time.perf_counter() - t0
 path = sys.argv[1]
 t = time.perf_counter()
@@ -141,14 +141,14 @@ def bench_cli(parts: list[Path], runs: int) -> tuple[list[tuple], bool]:
 
 # -- 3. RRTConnect per query ----------------------------------------------------------------------------
 def bench_rrt(n_queries: int, seed: int = 0):
-    from grasplan.cell import load_cell
-    from grasplan.stable_poses import stable_pose
-    from grasplan.gripper import load_gripper
-    from grasplan.ik import solve_ik
-    from grasplan.mesh import load_part
-    from grasplan.paths import plan_joint_path
-    from grasplan.robot import load_robot
-    from grasplan.scene import CollisionScene
+    from grasplan.cell.model import load_cell
+    from grasplan.cell.resting import stable_pose
+    from grasplan.gripper.load import load_gripper
+    from grasplan.robot.ik.solve import solve_ik
+    from grasplan.part.mesh import load_part
+    from grasplan.motion.joint_paths import plan_joint_path
+    from grasplan.robot.description import load_robot
+    from grasplan.motion.collision_scene import CollisionScene
 
     part_path = PAPER / "TLess20.stl"
     if not part_path.exists():

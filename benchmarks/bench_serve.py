@@ -82,7 +82,7 @@ def dropped_piles(name: str, part: Any, cell: Any, piles: int) -> list[dict]:
     physics (seeds 0, 1, ...; a seed whose pile does not fit is skipped), cached in
     ``<cache folder>/bench_serve/``; instances only (the service knows the part by name)."""
     from grasplan.cache import cache_dir
-    from grasplan.drop import DropParams, PileItem, drop_pile
+    from grasplan.sim.drop import DropParams, PileItem, drop_pile
     from grasplan.errors import GrasplanError
 
     folder = cache_dir() / "bench_serve"

@@ -52,10 +52,10 @@ TARGET_GROWTH = 0.10
 def pile_doc(part_path: Path) -> dict:
     """The 5-instance pile (instances only: the service knows the part), dropped once and cached."""
     from grasplan.cache import cache_dir
-    from grasplan.cell import load_cell
-    from grasplan.drop import DropParams, PileItem, drop_pile
+    from grasplan.cell.model import load_cell
+    from grasplan.sim.drop import DropParams, PileItem, drop_pile
     from grasplan.errors import GrasplanError
-    from grasplan.mesh import load_part
+    from grasplan.part.mesh import load_part
 
     part = load_part(part_path)
     folder = cache_dir() / "bench_soak"

@@ -24,12 +24,12 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from grasplan.blm import boundary_layer  # noqa: E402
-from grasplan.candidates import CandidateParams, compute_candidates, find_candidates  # noqa: E402
+from grasplan.candidates.blm import boundary_layer  # noqa: E402
+from grasplan.candidates.pipeline import CandidateParams, compute_candidates, find_candidates  # noqa: E402
 from grasplan.cli.common import table  # noqa: E402
-from grasplan.convexity import classify_convexity  # noqa: E402
-from grasplan.mesh import load_part  # noqa: E402
-from grasplan.units import parse_length  # noqa: E402
+from grasplan.candidates.convexity import classify_convexity  # noqa: E402
+from grasplan.part.mesh import load_part  # noqa: E402
+from grasplan.geometry.units import parse_length  # noqa: E402
 
 PAPER_DIR = Path(os.environ.get("GRASPLAN_PAPER_PARTS", ROOT.parent / "shared" / "parts" / "paper"))
 CONFIG = ROOT / "configs" / "paper_parts.yaml"

@@ -1,7 +1,7 @@
 """Grasp quality vs MuJoCo lift-and-shake (issue 11), on the paper parts and the examples.
 
 Per part and density: the collision-free grasps of ``compute_grasps`` get their quality and score
-(``grasplan.quality.quality_and_score``: the grasp stage's own step, weights of
+(``grasplan.grasps.quality.quality_and_score``: the grasp stage's own step, weights of
 ``configs/scoring.yaml``), are ranked with the diversity rule (``distinct_order``); the top 20 and
 20 random collision-free grasps (seeded) are simulated. One table per density (default steel 7850
 and plastic 1200 kg/m^3): hold rate of the top 20 (issue 22, steel: TLess20 and TLess22 >= 19/20,
@@ -29,11 +29,11 @@ from scipy.stats import spearmanr
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from grasplan.grasps import compute_grasps
-from grasplan.mesh import load_part
-from grasplan.params import CandidateParams, GraspParams
-from grasplan.scoring import distinct_order
-from grasplan.simulate import convex_pieces, simulate_grasps
+from grasplan.grasps.pipeline import compute_grasps
+from grasplan.part.mesh import load_part
+from grasplan.config.params import CandidateParams, GraspParams
+from grasplan.config.scoring import distinct_order
+from grasplan.sim.simulate import convex_pieces, simulate_grasps
 
 PAPER = Path(os.environ.get("GRASPLAN_PAPER_PARTS", ROOT.parent / "shared" / "parts" / "paper"))
 PAPER_PARTS = ["IPAGearShaft.stl", "IPARingScrew.stl", "SileaneBunny.obj", "SileaneGear.stl",
@@ -44,7 +44,7 @@ def run_part(path: Path, args, gr, density: float) -> dict:
     """Quality, score, ranking and the two simulated batches of one part at ``density``."""
     from dataclasses import replace
 
-    from grasplan.quality import quality_and_score
+    from grasplan.grasps.quality import quality_and_score
 
     part = gr.cand.part
     mu = float(CandidateParams.default("mu"))

@@ -1,8 +1,8 @@
 """grasplan: verified parallel-jaw grasps from a part's CAD mesh.
 
-Pipeline (one module per stage): :mod:`grasplan.mesh` -> :mod:`grasplan.blm` ->
-:mod:`grasplan.convexity` -> :mod:`grasplan.antipodal` -> :mod:`grasplan.frames` ->
-:mod:`grasplan.collision` -> :mod:`grasplan.ik` -> :mod:`grasplan.paths` ->
+Pipeline (one module per stage): :mod:`grasplan.part.mesh` -> :mod:`grasplan.candidates.blm` ->
+:mod:`grasplan.candidates.convexity` -> :mod:`grasplan.candidates.antipodal` -> :mod:`grasplan.grasps.frames` ->
+:mod:`grasplan.grasps.collision` -> :mod:`grasplan.robot.ik` -> :mod:`grasplan.motion.joint_paths` ->
 :mod:`grasplan.export` / :mod:`grasplan.viewer`.
 
 The whole pipeline in three lines::
@@ -24,49 +24,28 @@ Heavy modules (Pinocchio, OMPL) load only when a function that needs them is fir
 """
 from __future__ import annotations
 
-import importlib
-
+from ._lazy import lazy_exports
 from .errors import ConfigError, GrasplanError, InputError, MeshError, PlanningError
 
 __version__ = "0.2.0"
 
-# public name -> (module, attribute), imported on first use
+# public name -> its module, imported on first use
 _LAZY = {
-    "Part": ("grasplan.mesh", "Part"),
-    "load_part": ("grasplan.mesh", "load_part"),
-    "CandidateParams": ("grasplan.params", "CandidateParams"),
-    "GraspParams": ("grasplan.params", "GraspParams"),
-    "PlanParams": ("grasplan.params", "PlanParams"),
-    "PlanResult": ("grasplan.result", "PlanResult"),
-    "load_result": ("grasplan.result_reader", "load_result"),
-    "use_config_dirs": ("grasplan.config_files", "use_config_dirs"),
-    "export": ("grasplan.export", None),
-    "compute_candidates": ("grasplan.candidates", "compute_candidates"),
-    "compute_grasps": ("grasplan.grasps", "compute_grasps"),
-    "load_gripper": ("grasplan.gripper", "load_gripper"),
-    "load_robot": ("grasplan.robot", "load_robot"),
-    "load_cell": ("grasplan.cell", "load_cell"),
-    "solve_ik": ("grasplan.ik", "solve_ik"),
-    "plan": ("grasplan.planning", "plan"),
-    "write_viewer": ("grasplan.viewer", "write_viewer"),
-    "Picker": ("grasplan.pick.picker", "Picker"),
-    "PickParams": ("grasplan.pick.params", "PickParams"),
-    "PickResult": ("grasplan.pick.result", "PickResult"),
-    "load_picks": ("grasplan.pick.reader", "load_picks"),
+    "Part": ".part.mesh", "load_part": ".part.mesh",
+    "CandidateParams": ".config.params", "GraspParams": ".config.params", "PlanParams": ".config.params",
+    "PlanResult": ".results.plan_result", "load_result": ".results.reader",
+    "use_config_dirs": ".config.lookup",
+    "export": ".export",
+    "compute_candidates": ".candidates.pipeline", "compute_grasps": ".grasps.pipeline",
+    "load_gripper": ".gripper", "load_robot": ".robot.description", "load_cell": ".cell.model",
+    "solve_ik": ".robot.ik", "plan": ".motion.planning", "write_viewer": ".viewer",
+    "Picker": ".pick.picker", "PickParams": ".pick.params", "PickResult": ".pick.result", "load_picks": ".pick.reader",
 }
 
 __all__ = ["GrasplanError", "InputError", "MeshError", "ConfigError", "PlanningError", "__version__", *_LAZY]
 
-
-def __getattr__(name: str):
-    if name in _LAZY:
-        module, attr = _LAZY[name]
-        mod = importlib.import_module(module)
-        value = mod if attr is None else getattr(mod, attr)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module 'grasplan' has no attribute {name!r}")
+__getattr__, _dir = lazy_exports(globals(), _LAZY)
 
 
-def __dir__():
+def __dir__() -> list[str]:
     return sorted(__all__)

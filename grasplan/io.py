@@ -23,7 +23,7 @@ import sys
 import sysconfig
 import tempfile
 import threading
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -331,3 +331,43 @@ def write_json(path: str | os.PathLike, data: Any, *, indent: int | None = None)
 def read_json(path: str | os.PathLike) -> Any:
     with open(path, "rb") as f:
         return json.load(f)
+
+
+def write_files_atomic(files: Sequence[tuple[str | os.PathLike, bytes | str]]) -> list[Path]:
+    """Write every ``(path, content)`` all or nothing: each to a temporary file in its folder first;
+    when all are complete they are renamed into place. Any failure removes the temporary files and
+    leaves every existing file untouched; operating-system errors become InputError."""
+    paths = [Path(p) for p, _ in files]
+    for p in paths:
+        if p.is_dir():
+            raise InputError(f"cannot write {show_path(p)}: it is a folder; choose another output name")
+    temps: list[str] = []
+    with signals_raise():  # a terminating signal: the temporary files go first (finally), then the process
+        try:
+            _write_all(paths, files, temps)
+        except OSError as exc:
+            raise InputError(f"cannot write {', '.join(show_path(p) for p in paths)}: "
+                             f"{exc.strerror or 'operating-system error'}; choose another output path") from None
+        finally:
+            for tmp in temps:
+                with contextlib.suppress(OSError):
+                    os.unlink(tmp)
+    return paths
+
+
+def _write_all(paths: list[Path], files: Sequence[tuple[str | os.PathLike, bytes | str]], temps: list[str]) -> None:
+    for p, (_, content) in zip(paths, files):
+        parent = p.parent if str(p.parent) else Path(".")
+        parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{p.name[:100]}.", suffix=".tmp", dir=parent)
+        temps.append(tmp)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.fchmod(fd, 0o666 & ~umask)
+        with os.fdopen(fd, "wb") as f:
+            f.write(content.encode("utf-8") if isinstance(content, str) else content)
+            f.flush()
+            os.fsync(f.fileno())
+    for p, tmp in zip(paths, list(temps)):
+        os.replace(tmp, p)
+        temps.remove(tmp)

@@ -1,7 +1,7 @@
 """An INDEPENDENT re-check of planned paths with python-fcl (a helper module: no tests in it).
 
 Nothing here uses grasplan's collision code (coal, ``CollisionScene``, ``GripperCollider``,
-``grasplan.geometry``) or its path densifier. The geometry is rebuilt from the sources:
+``grasplan.cell.shapes``) or its path densifier. The geometry is rebuilt from the sources:
 
 * robot links: the ``<collision>`` elements of the robot's URDF, read here with ElementTree
   (meshes loaded with trimesh, ``package://`` resolved against the robot's package dirs; box,

@@ -30,7 +30,7 @@ import numpy as np
 
 from fcl_recheck import FclWorld, Report, densify
 
-from grasplan.cell import Obstacle
+from grasplan.cell.model import Obstacle
 
 
 #: the planner and this check sample the surfaces differently: depths may differ by about this (m)

@@ -1,16 +1,16 @@
-"""Reference implementation of the regions method (``method="regions"``, :mod:`grasplan.regions`)
+"""Reference implementation of the regions method (``method="regions"``, :mod:`grasplan.candidates.regions`)
 over every overlapping triangle pair: clipping and point-in-triangle probes instead of outlines and
-scanlines. O(overlapping triangle pairs); the tests check that :func:`grasplan.regions.find_regions`
+scanlines. O(overlapping triangle pairs); the tests check that :func:`grasplan.candidates.regions.find_regions`
 gives the same samples (tests/test_regions.py). Not used by the pipeline."""
 from __future__ import annotations
 
 import numpy as np
 
-from grasplan.antipodal_base import clip_edges, perpendicular_frame, project_triangles
-from grasplan.gridsearch import all_pairs_within
-from grasplan.region_areas import area_pairs, convex_areas
-from grasplan.region_creases import admitted_faces, near_creases
-from grasplan.regions import finish_samples
+from grasplan.candidates.antipodal_base import clip_edges, perpendicular_frame, project_triangles
+from grasplan.geometry.gridsearch import all_pairs_within
+from grasplan.candidates.region_areas import area_pairs, convex_areas
+from grasplan.candidates.region_creases import admitted_faces, near_creases
+from grasplan.candidates.regions import finish_samples
 
 #: face pairs per processing batch
 _CHUNK = 65_536
@@ -127,10 +127,10 @@ def _face_pairs_of_regions(P, Q, a, areas, start, count, members, geo, rad):
 
 def find_regions_pairs(mesh, convex, geo, *, max_opening, beta_deg, mu, spacing, tol):
     """Reference implementation over triangle pairs (O(overlapping triangle pairs); tests compare the
-    default :func:`grasplan.regions.find_regions` with it). Region samples (see the module docstring): ``contacts (n, 2, 3)``, ``normals (n, 2, 3)``,
-    ``width (n,)``, ``faces (n, 2)``, ``region (n,)`` for :class:`grasplan.antipodal_base.Candidates`.
+    default :func:`grasplan.candidates.regions.find_regions` with it). Region samples (see the module docstring): ``contacts (n, 2, 3)``, ``normals (n, 2, 3)``,
+    ``width (n,)``, ``faces (n, 2)``, ``region (n,)`` for :class:`grasplan.candidates.antipodal_base.Candidates`.
 
-    ``geo``: the mesh's :class:`grasplan.antipodal_base.FaceGeometry`; lengths in metres."""
+    ``geo``: the mesh's :class:`grasplan.candidates.antipodal_base.FaceGeometry`; lengths in metres."""
     admit, creases = admitted_faces(mesh, convex, geo, tol)
     areas = convex_areas(mesh, admit, tol)
     lab = areas.label

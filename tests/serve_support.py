@@ -31,7 +31,7 @@ class GridScenes:
     offset of at most ``jitter_m`` (pose-estimator noise, within the grid's clearance)."""
 
     def __init__(self, part_name: str, part_mesh: Any, cell: Any, n: int = 10, jitter_m: float = 0.002):
-        from grasplan.stable_poses import part_centre_of_mass, stable_poses
+        from grasplan.part.stability import part_centre_of_mass, stable_poses
 
         self.name, self.mesh, self.cell, self.n, self.jitter = part_name, part_mesh, cell, n, jitter_m
         R, _ = stable_poses(part_mesh)
@@ -47,8 +47,8 @@ class GridScenes:
         assert self.pitch >= 2 * (radius + jitter_m), "the bin is too small for this grid"
 
     def scene(self, seed: int = 0) -> dict[str, Any]:
-        from grasplan.stable_poses import place_on_table
-        from grasplan.transforms import rpy_matrix
+        from grasplan.cell.resting import place_on_table
+        from grasplan.geometry.transforms import rpy_matrix
 
         rng = np.random.default_rng(seed)
         instances = []

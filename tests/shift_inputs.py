@@ -54,11 +54,11 @@ def plan_file(factory) -> Path:
 def picks_file(factory) -> Path:
     """A ``grasplan.picks/1`` file: one bracket picked from the bin by the UR5 (its grasp database
     cached in a session folder, not the user's cache)."""
-    from grasplan.cell import load_cell
-    from grasplan.mesh import load_part
+    from grasplan.cell.model import load_cell
+    from grasplan.part.mesh import load_part
     from grasplan.pick import Picker, PickParams
-    from grasplan.scenefile import Instance, Scene
-    from grasplan.stable_poses import stable_pose
+    from grasplan.piles.scene_file import Instance, Scene
+    from grasplan.cell.resting import stable_pose
 
     folder = factory.mktemp("shift_picks")
     old = os.environ.get("GRASPLAN_CACHE_DIR")

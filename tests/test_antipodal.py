@@ -9,12 +9,12 @@ from hypothesis import HealthCheck, Phase, example, given, settings
 from hypothesis import strategies as st
 
 from conftest import EXAMPLE_PARTS, PAPER_PARTS, SHARP_PAPER_PARTS, paper_part
-from grasplan import antipodal_base as ap
-from grasplan.antipodal_base import Candidates
-from grasplan.blm import boundary_layer
-from grasplan.candidates import CandidateParams, compute_candidates, find_candidates
-from grasplan.convexity import classify_convexity
-from grasplan.mesh import load_part, part_from_trimesh
+from grasplan.candidates import antipodal_base as ap
+from grasplan.candidates.antipodal_base import Candidates
+from grasplan.candidates.blm import boundary_layer
+from grasplan.candidates.pipeline import CandidateParams, compute_candidates, find_candidates
+from grasplan.candidates.convexity import classify_convexity
+from grasplan.part.mesh import load_part, part_from_trimesh
 
 MU = 0.3
 BETA = 2.0
@@ -392,8 +392,8 @@ def test_beta_and_friction_on_paper_and_example_parts(name):
 def test_kept_grasps_keep_beta_on_a_fine_cylinder():
     """The collision filter's survivors carry their candidates' contacts and normals: still within beta
     (a 1000-sided cylinder: adjacent faces 0.36 deg apart, below the coplanar tolerance)."""
-    from grasplan.grasps import compute_grasps
-    from grasplan.params import GraspParams
+    from grasplan.grasps.pipeline import compute_grasps
+    from grasplan.config.params import GraspParams
     from grasplan.status import Status
     mesh = _curved("cylinder", 0.01, 1000, 0.0)
     g = compute_grasps(part_from_trimesh(mesh), grasps=GraspParams(roll_step_deg=60.0, density=1200.0))

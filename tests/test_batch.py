@@ -11,12 +11,12 @@ from pathlib import Path
 
 import pytest
 
-from grasplan.batch import run_batch
+from grasplan.batch.run import run_batch
 from grasplan.batch.layout import FINAL_STATUSES
 from grasplan.batch.manifest import discover_parts, make_jobs, read_manifest
 from grasplan.batch.options import BatchOptions
 from grasplan.errors import InputError
-from grasplan.params import GraspParams, PlanParams
+from grasplan.config.params import GraspParams, PlanParams
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "parts"
 GOOD = ("box.stl", "bracket.stl", "gear.stl")

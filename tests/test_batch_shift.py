@@ -98,7 +98,7 @@ def test_options_hash_pieces_give_the_plain_hash():
     of the whole document, as it always was (so a rerun still finds finished parts)."""
     from grasplan import __version__
     from grasplan.batch.options import OPTIONS_SCHEMA, BatchOptions, _config_fingerprint, options_hash
-    from grasplan.params import CandidateParams, GraspParams, PlanParams
+    from grasplan.config.params import CandidateParams, GraspParams, PlanParams
 
     def plain(o: BatchOptions) -> str:
         doc = {"schema": OPTIONS_SCHEMA, "grasplan": __version__, "options": o.to_json(),

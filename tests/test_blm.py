@@ -8,10 +8,10 @@ from click.testing import CliRunner
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from grasplan.blm import BLMResult, boundary_layer, cluster_surfaces
+from grasplan.candidates.blm import BLMResult, boundary_layer, cluster_surfaces
 from grasplan.cli import main as cli_main
 from grasplan.errors import InputError
-from grasplan.mesh import load_part, part_from_trimesh
+from grasplan.part.mesh import load_part, part_from_trimesh
 
 from conftest import PAPER_PARTS
 

@@ -14,7 +14,8 @@ import click
 import pytest
 from click.testing import CliRunner
 
-from grasplan.cli import COMMANDS, main
+from grasplan.cli.group import COMMANDS
+from grasplan.cli import main
 from grasplan.cli import __name__ as cli_pkg
 from grasplan.errors import InputError
 
@@ -114,8 +115,8 @@ TEXTS = {
 def _option_fields():
     from dataclasses import fields
 
-    from grasplan.option_kinds import is_option
-    from grasplan.params import PARAM_CLASSES
+    from grasplan.config.option_kinds import is_option
+    from grasplan.config.params import PARAM_CLASSES
 
     return [(cls, f) for cls in PARAM_CLASSES for f in fields(cls) if is_option(f)]
 
@@ -129,7 +130,7 @@ def test_cli_and_manifests_read_every_option_alike(cls, f, tmp_path):
 
     from grasplan.batch.manifest import read_manifest
     from grasplan.errors import GrasplanError
-    from grasplan.option_kinds import option_spec
+    from grasplan.config.option_kinds import option_spec
 
     s = option_spec(f)
     texts = list(TEXTS.get(s.kind, []))
@@ -194,9 +195,9 @@ def test_new_options_leave_the_recorded_params_unchanged(tmp_path):
     import numpy as np
 
     from grasplan.batch.options import BatchOptions
-    from grasplan.params import GraspParams, PlanParams
-    from grasplan.scoring import load_scoring
-    from grasplan.transforms import parse_place
+    from grasplan.config.params import GraspParams, PlanParams
+    from grasplan.config.scoring import load_scoring
+    from grasplan.geometry.transforms import parse_place
 
     T = parse_place("0.45,0.3,0,0,0,180")
     placed = PlanParams(place=T)
@@ -222,7 +223,7 @@ def test_new_options_leave_the_recorded_params_unchanged(tmp_path):
 def test_pose_index_all_is_refused_where_one_pose_is_planned(tmp_path):
     """``--pose-index all`` is for plan and batch; grasps (one resting pose) refuses it, exit 3, naming
     what would work, and writes nothing; the library's one-pose steps refuse it the same way."""
-    from grasplan.params import GraspParams
+    from grasplan.config.params import GraspParams
 
     r = CliRunner().invoke(main, ["grasps", str(tmp_path / "missing_input.stl"), "--pose-index", "all",
                                   "-o", str(tmp_path / "out.json")])

@@ -1,4 +1,4 @@
-"""Point clouds (grasplan.cloud): PLY / PCD / NPY readers checked against each other and NumPy,
+"""Point clouds (grasplan.piles.cloud): PLY / PCD / NPY readers checked against each other and NumPy,
 and the octree obstacle against the points it was built from."""
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import os
 import numpy as np
 import pytest
 
-from grasplan.cloud import cloud_octree, read_cloud
+from grasplan.piles.cloud import cloud_octree, read_cloud
 from grasplan.errors import InputError
 
 RNG = np.random.default_rng(7)

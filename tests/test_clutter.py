@@ -15,18 +15,18 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from grasplan.cell import load_cell
+from grasplan.cell.model import load_cell
 from grasplan.cli import main
 from grasplan.clutter.execute import SUCCESS
 from grasplan.clutter.report import CLUTTER_SCHEMA, FAILURES
 from grasplan.clutter.rounds import NO_PLAN, clear_pile, run_round
 from grasplan.clutter.world import ClutterWorld
-from grasplan.drop import DropParams, PileItem
-from grasplan.gripper import load_gripper
-from grasplan.mesh import load_part
+from grasplan.sim.drop import DropParams, PileItem
+from grasplan.gripper.load import load_gripper
+from grasplan.part.mesh import load_part
 from grasplan.pick import Picker, PickParams
-from grasplan.pileworld import part_body
-from grasplan.scenefile import Instance, Scene, ScenePart
+from grasplan.sim.pileworld import part_body
+from grasplan.piles.scene_file import Instance, Scene, ScenePart
 
 from test_viewer import CANVAS_X0, CANVAS_Y0, CANVAS_Y1, needs_chromium, read_png, run_chromium
 

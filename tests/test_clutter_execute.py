@@ -12,17 +12,17 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from grasplan.cell import load_cell
+from grasplan.cell.model import load_cell
 from grasplan.clutter.execute import COLLIDED, LIFT_MIN, MISSED, SUCCESS, execute_pick
 from grasplan.clutter.rounds import parse_pose_noise, perturb, run_round
 from grasplan.clutter.world import ClutterWorld, pad_arc
-from grasplan.drop import DropParams, PileItem, drop_pile
+from grasplan.sim.drop import DropParams, PileItem, drop_pile
 from grasplan.errors import InputError
-from grasplan.grasps import compute_grasps
-from grasplan.gripper import load_gripper
-from grasplan.mesh import load_part
-from grasplan.scenefile import Scene
-from grasplan.transforms import pose_error
+from grasplan.grasps.pipeline import compute_grasps
+from grasplan.gripper.load import load_gripper
+from grasplan.part.mesh import load_part
+from grasplan.piles.scene_file import Scene
+from grasplan.geometry.transforms import pose_error
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "parts"
 APPROACH, LIFT = 0.08, 0.10
@@ -314,16 +314,16 @@ def test_a_lift_into_a_wall_is_a_collision(lone_box, gripper, cell):
 def test_twist_slips_at_the_pad_patch_torsion(cell, tmp_path, gripper_name):
     """Issue 22 in the clutter world: a 120 x 30 x 30 mm block in the middle of the bin picked from
     above 40 mm off its centre of mass, so its weight twists it about the closing axis. Analytic
-    holding limit (the soft-finger ellipse of each pad patch, as grasplan.simulate: the torque m g d
+    holding limit (the soft-finger ellipse of each pad patch, as grasplan.sim.simulate: the torque m g d
     shared by the pads' capacities ``c sqrt(N^2 - (m g / (2 mu))^2)``, c = mu (2/3) sqrt(area / pi),
     N = F / 2): the grip force F* = 2 sqrt((m g d / 2c)^2 + (m g / 2 mu)^2). At 0.8 F* the block turns
     in the jaws (about 40 deg), at 1.2 F* it comes up square (MuJoCo's poses); the old per-contact-point
     torsion held it within 4 deg down to 0.6 F*. Parallel jaws and a linkage gripper's pads on their arc."""
     import trimesh
 
-    from grasplan.patches import contact_patches
-    from grasplan.pileworld import part_body
-    from grasplan.wrench import torsion_length
+    from grasplan.grasps.patches import contact_patches
+    from grasplan.sim.pileworld import part_body
+    from grasplan.grasps.wrench import torsion_length
 
     g = load_gripper(gripper_name)
     path = tmp_path / "block.stl"

@@ -10,14 +10,14 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from grasplan.antipodal_base import Candidates
-from grasplan.cell import Cell, load_cell
-from grasplan.collision import GripperCollider, check_grasps
-from grasplan.containment import obb_aabb_separated, points_inside
-from grasplan.stable_poses import stable_pose
-from grasplan.frames import grasp_frames
-from grasplan.gripper import load_gripper
-from grasplan.mesh import load_part, part_from_trimesh
+from grasplan.candidates.antipodal_base import Candidates
+from grasplan.cell.model import Cell, load_cell
+from grasplan.grasps.collision import GripperCollider, check_grasps
+from grasplan.geometry.containment import obb_aabb_separated, points_inside
+from grasplan.cell.resting import stable_pose
+from grasplan.grasps.frames import grasp_frames
+from grasplan.gripper.load import load_gripper
+from grasplan.part.mesh import load_part, part_from_trimesh
 
 # --- independent model of the issue-3 gripper (numbers from the issue, not from gripper.py) --------
 
@@ -170,8 +170,8 @@ def test_paper_part_ok_and_rejected_independently_checked(paper, name, pose_inde
     the next stable pose (leaning, p = 0.069)."""
     from dataclasses import replace
 
-    from grasplan.candidates import compute_candidates
-    from grasplan.params import CandidateParams
+    from grasplan.candidates.pipeline import compute_candidates
+    from grasplan.config.params import CandidateParams
 
     part = load_part(paper(name))
     cell = replace(load_cell("table"), pose_index=pose_index)

@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 import trimesh
 
-from grasplan.cell import load_cell
-from grasplan.collision import GripperCollider
-from grasplan.containment import RayGrid, points_inside, points_inside_tree, surface_samples
-from grasplan.stable_poses import stable_pose
-from grasplan.frames import grasp_frames
-from grasplan.gripper import load_gripper
-from grasplan.mesh import load_part, part_from_trimesh
+from grasplan.cell.model import load_cell
+from grasplan.grasps.collision import GripperCollider
+from grasplan.geometry.containment import RayGrid, points_inside, points_inside_tree, surface_samples
+from grasplan.cell.resting import stable_pose
+from grasplan.grasps.frames import grasp_frames
+from grasplan.gripper.load import load_gripper
+from grasplan.part.mesh import load_part, part_from_trimesh
 
 
 def _points(mesh, n, seed):
@@ -100,8 +100,8 @@ def _fcl_part_hits(obj, mesh, gripper, T, w):
 def test_grasp_pose_part_hits_agree_with_python_fcl(paper, name):
     """Real grasp poses (every roll of the candidates), where the centre-inside and surface-sample
     certificates decide many poses without coal: part hits equal python-fcl's on 2000 of them."""
-    from grasplan.candidates import compute_candidates
-    from grasplan.params import CandidateParams
+    from grasplan.candidates.pipeline import compute_candidates
+    from grasplan.config.params import CandidateParams
 
     part = load_part(paper(name))
     g, cell = load_gripper(), load_cell("table")
@@ -132,8 +132,8 @@ def test_box_wholly_inside_a_closed_part_found_by_the_centre_test(example_part):
 def test_placed_in_box_is_the_whole_transform_then_the_box():
     """containment.placed_in_box (one axis at a time) gives exactly the rows of moving every point
     and keeping those in the box, in their order, for boxes of every size and turned poses."""
-    from grasplan.containment import placed_in_box
-    from grasplan.transforms import rpy_matrix
+    from grasplan.geometry.containment import placed_in_box
+    from grasplan.geometry.transforms import rpy_matrix
 
     rng = np.random.default_rng(7)
     pts = rng.uniform(-0.05, 0.05, (5000, 3))

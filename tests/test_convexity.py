@@ -6,9 +6,9 @@ import pytest
 import trimesh
 from scipy.spatial import ConvexHull, Delaunay, QhullError
 
-from grasplan.convexity import classify_convexity, neighbour_vertices
-from grasplan.mesh import load_part
-from grasplan.tolerance import Tolerance
+from grasplan.candidates.convexity import classify_convexity, neighbour_vertices
+from grasplan.part.mesh import load_part
+from grasplan.geometry.tolerance import Tolerance
 
 
 def _heightfield(rng, n=7, noise=1e-4, size=0.01):

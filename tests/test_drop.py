@@ -16,14 +16,14 @@ import pytest
 import trimesh
 from click.testing import CliRunner
 
-from grasplan.cell import load_cell
+from grasplan.cell.model import load_cell
 from grasplan.cli import main
 from grasplan.errors import InputError
-from grasplan.drop import DropParams, PileError, PileItem, SettleError, drop_pile, outside_bin, part_name
-from grasplan.mesh import load_part
-from grasplan.pileworld import PileWorld, part_body
-from grasplan.scenefile import load_scene
-from grasplan.scenewrite import write_scene
+from grasplan.sim.drop import DropParams, PileError, PileItem, SettleError, drop_pile, outside_bin, part_name
+from grasplan.part.mesh import load_part
+from grasplan.sim.pileworld import PileWorld, part_body
+from grasplan.piles.scene_file import load_scene
+from grasplan.piles.scene_write import write_scene
 
 #: settled parts: inside the bin within this (m); resting: within this of the floor or a neighbour (m);
 #: interpenetration at most this (m)
@@ -245,7 +245,7 @@ def test_written_scene_reads_back_equal(tmp_path, cell, example_pile):
 def test_part_frame_is_the_mesh_frame_not_the_inertial_frame(cell):
     """MuJoCo's geom centres (each convex piece's centroid) sit where the pose read by the world
     puts the part's pieces: the pose is the mesh frame's, not the centre of mass frame's."""
-    from grasplan.meshdata import convex_hull
+    from grasplan.geometry.meshdata import convex_hull
 
     part = load_part(EXAMPLES / "bracket.stl")
     body = part_body("b", part.mesh, density=1200.0)
@@ -315,7 +315,7 @@ def test_a_pile_overflowing_a_small_bin_is_refused_after_settling(tmp_path):
 
 
 def test_a_pile_that_does_not_come_to_rest_is_an_error(cell, monkeypatch):
-    import grasplan.drop as drop
+    import grasplan.sim.drop as drop
 
     monkeypatch.setattr(drop, "MAX_SETTLE_S", 0.05)
     with pytest.raises(SettleError, match=r"did not come to rest within 0.05 s: dropping box_0 .* left box_0 moving at"):

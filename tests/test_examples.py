@@ -40,7 +40,7 @@ def test_api_example(tmp_path):
     if r.returncode == 4:
         pytest.fail(f"no planned grasp on the example part:\n{r.stdout}\n{r.stderr}")
     assert r.returncode == 0, r.stderr
-    from grasplan.schemas import validate
+    from grasplan.schemas.documents import validate
 
     doc = json.loads((tmp_path / "plan.json").read_text())
     validate(doc)

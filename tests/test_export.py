@@ -4,7 +4,7 @@ Two sources of plans:
 - a synthetic ``grasplan.plan/1`` document built here with the real UR5 model of example-robot-data
   (Pinocchio FK + a small damped-least-squares IK for the pre-grasp and approach), so the exporters
   are tested on their own;
-- the real pipeline on the paper's TLess20 (``grasplan.planning.plan``), once per module, skipped when
+- the real pipeline on the paper's TLess20 (``grasplan.motion.planning.plan``), once per module, skipped when
   the part or the upstream stages are absent.
 """
 from __future__ import annotations
@@ -28,8 +28,8 @@ from grasplan.export.trajectory import (
     joint_trajectory,
     point_to_polyline_distance,
 )
-from grasplan.result import PlanResult
-from grasplan.result_reader import load_result
+from grasplan.results.plan_result import PlanResult
+from grasplan.results.reader import load_result
 
 pin = pytest.importorskip("pinocchio")
 
@@ -144,7 +144,7 @@ def planned_entry(robot, gid, q_grasp, T_world_part, *, width=0.02, score=1.0, r
 def robot_block(name="ur5", T_world_base=None) -> dict:
     """The self-contained ``robot`` block of a plan (grasplan's own robot description, embedded);
     ``T_world_base`` places the robot elsewhere by editing the embedded YAML."""
-    from grasplan.robot import load_robot
+    from grasplan.robot.description import load_robot
 
     block = load_robot(name).to_json(source=True)
     if T_world_base is not None:
@@ -161,8 +161,8 @@ def synthetic_plan(robot, *, T_world_base=None, part=None) -> dict:
     3 collision_part. Poses by Pinocchio here (``robot``: a MiniRobot); the gripper, cell and robot
     blocks are grasplan's embedded definitions. ``part``: a mesh file to record (default: a
     non-existent path, fine for exports that need no collision check)."""
-    from grasplan.cell import load_cell
-    from grasplan.gripper import load_gripper
+    from grasplan.cell.model import load_cell
+    from grasplan.gripper.load import load_gripper
     from grasplan.io import sha256_file
 
     T_world_base = np.eye(4) if T_world_base is None else np.asarray(T_world_base, dtype=float)
@@ -182,7 +182,7 @@ def synthetic_plan(robot, *, T_world_base=None, part=None) -> dict:
     if part is not None:
         rec = {"path": str(part), "sha256": sha256_file(part), "scale_to_m": 0.001, "triangles": 12}
         # loading a plan checks that its contacts lie on the part it names: put them on two corners
-        from grasplan.mesh import load_part
+        from grasplan.part.mesh import load_part
 
         corners = np.asarray(load_part(part, units="mm").mesh.vertices)[:2].tolist()
         for g in (g0, g1, ok_not_tried, coll):
@@ -393,7 +393,7 @@ def test_urscript_refuses_inconsistent_and_non_ur(plan_doc, tmp_path):
         write(bad, "urscript", out)
     assert not out.exists()
     # a plan for a Panda (7 joints, not a UR arm): URScript refuses it and names the other formats
-    from grasplan.robot import load_robot
+    from grasplan.robot.description import load_robot
 
     panda = load_robot("panda")
     q_home = np.asarray(panda.q_home)
@@ -611,9 +611,9 @@ def tless20():
     from conftest import paper_part
 
     path = paper_part("TLess20.stl")
-    from grasplan.mesh import load_part
-    from grasplan.params import PlanParams
-    from grasplan.planning import plan as plan_part
+    from grasplan.part.mesh import load_part
+    from grasplan.config.params import PlanParams
+    from grasplan.motion.planning import plan as plan_part
 
     result = plan_part(load_part(path), planning=PlanParams(top=3))
     if not result.planned_ids():
@@ -621,7 +621,7 @@ def tless20():
     doc = result.to_json()
 
     def scene_factory():
-        from grasplan.scene import CollisionScene
+        from grasplan.motion.collision_scene import CollisionScene
 
         return CollisionScene(result.robot, result.gripper, result.mesh(), result.T_world_part, result.cell)
 
@@ -645,7 +645,7 @@ def test_tless20_urscript(tless20, tmp_path):
 @pytest.mark.slow
 @pytest.mark.paper
 def test_tless20_joint_trajectory(tless20, tmp_path):
-    from grasplan.schemas import validate
+    from grasplan.schemas.documents import validate
 
     doc, robot, result = tless20["doc"], tless20["robot"], tless20["result"]
     for gid in result.planned_ids()[:2]:

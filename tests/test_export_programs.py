@@ -31,8 +31,8 @@ import grasplan
 from grasplan.errors import InputError
 from grasplan.export import krl, moveit_grasp, rapid
 from grasplan.export.program import motion_program
-from grasplan.export_registry import FORMATS, ExportOptions
-from grasplan.params import PlanParams
+from grasplan.results.export_registry import FORMATS, ExportOptions
+from grasplan.config.params import PlanParams
 
 TOP = 2
 PLANS = [("bracket.stl", "ur5"), ("bracket.stl", "panda"), ("TLess20.stl", "ur5"), ("TLess20.stl", "panda"),
@@ -531,7 +531,7 @@ def hostile_plan(tmp_path_factory):
     src = d / HOSTILE_PART
     shutil.copyfile(EXAMPLE_PARTS / "bracket.stl", src)
     gy = d / "gripper.yaml"
-    from grasplan.gripper import load_gripper
+    from grasplan.gripper.load import load_gripper
 
     base = load_gripper("schunk_egp_c_40")
     if not str(base.source).endswith(".yaml"):

@@ -51,7 +51,7 @@ from test_export_programs import (
 from grasplan.errors import InputError
 from grasplan.export import render
 from grasplan.export.trajectory import joint_trajectory
-from grasplan.result_reader import load_result
+from grasplan.results.reader import load_result
 
 pin = pytest.importorskip("pinocchio")
 
@@ -111,7 +111,7 @@ def add_sequence(robot, g: dict, T_world_part: np.ndarray, opening: float, *, pl
 
 def sequence_plan(robot, *, place: bool = True) -> dict:
     """The synthetic plan of test_export with both planned grasps extended to a sequence."""
-    from grasplan.gripper import load_gripper
+    from grasplan.gripper.load import load_gripper
 
     doc = synthetic_plan(robot)
     T_world_part = np.asarray(doc["part"]["T_world_part"])
@@ -370,7 +370,7 @@ def test_joint_trajectory_emits_the_sequence(seq_doc):
 
 def check_joint_trajectory(seq_doc, gids, make_scene):
     from grasplan.export.trajectory import GRIPPER_DWELL_S
-    from grasplan.schemas import validate
+    from grasplan.schemas.documents import validate
 
     res = load_result(seq_doc)
     for gid in gids:
@@ -553,10 +553,10 @@ def real_plan(tmp_path_factory):
     from test_viewer import BRACKET
 
     import grasplan
-    from grasplan.cell import load_cell
-    from grasplan.stable_poses import stable_pose
-    from grasplan.mesh import load_part
-    from grasplan.params import PlanParams
+    from grasplan.cell.model import load_cell
+    from grasplan.cell.resting import stable_pose
+    from grasplan.part.mesh import load_part
+    from grasplan.config.params import PlanParams
 
     part = load_part(BRACKET, units="mm")
     T0 = stable_pose(part.mesh, load_cell("table"))

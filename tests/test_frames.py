@@ -7,8 +7,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from grasplan.antipodal_base import Candidates
-from grasplan.frames import grasp_frames, roll_angles, unique_pairs
+from grasplan.candidates.antipodal_base import Candidates
+from grasplan.grasps.frames import grasp_frames, roll_angles, unique_pairs
 
 
 def box_candidates(size=(0.03, 0.02, 0.01)) -> Candidates:

@@ -105,7 +105,7 @@ def _answer_all(jobs, **_kw):
 
 def _count_calls(folder: Path, n: int, kind: str) -> dict[str, int]:
     """Function calls of each phase of a batch of ``n`` rows (see the module doc)."""
-    from grasplan.batch import run_batch
+    from grasplan.batch.run import run_batch
 
     src = _catalogue(folder, n, kind)
     counts = {"calls": 0}
@@ -157,7 +157,7 @@ def test_manifest_scaling(kind, tmp_path, monkeypatch):
 
 
 def test_yaml_manifest_beyond_the_entry_limit_says_csv(tmp_path):
-    from grasplan.yamlfile import MAX_MANIFEST_ENTRIES
+    from grasplan.config.yamlfile import MAX_MANIFEST_ENTRIES
 
     (tmp_path / "p.stl").write_text(_TETRA.format(n="p"))
     rows = MAX_MANIFEST_ENTRIES // 8 + 10  # each row: - { : , : , : and a line break

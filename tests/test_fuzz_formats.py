@@ -39,9 +39,10 @@ from shift_inputs import FORMATS, huge_stl, picks_file, plan_file, plan_result, 
 import grasplan  # noqa: E402
 from grasplan.cli import main  # noqa: E402
 from grasplan.errors import ConfigError, InputError, MeshError  # noqa: E402
-from grasplan.meshfile import ReadLimits, read_mesh  # noqa: E402
-from grasplan.program_names import (KRL_PROGRAM_NAMES, KRL_RESERVED, RAPID_PROGRAM_NAMES,  # noqa: E402
-                                    RAPID_RESERVED, program_name_problem)
+from grasplan.part.meshfile import ReadLimits, read_mesh  # noqa: E402
+from grasplan.results.program_names import (
+    KRL_PROGRAM_NAMES, KRL_RESERVED, RAPID_PROGRAM_NAMES, RAPID_RESERVED, program_name_problem
+)
 
 FULL = os.environ.get("GRASPLAN_FUZZ_FULL", "") not in ("", "0")
 LIMITS = ReadLimits(1_000_000, 1 << 30)
@@ -125,7 +126,7 @@ PICK_CASES = pick(PICK_CASES, 50, 2)
 
 
 def _tamper(doc: dict, field: tuple, kind: str) -> None:
-    from grasplan.robot import robot_from_json
+    from grasplan.robot.description import robot_from_json
 
     d = doc["picks"][0]
     for k in field[:-1]:
@@ -333,8 +334,8 @@ ROBOT_CASES = pick(ROBOT_CASES, 14, 6)
 
 @pytest.mark.parametrize("fmt, kind, scale", ROBOT_CASES, ids=[f"{a}-{b}-{c}" for a, b, c in ROBOT_CASES])
 def test_fuzz_robot_meshes(tmp_path, monkeypatch, fmt, kind, scale):
-    import grasplan.mesh
-    import grasplan.robot
+    import grasplan.part.mesh
+    import grasplan.robot.files
 
     v, f = tetra()
     ok = tmp_path / "ok.stl"
@@ -345,7 +346,7 @@ def test_fuzz_robot_meshes(tmp_path, monkeypatch, fmt, kind, scale):
         if not FULL:
             scale = "limit"
     if scale == "limit":
-        monkeypatch.setattr(grasplan.mesh, "MAX_TRIANGLES", 40)  # the constant is read when the robot is built
+        monkeypatch.setattr(grasplan.part.mesh, "MAX_TRIANGLES", 40)  # the constant is read when the robot is built
     if fmt == "missing":
         bad, want = "nowhere/gone.stl", r"'nowhere/gone.stl': not found"
     elif fmt == "unsupported":
@@ -355,7 +356,7 @@ def test_fuzz_robot_meshes(tmp_path, monkeypatch, fmt, kind, scale):
         (tmp_path / "dir.stl").mkdir()
         bad, want = "dir.stl", r"is a folder"
     elif fmt == "budget":
-        monkeypatch.setattr(grasplan.robot, "MAX_ROBOT_TRIANGLES", 7)
+        monkeypatch.setattr(grasplan.robot.files, "MAX_ROBOT_TRIANGLES", 7)
         bad, want = "ok.stl", f"{kind} meshes hold 8 triangles in all"
     else:
         path = _mesh_file(tmp_path, fmt, n)

@@ -25,15 +25,15 @@ import pytest
 from click.testing import CliRunner
 from scipy.spatial.distance import directed_hausdorff
 
-from grasplan.cell import load_cell
+from grasplan.cell.model import load_cell
 from grasplan.cli import main
 from grasplan.errors import InputError
-from grasplan.mesh import load_part
-from grasplan.meshdata import convex_hull
+from grasplan.part.mesh import load_part
+from grasplan.geometry.meshdata import convex_hull
 from grasplan.pick import Picker, PickParams
-from grasplan.scenefile import load_scene, scene_from_dict
-from grasplan.stable_poses import stable_pose
-from grasplan.transforms import rpy_matrix
+from grasplan.piles.scene_file import load_scene, scene_from_dict
+from grasplan.cell.resting import stable_pose
+from grasplan.geometry.transforms import rpy_matrix
 
 FULL = os.environ.get("GRASPLAN_FUZZ_FULL") == "1"
 ROOT = Path(__file__).resolve().parents[1]

@@ -56,7 +56,7 @@ def wait():
         time.sleep(0.02)
 
 if mode == "cli":
-    import grasplan.mesh as gm
+    import grasplan.part.mesh as gm
     if role == "baseline":  # the same command, stopped before its work instead of inside its write
         real_load = gm.load_part
         def load_part(*a, **k):
@@ -73,7 +73,6 @@ if mode == "cli":
     sys.argv = ["grasplan", "candidates", sys.argv[7], "-o", out]
     main()
 import grasplan.io as gio
-import grasplan.outputs as go
 if role == "baseline":
     wait()
 elif mode == "chunks":
@@ -90,7 +89,7 @@ else:
             wait()
         real_fsync(fd)
     os.fsync = fsync
-    go.write_files_atomic([(out, b"x" * (CHUNK * CHUNKS)), (out + ".dat", b"d" * CHUNK)])
+    gio.write_files_atomic([(out, b"x" * (CHUNK * CHUNKS)), (out + ".dat", b"d" * CHUNK)])
 """
 
 

@@ -12,23 +12,17 @@ from click.testing import CliRunner
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from grasplan.cell import NO_CELL, load_cell
+from grasplan.cell.model import NO_CELL, load_cell
 from grasplan.cli import main
 from grasplan.errors import InputError
-from grasplan.graspdb import (
-    DB_SUFFIX,
-    GraspDatabase,
-    build_database,
-    cache_path,
-    database_for,
-    load_database,
-    write_database,
+from grasplan.grasps.graspdb import (
+    DB_SUFFIX, GraspDatabase, build_database, cache_path, database_for, load_database, write_database
 )
-from grasplan.quality import grasp_quality
-from grasplan.gripper import load_gripper
-from grasplan.mesh import load_part
-from grasplan.params import CandidateParams, GraspParams
-from grasplan.transforms import rpy_matrix
+from grasplan.grasps.quality import grasp_quality
+from grasplan.gripper.load import load_gripper
+from grasplan.part.mesh import load_part
+from grasplan.config.params import CandidateParams, GraspParams
+from grasplan.geometry.transforms import rpy_matrix
 from test_collision import FclPart  # noqa: E402  (independent python-fcl jaw boxes of the EGP-C 40)
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -91,7 +85,7 @@ def test_quality_at_a_pose_equals_the_grasp_stage_at_that_pose(db, bracket):
 def test_score_invariant_under_motions_that_keep_gravity(db, bracket, x, y, z, k):
     """A translation and a turn about the world's vertical by a multiple of 45 deg keep gravity's
     direction in the part frame and map the load model's horizontal shake directions
-    (grasplan.wrench.LOAD, every 45 deg) onto themselves: the score and the gravity margin stay
+    (grasplan.grasps.wrench.LOAD, every 45 deg) onto themselves: the score and the gravity margin stay
     the same (a tilt changes them)."""
     yaw = 45.0 * k
     T0 = _pose(0.1, 0.0, 0.1, 20.0, 35.0, 0.0)

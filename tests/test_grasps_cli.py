@@ -7,14 +7,14 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from grasplan.cell import load_cell
-from grasplan.stable_poses import stable_pose
+from grasplan.cell.model import load_cell
+from grasplan.cell.resting import stable_pose
 from grasplan.cli import main
 from grasplan.errors import InputError
-from grasplan.grasps import compute_grasps
-from grasplan.mesh import load_part
-from grasplan.transforms import parse_part_pose
-from grasplan.params import GraspParams
+from grasplan.grasps.pipeline import compute_grasps
+from grasplan.part.mesh import load_part
+from grasplan.config.poses import parse_part_pose
+from grasplan.config.params import GraspParams
 
 
 @pytest.fixture(scope="module")
@@ -141,10 +141,10 @@ def test_candidate_search_follows_the_gripper_opening(tmp_path):
     """The Python API searches as far as the gripper opens (not a fixed 50 mm), and records it."""
     import trimesh
 
-    from grasplan.candidates import compute_candidates
-    from grasplan.gripper import GRIPPER_DIR
-    from grasplan.mesh import part_from_trimesh
-    from grasplan.params import DEFAULT_MAX_OPENING, CandidateParams
+    from grasplan.candidates.pipeline import compute_candidates
+    from grasplan.gripper.load import GRIPPER_DIR
+    from grasplan.part.mesh import part_from_trimesh
+    from grasplan.config.params import DEFAULT_MAX_OPENING, CandidateParams
 
     text = (GRIPPER_DIR / "schunk_egp_c_40.yaml").read_text()
     assert "max_opening: 0.05" in text
@@ -174,7 +174,7 @@ def test_old_keywords_are_gone_and_params_name_the_cli_option(example_part):
 
 def test_nothing_collision_free_is_exit_4_and_file_still_written(tmp_path, example_part):
     """A gripper opening 5 mm cannot take the 10 x 20 x 30 mm box: no pose, exit 4, the file is written."""
-    from grasplan.gripper import GRIPPER_DIR
+    from grasplan.gripper.load import GRIPPER_DIR
 
     small = tmp_path / "small.yaml"
     small.write_text((GRIPPER_DIR / "schunk_egp_c_40.yaml").read_text().replace("max_opening: 0.05",
@@ -186,7 +186,7 @@ def test_nothing_collision_free_is_exit_4_and_file_still_written(tmp_path, examp
     doc = json.loads(out.read_text())
     assert doc["counts"]["ok"] == 0 and doc["grasps"] == []
     # the file reads back (it once read as "'T_part_tcp' malformed": an empty list is no (0, 4, 4) array)
-    from grasplan.result_reader import load_result
+    from grasplan.results.reader import load_result
 
     assert len(load_result(out).grasps) == 0
     r = CliRunner().invoke(main, ["simulate", str(out), "-o", str(tmp_path / "sim.json")])

@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial import cKDTree
 
-from grasplan.gridsearch import all_pairs_within, any_within, pairs_within
+from grasplan.geometry.gridsearch import all_pairs_within, any_within, pairs_within
 
 
 def _kd_pairs(X, Y, r):

@@ -9,7 +9,7 @@ import pytest
 import yaml
 
 from grasplan.errors import ConfigError
-from grasplan.gripper import available_grippers, load_gripper
+from grasplan.gripper.load import available_grippers, load_gripper
 from grasplan.gripper.model import Box, MeshShape
 
 
@@ -153,7 +153,7 @@ def test_asymmetric_box_body_detected(tmp_path):
 
 def test_config_numbers_are_read_alike_in_every_description():
     """Grippers, cells and robots share one YAML number reader: pi expressions, sign checks."""
-    from grasplan.config_files import config_number, config_vector
+    from grasplan.config.lookup import config_number, config_vector
     from grasplan.errors import ConfigError
 
     assert config_number("-pi/2", "q_home[1]") == pytest.approx(-np.pi / 2)
@@ -171,7 +171,7 @@ def test_config_numbers_are_read_alike_in_every_description():
 def test_default_kind_reads_and_writes_as_before(tmp_path):
     """``kind: parallel_jaw`` is the default: a file with it reads like one without, and the
     default kind's JSON names no kind (plan files stay byte-identical)."""
-    from grasplan.gripper import gripper_from_json
+    from grasplan.gripper.load import gripper_from_json
 
     plain = load_gripper(_write(tmp_path, BASE))
     p = tmp_path / "explicit.yaml"
@@ -185,7 +185,7 @@ def test_default_kind_reads_and_writes_as_before(tmp_path):
 
 
 def test_unknown_kind_lists_the_registered_ones(tmp_path):
-    from grasplan.gripper import gripper_from_json
+    from grasplan.gripper.load import gripper_from_json
     from grasplan.gripper.registry import KINDS
 
     with pytest.raises(ConfigError, match=r"g.yaml: unknown gripper kind 'robotiq_9f'; available: parallel_jaw.*kind"):
@@ -198,7 +198,8 @@ def test_unknown_kind_lists_the_registered_ones(tmp_path):
 def test_a_new_kind_is_one_registration(tmp_path):
     """A kind registered from outside the package (a subclass with one more YAML field) is built by
     load_gripper from its ``kind:`` and round-trips through its JSON."""
-    from grasplan.gripper import gripper_from_json, parallel_jaw
+    from grasplan.gripper.load import gripper_from_json
+    from grasplan.gripper import parallel_jaw
     from grasplan.gripper.model import Gripper
     from grasplan.gripper.registry import KINDS, GripperKind, register
 

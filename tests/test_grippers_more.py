@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from grasplan.errors import ConfigError
-from grasplan.gripper import gripper_from_json, load_gripper
+from grasplan.gripper.load import gripper_from_json, load_gripper
 
 NEW = ["robotiq_2f_85", "robotiq_2f_140", "onrobot_rg2", "onrobot_rg6", "schunk_egp_25", "schunk_egp_64"]
 #: figures each YAML must carry (the makers' values cited in its comments; docs/grippers.md, "Gripper
@@ -272,7 +272,7 @@ def test_tless20_grasps_collision_free_within_the_stroke(name, paper, tmp_path):
 
     from fcl_recheck import bvh, fcl_tf
     from grasplan.cli import main
-    from grasplan.mesh import load_part
+    from grasplan.part.mesh import load_part
 
     path = paper("TLess20.stl")
     out = tmp_path / "g.json"
@@ -318,7 +318,7 @@ def test_robotiq_plan_uses_the_tcp_at_the_grasp_width(tmp_path, example_part):
 
     import fcl_recheck
     from grasplan.cli import main
-    from grasplan.result_reader import load_result
+    from grasplan.results.reader import load_result
 
     out = tmp_path / "plan.json"
     r = CliRunner().invoke(main, ["plan", str(example_part("bracket.stl")), "--units", "mm", "--robot", "ur5",
@@ -363,8 +363,8 @@ def test_simulation_payload_is_gripper_plus_part_in_the_flange_frame():
     worked out by hand for a top grasp 10 mm off the part's centre."""
     import trimesh
 
-    from grasplan.mass import mass_properties
-    from grasplan.simulate import flange_payload
+    from grasplan.part.mass import mass_properties
+    from grasplan.sim.simulate import flange_payload
 
     mp = mass_properties(trimesh.creation.box(extents=(0.12, 0.03, 0.03)), density=1000.0)
     T = np.eye(4)  # TCP from above, closing along part y, at part (0.01, 0, 0): TCP y = part x
@@ -391,7 +391,7 @@ def test_simulation_payload_is_gripper_plus_part_in_the_flange_frame():
 def test_simulate_grasps_reports_the_payload():
     import trimesh
 
-    from grasplan.simulate import simulate_grasps
+    from grasplan.sim.simulate import simulate_grasps
 
     block = trimesh.creation.box(extents=(0.12, 0.03, 0.03))
     T_world_part = np.eye(4)

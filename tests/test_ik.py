@@ -9,9 +9,9 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from grasplan.errors import InputError
-from grasplan.ik import IKResult, get_solver, solve_ik, wrap_to_limits
-from grasplan.transforms import pose_error
-from grasplan.robot import load_robot
+from grasplan.robot.ik.solve import IKResult, get_solver, solve_ik, wrap_to_limits
+from grasplan.geometry.transforms import pose_error
+from grasplan.robot.description import load_robot
 
 ROBOTS = Path(__file__).resolve().parents[1] / "robots"
 
@@ -220,7 +220,7 @@ def _robot_with_kind(tmp_path, name, kind, *, drop=()):
 
 def test_unknown_family_is_a_config_error_listing_the_registered_ones(tmp_path):
     from grasplan.errors import ConfigError
-    from grasplan.ik.registry import FAMILIES
+    from grasplan.robot.ik.registry import FAMILIES
 
     with pytest.raises(ConfigError) as e:
         _robot_with_kind(tmp_path, "ur5", "kuka_kr6")
@@ -233,8 +233,8 @@ def test_unknown_family_is_a_config_error_listing_the_registered_ones(tmp_path):
 def test_a_new_family_is_one_registration(tmp_path):
     """A family registered from outside the package (a closed form wrapping the UR one and
     counting its calls) is picked by a YAML's kind with no edit elsewhere."""
-    from grasplan.ik.registry import FAMILIES, IKFamily, register
-    from grasplan.ik.ur import URAnalytic, ur_eligibility
+    from grasplan.robot.ik.registry import FAMILIES, IKFamily, register
+    from grasplan.robot.ik.ur import URAnalytic, ur_eligibility
 
     calls = []
 

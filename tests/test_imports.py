@@ -1,15 +1,26 @@
 """The package's structure rules, read from its source with ``ast``: no import circle (counting every
-import statement: inside functions and under ``if TYPE_CHECKING:`` too) and no module over 600
-lines. The graph code is checked on small synthetic packages first, so a passing run means
+import statement: inside functions and under ``if TYPE_CHECKING:`` too), no module over 600 lines,
+at most six modules at the package's root, subpackages in layers (every import between two
+subpackages goes down), and docs/architecture.md listing every subpackage at its layer with its
+modules. The graph code is checked on small synthetic packages first, so a passing run means
 something."""
 from __future__ import annotations
 
 import ast
+import subprocess
+import sys
+import re
+from functools import lru_cache
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parents[1] / "grasplan"
+ARCHITECTURE = PACKAGE.parent / "docs" / "architecture.md"
 #: the longest a module may be (lines); the viewer's JavaScript is not Python and not counted
 MAX_LINES = 600
+#: modules directly in the package folder, ``__init__`` included: the rest live in subpackages
+MAX_ROOT_MODULES = 6
+#: the root modules' name in the subpackage graph
+ROOT = "(root)"
 
 
 def modules(pkg_dir: Path) -> dict[str, Path]:
@@ -136,6 +147,51 @@ def describe(graph: dict[str, dict[str, int]], comp: list[str], pkg_dir: Path) -
     return ", ".join(comp) + ": " + " -> ".join(steps)
 
 
+def subpackage(module: str, pkg_dir: Path) -> str:
+    """The first-level subpackage a dotted module belongs to (``grasplan.grasps.collision`` ->
+    ``grasps``), or :data:`ROOT` for a module directly in the package folder."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 and (pkg_dir / parts[1]).is_dir() else ROOT
+
+
+def subpackage_graph(graph: dict[str, dict[str, int]], pkg_dir: Path) -> dict[str, dict[str, str]]:
+    """``{subpackage: {imported subpackage: one module-level import that makes the edge}}``; the root
+    modules (imported by everything) are left out of the edges."""
+    out: dict[str, dict[str, str]] = {subpackage(m, pkg_dir): {} for m in graph}
+    for m, deps in graph.items():
+        a = subpackage(m, pkg_dir)
+        for d in sorted(deps):
+            b = subpackage(d, pkg_dir)
+            if a != b and b != ROOT:
+                out[a].setdefault(b, f"{m} -> {d}")
+    return out
+
+
+def layers(pgraph: dict[str, dict[str, str]]) -> dict[str, int]:
+    """Each subpackage's layer: 0 when it imports no other, else one more than the highest it imports
+    (the longest chain below it). AssertionError naming a circle of subpackages, when there is one."""
+    found = circles({a: dict.fromkeys(b, 0) for a, b in pgraph.items()})
+    assert not found, "subpackages importing each other (move the module that makes one of these imports): " + \
+        "; ".join(" <-> ".join(c) + " (" + ", ".join(pgraph[x][y] for x in c for y in pgraph[x] if y in c) + ")"
+                  for c in found)
+
+    @lru_cache(maxsize=None)
+    def level(p: str) -> int:
+        return 1 + max((level(q) for q in pgraph[p]), default=-1)
+    return {p: level(p) for p in pgraph}
+
+
+def documented_layers(text: str) -> dict[str, tuple[int, set[str]]]:
+    """``{subpackage: (layer, {module, ...})}`` from the rows of the layer table of
+    docs/architecture.md: ``| 3 | `grasps/` | what it is | `frames`, `collision`, ... |`` (the root
+    modules: ``(root)``)."""
+    out = {}
+    for m in re.finditer(r"^\|\s*(\d+)\s*\|\s*`([^`]+)`\s*\|[^|\n]*\|([^|\n]*)\|\s*$", text, flags=re.M):
+        name = m.group(2).rstrip("/")
+        out[name] = (int(m.group(1)), set(re.findall(r"`([\w./]+)`", m.group(3))))
+    return out
+
+
 def long_modules(pkg_dir: Path, limit: int = MAX_LINES) -> list[tuple[str, int]]:
     """``(module, lines)`` of the Python modules longer than ``limit`` lines, longest first."""
     rows = [(m, len(p.read_text(encoding="utf-8").splitlines())) for m, p in modules(pkg_dir).items()]
@@ -202,6 +258,28 @@ def test_synthetic_long_module_is_named(tmp_path):
     assert long_modules(pkg) == [("pkg.long", MAX_LINES + 1)]
 
 
+def test_synthetic_subpackages_in_layers_and_a_circle_between_two(tmp_path):
+    pkg = _write(tmp_path, {
+        "pkg/__init__.py": "", "pkg/base.py": "",
+        "pkg/low/__init__.py": "", "pkg/low/a.py": "from ..base import x\n",
+        "pkg/mid/__init__.py": "", "pkg/mid/b.py": "def f():\n    from ..low.a import y\n",
+        "pkg/top/__init__.py": "", "pkg/top/c.py": "from ..mid.b import f\nfrom ..low.a import y\n",
+    })
+    pg = subpackage_graph(import_graph(pkg), pkg)
+    assert pg == {ROOT: {}, "low": {}, "mid": {"low": "pkg.mid.b -> pkg.low.a"},
+                  "top": {"low": "pkg.top.c -> pkg.low.a", "mid": "pkg.top.c -> pkg.mid.b"}}
+    assert layers(pg) == {ROOT: 0, "low": 0, "mid": 1, "top": 2}
+    (pkg / "low" / "a.py").write_text("from ..base import x\nfrom ..top.c import z\n")
+    try:
+        layers(subpackage_graph(import_graph(pkg), pkg))
+    except AssertionError as exc:
+        assert "low <-> mid <-> top" in str(exc) and "pkg.low.a -> pkg.top.c" in str(exc)
+    else:
+        raise AssertionError("a circle of subpackages was not found")
+    doc = "| layer | subpackage | what | modules |\n|---|---|---|---|\n| 0 | `low/` | x | `a` |\n| 2 | `top/` | y | `c`, `d` |\n"
+    assert documented_layers(doc) == {"low": (0, {"a"}), "top": (2, {"c", "d"})}
+
+
 # -- the package itself ---------------------------------------------------------------------------------------
 
 def test_grasplan_has_no_import_circle():
@@ -216,3 +294,57 @@ def test_no_grasplan_module_over_600_lines():
     too_long = long_modules(PACKAGE)
     assert not too_long, f"modules over {MAX_LINES} lines (split them by job): " + ", ".join(
         f"{m} ({n})" for m, n in too_long)
+
+
+def test_at_most_six_modules_at_the_root():
+    root = sorted(p.stem for p in PACKAGE.glob("*.py"))
+    assert len(root) <= MAX_ROOT_MODULES, f"modules at the package root: {root}; move them into a subpackage"
+
+
+def test_subpackages_import_only_lower_layers_and_the_docs_list_each_at_its_layer():
+    graph = import_graph(PACKAGE)
+    found = layers(subpackage_graph(graph, PACKAGE))
+    assert max(found.values()) >= 8  # the layers were really computed
+    documented = documented_layers(ARCHITECTURE.read_text(encoding="utf-8"))
+    problems = []
+    for pkg, layer in sorted(found.items(), key=lambda kv: (kv[1], kv[0])):
+        mods = {m.split(".")[-1] if pkg == ROOT else m[len(f"grasplan.{pkg}."):]
+                for m in graph if subpackage(m, PACKAGE) == pkg and m not in ("grasplan", f"grasplan.{pkg}")}
+        if pkg not in documented:
+            problems.append(f"{pkg}: missing (layer {layer}, modules {', '.join(sorted(mods))})")
+            continue
+        doc_layer, doc_mods = documented[pkg]
+        if doc_layer != layer:
+            problems.append(f"{pkg}: documented at layer {doc_layer}, its imports put it at {layer}")
+        if doc_mods != mods:
+            problems.append(f"{pkg}: modules documented {sorted(doc_mods)}, in the package {sorted(mods)}")
+    problems += [f"{pkg}: documented but no such subpackage" for pkg in documented if pkg not in found]
+    assert not problems, "docs/architecture.md's layer table does not match the package:\n" + "\n".join(problems)
+
+
+def test_every_package_re_export_resolves_to_its_object_in_a_fresh_interpreter():
+    """Each public name a package ``__init__`` lists resolves (no stale module path) and is the
+    object, not a module of the same name, even after every module was imported directly."""
+    script = r'''
+import importlib, pkgutil, sys, types
+import grasplan
+infos = list(pkgutil.walk_packages(grasplan.__path__, "grasplan."))
+for info in infos:
+    importlib.import_module(info.name)
+bad, checked = [], 0
+for info in [i for i in infos if i.ispkg] + [types.SimpleNamespace(name="grasplan")]:
+    pkg = importlib.import_module(info.name)
+    for name in getattr(pkg, "__lazy_exports__", {}):
+        checked += 1
+        try:
+            value = getattr(pkg, name)
+        except Exception as exc:
+            bad.append(f"{info.name}.{name}: {type(exc).__name__}: {exc}")
+            continue
+        if isinstance(value, types.ModuleType) and not hasattr(value, "__path__"):
+            bad.append(f"{info.name}.{name} is the module {value.__name__}, not the object it names")
+print("\n".join(bad) or f"{checked} names")
+sys.exit(1 if bad or checked < 100 else 0)
+'''
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout + proc.stderr[-3000:]

@@ -28,8 +28,8 @@ from shift_inputs import huge_stl, picks_file, plan_file, plan_result, robot_yam
 import grasplan  # noqa: E402
 from grasplan.cli import main  # noqa: E402
 from grasplan.errors import ConfigError, InputError, MeshError  # noqa: E402
-from grasplan.meshfile import ReadLimits, read_mesh  # noqa: E402
-from grasplan.program_names import program_name_problem, suggest_program_name  # noqa: E402
+from grasplan.part.meshfile import ReadLimits, read_mesh  # noqa: E402
+from grasplan.results.program_names import program_name_problem, suggest_program_name  # noqa: E402
 
 LIMITS = ReadLimits(1_000_000, 1 << 30)
 
@@ -252,42 +252,42 @@ def test_robot_mesh_over_the_triangle_limit_is_refused_from_its_header(tmp_path)
         grasplan.load_robot(y)
     assert time.process_time() - t0 < 5
     msg = str(err.value)
-    assert "upper.stl" in msg and "2,000,000 triangles" in msg and "grasplan.mesh.MAX_TRIANGLES" in msg
+    assert "upper.stl" in msg and "2,000,000 triangles" in msg and "grasplan.part.mesh.MAX_TRIANGLES" in msg
     assert "link 'l1' collision mesh" in msg
 
 
 def test_robot_mesh_limit_follows_grasplan_mesh_max_triangles(tmp_path, monkeypatch):
     """The limit is the part limit, read when the robot is built (never a copy of its value)."""
-    import grasplan.mesh
+    import grasplan.part.mesh
 
     v, f = tetra()
     (tmp_path / "m.stl").write_bytes(binary_stl(v * 1e-3, f))
     y = robot_yaml(tmp_path, {"l1": "m.stl"}, name="tiny")
-    monkeypatch.setattr(grasplan.mesh, "MAX_TRIANGLES", 3)
+    monkeypatch.setattr(grasplan.part.mesh, "MAX_TRIANGLES", 3)
     with pytest.raises(ConfigError, match="4 triangles is more than grasplan handles"):
         grasplan.load_robot(y)
 
 
 def test_robot_meshes_total_budget_and_visual_meshes(tmp_path, monkeypatch):
-    import grasplan.robot_files
+    import grasplan.robot.files
 
     v, f = tetra()
     for n in ("a", "b", "c"):
         (tmp_path / f"{n}.stl").write_bytes(binary_stl(v * 1e-3, f))
     huge_stl(tmp_path / "v.stl", 5_000_000)
     y = robot_yaml(tmp_path, {"l1": "a.stl", "l2": "b.stl", "base": "c.stl"}, visual={"l1": "v.stl"}, name="budget")
-    monkeypatch.setattr(grasplan.robot_files, "MAX_ROBOT_TRIANGLES", 10)
+    monkeypatch.setattr(grasplan.robot.files, "MAX_ROBOT_TRIANGLES", 10)
     with pytest.raises(ConfigError, match="collision meshes hold 12 triangles in all"):
         grasplan.load_robot(y)
-    monkeypatch.setattr(grasplan.robot_files, "MAX_ROBOT_TRIANGLES", 1_000_000)
+    monkeypatch.setattr(grasplan.robot.files, "MAX_ROBOT_TRIANGLES", 1_000_000)
     robot = grasplan.load_robot(y)  # the collision meshes load; the visual ones only when asked for
     with pytest.raises(ConfigError, match=r"link 'l1' visual mesh: .*v\.stl: 5,000,000 triangles"):
         robot.visual_model
 
 
 def test_shipped_robots_pass_the_mesh_checks():
-    from grasplan.robot import available_robots
-    from grasplan.robot_files import check_robot_meshes
+    from grasplan.robot.description import available_robots
+    from grasplan.robot.files import check_robot_meshes
 
     for name in available_robots():
         r = grasplan.load_robot(name)

@@ -1,4 +1,4 @@
-"""The voxel grid of grasplan/insidegrid.py checked against independent tests: every point it calls
+"""The voxel grid of grasplan/geometry/insidegrid.py checked against independent tests: every point it calls
 inside or outside is so by the generalised winding number (no ray casting), and every inside
 point's depth bound is at most its exact distance to the surface (trimesh's closest point on each
 triangle), on the example parts, on curved primitives at several tessellations and with the part
@@ -13,9 +13,9 @@ import trimesh
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from grasplan.containment import RayGrid, points_inside, points_inside_tree
-from grasplan.insidegrid import InsideGrid, inside_grid
-from grasplan.mesh import load_part, part_from_arrays, part_from_trimesh
+from grasplan.geometry.containment import RayGrid, points_inside, points_inside_tree
+from grasplan.geometry.insidegrid import InsideGrid, inside_grid
+from grasplan.part.mesh import load_part, part_from_arrays, part_from_trimesh
 
 BRACKET = Path(__file__).resolve().parents[1] / "examples" / "parts" / "bracket.stl"
 

@@ -1,4 +1,4 @@
-"""grasplan.json_columns: one field definition gives the Python values and the JSON text of every row.
+"""grasplan.results.json_columns: one field definition gives the Python values and the JSON text of every row.
 
 The expected rows are built here by plain per-row Python (rounding, nulls, presence, names), then
 compared with ``Record.values`` and, through ``json.dumps``, with the streamed text of
@@ -12,17 +12,8 @@ import math
 import numpy as np
 import pytest
 
-from grasplan.json_columns import (
-    Bools,
-    Field,
-    Items,
-    Names,
-    Numbers,
-    Record,
-    Spread,
-    Strings,
-    join_rows,
-    number_texts,
+from grasplan.results.json_columns import (
+    Bools, Field, Items, Names, Numbers, Record, Spread, Strings, join_rows, number_texts
 )
 
 NAMES = ("point", "line", "surface")

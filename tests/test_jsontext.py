@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from grasplan.jsontext import DuplicateKeyError, loads_strict
+from grasplan.config.jsontext import DuplicateKeyError, loads_strict
 
 _json = st.recursive(
     st.none() | st.booleans() | st.integers(-10**6, 10**6) | st.floats(allow_nan=False, allow_infinity=False)

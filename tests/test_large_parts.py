@@ -15,16 +15,16 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from grasplan import grasps as gg
-from grasplan import patches
-from grasplan import region_overlap
-from grasplan import regions as rg
-from grasplan.candidates import CandidateParams, compute_candidates
+from grasplan.grasps import pipeline as gg
+from grasplan.grasps import patches
+from grasplan.candidates import region_overlap
+from grasplan.candidates import regions as rg
+from grasplan.candidates.pipeline import CandidateParams, compute_candidates
 from grasplan.cli import main
 from grasplan.errors import InputError
-from grasplan.grasps import compute_grasps
-from grasplan.mesh import MAX_TRIANGLES, part_from_arrays
-from grasplan.params import GraspParams
+from grasplan.grasps.pipeline import compute_grasps
+from grasplan.part.mesh import MAX_TRIANGLES, part_from_arrays
+from grasplan.config.params import GraspParams
 
 from fuzz_cases import uv_sphere
 

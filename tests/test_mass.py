@@ -8,7 +8,7 @@ from scipy.spatial.transform import Rotation
 
 from conftest import EXAMPLE_PARTS
 from grasplan.errors import InputError
-from grasplan.mass import mass_properties
+from grasplan.part.mass import mass_properties
 
 
 def box_inertia(m: float, a: float, b: float, c: float) -> np.ndarray:
@@ -77,7 +77,7 @@ def test_centre_of_mass_equals_trimesh_bit_for_bit(make):
     solid, and of the convex hull of an open mesh, to the bit, for a MeshData as for a trimesh
     (the stable poses and the quality share it). The bracket is concave and asymmetric: its
     solid's and its hull's centres differ."""
-    from grasplan.meshdata import MeshData
+    from grasplan.geometry.meshdata import MeshData
 
     tm = make()
     tm.apply_translation([0.013, -0.007, 0.021])
@@ -113,9 +113,9 @@ def test_single_triangle_is_input_error_and_the_grasp_stage_goes_on_without_qual
         mass_properties(tri)
     from types import SimpleNamespace
 
-    from grasplan.gripper import load_gripper
-    from grasplan.params import GraspParams
-    from grasplan.quality import quality_and_score
+    from grasplan.gripper.load import load_gripper
+    from grasplan.config.params import GraspParams
+    from grasplan.grasps.quality import quality_and_score
 
     cands = SimpleNamespace(width=np.array([0.02]), contacts=np.zeros((1, 2, 3)), normals=np.zeros((1, 2, 3)))
     T = np.eye(4)[None]

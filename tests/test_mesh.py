@@ -9,7 +9,7 @@ import trimesh
 from hypothesis import given, settings, strategies as st
 
 from grasplan.errors import MeshError
-from grasplan.mesh import AUTO_MM_THRESHOLD, decide_units, load_part, part_from_arrays
+from grasplan.part.mesh import AUTO_MM_THRESHOLD, decide_units, load_part, part_from_arrays
 from conftest import PAPER_PARTS
 
 
@@ -144,7 +144,7 @@ def test_rigid_motion_keeps_volume_and_counts(seed):
 def test_load_recorded_part_uses_the_recorded_scale(tmp_path, units):
     """Export and viewer reload a result's part: at the recorded scale, not by guessing (a 3 cm
     box written in cm numbers would read as 3 mm with units=auto)."""
-    from grasplan.mesh import load_recorded_part
+    from grasplan.part.mesh import load_recorded_part
 
     box = trimesh.creation.box(extents=(3.0, 2.0, 1.0))
     path = _write_stl(tmp_path / "box.stl", box)
@@ -191,7 +191,7 @@ def test_huge_coordinates_never_reach_the_tolerance(tmp_path, value, message):
 
 
 def test_huge_part_refused_before_reading(tmp_path, monkeypatch):
-    import grasplan.mesh as gm
+    import grasplan.part.mesh as gm
 
     box = trimesh.creation.box(extents=(30, 20, 10))
     path = _write_stl(tmp_path / "b.stl", box)
@@ -257,8 +257,9 @@ def _flat_meshes():
 
 @pytest.mark.parametrize("name", list(_flat_meshes()))
 def test_flat_parts_lie_on_their_plane(name):
-    from grasplan.cell import Cell
-    from grasplan.stable_poses import stable_pose, stable_poses
+    from grasplan.cell.model import Cell
+    from grasplan.cell.resting import stable_pose
+    from grasplan.part.stability import stable_poses
 
     v, f = _flat_meshes()[name]
     R0 = trimesh.transformations.rotation_matrix(0.7, [1, 2, 3])[:3, :3]  # tilted in the file
@@ -273,7 +274,7 @@ def test_flat_parts_lie_on_their_plane(name):
 
 def test_collinear_part_is_refused():
     from grasplan.errors import InputError
-    from grasplan.stable_poses import stable_poses
+    from grasplan.part.stability import stable_poses
 
     mesh = trimesh.Trimesh([[0, 0, 0], [0.01, 0, 0], [0.02, 0, 0]], [[0, 1, 2]], process=False)
     with pytest.raises(InputError, match="collinear"):
@@ -281,7 +282,7 @@ def test_collinear_part_is_refused():
 
 
 def _trimesh_poses(mesh):
-    from grasplan.stable_poses import part_centre_of_mass
+    from grasplan.part.stability import part_centre_of_mass
 
     T, p = trimesh.poses.compute_stable_poses(mesh, center_mass=part_centre_of_mass(mesh), sigma=0.0, n_samples=1,
                                               threshold=0.0)
@@ -294,7 +295,7 @@ def _trimesh_poses(mesh):
 @given(st.integers(min_value=0, max_value=2**31 - 1))
 def test_stable_poses_match_trimesh_on_random_convex_parts(seed):
     """Cross-check of the vectorised toppling model against trimesh's reference implementation."""
-    from grasplan.stable_poses import stable_poses
+    from grasplan.part.stability import stable_poses
 
     rng = np.random.default_rng(seed)
     mesh = trimesh.convex.convex_hull(rng.normal(size=(int(rng.integers(8, 60)), 3)) * rng.uniform(0.005, 0.05, 3))
@@ -306,7 +307,7 @@ def test_stable_poses_match_trimesh_on_random_convex_parts(seed):
 
 @pytest.mark.parametrize("name", ["box.stl", "bracket.stl", "gear.stl"])
 def test_stable_poses_match_trimesh_on_example_parts(example_part, name):
-    from grasplan.stable_poses import stable_poses
+    from grasplan.part.stability import stable_poses
 
     mesh = load_part(example_part(name)).mesh
     R, p = stable_poses(mesh)
@@ -315,7 +316,7 @@ def test_stable_poses_match_trimesh_on_example_parts(example_part, name):
 
 
 def test_cell_round_trips_and_is_range_checked():
-    from grasplan.cell import Cell, cell_from_dict
+    from grasplan.cell.model import Cell, cell_from_dict
     from grasplan.errors import ConfigError
 
     c = Cell("bench", table_z=0.75, part_xy=(0.4, -0.2), pose_index=2)

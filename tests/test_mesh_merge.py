@@ -1,4 +1,4 @@
-"""The vectorised vertex merge, duplicate-face search and signed volume of grasplan.mesh against
+"""The vectorised vertex merge, duplicate-face search and signed volume of grasplan.part.mesh against
 trimesh's own (the load must give the same mesh as trimesh's processing did)."""
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 import trimesh
 from trimesh.grouping import unique_rows
 
-import grasplan.mesh as gm
+import grasplan.part.mesh as gm
 
 
 def _soup(seed, n_faces=400, grid=6, scale=1e-3):

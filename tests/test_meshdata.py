@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from grasplan.mesh import load_part
-from grasplan.meshdata import MeshData, connected_components
+from grasplan.part.mesh import load_part
+from grasplan.geometry.meshdata import MeshData, connected_components
 from tests.conftest import EXAMPLE_PARTS
 
 
@@ -106,7 +106,7 @@ def _modules_after(command: str, tmp_path) -> tuple[bool, bool]:
 
 
 def test_loading_a_part_and_candidates_do_not_import_trimesh_or_scipy(tmp_path):
-    """The point of MeshData and grasplan.gridsearch: a fresh ``grasplan candidates`` imports
+    """The point of MeshData and grasplan.geometry.gridsearch: a fresh ``grasplan candidates`` imports
     neither trimesh nor scipy (0.5-0.9 s and 0.3 s of a command that must take < 1 s)."""
     assert _modules_after("candidates", tmp_path) == (False, False)
 
@@ -131,7 +131,7 @@ def test_loaded_part_equals_trimesh_processing():
 @pytest.mark.parametrize("name", ["box", "cylinder", "two bodies"])
 def test_convex_hull_and_mass_integrals_equal_trimesh(name):
     """The NumPy/scipy hull and the polyhedron integrals reproduce trimesh's, bit for bit."""
-    from grasplan.meshdata import convex_hull, polyhedron_integrals
+    from grasplan.geometry.meshdata import convex_hull, polyhedron_integrals
 
     tm = _meshes()[name]
     h, ref = convex_hull(tm.vertices), tm.convex_hull

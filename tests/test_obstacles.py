@@ -14,23 +14,18 @@ from click.testing import CliRunner
 from conftest import EXAMPLE_PARTS, paper_part
 from fcl_recheck import FclWorld, recheck_result
 
-from grasplan.cell import (
-    BIN_NAMES,
-    Cell,
-    cell_from_dict,
-    load_cell,
-)
+from grasplan.cell.model import BIN_NAMES, Cell, cell_from_dict, load_cell
 from grasplan.cli import main
-from grasplan.collision import GripperCollider
+from grasplan.grasps.collision import GripperCollider
 from grasplan.errors import ConfigError, InputError
-from grasplan.gripper import load_gripper
-from grasplan.params import PlanParams
-from grasplan.transforms import parse_place
-from grasplan.planning import plan
-from grasplan.robot import load_robot
-from grasplan.scene import CollisionScene
-from grasplan.stable_poses import stable_pose
-from grasplan.start_checks import check_part_placement, check_start
+from grasplan.gripper.load import load_gripper
+from grasplan.config.params import PlanParams
+from grasplan.geometry.transforms import parse_place
+from grasplan.motion.planning import plan
+from grasplan.robot.description import load_robot
+from grasplan.motion.collision_scene import CollisionScene
+from grasplan.cell.resting import stable_pose
+from grasplan.motion.start_checks import check_part_placement, check_start
 
 WALL = {"name": "wall", "box": {"size": [0.02, 0.40, 0.30]}, "T": {"xyz": [0.53, 0.0, 0.15], "rpy_deg": [0, 0, 0]}}
 POST = {"name": "post", "cylinder": {"radius": 0.02, "length": 0.30}, "T": {"xyz": [0.40, -0.10, 0.15]}}
@@ -220,7 +215,7 @@ def test_scene_with_obstacles_agrees_with_python_fcl(ur5):
     rng = np.random.default_rng(7)
     from scipy.spatial.transform import Rotation
 
-    from grasplan.ik import solve_ik
+    from grasplan.robot.ik.solve import solve_ik
 
     qs = list(rng.uniform(ur5.lower, ur5.upper, size=(60, ur5.nq)))
     while len(qs) < 180:  # the gripper near the bin's walls and floor, tilted
@@ -252,7 +247,7 @@ def test_attached_and_released_variants(ur5):
     T_world_tcp[:3, :3] = np.diag([1.0, -1.0, -1.0])
     top = float((part.vertices @ T_wp[:3, :3].T + T_wp[:3, 3])[:, 2].max())
     T_world_tcp[:3, 3] = [T_wp[0, 3], T_wp[1, 3], top - 0.015]
-    from grasplan.ik import solve_ik
+    from grasplan.robot.ik.solve import solve_ik
 
     q = solve_ik(ur5, T_world_tcp @ np.linalg.inv(g.T_flange_tcp)).q[0]
     T_tcp_part = np.linalg.inv(T_world_tcp) @ T_wp
@@ -398,7 +393,7 @@ def test_pose_index_all_and_the_exit_4_hint(tmp_path):
     assert r.exit_code == 0, r.output
     doc = json.loads((tmp_path / "all.json").read_text())
     poses = {p["pose_index"]: p for p in doc["poses"]["poses"]}
-    from grasplan.stable_poses import stable_poses
+    from grasplan.part.stability import stable_poses
 
     prob = stable_poses(trimesh.load(stl))[1]
     assert set(poses) == {k for k, pr in enumerate(prob) if pr >= 0.02} and min(prob) < 0.02 <= prob[3]

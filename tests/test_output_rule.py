@@ -1,5 +1,5 @@
 """The output rule: no command writes over a file it reads, a file a document it reads names, or a
-file among installed files (grasplan/outputs.py, grasplan/io.py). Every command that writes, crossed
+file among installed files (grasplan/setup/outputs.py, grasplan/io.py). Every command that writes, crossed
 with every kind of named input: exit 3, a message naming the file, the file byte-identical.
 
 The robot cases never touch the installed example-robot-data: a copy of its UR5 description is
@@ -38,7 +38,7 @@ def _installed_dist_file(suffix: str) -> Path:
     """A harmless file of an installed distribution with the suffix a command's output needs."""
     want = {".txt": ("numpy", "LICENSE.txt"), ".json": ("jsonschema", "issue.json")}
     if suffix == ".stl":  # a mesh of a robot grasplan does not ship a description for
-        from grasplan.robot_files import package_share_dir
+        from grasplan.robot.files import package_share_dir
 
         return package_share_dir() / "example-robot-data" / "robots" / "cassie_description" / "meshes" / "shin.stl"
     dist, name = want[suffix]
@@ -48,7 +48,7 @@ def _installed_dist_file(suffix: str) -> Path:
 
 def _copy_ur5(site: Path) -> None:
     """The UR5 of example-robot-data (URDF, SRDF, meshes) under ``site`` as an installed package."""
-    from grasplan.robot_files import package_share_dir
+    from grasplan.robot.files import package_share_dir
 
     src = package_share_dir() / UR
     dst = site / "cmeel.prefix" / "share" / UR
@@ -69,9 +69,9 @@ def world(tmp_path_factory):
     """Every input kind in one folder: part, cell and gripper YAMLs with meshes, a config folder,
     a robot YAML over a copied UR5, a plan (part recorded relative to it), a picks file, scenes."""
     import grasplan
-    from grasplan.cell import load_cell
-    from grasplan.mesh import load_part
-    from grasplan.stable_poses import stable_pose
+    from grasplan.cell.model import load_cell
+    from grasplan.part.mesh import load_part
+    from grasplan.cell.resting import stable_pose
 
     w = tmp_path_factory.mktemp("rule")
     (w / "elsewhere").mkdir()
@@ -129,7 +129,7 @@ def world(tmp_path_factory):
 @pytest.fixture
 def fake_erd(world, monkeypatch):
     """``package: example-robot-data`` resolves to the copy under ``world/fakesite`` (then back)."""
-    from grasplan import robot_files as robot
+    from grasplan.robot import files as robot
 
     monkeypatch.syspath_prepend(str(world / "fakesite"))
     robot.package_share_dir.cache_clear()
@@ -273,8 +273,8 @@ def test_symlinked_spelling_of_an_installed_file_is_refused(tmp_path):
 def test_urdf_meshes_resolve_like_pinocchio(world, fake_erd):
     """The guard's list of a robot's files is what pinocchio loads: every collision and visual mesh
     of the robot model built from the copy is in it (and only files that exist)."""
-    from grasplan.outputs import config_files
-    from grasplan.robot import load_robot
+    from grasplan.setup.outputs import config_files
+    from grasplan.robot.description import load_robot
 
     files = config_files("robot", str(world / "rob" / "myur5.yaml"))
     assert all(f.is_file() for f in files)

@@ -1,4 +1,4 @@
-"""The output guard (grasplan/outputs.py), all-or-nothing multi-file writes, the plan re-pointing
+"""The output guard (grasplan/setup/outputs.py), all-or-nothing multi-file writes, the plan re-pointing
 check and the guarded mesh resolver (issue 24)."""
 from __future__ import annotations
 
@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from grasplan.errors import InputError, MeshError
-from grasplan.outputs import check_outputs, config_files, write_files_atomic
+from grasplan.io import write_files_atomic
+from grasplan.setup.outputs import check_outputs, config_files
 
 PARTS = Path(__file__).resolve().parents[1] / "examples" / "parts"
 
@@ -78,7 +79,7 @@ def _point_triangle_distance(p: np.ndarray, tri: np.ndarray) -> float:
 
 def test_repointed_plan_is_refused_and_the_distance_agrees_with_brute_force(tmp_path):
     import grasplan
-    from grasplan.result_reader import check_contacts_on_part, load_result
+    from grasplan.results.reader import check_contacts_on_part, load_result
 
     part = tmp_path / "box.stl"
     part.write_bytes((PARTS / "box.stl").read_bytes())
@@ -110,7 +111,7 @@ def test_repointed_plan_is_refused_and_the_distance_agrees_with_brute_force(tmp_
 
 
 def test_gltf_buffer_fifo_is_refused_without_blocking(tmp_path):
-    from grasplan.mesh import load_part
+    from grasplan.part.mesh import load_part
 
     os.mkfifo(tmp_path / "buf.bin")
     doc = {"asset": {"version": "2.0"}, "buffers": [{"uri": "buf.bin", "byteLength": 36}], "meshes": []}
@@ -120,7 +121,7 @@ def test_gltf_buffer_fifo_is_refused_without_blocking(tmp_path):
 
 
 def test_obj_mtllib_through_the_guard_still_loads(tmp_path):
-    from grasplan.mesh import load_part
+    from grasplan.part.mesh import load_part
 
     (tmp_path / "m.mtl").write_text("newmtl x\nKd 1 0 0\n")
     (tmp_path / "p.obj").write_text("mtllib m.mtl\nusemtl x\n" + "".join(

@@ -1,4 +1,4 @@
-"""The compiled oriented-box broad phase (grasplan/pathboxes.py) in front of coal: a configuration
+"""The compiled oriented-box broad phase (grasplan/motion/pathboxes.py) in front of coal: a configuration
 it leaves no pair at must be free for coal (on random configurations of a pile scene for two robots, with
 the part static and held in the jaws, every pair and a lift's reduced pair set), it must clear a
 good share of the free ones (else it is useless and a broken kernel returning nothing would pass),
@@ -13,15 +13,15 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from grasplan.cell import load_cell
-from grasplan.geometry import bvh
-from grasplan.gripper import load_gripper
-from grasplan.interpolation import interpolate_path
-from grasplan.mesh import load_part
-from grasplan.pathboxes import SLACK, obb_apart, scene_open
+from grasplan.cell.model import load_cell
+from grasplan.cell.shapes import bvh
+from grasplan.gripper.load import load_gripper
+from grasplan.geometry.interpolation import interpolate_path
+from grasplan.part.mesh import load_part
+from grasplan.motion.pathboxes import SLACK, obb_apart, scene_open
 from grasplan.pick.motion import lift_precheck_drop
-from grasplan.robot import load_robot
-from grasplan.scene import CollisionScene, ExtraBody
+from grasplan.robot.description import load_robot
+from grasplan.motion.collision_scene import CollisionScene, ExtraBody
 
 BRACKET = Path(__file__).resolve().parents[1] / "examples" / "parts" / "bracket.stl"
 
@@ -152,7 +152,7 @@ def test_chunks_list_what_each_configuration_lists():
     """Along continuous paths (the pile close by), the kernel's chunks (pairs whose boxes lie apart
     over a whole chunk skipped) list per configuration exactly the pairs a call with that
     configuration alone lists (no chunk), with the part static and held."""
-    from grasplan.pathboxes import CHUNK
+    from grasplan.motion.pathboxes import CHUNK
 
     scene = _pile_scene("ur5")
     robot = scene.robot
@@ -177,7 +177,7 @@ def test_chunks_list_what_each_configuration_lists():
 def test_check_order_visits_the_interpolated_configurations():
     """The path check's configurations are interpolate_path's (to rounding), the waypoints first,
     then each segment's coarse-to-fine (its midpoint before its quarter points)."""
-    from grasplan.interpolation import check_order
+    from grasplan.geometry.interpolation import check_order
 
     rng = np.random.default_rng(12)
     for k in (1, 2, 3, 7):

@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from grasplan.interpolation import interpolate_path
-from grasplan.paths import path_free_fn, plan_joint_path
+from grasplan.geometry.interpolation import interpolate_path
+from grasplan.motion.joint_paths import path_free_fn, plan_joint_path
 
 
 def dense(path, step=0.01):
@@ -143,8 +143,8 @@ def _pin_fk(robot):
 
 
 def test_approach_path_ur5_straight_line():
-    from grasplan.paths import approach_path, approach_path_reason
-    from grasplan.robot import load_robot
+    from grasplan.motion.joint_paths import approach_path, approach_path_reason
+    from grasplan.robot.description import load_robot
 
     robot = load_robot("ur5")
     fk = _pin_fk(robot)

@@ -17,13 +17,13 @@ import pytest
 sys.path.insert(0, str(Path(__file__).parent))
 from pick_recheck import recheck_pick  # noqa: E402
 
-from grasplan.cell import load_cell  # noqa: E402
+from grasplan.cell.model import load_cell  # noqa: E402
 from grasplan.errors import InputError  # noqa: E402
-from grasplan.mesh import load_part  # noqa: E402
+from grasplan.part.mesh import load_part  # noqa: E402
 from grasplan.pick import Picker, PickParams  # noqa: E402
 from grasplan.pick.rank import instance_order, rank_grasps  # noqa: E402
-from grasplan.scenefile import Instance, Scene, ScenePart  # noqa: E402
-from grasplan.stable_poses import stable_pose  # noqa: E402
+from grasplan.piles.scene_file import Instance, Scene, ScenePart  # noqa: E402
+from grasplan.cell.resting import stable_pose  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 BRACKET = ROOT / "examples" / "parts" / "bracket.stl"
@@ -83,7 +83,7 @@ def test_row_of_instances_every_pick_rechecked(picker, rest):
     assert_rechecked(picker, res, {})
     assert res.timing_s["first_pick"] <= res.timing_s["plan"]
     doc = res.to_json()
-    from grasplan.schemas import validate
+    from grasplan.schemas.documents import validate
 
     assert validate(json.loads(json.dumps(doc))) == "grasplan.picks/1"
 
@@ -118,7 +118,7 @@ def test_neighbour_blocking_the_best_grasp_is_named(picker, rest):
 
 
 def test_cloud_blocking_the_best_grasp(picker, rest, tmp_path):
-    from grasplan.scenefile import CloudSpec
+    from grasplan.piles.scene_file import CloudSpec
 
     alone = scene(("a", "bracket", rest))
     best = _best_free(picker, alone, "a")
@@ -213,7 +213,7 @@ def test_cli_pick_writes_picks_and_exit_4_when_nothing_can_be_picked(tmp_path, r
     r = CliRunner().invoke(main, ["pick", str(tmp_path / "s.yaml"), "-o", str(out), "--sequence"])
     assert r.exit_code == 0, r.output
     d = json.loads(out.read_text())
-    from grasplan.schemas import validate
+    from grasplan.schemas.documents import validate
 
     assert validate(d) == "grasplan.picks/1"
     assert [p["instance"] for p in d["picks"]] and d["sequence"] is True
@@ -317,7 +317,7 @@ def test_lift_shortcut_still_checks_the_arm(picker, rest):
     gripper against the world, the carried part against the neighbours, the cloud and the cell): a
     neighbour where the wrist passes during the lift is still a lift collision of that link."""
     from grasplan.pick.motion import _drop_pairs, lift_collision, lift_precheck_drop
-    from grasplan.pickplace import T_tcp_part_of
+    from grasplan.motion.pickplace import T_tcp_part_of
 
     pk = picker.plan(scene(("a", "bracket", rest))).pick("a")
     s, e = pk.motion.segment("lift")
@@ -355,7 +355,7 @@ def test_resting_shortcut_matches_every_pair(picker, rest, monkeypatch):
     only supports, the others only neighbours within the depth rule), the same first colliding
     configuration reported; resting configurations in contact were met."""
     import grasplan.pick.motion as motion
-    from grasplan.interpolation import interpolate_path
+    from grasplan.geometry.interpolation import interpolate_path
 
     seen = []
     orig = motion.lift_collision
@@ -419,10 +419,10 @@ def test_resting_shortcut_matches_every_pair(picker, rest, monkeypatch):
 def test_warm_builds_what_the_first_plan_needs(rest, monkeypatch):
     """Picker.warm() (the service calls it at start): afterwards a first plan builds no depth probes,
     voxel grid or scene-check probe data (each builder here refuses to run)."""
-    import grasplan.insidegrid as ig
+    import grasplan.geometry.insidegrid as ig
     import grasplan.pick.depth as depth
-    import grasplan.pile_checks as pc
-    from grasplan.cell import load_cell as _load_cell
+    import grasplan.piles.checks as pc
+    from grasplan.cell.model import load_cell as _load_cell
 
     pk = Picker("ur5", cell=_load_cell("bin"), params=PickParams(grasps_per_instance=8))
     pk.add_part("bracket", load_part(BRACKET))

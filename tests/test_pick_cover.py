@@ -9,18 +9,18 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from grasplan.cell import load_cell
-from grasplan.gripper import load_gripper
-from grasplan.ik import solve_ik
-from grasplan.interpolation import check_order
-from grasplan.mesh import load_part
+from grasplan.cell.model import load_cell
+from grasplan.gripper.load import load_gripper
+from grasplan.robot.ik.solve import solve_ik
+from grasplan.geometry.interpolation import check_order
+from grasplan.part.mesh import load_part
 from grasplan.pick.cover import APPROACH_PAD, covered_check
 from grasplan.pick.motion import line_path
 from grasplan.pick.world import INSTANCE_PREFIX, PickWorld
-from grasplan.robot import load_robot
-from grasplan.scene import CollisionScene, ExtraBody
-from grasplan.scenefile import Instance
-from grasplan.transforms import rpy_matrix
+from grasplan.robot.description import load_robot
+from grasplan.motion.collision_scene import CollisionScene, ExtraBody
+from grasplan.piles.scene_file import Instance
+from grasplan.geometry.transforms import rpy_matrix
 
 BRACKET = Path(__file__).resolve().parents[1] / "examples" / "parts" / "bracket.stl"
 

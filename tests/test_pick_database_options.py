@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from grasplan.mesh import load_part
-from grasplan.params import DEFAULT_DENSITY, GraspParams
+from grasplan.part.mesh import load_part
+from grasplan.config.params import DEFAULT_DENSITY, GraspParams
 from grasplan.pick import Picker
 
 BOX = Path(__file__).resolve().parents[1] / "examples" / "parts" / "box.stl"
@@ -36,7 +36,7 @@ def test_cli_pick_density(tmp_path, monkeypatch):
     from click.testing import CliRunner
 
     from grasplan.cli import main
-    from grasplan.graspdb import load_database
+    from grasplan.grasps.graspdb import load_database
 
     monkeypatch.setenv("GRASPLAN_CACHE_DIR", str(tmp_path / "cache"))
     doc = {"schema": "grasplan.scene/1", "cell": "table", "parts": {"box": {"mesh": str(BOX)}},
@@ -57,7 +57,7 @@ def test_cli_pick_density(tmp_path, monkeypatch):
 def test_an_empty_database_is_named_as_such(tmp_path, monkeypatch):
     """A gripper whose stroke takes no contact pair of the part (the EGP 25: 34-40 mm, the box is
     10 x 20 x 30 mm): an empty database, the instance's reason says so (not "none of 0 grasps")."""
-    from grasplan.scenefile import Instance, Scene
+    from grasplan.piles.scene_file import Instance, Scene
 
     monkeypatch.setenv("GRASPLAN_CACHE_DIR", str(tmp_path))
     pk = Picker("ur5", gripper="schunk_egp_25", cell="bin")

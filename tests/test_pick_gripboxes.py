@@ -9,13 +9,13 @@ from pathlib import Path
 import coal
 import numpy as np
 
-from grasplan.cell import load_cell
-from grasplan.geometry import shape_geometry
-from grasplan.gripper import load_gripper
-from grasplan.mesh import load_part
+from grasplan.cell.model import load_cell
+from grasplan.cell.shapes import shape_geometry
+from grasplan.gripper.load import load_gripper
+from grasplan.part.mesh import load_part
 from grasplan.pick.world import PickWorld
-from grasplan.scenefile import Instance
-from grasplan.transforms import rpy_matrix
+from grasplan.piles.scene_file import Instance
+from grasplan.geometry.transforms import rpy_matrix
 
 BRACKET = Path(__file__).resolve().parents[1] / "examples" / "parts" / "bracket.stl"
 

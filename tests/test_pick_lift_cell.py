@@ -12,14 +12,14 @@ from pathlib import Path
 import coal
 import numpy as np
 
-from grasplan.cell import load_cell
-from grasplan.gripper import load_gripper
-from grasplan.mesh import load_part
+from grasplan.cell.model import load_cell
+from grasplan.gripper.load import load_gripper
+from grasplan.part.mesh import load_part
 from grasplan.pick.motion import lift_precheck_drop
 from grasplan.pick.world import PickWorld
-from grasplan.robot import load_robot
-from grasplan.scene import ATTACHED_CONTACT_TOL, CollisionScene
-from grasplan.transforms import rpy_matrix
+from grasplan.robot.description import load_robot
+from grasplan.motion.collision_scene import ATTACHED_CONTACT_TOL, CollisionScene
+from grasplan.geometry.transforms import rpy_matrix
 
 BRACKET = Path(__file__).resolve().parents[1] / "examples" / "parts" / "bracket.stl"
 

@@ -6,17 +6,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from grasplan.cell import load_cell
+from grasplan.cell.model import load_cell
 from grasplan.errors import InputError
-from grasplan.gripper import load_gripper
-from grasplan.ik import get_solver, solve_ik
-from grasplan.mesh import load_part
-from grasplan.paths import approach_path_reason
+from grasplan.gripper.load import load_gripper
+from grasplan.robot.ik.solve import get_solver, solve_ik
+from grasplan.part.mesh import load_part
+from grasplan.motion.joint_paths import approach_path_reason
 from grasplan.pick.lines import world_fk
 from grasplan.pick.motion import line_path
-from grasplan.pile_checks import check_cell, overlap_warnings
-from grasplan.robot import load_robot
-from grasplan.scenefile import Instance
+from grasplan.piles.checks import check_cell, overlap_warnings
+from grasplan.robot.description import load_robot
+from grasplan.piles.scene_file import Instance
 
 BOX = Path(__file__).resolve().parents[1] / "examples" / "parts" / "box.stl"
 
@@ -96,7 +96,7 @@ def test_ur_line_branch_named_by_the_start_signs_is_the_best_match(ur5):
     """ur_line solves only the branch the start's signs name (start_branch); the paths are those of
     comparing all eight branches, on random lines from random starts."""
     import grasplan.pick.lines as lines
-    from grasplan.ik.ur_batch import branch_many, solve_one
+    from grasplan.robot.ik.ur_batch import branch_many, solve_one
 
     robot, _ = ur5
     ur = get_solver(robot).analytic

@@ -12,11 +12,11 @@ import pytest
 sys.path.insert(0, str(Path(__file__).parent))
 from pick_recheck import recheck_pick  # noqa: E402
 
-from grasplan.cell import load_cell  # noqa: E402
-from grasplan.mesh import load_part  # noqa: E402
+from grasplan.cell.model import load_cell  # noqa: E402
+from grasplan.part.mesh import load_part  # noqa: E402
 from grasplan.pick import Picker, PickParams  # noqa: E402
-from grasplan.scenefile import Instance, Scene  # noqa: E402
-from grasplan.stable_poses import stable_pose  # noqa: E402
+from grasplan.piles.scene_file import Instance, Scene  # noqa: E402
+from grasplan.cell.resting import stable_pose  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 BRACKET = ROOT / "examples" / "parts" / "bracket.stl"

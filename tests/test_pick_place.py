@@ -1,7 +1,7 @@
 """Pick-and-place (issue 12 item 5): lift with the part in the jaws, transfer, descend, release,
 retreat; every planned path re-checked by an INDEPENDENT python-fcl checker.
 
-The checker below shares no code with grasplan.scene / grasplan.paths / grasplan.pickplace:
+The checker below shares no code with grasplan.motion.collision_scene / grasplan.motion.joint_paths / grasplan.motion.pickplace:
 Pinocchio FK on a fresh Data, python-fcl (not coal) objects built from the URDF's collision
 meshes loaded with trimesh, the gripper shapes rebuilt as fcl boxes/meshes, the part as an fcl
 BVH placed statically before the close event, riding on FK(TCP) @ T_tcp_part between the close and
@@ -20,7 +20,7 @@ import pytest
 
 STEP = 0.01
 PLACE_DY = 0.3  # m: the place is the resting pose moved this far along world y
-#: scoring without the quality terms keeps these tests independent of grasplan.quality's speed
+#: scoring without the quality terms keeps these tests independent of grasplan.grasps.quality's speed
 FAST_WEIGHTS = (("center", 0.1), ("top", 0.15), ("width", 0.05))
 
 
@@ -175,7 +175,7 @@ def _place_of(T_world_part, dy=PLACE_DY):
 
 
 def _robot():
-    from grasplan.robot import load_robot
+    from grasplan.robot.description import load_robot
 
     return load_robot("ur5")
 
@@ -187,9 +187,9 @@ def _robot():
 def bracket_plans():
     from conftest import EXAMPLE_PARTS
 
-    from grasplan.mesh import load_part
-    from grasplan.params import PlanParams
-    from grasplan.planning import plan
+    from grasplan.part.mesh import load_part
+    from grasplan.config.params import PlanParams
+    from grasplan.motion.planning import plan
 
     part = load_part(EXAMPLE_PARTS / "bracket.stl", units="mm")
     prm = PlanParams(top=2, seed=0, score_weights=FAST_WEIGHTS)
@@ -211,7 +211,7 @@ def test_bracket_lift_always_planned_and_rechecked(bracket_plans):
 
 
 def test_bracket_pick_and_place_rechecked_and_round_trips(bracket_plans, tmp_path):
-    from grasplan.result_reader import load_result
+    from grasplan.results.reader import load_result
 
     part, _, res = bracket_plans
     ids = [res.grasps.index_of(g) for g in res.planned_ids()]
@@ -265,7 +265,7 @@ def test_checker_can_fail(bracket_plans):
 ])
 def test_loader_rejects_tampered_sequences(bracket_plans, bad, match):
     from grasplan.errors import InputError
-    from grasplan.result_reader import result_from_document
+    from grasplan.results.reader import result_from_document
 
     _, _, res = bracket_plans
     doc = json.loads(json.dumps(res.to_json()))
@@ -277,7 +277,7 @@ def test_loader_rejects_tampered_sequences(bracket_plans, bad, match):
 
 
 def test_old_motion_without_segments_is_transit_plus_approach():
-    from grasplan.motion import Motion
+    from grasplan.results.joint_motion import Motion
 
     p = np.zeros((5, 6))
     p[:, 0] = np.arange(5)
@@ -341,10 +341,10 @@ def test_lift_into_the_table_is_refused_with_a_lift_reason(tmp_path):
     """retreat straight down: every lift drives the part into the table -> not planned, reason 'lift:'."""
     from conftest import EXAMPLE_PARTS
 
-    from grasplan.cell import cell_from_dict
-    from grasplan.mesh import load_part
-    from grasplan.params import PlanParams
-    from grasplan.planning import plan
+    from grasplan.cell.model import cell_from_dict
+    from grasplan.part.mesh import load_part
+    from grasplan.config.params import PlanParams
+    from grasplan.motion.planning import plan
 
     cell = cell_from_dict({"retreat": {"direction": [0, 0, -1], "distance": 0.05}}, name="down")
     part = load_part(EXAMPLE_PARTS / "bracket.stl", units="mm")
@@ -363,14 +363,14 @@ def test_lift_into_the_table_is_refused_with_a_lift_reason(tmp_path):
 # --------------------------------------------------------------------------------------------------
 @pytest.mark.paper
 def test_pepper_pick_and_place_part_touches_only_the_jaws(paper):
-    from grasplan.mesh import load_part
-    from grasplan.params import PlanParams
-    from grasplan.planning import plan
+    from grasplan.part.mesh import load_part
+    from grasplan.config.params import PlanParams
+    from grasplan.motion.planning import plan
 
     part = load_part(paper("SileanePepper.stl"))
     prm = PlanParams(top=2, seed=0, score_weights=FAST_WEIGHTS)
-    from grasplan.cell import load_cell
-    from grasplan.stable_poses import stable_pose
+    from grasplan.cell.model import load_cell
+    from grasplan.cell.resting import stable_pose
 
     T_rest = stable_pose(part.mesh, load_cell("table"))
     res = plan(part, "ur5", planning=prm, place=_place_of(T_rest))

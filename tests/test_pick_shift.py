@@ -16,15 +16,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from grasplan.cell import load_cell
+from grasplan.cell.model import load_cell
 from grasplan.errors import InputError
-from grasplan.mesh import load_part
+from grasplan.part.mesh import load_part
 from grasplan.pick import Picker, PickParams
 from grasplan.pick import warm
 from grasplan.pick.budget import Budget, BudgetSpent
-from grasplan.scene import CollisionScene, _SceneModel
-from grasplan.scenefile import Instance, Scene, load_scene
-from grasplan.stable_poses import stable_pose
+from grasplan.motion.collision_scene import CollisionScene, _SceneModel
+from grasplan.piles.scene_file import Instance, Scene, load_scene
+from grasplan.cell.resting import stable_pose
 
 ROOT = Path(__file__).resolve().parents[1]
 BRACKET = ROOT / "examples" / "parts" / "bracket.stl"
@@ -67,8 +67,8 @@ def test_a_dropped_scene_frees_its_model_without_the_garbage_collector(part):
     """A collision scene and its variants form no reference cycle: the model (its Pinocchio
     geometry and per-pair data, megabytes in C++) is freed when the last variant is dropped, not at
     the cyclic collector's next full pass (which a long-running planner reaches rarely)."""
-    from grasplan.gripper import load_gripper
-    from grasplan.robot import load_robot
+    from grasplan.gripper.load import load_gripper
+    from grasplan.robot.description import load_robot
 
     scene = CollisionScene(load_robot("ur5"), load_gripper("schunk_egp_c_40"), part.mesh, np.eye(4), load_cell("bin"))
     v = scene.arranged(at(np.eye(4), 0.4, 0.0, 0.1), {})
@@ -201,7 +201,7 @@ def test_the_budget_stops_inside_an_instance(picker, rest, monkeypatch):
 def test_the_budget_stops_the_scene_checks(picker, rest, monkeypatch):
     """Past the budget during the interpenetration estimate, no further pair is estimated, nothing is
     planned and the warnings say how many pairs were left."""
-    import grasplan.pile_checks as pc
+    import grasplan.piles.checks as pc
 
     clock = JumpClock()
     pairs = []
@@ -225,8 +225,8 @@ def test_the_budget_stops_the_scene_checks(picker, rest, monkeypatch):
 
 def test_the_budget_stops_a_depth_measurement(part):
     """pair_depth looks at the budget while it measures: a clock past it ends a long measurement."""
-    from grasplan.geometry import bvh
-    from grasplan.meshdata import convex_hull
+    from grasplan.cell.shapes import bvh
+    from grasplan.geometry.meshdata import convex_hull
     from grasplan.pick.depth import PartDepth, pair_depth
 
     m = part.mesh
@@ -300,9 +300,9 @@ def test_coplanar_faces_do_not_go_through_the_winding_number(part, rest, monkeyp
     deciding every one with the generalised winding number, with almost none of them sent there."""
     import coal
 
-    import grasplan.pile_checks as pc
-    from grasplan.geometry import bvh
-    from grasplan.meshdata import convex_hull
+    import grasplan.piles.checks as pc
+    from grasplan.cell.shapes import bvh
+    from grasplan.geometry.meshdata import convex_hull
     from grasplan.pick.depth import PartDepth, pair_depth
 
     m = part.mesh
@@ -316,7 +316,7 @@ def test_coplanar_faces_do_not_go_through_the_winding_number(part, rest, monkeyp
         return real(mesh, pts)
 
     monkeypatch.setattr(pc, "points_inside", counted)
-    monkeypatch.setattr("grasplan.containment.points_inside", counted)  # through points_inside_tree
+    monkeypatch.setattr("grasplan.geometry.containment.points_inside", counted)  # through points_inside_tree
     depth = pair_depth(pd, rest, pd, T_b)
     # the reference: every sample of either part inside the other by the exact test, its exact distance
     ref = 0.0
@@ -343,7 +343,7 @@ def test_a_thin_part_flat_on_its_twin_is_no_duplicate(tmp_path):
     """A plate 1.5 mm thick lying flat on its twin: every hull vertex is within 1.5 mm (less than
     the 2 mm tolerance) of the other's, but that is its thickness: two parts, not one seen twice.
     The same plate moved 0.3 mm is refused."""
-    from grasplan.pile_checks import check_coincident
+    from grasplan.piles.checks import check_coincident
 
     plate = _box_mesh(tmp_path, "plate", (0.03, 0.02, 0.0015))
     T = np.eye(4)
@@ -356,7 +356,7 @@ def test_a_thin_part_flat_on_its_twin_is_no_duplicate(tmp_path):
 def test_instances_deep_inside_each_other_are_refused(tmp_path):
     """Two 40 mm cubes 15 mm into each other: no pose estimate is that wrong (more than 10 mm, five
     times the tolerance): refused naming both; 4 mm into each other: a warning, planned as given."""
-    from grasplan.pile_checks import check_instances, deep_limit
+    from grasplan.piles.checks import check_instances, deep_limit
 
     cube = _box_mesh(tmp_path, "cube", (0.04, 0.04, 0.04))
     cell = load_cell("bin")

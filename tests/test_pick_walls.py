@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from grasplan.cell import BinSpec
+from grasplan.cell.model import BinSpec
 from grasplan.pick.lift import WALL_SLACK, inside_walls
 
 

@@ -1,4 +1,4 @@
-"""The pile's hull pre-check (grasplan/pick/world.py, grasplan/pile_checks.py): a pair whose convex
+"""The pile's hull pre-check (grasplan/pick/world.py, grasplan/piles/checks.py): a pair whose convex
 hulls coal calls apart is skipped without the mesh test. Checked against the mesh test alone on
 random close placements of a concave part: the same first hits, and never a mesh contact between
 hulls called apart."""
@@ -10,12 +10,12 @@ from pathlib import Path
 import coal
 import numpy as np
 
-from grasplan.cell import load_cell
-from grasplan.gripper import load_gripper
-from grasplan.mesh import load_part
+from grasplan.cell.model import load_cell
+from grasplan.gripper.load import load_gripper
+from grasplan.part.mesh import load_part
 from grasplan.pick.world import PickWorld
-from grasplan.scenefile import Instance
-from grasplan.transforms import rpy_matrix
+from grasplan.piles.scene_file import Instance
+from grasplan.geometry.transforms import rpy_matrix
 
 BRACKET = Path(__file__).resolve().parents[1] / "examples" / "parts" / "bracket.stl"
 

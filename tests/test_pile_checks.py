@@ -1,4 +1,4 @@
-"""grasplan.pile_checks: the interpenetration depth skips probe points that cannot matter (outside
+"""grasplan.piles.checks: the interpenetration depth skips probe points that cannot matter (outside
 the other mesh's box, within tol of its surface) without changing a warning: against the same
 estimate over every probe point, for pairs of parts pushed into each other by 0 to 8 mm."""
 from __future__ import annotations
@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from grasplan import pile_checks as pc
-from grasplan.geometry import bvh
-from grasplan.mesh import load_part
-from grasplan.transforms import rpy_matrix
+from grasplan.piles import checks as pc
+from grasplan.cell.shapes import bvh
+from grasplan.part.mesh import load_part
+from grasplan.geometry.transforms import rpy_matrix
 
 PARTS = Path(__file__).resolve().parents[1] / "examples" / "parts"
 
@@ -50,9 +50,9 @@ def test_obstacles_whose_box_is_not_met_are_skipped_without_changing_an_error():
     random and parts placed at random around them."""
     from types import SimpleNamespace
 
-    from grasplan.cell import Obstacle
+    from grasplan.cell.model import Obstacle
     from grasplan.errors import InputError
-    from grasplan.scenefile import Instance
+    from grasplan.piles.scene_file import Instance
 
     mesh = load_part(PARTS / "gear.stl").mesh
     rng = np.random.default_rng(5)

@@ -1,6 +1,6 @@
 """`grasplan plan`: every planned grasp re-checked by an INDEPENDENT implementation.
 
-The checker below shares no code with grasplan.scene / grasplan.paths: Pinocchio FK on a fresh
+The checker below shares no code with grasplan.motion.collision_scene / grasplan.motion.joint_paths: Pinocchio FK on a fresh
 Data, python-fcl (not coal) objects built from the URDF's collision meshes loaded with trimesh,
 the gripper boxes rebuilt from the output JSON's gripper block and the issue's dimensions, a
 table box, the part's BVH placed by the JSON's T_world_part, and our own 0.01 rad interpolation.
@@ -236,9 +236,9 @@ TOP = 5
 def paper_plan(request):
     from conftest import paper_part
 
-    from grasplan.mesh import load_part
-    from grasplan.params import PlanParams
-    from grasplan.planning import plan
+    from grasplan.part.mesh import load_part
+    from grasplan.config.params import PlanParams
+    from grasplan.motion.planning import plan
 
     path = paper_part(request.param)
     t = time.perf_counter()
@@ -262,7 +262,7 @@ def paper_plan(request):
 @pytest.mark.slow
 @pytest.mark.paper
 def test_paper_parts_planned_and_independently_verified(paper_plan):
-    from grasplan.robot import load_robot
+    from grasplan.robot.description import load_robot
 
     name, part, result, doc, elapsed = paper_plan
     c = result.counts()
@@ -282,7 +282,7 @@ def test_paper_parts_planned_and_independently_verified(paper_plan):
 @pytest.mark.paper
 def test_independent_checker_can_fail(paper_plan):
     """The checker is not vacuous: it flags the arm driven through the table and the part."""
-    from grasplan.robot import load_robot
+    from grasplan.robot.description import load_robot
 
     name, part, result, doc, _ = paper_plan
     robot = load_robot("ur5")
@@ -297,7 +297,7 @@ def test_independent_checker_can_fail(paper_plan):
     T = chk.fk_tcp(q)
     deeper = T.copy()
     deeper[:3, 3] += 0.1 * T[:3, 2]
-    from grasplan.ik import solve_ik
+    from grasplan.robot.ik.solve import solve_ik
 
     sols = solve_ik(robot, deeper @ np.linalg.inv(np.asarray(doc["gripper"]["T_flange_tcp"]))).q
     if len(sols):
@@ -316,8 +316,8 @@ def _run(args):
 
 
 def test_cli_plan_bracket_independently_verified(tmp_path, example_part):
-    from grasplan.mesh import load_part
-    from grasplan.robot import load_robot
+    from grasplan.part.mesh import load_part
+    from grasplan.robot.description import load_robot
 
     out = tmp_path / "plan.json"
     # distinct-ranking thresholds away from the roll step (15 deg) and round lengths: see
@@ -350,7 +350,7 @@ def test_cli_plan_bracket_independently_verified(tmp_path, example_part):
 def test_plan_params_are_validated_and_old_keywords_are_gone(example_part):
     import grasplan
     from grasplan.errors import InputError
-    from grasplan.params import PlanParams
+    from grasplan.config.params import PlanParams
 
     with pytest.raises(InputError, match=r"--top \(top\): must be >= 1.*got 0"):
         PlanParams(top=0)
@@ -387,10 +387,10 @@ def test_distinct_ranking_at_the_roll_step(example_part):
     """Two rolls of one candidate exactly --distinct-angle (15 deg) apart, same TCP origin, are
     'within' the angle: the second must rank behind a distinct grasp. With the defaults the bracket's
     three best 'distinct' grasps are one contact pair rolled -15, 0, +15 deg."""
-    from grasplan.grasps import compute_grasps
-    from grasplan.mesh import load_part
-    from grasplan.params import GraspParams, PlanParams
-    from grasplan.scoring import distinct_order
+    from grasplan.grasps.pipeline import compute_grasps
+    from grasplan.part.mesh import load_part
+    from grasplan.config.params import GraspParams, PlanParams
+    from grasplan.config.scoring import distinct_order
 
     gr = compute_grasps(load_part(example_part("bracket.stl"), units="mm"), grasps=GraspParams(roll_step_deg=15.0))
     T, cand, roll = gr.frames.T_part_tcp, gr.frames.candidate, gr.frames.roll

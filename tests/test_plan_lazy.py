@@ -1,4 +1,4 @@
-"""Rank-order, chunked evaluation of the grasp stage (``grasplan.grasps.LazyGrasps``, ``grasplan
+"""Rank-order, chunked evaluation of the grasp stage (``grasplan.grasps.pipeline.LazyGrasps``, ``grasplan
 plan`` without ``--check-all``): whatever it ranks must be what the eager computation (every pose
 collision-checked and scored) ranks at the same positions, and unchecked poses are ``not_checked``
 (never called a collision)."""
@@ -18,7 +18,7 @@ PRUNING = (("center", 0.35), ("top", 0.45), ("width", 0.1), ("gravity_margin", 0
 
 
 def _eager_order(gr, min_distance=0.005, min_angle_deg=15.0):
-    from grasplan.scoring import distinct_order
+    from grasplan.config.scoring import distinct_order
 
     ok = np.flatnonzero(np.asarray(gr.status).astype(str) == "ok")
     sc = np.asarray(gr.score, dtype=np.float64)
@@ -35,9 +35,9 @@ def _eager_order(gr, min_distance=0.005, min_angle_deg=15.0):
     ("paper:IPAGearShaft.stl", None),  # shipped weights: the physical bound prunes (below)
 ])
 def test_lazy_ranking_equals_eager(example_part, name, weights):
-    from grasplan.grasps import compute_grasps
-    from grasplan.mesh import load_part
-    from grasplan.params import GraspParams
+    from grasplan.grasps.pipeline import compute_grasps
+    from grasplan.part.mesh import load_part
+    from grasplan.config.params import GraspParams
 
     kind, fname = name.split(":")
     path = example_part(fname) if kind == "example" else paper_part(fname)
@@ -74,9 +74,9 @@ def test_lazy_ranking_equals_eager(example_part, name, weights):
 def test_plan_lazy_equals_check_all(example_part):
     """The whole plan: same planned grasps and ranks with and without --check-all; unchecked poses
     are not_checked with a reason, and no not_checked pose is ranked or planned."""
-    from grasplan.mesh import load_part
-    from grasplan.params import GraspParams, PlanParams
-    from grasplan.planning import plan
+    from grasplan.part.mesh import load_part
+    from grasplan.config.params import GraspParams, PlanParams
+    from grasplan.motion.planning import plan
 
     part = load_part(example_part("bracket.stl"), units="mm")
     gp = replace(GraspParams(), score_weights=PRUNING)
@@ -101,10 +101,10 @@ def test_plan_lazy_equals_check_all(example_part):
 def test_physical_bounds_are_upper_bounds(example_part, name):
     """The bounds the rank-order evaluation sorts by (the pad's whole area, the load straight
     down) are >= the gravity_margin and epsilon the quality step computes, pose by pose."""
-    from grasplan.grasps import compute_grasps
-    from grasplan.mass import mass_properties
-    from grasplan.mesh import load_part
-    from grasplan.quality import physical_bounds
+    from grasplan.grasps.pipeline import compute_grasps
+    from grasplan.part.mass import mass_properties
+    from grasplan.part.mesh import load_part
+    from grasplan.grasps.quality import physical_bounds
 
     kind, fname = name.split(":")
     path = example_part(fname) if kind == "example" else paper_part(fname)

@@ -8,14 +8,14 @@ import pytest
 import trimesh
 
 from grasplan.errors import ConfigError, InputError
-from grasplan.gripper import load_gripper
-from grasplan.mass import mass_properties
-from grasplan.patches import contact_patches, pad_rectangle
-from grasplan.polygons import clip_polygons, polygon_moments
-from grasplan.quality import Quality, grasp_quality, score_quality_terms
-from grasplan.quality_json import CONTACT_TYPES
-from grasplan.scoring import load_score_weights, load_scoring
-from grasplan.wrench import G, LOAD
+from grasplan.gripper.load import load_gripper
+from grasplan.part.mass import mass_properties
+from grasplan.grasps.patches import contact_patches, pad_rectangle
+from grasplan.geometry.polygons import clip_polygons, polygon_moments
+from grasplan.grasps.quality import Quality, grasp_quality, score_quality_terms
+from grasplan.results.quality_json import CONTACT_TYPES
+from grasplan.config.scoring import load_score_weights, load_scoring
+from grasplan.grasps.wrench import G, LOAD
 
 MU = 0.3
 BOX = (0.12, 0.03, 0.03)
@@ -229,7 +229,7 @@ def test_holding_warning_names_the_grip_force_that_would_hold(gripper, box):
     """Friction and torsion are proportional to the gripping force and the pad-pressure moment grows
     with it too, so the force the warning names (grip_force / best margin) brings the best grasp to
     at least 1 (recomputed here, not assumed); a part that is held gets no warning."""
-    from grasplan.quality import holding_warning
+    from grasplan.grasps.quality import holding_warning
 
     heavy = mass_properties(box, density=60000.0)  # far too heavy for 140 N
     T, C, N, w = grasps(np.linspace(0.0, 0.05, 6))
@@ -249,12 +249,12 @@ def test_holding_warning_names_the_grip_force_that_would_hold(gripper, box):
 
 # -- issue 22: the simulation's load, the pad-pressure moment --------------------------------------
 def _gravity_only():
-    from grasplan.wrench import LoadModel
+    from grasplan.grasps.wrench import LoadModel
     return LoadModel(lift_height=0.0, shake_accel=0.0)
 
 
 def _mp(mass, com):
-    from grasplan.mass import MassProperties
+    from grasplan.part.mass import MassProperties
     return MassProperties(mass=mass, com=np.asarray(com, float), inertia=np.eye(3) * 1e-4, volume=1e-4,
                           density=mass / 1e-4, watertight_used=True)
 
@@ -263,7 +263,7 @@ def _mp(mass, com):
 def test_pad_pressure_moment_matches_hand_calculation(press_w):
     """A grasp whose centre of mass lies d along the closing axis: gravity's moment m g d is carried
     by both pads' pressure up to F (w0 + w1) / 6, the rest by the tangential couple over the width."""
-    from grasplan.wrench import PRESSURE_ARM, gravity_margin
+    from grasplan.grasps.wrench import PRESSURE_ARM, gravity_margin
     m, d, width, F = 0.5, 0.01, 0.02, 70.0
     T = np.eye(4)[None]                        # TCP = part frame = world: closing axis x, gravity -z
     pw = np.full((1, 2), press_w)
@@ -285,8 +285,8 @@ def test_margin_checks_the_simulated_lift_and_shake():
     """The loads of the margin are the simulation's profile: every acceleration the simulation applies
     lies in the convex hull of LOAD.accelerations() (the margin is convex in the load), and its peaks
     reach them (within the control-period sampling)."""
-    from grasplan.simulate import _profile
-    from grasplan.wrench import LOAD
+    from grasplan.sim.simulate import _profile
+    from grasplan.grasps.wrench import LOAD
     acc = _profile()[0]
     A = LOAD.accelerations()
     vert = np.abs(acc[:, :2]).max(axis=1) == 0
@@ -304,7 +304,7 @@ def test_margin_twist_and_closing_axis_load_match_hand_calculation():
     is 2 mu F L / (m g sqrt(c^2 + L^2)) with L = (2/3) a; with unequal patches the two ellipses'
     torsions add. (b) Closing axis tilted from the horizontal: the
     lower jaw is pressed harder, the upper one with F - s f_x / 2, which slips first."""
-    from grasplan.wrench import gravity_margin, torsion_length
+    from grasplan.grasps.wrench import gravity_margin, torsion_length
     m, F, width = 0.4, 70.0, 0.03
     c = 0.02
     T = np.eye(4)[None]  # closing axis x horizontal, gravity -z; centre of mass at y = c

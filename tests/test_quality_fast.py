@@ -1,9 +1,9 @@
-"""The closed-form Ferrari-Canny epsilon (grasplan.wrench.ferrari_canny_pair) against Qhull; merged patch
-elements (grasplan.patches.patch_elements) against raw triangles."""
+"""The closed-form Ferrari-Canny epsilon (grasplan.grasps.wrench.ferrari_canny_pair) against Qhull; merged patch
+elements (grasplan.grasps.patches.patch_elements) against raw triangles."""
 import numpy as np
 import pytest
 
-from grasplan import patches, wrench
+from grasplan.grasps import patches, wrench
 
 #: Qhull's joggle (QJ) moves facet offsets by ~1e-11 absolute on these wrench sets
 ABS_TOL = 1e-10
@@ -168,7 +168,7 @@ def test_merged_patches_equal_triangle_patches(monkeypatch):
     """The patch of the merged areas equals the patch of the raw triangles (fine box, plate with a bore)."""
     import trimesh
 
-    from grasplan.gripper import load_gripper
+    from grasplan.gripper.load import load_gripper
 
     g = load_gripper("schunk_egp_c_40")
     rng = np.random.default_rng(5)

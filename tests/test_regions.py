@@ -11,14 +11,14 @@ import regions_reference
 from regions_reference import find_regions_pairs
 from test_antipodal import point_triangle_distance
 
-from grasplan import antipodal_base as ap
-from grasplan import regions as rg
-from grasplan.antipodal_base import Candidates
-from grasplan.candidates import find_candidates
-from grasplan.region_areas import convex_areas
-from grasplan.region_creases import CONCAVE_MARGIN
-from grasplan.regions import find_regions
-from grasplan.tolerance import Tolerance
+from grasplan.candidates import antipodal_base as ap
+from grasplan.candidates import regions as rg
+from grasplan.candidates.antipodal_base import Candidates
+from grasplan.candidates.pipeline import find_candidates
+from grasplan.candidates.region_areas import convex_areas
+from grasplan.candidates.region_creases import CONCAVE_MARGIN
+from grasplan.candidates.regions import find_regions
+from grasplan.geometry.tolerance import Tolerance
 
 MU, BETA, SPACING = 0.3, 2.0, 0.002
 
@@ -131,8 +131,8 @@ def test_invariant_under_rigid_motion(quat, shift):
 
 
 def test_chunked_search_equals_unchunked(monkeypatch, example_part):
-    from grasplan.convexity import classify_convexity
-    from grasplan.mesh import load_part
+    from grasplan.candidates.convexity import classify_convexity
+    from grasplan.part.mesh import load_part
 
     part = load_part(example_part("gear.stl"), units="mm")
     convex = classify_convexity(part.mesh, tol=part.tol)
@@ -201,8 +201,8 @@ def test_bad_spacing_and_method():
 
 
 def test_part_pipeline_regions(example_part):
-    from grasplan.candidates import CandidateParams, compute_candidates
-    from grasplan.mesh import load_part
+    from grasplan.candidates.pipeline import CandidateParams, compute_candidates
+    from grasplan.part.mesh import load_part
 
     part = load_part(example_part("bracket.stl"), units="mm")
     try:
@@ -223,9 +223,9 @@ def _key(c: Candidates):
 def test_boundary_method_equals_triangle_pair_reference(example_part, name):
     # two independent implementations of the same definition: outlines (Green + scanlines) vs every
     # overlapping triangle pair (clipping + point-in-triangle probes)
-    from grasplan.antipodal_base import FaceGeometry
-    from grasplan.convexity import classify_convexity
-    from grasplan.mesh import load_part
+    from grasplan.candidates.antipodal_base import FaceGeometry
+    from grasplan.candidates.convexity import classify_convexity
+    from grasplan.part.mesh import load_part
 
     part = load_part(example_part(name), units="mm")
     mesh = part.mesh
@@ -298,9 +298,9 @@ def test_square_faces_invariant_under_rotation():
 
 
 def test_fast_edge_adjacency_matches_trimesh_and_sparse_neighbourhood(example_part):
-    from grasplan.convexity import _edge_rows, neighbour_vertices
-    from grasplan.meshdata import edge_adjacency
-    from grasplan.mesh import load_part
+    from grasplan.candidates.convexity import _edge_rows, neighbour_vertices
+    from grasplan.geometry.meshdata import edge_adjacency
+    from grasplan.part.mesh import load_part
 
     mesh = load_part(example_part("gear.stl"), units="mm").mesh
     adj, edge, far = edge_adjacency(mesh.faces)
@@ -335,7 +335,7 @@ def _block_with_shallow_lip():
 
 
 def test_face_concave_only_at_a_shallow_crease_is_sampled_away_from_it():
-    from grasplan.convexity import classify_convexity
+    from grasplan.candidates.convexity import classify_convexity
 
     mesh = _block_with_shallow_lip()
     assert mesh.is_watertight and mesh.volume > 0
@@ -359,7 +359,7 @@ def test_curved_tolerance_chains_are_cut_into_patches():
     neighbour-to-neighbour grouping chains the whole side into one 'area' whose faces point every
     way. Areas are cut into patches whose faces stay within PATCH_DEG of the area normal; flat
     faces (caps, a box's sides) stay one area each, whatever their tessellation."""
-    from grasplan.region_areas import PATCH_DEG
+    from grasplan.candidates.region_areas import PATCH_DEG
     cyl = trimesh.creation.cylinder(radius=0.01, height=0.03, sections=1000)
     tol = Tolerance.for_mesh(cyl.vertices)
     areas = convex_areas(cyl, np.ones(len(cyl.faces), bool), tol)

@@ -1,4 +1,4 @@
-"""The streamed result writer (PlanResult.write -> grasplan.result_writer.stream_document) writes exactly
+"""The streamed result writer (PlanResult.write -> grasplan.results.writer.stream_document) writes exactly
 the bytes of the reference path: the document dict (PlanResult.to_json) encoded by json.dumps
 (grasplan.io.write_json). Checked on a grasps result (also --only-ok), a plan, a plan with a place
 and a plan with quality + simulation; edge cases (NaN / None, -0.0, empty tables, values json
@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 from grasplan.io import to_json_text
-from grasplan.params import PlanParams
-from grasplan.result_reader import load_result
-from grasplan.result_writer import stream_document as _stream_document
+from grasplan.config.params import PlanParams
+from grasplan.results.reader import load_result
+from grasplan.results.writer import stream_document as _stream_document
 
 BRACKET = Path(__file__).resolve().parents[1] / "examples" / "parts" / "bracket.stl"
 
@@ -33,14 +33,14 @@ def fast_bytes(res, tmp_path, name="out.json", **kw) -> bytes:
 
 @pytest.fixture(scope="module")
 def part():
-    from grasplan.mesh import load_part
+    from grasplan.part.mesh import load_part
 
     return load_part(BRACKET, units="mm")
 
 
 @pytest.fixture(scope="module")
 def grasps_result(part):
-    from grasplan.grasps import compute_grasps
+    from grasplan.grasps.pipeline import compute_grasps
 
     return compute_grasps(part).to_result()
 
@@ -147,7 +147,7 @@ def test_values_json_refuses_take_the_reference_path(plan_result, tmp_path):
 
 
 def test_streamed_in_chunks(plan_result, tmp_path, monkeypatch):
-    import grasplan.result_writer as gr
+    import grasplan.results.writer as gr
 
     monkeypatch.setattr(gr, "WRITE_CHUNK", 7)
     chunks = list(_stream_document(plan_result))

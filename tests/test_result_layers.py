@@ -1,4 +1,4 @@
-"""The result layering: grasplan.result writes itself (result_writer) and exports itself
+"""The result layering: grasplan.results.plan_result writes itself (result_writer) and exports itself
 (export_registry) without importing the plan reader, the export package or Pinocchio, and
 ``PlanResult.export`` finds the format modules through the registry whatever was imported first."""
 from __future__ import annotations
@@ -20,8 +20,8 @@ def run(code: str) -> str:
 
 
 def test_result_imports_no_reader_export_package_or_pinocchio():
-    out = run("import sys, grasplan.result\n"
-              "print(sorted(m for m in ('grasplan.export', 'grasplan.result_reader', 'grasplan.grasps', 'pinocchio') "
+    out = run("import sys, grasplan.results.plan_result\n"
+              "print(sorted(m for m in ('grasplan.export', 'grasplan.results.reader', 'grasplan.grasps.pipeline', 'pinocchio') "
               "if m in sys.modules))")
     assert out == "[]"
 
@@ -36,8 +36,8 @@ def test_export_method_without_the_export_package(tmp_path):
     want = render(doc, "urscript")[".script"]
     out = run(f"""
 import sys
-from grasplan.result_reader import load_result
-from grasplan.export_registry import FORMATS
+from grasplan.results.reader import load_result
+from grasplan.results.export_registry import FORMATS
 res = load_result({str(tmp_path / 'plan.json')!r})
 print('grasplan.export' in sys.modules, len(FORMATS))
 res.export("urscript", {str(tmp_path / 'pick.script')!r})

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from grasplan.errors import ConfigError, InputError
-from grasplan.robot import available_robots, load_robot, package_share_dir
+from grasplan.robot.description import available_robots, load_robot, package_share_dir
 
 ROBOTS = Path(__file__).resolve().parents[1] / "robots"
 
@@ -203,7 +203,7 @@ def test_visual_geometry_is_built_on_first_use_and_equals_the_eager_build(name):
     the visual geometry, built when asked for, equals pinocchio's eager build reduced the same way."""
     import pinocchio as pin
 
-    from grasplan.robot import _build_robot, _resolve
+    from grasplan.robot.description import _build_robot, _resolve
 
     r = _build_robot(_resolve(name)[1])  # a fresh build (load_robot's cache may hold a used one)
     assert r._visual == []  # not built by loading

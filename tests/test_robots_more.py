@@ -22,8 +22,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from grasplan.ik import get_solver, solve_ik
-from grasplan.robot import load_robot
+from grasplan.robot.ik.solve import get_solver, solve_ik
+from grasplan.robot.description import load_robot
 from test_robot import urdf_fk
 
 NEW_ROBOTS = ["ur3", "ur10", "xarm7"]
@@ -144,7 +144,7 @@ def test_bracket_plan_end_to_end_independently_verified(name, tmp_path, example_
 
     import fcl_recheck
     from grasplan.cli import main
-    from grasplan.result_reader import load_result
+    from grasplan.results.reader import load_result
 
     out = tmp_path / f"bracket_{name}.json"
     r = CliRunner().invoke(main, ["plan", str(example_part("bracket.stl")), "--units", "mm", "--robot", name,
@@ -175,9 +175,9 @@ def test_bracket_plan_end_to_end_independently_verified(name, tmp_path, example_
 def test_recheck_can_fail_for_a_new_robot(example_part):
     """The checker is not vacuous on these models: the UR10 driven through the table is flagged."""
     import fcl_recheck
-    from grasplan.cell import load_cell
-    from grasplan.gripper import load_gripper
-    from grasplan.mesh import load_part
+    from grasplan.cell.model import load_cell
+    from grasplan.gripper.load import load_gripper
+    from grasplan.part.mesh import load_part
 
     r = load_robot("ur10")
     part = load_part(example_part("bracket.stl"), units="mm")

@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 import trimesh
 
-from grasplan.cell import load_cell
+from grasplan.cell.model import load_cell
 from grasplan.errors import InputError
-from grasplan.gripper import load_gripper
-from grasplan.ik import solve_ik
-from grasplan.mesh import load_part
-from grasplan.robot import load_robot
-from grasplan.scene import CollisionScene
-from grasplan.stable_poses import stable_pose
+from grasplan.gripper.load import load_gripper
+from grasplan.robot.ik.solve import solve_ik
+from grasplan.part.mesh import load_part
+from grasplan.robot.description import load_robot
+from grasplan.motion.collision_scene import CollisionScene
+from grasplan.cell.resting import stable_pose
 
 
 @pytest.fixture(scope="module")

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from grasplan.errors import InputError
-from grasplan.scenefile import Instance, Scene, load_scene, scene_from_dict
-from grasplan.transforms import rpy_matrix
+from grasplan.piles.scene_file import Instance, Scene, load_scene, scene_from_dict
+from grasplan.geometry.transforms import rpy_matrix
 
 DOC = {
     "schema": "grasplan.scene/1",
@@ -120,7 +120,7 @@ STRUCTURAL = [
 
 
 def test_schema_accepts_what_the_reader_writes_and_accepts():
-    from grasplan.schemas import errors
+    from grasplan.schemas.documents import errors
 
     assert errors(DOC) == []
     assert errors(scene_from_dict(DOC).to_json()) == []
@@ -128,7 +128,7 @@ def test_schema_accepts_what_the_reader_writes_and_accepts():
 
 @pytest.mark.parametrize("path, value", STRUCTURAL)
 def test_schema_and_reader_refuse_the_same_structural_errors(path, value):
-    from grasplan.schemas import errors
+    from grasplan.schemas.documents import errors
 
     doc = _with(path, value)
     assert errors(doc, "grasplan.scene/1"), f"the schema accepts {path} = {value!r}"

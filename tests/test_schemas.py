@@ -9,13 +9,7 @@ import pytest
 from click.testing import CliRunner
 
 from grasplan.errors import InputError
-from grasplan.schemas import (
-    SCHEMA_FILES,
-    available_schemas,
-    errors,
-    load_schema,
-    validate,
-)
+from grasplan.schemas.documents import SCHEMA_FILES, available_schemas, errors, load_schema, validate
 
 
 def _run(args):
@@ -163,6 +157,6 @@ def test_grasps_and_plan_cli_outputs_validate(tmp_path, example_part):
     assert r.exit_code in (0, 4), r.output
     assert validate(json.loads(p_out.read_text())) == "grasplan.plan/1"
     # and both read back through the full loader (schema, grasps, robot, FK of the planned grasps)
-    from grasplan.result_reader import load_result
+    from grasplan.results.reader import load_result
 
     assert load_result(g_out).schema == "grasplan.grasps/1" and load_result(p_out).robot.name == "ur5"

@@ -13,18 +13,13 @@ from click.testing import CliRunner
 
 from grasplan.cli import main
 from grasplan.errors import ConfigError, InputError
-from grasplan.params import DEFAULT_SCORE_WEIGHTS, GraspParams, PlanParams
-from grasplan.quality import Quality
-from grasplan.quality_json import CONTACT_TYPES
-from grasplan.scoring import (
-    TERMS,
-    ScoringConfig,
-    distinct_order,
-    load_scoring,
-    score_grasps,
-    with_scoring_file,
+from grasplan.config.params import DEFAULT_SCORE_WEIGHTS, GraspParams, PlanParams
+from grasplan.grasps.quality import Quality
+from grasplan.results.quality_json import CONTACT_TYPES
+from grasplan.config.scoring import (
+    TERMS, ScoringConfig, distinct_order, load_scoring, score_grasps, with_scoring_file
 )
-from grasplan.simulate import SimResult, rank_held_first, with_sim
+from grasplan.sim.simulate import SimResult, rank_held_first, with_sim
 
 BRACKET = ["--units", "mm"]
 
@@ -123,7 +118,7 @@ def test_grasps_json_has_quality_for_ok_grasps_and_null_for_collisions(grasps_do
 
 
 def test_grasps_file_round_trips_quality(grasps_doc):
-    from grasplan.result_reader import result_from_document
+    from grasplan.results.reader import result_from_document
 
     res = result_from_document(grasps_doc)
     t = res.grasps
@@ -204,7 +199,7 @@ def test_plan_ranks_by_score_with_the_diversity_rule(plan_doc, grasps_doc):
 
 
 def test_plan_simulate_writes_sim_and_ranks_held_first(plan_doc):
-    from grasplan.result_reader import load_result
+    from grasplan.results.reader import load_result
 
     path, doc = plan_doc
     simulated = [x for x in doc["grasps"] if x.get("sim")]
@@ -233,7 +228,7 @@ def test_rank_held_first_is_stable_and_applied_to_a_plan(plan_doc):
     new = rank_held_first(rank, np.array([1, -1, 0, 1, -1], dtype=np.int8))
     # held in rank order (row 3 then row 0), then the rest in rank order (row 2, row 4)
     assert new.tolist() == [1, -1, 2, 0, 3]
-    from grasplan.result_reader import load_result
+    from grasplan.results.reader import load_result
 
     path, _ = plan_doc
     res = load_result(path)
@@ -248,7 +243,7 @@ def test_rank_held_first_is_stable_and_applied_to_a_plan(plan_doc):
 
 
 def test_simulate_cli_on_a_plan_takes_the_planned_grasps_in_rank_order(plan_doc, tmp_path):
-    from grasplan.result_reader import load_result
+    from grasplan.results.reader import load_result
 
     path, _ = plan_doc
     out = tmp_path / "sim.json"

@@ -271,8 +271,8 @@ def test_token_is_required(server, header):
 def test_plan_matches_the_library(client, box_plan, service):
     """The service builds its options exactly as the library does: same seed, same plan."""
     import grasplan
-    from grasplan.result_reader import result_from_document
-    from grasplan.schemas import validate
+    from grasplan.results.reader import result_from_document
+    from grasplan.schemas.documents import validate
 
     validate(box_plan, "grasplan.plan/1")
     assert box_plan["part"]["path"] == "box.stl"
@@ -306,8 +306,8 @@ def test_plan_refusals_name_the_field(client, body, status, field):
 
 
 def test_export_renders_the_program(client, box_plan):
-    from grasplan.export_registry import render_export
-    from grasplan.result_reader import result_from_document
+    from grasplan.results.export_registry import render_export
+    from grasplan.results.reader import result_from_document
 
     status, out = client.json("POST", "/export", {"document": box_plan, "format": "urscript"})
     assert status == 200 and out["extension"] == ".script"
@@ -383,11 +383,11 @@ def test_gzip_bodies(client, box_plan, server):
 
 
 def test_internal_error_is_one_line_and_the_service_keeps_serving(client, monkeypatch, caplog):
-    import grasplan.planning
+    import grasplan.motion.planning
 
     def broken(*a, **k):
         raise RuntimeError("simulated bug")
-    monkeypatch.setattr(grasplan.planning, "plan", broken)
+    monkeypatch.setattr(grasplan.motion.planning, "plan", broken)
     with caplog.at_level(logging.ERROR, logger="grasplan.serve"):
         status, doc = client.json("POST", "/plan", {"part": "box", "options": FAST_PLAN})
     assert status == 500 and doc["error"] == "internal" and "RuntimeError" in doc["detail"]
@@ -403,7 +403,7 @@ def test_one_request_at_a_time_with_a_time_limit(service, monkeypatch):
     """A slow plan is answered 504; the one queued behind it 503 (it could not start in time); a
     third, past the queue's bound, 503 at once; the service answers /health throughout and plans
     again afterwards."""
-    import grasplan.planning
+    import grasplan.motion.planning
 
     running = {"now": 0, "most": 0}
     lock = threading.Lock()
@@ -416,7 +416,7 @@ def test_one_request_at_a_time_with_a_time_limit(service, monkeypatch):
         with lock:
             running["now"] -= 1
         raise RuntimeError("not reached by a client")
-    monkeypatch.setattr(grasplan.planning, "plan", slow)
+    monkeypatch.setattr(grasplan.motion.planning, "plan", slow)
     cfg = ServeConfig(parts_dir=service.config.parts_dir, time_limit_s=0.8, max_queue=1, databases=False)
     with LoopbackServer(create_app(cfg, service=service)) as srv:
         results: dict[int, tuple[int, dict]] = {}

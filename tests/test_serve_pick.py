@@ -72,7 +72,7 @@ def test_the_service_holds_a_warm_picker(client, service):
 def test_pick_matches_the_library(client, service, scenes):
     """The served picks are the library's: the same instance, grasp and joint path for the seed."""
     from grasplan.pick import Picker, PickParams
-    from grasplan.scenefile import scene_from_dict
+    from grasplan.piles.scene_file import scene_from_dict
 
     scene = scenes.scene(seed=1)
     status, doc = client.json("POST", "/pick", {**scene, "options": {"max_picks": 1, "seed": 5}})
@@ -94,7 +94,7 @@ def test_picks_text_is_the_documents_json(service, scenes):
     """The served serialisation (robot, gripper and cell serialised once per object) is byte for
     byte the JSON of the grasplan.picks/1 document, with the parts' paths reduced to file names."""
     from grasplan.io import to_json_text
-    from grasplan.scenefile import scene_from_dict
+    from grasplan.piles.scene_file import scene_from_dict
     from grasplan.serve.handlers import public_parts
 
     res = service.picker.plan(scene_from_dict({**scenes.scene(seed=11), "cell": "bin"}), max_picks=2, seed=1)
@@ -118,7 +118,7 @@ def test_pick_defaults_to_every_instance_that_has_one(client, scenes):
 def test_export_a_pick(client, scenes, service):
     """A served picks document exports like the library exports it (the meshes read from the
     service's folder, never from the document's paths)."""
-    from grasplan.export_registry import render_export
+    from grasplan.results.export_registry import render_export
     from grasplan.pick.reader import pick_as_plan, result_from_picks
 
     status, doc = client.json("POST", "/pick", {**scenes.scene(seed=3), "options": {"max_picks": 1}})
@@ -210,7 +210,7 @@ def test_the_documented_node_client_works(server, scenes, tmp_path):
 def test_a_database_next_to_the_mesh_is_used_and_checked(service, tmp_path):
     """``NAME.graspdb.npz`` next to a mesh is the part's database; one of another part stops the start."""
     from grasplan.errors import InputError
-    from grasplan.graspdb import database_for, write_database
+    from grasplan.grasps.graspdb import database_for, write_database
 
     folder = parts_folder(tmp_path / "parts", ("box", "bracket"))
     write_database(database_for(service.parts["box"].part, service.gripper), folder / "box.graspdb.npz")

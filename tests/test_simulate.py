@@ -8,10 +8,10 @@ import pytest
 import trimesh
 
 from grasplan.errors import InputError
-from grasplan.gripper import load_gripper
-from grasplan.mass import mass_properties
-from grasplan.quality import grasp_quality
-from grasplan.simulate import convex_pieces, simulate_grasps
+from grasplan.gripper.load import load_gripper
+from grasplan.part.mass import mass_properties
+from grasplan.grasps.quality import grasp_quality
+from grasplan.sim.simulate import convex_pieces, simulate_grasps
 
 BLOCK = (0.12, 0.03, 0.03)
 
@@ -94,7 +94,7 @@ def test_coacd_pieces_are_cached_atomically(tmp_path, monkeypatch):
 def test_simulate_cli_writes_sim_per_grasp(tmp_path, example_part):
     from click.testing import CliRunner
 
-    from grasplan import result_reader as result
+    from grasplan.results import reader as result
     from grasplan.cli import main
 
     grasps_json = tmp_path / "grasps.json"
@@ -111,7 +111,7 @@ def test_simulate_cli_writes_sim_per_grasp(tmp_path, example_part):
     assert doc["part"]["mass_kg"] == pytest.approx(json.loads(grasps_json.read_text())["part"]["mass_kg"])
     ok = set(np.flatnonzero(np.asarray(loaded.grasps.status) == "ok").tolist())
     # the best-scored collision-free grasps with the plan's diversity rule
-    from grasplan.scoring import distinct_order
+    from grasplan.config.scoring import distinct_order
 
     g = loaded.grasps
     okr = np.flatnonzero(np.asarray(g.status) == "ok")
@@ -147,7 +147,7 @@ def test_many_piece_contact_does_not_ring_the_jaws_out(setup, monkeypatch):
     """Issue 11: a 0.2 kg jaw with 1400 N s/m of damping (m/b 7x below the timestep) rang against a
     part of many convex pieces and ratcheted it out of a centred grasp; the drive's reflected inertia
     (``DRIVE_TAU``) keeps it still. The bare-jaw model is run too, to show the test can fail."""
-    import grasplan.simulate as S
+    import grasplan.sim.simulate as S
 
     block, g, Twp = setup
     monkeypatch.setattr(S, "convex_pieces", lambda mesh, **kw: _slabs(8))
@@ -165,7 +165,7 @@ def test_drive_inertia_sets_the_jaw_time_constant():
     timesteps, for any grip force."""
     import re
 
-    import grasplan.simulate as S
+    import grasplan.sim.simulate as S
 
     assert S.DRIVE_TAU >= 2 * S.TIMESTEP
     block = trimesh.creation.box(BLOCK)
@@ -183,7 +183,7 @@ def test_drive_inertia_sets_the_jaw_time_constant():
 def test_an_arena_too_small_for_the_contacts_is_an_error_not_a_result(setup, monkeypatch):
     """MuJoCo drops contacts silently when its arena is full: the simulation must refuse to report
     such a run (here with a 60 kB arena and a part of 64 pieces) instead of scoring it."""
-    import grasplan.simulate as S
+    import grasplan.sim.simulate as S
 
     block, g, Twp = setup
     monkeypatch.setattr(S, "convex_pieces", lambda mesh, **kw: _slabs(8))
@@ -196,7 +196,7 @@ def test_jaw_torsion_is_the_soft_finger_torsion_of_each_grasps_patch(setup):
     """Issue 11: MuJoCo gives a pair of convex shapes one contact point, so each jaw's torsional
     friction is set per grasp from its own contact patch (the model gravity_margin uses), not a
     constant. Checked against the patch computed independently here, and an explicit area wins."""
-    from grasplan.patches import contact_patches
+    from grasplan.grasps.patches import contact_patches
 
     block, g, Twp = setup
     T = np.array([top_grasp(0.0), top_grasp(0.05)])
@@ -221,7 +221,7 @@ def test_twist_slips_at_the_patch_torsion_whatever_the_contact_points(setup, mon
     hold at 1.1 F*, whether the part is one convex piece (MuJoCo: 4 contact points per pad at the
     corners of the overlap) or 16 slabs (a point per slab): each MuJoCo point used to carry the whole
     patch's torsion on top of the points' spread, and held down to 0.5 F*."""
-    import grasplan.simulate as S
+    import grasplan.sim.simulate as S
 
     block, g, Twp = setup
     if pieces == "slabs":

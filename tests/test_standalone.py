@@ -13,7 +13,7 @@ from click.testing import CliRunner
 
 import grasplan
 from grasplan.cli import main
-from grasplan.config_files import PACKAGED_DIR, search_path
+from grasplan.config.lookup import PACKAGED_DIR, search_path
 from grasplan.errors import ConfigError, InputError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -106,7 +106,7 @@ def test_result_round_trip_is_exact(tmp_path):
 def test_in_memory_part_plan_is_valid_and_exports(tmp_path):
     import trimesh
 
-    from grasplan.mesh import part_from_trimesh
+    from grasplan.part.mesh import part_from_trimesh
 
     box = trimesh.creation.box(extents=(0.04, 0.03, 0.02))
     part = part_from_trimesh(box)
@@ -124,7 +124,7 @@ def test_lookup_order(tmp_path, monkeypatch):
         root.mkdir(parents=True)
         (root / "table.yaml").write_text(f"name: table\ntable_z: {z}\n")
     monkeypatch.chdir(cwd)
-    from grasplan.cell import load_cell
+    from grasplan.cell.model import load_cell
 
     assert load_cell("table").table_z == pytest.approx(0.1)           # ./configs beats the package
     monkeypatch.setenv("GRASPLAN_CONFIG_PATH", str(env))
@@ -139,7 +139,7 @@ def test_lookup_order(tmp_path, monkeypatch):
 
 def test_unknown_name_lists_where_it_looked(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    from grasplan.gripper import load_gripper
+    from grasplan.gripper.load import load_gripper
 
     with pytest.raises(ConfigError) as e:
         load_gripper("no_such_gripper")

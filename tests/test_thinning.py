@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from grasplan.antipodal_base import Candidates
-from grasplan.thinning import thin_candidates
+from grasplan.candidates.antipodal_base import Candidates
+from grasplan.candidates.thinning import thin_candidates
 
 
 def _candidates(centres: np.ndarray, axes: np.ndarray, half_width: float = 0.01) -> Candidates:

@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from grasplan.errors import ConfigError, InputError
-from grasplan.transforms import check_transform, pose7, quaternions
+from grasplan.geometry.transforms import check_transform, pose7, quaternions
 
 
 def _matrix_from_wxyz(q: np.ndarray) -> np.ndarray:

@@ -8,8 +8,8 @@ import pytest
 
 from grasplan.errors import InputError
 from grasplan.io import read_json, write_json
-from grasplan.tolerance import Tolerance
-from grasplan.units import parse_angle_deg, parse_length
+from grasplan.geometry.tolerance import Tolerance
+from grasplan.geometry.units import parse_angle_deg, parse_length
 
 
 @pytest.mark.parametrize(

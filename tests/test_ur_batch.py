@@ -1,4 +1,4 @@
-"""The compiled UR closed form (grasplan/ik/ur_batch.py) against Pinocchio: every branch it
+"""The compiled UR closed form (grasplan/robot/ik/ur_batch.py) against Pinocchio: every branch it
 returns reaches the pose; the stack and the single pose give the same numbers; a straight line
 followed on one branch keeps the pose on the line, joint steps small, within the limits, and the
 codes name what fails; the line's deviation is the distance Pinocchio's FK gives."""
@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from grasplan.ik import get_solver, wrap_many, wrap_to_limits
-from grasplan.ik.ur_batch import BRANCHES, branch_many, fk_many, follow, line_deviation, solve_one
-from grasplan.robot import load_robot
-from grasplan.transforms import pose_error
+from grasplan.robot.ik.solve import get_solver, wrap_many, wrap_to_limits
+from grasplan.robot.ik.ur_batch import BRANCHES, branch_many, fk_many, follow, line_deviation, solve_one
+from grasplan.robot.description import load_robot
+from grasplan.geometry.transforms import pose_error
 
 TWO_PI = 2.0 * np.pi
 
@@ -135,7 +135,7 @@ def test_wrap_many_is_wrap_to_limits_row_by_row():
 def test_max_solutions_is_a_prefix(ur5):
     """Verifying lazily (nearest first, stop at max_solutions) returns the first solutions of the
     full, deduplicated and sorted list."""
-    from grasplan.ik import solve_ik
+    from grasplan.robot.ik.solve import solve_ik
 
     robot, _ = ur5
     rng = np.random.default_rng(4)

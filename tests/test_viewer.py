@@ -22,9 +22,9 @@ import numpy as np
 import pytest
 
 from grasplan.errors import InputError
-from grasplan.mesh import load_part
-from grasplan.result_reader import load_result
-from grasplan.viewer import (
+from grasplan.part.mesh import load_part
+from grasplan.results.reader import load_result
+from grasplan.viewer.page import (
     OTHER_COLOR,
     STATUS_COLORS,
     build_data,
@@ -45,7 +45,7 @@ CANVAS_Y0, CANVAS_Y1 = 200, 760  # rows checked: below an error banner (top), ab
 
 # ----------------------------------------------------------------------------- synthetic results
 def _ik(robot, T_world_tool, q0, iters=300):
-    """Damped least squares on the tool frame (independent of grasplan.ik)."""
+    """Damped least squares on the tool frame (independent of grasplan.robot.ik)."""
     import pinocchio as pin
 
     model, data = robot.model, robot.model.createData()
@@ -89,9 +89,9 @@ def synthetic_result(part_path: Path, *, units="mm", n_planned=3, plan=True, see
     along the part's x axis (so they lie on the surface), statuses drawn at random, and real
     q_grasp/q_pregrasp/paths (Pinocchio IK) for the planned ones. Self-contained like grasplan's
     own files: the gripper's definition, the whole cell and the robot's source are embedded."""
-    from grasplan.cell import load_cell
-    from grasplan.gripper import load_gripper
-    from grasplan.robot import load_robot
+    from grasplan.cell.model import load_cell
+    from grasplan.gripper.load import load_gripper
+    from grasplan.robot.description import load_robot
 
     rng = np.random.default_rng(seed)
     part = load_part(part_path, units=units)
@@ -364,7 +364,7 @@ def test_malformed_grasp_is_named_small_and_unsampled(bracket_plan):
     """A malformed grasp is named by its index: in a small document (JSON Schema on every grasp) and
     in a large one where the grasp is not in the schema sample (the vectorised check)."""
     doc, _ = bracket_plan
-    from grasplan.result_reader import SCHEMA_SAMPLE
+    from grasplan.results.reader import SCHEMA_SAMPLE
 
     small = [dict(g) for g in doc["grasps"][:20]]
     small[7]["T_part_tcp"] = [[1, 0, 0], [0, 1, 0]]
@@ -602,7 +602,7 @@ def test_browser_many_grasps_list_is_chunked(tmp_path):
     write_viewer(doc, page, part_path=BRACKET)
     r = run_chromium(page, tmp_path, "--dump-dom")
     g = _check_rendered(r.stdout, doc)
-    from grasplan.viewer import LIST_CHUNK
+    from grasplan.viewer.page import LIST_CHUNK
 
     n_ok = sum(1 for x in grasps if x["status"] == "ok")
     assert len(g.ids) == n_ok + 2 * LIST_CHUNK  # ok: all of them; the others: one chunk each
@@ -615,8 +615,8 @@ def test_browser_many_grasps_list_is_chunked(tmp_path):
 def test_browser_tless20_plan(paper, tmp_path):
     """The issue's acceptance check: a real `grasplan plan` of TLess20 with the UR5, rendered."""
     path = paper("TLess20.stl")
-    from grasplan.params import PlanParams
-    from grasplan.planning import plan
+    from grasplan.config.params import PlanParams
+    from grasplan.motion.planning import plan
 
     result = plan(load_part(path), robot="ur5", planning=PlanParams(top=3, seed=0, budget_s=30.0))
     doc = result.to_json()
@@ -639,7 +639,7 @@ def sequence_result_with_obstacles() -> dict:
     from test_export import mini_ur5
     from test_export_sequence import add_sequence
 
-    from grasplan.gripper import load_gripper
+    from grasplan.gripper.load import load_gripper
 
     doc = synthetic_result(BRACKET, n_planned=2)
     ur5, gr = mini_ur5(), load_gripper("schunk_egp_c_40")

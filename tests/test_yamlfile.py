@@ -1,4 +1,4 @@
-"""The one YAML reader (grasplan.yamlfile): bounded in time and memory, every problem an InputError
+"""The one YAML reader (grasplan.config.yamlfile): bounded in time and memory, every problem an InputError
 naming the file and the field."""
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from grasplan.errors import InputError
-from grasplan.yamlfile import MAX_EXPANDED_NODES, load_yaml_text, read_yaml_file
+from grasplan.config.yamlfile import MAX_EXPANDED_NODES, load_yaml_text, read_yaml_file
 
 
 def _bomb(levels: int, width: int = 9, field: str = "retreat") -> str:

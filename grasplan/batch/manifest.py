@@ -1,6 +1,6 @@
 """Which parts a batch plans, with which options: files, folders and manifests become
 :class:`PartEntry` rows (:func:`discover_parts`, :func:`read_manifest`), each with its per-part
-overrides read by the one interpreter of option values (:func:`grasplan.option_kinds.parse_value`,
+overrides read by the one interpreter of option values (:func:`grasplan.config.option_kinds.parse_value`,
 as on the command line); :func:`make_jobs` applies them, hashes every part and option set and
 names the output folders."""
 from __future__ import annotations
@@ -18,10 +18,10 @@ from typing import Any
 
 from ..errors import ConfigError, GrasplanError, InputError
 from ..io import sha256_file
-from ..mesh import UNIT_CHOICES
-from ..meshfile import SUPPORTED_SUFFIXES
-from ..option_kinds import parse_value
-from ..params import PARAM_CLASSES, option_fields
+from ..part.mesh import UNIT_CHOICES
+from ..part.meshfile import SUPPORTED_SUFFIXES
+from ..config.option_kinds import parse_value
+from ..config.params import PARAM_CLASSES, option_fields
 from .options import BatchOptions, options_hash
 
 #: suffixes a folder is searched for (files named on the command line may be any mesh grasplan reads)
@@ -55,7 +55,7 @@ def _key(k: Any) -> str:
 
 
 def accepted_keys(known: dict[str, Any]) -> list[str]:
-    """Every key a manifest row may set (``known``: :func:`grasplan.params.option_fields`)."""
+    """Every key a manifest row may set (``known``: :func:`grasplan.config.params.option_fields`)."""
     return sorted({*ENTRY_KEYS, *(f.name for _, f in known.values())})
 
 
@@ -125,7 +125,7 @@ def _read_entry_value(key: str, value: Any, base_dir: Path, where: str, known: d
             raise InputError(f"{where}: units {text!r}; use one of {', '.join(UNIT_CHOICES)}")
         return key, text
     if key == "part_pose":
-        from ..transforms import parse_part_pose
+        from ..config.poses import parse_part_pose
 
         pose = str(value).strip()
         pp = Path(pose).expanduser()
@@ -168,7 +168,7 @@ def read_manifest(path: str | os.PathLike) -> list[PartEntry]:
     (an unknown one, or one option set twice, is an InputError naming it and the accepted keys);
     the time is linear in the rows."""
     path = Path(path)
-    from ..inputs import read_input_bytes
+    from ..config.inputs import read_input_bytes
 
     data = read_input_bytes(path, what="manifest", max_bytes=MAX_MANIFEST_BYTES)  # no FIFO, no device
     try:
@@ -208,7 +208,7 @@ def _csv_entries(path: Path, text: str, known: dict[str, Any]) -> list[PartEntry
 
 def _yaml_entries(path: Path, text: str, known: dict[str, Any]) -> list[PartEntry]:
     """The parts of a YAML manifest (see :func:`read_manifest`)."""
-    from ..yamlfile import MAX_MANIFEST_ENTRIES, load_yaml_text, structural_entries
+    from ..config.yamlfile import MAX_MANIFEST_ENTRIES, load_yaml_text, structural_entries
 
     entries = structural_entries(text)
     if entries > MAX_MANIFEST_ENTRIES:  # the YAML reader's bound on a document's nodes
@@ -367,19 +367,19 @@ def check_description(kind: str, name: str, where: str) -> None:
     a name no folder holds, or a file that is not such a description (``/etc/passwd``, a JSON or
     binary file, an empty file), is a ConfigError (exit 3) naming ``where`` (the manifest line and
     field, or the option), the file and what would work."""
-    from ..config_files import available, is_path_like, resolve_yaml
+    from ..config.lookup import available, is_path_like, resolve_yaml
 
     try:
         if kind == "robot":
-            from ..robot import load_robot
+            from ..robot.description import load_robot
 
             load_robot(name)
         elif kind == "gripper":
-            from ..gripper import load_gripper
+            from ..gripper.load import load_gripper
 
             load_gripper(name)
         else:
-            from ..cell import load_cell
+            from ..cell.model import load_cell
 
             load_cell(name)
     except (GrasplanError, OSError, ValueError, RecursionError, MemoryError) as exc:

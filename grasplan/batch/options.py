@@ -11,15 +11,9 @@ from typing import Any
 
 from ..errors import InputError
 from ..io import sha256_file
-from ..mesh import UNIT_CHOICES
-from ..params import (
-    ALL_POSES,
-    DEFAULT_CELL,
-    DEFAULT_GRIPPER,
-    DEFAULT_ROBOT,
-    CandidateParams,
-    GraspParams,
-    PlanParams,
+from ..part.mesh import UNIT_CHOICES
+from ..config.params import (
+    ALL_POSES, DEFAULT_CELL, DEFAULT_GRIPPER, DEFAULT_ROBOT, CandidateParams, GraspParams, PlanParams
 )
 from .layout import OPTIONS_SCHEMA
 
@@ -29,7 +23,7 @@ class BatchOptions:
     """Everything that decides a part's result (the options hash is computed from it).
 
     ``robot``, ``gripper``, ``cell``: names or YAML paths; ``units``: of the mesh files (see
-    :func:`grasplan.mesh.load_part`); ``T_world_part``: 4x4 row-major nested tuple (m), the part's
+    :func:`grasplan.part.mesh.load_part`); ``T_world_part``: 4x4 row-major nested tuple (m), the part's
     pose instead of its stable resting pose (``--part-pose``), or None; ``exports``:
     :data:`grasplan.export.FORMATS` names written next to ``plan.json``; ``view``: write ``view.html``.
     The place (``--place``), the scoring file (``--scoring``) and ``--pose-index all`` are fields
@@ -51,7 +45,7 @@ class BatchOptions:
         if self.units not in UNIT_CHOICES:
             raise InputError(f"units {self.units!r}: use one of {', '.join(UNIT_CHOICES)}")
         if self.T_world_part is not None:
-            from ..transforms import check_transform
+            from ..geometry.transforms import check_transform
 
             T = check_transform(self.T_world_part, "part pose T_world_part")
             object.__setattr__(self, "T_world_part", tuple(tuple(float(x) for x in r) for r in T))
@@ -61,7 +55,7 @@ class BatchOptions:
 
     def to_json(self) -> dict[str, Any]:
         """The options as JSON (``done.json``, ``summary.json``, the hash and the workers): the
-        parameter classes' :meth:`~grasplan.params.CandidateParams.options_json`, so a place is
+        parameter classes' :meth:`~grasplan.config.params.CandidateParams.options_json`, so a place is
         included (a plan file records it in ``cell.place``) and a scoring file as its weights."""
         return {**self.plain_json(), "candidates": self.candidates.options_json(),
                 "grasps": self.grasps.options_json(), "planning": self.planning.options_json()}
@@ -82,7 +76,7 @@ class BatchOptions:
 
 def export_formats() -> dict[str, Any]:
     """The export registry, name -> format (``.extension``, ``.per_grasp``): :data:`grasplan.export.FORMATS`."""
-    from ..export import load_builtin_formats
+    from ..results.export_registry import load_builtin_formats
 
     return load_builtin_formats()
 
@@ -105,7 +99,7 @@ def check_exports(names: Iterable[str]) -> tuple[str, ...]:
     unknown = [n for n in names if n not in available]
     if unknown:
         raise InputError(f"--export: unknown format(s) {', '.join(unknown)}; available: {', '.join(available)}")
-    from ..export_registry import program_options
+    from ..results.export_registry import program_options
 
     for n in names:  # the per-part file name must be one the format can write (a KRL program name)
         program_options(n, export_file(available[n]), {})
@@ -116,7 +110,7 @@ def check_exports(names: Iterable[str]) -> tuple[str, ...]:
 
 def _config_fingerprint(kind: str, name: str) -> str:
     """sha256 of the YAML a name resolves to on this machine (so editing a gripper redoes its parts)."""
-    from ..config_files import resolve_yaml
+    from ..config.lookup import resolve_yaml
 
     return sha256_file(resolve_yaml(kind, name))
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from ..errors import InputError
 from ..io import check_output_path, show_path
-from ..outputs import check_outputs, config_files, file_input
+from ..setup.outputs import check_outputs, config_files, file_input
 from .layout import LOCK_FILE, STAGING_DIR
 from .manifest import PartJob
 
@@ -110,7 +110,7 @@ def _inside_reserved(real_input: str, reserved: dict[str, str], folders: dict[st
 
 def _may_be(inputs: list[str], outputs: Sequence[Path], real: _RealPaths) -> list[str]:
     """The inputs that might be one of ``outputs`` (the same resolved path, or the same file
-    through another hard link): what :func:`grasplan.outputs.check_outputs` then checks in full.
+    through another hard link): what :func:`grasplan.setup.outputs.check_outputs` then checks in full.
     Inputs are stat'ed only when an output exists with more than one link."""
     real_outs = {real(o) for o in outputs}
     inodes = set()

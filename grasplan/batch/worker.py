@@ -17,14 +17,14 @@ from typing import TYPE_CHECKING, Any
 
 from ..errors import GrasplanError
 from ..io import write_atomic_text
-from ..params import ALL_POSES
+from ..config.params import ALL_POSES
 from ..status import Status
 from .layout import LOG_FILE, MAX_CRASHES, PLAN_FILE, VIEW_FILE, BatchStatus
 from .options import BatchOptions, export_file, export_formats
 
 if TYPE_CHECKING:
-    from ..mesh import Part
-    from ..result import PlanResult
+    from ..part.mesh import Part
+    from ..results.plan_result import PlanResult
     from .manifest import PartJob
 
 
@@ -74,7 +74,7 @@ def run_part(payload: dict[str, Any], out_dir: str | None = None) -> dict[str, A
 
 
 def _run_part_in(payload: dict[str, Any], out: Path) -> dict[str, Any]:
-    from ..config_files import use_config_dirs
+    from ..config.lookup import use_config_dirs
 
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
@@ -107,7 +107,7 @@ def _run_part_in(payload: dict[str, Any], out: Path) -> dict[str, Any]:
 
 
 def _plan_one(payload: dict[str, Any], local: Path, out: Path, row: dict[str, Any], log: list[str]) -> None:
-    from ..mesh import load_part
+    from ..part.mesh import load_part
 
     o = BatchOptions.from_json(payload["options"])
     t = time.perf_counter()
@@ -146,7 +146,7 @@ def _plan_one(payload: dict[str, Any], local: Path, out: Path, row: dict[str, An
                 notes.append(f"export {name} failed: {exc}")
         timing["exports"] = time.perf_counter() - t
     if o.view:
-        from ..viewer import write_viewer
+        from ..viewer.page import write_viewer
 
         t = time.perf_counter()
         with warnings.catch_warnings():
@@ -169,7 +169,7 @@ def _plan_files(o: BatchOptions, part: Part, load_s: float, out: Path, log: list
     writes them); the result ``plan.json`` holds."""
     import numpy as np
 
-    from ..planning import MIN_POSE_PROBABILITY, plan, plan_poses
+    from ..motion.planning import MIN_POSE_PROBABILITY, plan, plan_poses
 
     T = None if o.T_world_part is None else np.asarray(o.T_world_part, dtype=np.float64)
     kw: dict[str, Any] = dict(robot=o.robot, gripper=o.gripper, cell=o.cell, candidates=o.candidates,
@@ -178,7 +178,7 @@ def _plan_files(o: BatchOptions, part: Part, load_s: float, out: Path, log: list
         result = plan(part, load_s=load_s, **kw)
         result.write(out / PLAN_FILE)
         return result
-    from ..pose_plans import write_pose_plans
+    from ..results.pose_plans import write_pose_plans
 
     done = write_pose_plans(plan_poses(part, load_s=load_s, **kw), out / PLAN_FILE,
                             min_probability=MIN_POSE_PROBABILITY)

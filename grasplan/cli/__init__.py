@@ -1,93 +1,10 @@
-"""The ``grasplan`` command line. Each command lives in its own module (``grasplan/cli/<name>.py``,
-exposing a click command called ``command``) and is imported only when it runs, so ``--help`` is
-fast and a heavy dependency (Pinocchio, OMPL) is loaded only by the commands that need it."""
+"""The ``grasplan`` command line (:mod:`.group`); each command lives in its own module."""
 from __future__ import annotations
 
-import contextvars
-import importlib
-import os
-import sys
+from .._lazy import lazy_exports
 
-import click
-
-from ..errors import GrasplanError
-
-#: command name -> (module, one-line help shown by ``grasplan --help``)
-COMMANDS: dict[str, tuple[str, str]] = {
-    "blm": ("blm", "Insert the boundary layer into a part's mesh and write the remeshed part."),
-    "candidates": ("candidates", "Convex antipodal contact pairs for a part (BLM, convexity, antipodal)."),
-    "grasps": ("grasps", "Gripper poses from candidates, filtered by full-jaw collision checks."),
-    "database": ("database", "A part's grasp database: its grasps in the part frame, computed once for picking."),
-    "plan": ("plan", "Grasps a robot can reach: IK and collision-free approach paths."),
-    "export": ("export", "Write a planned grasp as URScript, a timed joint trajectory or CSV."),
-    "view": ("view", "Write a self-contained HTML viewer for a grasps or plan file."),
-    "simulate": ("simulate", "Close, lift and shake grasps in MuJoCo; record which ones hold the part."),
-    "batch": ("batch", "Plan a whole catalogue of parts (files, folders, manifests), locally or on Ray."),
-    "scene": ("scene", "Make scenes of many parts: drop a pile into a bin in MuJoCo (scene drop)."),
-    "pick": ("pick", "Plan picks from a pile of parts at known poses: bin, neighbours and cloud checked."),
-    "clutter": ("clutter", "Clear piles in physics (drop, plan, pick in MuJoCo): grasp success and declutter rates."),
-    "serve": ("serve", "An HTTP JSON service: picks, plans and robot programs from a warm planner."),
-}
-
-
-class LazyGroup(click.Group):
-    def list_commands(self, ctx):
-        return list(COMMANDS)
-
-    def get_command(self, ctx, name):
-        if name not in COMMANDS:
-            return None
-        module = importlib.import_module(f"grasplan.cli.{COMMANDS[name][0]}")
-        return module.command
-
-    def format_commands(self, ctx, formatter):
-        rows = [(name, help_) for name, (_, help_) in COMMANDS.items()]
-        with formatter.section("Commands"):
-            formatter.write_dl(rows)
-
-    def invoke(self, ctx):
-        try:
-            # a copied context: --config-dir (a context variable) ends with the command, so an
-            # in-process caller (tests, batch workers) starts the next command with a clean lookup
-            from .common import tolerant_stdout
-
-            with tolerant_stdout():  # stdout closed or full after the outputs are written is no error
-                return contextvars.copy_context().run(super().invoke, ctx)
-        except GrasplanError as exc:
-            click.echo(f"grasplan: error: {_one_line(str(exc))}", err=True)
-            sys.exit(exc.exit_code)
-        except (click.exceptions.Exit, click.ClickException, click.exceptions.Abort, SystemExit):
-            raise
-        except KeyboardInterrupt:
-            click.echo("grasplan: interrupted; no output was written", err=True)
-            sys.exit(130)
-        except MemoryError:
-            click.echo("grasplan: error: out of memory; the input is too large for this machine "
-                       "(try a coarser mesh or a larger --spacing)", err=True)
-            sys.exit(3)
-        except RecursionError:
-            click.echo("grasplan: error: the input is nested too deeply to read", err=True)
-            sys.exit(3)
-        except Exception as exc:  # a bug: one clear line, the traceback only on request
-            if os.environ.get("GRASPLAN_DEBUG"):
-                raise
-            click.echo(f"grasplan: internal error ({type(exc).__name__}); no output was written. This is a bug: "
-                       "please report it with the command line (GRASPLAN_DEBUG=1 shows the traceback)", err=True)
-            sys.exit(1)
-
-
-def _one_line(msg: str, limit: int = 2000) -> str:
-    """An error message as one line of printable text (inputs cannot forge further lines)."""
-    msg = " ".join(msg.split())
-    msg = "".join(c if c.isprintable() else "?" for c in msg)
-    return msg if len(msg) <= limit else msg[: limit - 3] + "..."
-
-
-@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
-@click.version_option(package_name="grasplan")
-def main():
-    """grasplan: verified parallel-jaw grasps from a part's CAD mesh.
-
-    Lengths accept unit suffixes (0.1mm, 5cm); a bare number is metres. Angles are degrees.
-    Exit codes: 0 ok, 2 usage error, 3 bad input (nothing written), 4 nothing usable found.
-    """
+__getattr__, __dir__ = lazy_exports(globals(), {
+    "COMMANDS": ".group",
+    "LazyGroup": ".group",
+    "main": ".group",
+})

@@ -6,7 +6,7 @@ import sys
 import click
 
 from ..batch.engines import ENGINES
-from ..params import CandidateParams, GraspParams, PlanParams
+from ..config.params import CandidateParams, GraspParams, PlanParams
 from .common import info
 from .options import cell_options, param_options, params_from_kwargs, robot_option
 
@@ -44,7 +44,7 @@ def command(parts, out_dir, workers, engine, ray_address, exports, no_view, **kw
     after Ctrl-C. Ctrl-C or a signal (SIGTERM, SIGHUP, ...) stops the workers and keeps the
     finished parts; the workers also end if the batch is killed.
     """
-    from ..batch import run_batch
+    from ..batch.run import run_batch
     from ..batch.layout import BatchStatus
     from ..batch.options import BatchOptions
     from ..batch.report import format_row
@@ -53,7 +53,7 @@ def command(parts, out_dir, workers, engine, ray_address, exports, no_view, **kw
     part_pose = kwargs.pop("part_pose")
     T_world_part = None
     if part_pose is not None:
-        from ..transforms import parse_part_pose
+        from ..config.poses import parse_part_pose
 
         T_world_part = parse_part_pose(part_pose).tolist()
     options = BatchOptions(robot=kwargs.pop("robot"), gripper=kwargs.pop("gripper"), cell=kwargs.pop("cell"),

@@ -9,7 +9,7 @@ import trimesh
 
 from ..errors import InputError
 from ..io import write_atomic_bytes
-from ..params import CandidateParams
+from ..config.params import CandidateParams
 from .common import check_output, info, table, units_option, warn_all
 from .options import param_options
 
@@ -64,8 +64,8 @@ def stamp_units(payload: bytes, file_type: str, note: str) -> bytes:
 @param_options(CandidateParams, only=("alpha", "gamma_deg"))
 @units_option
 def command(part: Path, output: Path, alpha: float, gamma_deg: float, units: str, output_units: str) -> None:
-    from ..blm import boundary_layer
-    from ..mesh import load_part
+    from ..candidates.blm import boundary_layer
+    from ..part.mesh import load_part
 
     suffix = output.suffix.lower()
     if suffix not in OUTPUT_TYPES:
@@ -84,7 +84,7 @@ def command(part: Path, output: Path, alpha: float, gamma_deg: float, units: str
     r = boundary_layer(p.mesh, alpha=alpha, gamma_deg=gamma_deg, tol=p.tol)
     t_blm = time.perf_counter() - t0
 
-    from ..units import LENGTH_UNITS
+    from ..geometry.units import LENGTH_UNITS
 
     unit = p.units if output_units == "input" else output_units
     m_per_unit = LENGTH_UNITS[unit]

@@ -6,7 +6,7 @@ import time
 import click
 
 from ..errors import PlanningError
-from ..params import CandidateParams
+from ..config.params import CandidateParams
 from .common import check_output, info, table, units_option, warn_all
 from .options import output_option, param_options, params_from_kwargs
 
@@ -24,9 +24,9 @@ from .options import output_option, param_options, params_from_kwargs
 @param_options(CandidateParams)
 @units_option
 def command(part: str, output: str, units: str, **kwargs) -> None:
-    from ..candidates import compute_candidates
+    from ..candidates.pipeline import compute_candidates
     from ..io import write_json
-    from ..mesh import load_part
+    from ..part.mesh import load_part
 
     output = check_output(output, part)
     params = params_from_kwargs(kwargs, (CandidateParams,))["candidates"]

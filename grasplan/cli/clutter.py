@@ -1,5 +1,5 @@
 """``grasplan clutter --cell bin --part PATH:COUNT ... --rounds R --seed S -o report.json``: clutter
-removal in physics (issue 21; docs/clutter.md)."""
+removal in physics (docs/clutter.md)."""
 from __future__ import annotations
 
 import time
@@ -7,9 +7,9 @@ from pathlib import Path
 
 import click
 
-from ..drop import DropParams
+from ..sim.drop import DropParams
 from ..errors import InputError
-from ..params import DEFAULT_GRIPPER, DEFAULT_ROBOT, GraspParams
+from ..config.params import DEFAULT_GRIPPER, DEFAULT_ROBOT, GraspParams
 from ..pick.params import PickParams
 from .common import check_output, info, table, units_option, warn_all
 from .options import apply_config_dirs, config_dir_option, output_option, param_options
@@ -54,12 +54,12 @@ def command(cell: str, parts: tuple[str, ...], units: str, rounds: int, pose_noi
     Writes per round and in total attempts, successes, GSR, DR, planning ms and failures by
     reason. Exit 3 (nothing written) for bad input. docs/clutter.md.
     """
-    from ..cell import load_cell
+    from ..cell.model import load_cell
     from ..clutter.execute import PROTOCOL
     from ..clutter.report import report_json, write_report
     from ..clutter.rounds import noise_reach, parse_pose_noise, run_round
-    from ..drop import load_items, parts_record
-    from ..gripper import load_gripper
+    from ..sim.drop import load_items, parts_record
+    from ..gripper.load import load_gripper
     from ..pick import Picker
     from .scene import parse_part_count
 

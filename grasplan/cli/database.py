@@ -6,7 +6,7 @@ import time
 import click
 
 from ..errors import PlanningError
-from ..params import DEFAULT_GRIPPER, CandidateParams, GraspParams
+from ..config.params import DEFAULT_GRIPPER, CandidateParams, GraspParams
 from .common import check_output, info, table, units_option, warn_all
 from .options import apply_config_dirs, config_dir_option, output_option, param_options, params_from_kwargs
 
@@ -28,9 +28,9 @@ def command(part, output, gripper, units, **kwargs):
     file you keep with the part (the scene file's `parts.NAME.grasps`). A database is refused for
     another part (sha256, scale) or gripper. Exit 4 (file still written) when no grasp is
     collision-free. Format: docs/pick.md."""
-    from ..graspdb import build_database, write_database
-    from ..gripper import load_gripper
-    from ..mesh import load_part
+    from ..grasps.graspdb import build_database, write_database
+    from ..gripper.load import load_gripper
+    from ..part.mesh import load_part
 
     t_all = time.perf_counter()
     apply_config_dirs(kwargs)  # first: --config-dir decides which file the gripper name reads

@@ -6,8 +6,8 @@ import time
 import click
 
 from ..errors import InputError
-from ..export import load_builtin_formats
-from ..export_registry import DEFAULT_MAX_ACCEL
+from ..results.export_registry import load_builtin_formats
+from ..results.export_registry import DEFAULT_MAX_ACCEL
 from .common import check_output, info
 from .options import FLOAT, INT
 
@@ -53,13 +53,13 @@ def command(plan, fmt, grasp_id, out, max_accel, velocity_scale, part_path, inst
     """
     from pathlib import Path
 
-    from ..export import write
-    from ..result_reader import load_result
+    from ..export.api import write
+    from ..results.reader import load_result
 
     t0 = time.perf_counter()
-    from ..export import output_paths
-    from ..export_registry import program_options
-    from ..outputs import picks_files, result_files
+    from ..results.export_registry import output_paths
+    from ..results.export_registry import program_options
+    from ..setup.outputs import picks_files, result_files
     from ..pick.reader import is_picks_file, load_picks, pick_as_plan
 
     companions = output_paths(fmt, out)[1:]  # KRL's .dat too

@@ -6,7 +6,7 @@ import time
 import click
 
 from ..errors import PlanningError
-from ..params import CandidateParams, GraspParams
+from ..config.params import CandidateParams, GraspParams
 from ..status import Status
 from .common import check_output, info, table, warn_all
 from .options import (
@@ -33,11 +33,11 @@ def command(part, output, gripper, cell, part_pose, units, only_ok, indent, **kw
     Prints a summary (candidates, poses, kept, rejected by reason, seconds) and writes
     grasplan.grasps/1 JSON (docs/grasps.md). Exit 4 (file still written) when no pose is
     collision-free."""
-    from ..cell import load_cell
-    from ..transforms import parse_part_pose
-    from ..grasps import compute_grasps
-    from ..gripper import load_gripper
-    from ..mesh import load_part
+    from ..cell.model import load_cell
+    from ..config.poses import parse_part_pose
+    from ..grasps.pipeline import compute_grasps
+    from ..gripper.load import load_gripper
+    from ..part.mesh import load_part
 
     t_all = time.perf_counter()
     apply_config_dirs(kwargs)  # first: --config-dir decides which files the names below read

@@ -1,8 +1,8 @@
-"""Every command's options, built from the parameter dataclasses (:mod:`grasplan.params`).
+"""Every command's options, built from the parameter dataclasses (:mod:`grasplan.config.params`).
 
 ``@param_options(CandidateParams, GraspParams)`` adds one click option per dataclass field, with the
 field's default, help and CLI spelling; its click type (:class:`OptionType`) reads the text with the
-one interpreter of option kinds (:func:`grasplan.option_kinds.read_value`: lengths take unit suffixes,
+one interpreter of option kinds (:func:`grasplan.config.option_kinds.read_value`: lengths take unit suffixes,
 angles are degrees, a pose is 'x,y,z,roll,pitch,yaw', ``--pose-index`` also takes ``all``), the same
 reading a batch manifest gets. :func:`params_from_kwargs` pops them again and builds the dataclasses,
 which validate the ranges (InputError, exit 3, naming the option and what would pass). Parsing
@@ -18,22 +18,9 @@ from typing import Any
 import click
 
 from ..errors import InputError
-from ..option_kinds import (
-    OptionSpec,
-    is_option,
-    metavar,
-    option_name,
-    option_spec,
-    read_value,
-)
-from ..params import (
-    DEFAULT_CELL,
-    DEFAULT_GRIPPER,
-    DEFAULT_ROBOT,
-    PARAM_CLASSES,
-    CandidateParams,
-    GraspParams,
-    PlanParams,
+from ..config.option_kinds import OptionSpec, is_option, metavar, option_name, option_spec, read_value
+from ..config.params import (
+    DEFAULT_CELL, DEFAULT_GRIPPER, DEFAULT_ROBOT, PARAM_CLASSES, CandidateParams, GraspParams, PlanParams
 )
 from .common import units_option
 
@@ -43,7 +30,7 @@ PARAM_KEYS: dict[type, str] = {CandidateParams: "candidates", GraspParams: "gras
 
 class OptionType(click.ParamType):
     """A click type for an option of spec ``s``: the text is read by
-    :func:`grasplan.option_kinds.read_value` (a refused text is a usage error, exit 2; the range is
+    :func:`grasplan.config.option_kinds.read_value` (a refused text is a usage error, exit 2; the range is
     the dataclass's to check, exit 3)."""
 
     def __init__(self, s: OptionSpec):
@@ -120,7 +107,7 @@ def config_dir_option(fn):
 
 def apply_config_dirs(kwargs: dict) -> None:
     """Pop ``config_dir`` and put it first in the config lookup (before anything resolves a name)."""
-    from ..config_files import set_config_dirs
+    from ..config.lookup import set_config_dirs
 
     dirs = kwargs.pop("config_dir", ())
     if dirs:

@@ -7,7 +7,7 @@ import time
 import click
 
 from ..errors import PlanningError
-from ..params import DEFAULT_GRIPPER, GraspParams
+from ..config.params import DEFAULT_GRIPPER, GraspParams
 from ..pick.params import PickParams
 from .common import check_output, info, table, warn_all
 from .options import apply_config_dirs, config_dir_option, output_option, param_options, robot_option
@@ -35,9 +35,9 @@ def command(scene, robot, gripper, cell, sequence, max_picks, output, **kwargs):
     and accessibility (parts on top first), then IK, the straight approach, the transit and the lift
     checked against the neighbours. Exit 4 (the file still written) when nothing can be picked.
     """
-    from ..outputs import scene_files
+    from ..setup.outputs import scene_files
     from ..pick.picker import Picker
-    from ..scenefile import load_scene
+    from ..piles.scene_file import load_scene
 
     t0 = time.perf_counter()
     apply_config_dirs(kwargs)

@@ -7,7 +7,7 @@ from typing import Any
 import click
 
 from ..errors import PlanningError
-from ..params import ALL_POSES, CandidateParams, GraspParams, PlanParams
+from ..config.params import ALL_POSES, CandidateParams, GraspParams, PlanParams
 from ..status import PLAN_STATUSES, Status
 from .common import check_output, info, pose_family, progress, table, warn_all
 from .options import (
@@ -33,12 +33,12 @@ def command(part, robot, output, gripper, cell, part_pose, units, **kwargs):
     when planned, q_grasp, q_pregrasp, path, pregrasp_index). Exit code 4 (file still written)
     when no grasp could be planned: the per-grasp statuses say why.
     """
-    from ..cell import load_cell
-    from ..gripper import load_gripper
-    from ..mesh import load_part
-    from ..planning import plan
-    from ..robot import load_robot
-    from ..transforms import parse_part_pose
+    from ..cell.model import load_cell
+    from ..gripper.load import load_gripper
+    from ..part.mesh import load_part
+    from ..motion.planning import plan
+    from ..robot.description import load_robot
+    from ..config.poses import parse_part_pose
 
     t0 = time.perf_counter()
     apply_config_dirs(kwargs)  # first: --config-dir decides which files the names below read
@@ -109,7 +109,7 @@ def command(part, robot, output, gripper, cell, part_pose, units, **kwargs):
 
 def _other_poses_hint(p, g, c, prm, result) -> str:
     """``"; other resting poses: 1 (23 %): 812 collision-free grasps, ..."`` (the grasp stage only)."""
-    from ..planning import grasp_counts_by_pose
+    from ..motion.planning import grasp_counts_by_pose
 
     chosen = result.params.grasps.pose_index
     chosen = c.pose_index if chosen is None else chosen
@@ -125,8 +125,8 @@ def _other_poses_hint(p, g, c, prm, result) -> str:
 def _plan_all_poses(p, part, rob, g, c, T_world_part, output, prm, t0) -> None:
     """``--pose-index all``: one standalone plan file per pose (OUT.pose<k>.json), OUT.json = the
     pose with the most planned grasps (ties: the more probable) plus a ``poses`` block."""
-    from ..planning import MIN_POSE_PROBABILITY, plan_poses
-    from ..pose_plans import write_pose_plans
+    from ..motion.planning import MIN_POSE_PROBABILITY, plan_poses
+    from ..results.pose_plans import write_pose_plans
 
     info(f"planning every stable pose of probability >= {MIN_POSE_PROBABILITY * 100:g} % ...")
     runs = plan_poses(p, rob, gripper=g, cell=c, T_world_part=T_world_part, place=prm["planning"].place_matrix(), **prm)

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from ..drop import DropParams
+from ..sim.drop import DropParams
 from ..errors import InputError
 from .common import check_output, info, table, units_option, warn_all
 from .options import apply_config_dirs, config_dir_option, output_option, param_options
@@ -20,7 +20,7 @@ def command() -> None:
 
 def parse_part_count(text: str) -> tuple[str, int]:
     """``PATH:COUNT`` -> (path, count); InputError (exit 3) naming what would pass."""
-    from ..drop import MAX_COUNT
+    from ..sim.drop import MAX_COUNT
 
     path, sep, count = str(text).rpartition(":")
     if not sep or not path.strip():
@@ -54,9 +54,9 @@ def drop(cell: str, parts: tuple[str, ...], units: str, output: str, **kwargs) -
     relative to the scene file. Exit 3 (nothing written) for bad input or a pile that does not fit
     the bin; exit 4 when the pile does not come to rest (try another --seed). docs/clutter.md.
     """
-    from ..cell import load_cell
-    from ..drop import drop_pile, load_items
-    from ..scenewrite import SCENE_SUFFIXES, write_scene
+    from ..cell.model import load_cell
+    from ..sim.drop import drop_pile, load_items
+    from ..piles.scene_write import SCENE_SUFFIXES, write_scene
 
     t0 = time.perf_counter()
     if Path(output).suffix.lower() not in SCENE_SUFFIXES:

@@ -5,7 +5,7 @@ import logging
 
 import click
 
-from ..params import DEFAULT_GRIPPER
+from ..config.params import DEFAULT_GRIPPER
 from ..serve.config import (
     DEFAULT_BODY_TIMEOUT_S,
     DEFAULT_CELL,

@@ -9,7 +9,7 @@ import click
 import numpy as np
 
 from ..errors import InputError
-from ..params import GraspParams
+from ..config.params import GraspParams
 from .common import check_output, info, table, warn_all
 from .options import param_options
 
@@ -42,18 +42,10 @@ def command(ctx, result: Path, output: Path, top: int, part: Path | None, seed: 
     relative to the jaws. Writes per grasp ``sim`` {success, slip_m, turn_deg} (grasplan.sim/1).
     Density and mass default to those the file was made with."""
     from ..io import write_json
-    from ..mass import mass_properties
-    from ..outputs import result_files
-    from ..result_reader import load_result
-    from ..simulate import (
-        LIFT_HEIGHT,
-        LIFT_S,
-        SHAKE_ACCEL,
-        SHAKE_S,
-        SLIP_TOL,
-        TURN_TOL_DEG,
-        simulate_result,
-    )
+    from ..part.mass import mass_properties
+    from ..setup.outputs import result_files
+    from ..results.reader import load_result
+    from ..sim.simulate import LIFT_HEIGHT, LIFT_S, SHAKE_ACCEL, SHAKE_S, SLIP_TOL, TURN_TOL_DEG, simulate_result
 
     output = Path(check_output(output, result, part))
     if not result.exists():

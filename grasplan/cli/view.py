@@ -29,14 +29,12 @@ def command(result: str, output: str, part: str | None, allow_other_part: bool, 
     q_grasp with a button that plays the path home -> pre-grasp -> grasp. It makes no network
     request (three.js is bundled). RESULT is self-contained: no gripper, cell or robot YAML needed.
     """
-    from ..result_reader import load_result
-    from ..viewer import (
-        write_viewer,  # imported here: the CLI stays fast for other commands
-    )
+    from ..results.reader import load_result
+    from ..viewer.page import write_viewer
 
     output = check_output(output, result, part)
     info(f"view: {result}")
-    from ..outputs import picks_files, result_files
+    from ..setup.outputs import picks_files, result_files
     from ..pick.reader import is_picks_file, load_picks, pick_as_plan, pile_as_plan
 
     notes: list[str] = []

@@ -1,1 +1,1 @@
-"""Clutter removal in physics (issue 21): drop a pile, pick until the bin is empty, measure GSR and DR."""
+"""Clutter removal in physics: drop a pile, pick until the bin is empty, measure grasp success (GSR) and declutter (DR) rates."""

@@ -33,8 +33,8 @@ from typing import Protocol
 
 import numpy as np
 
-from ..drop import REST_ANG, REST_HOLD_S, REST_LIN
-from ..transforms import check_transform
+from ..sim.drop import REST_ANG, REST_HOLD_S, REST_LIN
+from ..geometry.transforms import check_transform
 from .world import CONTROL_DT, PICK_TIMESTEP, ClutterWorld
 
 #: peak TCP speed on the approach and on the lift (m/s); shortest move (s)

@@ -24,9 +24,9 @@ import numpy as np
 
 from ..gripper.model import Gripper
 from ..io import write_atomic_text
-from ..mesh import Part
-from ..transforms import pose7
-from ..viewer import cell_data, decimate_mesh, encode_array, mesh_block, read_asset, script_safe, shape_json
+from ..part.mesh import Part
+from ..geometry.transforms import pose7
+from ..viewer.page import cell_data, decimate_mesh, encode_array, mesh_block, read_asset, script_safe, shape_json
 from .execute import OUTCOMES, SUCCESS
 from .rounds import NO_PLAN, RoundResult
 

@@ -1,8 +1,8 @@
-"""Clutter removal rounds (issue 21, the protocol of VGN, Breyer et al. 2020, with known models).
+"""Clutter removal rounds (the protocol of VGN, Breyer et al. 2020, with known models).
 
 One round (:func:`run_round`):
 
-1. **Drop** a pile (:func:`grasplan.drop.drop_pile`, seed ``seed + r`` for round ``r``: the same
+1. **Drop** a pile (:func:`grasplan.sim.drop.drop_pile`, seed ``seed + r`` for round ``r``: the same
    pile as ``grasplan scene drop --seed S+r``) into a world that also holds the gripper
    (:class:`grasplan.clutter.world.ClutterWorld`).
 2. **Perceive**: the poses of the parts still in the bin, exact (ground truth) or each moved by the
@@ -30,14 +30,14 @@ from typing import Any
 
 import numpy as np
 
-from ..cell import Cell
-from ..drop import DropParams, PileItem, drop_pile
+from ..cell.model import Cell
+from ..sim.drop import DropParams, PileItem, drop_pile
 from ..errors import InputError
 from ..gripper.model import Gripper
-from ..mesh import Part
-from ..scenefile import Instance, Scene
-from ..transforms import pose_error
-from ..units import parse_angle_deg, parse_length
+from ..part.mesh import Part
+from ..piles.scene_file import Instance, Scene
+from ..geometry.transforms import pose_error
+from ..geometry.units import parse_angle_deg, parse_length
 from .execute import SUCCESS, Outcome, execute_pick
 from .world import ClutterWorld
 
@@ -189,8 +189,8 @@ PlanFn = Callable[[Scene], Any]
 def _jaw_torsion(part, gripper: Gripper, pick, mu: float) -> np.ndarray | None:
     """Each jaw's torsional friction (m, ``mu`` included) from the pick's contact patches; None
     when the pick does not carry its part-frame grasp (``T_part_tcp``, ``contacts``)."""
-    from ..patches import contact_patches
-    from ..wrench import torsion_length
+    from ..grasps.patches import contact_patches
+    from ..grasps.wrench import torsion_length
 
     T = getattr(pick, "T_part_tcp", None)
     C = getattr(pick, "contacts", None)

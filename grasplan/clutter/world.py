@@ -1,9 +1,9 @@
-"""The clutter world: the pile world of :mod:`grasplan.pileworld` with a gripper in it.
+"""The clutter world: the pile world of :mod:`grasplan.sim.pileworld` with a gripper in it.
 
-The gripper is modelled as :mod:`grasplan.simulate` models it (its own shapes; two jaws on
+The gripper is modelled as :mod:`grasplan.sim.simulate` models it (its own shapes; two jaws on
 prismatic joints along the closing axis, coupled, each pushed by a motor of at most half the
-datasheet ``grip_force``, damped to close at :data:`grasplan.simulate.CLOSE_SPEED`, with the
-drive's reflected inertia so they reach that speed in :data:`grasplan.simulate.DRIVE_TAU`), but
+datasheet ``grip_force``, damped to close at :data:`grasplan.sim.simulate.CLOSE_SPEED`, with the
+drive's reflected inertia so they reach that speed in :data:`grasplan.sim.simulate.DRIVE_TAU`), but
 instead of a fixed TCP frame it hangs on a **hand**: a free body whose frame is the TCP frame,
 weightless (``gravcomp``) and heavy (:data:`HAND_MASS`), driven kinematically. Before every
 control period (:data:`CONTROL_DT`) the executor writes the hand's pose and velocity from the
@@ -13,21 +13,21 @@ stiffness is taken as infinite, as a position-controlled industrial arm's nearly
 
 While the gripper is not in use it is parked far below the table (:meth:`ClutterWorld.park_hand`).
 
-Physics of a pick: :data:`PICK_TIMESTEP` (1 ms, as :mod:`grasplan.simulate`; the drop itself runs
-at the pile world's 2 ms); the gripper's contacts use :data:`grasplan.simulate.SOLREF_TIMECONST`
+Physics of a pick: :data:`PICK_TIMESTEP` (1 ms, as :mod:`grasplan.sim.simulate`; the drop itself runs
+at the pile world's 2 ms); the gripper's contacts use :data:`grasplan.sim.simulate.SOLREF_TIMECONST`
 (stiff: the grip force indents well below 1 mm) and win the mix against the parts' softer
 contacts (``solmix``).
 
-**Twist: one torsional resistance per pad**, as :mod:`grasplan.simulate` models it (issue 22):
-each jaw's finger sits on a hinge about the closing axis (:func:`grasplan.simulate.pad_xml`,
+**Twist: one torsional resistance per pad**, as :mod:`grasplan.sim.simulate` models it:
+each jaw's finger sits on a hinge about the closing axis (:func:`grasplan.sim.simulate.pad_xml`,
 bodies :data:`PADS`) whose dry friction (``frictionloss``) is the pad patch's soft-finger torsion
 under the pad's present contact forces on the target part, ``torsion * sqrt(N^2 - (|t| / mu)^2)``,
-set before every control period by :func:`grasplan.simulate.pad_twist_caps` (the same function);
+set before every control period by :func:`grasplan.sim.simulate.pad_twist_caps` (the same function);
 ``torsion`` (m, ``mu`` included) is set per pick from the pick's contact patches
-(:func:`grasplan.patches.contact_patches`, :func:`grasplan.wrench.torsion_length`;
+(:func:`grasplan.grasps.patches.contact_patches`, :func:`grasplan.grasps.wrench.torsion_length`;
 :meth:`ClutterWorld.set_jaw_torsion`). The pads' own contacts grip in twist: the pad geoms have the
 higher ``priority``, so every pad contact takes their parameters (``condim`` 4, torsional friction
-``mu`` x :data:`grasplan.simulate.PAD_GRIP_TORSION`, no rolling friction, the gripper's stiff
+``mu`` x :data:`grasplan.sim.simulate.PAD_GRIP_TORSION`, no rolling friction, the gripper's stiff
 ``solref``), and the twist slips at the hinge whatever the number of contact points MuJoCo makes.
 """
 from __future__ import annotations
@@ -37,14 +37,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..cell import Cell
+from ..cell.model import Cell
 from ..errors import InputError
 from ..gripper.model import Box, Gripper, MeshShape, rz180
-from ..pileworld import PILE_BIT, ROLLING_LENGTH, PartBody, PileWorld, pile_mjcf
-from ..simulate import (CLOSE_SPEED, DRIVE_TAU, JAW_MASS, PAD_GRIP_TORSION, SOLREF_TIMECONST, TORSION_LENGTH,
-                        pad_twist_caps, pad_xml)
-from ..transforms import quaternions
-from ..wrench import CONTACTS_PER_GRIP
+from ..sim.pileworld import PILE_BIT, ROLLING_LENGTH, PartBody, PileWorld, pile_mjcf
+from ..sim.simulate import (
+    CLOSE_SPEED, DRIVE_TAU, JAW_MASS, PAD_GRIP_TORSION, SOLREF_TIMECONST, TORSION_LENGTH, pad_twist_caps, pad_xml
+)
+from ..geometry.transforms import quaternions
+from ..grasps.wrench import CONTACTS_PER_GRIP
 
 #: physics step while the gripper acts (s); the hand's pose is written every CONTROL_DT (s)
 PICK_TIMESTEP, CONTROL_DT = 0.001, 0.005
@@ -147,7 +148,7 @@ def _shape_xml(shape: Box | MeshShape, name: str, assets: list[str], attrs: str)
 
 def gripper_mjcf(gripper: Gripper, *, mu: float, grip_force: float, arc: PadArc | None = None) -> tuple[str, str, str]:
     """MJCF fragments ``(asset, worldbody, extra)`` of the hand, its body shapes and its two jaws
-    (module docstring), for :func:`grasplan.pileworld.pile_mjcf`; ``arc``: the gripper's
+    (module docstring), for :func:`grasplan.sim.pileworld.pile_mjcf`; ``arc``: the gripper's
     :func:`pad_arc` when the caller already has it."""
     assets: list[str] = []
     attrs = (f'contype="{PILE_BIT}" conaffinity="{PILE_BIT}" condim="6" solmix="{GRIPPER_SOLMIX:g}" '
@@ -217,7 +218,7 @@ class Contact:
 
 
 class ClutterWorld:
-    """A :class:`grasplan.pileworld.PileWorld` holding the pile's parts and a gripper (module
+    """A :class:`grasplan.sim.pileworld.PileWorld` holding the pile's parts and a gripper (module
     docstring). ``world`` is the pile world (its parts, poses, settling), the rest drives the hand."""
 
     def __init__(self, cell: Cell, bodies: Sequence[PartBody], gripper: Gripper, *, mu: float,
@@ -345,7 +346,7 @@ class ClutterWorld:
 
     def step(self, seconds: float) -> None:
         """Advance ``seconds`` in control periods (:data:`CONTROL_DT`), each pad hinge's friction set
-        before each from its present contacts with the target (:func:`grasplan.simulate.pad_twist_caps`)."""
+        before each from its present contacts with the target (:func:`grasplan.sim.simulate.pad_twist_caps`)."""
         n = max(1, round(seconds / CONTROL_DT))
         for _ in range(n):
             self.model.dof_frictionloss[self._pad_v] = pad_twist_caps(

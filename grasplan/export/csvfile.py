@@ -30,28 +30,28 @@ import io
 import numpy as np
 
 from ..errors import InputError
-from ..transforms import pose7
-from ..export_registry import ExportFormat, register
+from ..geometry.transforms import pose7
+from ..results.export_registry import ExportFormat, register
 
 POSE_COLS = ("x", "y", "z", "qw", "qx", "qy", "qz")
 
 
 def header(joint_names) -> list[str]:
-    # issue 5's columns in its order; the part's scale last (a constant column: "record the part's
+    # the contracted columns in their order; the part's scale last (a constant column: "record the part's
     # scale in every output", without moving any contracted column)
     return (["id", "status", "width", "score"] + [f"part_{c}" for c in POSE_COLS]
             + [f"world_{c}" for c in POSE_COLS] + [f"q_{j}" for j in joint_names] + ["part_scale_to_m"]
             + list(QUALITY_COLS))
 
 
-#: grasp quality and simulation columns (issue 11), after every earlier column
+#: grasp quality and simulation columns, after every earlier column
 QUALITY_COLS = ("gravity_margin", "epsilon", "contact0_area_m2", "contact0_type", "contact1_area_m2", "contact1_type",
                 "sim_success", "sim_slip_m", "sim_turn_deg")
 
 
 def _quality_text(t, ids) -> list[str]:
     """The QUALITY_COLS cells (comma-joined, no leading comma) of grasp rows ``ids``."""
-    from ..quality_json import CONTACT_TYPES
+    from ..results.quality_json import CONTACT_TYPES
 
     n = len(ids)
     gm = t.gravity_margin[ids] if t.gravity_margin is not None else np.full(n, np.nan)
@@ -78,7 +78,7 @@ def _num(v) -> str:
 
 
 def grasps_csv(plan, *, grasp_id: int | None = None) -> str:
-    """The CSV text of a :class:`~grasplan.result.PlanResult`: every grasp (or only ``grasp_id``).
+    """The CSV text of a :class:`~grasplan.results.plan_result.PlanResult`: every grasp (or only ``grasp_id``).
     Vectorised over grasps (TLess20: ~1e5 rows)."""
     t = plan.grasps
     joints = list(plan.robot.joint_names)

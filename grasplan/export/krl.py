@@ -43,7 +43,7 @@ from .program import (
     row_label,
     waypoint_labels,
 )
-from ..export_registry import ExportFormat, ExportOptions, register
+from ..results.export_registry import ExportFormat, ExportOptions, register
 
 #: PTP joint speed, percent of each axis' maximum ($VEL_AXIS) and acceleration ($ACC_AXIS)
 PTP_VEL_PERCENT = 20
@@ -161,7 +161,7 @@ def _sequence(mp: MotionProgram, t: ProgramTargets) -> tuple[list[str], list[str
     """``.dat`` declarations and ``.src`` motion lines of a pick(-and-place) sequence: ``PTP XPi``
     (E6AXIS) per joint-move row, ``LIN X<TARGET>`` (E6POS, joint 7 as E1 at the segment's end) per
     straight segment, ``GRASPLAN_GRIPPER(mm)`` at the events."""
-    from ..transforms import check_transform
+    from ..geometry.transforms import check_transform
 
     dat: list[str] = ["; sequence targets in path order (joint 7 is E1)" if len(mp.joint_names) == 7
                       else "; sequence targets in path order"]

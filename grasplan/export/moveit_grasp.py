@@ -47,9 +47,9 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..transforms import check_transform, quaternions
+from ..geometry.transforms import check_transform, quaternions
 from .program import is_sequence, motion_program, safe_text
-from ..export_registry import ExportFormat, ExportOptions, register
+from ..results.export_registry import ExportFormat, ExportOptions, register
 
 #: seconds after which a finger posture is reached (time_from_start of its single point)
 POSTURE_TIME_S = 1.0

@@ -28,9 +28,9 @@ import io
 import numpy as np
 
 from ..errors import InputError
-from ..transforms import pose7
+from ..geometry.transforms import pose7
 from .program import motion_segments
-from ..export_registry import ExportFormat, ExportOptions, register
+from ..results.export_registry import ExportFormat, ExportOptions, register
 
 POSE_COLS = ("x", "y", "z", "qw", "qx", "qy", "qz")
 

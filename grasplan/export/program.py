@@ -1,6 +1,6 @@
 """The motion of one planned grasp, resolved for a robot program (URScript, KRL, RAPID, ...).
 
-:func:`motion_program` turns a :class:`grasplan.result.PlanResult` and a grasp id into a
+:func:`motion_program` turns a :class:`grasplan.results.plan_result.PlanResult` and a grasp id into a
 :class:`MotionProgram`: joint path, approach, TCP poses in the controller's base frame, tool,
 openings, and labels reduced to a safe character set. Every program exporter renders from it, so
 the pre-grasp opening, the FK of the poses and the joint checks exist once.
@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from ..export_registry import ExportOptions
+from ..results.export_registry import ExportOptions
 
 #: slack (deg) when checking controller angles against the limits: the URDF limits are rad and the
 #: plan's joint values may sit exactly on a limit
@@ -178,7 +178,7 @@ def motion_program(plan, grasp_id: int | None = None, *, source: str = "") -> Mo
 
 
 def motion_segments(m) -> list[tuple[str, int, int]]:
-    """``(label, start, end)`` of a :class:`~grasplan.motion.Motion` (transit + approach for a
+    """``(label, start, end)`` of a :class:`~grasplan.results.joint_motion.Motion` (transit + approach for a
     motion without segments)."""
     if hasattr(m, "segment_list"):
         return m.segment_list()
@@ -397,7 +397,7 @@ def sequence_lines(mp: MotionProgram) -> list[str]:
 
 
 def check_program_name(name: str) -> str:
-    """``name`` if it is a valid program name (:func:`grasplan.program_names.program_name_problem`,
+    """``name`` if it is a valid program name (:func:`grasplan.results.program_names.program_name_problem`,
     the rule :class:`ExportOptions` applies: a letter, then letters, digits or ``_``, at most 24
     characters, no KRL/RAPID reserved word, no name the program itself declares); InputError else."""
     return ExportOptions(program_name=name).program_name
@@ -440,7 +440,7 @@ def program_targets(mp: MotionProgram, program_name: str, language: str, axes: s
     (how 6 and 7 joints are laid out) only word the error for an arm with another joint count.
     Raises :class:`InputError` for a bad program name, joint count, non-finite value, joint value
     outside the limits or non-rigid frame."""
-    from ..transforms import check_transform
+    from ..geometry.transforms import check_transform
 
     name = check_program_name(program_name)
     n = len(mp.joint_names)

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..transforms import quaternions
+from ..geometry.transforms import quaternions
 from .program import (
     SEGMENT_TEXT,
     MotionProgram,
@@ -46,7 +46,7 @@ from .program import (
     row_label,
     waypoint_labels,
 )
-from ..export_registry import ExportFormat, ExportOptions, register
+from ..results.export_registry import ExportFormat, ExportOptions, register
 
 #: speeddata of the joint moves and of the linear approach/retreat (predefined RAPID data)
 JOINT_SPEED = "v200"
@@ -172,7 +172,7 @@ def _sequence(mp: MotionProgram, t: ProgramTargets, move: str) -> tuple[list[str
     """Declarations and procedure lines of a pick(-and-place) sequence: ``MoveAbsJ jt_i`` per
     joint-move row, ``MoveL rt_<target>`` per straight segment (confdata of the segment's end row),
     the gripper calls at the events. ``ConfL\\Off`` for the linear moves, as in the pick program."""
-    from ..transforms import check_transform
+    from ..geometry.transforms import check_transform
 
     decl: list[str] = ["  ! sequence targets in path order (TCP in the work object)"]
     proc: list[str] = ["    ConfL\\Off;"]

@@ -30,7 +30,7 @@ import math
 import numpy as np
 
 from ..errors import InputError, PlanningError
-from ..export_registry import DEFAULT_MAX_ACCEL, ExportFormat, register
+from ..results.export_registry import DEFAULT_MAX_ACCEL, ExportFormat, register
 
 SCHEMA = "grasplan.joint_trajectory/1"
 KNOT_STEP = 0.005      #: rad, spline knot spacing (max joint motion between knots)
@@ -40,8 +40,8 @@ CHECK_STEP = 0.01      #: rad, collision check interpolation step
 
 
 def densify(path: np.ndarray, step: float) -> np.ndarray:
-    """The planner's densifier (:func:`grasplan.interpolation.interpolate_path`)."""
-    from ..interpolation import interpolate_path
+    """The planner's densifier (:func:`grasplan.geometry.interpolation.interpolate_path`)."""
+    from ..geometry.interpolation import interpolate_path
 
     return interpolate_path(path, step=step)
 
@@ -70,7 +70,7 @@ def time_parameterize(path: np.ndarray, vmax: np.ndarray, amax: np.ndarray) -> d
     import toppra.algorithm as algo
     import toppra.constraint as constraint
 
-    from ..interpolation import interpolate_path
+    from ..geometry.interpolation import interpolate_path
 
     knots, kidx = interpolate_path(path, step=KNOT_STEP, return_index=True)
     if len(knots) < 2:
@@ -139,7 +139,7 @@ def _limits(robot, max_accel, velocity_scale) -> tuple[np.ndarray, np.ndarray, n
 
 def build_scene(plan):
     """A CollisionScene of the plan's own robot, gripper, part (sha256-checked) and cell."""
-    from ..scene import CollisionScene
+    from ..motion.collision_scene import CollisionScene
 
     return CollisionScene(plan.robot, plan.gripper, plan.mesh(), plan.T_world_part, plan.cell)
 
@@ -147,7 +147,7 @@ def build_scene(plan):
 def joint_trajectory(plan, *, grasp_id: int | None = None, max_accel=DEFAULT_MAX_ACCEL,
                      velocity_scale: float = 1.0, scene=None) -> dict:
     """The ``grasplan.joint_trajectory/1`` document for ``grasp_id`` (default: the best planned
-    grasp) of a :class:`~grasplan.result.PlanResult`.
+    grasp) of a :class:`~grasplan.results.plan_result.PlanResult`.
 
     ``scene``: object with ``path_free(qs, opening, *, step)`` (default: :func:`build_scene`).
     Raises PlanningError when the timed trajectory fails a check (never writes an unchecked one).

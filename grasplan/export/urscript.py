@@ -33,7 +33,7 @@ from .program import (
     row_label,
     sequence_lines,
 )
-from ..export_registry import ExportFormat, ExportOptions, register
+from ..results.export_registry import ExportFormat, ExportOptions, register
 
 #: joint order of every UR arm (URScript's joint vector order)
 UR_JOINTS = ("shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint",

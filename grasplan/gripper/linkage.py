@@ -35,9 +35,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from ..config_files import config_number
+from ..config.lookup import config_number
 from ..errors import ConfigError
-from ..meshdata import convex_hull
+from ..geometry.meshdata import convex_hull
 from . import parallel_jaw
 from .model import Box, Gripper, MeshShape, Shape, rz180
 from .registry import GripperKind, register

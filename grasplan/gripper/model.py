@@ -1,6 +1,6 @@
 """The gripper model: shapes in the TCP frame and :class:`Gripper`, two jaws closing along x.
 
-TCP frame (issue 3): origin at the midpoint of the two contacts; x = closing axis (contact 0 ->
+TCP frame: origin at the midpoint of the two contacts; x = closing axis (contact 0 ->
 contact 1); z = approach direction, from the gripper towards the part (the fingers point along
 +z); y = z cross x.
 
@@ -21,10 +21,10 @@ from typing import Any, ClassVar, overload
 
 import numpy as np
 
-from ..config_files import config_vector
+from ..config.lookup import config_vector
 from ..errors import ConfigError
-from ..meshdata import convex_hull
-from ..transforms import parse_pose
+from ..geometry.meshdata import convex_hull
+from ..config.poses import parse_pose
 
 #: the kind of a gripper whose YAML / JSON names none: two jaws moving apart along x
 PARALLEL_JAW = "parallel_jaw"
@@ -109,7 +109,7 @@ class Gripper:
     @property
     def min_opening(self) -> float:
         """The narrowest jaw opening (m): ``max_opening - stroke`` (0 when the jaws close fully);
-        narrower candidates are not posed (:func:`grasplan.frames.grasp_frames`)."""
+        narrower candidates are not posed (:func:`grasplan.grasps.frames.grasp_frames`)."""
         return 0.0 if self.stroke is None else max(0.0, float(self.max_opening) - float(self.stroke))
 
     # -- the TCP at an opening ------------------------------------------------------------------

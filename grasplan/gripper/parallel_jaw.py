@@ -38,9 +38,11 @@ from typing import Any
 
 import numpy as np
 
-from ..config_files import config_number, config_vector, read_config_mesh
+from ..config.lookup import config_number, config_vector
+from ..part.config_mesh import read_config_mesh
 from ..errors import ConfigError
-from ..transforms import parse_pose, rpy_matrix
+from ..config.poses import parse_pose
+from ..geometry.transforms import rpy_matrix
 from .model import DEFAULT_GRIP_FORCE, PARALLEL_JAW, Box, Gripper, MeshShape, Shape, rz180, shape_from_json
 from .registry import GripperKind, register
 

@@ -1,4 +1,4 @@
-"""Picking from a pile (issue 20): :class:`Picker` plans picks of many part instances at poses
+"""Picking from a pile: :class:`Picker` plans picks of many part instances at poses
 from vision against the bin, the neighbours and a point cloud; :class:`PickResult` is its typed
 result (``grasplan.picks/1``), :func:`load_picks` reads a picks file back. See docs/pick.md."""
 from __future__ import annotations

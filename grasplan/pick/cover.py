@@ -22,8 +22,8 @@ from typing import Any
 
 import numpy as np
 
-from ..robot_model import Robot
-from ..scene import CollisionScene
+from ..robot.model import Robot
+from ..motion.collision_scene import CollisionScene
 from .gripboxes import SweptGripper
 from .lines import world_fk
 
@@ -33,7 +33,7 @@ APPROACH_PAD = 2e-4
 
 
 def gripper_world_pairs(scene: CollisionScene) -> np.ndarray:
-    """Per pair of ``scene`` (:meth:`~grasplan.scene.CollisionScene.pair_rows`): a gripper shape
+    """Per pair of ``scene`` (:meth:`~grasplan.motion.collision_scene.CollisionScene.pair_rows`): a gripper shape
     (body or jaw) against anything but the robot itself."""
     return np.array([(a.startswith("gripper:") or b.startswith("gripper:")) and kind != "self"
                      for a, b, kind, _, _ in scene.pair_rows()], dtype=bool)
@@ -44,7 +44,7 @@ _PAIRS: "weakref.WeakKeyDictionary[Any, np.ndarray]" = weakref.WeakKeyDictionary
 
 def covered_check(robot: Robot, T_flange_tcp: np.ndarray, scene: CollisionScene, swept: SweptGripper
                   ) -> tuple[Callable[[np.ndarray], np.ndarray], np.ndarray]:
-    """``(covered, drop)`` for :meth:`grasplan.scene.CollisionScene.path_free`'s ``reduced``:
+    """``(covered, drop)`` for :meth:`grasplan.motion.collision_scene.CollisionScene.path_free`'s ``reduced``:
     ``covered(qs)`` is True at the configurations (k, n) whose gripper shapes lie inside
     ``swept``; ``drop``: the active pairs of ``scene`` between the gripper and the world."""
     mask = _PAIRS.get(scene._shared)

@@ -2,11 +2,11 @@
 
 The depth of two placed parts A and B is the largest distance to the other mesh's surface of a
 surface point of either one lying inside the other: the points are each mesh's vertices and a
-barycentric grid of :data:`SAMPLE_SPACING` on its faces (:func:`grasplan.containment.surface_samples`),
+barycentric grid of :data:`SAMPLE_SPACING` on its faces (:func:`grasplan.geometry.containment.surface_samples`),
 so a penetration is found to within about that spacing (the deepest point of two touching
 polyhedra is a vertex of one of them, except where two edges cross). Inside is decided by the
-part's voxel grid (:mod:`grasplan.insidegrid`) and, near its surface, by the crossing count of
-:func:`grasplan.pile_checks.inside_for_depth` (a point on the other's surface, undecided by the
+part's voxel grid (:mod:`grasplan.geometry.insidegrid`) and, near its surface, by the crossing count of
+:func:`grasplan.piles.checks.inside_for_depth` (a point on the other's surface, undecided by the
 crossings, is outside: at most rounding deep); the distance of an inside point to the surface is
 coal's exact point-to-BVH distance, except that a point the grid proves deeper than ``stop`` ends
 the search at once.
@@ -29,10 +29,10 @@ import coal
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..containment import RayGrid, placed_in_box, surface_samples
-from ..insidegrid import InsideGrid, inside_grid
-from ..meshdata import MeshData
-from ..pile_checks import inside_for_depth
+from ..geometry.containment import RayGrid, placed_in_box, surface_samples
+from ..geometry.insidegrid import InsideGrid, inside_grid
+from ..geometry.meshdata import MeshData
+from ..piles.checks import inside_for_depth
 from .budget import UNLIMITED, Budget
 
 #: surface sample spacing (m) of the depth probes
@@ -81,7 +81,7 @@ def _into(a: PartDepth, T_a: np.ndarray, b: PartDepth, T_b: np.ndarray, lo: np.n
     pts = pts[np.all((w >= lo) & (w <= hi), axis=1)]
     if not len(pts):
         return 0.0
-    state, deep = b.inside.lookup(pts)  # the voxel grid decides most points (grasplan.insidegrid)
+    state, deep = b.inside.lookup(pts)  # the voxel grid decides most points (grasplan.geometry.insidegrid)
     if deep.max() > stop or deep.max() >= cap:
         return float(deep.max())  # a point certainly deeper than stop (a lower bound of its depth)
     pts = pts[state >= 0]  # outside b: not measured

@@ -5,7 +5,7 @@ Per pose, the shape's local box placed in the world and the world-axis box aroun
 whose world-axis boxes overlap (touching counts) goes to coal, as before this module. Poses that
 share one orientation (a straight lift) are first taken together: the oriented box with the
 shape's axes holding the shape's box at every pose (:func:`sweep`); a body whose world box the
-separating-axis test (:func:`grasplan.pathboxes.obb_apart`) puts apart from it is apart from the
+separating-axis test (:func:`grasplan.motion.pathboxes.obb_apart`) puts apart from it is apart from the
 shape at every pose, so none of its pairs needs coal. A box body (exactly its world box) that
 overlaps the swept box is checked per pose; any other body is the caller's to test against the
 swept box with coal (``status`` 1) before its per-pose pairs.
@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from ..pathboxes import obb_apart
+from ..motion.pathboxes import obb_apart
 
 #: the swept box is this much (m) larger than the boxes it holds along each of its axes
 SWEPT_PAD = 1e-9

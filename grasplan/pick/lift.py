@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from ..cell import BinSpec
+from ..cell.model import BinSpec
 from .budget import UNLIMITED, Budget
 from .depth import PartDepth, pair_depth
 

@@ -1,4 +1,4 @@
-"""Straight TCP lines for a UR arm in one NumPy pass: the closed form of :mod:`grasplan.ik.ur`
+"""Straight TCP lines for a UR arm in one NumPy pass: the closed form of :mod:`grasplan.robot.ik.ur`
 evaluated for every waypoint of a line at once, on the one branch the start configuration is on.
 
 :func:`ur_line` is what :func:`grasplan.pick.motion.line_path` uses when the robot's IK family is
@@ -14,10 +14,10 @@ import math
 
 import numpy as np
 
-from ..ik import get_solver
-from ..ik.ur import URAnalytic
-from ..ik.ur_batch import BRANCHES, fk_many, follow, solve_one
-from ..robot_model import Robot
+from ..robot.ik.solve import get_solver
+from ..robot.ik.ur import URAnalytic
+from ..robot.ik.ur_batch import BRANCHES, fk_many, follow, solve_one
+from ..robot.model import Robot
 
 TWO_PI = 2.0 * np.pi
 #: the start configuration must match its branch's solution within this (rad)
@@ -46,7 +46,7 @@ def start_branch(ur: URAnalytic, q0: np.ndarray, T0_base_tool: np.ndarray) -> in
 
 def fk_base_tool(ur: URAnalytic, q: np.ndarray) -> np.ndarray:
     """Tool poses (m, 4, 4) in the robot's base frame for configurations ``q`` (m, 6)
-    (:func:`grasplan.ik.ur_batch.fk_many`)."""
+    (:func:`grasplan.robot.ik.ur_batch.fk_many`)."""
     return fk_many(ur.chain, q)
 
 

@@ -1,5 +1,5 @@
 """One pick's motion: IK at the grasp, the straight approach, the lift with the part in the jaws
-and the transit from home, against a pile (:class:`~grasplan.scene.CollisionScene` variants whose
+and the transit from home, against a pile (:class:`~grasplan.motion.collision_scene.CollisionScene` variants whose
 extra bodies are the other instances and the cloud).
 
 Per grasp (world TCP ``T_world_tcp``), for each IK solution closest to ``q_home`` first: the
@@ -13,13 +13,13 @@ the straight joint-space segment when it is free, else through a via point above
 (:func:`_transit`), else OMPL RRTConnect. Every path is checked at
 ``interpolation.STEP`` rad.
 
-Straight moves (:func:`line_path`): TCP waypoints every :data:`grasplan.pickplace.LINE_SAMPLE`
-with constant orientation. With a closed-form IK (the UR5's, :mod:`grasplan.ik.ur`) every waypoint
+Straight moves (:func:`line_path`): TCP waypoints every :data:`grasplan.motion.pickplace.LINE_SAMPLE`
+with constant orientation. With a closed-form IK (the UR5's, :mod:`grasplan.robot.ik.ur`) every waypoint
 is solved exactly and the branch kept continuous (each joint wrapped to the previous waypoint's
 value, the closest of the up to eight solutions taken; a joint moving more than ``max_joint_step``
 between waypoints is a branch jump); the joint-linear motion between waypoints is held to
 ``max_dev`` from the line by forward kinematics at every midpoint. Robots without a closed form
-use the CLIK tracker :func:`grasplan.paths.approach_path_reason`.
+use the CLIK tracker :func:`grasplan.motion.joint_paths.approach_path_reason`.
 """
 from __future__ import annotations
 
@@ -32,24 +32,18 @@ from typing import Any
 import numpy as np
 
 from ..gripper.model import Gripper
-from ..ik import solve_ik
-from ..ik.ur_batch import line_deviation
-from ..interpolation import interpolate_path
-from ..motion import Motion
-from ..pathboxes import scene_open
-from ..paths import approach_path_reason, plan_joint_path
-from ..pickplace import (
-    LINE_SAMPLE,
-    T_tcp_part_of,
-    assemble_motion,
-    lift_pose,
-    place_candidates,
-    place_poses,
-    transfer_path,
+from ..robot.ik.solve import solve_ik
+from ..robot.ik.ur_batch import line_deviation
+from ..geometry.interpolation import interpolate_path
+from ..results.joint_motion import Motion
+from ..motion.pathboxes import scene_open
+from ..motion.joint_paths import approach_path_reason, plan_joint_path
+from ..motion.pickplace import (
+    LINE_SAMPLE, T_tcp_part_of, assemble_motion, lift_pose, place_candidates, place_poses, transfer_path
 )
-from ..robot_model import Robot
-from ..scene import PART, CollisionScene, describe_pairs
-from ..transforms import inv_rigid
+from ..robot.model import Robot
+from ..motion.collision_scene import PART, CollisionScene, describe_pairs
+from ..geometry.transforms import inv_rigid
 from .budget import UNLIMITED, Budget
 from .cover import APPROACH_PAD, covered_check, gripper_world_pairs
 from .lines import fk_base_tool, ur_closed_form, ur_line, world_fk
@@ -60,7 +54,7 @@ SUPPORT_BODIES = ("table", "obstacle:", "instance:")
 #: largest per-joint change (rad) between consecutive line waypoints (more: a branch jump)
 MAX_JOINT_STEP = 0.1
 #: the lift's TCP waypoints are this far apart (m), half the approach's
-#: (:data:`~grasplan.pickplace.LINE_SAMPLE`): on the UR5 in the bench piles the joints then move at
+#: (:data:`~grasplan.motion.pickplace.LINE_SAMPLE`): on the UR5 in the bench piles the joints then move at
 #: most 0.0085 rad between two of them, less than ``interpolation.STEP``, so the lift has no
 #: configuration between waypoints to check and every waypoint is one the checks before IK covered
 #: (:func:`lift_collision`); at 4 mm half the lift's configurations lay between waypoints and were
@@ -138,7 +132,7 @@ class MotionContext:
     #: against the neighbours and the cloud at ``T_world_part`` moved by each shift and found free,
     #: a contact with a neighbour accepted only when ``lift_depth`` accepts it (the rule
     #: :func:`lift_collision` applies with ``shallow``); where ``clear``, also against the cell's
-    #: table and obstacles (shrunk by :data:`grasplan.scene.ATTACHED_CONTACT_TOL`, as the attached
+    #: table and obstacles (shrunk by :data:`grasplan.motion.collision_scene.ATTACHED_CONTACT_TOL`, as the attached
     #: variant has them); None: not checked (every pair is then checked at every waypoint)
     lift_part_checked: Any = None
     #: the gripper along the approach in Cartesian space (branch-independent, once IK found solutions):
@@ -276,7 +270,7 @@ def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touc
                 scene.switch_pairs(off, False)
             try:
                 # free where coal finds none of the pairs whose oriented boxes overlap colliding
-                # (grasplan.pathboxes: the others cannot); only the rest needs the allowances
+                # (grasplan.motion.pathboxes: the others cannot); only the rest needs the allowances
                 found = None
                 if isinstance(scene, CollisionScene):
                     scene.set_opening(width)
@@ -368,7 +362,7 @@ def _blockers(pairs: list[tuple[str, str, str]]) -> set[str]:
 def _place(ctx: MotionContext, q_lifted: np.ndarray, T_part_tcp: np.ndarray, width: float, opening: float,
            seed: int) -> tuple[Any, np.ndarray | None, str]:
     """``(place candidate, transfer path, "")`` or ``(None, None, why)``: the place side of
-    :func:`grasplan.planning.plan_grasp`'s pick-and-place for one picked grasp."""
+    :func:`grasplan.motion.planning.plan_grasp`'s pick-and-place for one picked grasp."""
     p, robot = ctx.params, ctx.robot
     assert ctx.T_place is not None
     released = ctx.static.with_part_at(ctx.T_place)
@@ -525,7 +519,7 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
                 break
             continue
         transfer = cand = None
-        if ctx.T_place is not None:  # carry it to the place (grasplan.pickplace, neighbours still in the scene)
+        if ctx.T_place is not None:  # carry it to the place (grasplan.motion.pickplace, neighbours still in the scene)
             t = time.perf_counter()
             cand, transfer, place_why = _place(ctx, lift[-1], T_part_tcp, width, opening, seed)
             timing["place"] += time.perf_counter() - t

@@ -1,5 +1,5 @@
 """Options of ``grasplan pick`` / :class:`grasplan.Picker`: one frozen dataclass, an
-:class:`~grasplan.params.OptionSet` like the pipeline's (CLI options, validation, JSON record).
+:class:`~grasplan.config.params.OptionSet` like the pipeline's (CLI options, validation, JSON record).
 
 Lengths m, user-facing angles degrees (``*_deg``), times s."""
 from __future__ import annotations
@@ -9,8 +9,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..option_kinds import spec
-from ..params import OptionSet
+from ..config.option_kinds import spec
+from ..config.params import OptionSet
 
 
 @dataclass(frozen=True, kw_only=True)

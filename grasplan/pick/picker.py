@@ -3,12 +3,12 @@ bin and the neighbours, with the robot, the grasp sets and the collision objects
 
 Per :meth:`Picker.plan` call:
 
-1. the scene (:func:`grasplan.scenefile.load_scene`), its parts (added on first use) and grasp
-   databases (:func:`grasplan.graspdb.database_for`: from the cache folder, else computed once and
+1. the scene (:func:`grasplan.piles.scene_file.load_scene`), its parts (added on first use) and grasp
+   databases (:func:`grasplan.grasps.graspdb.database_for`: from the cache folder, else computed once and
    cached; or the scene's ``grasps`` file), the cloud's octree, the world of
    the gripper checks (:class:`grasplan.pick.world.PickWorld`) and the robot's collision scenes (one
    per part, every instance an extra body) are ready: ``timing_s["load"]``; then the geometric
-   checks (:mod:`grasplan.pile_checks`: exit 3 for a part below the floor, warnings for
+   checks (:mod:`grasplan.piles.checks`: exit 3 for a part below the floor, warnings for
    interpenetrating instances);
 2. instances are tried in the accessibility order (:mod:`grasplan.pick.rank`), in passes (the
    best :data:`FIRST_PASS` grasps of every instance whose straight lift is free, then, in the same
@@ -39,18 +39,18 @@ from typing import Any
 
 import numpy as np
 
-from ..cell import Cell, load_cell
+from ..cell.model import Cell, load_cell
 from ..errors import InputError
-from ..gripper import load_gripper
+from ..gripper.load import load_gripper
 from ..gripper.model import Gripper
-from ..mesh import Part, load_part
-from ..params import DEFAULT_GRIPPER, GraspParams
-from ..pickplace import lift_pose, unit_direction
-from ..robot import load_robot
-from ..robot_model import Robot
-from ..scene import CollisionScene
-from ..scenefile import Instance, Scene, load_scene
-from ..graspdb import GraspDatabase, database_for, load_database
+from ..part.mesh import Part, load_part
+from ..config.params import DEFAULT_GRIPPER, GraspParams
+from ..motion.pickplace import lift_pose, unit_direction
+from ..robot.description import load_robot
+from ..robot.model import Robot
+from ..motion.collision_scene import CollisionScene
+from ..piles.scene_file import Instance, Scene, load_scene
+from ..grasps.graspdb import GraspDatabase, database_for, load_database
 from .budget import Budget, BudgetSpent
 from .depth import PartDepth
 from .lift import LIFTS_PER_GRASP, Carry, RestDepth, free_to_rise, inside_walls, lift_directions, wall_away
@@ -78,7 +78,7 @@ class Picker:
 
     ``robot``, ``gripper``: models or names/paths; ``cell``: a model, name or path, or None for
     each scene's own cell; ``params``: :class:`~grasplan.pick.params.PickParams`; ``database``:
-    the options of the grasp databases it computes (:class:`~grasplan.params.GraspParams`, e.g. the
+    the options of the grasp databases it computes (:class:`~grasplan.config.params.GraspParams`, e.g. the
     parts' ``density``: the gravity margin and the score depend on the mass); ``progress``: gets
     a line when a grasp database is computed; ``clock``: seconds (monotonic) the planning budget
     is measured on."""
@@ -107,7 +107,7 @@ class Picker:
                  grasps: str | os.PathLike | GraspDatabase | None = None) -> None:
         """Make part ``name`` known: a mesh file (read in ``units``) or a loaded Part; ``grasps``:
         its grasp database (a ``.graspdb.npz`` file or a loaded one; refused for another part or
-        gripper; default: :func:`grasplan.graspdb.database_for`, cached)."""
+        gripper; default: :func:`grasplan.grasps.graspdb.database_for`, cached)."""
         part = mesh if isinstance(mesh, Part) else load_part(mesh, units=units)
         if grasps is None:
             db = database_for(part, self.gripper, grasps=self.database, progress=self.progress)
@@ -185,10 +185,10 @@ class Picker:
 
     def warm(self) -> None:
         """Build now what the first plan would build for every part: the scene checks' probe data,
-        the depth probes and each part's voxel grid (:mod:`grasplan.insidegrid`; with a fixed
+        the depth probes and each part's voxel grid (:mod:`grasplan.geometry.insidegrid`; with a fixed
         ``cell`` also its pick world), so that the first plan is as fast as the next (the pick
         service calls this at start)."""
-        from ..pile_checks import prepare
+        from ..piles.checks import prepare
 
         for part in self._parts.values():
             prepare(part.mesh)
@@ -208,7 +208,7 @@ class Picker:
     def plan(self, scene: Scene | str | os.PathLike | Mapping, *, max_picks: int | None = None,
              sequence: bool = False, seed: int | None = None) -> PickResult:
         """Plan picks for ``scene`` (a Scene, a scene file or a parsed document); see the module docstring."""
-        from ..pile_checks import check_instances
+        from ..piles.checks import check_instances
 
         t0 = time.perf_counter()
         sc = load_scene(scene)

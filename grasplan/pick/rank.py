@@ -9,7 +9,7 @@ Grasps of an instance: the part-frame grasps posed in the world (``T_world_part 
 those whose approach (the TCP's z axis) is more than ``max_tilt_deg`` from straight down are not
 tried (the gripper would come from below or through the bin's side); the rest are ranked by
 ``score + vertical_weight * cos(tilt)`` (descending, ties by row), ``score`` being the database's
-(:mod:`grasplan.graspdb`: the part upright in its own frame; recomputing it per pose costs ~20 us
+(:mod:`grasplan.grasps.graspdb`: the part upright in its own frame; recomputing it per pose costs ~20 us
 a grasp, too much for every grasp of every instance; the chosen pick records the score and the
 gravity margin at its instance's pose).
 """

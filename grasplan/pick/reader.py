@@ -4,10 +4,10 @@
 Nothing the file says is trusted: the JSON Schema (the file parsed refusing duplicate keys), the
 embedded robot, gripper, cell and scene (rebuilt and checked as when read from their own files),
 every pick's motion checked as a plan's planned grasp is
-(:func:`grasplan.result_reader.motion_from_json`: finite joint vectors of the robot's length within
+(:func:`grasplan.results.reader.motion_from_json`: finite joint vectors of the robot's length within
 its limits, ``q_grasp``/``q_pregrasp`` the path's rows, consecutive transit/approach/lift segments,
 the close event at the grasp), every number it carries finite and in range, and its poses re-checked
-against each other, the scene and forward kinematics (:func:`grasplan.result_reader.check_fk`).
+against each other, the scene and forward kinematics (:func:`grasplan.results.reader.check_fk`).
 """
 from __future__ import annotations
 
@@ -19,14 +19,14 @@ from typing import Any
 
 import numpy as np
 
-from ..cell import Cell, Obstacle
+from ..cell.model import Cell, Obstacle
 from ..errors import InputError
-from ..grasp_table import GraspTable
-from ..gripper import gripper_from_json
-from ..inputs import check_input_file
-from ..motion import Motion
-from ..result import PartRecord, PlanResult
-from ..scenefile import scene_from_dict
+from ..results.grasp_table import GraspTable
+from ..gripper.load import gripper_from_json
+from ..config.inputs import check_input_file
+from ..results.joint_motion import Motion
+from ..results.plan_result import PartRecord, PlanResult
+from ..piles.scene_file import scene_from_dict
 from ..status import Status
 from .params import PickParams
 from .result import PICKS_SCHEMA, InstanceReport, Pick, PickResult
@@ -40,11 +40,11 @@ MAX_RANK = 2**31 - 1
 
 def _pick_numbers(picks: list[Any], where: str) -> dict[str, np.ndarray]:
     """Every number the picks carry into an export or the viewer, vectorised over the picks and
-    checked as a plan's grasps are (:func:`grasplan.result_reader.rows_array`): finite, of their
+    checked as a plan's grasps are (:func:`grasplan.results.reader.rows_array`): finite, of their
     shape, the transforms rigid, width, score and normals as
-    :func:`grasplan.result_reader.check_grasp_values` checks a plan's, the opening in [0, 10] m,
+    :func:`grasplan.results.reader.check_grasp_values` checks a plan's, the opening in [0, 10] m,
     ``rank`` a whole number in [0, :data:`MAX_RANK`], ``quality`` values finite numbers >= 0 or null."""
-    from ..result_reader import check_grasp_values, check_poses, rows_array
+    from ..results.reader import check_grasp_values, check_poses, rows_array
 
     def rows(key: str, shape: tuple[int, ...]) -> np.ndarray:
         return rows_array(picks, key, shape, np.float64, where, what="picks", id_key="instance")
@@ -73,12 +73,12 @@ def _pick_numbers(picks: list[Any], where: str) -> dict[str, np.ndarray]:
 def _check_poses(robot: Any, gripper: Any, n: dict[str, np.ndarray], k: int, m: Motion, T_scene: np.ndarray,
                  where: str) -> None:
     """The poses pick ``k`` records against each other, the scene and forward kinematics (within
-    :data:`grasplan.result_reader.FK_POS_TOL` / ``FK_ROT_TOL``): its part at the scene instance's
+    :data:`grasplan.results.reader.FK_POS_TOL` / ``FK_ROT_TOL``): its part at the scene instance's
     pose, ``T_world_tcp = T_world_part @ T_part_tcp``, the pre-grasp and lifted TCPs at FK of
     ``q_pregrasp`` and the lift's last row (the TCP at the grasp's width), the opening the
     gripper's pre-grasp opening for that width. FK of ``q_grasp`` itself: :func:`check_fk`."""
-    from ..result_reader import FK_POS_TOL, FK_ROT_TOL
-    from ..transforms import pose_error
+    from ..results.reader import FK_POS_TOL, FK_ROT_TOL
+    from ..geometry.transforms import pose_error
 
     T_tcp = np.asarray(gripper.T_flange_tcp_at(float(n["width"][k])), dtype=np.float64)
     lift_end = next(e for lab, _, e in m.segment_list() if lab == "lift")
@@ -101,9 +101,9 @@ def _check_poses(robot: Any, gripper: Any, n: dict[str, np.ndarray], k: int, m: 
 
 def result_from_picks(doc: Any, *, where: str = "picks", base: Path | None = None) -> PickResult:
     """A :class:`PickResult` from a parsed ``grasplan.picks/1`` document (see the module docstring)."""
-    from ..robot import robot_from_json
-    from ..result_reader import check_fk, motion_from_json
-    from ..schemas import validate
+    from ..robot.description import robot_from_json
+    from ..results.reader import check_fk, motion_from_json
+    from ..schemas.documents import validate
 
     if not isinstance(doc, dict) or doc.get("schema") != PICKS_SCHEMA:
         raise InputError(f"{where}: not a {PICKS_SCHEMA} file (schema {str(doc.get('schema') if isinstance(doc, dict) else None)[:40]!r})")
@@ -165,7 +165,7 @@ def is_picks_file(path: str | os.PathLike) -> bool:
 
 def load_picks(path: str | os.PathLike) -> PickResult:
     """A :class:`PickResult` from a ``grasplan.picks/1`` file; InputError naming the file and the problem."""
-    from ..result_reader import read_document
+    from ..results.reader import read_document
 
     p = Path(path)
     return result_from_picks(read_document(p), where=str(p), base=p.resolve().parent)
@@ -173,7 +173,7 @@ def load_picks(path: str | os.PathLike) -> PickResult:
 
 def _part_meshes(res: PickResult) -> dict[str, Any]:
     """Each part's mesh, loaded from its recorded path (sha256 checked)."""
-    from ..mesh import load_recorded_part
+    from ..part.mesh import load_recorded_part
 
     if res.robot is None or res.gripper is None or res.cell is None:
         raise InputError("the picks result has no robot, gripper or cell")
@@ -212,7 +212,7 @@ def pick_as_plan(res: PickResult, instance: str | None = None) -> PlanResult:
     ``sequence``: still in the pile when it was planned) is an obstacle (mesh ``instance_<id>``) of
     its cell, so exports and the viewer see the whole pile; the cell's retreat is the pick's own lift
     (``T_world_tcp -> T_world_lifted``: a lift tilted away from a neighbour, docs/pick.md). The
-    pick's contacts must lie on its part's mesh (:func:`grasplan.result_reader.check_contacts_on_part`)."""
+    pick's contacts must lie on its part's mesh (:func:`grasplan.results.reader.check_contacts_on_part`)."""
     p = res.pick(instance)
     meshes = _part_meshes(res)
     gone = set()  # --sequence: the instances picked before this one are out of the pile
@@ -234,7 +234,7 @@ def pick_as_plan(res: PickResult, instance: str | None = None) -> PlanResult:
                        score=np.array([p.score]), rank=np.zeros(1, dtype=np.int64),
                        reason=np.array([res.report(p.instance).reason], dtype=object))
     plan = _as_plan(res, meshes, p.instance, gone, cell, table, {0: p.motion}, p.T_world_part)
-    from ..result_reader import check_contacts_on_part
+    from ..results.reader import check_contacts_on_part
 
     check_contacts_on_part(plan, f"pick of instance {p.instance!r}")  # as a plan's contacts are checked
     return plan

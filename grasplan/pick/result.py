@@ -20,12 +20,12 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from ..cell import Cell
+from ..cell.model import Cell
 from ..gripper.model import Gripper
 from ..io import to_json_text, write_json
-from ..motion import Motion
-from ..robot_model import Robot
-from ..scenefile import Scene
+from ..results.joint_motion import Motion
+from ..robot.model import Robot
+from ..piles.scene_file import Scene
 from .params import PickParams
 
 PICKS_SCHEMA = "grasplan.picks/1"

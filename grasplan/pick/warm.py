@@ -20,7 +20,7 @@ by (estimated) bytes: the bounds are the constants of this module, the one place
 
 Not kept here, bounded where they live: a part's depth probes and voxel grid (one per part),
 Pinocchio's data and the pathboxes' arguments of a variant (with the variant;
-:data:`grasplan.pathboxes.MAX_PREPARED` per variant), the gripper shapes per jaw opening
+:data:`grasplan.motion.pathboxes.MAX_PREPARED` per variant), the gripper shapes per jaw opening
 (:class:`~grasplan.pick.world.PickWorld`, the last few).
 """
 from __future__ import annotations
@@ -32,11 +32,11 @@ from typing import Any, Generic, TypeVar
 
 import numpy as np
 
-from ..cell import Cell
+from ..cell.model import Cell
 from ..gripper.model import Gripper
-from ..robot_model import Robot
-from ..scene import CollisionScene, ExtraBody
-from ..scenefile import Instance, Scene
+from ..robot.model import Robot
+from ..motion.collision_scene import CollisionScene, ExtraBody
+from ..piles.scene_file import Instance, Scene
 from .budget import UNLIMITED, Budget
 from .world import CLOUD, INSTANCE_PREFIX, PickWorld
 
@@ -192,7 +192,7 @@ def scene_cloud(cache: LRU[tuple, tuple[Any, np.ndarray, float]], scene: Scene) 
     when the same file, unchanged, was read at the same resolution."""
     if scene.cloud is None:
         return None
-    from ..cloud import cloud_octree, read_cloud
+    from ..piles.cloud import cloud_octree, read_cloud
 
     path = scene.resolve(scene.cloud.path)
     try:

@@ -5,7 +5,7 @@ obstacles) and the cloud's octree, and the vectorised gripper check of many worl
 only moves instances (their world boxes and coal transforms), so planning the next cycle reloads
 nothing. :meth:`PickWorld.gripper_hits` checks the gripper of each pose (its body shapes and each
 jaw swept from the pre-grasp opening to the contacts, as in ``grasplan plan``:
-:meth:`grasplan.collision.GripperCollider.shape_sets`) against every body but the instance being
+:meth:`grasplan.grasps.collision.GripperCollider.shape_sets`) against every body but the instance being
 grasped (the part-alone grasp set already checked that one): first an exact NumPy
 separating-axis test of each shape's oriented box against each body's world box, then coal for
 the overlapping pairs, the bodies in the order neighbours, cloud, obstacles, table, so that the
@@ -19,14 +19,14 @@ from dataclasses import dataclass
 import coal
 import numpy as np
 
-from ..cell import Cell
-from ..collision import GripperCollider
-from ..containment import obb_aabb_separated
-from ..geometry import TABLE_SIZE, bvh, convex_geometry, local_box, obstacle_geometry, shape_geometry, table_pose
+from ..cell.model import Cell
+from ..grasps.collision import GripperCollider
+from ..geometry.containment import obb_aabb_separated
+from ..cell.shapes import TABLE_SIZE, bvh, convex_geometry, local_box, obstacle_geometry, shape_geometry, table_pose
 from ..gripper.model import Box, Gripper
-from ..mesh import Part
-from ..scene import ATTACHED_CONTACT_TOL, TABLE
-from ..scenefile import Instance
+from ..part.mesh import Part
+from ..motion.collision_scene import ATTACHED_CONTACT_TOL, TABLE
+from ..piles.scene_file import Instance
 from .gripboxes import SweptGripper, sweep
 
 #: body name prefixes in reports
@@ -84,7 +84,7 @@ class PickWorld:
         T_table = table_pose(cell.table_z)
         half = 0.5 * np.asarray(TABLE_SIZE)
         self.cell_bodies: list[Body] = []
-        #: the cell as the robot scene's carried part meets it (:meth:`grasplan.scene.CollisionScene.attached`):
+        #: the cell as the robot scene's carried part meets it (:meth:`grasplan.motion.collision_scene.CollisionScene.attached`):
         #: obstacles and table shrunk by ATTACHED_CONTACT_TOL (their world boxes: the unshrunk ones)
         self.cell_shrunk: list[Body] = []
         for o in cell.obstacles:
@@ -103,7 +103,7 @@ class PickWorld:
         self.cell_shrunk.append(Body(TABLE, low, _tf(T_low), T_table[:3, 3].copy(), half, low))
         self.instances: dict[str, Body] = {}
         self.request = coal.CollisionRequest()
-        self.request.enable_contact = True  # see grasplan.collision: contacts on for shallow hits
+        self.request.enable_contact = True  # see grasplan.grasps.collision: contacts on for shallow hits
         self.request.num_max_contacts = 1
         self.result = coal.CollisionResult()
         self.hull_request, self.hull_result = coal.CollisionRequest(), coal.CollisionResult()
@@ -113,7 +113,7 @@ class PickWorld:
 
     # -- contents -----------------------------------------------------------------------------------
     def add_part(self, name: str, part: Part) -> PartGeometry:
-        from ..meshdata import convex_hull
+        from ..geometry.meshdata import convex_hull
 
         mesh = part.mesh
         hull = np.asarray(convex_hull(np.asarray(mesh.vertices)).vertices, dtype=np.float64)

@@ -4,9 +4,9 @@ naming the field, HTTP 422). No request names a file: parts are names from the s
 folder, and every field that would read a file (a scene's ``mesh``, ``grasps`` or ``cloud``, a
 plan option's ``scoring``, a plan document's robot) is refused or must match the service's own.
 
-Plan options are the fields of :class:`~grasplan.params.CandidateParams`,
-:class:`~grasplan.params.GraspParams` and :class:`~grasplan.params.PlanParams`, by field name or
-CLI spelling (``thin_spacing`` or ``thin``), read by :func:`grasplan.option_kinds.read_value` (the
+Plan options are the fields of :class:`~grasplan.config.params.CandidateParams`,
+:class:`~grasplan.config.params.GraspParams` and :class:`~grasplan.config.params.PlanParams`, by field name or
+CLI spelling (``thin_spacing`` or ``thin``), read by :func:`grasplan.config.option_kinds.read_value` (the
 CLI's reading: ``"2mm"`` or 0.002) and validated by the dataclasses, so a value the CLI refuses is
 refused here with the same message.
 """
@@ -21,11 +21,11 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
-from ..jsontext import DuplicateKeyError, loads_strict
-from ..option_kinds import KINDS, OptionSpec, check_fields, option_spec, read_value
-from ..params import ALL_POSES, PARAM_CLASSES, PlanParams, option_fields
-from ..transforms import MAX_CELL_COORD_M
-from ..scenefile import MAX_INSTANCES, SCENE_SCHEMA, Scene, scene_from_dict
+from ..config.jsontext import DuplicateKeyError, loads_strict
+from ..config.option_kinds import KINDS, OptionSpec, check_fields, option_spec, read_value
+from ..config.params import ALL_POSES, PARAM_CLASSES, PlanParams, option_fields
+from ..geometry.transforms import MAX_CELL_COORD_M
+from ..piles.scene_file import MAX_INSTANCES, SCENE_SCHEMA, Scene, scene_from_dict
 from .state import BUDGET_SHARE, PartEntry, Service
 
 #: the largest whole number a request may hold (digits); longer ones are refused as malformed
@@ -262,7 +262,7 @@ class ExportRequest:
 def export_request(doc: Any) -> ExportRequest:
     """A ``POST /export`` body: ``{"document": <plan or picks document>, "format": NAME, "grasp": ID,
     "instance": ID, "max_accel": ..., "velocity_scale": ..., "program_name": ...}``."""
-    from ..export_registry import ExportOptions, get_format
+    from ..results.export_registry import ExportOptions, get_format
 
     d = _object(doc, "body", EXPORT_KEYS)
     if not isinstance(d.get("document"), dict):

@@ -22,8 +22,8 @@ PICKS_SCHEMA = "grasplan.picks/1"
 
 def plan(service: Service, doc: Any) -> bytes:
     """``grasplan.plan/1`` JSON for a ``POST /plan`` body (see :func:`~grasplan.serve.bodies.plan_request`)."""
-    from ..planning import plan as plan_part
-    from ..result_writer import stream_document
+    from ..motion.planning import plan as plan_part
+    from ..results.writer import stream_document
 
     req = plan_request(doc, service)
     result = plan_part(req.part.part, service.robot, gripper=service.gripper, cell=service.cell,
@@ -59,7 +59,7 @@ def export(service: Service, doc: Any) -> dict[str, Any]:
     """``{"format", "extension", "text", "files": {extension: text}}`` for a ``POST /export`` body:
     the program of a plan document's grasp, or of a picks document's pick (``instance``, default
     the first pick), rendered in memory (no file is written)."""
-    from ..export_registry import get_format, render_export
+    from ..results.export_registry import get_format, render_export
 
     req = export_request(doc)
     schema = req.document.get("schema")
@@ -114,8 +114,8 @@ def _plan_result(service: Service, doc: dict[str, Any]) -> Any:
     """The typed plan of a client's plan document: its robot must be the service's (a robot's
     description names URDF files to read) and its part one of the service's (by sha256; the mesh
     comes from the parts folder, at the scale the plan records)."""
-    from ..mesh import load_recorded_part
-    from ..result_reader import result_from_document
+    from ..part.mesh import load_recorded_part
+    from ..results.reader import result_from_document
 
     _check_robot(service, doc)
     part = doc.get("part")

@@ -6,8 +6,8 @@ from __future__ import annotations
 from dataclasses import MISSING, fields
 from typing import Any
 
-from ..option_kinds import option_spec
-from ..params import PARAM_CLASSES
+from ..config.option_kinds import option_spec
+from ..config.params import PARAM_CLASSES
 
 _KIND_TYPES = {"length": ["number", "string"], "length0": ["number", "string"], "angle": ["number", "string"],
                "float": "number", "seconds": "number", "int": "integer", "bool": "boolean", "choice": "string",

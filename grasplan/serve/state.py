@@ -2,10 +2,10 @@
 and picker. Built once per worker process (:meth:`Service.start`); nothing here imports FastAPI.
 
 A part's name is its mesh file's stem in ``--parts`` (``TLess20.stl`` -> ``TLess20``); names follow
-the scene file's rule (:data:`grasplan.scenefile.NAME_RE`), so a client can only ever name a part
+the scene file's rule (:data:`grasplan.piles.scene_file.NAME_RE`), so a client can only ever name a part
 the folder holds. Each part's grasp database is ``NAME.graspdb.npz`` next to its mesh when there
 is one, else it comes from the cache or is computed when the service starts
-(:func:`grasplan.graspdb.database_for`, through the picker), with a progress line per part.
+(:func:`grasplan.grasps.graspdb.database_for`, through the picker), with a progress line per part.
 """
 from __future__ import annotations
 
@@ -17,8 +17,8 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
-from ..meshfile import SUPPORTED_SUFFIXES
-from ..scenefile import MAX_PARTS, NAME_RE, NAME_RULE
+from ..part.meshfile import SUPPORTED_SUFFIXES
+from ..piles.scene_file import MAX_PARTS, NAME_RE, NAME_RULE
 from .config import ServeConfig
 
 #: a part's grasp database kept next to its mesh (``grasplan database PART -o NAME.graspdb.npz``)
@@ -30,11 +30,11 @@ BUDGET_SHARE = 0.8
 @dataclass(frozen=True)
 class PartEntry:
     """One part of the service: ``name`` (the file's stem), the mesh ``path`` (server side, never
-    shown to clients) and the loaded :class:`grasplan.mesh.Part`."""
+    shown to clients) and the loaded :class:`grasplan.part.mesh.Part`."""
 
     name: str
     path: Path
-    part: Any  # grasplan.mesh.Part (loaded with Pinocchio-free modules only)
+    part: Any  # grasplan.part.mesh.Part (loaded with Pinocchio-free modules only)
 
     def to_json(self) -> dict[str, Any]:
         p = self.part
@@ -102,11 +102,11 @@ class Service:
     def start(cls, config: ServeConfig, progress: Callable[[str], None] = lambda s: None) -> Service:
         """Load the robot, gripper, cell and every part; with ``config.databases`` also each part's
         grasp database and the picker. InputError/ConfigError (exit 3) for anything unusable."""
-        from ..cell import load_cell
-        from ..config_files import use_config_dirs
-        from ..gripper import available_grippers, load_gripper
-        from ..mesh import load_part
-        from ..robot import available_robots, load_robot
+        from ..cell.model import load_cell
+        from ..config.lookup import use_config_dirs
+        from ..gripper.load import available_grippers, load_gripper
+        from ..part.mesh import load_part
+        from ..robot.description import available_robots, load_robot
 
         t0 = time.perf_counter()
         with use_config_dirs(*config.config_dirs):
@@ -163,7 +163,7 @@ def _warm_picker(config: ServeConfig, robot: Any, gripper: Any, cell: Any, parts
                  progress: Callable[[str], None]) -> Any:
     """A :class:`grasplan.Picker` holding every part with its grasp database: ``NAME.graspdb.npz``
     next to the mesh when there is one (refused for another part or gripper), else from the cache
-    or computed now (:func:`grasplan.graspdb.database_for`); the planning budget is capped below
+    or computed now (:func:`grasplan.grasps.graspdb.database_for`); the planning budget is capped below
     the request time limit."""
     from ..pick import Picker, PickParams
 

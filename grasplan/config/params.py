@@ -1,0 +1,249 @@
+"""Every option of the pipeline, defined once: three frozen, keyword-only dataclasses.
+
+``CandidateParams`` (stages 2-4), ``GraspParams`` (stages 5-6) and ``PlanParams`` (stages 7-8)
+validate themselves in ``__post_init__`` and raise :class:`~grasplan.errors.InputError` naming
+the CLI option, the value and the range that would pass. Each field carries its CLI spelling, kind
+(length, angle, pose, file, ...), range and help in ``metadata`` (:func:`grasplan.config.option_kinds.spec`);
+:mod:`grasplan.config.option_kinds` is the one interpreter of those kinds: ``grasplan.cli.options`` builds
+every command's options from these fields and the batch manifests read their columns with it, so a
+default, a range or the reading of a text exists in exactly one place.
+
+Besides the stages' numbers the classes hold the options that say what to plan: the place
+(``PlanParams.place``, ``--place``), the scoring file (``GraspParams.scoring``, ``--scoring``: its
+weights become ``score_weights`` / ``score_refs``) and every resting pose (``GraspParams.pose_index
+= "all"``, ``--pose-index all``: :func:`grasplan.motion.planning.plan_poses`). ``to_json`` (the record in
+output files) leaves out what an output records elsewhere: the place is the plan's ``cell.place``,
+the scoring file its weights; ``options_json`` (the batch's options hash) keeps the place.
+
+Units: lengths in metres (the CLI accepts suffixes: ``2mm``), user-facing angles in degrees and
+named so (``gamma_deg``), times in seconds.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import MISSING, Field, dataclass, fields
+from typing import Any, ClassVar
+
+import numpy as np
+
+from ..errors import InputError
+from .option_kinds import check_fields, is_option, option_name, option_spec, spec
+
+#: the default gripper, cell and robot (names looked up by grasplan.config.lookup)
+DEFAULT_GRIPPER = "schunk_egp_c_40"
+DEFAULT_CELL = "table"
+DEFAULT_ROBOT = "ur5"
+#: contact distance searched when no gripper says otherwise: the paper's Schunk Co-act EGP-C 40
+#: with fingers for a 50 mm opening
+DEFAULT_MAX_OPENING = 0.05
+#: candidate methods: regions (sampled contact regions, the default) or the paper's face pairs
+METHODS = ("regions", "paper")
+#: score terms of :mod:`grasplan.config.scoring` with their default weights, and the normalisation of the
+#: physical terms: read from the packaged ``configs/scoring.yaml``, their one definition
+from .scoring import DEFAULT_SCORING as _DEFAULT_SCORING
+from .scoring import SCORING_HELP
+
+DEFAULT_SCORE_WEIGHTS: tuple[tuple[str, float], ...] = _DEFAULT_SCORING.weights
+DEFAULT_SCORE_REFS: tuple[tuple[str, float], ...] = _DEFAULT_SCORING.refs
+#: default part density, kg/m^3 (steel)
+DEFAULT_DENSITY = 7850.0
+#: ``pose_index="all"``: plan every stable pose (grasplan.motion.planning.plan_poses), one plan per pose
+ALL_POSES = "all"
+
+
+class OptionSet:
+    """Shared behaviour: validation, JSON (lengths m, angles *_deg), defaults by name."""
+
+    __dataclass_fields__: ClassVar[dict[str, Field[Any]]]
+
+    def __post_init__(self):
+        check_fields(self)
+        self._check()
+
+    def _check(self) -> None:  # cross-field checks, overridden where needed
+        pass
+
+    def _json(self, records: tuple[str, ...]) -> dict:
+        out: dict[str, Any] = {}
+        for f in fields(self):
+            s = option_spec(f)
+            record = s.record if s is not None else "always"
+            if record not in records or (record == "elsewhere" and getattr(self, f.name) == f.default):
+                continue
+            v = getattr(self, f.name)
+            out[f.name] = [list(x) if isinstance(x, tuple) else x for x in v] if isinstance(v, tuple) else v
+        return out
+
+    def to_json(self) -> dict:
+        """The record of the options in an output file: every field but those the output records
+        elsewhere (``record="elsewhere"``: the place is the plan's ``cell.place``) and the inputs read
+        into other fields (``record="never"``: the scoring file, recorded as its weights)."""
+        return self._json(("always",))
+
+    def options_json(self) -> dict:
+        """Every option that decides a result (the batch's options hash and its workers):
+        :meth:`to_json` plus the ``record="elsewhere"`` options that are set."""
+        return self._json(("always", "elsewhere"))
+
+    @classmethod
+    def from_json(cls, data: dict):
+        """Rebuild from :meth:`to_json` or :meth:`options_json` output (unknown keys are ignored:
+        older/newer files)."""
+        kw = {}
+        for f in fields(cls):
+            if f.name in data:
+                v = data[f.name]
+                if isinstance(v, list):
+                    v = tuple(tuple(x) if isinstance(x, list) else x for x in v)
+                kw[f.name] = v
+        return cls(**kw)
+
+    @classmethod
+    def default(cls, name: str) -> Any:
+        f = next(f for f in fields(cls) if f.name == name)
+        if f.default is not MISSING:
+            return f.default
+        assert f.default_factory is not MISSING
+        return f.default_factory()
+
+
+@dataclass(frozen=True, kw_only=True)
+class CandidateParams(OptionSet):
+    """Stages 2-4: BLM, convexity, antipodal search. Lengths m, angles degrees."""
+
+    blm: bool = spec(True, "bool", "Run the boundary layer mesher before the search (--no-blm: the part's own mesh).",
+                     flag="--blm/--no-blm")
+    alpha: float = spec(1e-4, "length", "BLM boundary-layer width.", hi=0.1, show="0.1mm")
+    gamma_deg: float = spec(135.0, "angle", "BLM surface angle: facets join a surface when their normals differ "
+                            "by at most 180 - gamma degrees.", cli="--gamma", lo=90.0, hi=180.0, lo_open=True)
+    d_shift: float = spec(1e-5, "length", "Convexity: shift of the face centroid along its normal.", hi=0.01,
+                          show="0.01mm")
+    epsilon: float = spec(5e-3, "length", "Antipodal overlap threshold.", hi=0.5, show="5mm")
+    max_opening: float | None = spec(None, "length", "Largest contact distance searched "
+                                     "[default: the gripper's max_opening].", hi=2.0, optional=True)
+    beta_deg: float = spec(2.0, "angle", "Normals anti-parallel within this angle.", cli="--beta", lo=0.0, hi=45.0)
+    mu: float = spec(0.3, "float", "Friction coefficient (cone half-angle atan(mu)).", lo=0.0, hi=10.0)
+    method: str = spec("regions", "choice", "Candidates: 'regions' samples opposing contact regions every --spacing "
+                       "(independent of the tessellation); 'paper' is one pair per face pair (Vogt et al. 2021).",
+                       choices=METHODS)
+    spacing: float = spec(2e-3, "length", "regions: grid spacing of the contact samples.", lo=0.0, hi=0.1, show="2mm")
+
+
+@dataclass(frozen=True, kw_only=True)
+class GraspParams(OptionSet):
+    """Stages 5-6: TCP frames rolled about each closing axis, full-jaw collision filter."""
+
+    roll_step_deg: float = spec(15.0, "float", "Roll step of the TCP about the closing axis, degrees "
+                                "(poses at 0, step, ... < 360).", cli="--roll-step", lo=1.0, hi=360.0)
+    thin_spacing: float = spec(0.0, "length0", "Pose one candidate per cluster (grasp-centre grid of this pitch x "
+                               "closing axis in --thin-axis steps); 0 poses every candidate.", cli="--thin",
+                               hi=0.5, show="0 (off)")
+    thin_axis_deg: float = spec(10.0, "float", "Thinning: closing-axis direction step, degrees.", cli="--thin-axis",
+                                lo=0.5, hi=90.0)
+    merge_distance: float = spec(0.0, "length0", "Also skip a candidate whose contacts fall in the same grid cells of "
+                                 "this size as an earlier candidate's; 0 = off.", hi=0.5)
+    pose_index: int | str | None = spec(None, "int", "Rest the part in this stable pose (0 = most probable) "
+                                        "instead of the cell's pose_index; 'all' (plan, batch): plan every stable "
+                                        "pose of probability >= 2 %, write OUT.pose<k>.json "
+                                        "per pose and OUT.json = the pose with the most planned grasps plus a "
+                                        "'poses' block with the counts per pose.", lo=0, hi=10000, optional=True,
+                                        words=(ALL_POSES,), metavar="INDEX|all")
+    # grasp quality (grasplan.grasps.quality): mass properties and the score
+    density: float = spec(DEFAULT_DENSITY, "float", "Part density, kg/m^3 (uniform; 7850 steel, 2700 aluminium, "
+                          "~1200 plastic): mass and centre of mass for the grasp quality.", lo=0.0, lo_open=True,
+                          hi=1e5)
+    mass: float | None = spec(None, "float", "Part mass, kg (overrides --density).", lo=0.0, lo_open=True,
+                              hi=1e4, optional=True)
+    # a scoring YAML: its weights and normalisation replace score_weights and score_refs (the outputs
+    # record those, not the file name)
+    scoring: str | None = spec(None, "file", SCORING_HELP, optional=True, record="never")
+    score_weights: tuple[tuple[str, float], ...] = spec(DEFAULT_SCORE_WEIGHTS, "internal",
+                                                         "Score terms and weights (configs/scoring.yaml or --scoring).")
+    score_refs: tuple[tuple[str, float], ...] = spec(DEFAULT_SCORE_REFS, "internal",
+                                                      "Normalisation of the physical score terms (scoring YAML).")
+
+    def single_pose_index(self) -> int | None:
+        """:attr:`pose_index` as the one resting pose a grasp stage or a plan uses (None: the cell's);
+        InputError for ``"all"``, which plans every pose (:func:`grasplan.motion.planning.plan_poses`)."""
+        if isinstance(self.pose_index, str):
+            raise InputError("--pose-index all (pose_index='all') plans every resting pose: use `grasplan plan "
+                             "--pose-index all`, `grasplan batch --pose-index all` or grasplan.motion.planning.plan_poses; "
+                             "this step takes one pose index (0 = most probable)")
+        return self.pose_index
+
+    def _check(self) -> None:
+        from .scoring import REF_KEYS, check_weights, load_scoring
+
+        if self.scoring is not None:  # the file's weights and references replace the fields (outputs record those)
+            cfg = load_scoring(self.scoring)
+            object.__setattr__(self, "score_weights", cfg.weights)
+            object.__setattr__(self, "score_refs", cfg.refs)
+        check_weights(self.score_weights)
+        refs = dict(self.score_refs)
+        if set(refs) - set(REF_KEYS) or not all(isinstance(v, (int, float)) and math.isfinite(v) and v > 0
+                                                 for v in refs.values()) or refs.get("gravity_margin_ref", 2) <= 1:
+            raise InputError(f"score_refs: expected {', '.join(REF_KEYS)} > 0 (gravity_margin_ref > 1), got {refs!r}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class PlanParams(OptionSet):
+    """Stages 7-8: ranking, IK, straight approach, OMPL path. Lengths m, times s."""
+
+    top: int = spec(20, "int", "Plan at most this many grasps, best score first; other ok grasps are not_tried.",
+                    lo=1, hi=100000)
+    seed: int = spec(0, "int", "Seed of IK and OMPL (same seed, same result).", lo=0, hi=2**31 - 1)
+    backoff: float = spec(0.05, "length", "Pre-grasp back-off along the TCP's -z (the straight approach).",
+                          lo=0.0, hi=0.5, show="50mm")
+    max_dev: float = spec(0.002, "length", "Approach: largest TCP distance from the straight line.", hi=0.05,
+                          show="2mm")
+    time_limit_per_query: float = spec(1.0, "seconds", "RRTConnect time per attempt, seconds.", cli="--time-limit",
+                                       hi=600.0)
+    path_attempts: int = spec(2, "int", "RRTConnect attempts per query (new seed, finer checks).", lo=1, hi=20)
+    max_ik_solutions: int = spec(8, "int", "IK solutions tried per grasp (closest to q_home first).", lo=1, hi=64)
+    max_path_queries: int = spec(2, "int", "RRTConnect queries per grasp (distinct IK solutions).", lo=1, hi=64)
+    budget_s: float | None = spec(100.0, "seconds", "Wall-clock budget of the planning loop, seconds; "
+                                  "later grasps are not_tried.", cli="--budget", hi=86400.0, optional=True)
+    distinct_distance: float = spec(0.005, "length0", "Ranking: a grasp within this distance and --distinct-angle "
+                                    "of a better one ranks after every distinct grasp; 0 = off.", hi=0.5, show="5mm")
+    distinct_angle_deg: float = spec(15.0, "float", "Ranking: angle for --distinct-distance, degrees.",
+                                     cli="--distinct-angle", lo=0.0, hi=180.0)
+    score_weights: tuple[tuple[str, float], ...] | None = spec(None, "internal",
+                                                                "Re-score the grasps with these weights before "
+                                                                "ranking; None: the grasp stage's score "
+                                                                "(GraspParams.score_weights, the scoring YAML).")
+    simulate: int = spec(0, "int", "After planning, simulate the top N planned grasps (MuJoCo lift and shake, "
+                         "grasplan simulate) and rank those that held first; 0 = off.", lo=0, hi=1000)
+    check_all: bool = spec(True, "bool", "Collision-check and score every pose before planning; --no-check-all: "
+                           "only the poses whose score bound can reach the planned ranks, the rest are not_checked "
+                           "(docs/plan.md).", flag="--check-all/--no-check-all")
+    place: tuple[tuple[float, ...], ...] | None = spec(
+        None, "pose", "Pick-and-place: the part's pose after release, 'x,y,z,roll,pitch,yaw' (lengths m or with "
+        "units, angles deg, R = Rz(yaw) Ry(pitch) Rx(roll)); overrides the cell's place. Every plan lifts the part "
+        "along the cell's retreat; with a place it is carried there, released and the gripper retreats.",
+        optional=True, record="elsewhere")
+
+    def _check(self) -> None:
+        if self.score_weights is not None:
+            from .scoring import check_weights
+
+            check_weights(self.score_weights)
+
+    def place_matrix(self) -> np.ndarray | None:
+        """:attr:`place` as the (4, 4) float64 ``T_world_part`` :func:`grasplan.motion.planning.plan` takes
+        as ``place`` (None: the cell's place, if any)."""
+        return None if self.place is None else np.asarray(self.place, dtype=np.float64)
+
+
+PARAM_CLASSES = (CandidateParams, GraspParams, PlanParams)
+
+
+def option_fields() -> dict[str, tuple[type, Field[Any]]]:
+    """Every option of the three classes by field name and by CLI spelling without dashes
+    (``thin_spacing`` and ``thin``, ``pose_index``): ``key -> (class, field)`` (batch manifests)."""
+    out: dict[str, tuple[type, Field[Any]]] = {}
+    for cls in PARAM_CLASSES:
+        for f in fields(cls):
+            if is_option(f):
+                out[f.name] = (cls, f)
+                out[option_name(f).lstrip("-").replace("-", "_")] = (cls, f)
+    return out

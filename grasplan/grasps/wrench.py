@@ -1,0 +1,459 @@
+"""Wrench metrics of a parallel-jaw grasp: gravity margin and Ferrari-Canny epsilon.
+
+For ``M`` grasps (TCP frames ``T_part_tcp`` (M, 4, 4), contacts ``(M, 2, 3)`` with outward unit
+normals, widths ``(M,)``, patch areas ``(M, 2)`` from :func:`grasplan.grasps.patches.contact_patches`;
+metres, part frame):
+
+**Grip force.** ``grip_force`` (gripper YAML, N) is the datasheet gripping force, which Schunk (and
+most makers of parallel grippers) define as the arithmetic sum of the forces of the jaws: each of
+the two contacts is pressed with the normal force ``F = grip_force / 2`` (70 N for the EGP-C 40's
+140 N). ``CONTACTS_PER_GRIP`` is that 2.
+
+**Soft fingers.** A contact resists a torque about its normal of up to ``mu F SOFT_FINGER a``
+(uniform pressure on a disc of radius ``a = sqrt(area / pi)``, at least ``MIN_PATCH_RADIUS``,
+:func:`patch_radius`; :func:`torsion_length` is the one definition, also used by the MuJoCo check).
+
+**Gravity margin** (:func:`gravity_margin`). The largest factor by which the loads can grow and
+still be held: below 1 the part slips. Each contact is pressed with ``F`` (N, above), shifted by the
+load along the closing axis (``F -+ f_x / 2``: the centric jaws). A contact resists a tangential
+force ``|t| <= mu N`` and a torque about the closing axis ``|tau| <= (2/3) mu N a``, combined
+elliptically (the soft finger): the twist is held by both patches' torsion, each what its own
+tangential load leaves, ``sum_j (2/3) mu a_j sqrt(N_j^2 - (|t_j| / mu)^2)``. The loads are those of
+the lift and shake the MuJoCo check applies (:class:`LoadModel`, :data:`LOAD`): ``f = m (g - a)``
+for the gripper accelerations ``a`` of :meth:`LoadModel.accelerations` (the lift's +-1.97 m/s^2, the
+shake's +-5 m/s^2 in 8 horizontal directions), applied at the centre of mass, whose offset from the
+contact axis is the lever arm. Tangential force is shared equally; the torque perpendicular to the
+closing axis goes first to the pads' pressure (a flat patch of smaller equivalent width ``w``
+shifts its centre of pressure by up to ``PRESSURE_ARM w`` = ``w / 2``, its edge; the shifted
+pressure bears on a smaller effective patch, whose torsion radius shrinks by ``sqrt(1 - 2 e / w)``),
+the rest to a couple of opposite tangential forces ``|tau_perp| / width`` at the two contacts. The
+simulation's pads are this model (:mod:`grasplan.sim.simulate`: one torsional resistance per pad).
+
+**Epsilon** (Ferrari-Canny L1). Two soft-finger contacts, unit normal force each: the friction
+cone linearised with ``CONE_EDGES`` (8) edges ``nu + mu (cos k t1 + sin k t2)`` plus the pure normal
+force with torsion ``+-(2/3) mu a nu``; torques about the centre of mass divided by the part's
+radius ``rho`` (largest distance of the part's vertices from the centre of mass), so wrenches are
+in newtons. ``epsilon`` is the radius of the largest origin-centred ball inside the convex hull
+of the 20 wrenches; 0 when the origin is outside or the hull is flat. It is computed in closed form
+(:func:`ferrari_canny_pair`: each contact's wrenches are a linear image of one bipyramid, so the
+hull's facets come from 304 face pairs, each a 2 x 2 solve, vectorised over grasps; ~0.08 ms per
+distinct wrench set instead of ~0.6 ms per Qhull call); the rare degenerate sets it cannot decide
+(flat, origin on a candidate plane) go to Qhull (scipy ConvexHull, :func:`ferrari_canny`). The two
+agree within 1e-9 relative or 1e-10 absolute (Qhull's joggle), tests/test_quality_fast.py.
+For speed the torsion radius of epsilon is rounded down to a 5 % geometric grid
+(``RADIUS_STEP``, :func:`quantised_patch_radius`), so the rolls of one candidate (same contacts)
+share one hull computation (:func:`epsilon_dedup`).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import ConvexHull, QhullError
+
+from ..part.mass import MassProperties
+
+#: torsional friction radius of a point or line contact on a compliant pad, m
+MIN_PATCH_RADIUS = 5e-4
+#: epsilon: patch radii are rounded down to a geometric grid of this relative step (shared Qhull calls)
+RADIUS_STEP = 0.05
+#: Qhull options of epsilon: joggled input (simplicial facets; ~40 % faster on these symmetric wrench
+#: sets, facet offsets within 1e-10 of the exact hull; deterministic), no precision warnings
+QHULL_OPTIONS = "QJ Pp"
+#: epsilon below this (N per N) is 0: the joggle's size, wrench sets that are flat or touch the origin
+EPSILON_TOL = 1e-9
+#: edges of the linearised friction cone
+CONE_EDGES = 8
+#: standard gravity, m/s^2
+G = 9.81
+#: the gripper's ``grip_force`` is the sum over its jaws: each contact gets grip_force / this
+CONTACTS_PER_GRIP = 2
+
+
+def patch_radius(area: np.ndarray) -> np.ndarray:
+    """Soft-finger disc radius ``max(sqrt(area / pi), MIN_PATCH_RADIUS)`` (m) of patch areas (m^2)."""
+    return np.maximum(np.sqrt(np.maximum(area, 0.0) / math.pi), MIN_PATCH_RADIUS)
+
+
+#: soft-finger torsion: the largest friction torque about a contact normal is ``mu * N * SOFT_FINGER
+#: * radius`` (uniform pressure on a disc of that radius: the integral of ``r dF`` gives 2/3)
+SOFT_FINGER = 2.0 / 3.0
+
+
+def torsion_length(area: np.ndarray) -> np.ndarray:
+    """Torsional friction per unit ``mu`` and newton of normal force (m) of patches of ``area``
+    (m^2): ``SOFT_FINGER * patch_radius(area)``. The one definition used by
+    :func:`gravity_margin`, epsilon and the MuJoCo check (:mod:`grasplan.sim.simulate`)."""
+    return SOFT_FINGER * patch_radius(area)
+
+
+@dataclass(frozen=True)
+class LoadModel:
+    """The lift and shake a grasp must survive: one definition for :func:`gravity_margin` and the
+    MuJoCo check (:mod:`grasplan.sim.simulate` runs exactly this profile).
+
+    After closing, the gripper lifts ``lift_height`` in ``lift_s`` (cosine profile: vertical
+    acceleration ``+-lift_accel``, up first), then shakes ``+-shake_accel`` (sine at ``shake_hz``)
+    along world x for ``shake_s / 2`` and along world y for ``shake_s / 2``. The jaws must supply
+    ``m (a - g)`` for every gripper acceleration ``a`` of :meth:`accelerations`: the lift's two
+    extremes and the shake's peak in ``shake_directions`` horizontal directions (x and y, the
+    simulation's, among them; the margin does not depend on how the part happens to be turned about
+    the vertical). Peak load: ``m sqrt(g^2 + shake_accel^2)`` = 1.12 g tilted 27 deg while shaking,
+    ``m (g + lift_accel)`` = 1.20 g while lifting."""
+
+    lift_height: float = 0.10      #: m
+    lift_s: float = 0.5            #: s
+    shake_accel: float = 5.0       #: m/s^2, amplitude
+    shake_s: float = 1.0           #: s, half along world x then half along world y
+    shake_hz: float = 4.0          #: Hz
+    shake_directions: int = 8      #: horizontal directions the margin checks (multiple of 4: includes +-x, +-y)
+
+    @property
+    def lift_accel(self) -> float:
+        """Peak vertical acceleration of the cosine lift profile, m/s^2."""
+        return 0.5 * self.lift_height * (math.pi / self.lift_s) ** 2
+
+    def accelerations(self) -> np.ndarray:
+        """(K, 3) gripper accelerations in the world (m/s^2) whose loads the margin checks: lift up,
+        lift braking, and the shake's peak in ``shake_directions`` horizontal directions."""
+        th = 2.0 * math.pi * np.arange(self.shake_directions) / self.shake_directions
+        shake = self.shake_accel * np.column_stack([np.cos(th), np.sin(th), np.zeros_like(th)])
+        lift = np.array([[0.0, 0.0, self.lift_accel], [0.0, 0.0, -self.lift_accel]])
+        return np.vstack([lift, shake])
+
+
+    def peak_g(self) -> float:
+        """The largest load of :meth:`accelerations`, in g (gravity included)."""
+        return float(np.linalg.norm(np.array([0.0, 0.0, G]) + self.accelerations(), axis=1).max() / G)
+
+
+#: the load model of the margin and the simulation
+LOAD = LoadModel()
+#: pad-pressure moment: a flat patch pressed with ``F`` carries a moment perpendicular to the
+#: closing axis of up to ``F * PRESSURE_ARM * w`` by shifting its centre of pressure (``w``: the
+#: patch's smaller equivalent width): 1/2, the pressure at the patch's edge (tipping, the limit of
+#: rigid bodies, which the simulation reaches: its contact points sit on the patch's corners). A
+#: pressure centre shifted by ``e`` bears on the effective patch ``1 - 2 e / w`` of the area
+#: (Meyerhof's effective width), which scales the patch's torsion radius by ``sqrt(1 - 2 e / w)``.
+PRESSURE_ARM = 0.5
+
+
+def pressure_widths(contact_type: np.ndarray, widths: np.ndarray) -> np.ndarray:
+    """(M, 2) width (m) of each jaw's pad-pressure moment (:data:`PRESSURE_ARM`): the smaller
+    equivalent width of a surface patch (``contact_type`` 2, ``widths`` (M, 2, 2) sorted, from
+    :func:`grasplan.grasps.patches.contact_patches`); 0 for point and line contacts."""
+    return np.where(np.asarray(contact_type) == 2, np.asarray(widths, dtype=np.float64)[..., 0], 0.0)
+
+
+#: the margin is found by bisection in log scale between these load factors (iterations: relative
+#: precision ``log(hi / lo) / 2^iterations``, 3e-10); a margin above the bracket is reported as its top
+MARGIN_BRACKET, MARGIN_ITERATIONS = (1e-4, 1e4), 36
+
+
+def gravity_margin(mass_props: MassProperties, T_world_part: np.ndarray, T_part_tcp: np.ndarray,
+                   width: np.ndarray, area: np.ndarray, *, mu: float, normal_force: float,
+                   patch_width: np.ndarray | None = None, load: LoadModel = LOAD,
+                   lift_only: bool = False) -> np.ndarray:
+    """(M,) the largest factor ``s`` by which the loads of ``load`` can be scaled and still be held
+    (module docstring): below 1 the part slips. ``area`` (M, 2) m^2, ``width`` (M,) m,
+    ``normal_force``: N pressing each contact (``grip_force / CONTACTS_PER_GRIP``); ``patch_width``
+    (M, 2) m: each patch's smaller equivalent width (its pad-pressure moment, :data:`PRESSURE_ARM`;
+    ``None``: none). ``lift_only``: the lift's upward acceleration only, one of the loads the margin
+    takes the worst of, so the result is >= the margin (an upper bound,
+    :func:`grasplan.grasps.quality.physical_bounds`).
+
+    At a load ``s f`` (TCP frame, at the centre of mass) the jaws press with ``F -+ s f_x / 2``
+    (contact 0 on the -x side; the centric jaws share the load along the closing axis); the
+    tangential load is shared equally; the moment perpendicular to the
+    closing axis goes first to the pads' pressure (``PRESSURE_ARM * (N0 w0 + N1 w1)``), the rest to a
+    couple of opposite tangential forces over the width; each contact's tangential utilisation
+    ``u = |t| / (mu N)`` must stay <= 1 and the twist about the closing axis is held by the two
+    patches' torsional friction, each on its soft-finger ellipse: ``|s tau_x| <= sum_j mu N_j L_j
+    sqrt(1 - u_j^2)`` (``L_j``: :func:`torsion_length`, times ``sqrt(1 - p)`` when the pressure
+    moment is a share ``p`` of its capacity (effective patch), at least the point contact's), the
+    pad model of the MuJoCo check. Homogeneous: the margin grows in proportion to ``normal_force``."""
+    T = np.asarray(T_part_tcp, dtype=np.float64).reshape(-1, 4, 4)
+    M = len(T)
+    R = T[:, :3, :3]
+    acc = load.accelerations()[:1] if lift_only else load.accelerations()
+    if not (mu * normal_force > 0) or M == 0:  # no friction: nothing holds the part against a tangential load
+        return np.zeros(M)
+    # load on the part that the jaws must hold, world: m (g - a); in each TCP frame
+    f_world = mass_props.mass * (np.array([0.0, 0.0, -G])[None] - acc)              # (D, 3)
+    f_part = f_world @ np.asarray(T_world_part, dtype=np.float64)[:3, :3]         # rows: R_wp^T f
+    f = np.einsum("mji,dj->mdi", R, f_part)                                       # (M, D, 3) TCP frame
+    com = np.einsum("mji,mj->mi", R, mass_props.com - T[:, :3, 3])  # centre of mass in TCP
+    fx, fy, fz = f[..., 0], f[..., 1], f[..., 2]
+    cx, cy, cz = (com[:, k, None] for k in range(3))
+    tau_x = np.abs(cy * fz - cz * fy)  # tau = com x f, component by component (no (M, D, 3) temporaries)
+    tau_y = cz * fx - cx * fz
+    tau_z = cx * fy - cy * fx
+    tp = np.hypot(tau_y, tau_z)
+    uy = np.where(tp > 0, tau_y / np.maximum(tp, 1e-300), 0.0)
+    uz = np.where(tp > 0, tau_z / np.maximum(tp, 1e-300), 0.0)
+    pw = np.zeros((M, 2)) if patch_width is None else np.maximum(np.asarray(patch_width, dtype=np.float64), 0.0)
+    arm0, arm1 = (PRESSURE_ARM * pw[:, k, None] for k in range(2))
+    inv_w = 1.0 / np.maximum(np.asarray(width, dtype=np.float64), 1e-9)[:, None]
+    L = torsion_length(np.asarray(area, dtype=np.float64))
+    L0, L1 = L[:, 0, None], L[:, 1, None]
+    F = float(normal_force)
+    LMIN = SOFT_FINGER * MIN_PATCH_RADIUS
+
+    def holds(s: np.ndarray) -> np.ndarray:
+        """(M,) every load of grasp m held at scale s[m]."""
+        sc = s[:, None]
+        n0 = F - 0.5 * sc * fx
+        n1 = F + 0.5 * sc * fx
+        cap = arm0 * n0 + arm1 * n1  # the pads' pressure moment at the edge of their patches
+        used = np.where(cap > 0, np.clip(sc * tp / np.maximum(cap, 1e-300), 0.0, 1.0), 0.0)  # 2 e / w
+        rest = np.maximum(sc * tp - cap, 0.0) * inv_w  # couple force per contact
+        hy, hz = rest * uz, -rest * uy  # (tau_rest x x_hat) / width
+        t0 = (0.5 * sc * fy - hy) ** 2 + (0.5 * sc * fz - hz) ** 2
+        t1 = (0.5 * sc * fy + hy) ** 2 + (0.5 * sc * fz + hz) ** 2
+        c0, c1 = (mu * n0) ** 2, (mu * n1) ** 2
+        ok = (n0 > 0) & (n1 > 0) & (t0 <= c0) & (t1 <= c1)
+        # an eccentric pressure bears on the effective patch (1 - used) of the area (Meyerhof): less torsion
+        shrink = np.sqrt(1.0 - used)
+        twist = (np.maximum(L0 * shrink, LMIN) * np.sqrt(np.maximum(c0 - t0, 0.0))
+                 + np.maximum(L1 * shrink, LMIN) * np.sqrt(np.maximum(c1 - t1, 0.0)))
+        return (ok & (sc * tau_x <= twist)).all(axis=1)
+
+    lo = np.full(M, math.log(MARGIN_BRACKET[0]))
+    hi = np.full(M, math.log(MARGIN_BRACKET[1]))
+    for _ in range(MARGIN_ITERATIONS):
+        mid = 0.5 * (lo + hi)
+        h = holds(np.exp(mid))
+        lo = np.where(h, mid, lo)
+        hi = np.where(h, hi, mid)
+    out = np.exp(lo)
+    return np.where(holds(np.exp(lo)), out, 0.0)
+
+
+def _tangent_basis(nu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    a = np.where(np.abs(nu[..., :1]) < 0.9, np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
+    t1 = np.cross(nu, a)
+    t1 /= np.linalg.norm(t1, axis=-1, keepdims=True)
+    return t1, np.cross(nu, t1)
+
+
+def contact_wrenches(contacts: np.ndarray, normals: np.ndarray, com: np.ndarray, rho: float, mu: float,
+                     torsion: np.ndarray) -> np.ndarray:
+    """(M, 2 * (CONE_EDGES + 2), 6) primitive wrenches (force N, torque / ``rho``) of two soft-finger
+    contacts with unit normal force: the cone edges and the normal force with +-torsion.
+    ``torsion`` (M, 2): torsional friction per newton of normal force, m."""
+    nu = -np.asarray(normals, dtype=np.float64)
+    nu = nu / np.linalg.norm(nu, axis=-1, keepdims=True)
+    t1, t2 = _tangent_basis(nu)
+    th = 2.0 * math.pi * np.arange(CONE_EDGES) / CONE_EDGES
+    edges = nu[:, :, None] + mu * (np.cos(th)[:, None] * t1[:, :, None] + np.sin(th)[:, None] * t2[:, :, None])
+    F = np.concatenate([edges, np.repeat(nu[:, :, None], 2, axis=2)], axis=2)  # (M, 2, E + 2, 3)
+    r = (np.asarray(contacts, dtype=np.float64) - com)[:, :, None]
+    tq = np.cross(r, F)
+    tq[:, :, CONE_EDGES] += torsion[..., None] * nu
+    tq[:, :, CONE_EDGES + 1] -= torsion[..., None] * nu
+    W = np.concatenate([F, tq / rho], axis=3)
+    return W.reshape(len(W), -1, 6)
+
+
+def ferrari_canny(W: np.ndarray) -> np.ndarray:
+    """(M,) L1 epsilon: distance from the origin to the hull of each wrench set ``W`` (M, k, 6);
+    0 when the origin is not strictly inside or the hull is degenerate. One Qhull call per grasp."""
+    out = np.zeros(len(W))
+    for m in range(len(W)):
+        try:
+            eq = ConvexHull(W[m], qhull_options=QHULL_OPTIONS).equations
+        except QhullError:
+            continue
+        d = -eq[:, -1]  # unit facet normals: n . x + b <= 0 inside
+        e = float(d.min())
+        out[m] = e if e > EPSILON_TOL else 0.0  # below the joggle: the origin is on the boundary (flat set)
+    return out
+
+
+#: exact epsilon: relative tolerance of the support test of a candidate facet (value units: 1 = on the plane)
+FACET_TOL = 1e-10
+#: exact epsilon: grasps processed at once (memory: ~ chunk x 304 candidates x 6 floats)
+EPS_CHUNK = 1024
+
+
+def _bipyramid_dirs(mu: float, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Local facet families of one contact's wrench bipyramid (coordinates (alpha, beta, gamma, s):
+    force ``alpha nu + beta t1 + gamma t2`` and torsion ``s``; every primitive wrench has alpha = 1).
+    Returns the triangle directions (B, 16, 4), the edge direction pairs (B, 24, 2, 4) and the 10
+    local points (B, 10, 4); ``tau`` (B,) torsion radius, m."""
+    B = len(tau)
+    E = CONE_EDGES
+    th = 2.0 * math.pi * np.arange(E) / E
+    c = np.stack([np.cos(th), np.sin(th)], 1)  # (E, 2) cone directions
+    half = math.pi / E
+    m = np.stack([np.cos(th + half), np.sin(th + half)], 1) / math.cos(half)  # m . c_e = m . c_{e+1} = 1
+    inv_t = 1.0 / tau
+    tri = np.zeros((B, 2 * E, 4))
+    tri[:, :, 0] = -1.0
+    tri[:, :, 1:3] = np.tile(m / mu, (2, 1))
+    tri[:, :, 3] = np.concatenate([np.ones(E), -np.ones(E)])[None] * inv_t[:, None]
+    edge = np.zeros((B, 3 * E, 2, 4))
+    edge[:, :E, 0, 0] = -1.0  # octagon edges (e, e+1): lambda (-1, m/mu, 0) + sigma e_s
+    edge[:, :E, 0, 1:3] = m / mu
+    edge[:, :E, 1, 3] = 1.0
+    for k, sgn in enumerate((1.0, -1.0)):  # apex edges (apex +-, c_e): lambda (-1, c/mu, +-1/tau) + sigma c_perp
+        sl = slice(E * (k + 1), E * (k + 2))
+        edge[:, sl, 0, 0] = -1.0
+        edge[:, sl, 0, 1:3] = c / mu
+        edge[:, sl, 0, 3] = sgn * inv_t[:, None]
+        edge[:, sl, 1, 1] = -c[:, 1]
+        edge[:, sl, 1, 2] = c[:, 0]
+    pts = np.zeros((B, E + 2, 4))
+    pts[:, :, 0] = 1.0
+    pts[:, :E, 1:3] = mu * c
+    pts[:, E, 3] = tau
+    pts[:, E + 1, 3] = -tau
+    return tri, edge, pts
+
+
+def ferrari_canny_pair(contacts: np.ndarray, normals: np.ndarray, com: np.ndarray, rho: float, mu: float,
+                       torsion: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Exact Ferrari-Canny L1 epsilon of two soft-finger contacts without Qhull, vectorised over grasps.
+
+    Each contact's primitive wrenches (:func:`contact_wrenches`) are a linear image of one
+    bipyramid (the 8-gon of cone edges plus the two torsion points), so every facet of the hull of
+    both sets is spanned by a face of each: (triangle, triangle), (edge, whole set) or (whole set,
+    edge), 304 candidate hyperplanes. On the level set ``u . w = 1`` each candidate is a 2 x 2
+    linear solve in closed form; it is a facet (origin inside) when every primitive wrench has
+    ``u . w <= 1`` and it separates the origin when every one has ``u . w >= 1`` (epsilon 0).
+    epsilon = min over facets of ``1 / |u|``. Returns ``(epsilon (M,), exact (M,) bool)``: rows with
+    ``exact`` False (degenerate: flat wrench set, the origin on a candidate's plane) need
+    :func:`ferrari_canny`."""
+    C = np.asarray(contacts, dtype=np.float64)
+    M = len(C)
+    out = np.zeros(M)
+    exact = np.zeros(M, dtype=bool)
+    if M == 0 or not mu > 0:
+        return out, exact
+    nu = -np.asarray(normals, dtype=np.float64)
+    nu = nu / np.linalg.norm(nu, axis=-1, keepdims=True)
+    t1, t2 = _tangent_basis(nu)
+    r = C - com
+    tors = np.asarray(torsion, dtype=np.float64).reshape(M, 2)
+    for s0 in range(0, M, EPS_CHUNK):
+        sl = slice(s0, min(M, s0 + EPS_CHUNK))
+        out[sl], exact[sl] = _fc_pair_chunk(nu[sl], t1[sl], t2[sl], r[sl], rho, mu, tors[sl])
+    return out, exact
+
+
+def _fc_pair_chunk(nu, t1, t2, r, rho, mu, tors) -> tuple[np.ndarray, np.ndarray]:
+    B = len(nu)
+    # phi_k = L_k^T u: (a + b x r_k / rho, b . nu_k / rho); Lt (B, 8, 6) stacks both contacts
+    Lt = np.zeros((B, 8, 6))
+    for k in range(2):
+        Lt[:, 4 * k:4 * k + 3, :3] = np.eye(3)
+        rx = r[:, k] / rho
+        # (b x r) = -[r]x b: the rows of -[r]x
+        Lt[:, 4 * k, 3:] = np.stack([np.zeros(B), rx[:, 2], -rx[:, 1]], 1)
+        Lt[:, 4 * k + 1, 3:] = np.stack([-rx[:, 2], np.zeros(B), rx[:, 0]], 1)
+        Lt[:, 4 * k + 2, 3:] = np.stack([rx[:, 1], -rx[:, 0], np.zeros(B)], 1)
+        Lt[:, 4 * k + 3, 3:] = nu[:, k] / rho
+    U, S, _ = np.linalg.svd(Lt)
+    ok = S[:, -1] > 1e-9 * S[:, 0]  # full rank: the wrench set spans R^6
+    N = U[:, :, 6:]  # (B, 8, 2): (phi1, phi2) is an image iff N^T phi = 0
+    G = np.swapaxes(U[:, :, :6], 1, 2) / np.where(S > 0, S, 1.0)[..., None]  # |u| = |G phi| (u = V G phi)
+    Ek = np.zeros((B, 2, 4, 4))  # local (alpha, beta, gamma, s) -> q = (f, s)
+    Ek[:, :, :3, 0], Ek[:, :, :3, 1], Ek[:, :, :3, 2] = nu, t1, t2
+    Ek[:, :, 3, 3] = 1.0
+    A = [np.matmul(np.swapaxes(N[:, 4 * k:4 * k + 4], 1, 2), Ek[:, k]) for k in range(2)]  # (B, 2, 4)
+    GE = [np.matmul(G[:, :, 4 * k:4 * k + 4], Ek[:, k]) for k in range(2)]  # (B, 6, 4)
+    At = [np.swapaxes(a, 1, 2) for a in A]  # (B, 4, 2)
+    GEt = [np.swapaxes(a, 1, 2) for a in GE]  # (B, 4, 6)
+    h = A[0][:, :, 0] + A[1][:, :, 0]
+    g0 = GE[0][:, :, 0] + GE[1][:, :, 0]
+    tri, edge, pts = zip(*(_bipyramid_dirs(mu, tors[:, k]) for k in range(2)))
+    best = np.full(B, np.inf)
+    outside = np.zeros(B, dtype=bool)
+    singular = np.zeros(B, dtype=bool)
+    tol = FACET_TOL
+    # (triangle, triangle): phi_k = e_alpha + lambda_k k_k; supporting iff both lambda >= 0 (all <= 1),
+    # separating iff both <= 0
+    a1 = np.matmul(tri[0], At[0])  # (B, 16, 2)
+    a2 = np.matmul(tri[1], At[1])
+    det = a1[:, :, None, 0] * a2[:, None, :, 1] - a1[:, :, None, 1] * a2[:, None, :, 0]
+    scale = np.linalg.norm(a1, axis=2)[:, :, None] * np.linalg.norm(a2, axis=2)[:, None, :]
+    sing = np.abs(det) <= 1e-12 * scale
+    dd = np.where(sing, 1.0, det)
+    l1 = (-h[:, None, None, 0] * a2[:, None, :, 1] + h[:, None, None, 1] * a2[:, None, :, 0]) / dd
+    l2 = (-a1[:, :, None, 0] * h[:, None, None, 1] + a1[:, :, None, 1] * h[:, None, None, 0]) / dd
+    # a singular pair: a1 parallel to a2. Anti-parallel (or a zero column): a supporting hyperplane
+    # through the origin holds both triangles (lambda1, lambda2 >= 0 at level 0), the origin is on the
+    # hull's boundary: epsilon 0. Parallel: no such plane, and a facet through both faces holds more
+    # points, so it is found from another pair; the pair is skipped.
+    n1 = np.linalg.norm(a1, axis=2)[:, :, None]
+    n2 = np.linalg.norm(a2, axis=2)[:, None, :]
+    dot = a1[:, :, None, 0] * a2[:, None, :, 0] + a1[:, :, None, 1] * a2[:, None, :, 1]
+    big = max(float(np.max(n1, initial=0.0)), float(np.max(n2, initial=0.0)), 1e-300)
+    zero_col = (n1 <= 1e-12 * big) | (n2 <= 1e-12 * big)
+    on_plane = sing & ((dot < 0) | zero_col)
+    outside |= on_plane.any(axis=(1, 2))
+    gt1 = np.matmul(tri[0], GEt[0])  # (B, 16, 6)
+    gt2 = np.matmul(tri[1], GEt[1])
+    sup = ~sing & (l1 >= -tol) & (l2 >= -tol)
+    sep = ~sing & (l1 <= tol) & (l2 <= tol)
+    bi, si, ti = np.nonzero(sup)  # |u| only where the plane supports (a few facets per grasp)
+    u = g0[bi] + l1[bi, si, ti, None] * gt1[bi, si] + l2[bi, si, ti, None] * gt2[bi, ti]
+    np.minimum.at(best, bi, 1.0 / np.linalg.norm(u, axis=1))
+    outside |= sep.any(axis=(1, 2))
+    # (edge of contact k, whole of the other): phi_k = e_alpha + lambda k + sigma k', phi_other = e_alpha
+    for k in range(2):
+        ne = edge[k].shape[1]
+        ak = np.matmul(edge[k].reshape(B, 2 * ne, 4), At[k]).reshape(B, ne, 2, 2)
+        det = ak[:, :, 0, 0] * ak[:, :, 1, 1] - ak[:, :, 0, 1] * ak[:, :, 1, 0]
+        scale = np.linalg.norm(ak[:, :, 0], axis=2) * np.linalg.norm(ak[:, :, 1], axis=2)
+        sing = np.abs(det) <= 1e-12 * scale
+        dd = np.where(sing, 1.0, det)
+        lam = (-h[:, None, 0] * ak[:, :, 1, 1] + h[:, None, 1] * ak[:, :, 1, 0]) / dd
+        sig = (-ak[:, :, 0, 0] * h[:, None, 1] + ak[:, :, 0, 1] * h[:, None, 0]) / dd
+        singular |= sing.any(axis=1)
+        psi = lam[..., None] * edge[k][:, :, 0] + sig[..., None] * edge[k][:, :, 1]  # psi - e_alpha
+        val = np.matmul(psi, np.swapaxes(pts[k], 1, 2))  # value - 1 at the 10 points
+        sup = ~sing & (val.max(axis=2) <= tol)
+        sep = ~sing & (val.min(axis=2) >= -tol)
+        ge = np.matmul(edge[k].reshape(B, 2 * ne, 4), GEt[k]).reshape(B, ne, 2, 6)
+        u = g0[:, None] + lam[..., None] * ge[:, :, 0] + sig[..., None] * ge[:, :, 1]
+        un = np.linalg.norm(u, axis=2)
+        best = np.minimum(best, np.where(sup, 1.0 / un, np.inf).min(axis=1))
+        outside |= sep.any(axis=1)
+    eps = np.where(outside | ~np.isfinite(best), 0.0, best)
+    eps = np.where(eps > EPSILON_TOL, eps, 0.0)
+    exact = ok & ~singular & (np.isfinite(best) | outside)
+    return eps, exact
+
+
+def quantised_patch_radius(area: np.ndarray) -> np.ndarray:
+    """:func:`patch_radius` rounded down to the geometric grid ``MIN_PATCH_RADIUS * (1 +
+    RADIUS_STEP)^k`` (conservative: less torsion), so that grasps with the same contacts share one
+    epsilon."""
+    r = patch_radius(area)
+    k = np.floor(np.log(r / MIN_PATCH_RADIUS) / math.log1p(RADIUS_STEP) + 1e-9)
+    return MIN_PATCH_RADIUS * np.exp(np.maximum(k, 0.0) * math.log1p(RADIUS_STEP))
+
+
+def epsilon_dedup(contacts: np.ndarray, normals: np.ndarray, area: np.ndarray, com: np.ndarray, rho: float,
+                  mu: float) -> np.ndarray:
+    """(M,) Ferrari-Canny epsilon, once per distinct wrench set (the rolls of one candidate share
+    contacts and normals, and their patch radii are quantised (:func:`quantised_patch_radius`)):
+    :func:`ferrari_canny_pair` (closed form, vectorised), Qhull (:func:`ferrari_canny`) only for the
+    degenerate sets it does not decide."""
+    M = len(contacts)
+    if M == 0:
+        return np.zeros(0)
+    rq = quantised_patch_radius(area)
+    key = np.concatenate([np.asarray(contacts, dtype=np.float64).reshape(M, 6),
+                          np.asarray(normals, dtype=np.float64).reshape(M, 6), rq], axis=1)
+    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    u = first
+    Cu, Nu, tors = np.asarray(contacts)[u], np.asarray(normals)[u], SOFT_FINGER * mu * rq[u]
+    eps, exact = ferrari_canny_pair(Cu, Nu, com, rho, mu, tors)
+    if not exact.all():  # degenerate wrench sets: Qhull
+        bad = np.flatnonzero(~exact)
+        eps[bad] = ferrari_canny(contact_wrenches(Cu[bad], Nu[bad], com, rho, mu, tors[bad]))
+    return eps[inverse.reshape(-1)]
+

@@ -1,0 +1,77 @@
+"""Plans of every resting pose (``pose_index="all"``): one standalone plan file per stable pose
+(``OUT.pose<k>.json``) and ``OUT.json`` = the pose with the most planned grasps (ties: the more
+probable) plus a ``poses`` block with the counts per pose. ``grasplan plan --pose-index all`` and
+``grasplan batch --pose-index all`` both write them with :func:`write_pose_plans`.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ..errors import PlanningError
+from ..status import Status
+
+if TYPE_CHECKING:
+    from .plan_result import PlanResult
+
+#: statuses of a pose the gripper cannot take (the rest are collision-free)
+_COLLISIONS = (Status.COLLISION_PART.value, Status.COLLISION_TABLE.value, Status.COLLISION_OBSTACLE.value)
+
+
+@dataclass(frozen=True)
+class PosePlans:
+    """What :func:`write_pose_plans` wrote: ``chosen`` (the pose index of ``OUT.json``), its
+    ``result`` and ``planned`` count, and ``poses`` (the ``poses`` block's rows, one per pose).
+    ``result`` is None when no pose could be planned at all (:meth:`error` says why)."""
+
+    chosen: int | None
+    result: PlanResult | None
+    planned: int
+    poses: tuple[dict[str, Any], ...]
+
+    def error(self, part_name: str) -> PlanningError:
+        """The exit-4 error when no pose could be planned at all (every pose failed its checks)."""
+        return PlanningError(f"no resting pose of {part_name} could be planned: "
+                             + "; ".join(f"pose {b['pose_index']}: {b.get('error', '')}" for b in self.poses))
+
+    def table_rows(self) -> list[tuple[Any, ...]]:
+        """``(pose, probability, planned, collision-free, file or error)`` per pose, for a table."""
+        return [(p["pose_index"], f"{p['probability'] * 100:.1f} %", "-", "-", p["error"][:60]) if p["file"] is None
+                else (p["pose_index"], f"{p['probability'] * 100:.1f} %", p["planned"], p["collision_free"], p["file"])
+                for p in self.poses]
+
+
+def pose_file(output: Path, k: int) -> Path:
+    """``OUT.pose<k>.json`` next to ``OUT.json``."""
+    return output.with_name(f"{output.stem}.pose{k}{output.suffix}")
+
+
+def write_pose_plans(runs: list[tuple[int, float, PlanResult | str]], output: str | os.PathLike, *,
+                     min_probability: float) -> PosePlans:
+    """Write the plans of :func:`grasplan.motion.planning.plan_poses` (``[(pose_index, probability,
+    PlanResult or the error message)]``): ``OUT.pose<k>.json`` per planned pose, then ``OUT.json``
+    (not when no pose could be planned at all: ``result`` None)."""
+    output = Path(output)
+    block: list[dict[str, Any]] = []
+    best: tuple[int, int, PlanResult] | None = None
+    for k, pr, res in runs:
+        if isinstance(res, str):
+            block.append({"pose_index": k, "probability": pr, "planned": 0, "collision_free": 0, "file": None,
+                          "error": res})
+            continue
+        f = pose_file(output, k)
+        res.write(f)
+        n = res.counts()
+        cf = int(np.count_nonzero(~np.isin(res.grasps.status.astype(str), _COLLISIONS)))
+        block.append({"pose_index": k, "probability": pr, "planned": int(n[Status.PLANNED.value]),
+                      "collision_free": cf, "file": f.name, "T_world_part": np.asarray(res.T_world_part).tolist()})
+        if best is None or n[Status.PLANNED.value] > best[1]:
+            best = (k, n[Status.PLANNED.value], res)
+    if best is None:
+        return PosePlans(chosen=None, result=None, planned=0, poses=tuple(block))
+    best[2].write(output, extra={"poses": {"chosen": best[0], "min_probability": min_probability, "poses": block}})
+    return PosePlans(chosen=best[0], result=best[2], planned=int(best[1]), poses=tuple(block))
