@@ -1,26 +1,15 @@
 """grasplan: verified parallel-jaw grasps from a part's CAD mesh.
 
-Pipeline (one module per stage): :mod:`grasplan.part.mesh` -> :mod:`grasplan.candidates.blm` ->
+Stages, one module each: :mod:`grasplan.part.mesh` -> :mod:`grasplan.candidates.blm` ->
 :mod:`grasplan.candidates.convexity` -> :mod:`grasplan.candidates.antipodal` -> :mod:`grasplan.grasps.frames` ->
 :mod:`grasplan.grasps.collision` -> :mod:`grasplan.robot.ik` -> :mod:`grasplan.motion.joint_paths` ->
-:mod:`grasplan.export` / :mod:`grasplan.viewer`.
-
-The whole pipeline in three lines::
+:mod:`grasplan.export` / :mod:`grasplan.viewer`. Options are three frozen dataclasses (``CandidateParams``,
+``GraspParams``, ``PlanParams``); heavy modules (Pinocchio, OMPL) load when first needed::
 
     import grasplan
-    result = grasplan.plan("part.stl", "ur5")              # or a Part from grasplan.load_part
-    result.export("urscript", "grasp.script")              # any name in grasplan.export.FORMATS
-
-Options are three frozen dataclasses (``CandidateParams``, ``GraspParams``, ``PlanParams``)::
-
-    grasplan.plan(part, "ur5", candidates=grasplan.CandidateParams(spacing=0.003),
-                  planning=grasplan.PlanParams(top=5, seed=1))
-
-A saved result comes back typed, with its gripper, cell and robot rebuilt from the file::
-
-    plan = grasplan.load_result("plan.json")
-
-Heavy modules (Pinocchio, OMPL) load only when a function that needs them is first used.
+    result = grasplan.plan("part.stl", "ur5", planning=grasplan.PlanParams(top=5))  # or a grasplan.load_part Part
+    result.export("urscript", "grasp.script")             # any name in grasplan.export.FORMATS
+    plan = grasplan.load_result("plan.json")              # typed; gripper, cell and robot rebuilt from the file
 """
 from __future__ import annotations
 

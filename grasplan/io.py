@@ -25,6 +25,7 @@ import tempfile
 import threading
 from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
+from types import FrameType
 from typing import Any
 
 import numpy as np
@@ -214,7 +215,7 @@ def signals_raise() -> Iterator[None]:
         return
     pending: list[int] = []
 
-    def handler(signum, frame):
+    def handler(signum: int, frame: FrameType | None) -> None:
         if pending:  # a later signal during the cleanup of the first: the first one ends the process
             return
         pending.append(signum)
@@ -262,7 +263,7 @@ def sha256_file(path: str | os.PathLike) -> str:
     return h.hexdigest()
 
 
-def _default(o: Any):
+def _default(o: Any) -> object:
     if isinstance(o, np.ndarray):
         return o.tolist()
     if isinstance(o, np.generic):

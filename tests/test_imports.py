@@ -348,3 +348,67 @@ sys.exit(1 if bad or checked < 100 else 0)
 '''
     proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stdout + proc.stderr[-3000:]
+
+
+#: the longest a function or method may be (lines, decorators excluded): longer ones are split into named steps
+MAX_FUNCTION_LINES = 100
+#: the longest a module docstring may be (lines): it says what the module is; rationale goes to functions and docs
+MAX_DOCSTRING_LINES = 15
+#: code comments and docstrings say what code does, not which issue or day changed it
+HISTORY = re.compile(r"\bissue\s*#?\d+", re.I)
+
+
+def long_functions(pkg_dir: Path, limit: int = MAX_FUNCTION_LINES) -> list[tuple[str, int]]:
+    """``(module:function, lines)`` for every function in the package longer than ``limit`` lines."""
+    out = []
+    for name, path in modules(pkg_dir).items():
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                n = (node.end_lineno or node.lineno) - node.lineno + 1
+                if n > limit:
+                    out.append((f"{name}:{node.name}", n))
+    return out
+
+
+def long_docstrings(pkg_dir: Path, limit: int = MAX_DOCSTRING_LINES) -> list[tuple[str, int]]:
+    """``(module, lines)`` for every module docstring longer than ``limit`` lines."""
+    out = []
+    for name, path in modules(pkg_dir).items():
+        doc = ast.get_docstring(ast.parse(path.read_text(encoding="utf-8")), clean=False)
+        if doc and doc.count("\n") + 1 > limit:
+            out.append((name, doc.count("\n") + 1))
+    return out
+
+
+def history_lines(pkg_dir: Path) -> list[str]:
+    """``module:line: text`` of every line naming an issue number."""
+    return [f"{name}:{i}: {line.strip()}" for name, path in modules(pkg_dir).items()
+            for i, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1) if HISTORY.search(line)]
+
+
+def test_synthetic_long_function_docstring_and_history_are_named(tmp_path):
+    pkg = tmp_path / "pkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text('"""' + "line\n" * 20 + '"""\n')
+    body = "\n".join(f"    x{i} = {i}" for i in range(120))
+    (pkg / "m.py").write_text(f'"""Short."""\n# fixed in issue 12\ndef long():\n{body}\n\ndef short():\n    return 1\n')
+    assert [n for n, _ in long_functions(pkg)] == ["pkg.m:long"]
+    assert long_docstrings(pkg) == [("pkg", 21)]
+    assert history_lines(pkg) == ["pkg.m:2: # fixed in issue 12"]
+
+
+def test_no_grasplan_function_over_100_lines():
+    found = long_functions(PACKAGE)
+    assert not found, "functions over 100 lines (split them into named steps): " + ", ".join(
+        f"{m} ({n})" for m, n in found)
+
+
+def test_module_docstrings_say_what_the_module_is_in_at_most_15_lines():
+    found = long_docstrings(PACKAGE)
+    assert not found, "module docstrings over 15 lines (move rationale into the functions it explains): " + ", ".join(
+        f"{m} ({n})" for m, n in found)
+
+
+def test_no_issue_history_in_code():
+    found = history_lines(PACKAGE)
+    assert not found, "code comments tell history (say what the code does instead):\n" + "\n".join(found)

@@ -158,7 +158,7 @@ def test_load_recorded_part_uses_the_recorded_scale(tmp_path, units):
         load_recorded_part(original.to_json() | {"scale_to_m": 0.37})
 
 
-# -- issue 14: every parse failure is one MeshError; flat parts rest; huge parts are refused ----
+# -- every parse failure is one MeshError; flat parts rest; huge parts are refused ----
 
 def test_truncated_binary_stl_names_the_sizes(tmp_path):
     data = trimesh.exchange.stl.export_stl(trimesh.creation.box(extents=(30, 20, 10)))

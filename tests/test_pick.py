@@ -316,7 +316,7 @@ def test_lift_shortcut_still_checks_the_arm(picker, rest):
     """At the lift's waypoints the robot check skips only what the checks before IK decided (the
     gripper against the world, the carried part against the neighbours, the cloud and the cell): a
     neighbour where the wrist passes during the lift is still a lift collision of that link."""
-    from grasplan.pick.motion import _drop_pairs, lift_collision, lift_precheck_drop
+    from grasplan.pick.lift_check import _drop_pairs, lift_collision, lift_precheck_drop
     from grasplan.motion.pickplace import T_tcp_part_of
 
     pk = picker.plan(scene(("a", "bracket", rest))).pick("a")
@@ -349,16 +349,17 @@ def test_lift_shortcut_still_checks_the_arm(picker, rest):
 
 
 def test_resting_shortcut_matches_every_pair(picker, rest, monkeypatch):
-    """motion.lift_collision decides a resting lift configuration with the part's support pairs
+    """lift_check.lift_collision decides a resting lift configuration with the part's support pairs
     switched off (and the pairs the checks before IK decided): on every lift of these plans its
     answer is the reference's, every configuration checked with every pair (a resting one may touch
     only supports, the others only neighbours within the depth rule), the same first colliding
     configuration reported; resting configurations in contact were met."""
+    import grasplan.pick.lift_check as lift_check
     import grasplan.pick.motion as motion
     from grasplan.geometry.interpolation import interpolate_path
 
     seen = []
-    orig = motion.lift_collision
+    orig = lift_check.lift_collision
 
     def reference(sc, path, width, n_touch, shallow, resting, record):
         n_touch = int(min(max(n_touch, 0), len(path) - 1))
@@ -371,8 +372,8 @@ def test_resting_shortcut_matches_every_pair(picker, rest, monkeypatch):
                 if rests and record:
                     seen.append(bool(pairs))
                     scenes.append((sc, np.array(q), width))
-                if pairs and not (rests and motion._support_only(pairs)) and not (
-                        shallow is not None and (names := motion._part_vs_instances(pairs)) and shallow(q, names)):
+                if pairs and not (rests and lift_check._support_only(pairs)) and not (
+                        shallow is not None and (names := lift_check._part_vs_instances(pairs)) and shallow(q, names)):
                     return pairs
         return None
 
@@ -386,7 +387,7 @@ def test_resting_shortcut_matches_every_pair(picker, rest, monkeypatch):
             assert orig(sc, path, width, n, None, None, None, never) == reference(sc, path, width, n, None, never, False)
         # a model the boxes cannot serve (scene_open None): coal alone, the same answer
         with monkeypatch.context() as m:
-            m.setattr(motion, "scene_open", lambda *a: None)
+            m.setattr(lift_check, "scene_open", lambda *a: None)
             assert orig(sc, path, width, n_touch, shallow, covered, drop, resting) == got
             assert orig(sc, path, width, len(path) - 1, None, None, None, None) == reference(
                 sc, path, width, len(path) - 1, None, None, False)
@@ -407,8 +408,8 @@ def test_resting_shortcut_matches_every_pair(picker, rest, monkeypatch):
         qb = q.copy()
         qb[1 + k % 3] += 0.05 * k * (-1) ** k
         pairs = sc.colliding_pairs(qb, width)
-        if pairs and not motion._support_only(pairs):
-            assert motion._sample_ok(sc, qb, width, True, None) is False
+        if pairs and not lift_check._support_only(pairs):
+            assert lift_check._sample_ok(sc, qb, width, True, None) is False
             # a path resting all along (the far end free: the arm at home): qb's pairs are still reported
             assert orig(sc, np.stack([qb, picker.robot.q_home]), width, 1) is not None
             bad += 1

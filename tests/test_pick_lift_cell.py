@@ -15,7 +15,7 @@ import numpy as np
 from grasplan.cell.model import load_cell
 from grasplan.gripper.load import load_gripper
 from grasplan.part.mesh import load_part
-from grasplan.pick.motion import lift_precheck_drop
+from grasplan.pick.lift_check import lift_precheck_drop
 from grasplan.pick.world import PickWorld
 from grasplan.robot.description import load_robot
 from grasplan.motion.collision_scene import ATTACHED_CONTACT_TOL, CollisionScene

@@ -174,6 +174,7 @@ def test_the_budget_stops_inside_an_instance(picker, rest, monkeypatch):
     """Past the budget during a grasp's motion planning, no further grasp of that instance (nor any
     other instance) is planned: the plan returns with both not_tried."""
     import grasplan.pick.picker as pm
+    from grasplan.pick.codes import Reason
     from grasplan.pick.motion import Outcome
 
     clock = JumpClock()
@@ -182,7 +183,7 @@ def test_the_budget_stops_inside_an_instance(picker, rest, monkeypatch):
     def motion(*a, **k):  # every grasp fails after a long search: more grasps would be tried
         calls.append(1)
         clock.jump()
-        return Outcome("no_path", "RRTConnect found no path (mocked)")
+        return Outcome(Reason.NO_TRANSIT, "RRTConnect found no path (mocked)")
 
     monkeypatch.setattr(pm, "plan_pick_motion", motion)
     pk = Picker(picker.robot, gripper=picker.gripper, params=PickParams(budget_s=5.0, grasps_per_instance=12),

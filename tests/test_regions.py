@@ -1,4 +1,4 @@
-"""Region candidates (method="regions", issue 10): samples lie on both convex areas and in the friction
+"""Region candidates (method="regions"): samples lie on both convex areas and in the friction
 cone, do not depend on the tessellation or the part's pose, and the chunked search changes nothing."""
 from __future__ import annotations
 

@@ -12,9 +12,9 @@ import io
 import os
 import stat
 from collections.abc import Iterable, Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..errors import ConfigError, GrasplanError, InputError
 from ..io import sha256_file
@@ -23,6 +23,9 @@ from ..part.meshfile import SUPPORTED_SUFFIXES
 from ..config.option_kinds import parse_value
 from ..config.params import PARAM_CLASSES, option_fields
 from .options import BatchOptions, options_hash
+
+if TYPE_CHECKING:
+    from ..setup.resolved import Cache, Setup, Source
 
 #: suffixes a folder is searched for (files named on the command line may be any mesh grasplan reads)
 FOLDER_SUFFIXES = (".stl", ".obj", ".ply")
@@ -305,18 +308,22 @@ class PartJob:
     options_hash: str
     duplicate_of: str | None = None  #: path of an earlier part with the same file and options
     size: int | None = None  #: bytes, when known
+    #: its robot, gripper and cell, resolved and loaded once by the batch (shared by the jobs naming them)
+    setup: Setup | None = field(default=None, compare=False, repr=False)
 
 
 def make_jobs(entries: Sequence[PartEntry], options: BatchOptions) -> list[PartJob]:
     """Hash every part file (streamed) and every option set; name the output folders. Every
-    robot, gripper and cell description named is loaded once (:func:`check_description`), so a
-    file that is not one is refused here, before anything runs. Linear in the entries.
+    robot, gripper and cell description named is resolved and loaded once (:func:`check_description`),
+    so a file that is not one is refused here, before anything runs; each job holds the
+    :class:`~grasplan.setup.resolved.Setup` of its three. Linear in the entries.
 
     Raises InputError / ConfigError for a bad per-part option or an unknown or unusable robot,
     gripper or cell (naming the manifest line and the field, or the option)."""
     fingerprints: dict[tuple[str, Any], str] = {}
-    checked: set[tuple[str, str]] = set()
-    by_overrides: dict[tuple[tuple[str, Any], ...], tuple[BatchOptions, str]] = {}
+    loaded: Cache = {}
+    setups: dict[tuple[str, str, str], Setup] = {}
+    by_overrides: dict[tuple[tuple[str, Any], ...], tuple[BatchOptions, str, Setup]] = {}
     hashed: dict[str, str] = {}  # a file named on many rows is read once
     pre = []
     for e in entries:
@@ -325,17 +332,7 @@ def make_jobs(entries: Sequence[PartEntry], options: BatchOptions) -> list[PartJ
         except TypeError:  # a value that cannot be a dict key: no sharing
             shared = None
         if shared is None:
-            try:
-                opts = apply_overrides(options, e.overrides)
-            except GrasplanError as exc:
-                raise type(exc)(f"{e.origin}: {exc}") from None
-            own = {k for k, _ in e.overrides}
-            for kind in DESCRIPTION_KINDS:
-                name = getattr(opts, kind)
-                if (kind, name) not in checked:
-                    check_description(kind, name, f"{e.origin}: {kind}" if kind in own else f"--{kind}")
-                    checked.add((kind, name))
-            shared = (opts, options_hash(opts, fingerprints=fingerprints))
+            shared = _option_set(e, options, loaded, setups, fingerprints)
             with contextlib.suppress(TypeError):
                 by_overrides[e.overrides] = shared
         sha = hashed.get(e.path)
@@ -344,44 +341,57 @@ def make_jobs(entries: Sequence[PartEntry], options: BatchOptions) -> list[PartJ
                 sha = hashed[e.path] = sha256_file(e.path)
             except OSError as exc:
                 raise InputError(f"{e.path}: cannot read the part ({exc.strerror})") from None
-        pre.append((e, shared[0], shared[1], sha, _stem(e.path)))
+        pre.append((e, shared, sha, _stem(e.path)))
     # folder names: <stem>-<sha8>, plus -<opt8> where one file meets several option sets
     option_sets: dict[tuple[str, str], set[str]] = {}
-    for e, opts, h, sha, stem in pre:
+    for e, (opts, h, setup), sha, stem in pre:
         option_sets.setdefault((stem, sha[:8]), set()).add(h)
     jobs: list[PartJob] = []
     first: dict[tuple[str, str], str] = {}
-    for e, opts, h, sha, stem in pre:
+    for e, (opts, h, setup), sha, stem in pre:
         name = f"{_safe_stem(stem)}-{sha[:8]}"
         if len(option_sets[(stem, sha[:8])]) > 1:
             name += f"-{h[:8]}"
         key = (sha, h)
         jobs.append(PartJob(path=e.path, sha256=sha, dir_name=name, options=opts, options_hash=h,
-                            duplicate_of=first.get(key), size=e.size))
+                            duplicate_of=first.get(key), size=e.size, setup=setup))
         first.setdefault(key, e.path)
     return jobs
 
 
-def check_description(kind: str, name: str, where: str) -> None:
-    """Load the ``kind`` description ``name`` as a worker will (``kind``: robot, gripper or cell);
+def _option_set(e: PartEntry, options: BatchOptions, loaded: Cache, setups: dict[tuple[str, str, str], Setup],
+                fingerprints: dict[tuple[str, Any], str]) -> tuple[BatchOptions, str, Setup]:
+    """The options of entry ``e`` (``options`` with its overrides), their hash and their setup;
+    each description is checked and loaded once (``loaded``), each setup built once (``setups``)."""
+    from ..setup.resolved import build_setup
+
+    try:
+        opts = apply_overrides(options, e.overrides)
+    except GrasplanError as exc:
+        raise type(exc)(f"{e.origin}: {exc}") from None
+    own = {k for k, _ in e.overrides}
+    for kind in DESCRIPTION_KINDS:
+        name = getattr(opts, kind)
+        if (kind, name) not in loaded:
+            check_description(kind, name, f"{e.origin}: {kind}" if kind in own else f"--{kind}", loaded)
+    triple = (opts.robot, opts.gripper, opts.cell)
+    setup = setups.get(triple)
+    if setup is None:  # every description is in ``loaded`` now: nothing is read again
+        setup = setups[triple] = build_setup(robot=opts.robot, gripper=opts.gripper, cell=opts.cell, cache=loaded)
+    return opts, options_hash(opts, fingerprints=fingerprints, setup=setup), setup
+
+
+def check_description(kind: str, name: str, where: str, cache: Cache | None = None) -> Source:
+    """Load the ``kind`` description ``name`` as a worker will (``kind``: robot, gripper or cell;
+    :func:`grasplan.setup.resolved.load_description`, kept in ``cache``) and return its source;
     a name no folder holds, or a file that is not such a description (``/etc/passwd``, a JSON or
     binary file, an empty file), is a ConfigError (exit 3) naming ``where`` (the manifest line and
     field, or the option), the file and what would work."""
     from ..config.lookup import available, is_path_like, resolve_yaml
+    from ..setup.resolved import load_description
 
     try:
-        if kind == "robot":
-            from ..robot.description import load_robot
-
-            load_robot(name)
-        elif kind == "gripper":
-            from ..gripper.load import load_gripper
-
-            load_gripper(name)
-        else:
-            from ..cell.model import load_cell
-
-            load_cell(name)
+        return load_description(kind, name, cache)[1]
     except (GrasplanError, OSError, ValueError, RecursionError, MemoryError) as exc:
         msg = str(exc) or type(exc).__name__
         try:

@@ -7,7 +7,7 @@ import json
 import uuid
 from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..errors import InputError
 from ..io import sha256_file
@@ -16,6 +16,9 @@ from ..config.params import (
     ALL_POSES, DEFAULT_CELL, DEFAULT_GRIPPER, DEFAULT_ROBOT, CandidateParams, GraspParams, PlanParams
 )
 from .layout import OPTIONS_SCHEMA
+
+if TYPE_CHECKING:
+    from ..setup.resolved import Setup
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -41,7 +44,7 @@ class BatchOptions:
     exports: tuple[str, ...] = ()
     view: bool = True
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if self.units not in UNIT_CHOICES:
             raise InputError(f"units {self.units!r}: use one of {', '.join(UNIT_CHOICES)}")
         if self.T_world_part is not None:
@@ -108,8 +111,12 @@ def check_exports(names: Iterable[str]) -> tuple[str, ...]:
     return names
 
 
-def _config_fingerprint(kind: str, name: str) -> str:
-    """sha256 of the YAML a name resolves to on this machine (so editing a gripper redoes its parts)."""
+def _config_fingerprint(kind: str, name: str, setup: Setup | None = None) -> str:
+    """sha256 of the YAML a name resolves to on this machine (so editing a gripper redoes its parts):
+    the file ``setup`` loaded it from when given, else the name looked up."""
+    source = None if setup is None else setup.source(kind)
+    if source is not None and source.path is not None:
+        return sha256_file(source.path)
     from ..config.lookup import resolve_yaml
 
     return sha256_file(resolve_yaml(kind, name))
@@ -136,12 +143,14 @@ def _canonical_with(doc: dict[str, Any], encoded: dict[str, str]) -> str:
     return text
 
 
-def options_hash(options: BatchOptions, *, fingerprints: dict[tuple[str, Any], str] | None = None) -> str:
+def options_hash(options: BatchOptions, *, fingerprints: dict[tuple[str, Any], str] | None = None,
+                 setup: Setup | None = None) -> str:
     """sha256 (hex) of the canonical JSON of ``options``, the grasplan version and the robot,
     gripper and cell YAML contents. Raises ConfigError for an unknown robot/gripper/cell.
 
     ``fingerprints``: a dict kept by the caller across calls, so each (kind, name) is read and
-    each parameter set encoded once however many option sets share them (the hash is the same)."""
+    each parameter set encoded once however many option sets share them (the hash is the same).
+    ``setup``: the options' robot, gripper and cell already resolved (their YAMLs are hashed)."""
     from .. import __version__
 
     memo: dict[tuple[str, Any], str] = {} if fingerprints is None else fingerprints
@@ -149,7 +158,7 @@ def options_hash(options: BatchOptions, *, fingerprints: dict[tuple[str, Any], s
     for k in ("robot", "gripper", "cell"):
         key = (k, getattr(options, k))
         if key not in memo:
-            memo[key] = _config_fingerprint(k, getattr(options, k))
+            memo[key] = _config_fingerprint(k, getattr(options, k), setup)
         configs[k] = memo[key]
     params = {}
     for attr in ("candidates", "grasps", "planning"):

@@ -25,14 +25,18 @@ MAX_DONE_BYTES = 10_000_000
 
 
 def config_inputs(jobs: Sequence[PartJob]) -> list[Path]:
-    """The YAML files the jobs' robot, gripper and cell names resolve to (with the mesh and URDF
-    files they name), and their scoring files; each name is looked up once."""
+    """The files the jobs' robot, gripper and cell were loaded from (their setups' files: the YAMLs,
+    the meshes and URDF files they name) and the jobs' scoring files; each set read once."""
     out: set[Path] = set()
     names: set[tuple[str, str]] = set()
     scoring: set[str | None] = set()
-    for o in {id(j.options): j.options for j in jobs}.values():  # jobs share their option sets' objects
-        names.update((("robot", o.robot), ("gripper", o.gripper), ("cell", o.cell)))
+    setups = {id(j.setup): j.setup for j in jobs if j.setup is not None}  # jobs share their setups
+    for o in {id(j.options): j.options for j in jobs}.values():  # and their option sets' objects
         scoring.add(o.grasps.scoring)
+    for j in {id(j.options): j for j in jobs if j.setup is None}.values():  # jobs made without a setup
+        names.update((("robot", j.options.robot), ("gripper", j.options.gripper), ("cell", j.options.cell)))
+    for setup in setups.values():
+        out.update(setup.files)
     for kind, name in sorted(names):
         out.update(config_files(kind, name))
     for sc in scoring:

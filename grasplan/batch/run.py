@@ -1,55 +1,17 @@
-"""``grasplan batch``: plan a whole catalogue of parts, resumable, on a local process pool or on Ray.
+"""``grasplan batch``: plan a whole catalogue of parts, resumable, on a local process pool or on Ray
+(reference: docs/batch.md). :func:`run_batch` checks the inputs and the output folder, resolves
+every robot, gripper and cell once (:func:`grasplan.batch.manifest.make_jobs`), locks the folder,
+skips the parts whose ``done.json`` matches (same part sha256 and options hash, a finished status),
+runs the rest on an engine, moves each part's files into ``OUTDIR/<stem>-<sha8>/`` complete from
+``OUTDIR/.staging/`` (``done.json`` last) and writes ``summary.csv``, ``summary.json`` and
+``index.html``. Exit code: :attr:`grasplan.batch.report.BatchSummary.exit_code`. Ctrl-C writes the
+summary and raises KeyboardInterrupt; every other catchable ending signal stops the workers,
+removes ``.staging`` and ends the process as the signal would (:func:`grasplan.io.signals_raise`).
 
-Inputs (:func:`discover_parts`): mesh files, folders (searched recursively for STL/OBJ/PLY, sorted)
-and manifests (``.csv`` with a header row, or ``.yaml``) naming one part per row with optional
-per-part options: ``units``, ``robot``, ``gripper``, ``cell``, ``part_pose`` and any option of
-:class:`~grasplan.config.params.CandidateParams`, :class:`~grasplan.config.params.GraspParams` or
-:class:`~grasplan.config.params.PlanParams`, by field name (``pose_index``, ``thin_spacing``) or CLI
-spelling (``pose-index``, ``thin``), read as on the command line (:mod:`grasplan.config.option_kinds`):
-lengths accept unit suffixes (``2mm``), angles are degrees, ``place`` is 'x,y,z,roll,pitch,yaw',
-``pose_index`` may be ``all``. Relative paths in a manifest are relative to the manifest's folder.
-
-Outputs, in ``OUTDIR``::
-
-    <stem>-<sha8>/plan.json       grasplan.plan/1 (identical to `grasplan plan` with the same options;
-                                  with --pose-index all also plan.pose<k>.json per resting pose)
-    <stem>-<sha8>/<exports>       one file per --export format (plan.script, plan.csv, ...)
-    <stem>-<sha8>/view.html       the offline viewer
-    <stem>-<sha8>/log.txt         what happened (units, warnings, counts, seconds, errors)
-    <stem>-<sha8>/done.json       written last: sha256 of the part, options hash, status, summary row
-    summary.csv, summary.json     one row per part
-    index.html                    offline page linking every part's viewer, sortable
-
-``<sha8>`` is the first 8 hex digits of the part file's sha256; when one file is planned with
-different per-part options in the same batch, ``-<options hash 8>`` is appended.
-
-Resuming: a part whose folder holds a ``done.json`` with the same part sha256 and options hash,
-and a finished status (``planned``, ``nothing_planned``, ``bad_input``), is not planned again.
-Every part is produced in ``OUTDIR/.staging/`` and renamed into place complete, so an interrupted
-batch (Ctrl-C, a killed worker or machine) leaves no half-written result; rerunning the same
-command finishes the rest. Parts that hit an internal error (status ``error``) are retried.
-
-Engines (:mod:`grasplan.batch.engines`): ``local`` (a spawn process pool, one worker per core) and
-``ray`` (Ray tasks; the part's bytes are shipped to the task, which writes nothing on the worker's
-disk but its own temporary folder and returns the result files' bytes, zlib-compressed; the driver
-writes them). Both call the same :func:`grasplan.batch.worker.run_part`, so results are identical
-(same seed) across engines and to single-part ``grasplan plan`` runs; only ``timing_s`` differs.
-
-Exit code (:attr:`grasplan.batch.report.BatchSummary.exit_code`): 0 when at least one part has a
-planned grasp, 4 when no part has any; bad batch inputs (no parts found, a bad manifest, unknown
-option) raise :class:`~grasplan.errors.InputError` (exit 3) before anything is written.
-
-Signals: Ctrl-C writes the summary and raises KeyboardInterrupt; every other catchable ending
-signal (SIGTERM, SIGHUP, SIGQUIT, ...) stops the workers, removes ``.staging`` and ends the process
-as the signal would (:func:`grasplan.io.signals_raise`). Local workers end with this process,
-``kill -9`` included (:mod:`~grasplan.batch.lifeline`).
-
-Modules: :mod:`~grasplan.batch.options` (BatchOptions, the options hash), :mod:`~grasplan.batch.manifest`
-(parts, manifests, descriptions checked, jobs), :mod:`~grasplan.batch.outdir` (the output folder
-checked), :mod:`~grasplan.batch.worker` (one part), :mod:`~grasplan.batch.engines` (local pool,
-Ray), :mod:`~grasplan.batch.lifeline` (workers end with the batch), :mod:`~grasplan.batch.report`
-(summary files, index.html), :mod:`~grasplan.batch.layout` (statuses, file names); this module:
-:func:`run_batch`, the driver.
+Modules: :mod:`~grasplan.batch.options` (options, their hash), :mod:`~grasplan.batch.manifest`
+(parts, manifests, jobs), :mod:`~grasplan.batch.outdir` (the output folder checked),
+:mod:`~grasplan.batch.worker` (one part), :mod:`~grasplan.batch.engines` (local pool, Ray),
+:mod:`~grasplan.batch.lifeline`, :mod:`~grasplan.batch.report`, :mod:`~grasplan.batch.layout`.
 """
 from __future__ import annotations
 

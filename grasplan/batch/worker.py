@@ -25,13 +25,21 @@ from .options import BatchOptions, export_file, export_formats
 if TYPE_CHECKING:
     from ..part.mesh import Part
     from ..results.plan_result import PlanResult
+    from ..setup.resolved import Setup
     from .manifest import PartJob
 
 
 def job_payload(job: PartJob, *, ship_bytes: bool, config_dirs: Sequence[str]) -> dict[str, Any]:
-    """Plain data for a worker (picklable, no shared filesystem needed when ``ship_bytes``)."""
+    """Plain data for a worker (picklable, no shared filesystem needed when ``ship_bytes``).
+    ``refs``: the robot, gripper and cell the worker loads: the files the batch resolved them to
+    (:meth:`~grasplan.setup.resolved.Setup.resolved_refs`) when the worker shares this file system,
+    else the names and paths as given, looked up on the worker's machine (``config_dirs`` first)."""
+    o = job.options
+    refs = {"robot": o.robot, "gripper": o.gripper, "cell": o.cell}
+    if job.setup is not None and not ship_bytes:
+        refs.update(job.setup.resolved_refs())
     return {"path": job.path, "sha256": job.sha256, "options": job.options.to_json(),
-            "options_hash": job.options_hash, "config_dirs": list(config_dirs),
+            "options_hash": job.options_hash, "config_dirs": list(config_dirs), "refs": refs,
             "data": Path(job.path).read_bytes() if ship_bytes else None}
 
 
@@ -108,8 +116,10 @@ def _run_part_in(payload: dict[str, Any], out: Path) -> dict[str, Any]:
 
 def _plan_one(payload: dict[str, Any], local: Path, out: Path, row: dict[str, Any], log: list[str]) -> None:
     from ..part.mesh import load_part
+    from ..setup.resolved import build_setup
 
     o = BatchOptions.from_json(payload["options"])
+    refs = payload.get("refs") or {"robot": o.robot, "gripper": o.gripper, "cell": o.cell}
     t = time.perf_counter()
     part = load_part(local, units=o.units)
     load_s = time.perf_counter() - t
@@ -121,7 +131,8 @@ def _plan_one(payload: dict[str, Any], local: Path, out: Path, row: dict[str, An
     log += [f"warning: {w}" for w in part.warnings]
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        result = _plan_files(o, part, load_s, out, log)
+        setup = build_setup(robot=refs["robot"], gripper=refs["gripper"], cell=refs["cell"])
+        result = _plan_files(o, setup, part, load_s, out, log)
     log += [f"warning: {w.message}" for w in caught]
     counts = result.counts()
     planned = int(counts[Status.PLANNED.value])
@@ -163,16 +174,16 @@ def _plan_one(payload: dict[str, Any], local: Path, out: Path, row: dict[str, An
                                     "status and reason)", *notes]))
 
 
-def _plan_files(o: BatchOptions, part: Part, load_s: float, out: Path, log: list[str]) -> PlanResult:
-    """Plan ``part`` with ``o`` and write ``plan.json`` (with ``pose_index="all"``: one
-    ``plan.pose<k>.json`` per resting pose and ``plan.json`` = the chosen one, as ``grasplan plan``
-    writes them); the result ``plan.json`` holds."""
+def _plan_files(o: BatchOptions, setup: Setup, part: Part, load_s: float, out: Path, log: list[str]) -> PlanResult:
+    """Plan ``part`` with ``o`` and the ``setup``'s robot, gripper and cell, and write ``plan.json``
+    (with ``pose_index="all"``: one ``plan.pose<k>.json`` per resting pose and ``plan.json`` = the
+    chosen one, as ``grasplan plan`` writes them); the result ``plan.json`` holds."""
     import numpy as np
 
     from ..motion.planning import MIN_POSE_PROBABILITY, plan, plan_poses
 
     T = None if o.T_world_part is None else np.asarray(o.T_world_part, dtype=np.float64)
-    kw: dict[str, Any] = dict(robot=o.robot, gripper=o.gripper, cell=o.cell, candidates=o.candidates,
+    kw: dict[str, Any] = dict(robot=setup.robot, gripper=setup.gripper, cell=setup.cell, candidates=o.candidates,
                               grasps=o.grasps, planning=o.planning, T_world_part=T, place=o.planning.place_matrix())
     if o.grasps.pose_index != ALL_POSES:
         result = plan(part, load_s=load_s, **kw)

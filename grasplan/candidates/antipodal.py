@@ -1,33 +1,8 @@
 """Stage 4, ``method="paper"``: antipodal pairs of convex faces (Vogt et al. 2021, Sec. III-B).
 
-A pair of convex faces ``(i, j)``, ``i < j``, with outward unit normals ``n_i``, ``n_j`` and
-centroids (the paper's auxiliary points) ``c_i``, ``c_j`` is a candidate when
-
-1. normals anti-parallel within beta: ``n_i . n_j <= -cos(beta)``;
-2. coarse distance gate: ``|c_i - c_j| <= max_opening + epsilon`` (the paper's centroid distance,
-   relaxed by epsilon because centroids may sit up to epsilon off the closing axis; the binding
-   limit is 6.);
-3. the paper's overlap test, made symmetric: with the closing axis ``a = (n_i - n_j)/|n_i - n_j|``
-   (the bisector of the two normals), ``s = c_i - a |c_i - c_j|`` lies within epsilon of ``c_j``;
-4. contacts (see below) facing away from each other, so the jaws squeeze from outside:
-   ``n_i . (p_i - p_j) > 0`` and ``n_j . (p_j - p_i) > 0``;
-5. the closing axis ``d = (p_j - p_i)/|p_j - p_i|`` inside both friction cones:
-   ``angle(d, -n_i) <= atan(mu)`` and ``angle(d, n_j) <= atan(mu)``;
-6. width ``|p_j - p_i| <= max_opening``.
-
-Contact placement: both triangles are projected along ``a`` onto the plane perpendicular to it.
-If the projections overlap, the 2D point is the area centroid of the overlap polygon; it is lifted
-along ``a`` onto each face's plane, so both contacts lie inside their triangles and the closing
-axis is exactly ``a`` (within beta/2 of both normals). If the projections do not overlap (small
-triangles offset by up to epsilon), the contacts are the closest pair of points of the two
-projected triangles, lifted onto their faces; the axis then tilts by ``atan(gap / width)`` and the
-friction-cone test (5.) decides whether the pair is kept.
-
-Search: every convex face is an oriented element of the streamed 6D line search
-(:func:`grasplan.candidates.antipodal_base.stream_pairs`, lateral bound ``epsilon / 2`` per face, reach
-``max_opening + epsilon``), which returns a superset of the pairs that can pass 1.-3. (no pair is
-lost; brute force agrees in the tests); the exact filters then run vectorised on those pairs only.
-``search="brute"`` evaluates every pair of convex faces (the O(m^2) reference).
+:func:`find_face_pairs` finds the candidate pairs among a mesh's convex faces: a streamed 6D line
+search proposes pairs, :func:`evaluate_pairs` applies the paper's rules 1.-6. to them and places
+the two contacts (:func:`_place_contacts`). ``search="brute"`` evaluates every pair instead.
 """
 from __future__ import annotations
 
@@ -56,8 +31,14 @@ def find_face_pairs(
     search: Literal["index", "brute"] = "index",
 ) -> Candidates:
     """The paper's candidates among the faces ``ids`` (convex, non-degenerate) of a mesh whose
-    :class:`~grasplan.candidates.antipodal_base.FaceGeometry` is ``geo`` (rules 1.-6. of the module docstring).
+    :class:`~grasplan.candidates.antipodal_base.FaceGeometry` is ``geo`` (rules 1.-6. of :func:`evaluate_pairs`).
     Arguments as :func:`grasplan.candidates.pipeline.find_candidates`, which validates them.
+
+    Search: every convex face is an oriented element of the streamed 6D line search
+    (:func:`grasplan.candidates.antipodal_base.stream_pairs`, lateral bound ``epsilon / 2`` per face, reach
+    ``max_opening + epsilon``), which returns a superset of the pairs that can pass 1.-3. (no pair is
+    lost; brute force agrees in the tests); the exact filters then run vectorised on those pairs only.
+    ``search="brute"`` evaluates every pair of convex faces (the O(m^2) reference).
 
     Returns candidates sorted by face pair ``(i, j)``, ``i < j``, contact 0 on face i, ``region`` -1.
     """
@@ -115,6 +96,21 @@ def evaluate_pairs(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Apply rules 1.-6. to face pairs ``(i[k], j[k])``.
 
+    A pair of convex faces ``(i, j)``, ``i < j``, with outward unit normals ``n_i``, ``n_j`` and
+    centroids (the paper's auxiliary points) ``c_i``, ``c_j`` is a candidate when
+
+    1. normals anti-parallel within beta: ``n_i . n_j <= -cos(beta)``;
+    2. coarse distance gate: ``|c_i - c_j| <= max_opening + epsilon`` (the paper's centroid distance,
+       relaxed by epsilon because centroids may sit up to epsilon off the closing axis; the binding
+       limit is 6.);
+    3. the paper's overlap test, made symmetric: with the closing axis ``a = (n_i - n_j)/|n_i - n_j|``
+       (the bisector of the two normals), ``s = c_i - a |c_i - c_j|`` lies within epsilon of ``c_j``;
+    4. contacts (:func:`_place_contacts`) facing away from each other, so the jaws squeeze from
+       outside: ``n_i . (p_i - p_j) > 0`` and ``n_j . (p_j - p_i) > 0``;
+    5. the closing axis ``d = (p_j - p_i)/|p_j - p_i|`` inside both friction cones:
+       ``angle(d, -n_i) <= atan(mu)`` and ``angle(d, n_j) <= atan(mu)``;
+    6. width ``|p_j - p_i| <= max_opening``.
+
     Returns ``reason (k,) int8`` (index into :data:`REASONS`, 0 = candidate), ``contacts (k, 2, 3)``
     and ``width (k,)`` (contacts/width meaningful where reason == 0).
     """
@@ -155,12 +151,21 @@ def evaluate_pairs(
     return reason, contacts, width
 
 
-def _cross2(a, b):
+def _cross2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
 
 
-def _place_contacts(Ti, Tj, ni, nj, a, origin, eps):
-    """Contacts on triangles ``Ti``/``Tj`` (b, 3, 3) for closing axis ``a`` (b, 3); see module doc."""
+def _place_contacts(Ti: np.ndarray, Tj: np.ndarray, ni: np.ndarray, nj: np.ndarray, a: np.ndarray,
+                    origin: np.ndarray, eps: float) -> tuple[np.ndarray, np.ndarray]:
+    """Contacts on triangles ``Ti``/``Tj`` (b, 3, 3) for closing axis ``a`` (b, 3).
+
+    Both triangles are projected along ``a`` onto the plane perpendicular to it. If the projections
+    overlap, the 2D point is the area centroid of the overlap polygon; it is lifted along ``a`` onto
+    each face's plane, so both contacts lie inside their triangles and the closing axis is exactly
+    ``a`` (within beta/2 of both normals). If the projections do not overlap (small triangles offset
+    by up to epsilon), the contacts are the closest pair of points of the two projected triangles,
+    lifted onto their faces; the axis then tilts by ``atan(gap / width)`` and the friction-cone test
+    (rule 5. of :func:`evaluate_pairs`) decides whether the pair is kept."""
     e1, e2 = perpendicular_frame(a)                      # basis of the plane perpendicular to a
     Pi = project_triangles(Ti, origin, e1, e2)           # (b, 3, 2)
     Pj = project_triangles(Tj, origin, e1, e2)
@@ -170,20 +175,21 @@ def _place_contacts(Ti, Tj, ni, nj, a, origin, eps):
     return p0, p1
 
 
-def _lift(q, T, n, a, e1, e2, origin):
+def _lift(q: np.ndarray, T: np.ndarray, n: np.ndarray, a: np.ndarray, e1: np.ndarray, e2: np.ndarray,
+          origin: np.ndarray) -> np.ndarray:
     x0 = origin + q[:, :1] * e1 + q[:, 1:] * e2
     s = np.einsum("ij,ij->i", n, T[:, 0] - x0) / np.einsum("ij,ij->i", n, a)
     return x0 + s[:, None] * a
 
 
-def _ccw(P):
+def _ccw(P: np.ndarray) -> np.ndarray:
     flip = _cross2(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]) < 0
     P = P.copy()
     P[flip] = P[flip][:, [0, 2, 1]]
     return P
 
 
-def _clamp_to_triangle(q, P):
+def _clamp_to_triangle(q: np.ndarray, P: np.ndarray) -> np.ndarray:
     """Points q (b, 2) moved to the nearest point of CCW triangles P (b, 3, 2) when outside them."""
     x, y = P[..., 0], P[..., 1]
     ex, ey = np.roll(x, -1, axis=1) - x, np.roll(y, -1, axis=1) - y
@@ -197,7 +203,7 @@ def _clamp_to_triangle(q, P):
     return np.where(inside[:, None], q, near)
 
 
-def _overlap_or_closest(Pi, Pj, eps):
+def _overlap_or_closest(Pi: np.ndarray, Pj: np.ndarray, eps: float) -> tuple[np.ndarray, np.ndarray]:
     """2D contact points: area centroid of the overlap of triangles Pi, Pj (b,3,2), else the closest pair.
 
     The overlap's boundary is made of the parts of each triangle's edges that lie inside the other

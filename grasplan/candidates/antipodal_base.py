@@ -1,19 +1,10 @@
 """Stage 4's base, shared by both candidate methods: the candidate type, per-face geometry, the
-streamed search for anti-parallel pairs and the 2D clipping of projected triangles.
+streamed search for anti-parallel pairs (:func:`stream_pairs`) and the 2D clipping of projected
+triangles.
 
 The two methods build on it: the paper's one contact pair per pair of convex faces
 (:mod:`grasplan.candidates.antipodal`) and the sampled contact regions (:mod:`grasplan.candidates.regions`);
 :func:`grasplan.candidates.pipeline.find_candidates` chooses between them. Nothing here imports either.
-
-Pair search (:func:`stream_pairs`): every oriented planar element (a face, or a coplanar area) is the
-line through its centroid along its normal, written in Pluecker-like 6D coordinates
-``x = (K n, (c - o) x n)``. An antipodal pair has ``x_a ~ -x_b``: the direction parts differ by at
-most the chord of beta, the moment parts by the lateral offset. One fixed-radius range query over
-``x`` against ``-x`` (:func:`grasplan.geometry.gridsearch.pairs_within`, a uniform grid on three of the six
-coordinates) with a radius derived from beta, the lateral bounds, the reach and the part radius
-returns a superset of the pairs the exact tests of a method can pass (no pair is lost; brute force
-agrees in the tests). The cost is ``O(m log m + c)`` for c candidate pairs of neighbouring cells,
-streamed in chunks so that no array grows with m^2.
 """
 from __future__ import annotations
 
@@ -143,7 +134,11 @@ def stream_pairs(c: np.ndarray, n: np.ndarray, lateral: np.ndarray, *, reach: fl
     boundary (any larger value is safe). ``reach`` (m) bounds the centroids' distance along the
     closing axis. Each element is the line through its centroid along its normal, in 6D
     ``x = (K n, (c - o) x n)``; a pair that can pass has ``|x_a + x_b| <= sqrt(2) M`` with ``M`` the
-    lateral bound plus ``reach sin(beta/2)`` plus ``R |n_a + n_b|``. Elements are split into size
+    lateral bound plus ``reach sin(beta/2)`` plus ``R |n_a + n_b|`` (an antipodal pair has
+    ``x_a ~ -x_b``: the direction parts differ by at most the chord of beta, the moment parts by the
+    lateral offset), so fixed-radius range queries of ``x`` against ``-x``
+    (:func:`grasplan.geometry.gridsearch.pairs_within`, a uniform grid on three of the six coordinates)
+    find them in ``O(k log k + p)`` for ``p`` pairs of neighbouring cells. Elements are split into size
     classes (``lateral`` within a factor :data:`_CLASS_RATIO`), so one large piece does not widen the
     radius for all small ones, and each range query holds at most :data:`_QUERY_ROWS` elements:
     no array grows with k^2. Every qualifying pair is yielded exactly once (a superset of the

@@ -7,34 +7,7 @@ The paper's rule, for every triangle ``T_k``:
 * ``T_k`` is **convex** when ``p`` lies outside ``H_k`` or on its boundary, **concave** when ``p``
   lies strictly inside; a flat (degenerate, coplanar) neighbourhood is convex.
 
-Exact vectorised test (no Qhull call per face)
-----------------------------------------------
-``p`` is outside or on the boundary of ``conv(S)`` iff some plane through ``p`` has all of ``S``
-on one closed side: ``u . (q - p) <= 0`` for all ``q`` in ``S``, ``u != 0``. Because ``S``
-contains the triangle and ``c_k`` is interior to it, such a ``u`` has ``u . n_k > 0``; scaling to
-``u = n_k + w`` (``w`` in the face plane) turns the question into a 2D linear feasibility problem
-
-    w . t_q <= d_shift - h_q     for every hull point q,
-
-with ``h_q = n_k . (q - c_k)`` (height above the face plane) and ``t_q`` the in-plane offset of
-``q`` from ``c_k``. The triangle's own vertices bound ``w``, so the feasible set is a bounded
-polygon and is non-empty iff one of its vertices (the intersection of two constraint lines)
-satisfies all constraints. ``w = 0`` (the face's own plane) settles almost every face at once
-(``max h_q <= d_shift``); only the rest enumerate constraint pairs, batched with NumPy. A
-tolerance ``tol.distance`` (1e-6 of the part size) decides "on the boundary". This is exactly
-the Qhull/Delaunay test of the paper (cross-checked against ``scipy.spatial.Delaunay`` in the
-tests), without building any hull.
-
-Neighbourhood
--------------
-``neighbourhood="edge"`` (default) uses the triangles sharing an edge with ``T_k`` (hull of at most
-6 points); ``"vertex"`` uses every triangle sharing a vertex (the paper's "all adjacent triangles"
-read literally). See docs/candidates.md for the measured effect: a vertex neighbourhood also marks
-faces that only touch a concave edge at a corner as concave, which lowers the candidate count
-before the BLM.
-
-Open meshes and non-manifold edges never fail: an edge with no (or several) partner faces simply
-contributes the partners trimesh reports (none for a boundary edge).
+:func:`classify_convexity` decides it exactly and vectorised, without building any hull.
 """
 from __future__ import annotations
 
@@ -71,7 +44,7 @@ class _Rows:
         self.indptr, self.indices = indptr, indices
 
 
-def _edge_rows(faces: np.ndarray, adjacency=None) -> _Rows:
+def _edge_rows(faces: np.ndarray, adjacency: tuple[np.ndarray, ...] | None = None) -> _Rows:
     """Row k: the 3 vertices of face k, then the far vertex of each face sharing an edge with it (the
     same sets as ``neighbour_vertices(mesh, "edge")``, built without sparse products);
     ``adjacency``: the faces' :func:`edge_adjacency` when known."""
@@ -118,7 +91,11 @@ def classify_convexity(
     tol: Tolerance | None = None,
     neighbourhood: Neighbourhood = "edge",
 ) -> np.ndarray:
-    """Classify every face of ``mesh`` as convex (True) or concave (False).
+    """Classify every face of ``mesh`` as convex (True) or concave (False) by the paper's rule
+    (module docstring), exactly and without building a hull: the face plane (``w = 0`` of
+    :func:`_lp_feasible`) settles almost every face at once; the rest go to :func:`_lp_feasible`.
+    Open meshes and non-manifold edges never fail: an edge with no (or several) partner faces simply
+    contributes the partners trimesh reports (none for a boundary edge).
 
     Parameters
     ----------
@@ -127,9 +104,13 @@ def classify_convexity(
     d_shift : float
         Shift of the auxiliary point along the face normal, metres (paper: 0.01 mm).
     tol : Tolerance, optional
-        Part tolerance; ``tol.distance`` decides "on the hull boundary". Default: from the mesh.
+        Part tolerance; ``tol.distance`` (1e-6 of the part size) decides "on the hull boundary".
+        Default: from the mesh.
     neighbourhood : {"edge", "vertex"}
-        Which adjacent triangles span the hull (see module docstring).
+        Which adjacent triangles span the hull: ``"edge"`` those sharing an edge (at most 6 points);
+        ``"vertex"`` those sharing a vertex (the paper's "all adjacent triangles" read literally; it
+        also marks faces touching a concave edge only at a corner as concave, lowering the candidate
+        count before the BLM: docs/candidates.md).
 
     Returns
     -------
@@ -205,8 +186,21 @@ def classify_convexity(
     return convex
 
 
-def _lp_feasible(idx, K, Nb, V, c, n, e1, e2, d_shift, eps) -> np.ndarray:
-    """For faces ``idx`` that all have exactly ``K`` hull points: is ``{w : w.t_q <= d - h_q}`` non-empty?"""
+def _lp_feasible(idx: np.ndarray, K: int, Nb: _Rows | sp.csr_matrix, V: np.ndarray, c: np.ndarray, n: np.ndarray,
+                 e1: np.ndarray, e2: np.ndarray, d_shift: float, eps: float) -> np.ndarray:
+    """For faces ``idx`` that all have exactly ``K`` hull points: is ``{w : w.t_q <= d - h_q}`` non-empty?
+
+    ``p`` is outside or on the boundary of ``conv(S)`` iff some plane through ``p`` has all of ``S``
+    on one closed side: ``u . (q - p) <= 0`` for all ``q`` in ``S``, ``u != 0``. Because ``S``
+    contains the triangle and ``c_k`` is interior to it, such a ``u`` has ``u . n_k > 0``; scaling to
+    ``u = n_k + w`` (``w`` in the face plane) turns the question into this 2D linear feasibility
+    problem, ``w . t_q <= d_shift - h_q`` for every hull point q, with ``h_q = n_k . (q - c_k)``
+    (height above the face plane) and ``t_q`` the in-plane offset of ``q`` from ``c_k``. The
+    triangle's own vertices bound ``w``, so the feasible set is a bounded polygon and is non-empty
+    iff one of its vertices (the intersection of two constraint lines) satisfies all constraints
+    (within ``eps`` = ``tol.distance``, 1e-6 of the part size): every constraint pair is tried,
+    batched with NumPy. This is exactly the Qhull/Delaunay test of the paper (cross-checked against
+    ``scipy.spatial.Delaunay`` in the tests)."""
     len(idx)
     cols = Nb.indices[(Nb.indptr[idx][:, None] + np.arange(K)[None, :])]   # (b, K)
     q = V[cols] - c[idx][:, None, :]                                      # (b, K, 3)

@@ -28,7 +28,8 @@ def region_edges(RP: np.ndarray, RQ: np.ndarray, eu: np.ndarray, ev: np.ndarray,
     return reg, poly, a, b
 
 
-def _cells(x0, y0, x1, y1, h, pad):
+def _cells(x0: np.ndarray, y0: np.ndarray, x1: np.ndarray, y1: np.ndarray, h: np.ndarray, pad: float
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Grid cells (pitch ``h`` per row) every segment touches: ``(row, cx, cy)`` (a cell is listed when
     the segment comes within ``pad`` x h of it). Dominant-axis walk: at most 2 cells per column."""
     swap = np.abs(y1 - y0) > np.abs(x1 - x0)
@@ -52,7 +53,7 @@ def _cells(x0, y0, x1, y1, h, pad):
     return row[row2], np.where(sw, cy, cx), np.where(sw, cx, cy)
 
 
-def _cell_key(reg, cx, cy):
+def _cell_key(reg: np.ndarray, cx: np.ndarray, cy: np.ndarray) -> np.ndarray:
     """One int64 per (region, cell) (cells of one region are within a few million of each other)."""
     return row_keys(reg, cx, cy)
 

@@ -1,59 +1,18 @@
-"""Stage 4, ``method="regions"``: antipodal contact *regions*, sampled at a fixed spacing.
+"""Antipodal contact *regions* (``method="regions"``), sampled at a fixed spacing.
 
-A candidate of the paper (:mod:`grasplan.candidates.antipodal`) is one contact pair per pair of faces, so
-the count grows with the square of the tessellation. Here a candidate is a sample of a *region*:
+A candidate of the paper (:mod:`grasplan.candidates.antipodal`) is one contact pair per pair of
+faces, so the count grows with the square of the tessellation. Here a candidate is a sample of a
+*region*: the overlap of two opposing convex areas projected along their closing axis, sampled on
+a lattice of pitch ``spacing`` (:func:`find_regions`). Cost and memory follow the areas' outline
+lengths and the samples, never faces^2, samples x faces or the triangle count of an area's interior.
 
-1. **Convex areas.** Faces that hold convex points are grouped into areas: edge-connected faces
-   whose normals differ by less than ``tol.planar_deg`` (coplanar facets; a face of a coarsely
-   tessellated curved surface is an area of its own; a finely tessellated one, whose neighbours chain
-   within the tolerance, is cut into patches of normals within
-   :data:`grasplan.candidates.region_areas.PATCH_DEG`). Area normal = area-weighted mean normal; ids are numbered by lowest face
-   index, so they do not depend on the part's pose. A face is admitted when the convexity stage
-   calls it convex, or when it is concave only because neighbours rise above it across some (not
-   all) of its edges -- a shallow crease the BLM does not split (within ``180 - gamma``); samples
-   closer than :data:`CONCAVE_MARGIN` (the BLM's 0.1 mm strip) to such a rising edge are dropped.
-2. **Candidate regions, streamed.** Pairs of areas ``(P, Q)`` (``P < Q``, contact 0 on P) whose
-   normals are anti-parallel within beta plus both areas' spreads and whose discs (centroid, largest corner distance) can
-   overlap along the closing axis ``a = (n_P - n_Q)/|n_P - n_Q|`` within ``max_opening``: the 6D
-   line search of :func:`grasplan.candidates.antipodal_base.stream_pairs` over *areas*, in bounded chunks.
-3. **Exact overlap from the outlines.** A region is ``proj(P) & proj(Q)`` along ``a``. Only the
-   areas' boundary edges are used: the parts of P's outline inside Q and of Q's outline inside P
-   (crossings found on a grid, inside/outside by the parity of a vertical ray) give the overlap's
-   area, centroid and second moments by Green's theorem -- exact, so they do not depend on how the
-   inside of an area is triangulated. Q's projection is shifted by :data:`_SHIFT` x the part size
-   along a fixed direction so that coinciding outlines (every prism) become generic.
-4. **Samples.** Each region is sampled on a square lattice of pitch ``spacing`` centred on its
-   centroid and aligned with its principal axes (isotropic second moments -- squares, disks -- take
-   the direction to the overlap's farthest corner, turned by 45 deg). A lattice point is a sample
-   when the cross of points ``+-eps`` around it (``eps = tol.distance``) lies in both projections
-   (scanlines at ``y - eps, y, y + eps``, even-odd intervals), so points on an outline are never
-   sampled whatever the tessellation. A region the lattice misses (thinner than a pitch and off
-   it) gets the middle of its widest interval on the centroid's scanline; a strip's centroid line
-   is always sampled. Each sample is located in a face of P and of Q (2D point location in each
-   area's plane) and lifted along ``a`` onto both. The paper's rules then apply per sample, on the
-   normals of the two faces it touches (not the areas' mean normals): anti-parallel within beta,
-   contacts facing away, closing axis inside both friction cones, width ``<= max_opening``.
-5. **Curved surfaces.** Regions smaller than one lattice cell (``area < spacing^2``: single faces of
-   curved surfaces, whose partner is not coplanar) give one sample each (their centroid); those
-   samples are deduplicated on the spacing grid (grasp-centre cell x closing-axis direction, by
-   :func:`grasplan.candidates.thinning.thin_candidates` with ``axis_step_deg`` :data:`CURVED_AXIS_STEP_DEG`).
-
-The result's ``region`` is the region id (rank of the area pair among the regions with a
-positive overlap, in sorted ``(P, Q)`` order). Cost and memory follow the areas' outline lengths
-and the samples, processed in batches of :data:`_EDGE_CHUNK` boundary edges; nothing grows with
-faces^2, samples x faces or the triangle count of an area's interior.
-
-The steps live in their own modules: areas and area pairs in :mod:`grasplan.candidates.region_areas`, the
-crease admission in :mod:`grasplan.candidates.region_creases`, outlines, overlaps, scanlines and point location
-in :mod:`grasplan.candidates.region_overlap`; this module runs them. The tests hold an independent reference
-implementation of the same definition over every overlapping triangle pair (clipping +
-point-in-triangle probes, ``tests/regions_reference.py``) and check that both give the same samples.
-
-Unlike the paper's rule, regions need the projections to overlap (contacts exactly opposite along
-``a``); the paper's epsilon offset (closest points of disjoint triangles) is not used.
+The steps live in their own modules: areas and area pairs in :mod:`grasplan.candidates.region_areas`,
+the crease admission in :mod:`grasplan.candidates.region_creases`, outlines, overlaps, scanlines and
+point location in :mod:`grasplan.candidates.region_overlap`; this module runs them and bounds the work.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -71,8 +30,12 @@ from ..geometry.tolerance import Tolerance
 if TYPE_CHECKING:
     from ..geometry.meshdata import TriangleMesh
 
+#: ``contacts (n, 2, 3)``, ``normals (n, 2, 3)``, ``width (n,)``, ``faces (n, 2)``, ``region (n,)``
+Samples = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
-#: closing-axis quantisation of the curved-surface deduplication, degrees
+#: closing-axis quantisation of the curved-surface deduplication, degrees: regions smaller than one
+#: lattice cell (single faces of curved surfaces) give one sample each, deduplicated on the spacing
+#: grid (grasp-centre cell x closing-axis direction, :func:`grasplan.candidates.thinning.thin_candidates`)
 CURVED_AXIS_STEP_DEG = 10.0
 #: Q's projection is shifted by this fraction of the part scale along a fixed generic direction of the
 #: region's temporary frame, so coinciding outlines (every prism) become generic; moves results by
@@ -176,31 +139,19 @@ def _check_samples(area: np.ndarray, spacing: float, n_faces: int) -> None:
                      f"spacing^2), or repair the mesh if its surfaces should not overlap")
 
 
-def find_regions(mesh: TriangleMesh, convex: np.ndarray, geo: FaceGeometry, *, max_opening: float, beta_deg: float,
-                 mu: float, spacing: float, tol: Tolerance, notes: list[str] | None = None
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Region samples (see the module docstring): ``contacts (n, 2, 3)``, ``normals (n, 2, 3)``,
-    ``width (n,)``, ``faces (n, 2)``, ``region (n,)`` for :class:`grasplan.candidates.antipodal_base.Candidates`.
+def _no_samples() -> Samples:
+    """The empty :data:`Samples`."""
+    return np.zeros((0, 2, 3)), np.zeros((0, 2, 3)), np.zeros(0), np.zeros((0, 2), np.int64), np.zeros(0, np.int64)
 
-    Works on the areas' boundary edges only (exact overlap moments by Green's theorem, lattice by
-    scanlines), so the cost follows the length of the areas' outlines, not their triangle count.
-    The work is bounded (:data:`MAX_AREA_PAIRS`, :data:`CURVED_ROWS_BUDGET`, :data:`MAX_SAMPLES`): an
-    :class:`~grasplan.errors.InputError` says what would run; ``notes`` (a list) receives a line when
-    sub-cell pairs were thinned before their overlaps were computed.
-    ``geo``: the mesh's :class:`grasplan.candidates.antipodal_base.FaceGeometry`; lengths in metres."""
-    adjacency = mesh_edge_adjacency(mesh)
-    admit, creases = admitted_faces(mesh, convex, geo, tol, adjacency)
-    areas = convex_areas(mesh, admit, tol, adjacency, geo=geo)
-    lab = areas.label
-    ids = np.flatnonzero(lab >= 0)
-    empty = (np.zeros((0, 2, 3)), np.zeros((0, 2, 3)), np.zeros(0), np.zeros((0, 2), np.int64), np.zeros(0, np.int64))
-    if len(ids) < 2:
-        return empty
-    V = np.asarray(mesh.vertices, dtype=np.float64)
-    F = np.asarray(mesh.faces, dtype=np.int64)
+
+def _area_pair_keys(areas: Areas, geo: FaceGeometry, ids: np.ndarray, n_faces: int, *, max_opening: float,
+                    beta_deg: float, tol: Tolerance) -> np.ndarray:
+    """The candidate regions: sorted keys ``P * n_areas + Q`` of the area pairs (``P < Q``, contact 0
+    on P) whose normals are anti-parallel within beta plus both areas' spreads and whose discs
+    (centroid, largest corner distance) can overlap along the closing axis ``a = (n_P - n_Q) / |n_P -
+    n_Q|`` within ``max_opening`` (:func:`grasplan.candidates.region_areas.area_pairs`, streamed).
+    More than :data:`MAX_AREA_PAIRS` pairs raise an InputError naming the triangle count that fits."""
     nA = len(areas.area)
-    eps = tol.distance
-    # ---- candidate regions: area pairs anti-parallel within beta whose discs can overlap ----
     keys, n_pairs, progress = [], 0, {"done": 0.0}
     for P, Q, _ in area_pairs(areas, geo, ids, max_opening=max_opening, beta_deg=beta_deg, tol=tol,
                               progress=progress):
@@ -210,39 +161,61 @@ def find_regions(mesh: TriangleMesh, convex: np.ndarray, geo: FaceGeometry, *, m
             # overlapping pairs grow with the square of the triangles; the estimate from the share of the
             # search done runs low on mixed triangle sizes, hence the margin
             est = n_pairs / max(progress["done"], 1e-3)
-            fit = max(1000, int(len(F) * np.sqrt(0.25 * MAX_AREA_PAIRS / est)) // 1000 * 1000)
+            fit = max(1000, int(n_faces * np.sqrt(0.25 * MAX_AREA_PAIRS / est)) // 1000 * 1000)
             raise InputError(
                 f"more than {MAX_AREA_PAIRS:,} pairs of opposing surface areas (grasplan.candidates.regions.MAX_AREA_PAIRS; "
-                f"about {int(est):,} in all) among {len(F):,} triangles: the surfaces overlap many times (a triangle "
+                f"about {int(est):,} in all) among {n_faces:,} triangles: the surfaces overlap many times (a triangle "
                 f"soup?) or are tessellated very finely; repair the mesh or decimate it (quadric decimation in "
                 f"MeshLab or Blender) to at most {fit:,} triangles")
-    key = unique_values(np.concatenate(keys)) if keys else np.zeros(0, np.int64)
-    if len(key) == 0:
-        return empty
-    eu, ev, estart, ecount = area_edges(F, lab, nA, adjacency)
-    RP, RQ = _bounded_pairs(key // nA, key % nA, areas, ecount, spacing, notes)
-    R = len(RP)
-    a = areas.normal[RP] - areas.normal[RQ]
-    a /= np.linalg.norm(a, axis=1, keepdims=True)
-    t1, t2 = perpendicular_frame(a)
-    org = areas.centroid[RP]
-    scale = 1e6 * eps
-    shift3 = _SHIFT * scale * (_SHIFT_DIR[0] * t1 + _SHIFT_DIR[1] * t2)      # Q's generic shift (3D)
-    batches = weight_batches(ecount[RP] + ecount[RQ], _EDGE_CHUNK)
+    return unique_values(np.concatenate(keys)) if keys else np.zeros(0, np.int64)
 
-    def segments(s, e, origin, b1, b2):
-        reg, poly, u, v = region_edges(RP[s:e], RQ[s:e], eu, ev, estart, ecount)
+
+@dataclass(frozen=True)
+class _Outlines:
+    """The regions examined and the outlines their overlaps are cut from.
+
+    RP, RQ : (R,) int64, the two areas of each region (contact 0 on P)
+    eu, ev, estart, ecount : the areas' directed boundary edges (vertex ids), grouped per area
+        (:func:`grasplan.candidates.region_areas.area_edges`)
+    V : (n, 3) the mesh's vertices
+    shift3 : (R, 3) Q's generic shift (:data:`_SHIFT`)
+    """
+
+    RP: np.ndarray
+    RQ: np.ndarray
+    eu: np.ndarray
+    ev: np.ndarray
+    estart: np.ndarray
+    ecount: np.ndarray
+    V: np.ndarray
+    shift3: np.ndarray
+
+    def segments(self, s: int, e: int, origin: np.ndarray, b1: np.ndarray, b2: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(reg, poly, x0, y0, x1, y1)``: the outline segments of regions ``s:e`` (``reg`` counted
+        from ``s``; ``poly`` 0 for P's, 1 for Q's, shifted), in each region's plane frame ``origin``,
+        ``b1``, ``b2`` (R, 3)."""
+        reg, poly, u, v = region_edges(self.RP[s:e], self.RQ[s:e], self.eu, self.ev, self.estart, self.ecount)
         gr = reg + s
-        sh = np.where(poly[:, None] == 1, shift3[gr], 0.0)
-        A3, B3 = V[u] + sh - origin[gr], V[v] + sh - origin[gr]
+        sh = np.where(poly[:, None] == 1, self.shift3[gr], 0.0)
+        A3, B3 = self.V[u] + sh - origin[gr], self.V[v] + sh - origin[gr]
         return (reg, poly, np.einsum("ij,ij->i", A3, b1[gr]), np.einsum("ij,ij->i", A3, b2[gr]),
                 np.einsum("ij,ij->i", B3, b1[gr]), np.einsum("ij,ij->i", B3, b2[gr]))
 
-    # ---- pass 1: exact moments of every overlap (Green's theorem over the clipped outlines) ----
+
+def _overlap_moments(outl: _Outlines, batches: list[tuple[int, int]], org: np.ndarray, t1: np.ndarray,
+                     t2: np.ndarray, eps: float, area_tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """Exact overlap of each region, ``(S (R, 6) area, first and second moments, theta (R,) lattice angle)``.
+
+    A region is ``proj(P) & proj(Q)`` along the closing axis. Only the areas' boundary edges are
+    used: the parts of P's outline inside Q and of Q's outline inside P (crossings found on a grid,
+    inside/outside by the parity of a vertical ray) give the overlap's moments by Green's theorem,
+    exact, so they do not depend on how the inside of an area is triangulated."""
+    R = len(outl.RP)
     S = np.zeros((R, 6))
     theta = np.zeros(R)
     for s, e in batches:
-        reg, poly, x0, y0, x1, y1 = segments(s, e, org, t1, t2)
+        reg, poly, x0, y0, x1, y1 = outl.segments(s, e, org, t1, t2)
         L = np.hypot(x1 - x0, y1 - y0)
         nr = e - s
         h = np.bincount(reg, weights=L, minlength=nr) / np.maximum(np.bincount(reg, minlength=nr), 1)
@@ -251,21 +224,58 @@ def find_regions(mesh: TriangleMesh, convex: np.ndarray, geo: FaceGeometry, *, m
         M = green_moments(xa, ya, xb, yb)
         for c in range(6):
             S[s:e, c] += np.bincount(reg[r], weights=M[:, c], minlength=nr)
-        theta[s:e] = _lattice_angle(S[s:e], reg[r], xa, ya, tol.area)
+        theta[s:e] = _lattice_angle(S[s:e], reg[r], xa, ya, area_tol)
+    return S, theta
+
+
+@dataclass(frozen=True)
+class _Lattice:
+    """Each region's sampling lattice.
+
+    live : (R,) bool, the overlap has an area; small : (R,) bool, it is smaller than a lattice cell
+    g3 : (R, 3) its centroid (in the plane through P's centroid); e1, e2 : (R, 3) the lattice axes
+    """
+
+    live: np.ndarray
+    small: np.ndarray
+    g3: np.ndarray
+    e1: np.ndarray
+    e2: np.ndarray
+
+
+def _lattice(S: np.ndarray, theta: np.ndarray, org: np.ndarray, t1: np.ndarray, t2: np.ndarray, spacing: float,
+             area_tol: float, n_faces: int) -> _Lattice:
+    """The lattices of the regions with moments ``S`` and lattice angles ``theta``, after checking the
+    samples they would give (:func:`_check_samples`)."""
     A = S[:, 0]
-    live = A > tol.area
+    live = A > area_tol
     A = np.where(live, A, 1.0)
     gx, gy = S[:, 1] / A, S[:, 2] / A
-    _check_samples(A[live], spacing, len(F))
+    _check_samples(A[live], spacing, n_faces)
     ct, st = np.cos(theta)[:, None], np.sin(theta)[:, None]
     e1, e2 = ct * t1 + st * t2, -st * t1 + ct * t2
     g3 = org + gx[:, None] * t1 + gy[:, None] * t2      # centroid, in the plane through P's centroid
     small = A < spacing * spacing
-    # ---- pass 2: lattice points whose cross of probes (+-eps) lies in the overlap: scanlines ----
+    return _Lattice(live, small, g3, e1, e2)
+
+
+def _lattice_points(outl: _Outlines, batches: list[tuple[int, int]], lat: _Lattice, spacing: float, eps: float
+                    ) -> tuple[np.ndarray, np.ndarray] | None:
+    """The samples ``(reg (k,), q (k, 2) lattice coordinates)``, sorted by region then scanline, or
+    ``None`` when no region has a scanline.
+
+    Each region is sampled on a square lattice of pitch ``spacing`` centred on its centroid and
+    aligned with its principal axes (:func:`_lattice_angle`). A lattice point is a sample when the
+    cross of points ``+-eps`` around it lies in both projections (scanlines at ``y - eps, y, y + eps``,
+    even-odd intervals), so points on an outline are never sampled whatever the tessellation. A
+    region the lattice misses (thinner than a pitch and off it, or a sub-cell region whose centroid
+    lies outside it) gets the middle of its widest interval on the centroid's scanline; a strip's
+    centroid line is always sampled. A sub-cell region gives at most its centroid."""
+    live, small = lat.live, lat.small
     s_reg, s_q, f_reg, f_q, f_w = [], [], [], [], []
     offsets = (-eps, 0.0, eps)
     for s, e in batches:
-        reg, poly, x0, y0, x1, y1 = segments(s, e, g3, e1, e2)
+        reg, poly, x0, y0, x1, y1 = outl.segments(s, e, lat.g3, lat.e1, lat.e2)
         keep = live[reg + s]
         reg, poly, x0, y0, x1, y1 = reg[keep], poly[keep], x0[keep], y0[keep], x1[keep], y1[keep]
         if len(reg) == 0:
@@ -284,10 +294,8 @@ def find_regions(mesh: TriangleMesh, convex: np.ndarray, geo: FaceGeometry, *, m
         f_q.append(np.column_stack([0.5 * (xa[z] + xb[z]), np.zeros(int(z.sum()))]))
         f_w.append(xb[z] - xa[z])
     if not s_reg:
-        return empty
+        return None
     reg, q = np.concatenate(s_reg), np.concatenate(s_q)
-    # regions the lattice misses (thinner than a pitch and off the lattice, or the centroid outside a
-    # sub-cell region): the middle of their widest interval on the centroid's scanline
     fr, fq, fw = np.concatenate(f_reg), np.concatenate(f_q), np.concatenate(f_w)
     miss = ~np.isin(fr, reg)
     if miss.any():
@@ -296,51 +304,117 @@ def find_regions(mesh: TriangleMesh, convex: np.ndarray, geo: FaceGeometry, *, m
         o = o[np.r_[True, fr[o][1:] != fr[o][:-1]]]
         reg, q = np.concatenate([reg, fr[o]]), np.vstack([q, fq[o]])
     o = np.lexsort((q[:, 0], q[:, 1], reg))
-    reg, q = reg[o], q[o]
+    return reg[o], q[o]
+
+
+def _faces_under(x: np.ndarray, ax: np.ndarray, ar: np.ndarray, areas: Areas, geo: FaceGeometry,
+                 members: np.ndarray, count: np.ndarray, start: np.ndarray) -> np.ndarray:
+    """(k,) the face of area ``ar`` (k,) each sample ``x`` (k, 3) lies over along its axis ``ax``, or
+    -1: 2D point location in each area's own plane. ``members`` are the areas' faces grouped by
+    area (``count`` faces from ``start`` each)."""
+    n_a, c_a = areas.normal[ar], areas.centroid[ar]
+    y = x + (np.einsum("ij,ij->i", n_a, c_a - x) / np.einsum("ij,ij->i", n_a, ax))[:, None] * ax
+    used = unique_values(ar)
+    b1, b2 = perpendicular_frame(areas.normal[used])
+    pos = np.searchsorted(used, ar)
+    qa = np.column_stack([np.einsum("ij,ij->i", y - areas.centroid[ar], b1[pos]),
+                          np.einsum("ij,ij->i", y - areas.centroid[ar], b2[pos])])
+    rr, kk = expand(count[used])
+    faces = members[start[used][rr] + kk]
+    T = geo.tri[faces] - areas.centroid[used][rr][:, None]
+    tri2 = np.stack([np.einsum("bkj,bj->bk", T, b1[rr]), np.einsum("bkj,bj->bk", T, b2[rr])], axis=-1)
+    pick = locate(pos, qa, rr, tri2)
+    return np.where(pick >= 0, faces[np.maximum(pick, 0)], -1)
+
+
+def _lift(x: np.ndarray, ax: np.ndarray, geo: FaceGeometry, f: np.ndarray) -> np.ndarray:
+    """(k, 3) the samples ``x`` moved along their axes ``ax`` onto the planes of faces ``f``."""
+    return x + (np.einsum("ij,ij->i", geo.n[f], geo.tri[f, 0] - x)
+                / np.einsum("ij,ij->i", geo.n[f], ax))[:, None] * ax
+
+
+def find_regions(mesh: TriangleMesh, convex: np.ndarray, geo: FaceGeometry, *, max_opening: float, beta_deg: float,
+                 mu: float, spacing: float, tol: Tolerance, notes: list[str] | None = None) -> Samples:
+    """Region samples: ``contacts (n, 2, 3)``, ``normals (n, 2, 3)``, ``width (n,)``, ``faces (n, 2)``,
+    ``region (n,)`` for :class:`grasplan.candidates.antipodal_base.Candidates`.
+
+    1. Convex areas (:func:`grasplan.candidates.region_areas.convex_areas`) of the admitted faces: a
+       face is admitted when the convexity stage calls it convex, or when it is concave only because
+       neighbours rise above it across some (not all) of its edges, a shallow crease the BLM does
+       not split (:func:`grasplan.candidates.region_creases.admitted_faces`).
+    2. Candidate regions: opposing area pairs (:func:`_area_pair_keys`), bounded (:func:`_bounded_pairs`).
+    3. Their exact overlaps (:func:`_overlap_moments`); Q's projection is shifted by :data:`_SHIFT`.
+    4. Lattice samples of each overlap (:func:`_lattice_points`), each located in a face of P and of
+       Q (:func:`_faces_under`) and lifted along the closing axis onto both; samples near a rising
+       crease edge are dropped; then the paper's rules per sample (:func:`finish_samples`).
+
+    The region id is the rank of the area pair among the regions with a positive overlap, in sorted
+    ``(P, Q)`` order. Unlike the paper's rule, regions need the projections to overlap (contacts
+    exactly opposite along the axis); the paper's epsilon offset is not used. The work is bounded
+    (:data:`MAX_AREA_PAIRS`, :data:`CURVED_ROWS_BUDGET`, :data:`MAX_SAMPLES`): an
+    :class:`~grasplan.errors.InputError` says what would run; ``notes`` (a list) receives a line when
+    sub-cell pairs were thinned. Outlines are processed in batches of :data:`_EDGE_CHUNK` edges. The
+    tests hold an independent reference implementation over every overlapping triangle pair
+    (``tests/regions_reference.py``). ``geo``: the mesh's
+    :class:`grasplan.candidates.antipodal_base.FaceGeometry`; lengths in metres."""
+    adjacency = mesh_edge_adjacency(mesh)
+    admit, creases = admitted_faces(mesh, convex, geo, tol, adjacency)
+    areas = convex_areas(mesh, admit, tol, adjacency, geo=geo)
+    lab = areas.label
+    ids = np.flatnonzero(lab >= 0)
+    if len(ids) < 2:
+        return _no_samples()
+    V = np.asarray(mesh.vertices, dtype=np.float64)
+    F = np.asarray(mesh.faces, dtype=np.int64)
+    nA = len(areas.area)
+    eps = tol.distance
+    key = _area_pair_keys(areas, geo, ids, len(F), max_opening=max_opening, beta_deg=beta_deg, tol=tol)
+    if len(key) == 0:
+        return _no_samples()
+    eu, ev, estart, ecount = area_edges(F, lab, nA, adjacency)
+    RP, RQ = _bounded_pairs(key // nA, key % nA, areas, ecount, spacing, notes)
+    a = areas.normal[RP] - areas.normal[RQ]
+    a /= np.linalg.norm(a, axis=1, keepdims=True)
+    t1, t2 = perpendicular_frame(a)
+    org = areas.centroid[RP]
+    scale = 1e6 * eps
+    shift3 = _SHIFT * scale * (_SHIFT_DIR[0] * t1 + _SHIFT_DIR[1] * t2)      # Q's generic shift (3D)
+    outl = _Outlines(RP, RQ, eu, ev, estart, ecount, V, shift3)
+    batches = weight_batches(ecount[RP] + ecount[RQ], _EDGE_CHUNK)
+    S, theta = _overlap_moments(outl, batches, org, t1, t2, eps, tol.area)
+    lat = _lattice(S, theta, org, t1, t2, spacing, tol.area, len(F))
+    found = _lattice_points(outl, batches, lat, spacing, eps)
+    if found is None:
+        return _no_samples()
+    reg, q = found
     if len(reg) == 0:
-        return empty
-    x = g3[reg] + q[:, :1] * e1[reg] + q[:, 1:] * e2[reg]
+        return _no_samples()
+    x = lat.g3[reg] + q[:, :1] * lat.e1[reg] + q[:, 1:] * lat.e2[reg]
     ax = a[reg]
-    # ---- the faces under each sample: located in each area's own plane ----
     members = ids[np.argsort(lab[ids], kind="stable")]
     count = np.bincount(lab[ids], minlength=nA)
     start = np.cumsum(count) - count
-    fidx = []
-    for side in (RP, RQ):
-        ar = side[reg]
-        n_a, c_a = areas.normal[ar], areas.centroid[ar]
-        y = x + (np.einsum("ij,ij->i", n_a, c_a - x) / np.einsum("ij,ij->i", n_a, ax))[:, None] * ax
-        used = unique_values(ar)
-        b1, b2 = perpendicular_frame(areas.normal[used])
-        pos = np.searchsorted(used, ar)
-        qa = np.column_stack([np.einsum("ij,ij->i", y - areas.centroid[ar], b1[pos]),
-                              np.einsum("ij,ij->i", y - areas.centroid[ar], b2[pos])])
-        rr, kk = expand(count[used])
-        faces = members[start[used][rr] + kk]
-        T = geo.tri[faces] - areas.centroid[used][rr][:, None]
-        tri2 = np.stack([np.einsum("bkj,bj->bk", T, b1[rr]), np.einsum("bkj,bj->bk", T, b2[rr])], axis=-1)
-        pick = locate(pos, qa, rr, tri2)
-        fidx.append(np.where(pick >= 0, faces[np.maximum(pick, 0)], -1))
-    si, sj = fidx
+    si, sj = (_faces_under(x, ax, side[reg], areas, geo, members, count, start) for side in (RP, RQ))
     ok = (si >= 0) & (sj >= 0)
     reg, x, ax, si, sj = reg[ok], x[ok], ax[ok], si[ok], sj[ok]
-    p0 = x + (np.einsum("ij,ij->i", geo.n[si], geo.tri[si, 0] - x) / np.einsum("ij,ij->i", geo.n[si], ax))[:, None] * ax
-    p1 = x + (np.einsum("ij,ij->i", geo.n[sj], geo.tri[sj, 0] - x) / np.einsum("ij,ij->i", geo.n[sj], ax))[:, None] * ax
+    p0, p1 = _lift(x, ax, geo, si), _lift(x, ax, geo, sj)
     ok = ~near_creases(p0, p1, creases)
     reg, si, sj, p0, p1 = reg[ok], si[ok], sj[ok], p0[ok], p1[ok]
     # region ids: rank among the live regions (pose- and tessellation-independent)
-    rid = np.cumsum(live) - 1
-    return finish_samples(reg, rid[reg], si, sj, p0, p1, small, geo, mu, eps, max_opening, spacing, beta_deg)
+    rid = np.cumsum(lat.live) - 1
+    return finish_samples(reg, rid[reg], si, sj, p0, p1, lat.small, geo, mu, eps, max_opening, spacing, beta_deg)
 
 
 def finish_samples(reg: np.ndarray, rid: np.ndarray, si: np.ndarray, sj: np.ndarray, p0: np.ndarray,
                    p1: np.ndarray, small: np.ndarray, geo: FaceGeometry, mu: float, eps: float,
-                   max_opening: float, spacing: float, beta_deg: float
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+                   max_opening: float, spacing: float, beta_deg: float) -> Samples:
     """The paper's per-sample rules and the curved-surface deduplication; the Candidates arrays.
 
-    Beta is checked on the normals of the two faces a sample touches (an area's normal is a mean:
-    the faces of an area may stray from it by ``Areas.spread``), as are the friction cones."""
+    Rules, on the normals of the two faces a sample touches (an area's normal is a mean: the faces
+    of an area may stray from it by ``Areas.spread``): anti-parallel within beta, contacts facing
+    away, closing axis inside both friction cones, width ``<= max_opening``. Samples of ``small``
+    regions (one each, from curved surfaces) are deduplicated on the spacing grid
+    (:data:`CURVED_AXIS_STEP_DEG`)."""
     d = p1 - p0
     w = np.linalg.norm(d, axis=1)
     dn = d / np.maximum(w, 1e-300)[:, None]

@@ -1,37 +1,21 @@
 """The cell model: the robot cell around the part (a table top, obstacles, an optional bin, where
-the part rests, and where the part goes after the grasp: retreat, place), read from its YAML and
-from the ``cell`` block of a result file.
+the part rests, and where the part goes after the grasp: retreat, place), read from its YAML
+(``configs/cells/<name>.yaml``; the schema: docs/cells.md) and from the ``cell`` block of a result.
 
-World frame: z up. The table top is the plane ``z = table_z`` (default 0) and the table fills
-``z < table_z`` (a half-space: it is infinite in x and y). The part rests on the table in a
-stable pose (:func:`grasplan.cell.resting.stable_pose`: the most probable one unless
-``pose_index`` says otherwise),
-its lowest point on the table top and its centre of mass above ``part_xy`` (default (0.45, 0) m).
-With a ``bin`` the part rests on the bin floor's top instead, its centre of mass above the
-floor's centre plus ``part_xy`` (then an offset in the bin frame, default (0, 0)).
-
-YAML schema (``configs/cells/<name>.yaml``; metres, degrees; full reference in docs/cells.md)::
-
-    name: table
-    table_z: 0.0
-    part_xy: [0.45, 0.0]
-    pose_index: 0          # which stable pose, 0 = most probable
-    obstacles:             # R = Rz(yaw) Ry(pitch) Rx(roll); T = the shape's centre (mesh: its file origin)
-      - {name: wall, box: {size: [0.02, 0.40, 0.30]}, T: {xyz: [0.53, 0.0, 0.15], rpy_deg: [0, 0, 0]}}
-      - {name: post, cylinder: {radius: 0.02, length: 0.30}, T: {xyz: [0.40, -0.10, 0.15]}}  # axis = local z
-      - {name: ball, sphere: {radius: 0.03}, T: {xyz: [0.5, 0.1, 0.2]}}
-      - {name: fixture, mesh: {path: fixture.stl, scale: 0.001}, T: {xyz: [0.45, 0, 0]}}     # path relative to the YAML
-    bin: {inner: [0.30, 0.20], wall: 0.01, height: 0.15, T: {xyz: [0.45, 0.0, 0.0]}}       # T = centre of the floor's top
-    retreat: {direction: [0, 0, 1], distance: 0.10}                                         # lift after the grasp (world)
-    place: {T: {xyz: [0.45, 0.3, 0.0], rpy_deg: [0, 0, 0]}}                                 # T_world_part after release
-
-``--part-pose`` overrides the resting pose: :func:`grasplan.config.poses.parse_part_pose`; ``--place``:
-:func:`grasplan.geometry.transforms.parse_place`. :func:`grasplan.motion.start_checks.check_part_placement`
+World frame: z up, metres, degrees. The table top is the plane ``z = table_z`` and the table fills
+``z < table_z``. The part rests on the table in a stable pose (:func:`grasplan.cell.resting.stable_pose`:
+the most probable one unless ``pose_index`` says otherwise), its lowest point on the table top and
+its centre of mass above ``part_xy`` (default (0.45, 0) m); with a ``bin``, on the bin floor's top,
+``part_xy`` then an offset from the floor's centre (default (0, 0)). Obstacles are boxes,
+cylinders (axis = local z), spheres and meshes (a path relative to the YAML), each at a pose ``T``
+(its centre; a mesh: its file origin) with R = Rz(yaw) Ry(pitch) Rx(roll). ``--part-pose``
+overrides the resting pose (:func:`grasplan.config.poses.parse_part_pose`), ``--place`` the place
+(:func:`grasplan.geometry.transforms.parse_place`); :func:`grasplan.motion.start_checks.check_part_placement`
 refuses a part inside the table or an obstacle.
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import os
 import re
@@ -57,8 +41,7 @@ MAX_NAME_CHARS = 100
 #: largest pose_index accepted from a file (a part has far fewer distinct resting poses)
 MAX_POSE_INDEX = 100_000
 #: most obstacles in one cell, and most triangles of all its mesh obstacles together: what a plan
-#: honours in seconds and well under 1 GB (measured: 200 obstacles of 5k triangles took 76 s and
-#: 2.5 GB, 1000 small boxes 65 s; 40 x 5k triangles 20 s, 650 MB); more is refused up front
+#: honours in seconds and well under 1 GB (docs/cells.md); more is refused up front
 MAX_OBSTACLES = 250
 MAX_CELL_TRIANGLES = 250_000
 #: most triangles of one mesh obstacle
@@ -73,7 +56,7 @@ DEFAULT_RETREAT_DIRECTION = (0.0, 0.0, 1.0)
 DEFAULT_RETREAT_DISTANCE = 0.10
 
 
-def _readonly(a) -> np.ndarray:
+def _readonly(a: Any) -> np.ndarray:
     a = np.array(a, dtype=np.float64)
     a.flags.writeable = False
     return a
@@ -105,7 +88,7 @@ class Obstacle:
                 None if self.vertices is None else np.asarray(self.vertices).tobytes(),
                 None if self.faces is None else np.asarray(self.faces).tobytes())
 
-    def __eq__(self, other) -> bool:
+    def __eq__(self, other: object) -> bool:
         return isinstance(other, Obstacle) and self._key() == other._key()
 
     def __hash__(self) -> int:
@@ -201,7 +184,7 @@ class BinSpec:
     height: float
     T_world_bin: np.ndarray
 
-    def __eq__(self, other) -> bool:
+    def __eq__(self, other: object) -> bool:
         return isinstance(other, BinSpec) and (self.inner, self.wall, self.height) == (
             other.inner, other.wall, other.height) and np.array_equal(self.T_world_bin, other.T_world_bin)
 
@@ -257,7 +240,7 @@ class Cell:
                 self.retreat_direction, self.retreat_distance,
                 None if self.place is None else np.asarray(self.place).tobytes())
 
-    def __eq__(self, other) -> bool:
+    def __eq__(self, other: object) -> bool:
         return isinstance(other, Cell) and self._key() == other._key()
 
     def __hash__(self) -> int:
@@ -337,7 +320,7 @@ class Cell:
                     place=place)
 
 
-def _is_up(v) -> bool:
+def _is_up(v: Any) -> bool:
     return (isinstance(v, (list, tuple)) and len(v) == 3
             and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)
             and list(map(float, v)) == [0.0, 0.0, 1.0])
@@ -361,26 +344,26 @@ def _check_unique(names: list[str], where: str, reserved: tuple[str, ...]) -> No
         seen.add(n)
 
 
-def _pose_yaml(v, where: str) -> np.ndarray:
+def _pose_yaml(v: Any, where: str) -> np.ndarray:
     """``T: {xyz: [m], rpy_deg: [deg]}`` of a cell YAML -> (4, 4) (:func:`grasplan.config.poses.parse_pose`)."""
     return parse_pose(v, where, matrix=False, require_xyz=True, max_coord=MAX_CELL_COORD_M, max_deg=3600)
 
 
-def _obstacle_name(v, where: str) -> str:
+def _obstacle_name(v: Any, where: str) -> str:
     if not isinstance(v, str) or not _NAME_RE.match(v):
         raise ConfigError(f"{where}.name: expected 1-64 characters of letters, digits, '_', '-', '+', '.', "
                           f"got {str(v)[:40]!r}")
     return v
 
 
-def _positive(v, where: str) -> float:
+def _positive(v: Any, where: str) -> float:
     x = config_number(v, where, positive=True, max_abs=MAX_OBSTACLE_SIZE_M)
     if not x > 0:
         raise ConfigError(f"{where}: expected a length > 0 m, got {x}")
     return x
 
 
-def _shape_fields(kind: str, spec, where: str, *, base: Path | None, max_faces: int = MAX_OBSTACLE_FACES) -> dict:
+def _shape_fields(kind: str, spec: Any, where: str, *, base: Path | None, max_faces: int = MAX_OBSTACLE_FACES) -> dict:
     """The shape's fields (size / radius, length / vertices, faces) from a YAML or JSON mapping."""
     valid = {"box": ["size"], "cylinder": ["length", "radius"], "sphere": ["radius"],
              "mesh": ["path", "scale"] if base is not None else ["faces", "vertices"]}[kind]
@@ -427,7 +410,7 @@ def _shape_fields(kind: str, spec, where: str, *, base: Path | None, max_faces: 
     return {"vertices": _readonly(v), "faces": np.asarray(f, dtype=np.int64)}
 
 
-def _obstacle_from_yaml(item, where: str, base: Path, max_faces: int = MAX_OBSTACLE_FACES) -> Obstacle:
+def _obstacle_from_yaml(item: Any, where: str, base: Path, max_faces: int = MAX_OBSTACLE_FACES) -> Obstacle:
     valid = ["name", *OBSTACLE_KINDS, "T"]
     if not isinstance(item, dict):
         raise ConfigError(f"{where}: expected a mapping {{name: ..., box|cylinder|sphere|mesh: ..., T: ...}}, "
@@ -449,7 +432,7 @@ def _obstacle_from_yaml(item, where: str, base: Path, max_faces: int = MAX_OBSTA
     return Obstacle(name, kind, _readonly(_pose_yaml(item["T"], f"{where}.T")), **fields)
 
 
-def _obstacle_from_json(item, where: str) -> Obstacle:
+def _obstacle_from_json(item: Any, where: str) -> Obstacle:
     if not isinstance(item, dict):
         raise ConfigError(f"{where}: expected a mapping")
     unknown = set(item) - {"name", *OBSTACLE_KINDS, "T_world_obstacle"}
@@ -464,7 +447,7 @@ def _obstacle_from_json(item, where: str) -> Obstacle:
                                                                    base=None))
 
 
-def _bin_fields(inner, wall, height, T, where: str) -> BinSpec:
+def _bin_fields(inner: Any, wall: Any, height: Any, T: Any, where: str) -> BinSpec:
     ix = config_vector(inner, f"{where}.inner", 2, positive=True)
     if not np.all(ix > 0) or ix.max() > MAX_OBSTACLE_SIZE_M:
         raise ConfigError(f"{where}.inner: expected [x, y] inner floor size, each > 0 and <= {MAX_OBSTACLE_SIZE_M} m")
@@ -475,7 +458,7 @@ def _bin_fields(inner, wall, height, T, where: str) -> BinSpec:
     return BinSpec((float(ix[0]), float(ix[1])), w, h, _readonly(T))
 
 
-def _bin_from_yaml(b, where: str) -> BinSpec:
+def _bin_from_yaml(b: Any, where: str) -> BinSpec:
     valid = ["height", "inner", "T", "wall"]
     if not isinstance(b, dict):
         raise ConfigError(f"{where}: expected {{inner: [x, y], wall: m, height: m, T: {{xyz: [...]}}}}, "
@@ -491,14 +474,14 @@ def _bin_from_yaml(b, where: str) -> BinSpec:
     return _bin_fields(b["inner"], b["wall"], b["height"], _pose_yaml(b["T"], f"{where}.T"), where)
 
 
-def _bin_from_json(b, where: str) -> BinSpec:
+def _bin_from_json(b: Any, where: str) -> BinSpec:
     if not isinstance(b, dict) or set(b) != {"inner", "wall", "height", "T_world_bin"}:
         raise ConfigError(f"{where}: expected {{inner, wall, height, T_world_bin}} or null")
     T = check_transform(b["T_world_bin"], f"{where}.T_world_bin", error=ConfigError)
     return _bin_fields(b["inner"], b["wall"], b["height"], T, where)
 
 
-def _retreat(r, where: str) -> tuple[tuple[float, float, float], float]:
+def _retreat(r: Any, where: str) -> tuple[tuple[float, float, float], float]:
     if not isinstance(r, dict):
         raise ConfigError(f"{where}: expected {{direction: [x, y, z], distance: m}}, got {str(r)[:60]!r}")
     unknown = set(r) - {"direction", "distance"}
@@ -515,14 +498,14 @@ def _retreat(r, where: str) -> tuple[tuple[float, float, float], float]:
     return (float(u[0]), float(u[1]), float(u[2])), float(dist)
 
 
-def _place_yaml(p, where: str) -> np.ndarray:
+def _place_yaml(p: Any, where: str) -> np.ndarray:
     if not isinstance(p, dict) or set(p) != {"T"}:
         raise ConfigError(f"{where}: expected {{T: {{xyz: [x, y, z], rpy_deg: [r, p, y]}}}} (the part's pose "
                           f"after release, world frame), got {str(p)[:60]!r}")
     return _readonly(_pose_yaml(p["T"], f"{where}.T"))
 
 
-def cell_from_dict(data, *, name: str, source: str = "", base: Path | None = None) -> Cell:
+def cell_from_dict(data: Any, *, name: str, source: str = "", base: Path | None = None) -> Cell:
     """Validate a parsed cell YAML (``base``: the folder mesh paths are relative to)."""
     if not isinstance(data, dict):
         raise ConfigError(f"{source}: a cell file must be a YAML mapping")

@@ -8,7 +8,7 @@ import click
 from ..batch.engines import ENGINES
 from ..config.params import CandidateParams, GraspParams, PlanParams
 from .common import info
-from .options import cell_options, param_options, params_from_kwargs, robot_option
+from .options import cell_options, param_options, robot_option
 
 
 def _split_exports(ctx, param, value):
@@ -48,8 +48,9 @@ def command(parts, out_dir, workers, engine, ray_address, exports, no_view, **kw
     from ..batch.layout import BatchStatus
     from ..batch.options import BatchOptions
     from ..batch.report import format_row
+    from ..config.params import RunParams
 
-    params = params_from_kwargs(kwargs)  # --scoring is read here, --place and --pose-index parsed
+    params = RunParams.from_options(kwargs)  # --scoring is read here, --place and --pose-index parsed
     part_pose = kwargs.pop("part_pose")
     T_world_part = None
     if part_pose is not None:
@@ -58,7 +59,8 @@ def command(parts, out_dir, workers, engine, ray_address, exports, no_view, **kw
         T_world_part = parse_part_pose(part_pose).tolist()
     options = BatchOptions(robot=kwargs.pop("robot"), gripper=kwargs.pop("gripper"), cell=kwargs.pop("cell"),
                            units=kwargs.pop("units"), T_world_part=T_world_part, exports=exports,
-                           view=not no_view, **params)
+                           view=not no_view, candidates=params.candidates, grasps=params.grasps,
+                           planning=params.planning)
     config_dirs = kwargs.pop("config_dir")  # run_batch puts them first in the lookup, here and in every worker
 
     bar = _Progress()

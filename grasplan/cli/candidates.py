@@ -2,13 +2,14 @@
 from __future__ import annotations
 
 import time
+from typing import Any
 
 import click
 
 from ..errors import PlanningError
-from ..config.params import CandidateParams
+from ..config.params import CandidateParams, RunParams
 from .common import check_output, info, table, units_option, warn_all
-from .options import output_option, param_options, params_from_kwargs
+from .options import output_option, param_options
 
 
 @click.command(
@@ -23,13 +24,13 @@ from .options import output_option, param_options, params_from_kwargs
 @output_option("JSON file to write (atomically; nothing is written on bad input).")
 @param_options(CandidateParams)
 @units_option
-def command(part: str, output: str, units: str, **kwargs) -> None:
+def command(part: str, output: str, units: str, **kwargs: Any) -> None:
     from ..candidates.pipeline import compute_candidates
     from ..io import write_json
     from ..part.mesh import load_part
 
     output = check_output(output, part)
-    params = params_from_kwargs(kwargs, (CandidateParams,))["candidates"]
+    params = RunParams.from_options(kwargs, (CandidateParams,)).candidates
     info(f"grasplan candidates {part}")
     t0 = time.perf_counter()
     p = load_part(part, units=units)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import Any
 
 import click
 
@@ -54,31 +55,29 @@ def command(cell: str, parts: tuple[str, ...], units: str, rounds: int, pose_noi
     Writes per round and in total attempts, successes, GSR, DR, planning ms and failures by
     reason. Exit 3 (nothing written) for bad input. docs/clutter.md.
     """
-    from ..cell.model import load_cell
     from ..clutter.execute import PROTOCOL
     from ..clutter.report import report_json, write_report
     from ..clutter.rounds import noise_reach, parse_pose_noise, run_round
-    from ..sim.drop import load_items, parts_record
-    from ..gripper.load import load_gripper
     from ..pick import Picker
+    from ..setup.resolved import build_setup
+    from ..sim.drop import load_items, parts_record
     from .scene import parse_part_count
 
     t0 = time.perf_counter()
     noise = parse_pose_noise(pose_noise)
     specs = [parse_part_count(p) for p in parts]
     apply_config_dirs(kwargs)  # first: --config-dir decides which files the names below read
-    reads = {"cell": cell, "gripper": gripper, "robot": robot}
-    out = check_output(output, *[p for p, _ in specs], **reads)
-    page = None if view is None else check_output(view, *[p for p, _ in specs], **reads, option="--view")
-    if page is not None and Path(page).resolve() == Path(out).resolve():
-        raise InputError(f"--view {view}: the same file as -o {output}; give the page its own name (e.g. clutter.html)")
+    inputs = [p for p, _ in specs]
+    _check_outputs(output, view, inputs)  # the outputs themselves first: nothing loads for a bad one
     pick_kw = {k: kwargs.pop(k) for k in PICK_OPTIONS if k in kwargs}
     drop = DropParams(**kwargs)
-    c = load_cell(cell)
+    setup = build_setup(robot=robot, gripper=gripper, cell=cell)
+    out, page = _check_outputs(output, view, inputs, setup)  # nor replace the setup's files
+    c, g, rob = setup.cell, setup.gripper, setup.robot
+    assert c is not None and g is not None and rob is not None  # build_setup loads each one it is given
     if c.bin is None:
         raise InputError(f"--cell {cell}: the cell has no bin to drop parts into; use a cell with a bin "
                          f"(e.g. --cell bin; docs/cells.md)")
-    g = load_gripper(gripper)
     from ..clutter.world import pad_arc
 
     pad_arc(g)  # a linkage the clutter world cannot model: refused now (exit 3), not after the first drop
@@ -86,7 +85,7 @@ def command(cell: str, parts: tuple[str, ...], units: str, rounds: int, pose_noi
     # the planner refuses parts below the bin floor by more than overlap_tol: pose noise moves them by up to this
     tol = PickParams.default("overlap_tol") + noise_reach([it.part for it in items], noise)
     # the grasp databases ranked for the parts' simulated mass (the gravity margin and the score depend on it)
-    picker = Picker(robot, gripper=g, cell=c, params=PickParams(overlap_tol=min(tol, 0.05), **pick_kw),
+    picker = Picker(rob, gripper=g, cell=c, params=PickParams(overlap_tol=min(tol, 0.05), **pick_kw),
                     database=GraspParams(density=drop.density))
     for it in items:
         picker.add_part(it.name, it.part)
@@ -111,6 +110,21 @@ def command(cell: str, parts: tuple[str, ...], units: str, rounds: int, pose_noi
         write_replay(page, results, {it.name: it.part for it in items}, g, c, total=doc["total"],
                      title=f"grasplan clutter: {', '.join(f'{it.name} x{it.count}' for it in items)}")
     write_report(out, doc)
+    _print_summary(doc, f"{out}" + (f" and {page}" if page is not None else ""), time.perf_counter() - t0)
+
+
+def _check_outputs(output: str, view: str | None, inputs: list[str], setup: Any = None) -> tuple[Path, Path | None]:
+    """``-o`` and ``--view`` checked by the output guard against ``inputs`` and the ``setup``'s files;
+    InputError when they name one file."""
+    out = check_output(output, *inputs, setup=setup)
+    page = None if view is None else check_output(view, *inputs, setup=setup, option="--view")
+    if page is not None and Path(page).resolve() == Path(out).resolve():
+        raise InputError(f"--view {view}: the same file as -o {output}; give the page its own name (e.g. clutter.html)")
+    return Path(out), None if page is None else Path(page)
+
+
+def _print_summary(doc: dict[str, Any], wrote: str, seconds: float) -> None:
+    """The per-round table, GSR, DR and failures of a clutter report ``doc`` on stdout."""
     rows = []
     for rj in doc["rounds"]:
         pm = rj["plan_ms"]["median"]
@@ -123,7 +137,5 @@ def command(cell: str, parts: tuple[str, ...], units: str, rounds: int, pose_noi
     click.echo(table(rows, header=("round", "seed", "parts", "attempts", "held", "GSR_%", "DR_%", "ended",
                                    "plan_ms_median", "s")))
     fails = ", ".join(f"{k} {v}" for k, v in tot["failures"].items() if v) or "none"
-    wrote = f"{out}" + (f" and {page}" if page is not None else "")
-    click.echo(f"GSR {_pct(tot['gsr'])} %, DR {_pct(tot['dr'])} %; failures: {fails}; "
-               f"{time.perf_counter() - t0:.1f} s; wrote {wrote}")
+    click.echo(f"GSR {_pct(tot['gsr'])} %, DR {_pct(tot['dr'])} %; failures: {fails}; {seconds:.1f} s; wrote {wrote}")
 

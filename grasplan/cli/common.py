@@ -24,21 +24,20 @@ units_option = click.option(
 )
 
 
-def check_output(output, *inputs, companions=(), families=(), gripper=None, cell=None, robot=None,
-                 scoring=None, part_pose=None, option="-o"):
+def check_output(output, *inputs, companions=(), families=(), setup=None, scoring=None, part_pose=None,
+                 option="-o"):
     """The ``-o`` path and its ``companions`` (other files the command writes) checked before any
     work by the one output guard (:func:`grasplan.setup.outputs.check_outputs`): not empty, not a system
     or special file, not among installed files, its folder writable (missing folders are created),
     and none of them one of the files the command reads: ``inputs`` (None entries skipped; with the
     files a loaded document names: :func:`grasplan.setup.outputs.result_files`, ``picks_files``,
-    ``scene_files``), the YAML files the ``gripper``, ``cell`` and ``robot`` names resolve to and
-    the files they name (meshes; a robot's URDF, SRDF and URDF meshes), the ``scoring`` file and a
-    ``part_pose`` file. ``families``: ``(folder, regex)`` of companion names known only later
-    (``OUT.pose<k>.json``). ``option`` names the output in messages."""
-    from ..setup.outputs import check_outputs, config_files, file_input
+    ``scene_files``), the files of ``setup`` (a :class:`~grasplan.setup.resolved.Setup`: the
+    gripper, cell and robot YAMLs it was loaded from and the files they name), the ``scoring`` file
+    and a ``part_pose`` file. ``families``: ``(folder, regex)`` of companion
+    names known only later (``OUT.pose<k>.json``). ``option`` names the output in messages."""
+    from ..setup.outputs import check_outputs, file_input
 
-    ins = [*inputs, *config_files("gripper", gripper), *config_files("cell", cell), *config_files("robot", robot),
-           file_input(scoring), file_input(part_pose)]
+    ins = [*inputs, *(setup.files if setup is not None else ()), file_input(scoring), file_input(part_pose)]
     return check_outputs([output, *companions], inputs=ins, families=families, option=option)[0]
 
 

@@ -2,13 +2,14 @@
 from __future__ import annotations
 
 import time
+from typing import Any
 
 import click
 
 from ..errors import PlanningError
-from ..config.params import DEFAULT_GRIPPER, CandidateParams, GraspParams
+from ..config.params import DEFAULT_GRIPPER, CandidateParams, GraspParams, RunParams
 from .common import check_output, info, table, units_option, warn_all
-from .options import apply_config_dirs, config_dir_option, output_option, param_options, params_from_kwargs
+from .options import apply_config_dirs, config_dir_option, output_option, param_options
 
 
 @click.command(name="database")
@@ -19,7 +20,7 @@ from .options import apply_config_dirs, config_dir_option, output_option, param_
 @units_option
 @config_dir_option
 @param_options(GraspParams, CandidateParams, exclude=("pose_index",))
-def command(part, output, gripper, units, **kwargs):
+def command(part: str, output: str, gripper: str, units: str, **kwargs: Any) -> None:
     """PART's collision-free grasps in the part frame, checked against the part alone (no table,
     no neighbours), with their contact patches, epsilon and score: the grasp database that
     `grasplan pick` and `grasplan.Picker` pose in the world for every instance of the part.
@@ -29,19 +30,22 @@ def command(part, output, gripper, units, **kwargs):
     another part (sha256, scale) or gripper. Exit 4 (file still written) when no grasp is
     collision-free. Format: docs/pick.md."""
     from ..grasps.graspdb import build_database, write_database
-    from ..gripper.load import load_gripper
     from ..part.mesh import load_part
+    from ..setup.resolved import build_setup
 
     t_all = time.perf_counter()
     apply_config_dirs(kwargs)  # first: --config-dir decides which file the gripper name reads
-    output = check_output(output, part, gripper=gripper, scoring=kwargs.get("scoring"))
-    prm = params_from_kwargs(kwargs, (CandidateParams, GraspParams))
-    g = load_gripper(gripper)
+    check_output(output, part, scoring=kwargs.get("scoring"))  # the output itself first
+    prm = RunParams.from_options(kwargs, (CandidateParams, GraspParams))
+    setup = build_setup(gripper=gripper)
+    output = check_output(output, part, setup=setup, scoring=kwargs.get("scoring"))
+    g = setup.gripper
+    assert g is not None
     info(f"database: {part} (gripper {g.name}; the part alone in its own frame)")
     p = load_part(part, units=units)
     info(f"  {p.units_note}")
     warn_all(p.warnings)
-    db = build_database(p, g, candidates=prm["candidates"], grasps=prm["grasps"])
+    db = build_database(p, g, candidates=prm.candidates, grasps=prm.grasps)
     write_database(db, output)
     n = db.counts
     rows: list[tuple[str, int | float]] = [

@@ -2,11 +2,12 @@
 from __future__ import annotations
 
 import time
+from typing import Any
 
 import click
 
 from ..errors import PlanningError
-from ..config.params import CandidateParams, GraspParams
+from ..config.params import CandidateParams, GraspParams, RunParams
 from ..status import Status
 from .common import check_output, info, table, warn_all
 from .options import (
@@ -14,7 +15,6 @@ from .options import (
     cell_options,
     output_option,
     param_options,
-    params_from_kwargs,
 )
 
 
@@ -26,27 +26,28 @@ from .options import (
 @click.option("--only-ok", is_flag=True,
               help="Write only the ok grasps (counts still cover every pose); keeps files small.")
 @click.option("--indent", type=click.IntRange(0, 8), default=None, help="Indent the JSON (default: compact).")
-def command(part, output, gripper, cell, part_pose, units, only_ok, indent, **kwargs):
+def command(part: str, output: str, gripper: str, cell: str, part_pose: str | None, units: str, only_ok: bool,
+            indent: int | None, **kwargs: Any) -> None:
     """Gripper poses for PART's antipodal candidates, rolled about each closing axis, each checked
     for collisions of the gripper body and the closing jaws against the part and the table.
 
     Prints a summary (candidates, poses, kept, rejected by reason, seconds) and writes
     grasplan.grasps/1 JSON (docs/grasps.md). Exit 4 (file still written) when no pose is
     collision-free."""
-    from ..cell.model import load_cell
     from ..config.poses import parse_part_pose
     from ..grasps.pipeline import compute_grasps
-    from ..gripper.load import load_gripper
     from ..part.mesh import load_part
+    from ..setup.resolved import build_setup
 
     t_all = time.perf_counter()
     apply_config_dirs(kwargs)  # first: --config-dir decides which files the names below read
-    output = check_output(output, part, gripper=gripper, cell=cell, scoring=kwargs.get("scoring"),
-                          part_pose=part_pose)
-    prm = params_from_kwargs(kwargs, (CandidateParams, GraspParams))  # --scoring is read here
-    prm["grasps"].single_pose_index()  # one resting pose: InputError for --pose-index all
-    g = load_gripper(gripper)
-    c = load_cell(cell)
+    check_output(output, part, scoring=kwargs.get("scoring"), part_pose=part_pose)  # the output itself first
+    prm = RunParams.from_options(kwargs, (CandidateParams, GraspParams))  # --scoring is read here
+    prm.grasps.single_pose_index()  # one resting pose: InputError for --pose-index all
+    setup = build_setup(gripper=gripper, cell=cell)
+    output = check_output(output, part, setup=setup, scoring=kwargs.get("scoring"), part_pose=part_pose)
+    g, c = setup.gripper, setup.cell
+    assert g is not None and c is not None
     T_world_part = parse_part_pose(part_pose) if part_pose is not None else None
 
     info(f"grasps: {part} (gripper {g.name}, cell {c.name})")
@@ -55,7 +56,7 @@ def command(part, output, gripper, cell, part_pose, units, only_ok, indent, **kw
     load_s = time.perf_counter() - t
     info(f"  {p.units_note}")
     warn_all(p.warnings)
-    res = compute_grasps(p, gripper=g, cell=c, candidates=prm["candidates"], grasps=prm["grasps"],
+    res = compute_grasps(p, gripper=g, cell=c, candidates=prm.candidates, grasps=prm.grasps,
                          T_world_part=T_world_part, load_s=load_s)
     warn_all(res.quality_warnings())
     t = time.perf_counter()

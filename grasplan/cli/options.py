@@ -4,28 +4,26 @@
 field's default, help and CLI spelling; its click type (:class:`OptionType`) reads the text with the
 one interpreter of option kinds (:func:`grasplan.config.option_kinds.read_value`: lengths take unit suffixes,
 angles are degrees, a pose is 'x,y,z,roll,pitch,yaw', ``--pose-index`` also takes ``all``), the same
-reading a batch manifest gets. :func:`params_from_kwargs` pops them again and builds the dataclasses,
-which validate the ranges (InputError, exit 3, naming the option and what would pass). Parsing
-errors (``--top x``, ``--alpha 5parsecs``, ``--mu nan``) are click usage errors (exit 2). Commands
-only parse, call and print.
+reading a batch manifest gets. :meth:`grasplan.config.params.RunParams.from_options` pops them
+again and builds the dataclasses, which validate the ranges (InputError, exit 3, naming the option
+and what would pass). Parsing errors (``--top x``, ``--alpha 5parsecs``, ``--mu nan``) are click
+usage errors (exit 2). Commands only parse, call and print.
 """
 from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import MISSING, Field, fields
-from typing import Any
+from typing import Any, TypeVar
 
 import click
 
 from ..errors import InputError
 from ..config.option_kinds import OptionSpec, is_option, metavar, option_name, option_spec, read_value
-from ..config.params import (
-    DEFAULT_CELL, DEFAULT_GRIPPER, DEFAULT_ROBOT, PARAM_CLASSES, CandidateParams, GraspParams, PlanParams
-)
+from ..config.params import DEFAULT_CELL, DEFAULT_GRIPPER, DEFAULT_ROBOT, PARAM_CLASSES
 from .common import units_option
 
-#: which keyword of params_from_kwargs' result each class fills
-PARAM_KEYS: dict[type, str] = {CandidateParams: "candidates", GraspParams: "grasps", PlanParams: "planning"}
+#: a command function being decorated with options
+_F = TypeVar("_F", bound=Callable[..., Any])
 
 
 class OptionType(click.ParamType):
@@ -33,7 +31,7 @@ class OptionType(click.ParamType):
     :func:`grasplan.config.option_kinds.read_value` (a refused text is a usage error, exit 2; the range is
     the dataclass's to check, exit 3)."""
 
-    def __init__(self, s: OptionSpec):
+    def __init__(self, s: OptionSpec) -> None:
         self.spec = s
         self.name = metavar(s)
 
@@ -60,7 +58,7 @@ FLOAT = OptionType(OptionSpec("float", "a finite number"))
 INT = OptionType(OptionSpec("int", "a whole number"))
 
 
-def _option(f: Field) -> Callable:
+def _option(f: Field[Any]) -> Callable[[_F], _F]:
     s = option_spec(f)
     assert s is not None
     default = f.default if f.default is not MISSING else None
@@ -74,38 +72,28 @@ def _option(f: Field) -> Callable:
     return click.option(name, f.name, type=OptionType(s), default=default, show_default=show, help=s.help)
 
 
-def param_options(*classes: type, exclude: tuple[str, ...] = (), only: tuple[str, ...] | None = None) -> Callable:
+def param_options(*classes: type, exclude: tuple[str, ...] = (),
+                  only: tuple[str, ...] | None = None) -> Callable[[_F], _F]:
     """Decorator: one click option per option field of each parameter class (all but ``exclude``,
     or just ``only``)."""
     opts = [_option(f) for cls in classes for f in fields(cls)
             if is_option(f) and f.name not in exclude and (only is None or f.name in only)]
 
-    def deco(fn):
+    def deco(fn: _F) -> _F:
         for o in reversed(opts):
             fn = o(fn)
         return fn
     return deco
 
 
-def params_from_kwargs(kwargs: dict, classes: tuple[type, ...] = PARAM_CLASSES) -> dict[str, Any]:
-    """Pop the parameter options from click's ``kwargs`` and build the dataclasses:
-    ``{"candidates": CandidateParams, "grasps": GraspParams, "planning": PlanParams}`` (those asked for)."""
-    out = {}
-    for cls in classes:
-        names = {f.name for f in fields(cls)}
-        kw = {k: kwargs.pop(k) for k in list(kwargs) if k in names}
-        out[PARAM_KEYS[cls]] = cls(**kw)
-    return out
-
-
-def config_dir_option(fn):
+def config_dir_option(fn: _F) -> _F:
     return click.option("--config-dir", "config_dir", multiple=True, type=click.Path(file_okay=False),
                         help="Look up gripper, cell and robot names here first (folders with grippers/, cells/, "
                              "robots/); then $GRASPLAN_CONFIG_PATH, ./configs and ./robots, then the packaged ones. "
                              "Repeatable.")(fn)
 
 
-def apply_config_dirs(kwargs: dict) -> None:
+def apply_config_dirs(kwargs: dict[str, Any]) -> None:
     """Pop ``config_dir`` and put it first in the config lookup (before anything resolves a name)."""
     from ..config.lookup import set_config_dirs
 
@@ -114,7 +102,7 @@ def apply_config_dirs(kwargs: dict) -> None:
         set_config_dirs(dirs)
 
 
-def cell_options(fn):
+def cell_options(fn: _F) -> _F:
     """``--gripper``, ``--cell``, ``--part-pose``, ``--units``, ``--config-dir``."""
     fn = config_dir_option(fn)
     fn = units_option(fn)
@@ -129,12 +117,12 @@ def cell_options(fn):
     return fn
 
 
-def robot_option(fn):
+def robot_option(fn: _F) -> _F:
     return click.option("--robot", default=DEFAULT_ROBOT, show_default=True,
                         help="Robot name (see --config-dir) or path to a robot YAML; an unknown name lists the "
                              "available ones.")(fn)
 
 
-def output_option(help_: str):
+def output_option(help_: str) -> Callable[[_F], _F]:
     return click.option("-o", "--output", "output", required=True, type=click.Path(dir_okay=False),
                         help=help_)

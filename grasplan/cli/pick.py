@@ -3,6 +3,7 @@ the neighbours and a point cloud (docs/pick.md)."""
 from __future__ import annotations
 
 import time
+from typing import Any
 
 import click
 
@@ -29,27 +30,32 @@ from .options import apply_config_dirs, config_dir_option, output_option, param_
 @config_dir_option
 @output_option("Output JSON (grasplan.picks/1): the scene, robot, gripper and cell, every pick in pick order and "
                "every instance's status and reason.")
-def command(scene, robot, gripper, cell, sequence, max_picks, output, **kwargs):
+def command(scene: str, robot: str, gripper: str, cell: str | None, sequence: bool, max_picks: int | None,
+            output: str, **kwargs: Any) -> None:
     """Plan picks from the pile in SCENE (grasplan.scene/1): per instance its grasps posed in the
     world, checked against the bin, the table, the other instances and the cloud, ranked by score
     and accessibility (parts on top first), then IK, the straight approach, the transit and the lift
     checked against the neighbours. Exit 4 (the file still written) when nothing can be picked.
     """
-    from ..setup.outputs import scene_files
+    from ..config.lookup import document_ref
     from ..pick.picker import Picker
     from ..piles.scene_file import load_scene
+    from ..setup.outputs import scene_files
+    from ..setup.resolved import build_setup
 
     t0 = time.perf_counter()
     apply_config_dirs(kwargs)
     database = GraspParams(density=kwargs.pop("density"))  # the grasp databases computed (and cached) for the parts
     params = PickParams(**kwargs)
-    check_output(output, scene, gripper=gripper, cell=cell, robot=robot)  # before the scene is read
+    check_output(output, scene)  # the output itself first: nothing is read for a bad one
     sc = load_scene(scene)  # bad input: exit 3 before anything is computed
-    # -o must not be any file the scene reads: meshes, grasp databases, the cloud, the cell, the YAMLs
-    scene_cell = sc.resolve(sc.cell) if ("/" in sc.cell or sc.cell.endswith((".yaml", ".yml"))) else sc.cell
-    output = check_output(output, scene, *scene_files(sc), gripper=gripper,
-                          cell=cell if cell is not None else str(scene_cell), robot=robot)
-    picker = Picker(robot, gripper=gripper, cell=cell, params=params, database=database, progress=info)
+    # the robot, the gripper and the cell (--cell, else the scene's own, relative to the scene) loaded once
+    setup = build_setup(robot=robot, gripper=gripper, cell=cell if cell is not None else document_ref(sc.cell, sc.base))
+    # -o must not be any file the scene or the setup reads: meshes, grasp databases, the cloud, the YAMLs
+    output = check_output(output, scene, *scene_files(sc), setup=setup)
+    assert setup.robot is not None and setup.gripper is not None  # build_setup loads each one it is given
+    picker = Picker(setup.robot, gripper=setup.gripper, cell=setup.cell, params=params, database=database,
+                    progress=info)
     info(f"scene {scene}: {len(sc.instances)} instances of {len(sc.part_names())} parts")
     result = picker.plan(sc, sequence=sequence, max_picks=max_picks)
     warn_all(result.warnings)

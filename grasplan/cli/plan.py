@@ -2,22 +2,25 @@
 from __future__ import annotations
 
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
 from ..errors import PlanningError
-from ..config.params import ALL_POSES, CandidateParams, GraspParams, PlanParams
+from ..config.params import ALL_POSES, CandidateParams, GraspParams, PlanParams, RunParams
 from ..status import PLAN_STATUSES, Status
 from .common import check_output, info, pose_family, progress, table, warn_all
-from .options import (
-    apply_config_dirs,
-    cell_options,
-    output_option,
-    param_options,
-    params_from_kwargs,
-    robot_option,
-)
+from .options import apply_config_dirs, cell_options, output_option, param_options, robot_option
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from ..cell.model import Cell
+    from ..gripper.model import Gripper
+    from ..motion.planning import PlanProgress
+    from ..part.mesh import Part
+    from ..results.plan_result import PlanResult
+    from ..robot.model import Robot
 
 
 @click.command(name="plan")
@@ -26,31 +29,30 @@ from .options import (
 @output_option("Output JSON (grasplan.plan/1), self-contained: export and view need only it and the part.")
 @cell_options
 @param_options(PlanParams, GraspParams, CandidateParams)
-def command(part, robot, output, gripper, cell, part_pose, units, **kwargs):
+def command(part: str, robot: str, output: str, gripper: str, cell: str, part_pose: str | None, units: str,
+            **kwargs: Any) -> None:
     """Plan grasps of PART that ROBOT can reach: IK, straight approach, OMPL path from home.
 
     Writes grasplan.plan/1 JSON (the grasps file plus robot, per-grasp status, score, rank and,
     when planned, q_grasp, q_pregrasp, path, pregrasp_index). Exit code 4 (file still written)
     when no grasp could be planned: the per-grasp statuses say why.
     """
-    from ..cell.model import load_cell
-    from ..gripper.load import load_gripper
     from ..part.mesh import load_part
     from ..motion.planning import plan
-    from ..robot.description import load_robot
     from ..config.poses import parse_part_pose
+    from ..setup.resolved import build_setup
 
     t0 = time.perf_counter()
     apply_config_dirs(kwargs)  # first: --config-dir decides which files the names below read
     fam = [pose_family(output)] if kwargs.get("pose_index") == ALL_POSES else []
-    output = check_output(output, part, gripper=gripper, cell=cell, robot=robot, scoring=kwargs.get("scoring"),
-                          part_pose=part_pose, families=fam)
-    prm = params_from_kwargs(kwargs)  # --scoring is read here, --place and --pose-index parsed
+    check_output(output, part, scoring=kwargs.get("scoring"), part_pose=part_pose, families=fam)  # the output itself first
+    prm = RunParams.from_options(kwargs)  # --scoring is read here, --place and --pose-index parsed
     # resolve everything cheap first: nothing is written on bad input
-    g = load_gripper(gripper)
-    c = load_cell(cell)
+    setup = build_setup(robot=robot, gripper=gripper, cell=cell)  # gripper, cell, robot: each loaded once
+    output = check_output(output, part, setup=setup, scoring=kwargs.get("scoring"), part_pose=part_pose, families=fam)
+    g, c, rob = setup.gripper, setup.cell, setup.robot
+    assert g is not None and c is not None and rob is not None
     T_world_part = parse_part_pose(part_pose) if part_pose is not None else None
-    rob = load_robot(robot)
     t = time.perf_counter()
     p = load_part(part, units=units)
     load_s = time.perf_counter() - t
@@ -58,28 +60,14 @@ def command(part, robot, output, gripper, cell, part_pose, units, **kwargs):
     warn_all(p.warnings)
     info("computing grasps (candidates, frames, collision) ...")
 
-    bar_state: dict[str, Any] = {"bar": None, "done": 0}
-
-    def on_progress(ev: dict) -> None:
-        if ev.get("stage") == "grasps":
-            info(f"grasps: {ev['counts']}")
-            return
-        if bar_state["bar"] is None:
-            n = max(1, min(ev["top"], ev["candidates"]))
-            bar_state["ctx"] = progress(range(n), length=n, label=f"planning grasps ({ev['candidates']} ok, top {ev['top']})")
-            bar_state["bar"] = bar_state["ctx"].__enter__()
-        if ev["planned"] > bar_state["done"]:
-            bar_state["bar"].update(ev["planned"] - bar_state["done"])
-            bar_state["done"] = ev["planned"]
-
-    if prm["grasps"].pose_index == ALL_POSES:
+    if prm.grasps.pose_index == ALL_POSES:
         return _plan_all_poses(p, part, rob, g, c, T_world_part, output, prm, t0)
+    bar = _PlanBar()
     try:
-        result = plan(p, rob, gripper=g, cell=c, T_world_part=T_world_part, progress=on_progress, load_s=load_s,
-                      place=prm["planning"].place_matrix(), **prm)
+        result = plan(p, rob, gripper=g, cell=c, candidates=prm.candidates, grasps=prm.grasps,
+                      planning=prm.planning, T_world_part=T_world_part, progress=bar.update, load_s=load_s)
     finally:
-        if bar_state["bar"] is not None:
-            bar_state["ctx"].__exit__(None, None, None)
+        bar.close()
     gr = result.grasp_result
     if gr is not None:
         warn_all(gr.quality_warnings())
@@ -107,13 +95,41 @@ def command(part, robot, output, gripper, cell, part_pose, units, **kwargs):
                             f"{output} lists every grasp's status and reason{hint}")
 
 
-def _other_poses_hint(p, g, c, prm, result) -> str:
+class _PlanBar:
+    """The grasp stage's counts as a line, then a bar of the planned grasps (stderr, on a terminal)."""
+
+    def __init__(self) -> None:
+        self.ctx: Any = None
+        self.bar: Any = None
+        self.done = 0
+
+    def update(self, ev: PlanProgress) -> None:
+        from ..motion.planning import GraspStageDone
+
+        if isinstance(ev, GraspStageDone):
+            info(f"grasps: {ev.counts}")
+            return
+        if self.bar is None:
+            n = max(1, min(ev.top, ev.candidates))
+            self.ctx = progress(range(n), length=n, label=f"planning grasps ({ev.candidates} ok, top {ev.top})")
+            self.bar = self.ctx.__enter__()
+        if ev.planned > self.done:
+            self.bar.update(ev.planned - self.done)
+            self.done = ev.planned
+
+    def close(self) -> None:
+        if self.ctx is not None:
+            self.ctx.__exit__(None, None, None)
+            self.ctx = None
+
+
+def _other_poses_hint(p: Part, g: Gripper, c: Cell, prm: RunParams, result: PlanResult) -> str:
     """``"; other resting poses: 1 (23 %): 812 collision-free grasps, ..."`` (the grasp stage only)."""
     from ..motion.planning import grasp_counts_by_pose
 
-    chosen = result.params.grasps.pose_index
+    chosen = result.params.grasps.single_pose_index()  # one pose here (not "all")
     chosen = c.pose_index if chosen is None else chosen
-    rows = grasp_counts_by_pose(p, gripper=g, cell=c, candidates=prm["candidates"], grasps=prm["grasps"],
+    rows = grasp_counts_by_pose(p, gripper=g, cell=c, candidates=prm.candidates, grasps=prm.grasps,
                                 skip=chosen)
     good = [f"{k} ({pr * 100:.0f} %): {n} collision-free grasps" for k, pr, n in rows if n > 0]
     if not good:
@@ -122,14 +138,16 @@ def _other_poses_hint(p, g, c, prm, result) -> str:
             f"{', '.join(good)}: try --pose-index {rows[[n > 0 for _, _, n in rows].index(True)][0]} or --pose-index all")
 
 
-def _plan_all_poses(p, part, rob, g, c, T_world_part, output, prm, t0) -> None:
+def _plan_all_poses(p: Part, part: str, rob: Robot, g: Gripper, c: Cell, T_world_part: np.ndarray | None,
+                    output: str, prm: RunParams, t0: float) -> None:
     """``--pose-index all``: one standalone plan file per pose (OUT.pose<k>.json), OUT.json = the
     pose with the most planned grasps (ties: the more probable) plus a ``poses`` block."""
     from ..motion.planning import MIN_POSE_PROBABILITY, plan_poses
     from ..results.pose_plans import write_pose_plans
 
     info(f"planning every stable pose of probability >= {MIN_POSE_PROBABILITY * 100:g} % ...")
-    runs = plan_poses(p, rob, gripper=g, cell=c, T_world_part=T_world_part, place=prm["planning"].place_matrix(), **prm)
+    runs = plan_poses(p, rob, gripper=g, cell=c, candidates=prm.candidates, grasps=prm.grasps, planning=prm.planning,
+                      T_world_part=T_world_part)
     done = write_pose_plans(runs, output, min_probability=MIN_POSE_PROBABILITY)
     click.echo(table(done.table_rows(), header=("pose", "probability", "planned", "collision-free", "file")), err=True)
     if done.result is None:

@@ -54,18 +54,21 @@ def drop(cell: str, parts: tuple[str, ...], units: str, output: str, **kwargs) -
     relative to the scene file. Exit 3 (nothing written) for bad input or a pile that does not fit
     the bin; exit 4 when the pile does not come to rest (try another --seed). docs/clutter.md.
     """
-    from ..cell.model import load_cell
-    from ..sim.drop import drop_pile, load_items
     from ..piles.scene_write import SCENE_SUFFIXES, write_scene
+    from ..setup.resolved import build_setup
+    from ..sim.drop import drop_pile, load_items
 
     t0 = time.perf_counter()
     if Path(output).suffix.lower() not in SCENE_SUFFIXES:
         raise InputError(f"-o {output}: a scene file is YAML or JSON; name it *.yaml, *.yml or *.json")
     specs = [parse_part_count(p) for p in parts]
     apply_config_dirs(kwargs)  # first: --config-dir decides which file the cell name reads
-    out = check_output(output, *[p for p, _ in specs], cell=cell)
+    check_output(output, *[p for p, _ in specs])  # the output itself first: nothing loads for a bad one
     params = DropParams(**kwargs)
-    c = load_cell(cell)
+    setup = build_setup(cell=cell)
+    out = check_output(output, *[p for p, _ in specs], setup=setup)  # nor replaces the cell's files
+    c = setup.cell
+    assert c is not None  # build_setup(cell=...) loads one
     if c.bin is None:
         raise InputError(f"--cell {cell}: the cell has no bin to drop parts into; use a cell with a bin "
                          f"(e.g. --cell bin; docs/cells.md)")

@@ -1,29 +1,9 @@
 """Execute one planned pick in the clutter world (:class:`grasplan.clutter.world.ClutterWorld`).
 
-Protocol (:func:`execute_pick`), all in the world frame with the bin and every part present:
-
-1. **Pre-grasp.** The hand appears at the pick's ``T_world_pregrasp`` with the jaws at its
-   ``opening`` (for a linkage gripper whose TCP moves with the opening, every pose of the pick
-   is moved by ``T_tcp_gripper(width)``: the hand frame is the TCP at full opening) (the transit from above is not simulated: the arm is not modelled). A gripper that
-   already overlaps something there by more than :data:`START_DEPTH` has *collided*.
-2. **Approach.** The TCP follows the straight line to ``T_world_tcp`` (cosine speed profile,
-   peak :data:`APPROACH_SPEED`), the jaws idle (their damping holds them).
-3. **Close.** The jaws close under the full grip force for :data:`CLOSE_S`.
-4. **Lift.** The TCP follows the straight line to ``T_world_lifted`` (the retreat, peak
-   :data:`LIFT_SPEED`), then **holds** still for :data:`HOLD_S`.
-5. **Outcome.** *Success*: the target's centre of mass is at least :data:`LIFT_MIN` above where it
-   started and both jaws touch it. Otherwise, in this order: *collided* (the gripper pressed on the
-   bin, the table or another fixed obstacle with more than :data:`COLLIDE_FORCE`, or contacts
-   pushed the hand more than :data:`PATH_DEV` off its planned path within a control period: a
-   cobot's protective stop; the run stops there), *slipped* (both jaws held the target when they closed;
-   it was lost in the lift or the hold), *pushed away* (the target moved more than
-   :data:`PUSH_DIST` or turned more than :data:`PUSH_DEG` before the jaws closed on it) and
-   *missed* (the jaws closed beside it).
-6. **Afterwards.** A picked part leaves the world (:meth:`PileWorld.park`); the jaws open for
-   :data:`OPEN_S` where they are (a part still between them drops), the gripper leaves, and the
-   pile settles (:meth:`PileWorld.settle`, the drop's rest thresholds, at most :data:`SETTLE_MAX_S`).
-
-Deterministic: MuJoCo single-threaded; the same pile and pick give the same bits.
+:func:`execute_pick` runs the protocol (pre-grasp, straight approach, close, straight lift and
+hold, then the pile settles) and judges the :class:`Outcome`: one of :data:`OUTCOMES`. Its
+numbers are the constants below (:data:`PROTOCOL`, as a report records them). Deterministic:
+MuJoCo single-threaded; the same pile and pick give the same bits.
 """
 from __future__ import annotations
 
@@ -32,6 +12,7 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..sim.drop import REST_ANG, REST_HOLD_S, REST_LIN
 from ..geometry.transforms import check_transform
@@ -211,13 +192,38 @@ class _Run:
         return {"jaw0", "jaw1"} <= touching
 
 
-def execute_pick(cw: ClutterWorld, target: int, pick: PickLike, *, jaw_torsion=None, record: bool = False,
-                 settle: bool = True) -> Outcome:
-    """Execute ``pick`` on part body ``target`` of the clutter world (module docstring) and leave
-    the world ready for the next one (the target parked when picked, the gripper parked, the pile
-    settled unless ``settle`` is False). ``jaw_torsion`` (2,): each pad's torsional friction per newton
-    (m, ``mu`` included) for this pick, its hinge's friction following the pad's contact forces on
-    the target (:meth:`ClutterWorld.set_jaw_torsion`); ``record``: keep replay samples (``Outcome.track``)."""
+def execute_pick(cw: ClutterWorld, target: int, pick: PickLike, *, jaw_torsion: ArrayLike | None = None,
+                 record: bool = False, settle: bool = True) -> Outcome:
+    """Execute ``pick`` on part body ``target`` of the clutter world and leave the world ready for
+    the next one (the target parked when picked, the gripper parked, the pile settled unless
+    ``settle`` is False). ``jaw_torsion`` (2,): each pad's torsional friction per newton (m, ``mu``
+    included) for this pick, its hinge's friction following the pad's contact forces on the target
+    (:meth:`ClutterWorld.set_jaw_torsion`); ``record``: keep replay samples (``Outcome.track``).
+
+    The protocol, all in the world frame with the bin and every part present:
+
+    1. **Pre-grasp.** The hand appears at the pick's ``T_world_pregrasp`` with the jaws at its
+       ``opening`` (for a linkage gripper whose TCP moves with the opening, every pose of the pick
+       is moved by ``T_tcp_gripper(width)``: the hand frame is the TCP at full opening); the transit
+       from above is not simulated (the arm is not modelled). A gripper that already overlaps
+       something there by more than :data:`START_DEPTH` has *collided*.
+    2. **Approach.** The TCP follows the straight line to ``T_world_tcp`` (cosine speed profile,
+       peak :data:`APPROACH_SPEED`), the jaws idle (their damping holds them).
+    3. **Close.** The jaws close under the full grip force for :data:`CLOSE_S`.
+    4. **Lift.** The TCP follows the straight line to ``T_world_lifted`` (the retreat, peak
+       :data:`LIFT_SPEED`), then **holds** still for :data:`HOLD_S`.
+    5. **Outcome.** *Success*: the target's centre of mass is at least :data:`LIFT_MIN` above where
+       it started and both jaws touch it. Otherwise, in this order: *collided* (the gripper pressed
+       on the bin, the table or another fixed obstacle with more than :data:`COLLIDE_FORCE`, or
+       contacts pushed the hand more than :data:`PATH_DEV` off its planned path within a control
+       period: a cobot's protective stop; the run stops there), *slipped* (both jaws held the
+       target when they closed; it was lost in the lift or the hold), *pushed away* (the target
+       moved more than :data:`PUSH_DIST` or turned more than :data:`PUSH_DEG` before the jaws
+       closed on it) and *missed* (the jaws closed beside it).
+    6. **Afterwards.** A picked part leaves the world (:meth:`PileWorld.park`); the jaws open for
+       :data:`OPEN_S` where they are (a part still between them drops), the gripper leaves, and the
+       pile settles (:meth:`PileWorld.settle`, the drop's rest thresholds, at most :data:`SETTLE_MAX_S`).
+    """
     import mujoco
 
     w = cw.world
@@ -277,7 +283,8 @@ def _outcome(run: _Run, outcome: str, reason: str, T0: np.ndarray, com0: np.ndar
                    track_parts=tuple(run.cw.world.bodies[i].name for i in run.ids))
 
 
-def _collided(run: _Run, phase: str, T0, com0, held: bool = False, moved=None) -> Outcome:
+def _collided(run: _Run, phase: str, T0: np.ndarray, com0: np.ndarray, held: bool = False,
+              moved: tuple[float, float] | None = None) -> Outcome:
     if run.off_path > 0:
         what = f" ({run.fixed_what}, {run.fixed_force:.0f} N)" if run.fixed_what else ""
         return _outcome(run, COLLIDED, f"{phase}: the gripper was pushed {run.off_path * 1e3:.1f} mm off its path"
@@ -287,7 +294,7 @@ def _collided(run: _Run, phase: str, T0, com0, held: bool = False, moved=None) -
                     f"(> {COLLIDE_FORCE:g} N, a protective stop)", T0, com0, held, moved)
 
 
-def _judge(run: _Run, T0, com0, held: bool, moved: tuple[float, float]) -> Outcome:
+def _judge(run: _Run, T0: np.ndarray, com0: np.ndarray, held: bool, moved: tuple[float, float]) -> Outcome:
     lift = float(run.com()[2] - com0[2])
     between = run.jaws_on_target()
     if lift >= LIFT_MIN and between:

@@ -21,14 +21,16 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
+from ..cell.model import Cell
 from ..gripper.model import Gripper
 from ..io import write_atomic_text
 from ..part.mesh import Part
 from ..geometry.transforms import pose7
 from ..viewer.page import cell_data, decimate_mesh, encode_array, mesh_block, read_asset, script_safe, shape_json
 from .execute import OUTCOMES, SUCCESS
-from .rounds import NO_PLAN, RoundResult
+from .rounds import NO_PLAN, Attempt, RoundResult
 
 #: a part above this many triangles is decimated for the page
 MAX_PART_TRIANGLES = 20_000
@@ -39,7 +41,7 @@ assert set(OUTCOME_COLORS) == {*OUTCOMES, NO_PLAN}
 _HERE = Path(__file__).resolve().parent
 
 
-def _p7(T) -> list[float]:
+def _p7(T: ArrayLike) -> list[float]:
     return pose7(np.asarray(T, dtype=np.float64), order="xyzw").tolist()
 
 
@@ -49,7 +51,7 @@ def _p7s(Ts: np.ndarray) -> np.ndarray:
     return np.array([pose7(T, order="xyzw") for T in Ts]).reshape(-1, 7)
 
 
-def _attempt_data(a, replay: Mapping[str, Any] | None, names: list[str]) -> dict[str, Any]:
+def _attempt_data(a: Attempt, replay: Mapping[str, Any] | None, names: list[str]) -> dict[str, Any]:
     d: dict[str, Any] = {"instance": a.instance, "part": a.part, "outcome": a.outcome, "reason": a.reason,
                          "plan_ms": round(a.plan_ms, 2)}
     if a.execution is None or replay is None:
@@ -70,7 +72,7 @@ def _attempt_data(a, replay: Mapping[str, Any] | None, names: list[str]) -> dict
     return d
 
 
-def build_data(rounds: Sequence[RoundResult], parts: Mapping[str, Part], gripper: Gripper, cell, *,
+def build_data(rounds: Sequence[RoundResult], parts: Mapping[str, Part], gripper: Gripper, cell: Cell, *,
                total: Mapping[str, Any], title: str = "grasplan clutter") -> dict[str, Any]:
     """The page's JSON (module docstring)."""
     meshes = {}
@@ -119,7 +121,7 @@ def build_html(data: Mapping[str, Any]) -> str:
     return re.sub(r"\{\{([A-Z_]+)\}\}", lambda m: values[m.group(1)], template)
 
 
-def write_replay(path: str | Path, rounds: Sequence[RoundResult], parts: Mapping[str, Part], gripper: Gripper, cell,
+def write_replay(path: str | Path, rounds: Sequence[RoundResult], parts: Mapping[str, Part], gripper: Gripper, cell: Cell,
                  *, total: Mapping[str, Any], title: str = "grasplan clutter") -> Path:
     """Write the replay page atomically; returns the path."""
     return write_atomic_text(path, build_html(build_data(rounds, parts, gripper, cell, total=total, title=title)))

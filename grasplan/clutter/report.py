@@ -1,20 +1,5 @@
 """The clutter report (``grasplan.clutter/1``): per round and in total, attempts, successes, GSR,
-DR, planning milliseconds per pick and failures by reason.
-
-```
-{"schema": "grasplan.clutter/1",
- "params": {...}, "parts": {name: {path, sha256, scale_to_m, units, count}}, "cell": ..., "gripper": ...,
- "rounds": [{round, seed, parts, attempts, successes, removed, gsr, dr, ended, plan_ms: {median, p95, n},
-             failures: {reason: n}, fell_out, seconds, drop_s, cpu_s, sim_s, pile, picks: [...]}],
- "total": {rounds, attempts, successes, parts, removed, gsr, dr, plan_ms: {median, p95, n, cold_ms},
-           failures: {...}, ended: {why: n}, round_seconds: {median, max}, round_cpu_s: {median, max},
-           seconds}}
-```
-
-Rates are fractions (0..1; ``null`` when nothing was attempted). Planning times leave out the
-run's first planning call (``cold``: it loads the databases and builds the caches), recorded as
-``cold_ms``. Failures count every failed execution by outcome and every planning call that found
-nothing (``no_plan``), which ends a round without being an attempt (as in VGN).
+DR, planning milliseconds per pick and failures by reason (:func:`report_json`, :func:`write_report`).
 """
 from __future__ import annotations
 
@@ -88,7 +73,20 @@ def total_json(rounds: Sequence[RoundResult]) -> dict[str, Any]:
 
 def report_json(rounds: Sequence[RoundResult], *, params: dict[str, Any], parts: dict[str, Any], cell: str,
                 gripper: dict[str, Any], robot: str | None = None) -> dict[str, Any]:
-    """The whole ``grasplan.clutter/1`` document (module docstring)."""
+    """The whole ``grasplan.clutter/1`` document::
+
+        {"schema": "grasplan.clutter/1",
+         "params": {...}, "parts": {name: {path, sha256, scale_to_m, units, count}}, "cell": ..., "gripper": ...,
+         "rounds": [{round, seed, parts, attempts, successes, removed, gsr, dr, ended, plan_ms: {median, p95, n},
+                     failures: {reason: n}, fell_out, seconds, drop_s, cpu_s, sim_s, pile, picks: [...]}],
+         "total": {rounds, attempts, successes, parts, removed, gsr, dr, plan_ms: {median, p95, n, cold_ms},
+                   failures: {...}, ended: {why: n}, round_seconds: {median, max}, round_cpu_s: {median, max},
+                   seconds}}
+
+    Rates are fractions (0..1; ``null`` when nothing was attempted). Planning times leave out the
+    run's first planning call (``cold``: it loads the databases and builds the caches), recorded as
+    ``cold_ms``. Failures count every failed execution by outcome and every planning call that found
+    nothing (``no_plan``), which ends a round without being an attempt (as in VGN)."""
     return {"schema": CLUTTER_SCHEMA, "params": params, "parts": parts, "cell": cell, "gripper": gripper,
             "robot": robot, "rounds": [round_json(rr) for rr in rounds], "total": total_json(rounds)}
 

@@ -1,24 +1,9 @@
 """Clutter removal rounds (the protocol of VGN, Breyer et al. 2020, with known models).
 
-One round (:func:`run_round`):
-
-1. **Drop** a pile (:func:`grasplan.sim.drop.drop_pile`, seed ``seed + r`` for round ``r``: the same
-   pile as ``grasplan scene drop --seed S+r``) into a world that also holds the gripper
-   (:class:`grasplan.clutter.world.ClutterWorld`).
-2. **Perceive**: the poses of the parts still in the bin, exact (ground truth) or each moved by the
-   pose noise (:func:`perturb`: ``noise_m`` in a random direction and turned ``noise_deg`` about a
-   random axis through its centre of mass, drawn from a generator seeded with ``(seed, r)``).
-3. **Plan** with the caller's ``plan_fn(scene) -> PickResult`` (``grasplan.Picker.plan``): a
-   ``grasplan.scene/1`` scene of those instances; the first pick is executed. No pick: the round
-   ends (*nothing feasible*; not an attempt, as in VGN).
-4. **Execute** it (:func:`grasplan.clutter.execute.execute_pick`): success removes the part; the
-   others stay where the physics left them (settled). A part whose centre of mass ends outside the
-   bin's inner box (pushed or dropped over a wall) leaves the round, not counted as removed.
-5. Repeat from 2 until the bin is empty, two attempts in a row failed (:data:`MAX_FAILURES_IN_ROW`)
-   or nothing is feasible.
-
-Rates: GSR = successes / attempts, DR = parts removed / parts dropped (per round, and in total over
-all rounds' counts, as VGN reports them).
+:func:`run_round` drops a pile into the bin, then :func:`clear_pile` perceives, plans and executes
+picks until the bin is empty, two attempts in a row failed or nothing is feasible; the round's
+record is a :class:`RoundResult`. Rates: GSR = successes / attempts, DR = parts removed / parts
+dropped (per round, and in total over all rounds' counts, as VGN reports them).
 """
 from __future__ import annotations
 
@@ -26,7 +11,7 @@ import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -40,6 +25,10 @@ from ..geometry.transforms import pose_error
 from ..geometry.units import parse_angle_deg, parse_length
 from .execute import SUCCESS, Outcome, execute_pick
 from .world import ClutterWorld
+
+if TYPE_CHECKING:
+    from ..pick.result import Pick, PickResult
+    from ..sim.pileworld import PartBody, PileWorld
 
 #: a round ends after this many failed attempts in a row (VGN: 2)
 MAX_FAILURES_IN_ROW = 2
@@ -186,7 +175,7 @@ class RoundResult:
 PlanFn = Callable[[Scene], Any]
 
 
-def _jaw_torsion(part, gripper: Gripper, pick, mu: float) -> np.ndarray | None:
+def _jaw_torsion(part: Part, gripper: Gripper, pick: Pick, mu: float) -> np.ndarray | None:
     """Each jaw's torsional friction (m, ``mu`` included) from the pick's contact patches; None
     when the pick does not carry its part-frame grasp (``T_part_tcp``, ``contacts``)."""
     from ..grasps.patches import contact_patches
@@ -209,7 +198,7 @@ def _in_bin(cell: Cell, com_world: np.ndarray) -> bool:
                 and p[2] >= -OUT_OF_BIN)
 
 
-def _pick_json(pick) -> dict:
+def _pick_json(pick: Pick) -> dict:
     out = {"T_world_pregrasp": np.asarray(pick.T_world_pregrasp).tolist(),
            "T_world_tcp": np.asarray(pick.T_world_tcp).tolist(),
            "T_world_lifted": np.asarray(pick.T_world_lifted).tolist(),
@@ -221,7 +210,7 @@ def _pick_json(pick) -> dict:
     return out
 
 
-def _no_pick_reason(result) -> str:
+def _no_pick_reason(result: PickResult) -> str:
     reps = getattr(result, "instances", ()) or ()
     if not reps:
         return "planning found no pick"
@@ -235,14 +224,30 @@ def run_round(cell: Cell, items: Sequence[PileItem], gripper: Gripper, plan_fn: 
               drop: DropParams = DropParams(), noise: tuple[float, float] = (0.0, 0.0), cell_ref: str | None = None,
               record: bool = False, cold: bool = False, cache: bool = True,
               progress: Callable[[str], None] | None = None) -> RoundResult:
-    """Run clutter-removal round ``r`` (module docstring): drop a pile with seed ``drop.seed + r``,
-    then :func:`clear_pile` (pose noise seeded with ``(drop.seed, r)``). ``cold`` marks the first
-    planning call as the run's cold one; ``record`` keeps the replay samples."""
+    """Run clutter-removal round ``r``: drop a pile with seed ``drop.seed + r``, then
+    :func:`clear_pile` (pose noise seeded with ``(drop.seed, r)``). ``cold`` marks the first
+    planning call as the run's cold one; ``record`` keeps the replay samples.
+
+    1. **Drop** a pile (:func:`grasplan.sim.drop.drop_pile`, seed ``seed + r`` for round ``r``: the same
+       pile as ``grasplan scene drop --seed S+r``) into a world that also holds the gripper
+       (:class:`grasplan.clutter.world.ClutterWorld`).
+    2. **Perceive**: the poses of the parts still in the bin, exact (ground truth) or each moved by the
+       pose noise (:func:`perturb`: ``noise_m`` in a random direction and turned ``noise_deg`` about a
+       random axis through its centre of mass, drawn from a generator seeded with ``(seed, r)``).
+    3. **Plan** with the caller's ``plan_fn(scene) -> PickResult`` (``grasplan.Picker.plan``): a
+       ``grasplan.scene/1`` scene of those instances; the first pick is executed. No pick: the round
+       ends (*nothing feasible*; not an attempt, as in VGN).
+    4. **Execute** it (:func:`grasplan.clutter.execute.execute_pick`): success removes the part; the
+       others stay where the physics left them (settled). A part whose centre of mass ends outside the
+       bin's inner box (pushed or dropped over a wall) leaves the round, not counted as removed.
+    5. Repeat from 2 until the bin is empty, two attempts in a row failed (:data:`MAX_FAILURES_IN_ROW`)
+       or nothing is feasible.
+    """
     t0, c0 = time.perf_counter(), time.process_time()
     seed = int(drop.seed) + int(r)
     holder: dict[str, ClutterWorld] = {}
 
-    def make(bodies):
+    def make(bodies: list[PartBody]) -> PileWorld:
         holder["cw"] = ClutterWorld(cell, bodies, gripper, mu=drop.mu)
         return holder["cw"].world
 
@@ -257,7 +262,7 @@ def clear_pile(cw: ClutterWorld, scene: Scene, parts: Mapping[str, Part], plan_f
                seed: int = 0, noise: tuple[float, float] = (0.0, 0.0), noise_seed: Sequence[int] = (0, 0),
                record: bool = False, cold: bool = False,
                progress: Callable[[str], None] | None = None) -> RoundResult:
-    """Steps 2-5 of a round (module docstring) on the pile now in ``cw`` (``scene``: its instances,
+    """Steps 2-5 of a round (:func:`run_round`) on the pile now in ``cw`` (``scene``: its instances,
     whose ids are the world's body names, and its parts; ``parts``: the meshes by part name)."""
     t0, c0 = time.perf_counter(), time.process_time()
     world = cw.world

@@ -1,41 +1,18 @@
 """The clutter world: the pile world of :mod:`grasplan.sim.pileworld` with a gripper in it.
 
-The gripper is modelled as :mod:`grasplan.sim.simulate` models it (its own shapes; two jaws on
-prismatic joints along the closing axis, coupled, each pushed by a motor of at most half the
-datasheet ``grip_force``, damped to close at :data:`grasplan.sim.simulate.CLOSE_SPEED`, with the
-drive's reflected inertia so they reach that speed in :data:`grasplan.sim.simulate.DRIVE_TAU`), but
-instead of a fixed TCP frame it hangs on a **hand**: a free body whose frame is the TCP frame,
-weightless (``gravcomp``) and heavy (:data:`HAND_MASS`), driven kinematically. Before every
-control period (:data:`CONTROL_DT`) the executor writes the hand's pose and velocity from the
-planned TCP path (:meth:`ClutterWorld.drive`), so contacts see the hand move at its real speed
-(friction lifts a held part) but cannot push it off its path: the arm is not simulated, its
-stiffness is taken as infinite, as a position-controlled industrial arm's nearly is.
-
-While the gripper is not in use it is parked far below the table (:meth:`ClutterWorld.park_hand`).
-
-Physics of a pick: :data:`PICK_TIMESTEP` (1 ms, as :mod:`grasplan.sim.simulate`; the drop itself runs
-at the pile world's 2 ms); the gripper's contacts use :data:`grasplan.sim.simulate.SOLREF_TIMECONST`
-(stiff: the grip force indents well below 1 mm) and win the mix against the parts' softer
-contacts (``solmix``).
-
-**Twist: one torsional resistance per pad**, as :mod:`grasplan.sim.simulate` models it:
-each jaw's finger sits on a hinge about the closing axis (:func:`grasplan.sim.simulate.pad_xml`,
-bodies :data:`PADS`) whose dry friction (``frictionloss``) is the pad patch's soft-finger torsion
-under the pad's present contact forces on the target part, ``torsion * sqrt(N^2 - (|t| / mu)^2)``,
-set before every control period by :func:`grasplan.sim.simulate.pad_twist_caps` (the same function);
-``torsion`` (m, ``mu`` included) is set per pick from the pick's contact patches
-(:func:`grasplan.grasps.patches.contact_patches`, :func:`grasplan.grasps.wrench.torsion_length`;
-:meth:`ClutterWorld.set_jaw_torsion`). The pads' own contacts grip in twist: the pad geoms have the
-higher ``priority``, so every pad contact takes their parameters (``condim`` 4, torsional friction
-``mu`` x :data:`grasplan.sim.simulate.PAD_GRIP_TORSION`, no rolling friction, the gripper's stiff
-``solref``), and the twist slips at the hinge whatever the number of contact points MuJoCo makes.
+:class:`ClutterWorld` holds the pile's parts and the gripper, modelled as :mod:`grasplan.sim.simulate`
+models it but hung on a kinematically driven **hand** (the arm is not simulated);
+:func:`gripper_mjcf` writes the hand, its shapes and its jaws (on pad hinges that carry each
+pad's twist) into the pile world's MJCF, :class:`PadArc` a linkage gripper's pad path.
 """
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..cell.model import Cell
 from ..errors import InputError
@@ -46,6 +23,9 @@ from ..sim.simulate import (
 )
 from ..geometry.transforms import quaternions
 from ..grasps.wrench import CONTACTS_PER_GRIP
+
+if TYPE_CHECKING:  # MuJoCo loads with the first world
+    import mujoco
 
 #: physics step while the gripper acts (s); the hand's pose is written every CONTROL_DT (s)
 PICK_TIMESTEP, CONTROL_DT = 0.001, 0.005
@@ -133,7 +113,7 @@ def pad_arc(gripper: Gripper) -> PadArc | None:
     return PadArc(None, cx, cz, x, s)
 
 
-def _fmt(a) -> str:
+def _fmt(a: object) -> str:
     return " ".join(f"{x:.12g}" for x in np.asarray(a, dtype=np.float64).ravel())
 
 
@@ -148,8 +128,18 @@ def _shape_xml(shape: Box | MeshShape, name: str, assets: list[str], attrs: str)
 
 def gripper_mjcf(gripper: Gripper, *, mu: float, grip_force: float, arc: PadArc | None = None) -> tuple[str, str, str]:
     """MJCF fragments ``(asset, worldbody, extra)`` of the hand, its body shapes and its two jaws
-    (module docstring), for :func:`grasplan.sim.pileworld.pile_mjcf`; ``arc``: the gripper's
-    :func:`pad_arc` when the caller already has it."""
+    (:class:`ClutterWorld`), for :func:`grasplan.sim.pileworld.pile_mjcf`; ``arc``: the gripper's
+    :func:`pad_arc` when the caller already has it.
+
+    The gripper's contacts use :data:`grasplan.sim.simulate.SOLREF_TIMECONST` (stiff: the grip force
+    indents well below 1 mm) and win the mix against the parts' softer contacts (``solmix``). Each
+    jaw's finger sits on a hinge about the closing axis (:func:`grasplan.sim.simulate.pad_xml`,
+    bodies :data:`PADS`) whose dry friction is the pad's twist capacity
+    (:meth:`ClutterWorld.set_jaw_torsion`). The pads' own contacts grip in twist: the pad geoms have
+    the higher ``priority``, so every pad contact takes their parameters (``condim`` 4, torsional
+    friction ``mu`` x :data:`grasplan.sim.simulate.PAD_GRIP_TORSION`, no rolling friction, the
+    gripper's stiff ``solref``), and the twist slips at the hinge whatever the number of contact
+    points MuJoCo makes."""
     assets: list[str] = []
     attrs = (f'contype="{PILE_BIT}" conaffinity="{PILE_BIT}" condim="6" solmix="{GRIPPER_SOLMIX:g}" '
              f'friction="{mu:.9g} {mu * TORSION_LENGTH:.6g} {mu * ROLLING_LENGTH:.6g}" '
@@ -218,8 +208,22 @@ class Contact:
 
 
 class ClutterWorld:
-    """A :class:`grasplan.sim.pileworld.PileWorld` holding the pile's parts and a gripper (module
-    docstring). ``world`` is the pile world (its parts, poses, settling), the rest drives the hand."""
+    """A :class:`grasplan.sim.pileworld.PileWorld` holding the pile's parts and a gripper.
+    ``world`` is the pile world (its parts, poses, settling), the rest drives the hand.
+
+    The gripper is modelled as :mod:`grasplan.sim.simulate` models it (its own shapes; two jaws on
+    prismatic joints along the closing axis, coupled, each pushed by a motor of at most half the
+    datasheet ``grip_force``, damped to close at :data:`grasplan.sim.simulate.CLOSE_SPEED`, with the
+    drive's reflected inertia so they reach that speed in :data:`grasplan.sim.simulate.DRIVE_TAU`), but
+    instead of a fixed TCP frame it hangs on a **hand**: a free body whose frame is the TCP frame,
+    weightless (``gravcomp``) and heavy (:data:`HAND_MASS`), driven kinematically. Before every
+    control period (:data:`CONTROL_DT`) the executor writes the hand's pose and velocity from the
+    planned TCP path (:meth:`set_hand`), so contacts see the hand move at its real speed (friction
+    lifts a held part) but cannot push it off its path: the arm is not simulated, its stiffness is
+    taken as infinite, as a position-controlled industrial arm's nearly is. While the gripper is not
+    in use it is parked far below the table (:meth:`park_hand`). A pick steps at
+    :data:`PICK_TIMESTEP` (1 ms, as :mod:`grasplan.sim.simulate`; the drop itself runs at the pile
+    world's 2 ms). Contact parameters: :func:`gripper_mjcf`."""
 
     def __init__(self, cell: Cell, bodies: Sequence[PartBody], gripper: Gripper, *, mu: float,
                  grip_force: float | None = None):
@@ -262,11 +266,11 @@ class ClutterWorld:
         self._geom_part = part_of_body[m.geom_bodyid]
 
     @property
-    def model(self):
+    def model(self) -> mujoco.MjModel:
         return self.world.model
 
     @property
-    def data(self):
+    def data(self) -> mujoco.MjData:
         return self.world.data
 
     # -- the hand ----------------------------------------------------------------------------------
@@ -324,12 +328,19 @@ class ClutterWorld:
         self.set_jaws(self.gripper.max_opening)
         mujoco.mj_forward(self.model, self.data)
 
-    def set_jaw_torsion(self, torsion: Sequence[float] | None, target: int | None = None) -> None:
+    def set_jaw_torsion(self, torsion: ArrayLike | None, target: int | None = None) -> None:
         """For the next pick: each pad's torsional friction per newton of normal force (m, ``mu``
         included: ``mu * torsion_length(patch area)``; None: ``mu * TORSION_LENGTH``) and the
         ``target`` part (body index in :attr:`world`) whose contacts with a pad set that pad's hinge
-        friction every control period (module docstring); the hinges start at the capacity under the
-        nominal grip (half the grip force per pad)."""
+        friction every control period; the hinges start at the capacity under the nominal grip (half
+        the grip force per pad).
+
+        Twist: one torsional resistance per pad, as :mod:`grasplan.sim.simulate` models it: each pad
+        hinge's dry friction (``frictionloss``) is the pad patch's soft-finger torsion under the pad's
+        present contact forces on the target part, ``torsion * sqrt(N^2 - (|t| / mu)^2)``, set before
+        every control period by :func:`grasplan.sim.simulate.pad_twist_caps` (the same function);
+        ``torsion`` comes per pick from the pick's contact patches
+        (:func:`grasplan.grasps.patches.contact_patches`, :func:`grasplan.grasps.wrench.torsion_length`)."""
         t = np.full(2, self.mu * TORSION_LENGTH) if torsion is None else np.asarray(torsion, dtype=np.float64)
         if t.shape != (2,) or not np.all(np.isfinite(t)) or np.any(t < 0):
             raise ValueError(f"set_jaw_torsion: expected two torsional friction lengths >= 0 (m), got {torsion!r}")

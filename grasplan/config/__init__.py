@@ -10,6 +10,7 @@ from .._lazy import lazy_exports
 
 __getattr__, __dir__ = lazy_exports(globals(), {
     "use_config_dirs": ".lookup", "resolve_yaml": ".lookup", "available": ".lookup",
+    "is_path_like": ".lookup", "document_ref": ".lookup",
     "CandidateParams": ".params", "GraspParams": ".params", "PlanParams": ".params",
     "read_yaml_file": ".yamlfile", "load_yaml_text": ".yamlfile",
     "loads_strict": ".jsontext",

@@ -1,16 +1,14 @@
 """Finding described things (grippers, cells, robots) by name or by path, and reading YAML numbers.
 
-Lookup order for a name (the first folder holding ``<name>.yaml`` wins):
-
-1. ``--config-dir DIR`` (CLI) / :func:`use_config_dirs` (API), in the order given;
-2. ``$GRASPLAN_CONFIG_PATH``: folders separated by ``os.pathsep`` (``:`` on Linux);
-3. ``./configs`` and ``./robots`` of the current folder;
-4. the descriptions packaged inside grasplan (``grasplan/data``, shipped in the wheel).
-
-A config folder ``DIR`` of steps 1-2 holds ``grippers/``, ``cells/`` and ``robots/`` (or, laid
-out like this repository, ``configs/grippers``, ``configs/cells`` and ``robots/``). Anything ending
-in ``.yaml``/``.yml``, holding a path separator or naming an existing file is a path, not a name.
-An unknown name lists every folder looked in and the names found there.
+One rule tells a name from a path (:func:`is_path_like`): a reference is a path when it ends in
+``.yaml``/``.yml`` (any case), holds a path separator, or names an existing file (relative to the
+folder of the document that names it: :func:`document_ref`); anything else is a name. A name's
+YAML is the first ``<name>.yaml`` found in: ``--config-dir DIR`` (CLI) / :func:`use_config_dirs`
+(API), in the order given; ``$GRASPLAN_CONFIG_PATH`` (folders separated by ``os.pathsep``);
+``./configs`` and ``./robots`` of the current folder; the descriptions packaged inside grasplan
+(``grasplan/data``). A config folder holds ``grippers/``, ``cells/`` and ``robots/`` (or, laid out
+like this repository, ``configs/grippers``, ``configs/cells`` and ``robots/``). An unknown name
+lists every folder looked in and the names found there.
 """
 from __future__ import annotations
 
@@ -110,14 +108,28 @@ def _looked(kind: str) -> str:
     return "; ".join(rows)
 
 
-def is_path_like(name_or_path: str | os.PathLike) -> bool:
-    s = str(name_or_path)
-    if s.endswith((".yaml", ".yml")) or "/" in s or os.sep in s:
+def is_path_like(ref: str | os.PathLike, base: Path | None = None) -> bool:
+    """True when ``ref`` is a path, False when it is a name: the one rule (module docstring) every
+    loader, the output guard and the scene reader and writer apply. A path ends in ``.yaml`` or
+    ``.yml`` (any case), holds a path separator, or names an existing file, looked for in ``base``
+    (the folder of the document that names it; None: the current folder)."""
+    s = os.fspath(ref)
+    if s.lower().endswith((".yaml", ".yml")) or "/" in s or os.sep in s:
         return True
     try:
-        return Path(s).is_file()
+        return (Path(s) if base is None else Path(base) / s).is_file()
     except (OSError, ValueError):  # a name too long for the file system is no file
         return False
+
+
+def document_ref(ref: str, base: Path | None) -> str:
+    """A reference written in a document whose folder is ``base`` (a scene's ``cell``), as a loader
+    takes it: a path (:func:`is_path_like` in ``base``) made absolute against ``base`` (``~``
+    expanded), a name unchanged. ``base`` None: the current folder (the path stays as written)."""
+    if not is_path_like(ref, base):
+        return ref
+    p = Path(ref).expanduser()
+    return str(p if p.is_absolute() or base is None else Path(base) / p)
 
 
 def resolve_yaml(kind: str, name_or_path: str | os.PathLike) -> Path:

@@ -3,7 +3,6 @@ file, ...) says here, once, how a value is read and which values are valid.
 
 A parameter dataclass field (:mod:`grasplan.config.params`) carries an :class:`OptionSpec` in its
 ``metadata`` (:func:`spec`): its kind, CLI spelling, range, help. From it
-
 - :func:`parse_value` reads a value given as text (a command-line argument, a CSV cell) or as a
   plain value (YAML, JSON, Python): ``"2mm"`` -> ``0.002``, ``"15deg"`` -> ``15.0``, ``"none"``
   -> ``None`` for an optional option, ``"0.45,0.3,0,0,0,180"`` -> a 4x4 pose. The command line's
@@ -12,26 +11,7 @@ A parameter dataclass field (:mod:`grasplan.config.params`) carries an :class:`O
 - :func:`check_fields` validates a dataclass's values (its ``__post_init__``): the kind and the
   range, :class:`~grasplan.errors.InputError` naming the CLI option, the value and what would pass.
 
-Kinds (``optional=True``: None allowed)::
-
-    length    m, lo < v <= hi (default (0, MAX_LENGTH]); text with a unit suffix (2mm); 0 refused
-    length0   m, 0 <= v <= hi; 0 means "off"
-    angle     degrees (text: 15, 15deg, 0.26rad); lo/hi
-    float     a finite number; lo/hi (lo_open: lo excluded)
-    seconds   a finite number of seconds in (0, hi] (default hi one day)
-    int       a whole number; lo/hi; ``words`` are also accepted (pose_index: "all")
-    bool      true/false (text: true, yes, on, 1 / false, no, off, 0; a --x/--no-x flag on the CLI)
-    choice    one of ``choices``
-    pose      a rigid transform (4, 4) kept as a nested tuple; text 'x,y,z,roll,pitch,yaw' (lengths
-              m or with units, angles deg, R = Rz(yaw) Ry(pitch) Rx(roll)), the same six as a list,
-              or a 4x4 matrix
-    file      a file name (text; relative to the manifest's folder in a manifest); read by its owner
-    internal  not an option (no CLI, no manifest column): validated by the dataclass itself
-
-``record`` says where an output file records the option: ``"always"`` (the dataclass's
-``to_json``, the default), ``"elsewhere"`` (another part of the output holds it, e.g. the place
-in the plan's ``cell.place``: left out of ``to_json``, kept in ``options_json``) or ``"never"``
-(an input read into other fields, e.g. the scoring file into the score weights).
+The kinds and where an output records an option: :class:`OptionSpec`.
 """
 from __future__ import annotations
 
@@ -61,7 +41,29 @@ RECORDS = ("always", "elsewhere", "never")
 
 @dataclass(frozen=True)
 class OptionSpec:
-    """What a parameter field is as an option (see the module doc for the kinds)."""
+    """What a parameter field is as an option.
+
+    Kinds (``optional=True``: None allowed)::
+
+        length    m, lo < v <= hi (default (0, MAX_LENGTH]); text with a unit suffix (2mm); 0 refused
+        length0   m, 0 <= v <= hi; 0 means "off"
+        angle     degrees (text: 15, 15deg, 0.26rad); lo/hi
+        float     a finite number; lo/hi (lo_open: lo excluded)
+        seconds   a finite number of seconds in (0, hi] (default hi one day)
+        int       a whole number; lo/hi; ``words`` are also accepted (pose_index: "all")
+        bool      true/false (text: true, yes, on, 1 / false, no, off, 0; a --x/--no-x flag on the CLI)
+        choice    one of ``choices``
+        pose      a rigid transform (4, 4) kept as a nested tuple; text 'x,y,z,roll,pitch,yaw' (lengths
+                  m or with units, angles deg, R = Rz(yaw) Ry(pitch) Rx(roll)), the same six as a list,
+                  or a 4x4 matrix
+        file      a file name (text; relative to the manifest's folder in a manifest); read by its owner
+        internal  not an option (no CLI, no manifest column): validated by the dataclass itself
+
+    ``record`` says where an output file records the option: ``"always"`` (the dataclass's
+    ``to_json``, the default), ``"elsewhere"`` (another part of the output holds it, e.g. the place
+    in the plan's ``cell.place``: left out of ``to_json``, kept in ``options_json``) or ``"never"``
+    (an input read into other fields, e.g. the scoring file into the score weights).
+    """
 
     kind: str
     help: str
@@ -77,7 +79,7 @@ class OptionSpec:
     metavar: str | None = None
     record: str = "always"
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if self.kind not in KINDS:
             raise ValueError(f"unknown option kind {self.kind!r}; known: {', '.join(KINDS)}")
         if self.record not in RECORDS:

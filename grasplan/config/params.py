@@ -2,27 +2,22 @@
 
 ``CandidateParams`` (stages 2-4), ``GraspParams`` (stages 5-6) and ``PlanParams`` (stages 7-8)
 validate themselves in ``__post_init__`` and raise :class:`~grasplan.errors.InputError` naming
-the CLI option, the value and the range that would pass. Each field carries its CLI spelling, kind
-(length, angle, pose, file, ...), range and help in ``metadata`` (:func:`grasplan.config.option_kinds.spec`);
-:mod:`grasplan.config.option_kinds` is the one interpreter of those kinds: ``grasplan.cli.options`` builds
-every command's options from these fields and the batch manifests read their columns with it, so a
-default, a range or the reading of a text exists in exactly one place.
+the CLI option, the value and the range that would pass; :class:`RunParams` holds the three for a
+run. Each field carries its CLI spelling, kind, range and help in ``metadata``
+(:func:`grasplan.config.option_kinds.spec`), read by the one interpreter of option kinds
+(:mod:`grasplan.config.option_kinds`): the CLI options and the batch manifests' columns.
 
-Besides the stages' numbers the classes hold the options that say what to plan: the place
-(``PlanParams.place``, ``--place``), the scoring file (``GraspParams.scoring``, ``--scoring``: its
-weights become ``score_weights`` / ``score_refs``) and every resting pose (``GraspParams.pose_index
-= "all"``, ``--pose-index all``: :func:`grasplan.motion.planning.plan_poses`). ``to_json`` (the record in
-output files) leaves out what an output records elsewhere: the place is the plan's ``cell.place``,
-the scoring file its weights; ``options_json`` (the batch's options hash) keeps the place.
-
-Units: lengths in metres (the CLI accepts suffixes: ``2mm``), user-facing angles in degrees and
-named so (``gamma_deg``), times in seconds.
+Besides the stages' numbers they hold what to plan: the place (``PlanParams.place``), the scoring
+file (``GraspParams.scoring``, read into ``score_weights`` / ``score_refs``) and every resting pose
+(``GraspParams.pose_index = "all"``). ``to_json`` (the record in output files) leaves out what an
+output records elsewhere; ``options_json`` (the batch's options hash) keeps the place. Units:
+lengths in metres, user-facing angles in degrees and named so (``gamma_deg``), times in seconds.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import MISSING, Field, dataclass, fields
-from typing import Any, ClassVar
+from dataclasses import MISSING, Field, dataclass, field, fields
+from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 
@@ -51,19 +46,22 @@ DEFAULT_DENSITY = 7850.0
 ALL_POSES = "all"
 
 
+_Set = TypeVar("_Set", bound="OptionSet")
+
+
 class OptionSet:
     """Shared behaviour: validation, JSON (lengths m, angles *_deg), defaults by name."""
 
     __dataclass_fields__: ClassVar[dict[str, Field[Any]]]
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         check_fields(self)
         self._check()
 
     def _check(self) -> None:  # cross-field checks, overridden where needed
         pass
 
-    def _json(self, records: tuple[str, ...]) -> dict:
+    def _json(self, records: tuple[str, ...]) -> dict[str, Any]:
         out: dict[str, Any] = {}
         for f in fields(self):
             s = option_spec(f)
@@ -74,19 +72,19 @@ class OptionSet:
             out[f.name] = [list(x) if isinstance(x, tuple) else x for x in v] if isinstance(v, tuple) else v
         return out
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         """The record of the options in an output file: every field but those the output records
         elsewhere (``record="elsewhere"``: the place is the plan's ``cell.place``) and the inputs read
         into other fields (``record="never"``: the scoring file, recorded as its weights)."""
         return self._json(("always",))
 
-    def options_json(self) -> dict:
+    def options_json(self) -> dict[str, Any]:
         """Every option that decides a result (the batch's options hash and its workers):
         :meth:`to_json` plus the ``record="elsewhere"`` options that are set."""
         return self._json(("always", "elsewhere"))
 
     @classmethod
-    def from_json(cls, data: dict):
+    def from_json(cls: type[_Set], data: dict[str, Any]) -> _Set:
         """Rebuild from :meth:`to_json` or :meth:`options_json` output (unknown keys are ignored:
         older/newer files)."""
         kw = {}
@@ -235,6 +233,30 @@ class PlanParams(OptionSet):
 
 
 PARAM_CLASSES = (CandidateParams, GraspParams, PlanParams)
+
+
+@dataclass(frozen=True, kw_only=True)
+class RunParams:
+    """The option sets of one run, built once (by the CLI from its options, by a batch from a
+    manifest row) and handed on as its parts: ``grasplan.plan(part, robot, candidates=p.candidates,
+    grasps=p.grasps, planning=p.planning)``."""
+
+    candidates: CandidateParams = field(default_factory=CandidateParams)
+    grasps: GraspParams = field(default_factory=GraspParams)
+    planning: PlanParams = field(default_factory=PlanParams)
+
+    #: the field of each parameter class
+    FIELDS: ClassVar[dict[type, str]] = {CandidateParams: "candidates", GraspParams: "grasps", PlanParams: "planning"}
+
+    @classmethod
+    def from_options(cls, options: dict[str, Any], classes: tuple[type, ...] = PARAM_CLASSES) -> RunParams:
+        """Pop the fields of ``classes`` from ``options`` (a command's keyword arguments, by field
+        name) and build those sets (the others keep their defaults); the sets validate the values."""
+        sets: dict[str, Any] = {}
+        for set_cls in classes:
+            names = {f.name for f in fields(set_cls)}
+            sets[cls.FIELDS[set_cls]] = set_cls(**{k: options.pop(k) for k in list(options) if k in names})
+        return cls(**sets)
 
 
 def option_fields() -> dict[str, tuple[type, Field[Any]]]:

@@ -6,36 +6,28 @@ file replaces it with ``--scoring FILE``; :func:`load_scoring`). ``DEFAULT_SCORI
 read once; ``GraspParams.score_weights`` / ``score_refs`` default to it and are recorded in every
 output. A term is a function ``term(ctx: ScoreContext) -> (M,) float in [0, 1]`` registered with
 :func:`register_term`; adding one is a function plus one registration (and a weight in the YAML).
-
-Terms::
-
-    center = 1 - min(1, |c_grasp - c_mass| / r_part)   grasp centre (TCP origin) close to the centre
-             of mass (of the watertight part, else its mesh centroid); r_part = half the part's
-             bounding-box diagonal
-    top    = max(0, -z_tcp . z_world)                  approach from above (1: TCP z straight down)
-    width  = (max_opening - width) / max_opening       margin to the gripper's maximum opening
-    gravity_margin = clip((1 + log(margin) / log(gravity_margin_ref)) / 2, 0, 1)   1/2 at the
-             slipping threshold (margin 1), 1 at the reference margin and above, 0 at its inverse
-             and below: grasps that hold come first, and where none does (a part too heavy for
-             the gripper) the ones closest to holding lead (grasplan.grasps.quality)
-    epsilon = clip(epsilon / epsilon_ref, 0, 1)        Ferrari-Canny L1 quality (grasplan.grasps.quality)
-
-The physical terms read ``ScoreContext.quality`` (a :class:`grasplan.grasps.quality.Quality` of the same
-grasps); scoring with a non-zero weight on them and no quality is an InputError.
+The terms: ``center``, ``top``, ``width`` (geometric) and ``gravity_margin``, ``epsilon`` (physical:
+:func:`gravity_margin_term`, :func:`epsilon_term`).
 """
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Protocol
+from typing import TYPE_CHECKING, Literal, Protocol, TypeVar, overload
 
 import numpy as np
 
 from .lookup import config_number, packaged_file
 from ..errors import ConfigError, InputError
 from ..geometry.meshdata import TriangleMesh
+
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
+
+#: a parameter dataclass with score_weights/score_refs (:class:`grasplan.config.params.GraspParams`)
+_Params = TypeVar("_Params", bound="DataclassInstance")
 
 #: scoring configuration shipped with grasplan (the one definition of the default weights)
 SCORING_FILE = packaged_file("configs", "scoring.yaml")
@@ -63,7 +55,7 @@ class ScoringConfig:
         return (("gravity_margin_ref", self.gravity_margin_ref), ("epsilon_ref", self.epsilon_ref))
 
     @classmethod
-    def from_params(cls, weights, refs) -> ScoringConfig:
+    def from_params(cls, weights: Iterable[tuple[str, float]], refs: Iterable[tuple[str, float]]) -> ScoringConfig:
         r = {**_ref_fallback(), **dict(refs)}
         return cls(weights=tuple((str(n), float(w)) for n, w in weights),
                    gravity_margin_ref=float(r["gravity_margin_ref"]), epsilon_ref=float(r["epsilon_ref"]))
@@ -99,14 +91,16 @@ class ScoreContext:
     com: np.ndarray | None = None
 
 
-TERMS: dict[str, Callable[[ScoreContext], np.ndarray]] = {}
+#: a score term: ``fn(ctx) -> (M,) in [0, 1]``
+ScoreTerm = Callable[[ScoreContext], np.ndarray]
+TERMS: dict[str, ScoreTerm] = {}
 #: terms that read ``ScoreContext.quality``
 PHYSICAL_TERMS = ("gravity_margin", "epsilon")
 
 
-def register_term(name: str):
+def register_term(name: str) -> Callable[[ScoreTerm], ScoreTerm]:
     """Decorator: register ``fn(ctx) -> (M,) in [0, 1]`` as score term ``name``."""
-    def deco(fn):
+    def deco(fn: ScoreTerm) -> ScoreTerm:
         TERMS[name] = fn
         return fn
     return deco
@@ -114,6 +108,9 @@ def register_term(name: str):
 
 @register_term("center")
 def _center(ctx: ScoreContext) -> np.ndarray:
+    """``1 - min(1, |c_grasp - c_mass| / r_part)``: the grasp centre (TCP origin) close to the centre
+    of mass (of the watertight part, else its mesh centroid); ``r_part`` = half the part's
+    bounding-box diagonal."""
     m = ctx.part_mesh
     if ctx.com is not None:
         com = np.asarray(ctx.com, dtype=np.float64)
@@ -126,16 +123,20 @@ def _center(ctx: ScoreContext) -> np.ndarray:
 
 @register_term("top")
 def _top(ctx: ScoreContext) -> np.ndarray:
+    """``max(0, -z_tcp . z_world)``: approach from above (1: TCP z straight down)."""
     z_world = np.einsum("ij,mj->mi", ctx.T_world_part[:3, :3], ctx.T_part_tcp[:, :3, 2])
     return np.maximum(0.0, -z_world[:, 2])
 
 
 @register_term("width")
 def _width(ctx: ScoreContext) -> np.ndarray:
+    """``(max_opening - width) / max_opening``: margin to the gripper's maximum opening."""
     return np.clip((ctx.max_opening - ctx.width) / ctx.max_opening, 0.0, 1.0)
 
 
 def _quality_of(ctx: ScoreContext, term: str) -> tuple[GraspQualities, ScoringConfig]:
+    """The physical terms read ``ScoreContext.quality`` (a :class:`grasplan.grasps.quality.Quality` of
+    the same grasps); scoring with a non-zero weight on them and no quality is an InputError."""
     q = ctx.quality
     if q is None or len(q) != len(ctx.width):
         raise InputError(f"score term {term!r} needs the grasps' quality (grasplan.grasps.quality.grasp_quality); "
@@ -144,15 +145,19 @@ def _quality_of(ctx: ScoreContext, term: str) -> tuple[GraspQualities, ScoringCo
 
 
 def gravity_margin_term(margin: np.ndarray, ref: float) -> np.ndarray:
-    """The normalised gravity_margin term (module docstring), (M,) in [0, 1]: log-symmetric about
-    the slipping threshold, so that margins below 1 still rank (with a steel part no
-    grasp may reach 1, and a term flat at 0 left their order to the geometric terms)."""
+    """The normalised gravity_margin term, (M,) in [0, 1]:
+    ``clip((1 + log(margin) / log(gravity_margin_ref)) / 2, 0, 1)``, 1/2 at the slipping threshold
+    (margin 1), 1 at the reference margin and above, 0 at its inverse and below. Log-symmetric about
+    the threshold, so grasps that hold come first and margins below 1 still rank: where none holds
+    (a part too heavy for the gripper, e.g. a steel one) the ones closest to holding lead, where a
+    term flat at 0 left their order to the geometric terms (:mod:`grasplan.grasps.quality`)."""
     gm = np.maximum(np.asarray(margin, dtype=np.float64), 1e-300)
     return np.clip(0.5 * (1.0 + np.log(gm) / math.log(ref)), 0.0, 1.0)
 
 
 def epsilon_term(epsilon: np.ndarray, ref: float) -> np.ndarray:
-    """The normalised epsilon term, ``clip(epsilon / ref, 0, 1)``."""
+    """The normalised epsilon term, ``clip(epsilon / ref, 0, 1)``: the Ferrari-Canny L1 quality
+    (:mod:`grasplan.grasps.quality`)."""
     return np.clip(np.asarray(epsilon, dtype=np.float64) / ref, 0.0, 1.0)
 
 
@@ -223,7 +228,7 @@ def load_score_weights(path: str | Path | None = None) -> tuple[tuple[str, float
 DEFAULT_SCORING = load_scoring()
 
 
-def check_weights(weights, where: str = "score_weights") -> None:
+def check_weights(weights: Sequence[tuple[str, float]], where: str = "score_weights") -> None:
     """InputError unless ``weights`` is ((known term, finite weight >= 0), ...) with a positive one."""
     try:
         names = [n for n, _ in weights]
@@ -240,7 +245,7 @@ def check_weights(weights, where: str = "score_weights") -> None:
 
 
 def score_grasps(part_mesh: TriangleMesh, T_world_part: np.ndarray, T_part_tcp: np.ndarray, width: np.ndarray,
-                 max_opening: float, weights=None, *, quality: GraspQualities | None = None,
+                 max_opening: float, weights: Sequence[tuple[str, float]] | None = None, *, quality: GraspQualities | None = None,
                  scoring: ScoringConfig | None = None, com: np.ndarray | None = None) -> np.ndarray:
     """Score in [0, 1] per grasp (higher is better). ``T_part_tcp`` (M, 4, 4), ``width`` (M,) m.
 
@@ -263,8 +268,15 @@ def score_grasps(part_mesh: TriangleMesh, T_world_part: np.ndarray, T_part_tcp: 
     return out / total if total > 0 else out
 
 
+@overload
+def distinct_order(T_part_tcp: np.ndarray, order: np.ndarray, *, min_distance: float = ...,
+                   min_angle_deg: float = ..., return_count: Literal[False] = ...) -> np.ndarray: ...
+@overload
+def distinct_order(T_part_tcp: np.ndarray, order: np.ndarray, *, min_distance: float = ...,
+                   min_angle_deg: float = ..., return_count: Literal[True]) -> tuple[np.ndarray, int]: ...
+
 def distinct_order(T_part_tcp: np.ndarray, order: np.ndarray, *, min_distance: float = 0.005,
-                   min_angle_deg: float = 15.0, return_count: bool = False):
+                   min_angle_deg: float = 15.0, return_count: bool = False) -> np.ndarray | tuple[np.ndarray, int]:
     """Reorder ``order`` (best first) so that no two of the leading grasps are within
     ``min_distance`` (TCP origins) **and** ``min_angle_deg`` (relative rotation of the TCP frames)
     of each other while distinct grasps remain: a near-duplicate of an already chosen grasp moves
@@ -298,7 +310,7 @@ def distinct_order(T_part_tcp: np.ndarray, order: np.ndarray, *, min_distance: f
     return (out, int(np.count_nonzero(chosen))) if return_count else out
 
 
-def with_scoring_file(grasp_params, path):
+def with_scoring_file(grasp_params: _Params, path: str | Path | None) -> _Params:
     """``grasp_params`` (a :class:`grasplan.config.params.GraspParams`) with the weights and references of
     the scoring YAML ``path`` (``--scoring FILE``); unchanged when ``path`` is None."""
     if path is None:

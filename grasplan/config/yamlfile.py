@@ -1,26 +1,12 @@
 """The one YAML reader of grasplan: every YAML input (cells, grippers, robots, scoring, manifests,
 scenes, pose files) is parsed here, bounded in time and memory, and every problem is an
-:class:`~grasplan.errors.InputError` (exit 3) naming the file and the field.
-
-What it guarantees beyond ``yaml.safe_load``:
-
-* **size**: the caller's byte limit (:func:`read_yaml_file`; files are read through
-  :func:`grasplan.config.inputs.read_input_bytes`, so a FIFO or a device is refused before reading) and
-  at most :data:`MAX_ENTRIES` structural characters, counted before parsing;
-* **time**: libyaml's C parser and composer when PyYAML has them (1 MB in about a second; the
-  pure-Python parser needs minutes for a long flow list), the checks below in Python;
-* **aliases**: a document whose aliases would expand to more than :data:`MAX_EXPANDED_NODES`
-  nodes (a "billion laughs" bomb: 1 KB of nested anchors, 9^9 leaves) is refused after composing,
-  before anything walks it; at most :data:`MAX_ALIASES` alias uses;
-* **values**: scalars PyYAML cannot construct (``!!float abc``, ``!!bool maybe``, ``!!timestamp x``,
-  an integer of 5000 digits) are errors naming the field; dates are not special (``2001-13-45`` is
-  the string it looks like, which the field's own check then refuses);
-* **duplicate keys** are refused, naming the key (YAML says keys are unique; PyYAML keeps the last);
-* **nesting** deeper than Python's stack is an error, not a crash.
+:class:`~grasplan.errors.InputError` (exit 3) naming the file and the field
+(:func:`load_yaml_text` for a text, :func:`read_yaml_file` for a file).
 """
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from typing import Any
 
 import yaml
@@ -51,7 +37,7 @@ class _Loader(yaml.SafeLoader):
         self.aliases = 0
         self.depth = 0
 
-    def compose_node(self, parent, index):
+    def compose_node(self, parent: yaml.Node | None, index: object) -> yaml.Node | None:
         if self.depth >= MAX_DEPTH:
             mark = self.peek_event().start_mark
             raise _Refused(f"nested deeper than {MAX_DEPTH} levels (line {mark.line + 1})")
@@ -153,8 +139,8 @@ def _path_of(root: yaml.Node, target: yaml.Node) -> str:
 def _construct(loader: Any, root: yaml.Node, where: str) -> Any:
     failing: list[yaml.Node] = []
 
-    def guarded(fn):
-        def wrapper(self, node, *a, **k):
+    def guarded(fn: Callable[..., Any]) -> Callable[..., Any]:
+        def wrapper(self: Any, node: yaml.Node, *a: Any, **k: Any) -> Any:
             try:
                 return fn(self, node, *a, **k)
             except (_Refused, RecursionError):
@@ -211,8 +197,24 @@ def structural_entries(text: str) -> int:
 
 
 def load_yaml_text(text: str, where: str, *, max_entries: int = MAX_ENTRIES) -> Any:
-    """The Python value of the YAML ``text`` (see the module docstring); ``where`` names the input
-    in errors (``"cell /path/x.yaml"``)."""
+    """The Python value of the YAML ``text``; ``where`` names the input in errors (``"cell /path/x.yaml"``).
+
+    What it guarantees beyond ``yaml.safe_load``:
+
+    * **size**: at most ``max_entries`` structural characters (:func:`structural_entries`), counted
+      before parsing (and the caller's byte limit: :func:`read_yaml_file` reads files through
+      :func:`grasplan.config.inputs.read_input_bytes`, so a FIFO or a device is refused before reading);
+    * **time**: libyaml's C parser and composer when PyYAML has them (1 MB in about a second; the
+      pure-Python parser needs minutes for a long flow list), the checks below in Python;
+    * **aliases**: a document whose aliases would expand to more than :data:`MAX_EXPANDED_NODES`
+      nodes (a "billion laughs" bomb: 1 KB of nested anchors, 9^9 leaves) is refused after composing,
+      before anything walks it; at most :data:`MAX_ALIASES` alias uses;
+    * **values**: scalars PyYAML cannot construct (``!!float abc``, ``!!bool maybe``, ``!!timestamp x``,
+      an integer of 5000 digits) are errors naming the field; dates are not special (``2001-13-45`` is
+      the string it looks like, which the field's own check then refuses);
+    * **duplicate keys** are refused, naming the key (YAML says keys are unique; PyYAML keeps the last);
+    * **nesting** deeper than Python's stack is an error, not a crash.
+    """
     entries = structural_entries(text)
     if entries > max_entries:
         raise InputError(f"{where}: {entries:,} entries (commas, colons, dashes, brackets, lines) is more than a "

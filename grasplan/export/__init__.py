@@ -2,21 +2,15 @@
 
 Every format is one module here that registers an :class:`~grasplan.results.export_registry.ExportFormat`
 (name, file extension, one-line description, ``render(plan, options) -> {extension: text}``);
-:data:`grasplan.results.export_registry.BUILTIN_MODULES` lists the shipped ones and ``grasplan export
---help`` lists the registry. Adding a format is a module plus one name there.
+:data:`grasplan.results.export_registry.BUILTIN_MODULES` lists the shipped ones. :func:`write` and
+:func:`render` take a PlanResult, a plan file or a parsed plan document; bad input is an
+:class:`grasplan.errors.InputError` (CLI exit 3) and writes nothing: the whole output is rendered in
+memory first, then each file is written atomically::
 
-Python API::
-
-    import grasplan
     plan = grasplan.load_result("plan.json")             # or the PlanResult of grasplan.plan(...)
     grasplan.export.write(plan, "urscript", "pick.script")          # best planned grasp
     grasplan.export.write(plan, "krl", "pick.src", grasp_id=17)     # writes pick.src and pick.dat
     plan.export("csv", "grasps.csv")
-
-:func:`write` and :func:`render` also take a plan file or a parsed plan document (validated in
-full by :func:`grasplan.results.reader.load_result`). Every writer refuses bad input with
-:class:`grasplan.errors.InputError` (CLI exit 3) and writes nothing then: the whole output is
-rendered in memory first, then each file is written atomically.
 """
 from __future__ import annotations
 

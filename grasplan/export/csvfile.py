@@ -1,42 +1,27 @@
-"""CSV export: one row per grasp of a plan.
-
-Columns (header row, in this order; lengths in metres, angles in radians):
-
-``id, status, width, score, rank,
-part_x, part_y, part_z, part_qw, part_qx, part_qy, part_qz,
-world_x, world_y, world_z, world_qw, world_qx, world_qy, world_qz,
-q_<joint name> ... (one column per robot joint), part_scale_to_m,
-gravity_margin, epsilon, contact0_area_m2, contact0_type, contact1_area_m2, contact1_type,
-sim_success, sim_slip_m, sim_turn_deg``
-
-(the quality columns are appended after every earlier column: no column moves)
-
-- ``part_*``: the TCP pose in the part frame (``T_part_tcp``); ``world_*``: in the world frame
-  (``T_world_part @ T_part_tcp``). Orientation as a unit quaternion (w first), sign chosen so
-  ``qw >= 0``.
-- ``q_<joint>``: ``q_grasp``; empty when the grasp is not planned. ``score``/``rank`` are empty
-  when the plan has none for that grasp.
-- Grasp quality (docs/quality.md): ``gravity_margin`` (< 1 slips), ``epsilon`` (Ferrari-Canny),
-  per jaw the contact patch area (m^2) and type (point, line, surface); empty for grasps without
-  quality (collisions). ``sim_*``: the MuJoCo lift-and-shake result (``success`` 1 held / 0
-  slipped, ``slip_m`` m, ``turn_deg`` deg), empty when the grasp was not simulated.
-- Rows in the plan's grasp order. Numbers are written with up to 9 significant digits.
+"""CSV export: one row per grasp of a plan (:func:`grasps_csv`; its docstring lists the columns).
 """
 from __future__ import annotations
 
 import csv
 import io
+from collections.abc import Iterable
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
 from ..errors import InputError
 from ..geometry.transforms import pose7
-from ..results.export_registry import ExportFormat, register
+from ..results.export_registry import ExportFormat, ExportOptions, register
+
+if TYPE_CHECKING:
+    from ..results.grasp_table import GraspTable
+    from ..results.plan_result import PlanResult
+    from ..robot.model import Robot
 
 POSE_COLS = ("x", "y", "z", "qw", "qx", "qy", "qz")
 
 
-def header(joint_names) -> list[str]:
+def header(joint_names: Iterable[str]) -> list[str]:
     # the contracted columns in their order; the part's scale last (a constant column: "record the part's
     # scale in every output", without moving any contracted column)
     return (["id", "status", "width", "score"] + [f"part_{c}" for c in POSE_COLS]
@@ -49,7 +34,7 @@ QUALITY_COLS = ("gravity_margin", "epsilon", "contact0_area_m2", "contact0_type"
                 "sim_success", "sim_slip_m", "sim_turn_deg")
 
 
-def _quality_text(t, ids) -> list[str]:
+def _quality_text(t: GraspTable, ids: np.ndarray) -> list[str]:
     """The QUALITY_COLS cells (comma-joined, no leading comma) of grasp rows ``ids``."""
     from ..results.quality_json import CONTACT_TYPES
 
@@ -62,10 +47,10 @@ def _quality_text(t, ids) -> list[str]:
     slip = t.sim_slip_m[ids] if t.sim_slip_m is not None else np.full(n, np.nan)
     turn = t.sim_turn_deg[ids] if t.sim_turn_deg is not None else np.full(n, np.nan)
 
-    def num(a):
+    def num(a: np.ndarray) -> list[str]:
         return ["" if v != v else f"{v + 0.0:.9g}" for v in np.asarray(a, dtype=np.float64).tolist()]
 
-    def typ(a):
+    def typ(a: np.ndarray) -> list[str]:
         return ["" if v < 0 else CONTACT_TYPES[v] for v in np.asarray(a).tolist()]
 
     cols = [num(gm), num(eps), num(area[:, 0]), typ(kind[:, 0]), num(area[:, 1]), typ(kind[:, 1]),
@@ -73,15 +58,38 @@ def _quality_text(t, ids) -> list[str]:
     return [",".join(c) for c in zip(*cols)]
 
 
-def _num(v) -> str:
+def _num(v: float | None) -> str:
     return "" if v is None else f"{float(v) + 0.0:.9g}"
 
 
-def grasps_csv(plan, *, grasp_id: int | None = None) -> str:
+def grasps_csv(plan: PlanResult, *, grasp_id: int | None = None) -> str:
     """The CSV text of a :class:`~grasplan.results.plan_result.PlanResult`: every grasp (or only ``grasp_id``).
-    Vectorised over grasps (TLess20: ~1e5 rows)."""
+    Vectorised over grasps (TLess20: ~1e5 rows).
+
+    Columns (header row, in this order; lengths in metres, angles in radians)::
+
+        id, status, width, score, rank,
+        part_x, part_y, part_z, part_qw, part_qx, part_qy, part_qz,
+        world_x, world_y, world_z, world_qw, world_qx, world_qy, world_qz,
+        q_<joint name> ... (one column per robot joint), part_scale_to_m,
+        gravity_margin, epsilon, contact0_area_m2, contact0_type, contact1_area_m2, contact1_type,
+        sim_success, sim_slip_m, sim_turn_deg
+
+    (the quality columns are appended after every earlier column: no column moves)
+
+    - ``part_*``: the TCP pose in the part frame (``T_part_tcp``); ``world_*``: in the world frame
+      (``T_world_part @ T_part_tcp``). Orientation as a unit quaternion (w first), sign chosen so
+      ``qw >= 0``.
+    - ``q_<joint>``: ``q_grasp``; empty when the grasp is not planned. ``score``/``rank`` are empty
+      when the plan has none for that grasp.
+    - Grasp quality (docs/quality.md): ``gravity_margin`` (< 1 slips), ``epsilon`` (Ferrari-Canny),
+      per jaw the contact patch area (m^2) and type (point, line, surface); empty for grasps without
+      quality (collisions). ``sim_*``: the MuJoCo lift-and-shake result (``success`` 1 held / 0
+      slipped, ``slip_m`` m, ``turn_deg`` deg), empty when the grasp was not simulated.
+    - Rows in the plan's grasp order. Numbers are written with up to 9 significant digits.
+    """
     t = plan.grasps
-    joints = list(plan.robot.joint_names)
+    joints = list(cast("Robot", plan.robot).joint_names)  # exports refuse a result without a robot
     ids = np.arange(len(t)) if grasp_id is None else np.asarray([plan.select(grasp_id).id])
     buf = io.StringIO()
     csv.writer(buf, lineterminator="\n").writerow(header(joints))
@@ -113,7 +121,7 @@ def _csv_text(s: str) -> str:
     return '"' + s.replace('"', '""') + '"' if any(c in s for c in ',"\n\r') else s
 
 
-def _render(plan, opts) -> dict[str, str]:
+def _render(plan: PlanResult, opts: ExportOptions) -> dict[str, str]:
     return {".csv": grasps_csv(plan, grasp_id=opts.grasp_id)}
 
 

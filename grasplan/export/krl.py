@@ -1,32 +1,14 @@
-"""KUKA KRL export: one planned grasp as a ``.src`` program and its ``.dat`` data list.
-
-The program (``DEF <program_name>( )``; KUKA requires the files to be named ``<program_name>.src`` /
-``<program_name>.dat``):
-
-1. ``BAS(#INITMOV,0)``, then ``$TOOL`` = the gripper's ``T_flange_tcp`` and ``$BASE`` = the plan's
-   ``T_world_base`` (both ``FRAME`` s in the ``.dat``), joint speed ``$VEL_AXIS`` (percent) and path
-   speed ``$VEL.CP`` (m/s).
-2. ``GRASPLAN_GRIPPER(opening_mm)`` opens the jaws: a subroutine stub at the end of the ``.src`` to fill
-   in with the gripper's I/O.
-3. ``PTP XP1`` ... ``PTP XPk``: the planned joint path ``q_home -> q_pregrasp`` as ``E6AXIS`` targets
-   (degrees), exact stops (no ``C_PTP``: the planner verified straight joint interpolation between
-   waypoints, blending would cut corners).
-4. ``LIN XGRASP``: the straight approach to the grasp TCP; ``GRASPLAN_GRIPPER(width_mm)`` closes;
-   ``LIN XRETREAT``: the straight retreat. Cartesian targets are ``E6POS`` in ``$BASE``: X, Y, Z in
-   mm, A, B, C in degrees (KUKA convention: rotation = Rz(A) Ry(B) Rx(C)). No S/T: LIN ignores them.
-
-Joint values: ``controller angle [deg] = joint_sign * degrees(q) + joint_offset_deg`` per joint (the
-robot YAML's ``controller_joint_map``; default sign 1, offset 0). Axes A1..A6 are joints 1..6; a 7-joint
-arm (Panda) puts joint 7 in ``E1`` (also in the ``E6POS`` targets: its value at the grasp for
-``XGRASP``, at the pre-grasp for ``XRETREAT`` when the retreat ends there, else held). With 6 joints the ``E`` components are
-left out, so external axes of the cell keep their positions. Other joint counts are refused.
+"""KUKA KRL export: one planned grasp as a ``.src`` program and its ``.dat`` data list
+(:func:`krl_program`; its docstring describes the program). See ``docs/robot_programs.md``.
 
 Every text that comes from an input (part file name, gripper and robot names, plan label) is reduced
 to :func:`grasplan.export.program.safe_text`'s character set and appears only inside ``;`` comments:
 it can never start a program line. Non-finite numbers and joint values outside the robot's limits
-are refused with :class:`~grasplan.errors.InputError`. See ``docs/robot_programs.md``.
+are refused with :class:`~grasplan.errors.InputError`.
 """
 from __future__ import annotations
+
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -44,6 +26,9 @@ from .program import (
     waypoint_labels,
 )
 from ..results.export_registry import ExportFormat, ExportOptions, register
+
+if TYPE_CHECKING:
+    from ..results.plan_result import PlanResult
 
 #: PTP joint speed, percent of each axis' maximum ($VEL_AXIS) and acceleration ($ACC_AXIS)
 PTP_VEL_PERCENT = 20
@@ -86,6 +71,28 @@ def krl_program(mp: MotionProgram, program_name: str = "grasplan_pick") -> dict[
 
     Raises :class:`InputError` for a robot with other than 6 or 7 joints, a non-finite value or a
     joint value outside the limits.
+
+    The program (``DEF <program_name>( )``; KUKA requires the files to be named ``<program_name>.src`` /
+    ``<program_name>.dat``):
+
+    1. ``BAS(#INITMOV,0)``, then ``$TOOL`` = the gripper's ``T_flange_tcp`` and ``$BASE`` = the plan's
+       ``T_world_base`` (both ``FRAME`` s in the ``.dat``), joint speed ``$VEL_AXIS`` (percent) and path
+       speed ``$VEL.CP`` (m/s).
+    2. ``GRASPLAN_GRIPPER(opening_mm)`` opens the jaws: a subroutine stub at the end of the ``.src`` to fill
+       in with the gripper's I/O.
+    3. ``PTP XP1`` ... ``PTP XPk``: the planned joint path ``q_home -> q_pregrasp`` as ``E6AXIS`` targets
+       (degrees), exact stops (no ``C_PTP``: the planner verified straight joint interpolation between
+       waypoints, blending would cut corners).
+    4. ``LIN XGRASP``: the straight approach to the grasp TCP; ``GRASPLAN_GRIPPER(width_mm)`` closes;
+       ``LIN XRETREAT``: the straight retreat. Cartesian targets are ``E6POS`` in ``$BASE``: X, Y, Z in
+       mm, A, B, C in degrees (KUKA convention: rotation = Rz(A) Ry(B) Rx(C)). No S/T: LIN ignores them.
+
+    Joint values: ``controller angle [deg] = joint_sign * degrees(q) + joint_offset_deg`` per joint (the
+    robot YAML's ``controller_joint_map``; default sign 1, offset 0). Axes A1..A6 are joints 1..6; a
+    7-joint arm (Panda) puts joint 7 in ``E1`` (also in the ``E6POS`` targets: its value at the grasp
+    for ``XGRASP``, at the pre-grasp for ``XRETREAT`` when the retreat ends there, else held). With 6
+    joints the ``E`` components are left out, so external axes of the cell keep their positions.
+    Other joint counts are refused.
     """
     t = program_targets(mp, program_name, "KRL", "(A1..A6) or 7 (joint 7 as E1)")
     name, n, path = t.name, len(mp.joint_names), t.path_deg
@@ -190,7 +197,7 @@ def _sequence(mp: MotionProgram, t: ProgramTargets) -> tuple[list[str], list[str
     return dat, src
 
 
-def render(plan, options: ExportOptions) -> dict[str, str]:
+def render(plan: PlanResult, options: ExportOptions) -> dict[str, str]:
     """Registry entry: the KRL ``.src``/``.dat`` of ``options.grasp_id`` (default the best planned grasp)."""
     mp = motion_program(plan, options.grasp_id, source=options.source)
     return krl_program(mp, options.program_name)

@@ -1,55 +1,25 @@
-"""MoveIt grasps export: the planned grasps as a YAML list of ``moveit_msgs/Grasp`` messages.
-
-One message per planned grasp, best first (or only ``--grasp ID``), in the field layout of
-``moveit_msgs/msg/Grasp`` (ROS 2 names: ``builtin_interfaces/Duration`` is ``{sec, nanosec}``):
-
-``id``
-    ``"grasp_<id>"`` (the grasplan grasp id).
-``pre_grasp_posture`` / ``grasp_posture``
-    ``trajectory_msgs/JointTrajectory`` of the two finger joints ``<gripper>_finger_joint_left`` and
-    ``<gripper>_finger_joint_right`` (prismatic, metres, each jaw's distance from the TCP's centre
-    plane: half the opening): the pre-grasp opening ``Gripper.pregrasp_opening(width)``, then the
-    part's width between the contacts. One point each, reached after :data:`POSTURE_TIME_S`.
-    Rename the joints to your gripper's (the names come from the gripper file's ``name``, reduced
-    to ``[A-Za-z0-9_]``).
-``grasp_pose``
-    ``geometry_msgs/PoseStamped`` of the TCP in frame ``world`` (the plan's world frame): position
-    m, orientation quaternion ``x, y, z, w``. The TCP convention (x closing axis, z approach) is
-    grasplan's; MoveIt's ``end_effector`` link must be the TCP (or offset by ``T_flange_tcp``).
-``grasp_quality``
-    the grasp's score (0 when the plan has none).
-``pre_grasp_approach``
-    direction = the TCP's +z in ``world`` (the fingers point along it), ``desired_distance`` =
-    ``min_distance`` = the plan's back-off (the planner verified the whole approach).
-``post_grasp_retreat``
-    a plan with a lift (pick-and-place plans): direction and distance of the planned lift in
-    ``world`` (the cell's ``retreat: {direction, distance}``, measured on the plan's path by FK and
-    cross-checked against the cell). An old pick-only plan: the TCP's -z in ``world`` (straight back
-    out), distance = the plan's retreat distance (``PlanResult.retreat_distance``: the back-off).
-``post_place_retreat``
-    a plan with a place: direction and distance of the planned retreat after the release (the TCP's
-    -z at the place, by the back-off), in ``world``. Otherwise: the TCP's -z at the grasp by the
-    plan's retreat distance (what a place would do).
-``max_contact_force``
-    the gripper's ``grip_force`` (N).
-``allowed_touch_objects``
-    ``[<part>]``: the part's file stem reduced to ``[A-Za-z0-9_]``; name the part's collision object so.
-
-Every number is checked finite (:class:`~grasplan.errors.InputError` otherwise). See
-``docs/robot_programs.md``.
+"""MoveIt grasps export: the planned grasps as a YAML list of ``moveit_msgs/Grasp`` messages
+(:func:`moveit_grasps`; its docstring describes each field). Every number is checked finite
+(:class:`~grasplan.errors.InputError` otherwise). See ``docs/robot_programs.md``.
 """
 from __future__ import annotations
 
 import math
 import re
 from pathlib import Path
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import InputError
 from ..geometry.transforms import check_transform, quaternions
 from .program import is_sequence, motion_program, safe_text
 from ..results.export_registry import ExportFormat, ExportOptions, register
+
+if TYPE_CHECKING:
+    from ..results.joint_motion import Motion
+    from ..results.plan_result import PlanResult
 
 #: seconds after which a finger posture is reached (time_from_start of its single point)
 POSTURE_TIME_S = 1.0
@@ -72,7 +42,7 @@ def finger_joint_names(gripper_name: str) -> list[str]:
     return [f"{g}_finger_joint_left", f"{g}_finger_joint_right"]
 
 
-def _finite(x, what: str) -> float:
+def _finite(x: float, what: str) -> float:
     try:
         v = float(x)
     except (TypeError, ValueError):
@@ -82,7 +52,7 @@ def _finite(x, what: str) -> float:
     return v
 
 
-def _vec3(v) -> dict:
+def _vec3(v: np.ndarray) -> dict:
     return {"x": float(v[0]) + 0.0, "y": float(v[1]) + 0.0, "z": float(v[2]) + 0.0}  # + 0.0: no -0.0
 
 
@@ -102,9 +72,46 @@ def _translation(direction: np.ndarray, distance: float) -> dict:
             "desired_distance": float(distance), "min_distance": float(distance)}
 
 
-def moveit_grasps(plan, grasp_id: int | None = None) -> list[dict]:
+def moveit_grasps(plan: PlanResult, grasp_id: int | None = None) -> list[dict]:
     """``moveit_msgs/Grasp`` dicts for the planned grasps of ``plan`` (a PlanResult), best first;
-    only ``grasp_id`` when given (it must be planned). Lengths m, quaternions x, y, z, w."""
+    only ``grasp_id`` when given (it must be planned). Lengths m, quaternions x, y, z, w.
+
+    The field layout of ``moveit_msgs/msg/Grasp`` (ROS 2 names: ``builtin_interfaces/Duration`` is
+    ``{sec, nanosec}``):
+
+    ``id``
+        ``"grasp_<id>"`` (the grasplan grasp id).
+    ``pre_grasp_posture`` / ``grasp_posture``
+        ``trajectory_msgs/JointTrajectory`` of the two finger joints ``<gripper>_finger_joint_left`` and
+        ``<gripper>_finger_joint_right`` (prismatic, metres, each jaw's distance from the TCP's centre
+        plane: half the opening): the pre-grasp opening ``Gripper.pregrasp_opening(width)``, then the
+        part's width between the contacts. One point each, reached after :data:`POSTURE_TIME_S`.
+        Rename the joints to your gripper's (the names come from the gripper file's ``name``, reduced
+        to ``[A-Za-z0-9_]``).
+    ``grasp_pose``
+        ``geometry_msgs/PoseStamped`` of the TCP in frame ``world`` (the plan's world frame): position
+        m, orientation quaternion ``x, y, z, w``. The TCP convention (x closing axis, z approach) is
+        grasplan's; MoveIt's ``end_effector`` link must be the TCP (or offset by ``T_flange_tcp``).
+    ``grasp_quality``
+        the grasp's score (0 when the plan has none).
+    ``pre_grasp_approach``
+        direction = the TCP's +z in ``world`` (the fingers point along it), ``desired_distance`` =
+        ``min_distance`` = the plan's back-off (the planner verified the whole approach).
+    ``post_grasp_retreat``
+        a plan with a lift (pick-and-place plans): direction and distance of the planned lift in
+        ``world`` (the cell's ``retreat: {direction, distance}``, measured on the plan's path by FK and
+        cross-checked against the cell: :func:`_sequence_retreats`). An old pick-only plan: the TCP's
+        -z in ``world`` (straight back out), distance = the plan's retreat distance
+        (``PlanResult.retreat_distance``: the back-off).
+    ``post_place_retreat``
+        a plan with a place: direction and distance of the planned retreat after the release (the TCP's
+        -z at the place, by the back-off), in ``world``. Otherwise: the TCP's -z at the grasp by the
+        plan's retreat distance (what a place would do).
+    ``max_contact_force``
+        the gripper's ``grip_force`` (N).
+    ``allowed_touch_objects``
+        ``[<part>]``: the part's file stem reduced to ``[A-Za-z0-9_]``; name the part's collision object so.
+    """
     if grasp_id is None:
         plan.select(None)  # InputError naming the statuses when nothing is planned
         ids = plan.planned_ids()
@@ -126,7 +133,7 @@ def moveit_grasps(plan, grasp_id: int | None = None) -> list[dict]:
         z = T[:3, 2]
         q = quaternions(T[:3, :3], order="xyzw")
         grasp_retreat, place_retreat = _translation(-z, retreat), _translation(-z, retreat)
-        if is_sequence(g.motion):
+        if is_sequence(cast("Motion", g.motion)):  # a planned grasp has its motion
             grasp_retreat, place_retreat = _sequence_retreats(plan, g.id, grasp_retreat, place_retreat)
         out.append({
             "id": f"grasp_{int(g.id)}",
@@ -146,7 +153,7 @@ def moveit_grasps(plan, grasp_id: int | None = None) -> list[dict]:
     return out
 
 
-def _sequence_retreats(plan, grasp_id: int, grasp_retreat: dict, place_retreat: dict) -> tuple[dict, dict]:
+def _sequence_retreats(plan: PlanResult, grasp_id: int, grasp_retreat: dict, place_retreat: dict) -> tuple[dict, dict]:
     """``post_grasp_retreat`` = the cell's retreat (direction, distance; world) that the plan's lift
     follows and, with a place, ``post_place_retreat`` = the TCP's -z at the place by the plan's
     back-off (the planned retreat after the release). Both are cross-checked against the planned
@@ -162,7 +169,7 @@ def _sequence_retreats(plan, grasp_id: int, grasp_retreat: dict, place_retreat: 
         p0 = (T_world_ctrl @ (prev[0].T_base_tcp_end if prev else mp.T_base_tcp_pregrasp))[:3, 3]
         return (T_world_ctrl @ s.T_base_tcp_end)[:3, 3] - p0
 
-    def translation(label: str, direction, distance) -> dict:
+    def translation(label: str, direction: ArrayLike | None, distance: float | None) -> dict:
         d = measured(label)
         if direction is None or distance is None:
             distance = float(np.linalg.norm(d))
@@ -180,14 +187,14 @@ def _sequence_retreats(plan, grasp_id: int, grasp_retreat: dict, place_retreat: 
     lift = translation("lift", getattr(cell, "retreat_direction", None), getattr(cell, "retreat_distance", None))
     if "retreat" not in segs:
         return lift, place_retreat
-    m = plan.grasp(grasp_id).motion
+    m = cast("Motion", plan.grasp(grasp_id).motion)  # a planned grasp (motion_program checked it)
     T_place = check_transform(np.asarray(m.T_world_part_place) @ np.linalg.inv(np.asarray(m.T_tcp_part)),
                               f"grasp {grasp_id}: place TCP")
     backoff = _finite(plan.params.planning.backoff, "plan back-off")
     return lift, translation("retreat", -T_place[:3, 2], backoff)
 
 
-def render(plan, options: ExportOptions) -> dict[str, str]:
+def render(plan: PlanResult, options: ExportOptions) -> dict[str, str]:
     """Registry entry: ``{".yaml": text}``, a YAML list of ``moveit_msgs/Grasp``."""
     import yaml
 

@@ -1,29 +1,12 @@
-"""Path CSV export: the whole motion of one planned grasp, one row per path waypoint.
-
-Columns (header row, in this order; lengths m, angles rad):
-
-``row, segment, gripper, gripper_width, attached, q_<joint> ... (one per robot joint),
-tcp_x, tcp_y, tcp_z, tcp_qw, tcp_qx, tcp_qy, tcp_qz``
-
-- ``row``: the path row (0 = ``q_home``). ``segment``: the label of the segment the robot is in
-  when it arrives at the row (``transit``, ``approach``, ``lift``, ``transfer``, ``descend``,
-  ``retreat``; row 0 belongs to the first segment; a boundary row to the segment that ends there).
-  How each segment is driven: ``transit``/``transfer`` joint moves through every row, the others
-  one straight TCP move (see docs/export.md).
-- ``gripper``: ``close`` / ``open`` on the row where the jaws are commanded, once the robot stands
-  there (an old pick-only plan: ``close`` at the grasp row); ``gripper_width``: the commanded
-  opening, m. Empty elsewhere.
-- ``attached``: 1 when the robot arrives at the row with the part in the jaws (the rows after the
-  close row up to and including the open row), else 0.
-- ``tcp_*``: the TCP pose in the world frame by forward kinematics (``FK(q) @ T_flange_tcp_at(width)``),
-  quaternion w first with ``qw >= 0``.
-
-Numbers are written with up to 12 significant digits (joint values round-trip to 1e-12 rad).
+"""Path CSV export: the whole motion of one planned grasp, one row per path waypoint
+(:func:`path_csv`; :func:`path_rows` describes the columns).
 """
 from __future__ import annotations
 
 import csv
 import io
+from collections.abc import Iterable
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -32,19 +15,45 @@ from ..geometry.transforms import pose7
 from .program import motion_segments
 from ..results.export_registry import ExportFormat, ExportOptions, register
 
+if TYPE_CHECKING:
+    from ..results.joint_motion import Motion
+    from ..results.plan_result import PlanResult
+    from ..robot.model import Robot
+
 POSE_COLS = ("x", "y", "z", "qw", "qx", "qy", "qz")
 
 
-def header(joint_names) -> list[str]:
+def header(joint_names: Iterable[str]) -> list[str]:
     return (["row", "segment", "gripper", "gripper_width", "attached"] + [f"q_{j}" for j in joint_names]
             + [f"tcp_{c}" for c in POSE_COLS])
 
 
-def path_rows(plan, grasp_id: int | None = None) -> list[dict]:
-    """The rows of the path CSV as dicts (column -> value), for tests and the API."""
+def path_rows(plan: PlanResult, grasp_id: int | None = None) -> list[dict]:
+    """The rows of the path CSV as dicts (column -> value), for tests and the API.
+
+    Columns (header row, in this order; lengths m, angles rad)::
+
+        row, segment, gripper, gripper_width, attached, q_<joint> ... (one per robot joint),
+        tcp_x, tcp_y, tcp_z, tcp_qw, tcp_qx, tcp_qy, tcp_qz
+
+    - ``row``: the path row (0 = ``q_home``). ``segment``: the label of the segment the robot is in
+      when it arrives at the row (``transit``, ``approach``, ``lift``, ``transfer``, ``descend``,
+      ``retreat``; row 0 belongs to the first segment; a boundary row to the segment that ends there).
+      How each segment is driven: ``transit``/``transfer`` joint moves through every row, the others
+      one straight TCP move (see docs/export.md).
+    - ``gripper``: ``close`` / ``open`` on the row where the jaws are commanded, once the robot stands
+      there (an old pick-only plan: ``close`` at the grasp row); ``gripper_width``: the commanded
+      opening, m. Empty elsewhere.
+    - ``attached``: 1 when the robot arrives at the row with the part in the jaws (the rows after the
+      close row up to and including the open row), else 0.
+    - ``tcp_*``: the TCP pose in the world frame by forward kinematics (``FK(q) @ T_flange_tcp_at(width)``),
+      quaternion w first with ``qw >= 0``.
+
+    :func:`path_csv` writes numbers with up to 12 significant digits (joint values round-trip to 1e-12 rad).
+    """
     g = plan.select(grasp_id)
-    m = g.motion
-    robot = plan.robot
+    m = cast("Motion", g.motion)        # select() returns a planned grasp: it has its motion
+    robot = cast("Robot", plan.robot)   # select() refuses a result without a robot
     path = np.asarray(m.path, dtype=np.float64)
     if not np.all(np.isfinite(path)) or not np.all(robot.within_limits(path, tol=1e-6)):
         raise InputError(f"grasp {g.id}: the path has non-finite values or leaves the joint limits of {robot.name!r}")
@@ -74,13 +83,13 @@ def path_rows(plan, grasp_id: int | None = None) -> list[dict]:
     return out
 
 
-def _num(v) -> str:
+def _num(v: float | str | None) -> str:
     return "" if v is None or v == "" else f"{float(v) + 0.0:.12g}"
 
 
-def path_csv(plan, grasp_id: int | None = None) -> str:
+def path_csv(plan: PlanResult, grasp_id: int | None = None) -> str:
     """The path CSV text of ``grasp_id`` (default: the best planned grasp) of a PlanResult."""
-    joints = list(plan.robot.joint_names)
+    joints = list(cast("Robot", plan.robot).joint_names)  # exports refuse a result without a robot
     cols = header(joints)
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
@@ -91,7 +100,7 @@ def path_csv(plan, grasp_id: int | None = None) -> str:
     return buf.getvalue()
 
 
-def _render(plan, opts: ExportOptions) -> dict[str, str]:
+def _render(plan: PlanResult, opts: ExportOptions) -> dict[str, str]:
     return {".csv": path_csv(plan, opts.grasp_id)}
 
 

@@ -14,11 +14,17 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
 from ..errors import InputError
 from ..results.export_registry import ExportOptions
+
+if TYPE_CHECKING:
+    from ..results.joint_motion import GripperEvent, Motion
+    from ..results.plan_result import GraspView, PlanResult
+    from ..robot.model import Robot
 
 #: slack (deg) when checking controller angles against the limits: the URDF limits are rad and the
 #: plan's joint values may sit exactly on a limit
@@ -27,7 +33,7 @@ LIMIT_TOL_DEG = 1e-6
 _UNSAFE = re.compile(r"[^A-Za-z0-9 _.,:/+=()\-]")
 
 
-def safe_text(s, max_len: int = 80) -> str:
+def safe_text(s: object, max_len: int = 80) -> str:
     """``s`` reduced to ``[A-Za-z0-9 _.,:/+=()-]`` (others -> ``_``), at most ``max_len`` characters."""
     s = _UNSAFE.sub("_", str(s))
     return s if len(s) <= max_len else s[: max_len - 3] + "..."
@@ -138,11 +144,11 @@ class MotionProgram:
         return self.joint_sign * np.degrees(np.asarray(q, dtype=np.float64)) + self.joint_offset_deg
 
 
-def motion_program(plan, grasp_id: int | None = None, *, source: str = "") -> MotionProgram:
+def motion_program(plan: PlanResult, grasp_id: int | None = None, *, source: str = "") -> MotionProgram:
     """The :class:`MotionProgram` of planned grasp ``grasp_id`` (default: the best) of ``plan``."""
     g = plan.select(grasp_id)
-    m = g.motion
-    robot = plan.robot
+    m = cast("Motion", g.motion)        # select() returns a planned grasp: it has its motion
+    robot = cast("Robot", plan.robot)   # select() refuses a result without a robot
     gripper = plan.gripper
     k = int(m.pregrasp_index)
     path = np.asarray(m.path, dtype=np.float64)
@@ -177,7 +183,7 @@ def motion_program(plan, grasp_id: int | None = None, *, source: str = "") -> Mo
         source=safe_text(source, 80), full_path=path, gripper_mass=gripper.mass, gripper_com=gripper.com, **seq)
 
 
-def motion_segments(m) -> list[tuple[str, int, int]]:
+def motion_segments(m: Motion) -> list[tuple[str, int, int]]:
     """``(label, start, end)`` of a :class:`~grasplan.results.joint_motion.Motion` (transit + approach for a
     motion without segments)."""
     if hasattr(m, "segment_list"):
@@ -186,7 +192,7 @@ def motion_segments(m) -> list[tuple[str, int, int]]:
     return [("transit", 0, k), ("approach", k, len(m.path) - 1)]
 
 
-def is_sequence(m) -> bool:
+def is_sequence(m: Motion) -> bool:
     """True when a motion goes beyond the pick (it has a lift: the part is lifted in the jaws)."""
     return len(motion_segments(m)) > 2
 
@@ -206,14 +212,14 @@ def _rot_angle(Ra: np.ndarray, Rb: np.ndarray) -> np.ndarray:
     return np.arccos(np.clip(c, -1.0, 1.0))
 
 
-def _sequence(plan, g, m, path: np.ndarray, T_ctrl_world: np.ndarray, T_flange_tcp: np.ndarray) -> dict:
+def _sequence(plan: PlanResult, g: GraspView, m: Motion, path: np.ndarray, T_ctrl_world: np.ndarray, T_flange_tcp: np.ndarray) -> dict:
     """The segments and gripper events of a pick(-and-place) motion, checked: every linear
     segment's samples within ``max_dev`` (+0.1 mm) of the straight line and at a constant
     orientation (0.01 rad), the lift along the cell's retreat direction by its distance and the
     place TCP at ``T_world_part_place`` (1 mm, 0.01 rad). ``{}`` for an old pick-only motion."""
     if not is_sequence(m):
         return {}
-    robot = plan.robot
+    robot = cast("Robot", plan.robot)   # the caller's select() refused a result without a robot
     segs = motion_segments(m)
     where = f"grasp {g.id}"
     labels = [s[0] for s in segs]
@@ -250,7 +256,7 @@ def _sequence(plan, g, m, path: np.ndarray, T_ctrl_world: np.ndarray, T_flange_t
     T_place = getattr(m, "T_world_part_place", None)
     T_tcp_part = getattr(m, "T_tcp_part", None)
     if T_place is not None and T_tcp_part is not None and hasattr(m, "event") and m.event("open") is not None:
-        i = m.event("open").index
+        i = cast("GripperEvent", m.event("open")).index  # not None: tested above
         T_fk_part = T_tcp[i] @ np.asarray(T_tcp_part, dtype=np.float64)
         dp = float(np.linalg.norm(T_fk_part[:3, 3] - np.asarray(T_place)[:3, 3]))
         dr = float(_rot_angle(T_fk_part[:3, :3], np.asarray(T_place)[:3, :3]))
@@ -308,7 +314,7 @@ def row_label(mp: MotionProgram, row: int) -> str:
 
 # -- shared by the program exporters (KRL, RAPID) --------------------------------------------------
 
-def controller_joint_deg(mp: MotionProgram, qs, what: str) -> np.ndarray:
+def controller_joint_deg(mp: MotionProgram, qs: np.ndarray, what: str) -> np.ndarray:
     """Controller joint angles, degrees ``(k, n)``, of joint vectors ``qs`` ``(k, n)`` or ``(n,)`` rad.
 
     ``MotionProgram.controller_deg``: ``sign * degrees(q) + offset_deg`` per joint.
@@ -458,4 +464,6 @@ def program_targets(mp: MotionProgram, program_name: str, language: str, axes: s
                           T_grasp=check_transform(mp.T_base_tcp_grasp, "T_base_tcp_grasp"),
                           T_retreat=check_transform(mp.T_base_tcp_retreat, "T_base_tcp_retreat"),
                           ext_grasp=ext_grasp, ext_retreat=ext_retreat,
-                          full_deg=(controller_joint_deg(mp, mp.full_path, "path") if mp.sequence else None))
+                          # a sequence has its full path
+                          full_deg=(controller_joint_deg(mp, cast(np.ndarray, mp.full_path), "path")
+                                    if mp.sequence else None))

@@ -1,35 +1,13 @@
-"""ABB RAPID export: one planned grasp as a RAPID program module (``.mod``).
-
-The module ``MODULE <program_name>`` holds:
-
-- ``PERS tooldata <program_name>_tool``: the gripper's TCP at the grasp's width
-  (``Gripper.T_flange_tcp_at``) as ``tframe`` (mm, quaternion ``[q1, q2, q3, q4]`` = w, x, y, z). The
-  load (``tload``) is the gripper YAML's ``mass`` (kg) and ``com`` (``cog``, mm in the flange frame),
-  as a point mass (``aom`` = [1, 0, 0, 0], inertia 0 0 0: run LoadIdentify for the inertia); a gripper
-  file without ``mass`` gets a **placeholder** (mass :data:`PLACEHOLDER_MASS_KG`, centre of gravity
-  halfway to the TCP) and a comment saying so.
-- ``PERS wobjdata <program_name>_wobj``: ``uframe`` = the plan's ``T_world_base`` (the robot's base
-  frame in the world), ``oframe`` identity; the Cartesian targets are in this work object.
-- ``LOCAL CONST jointtarget jt_1 .. jt_k``: the planned joint path ``q_home -> q_pregrasp`` (degrees),
-  driven with ``MoveAbsJ ..., fine`` (exact stops: the planner verified straight joint interpolation
-  between waypoints; a zone would cut corners).
-- ``LOCAL CONST robtarget rt_grasp, rt_retreat``: TCP poses (mm, quaternion w first) for the straight
-  ``MoveL`` approach and retreat. ``confdata`` ``[cf1, cf4, cf6, cfx]``: the quarter revolutions of
-  axes 1, 4 and 6 at the grasp (``floor(angle / 90 deg)``), ``cfx`` 0; the procedure runs the linear
-  moves with ``ConfL \\Off`` so the controller keeps the configuration the ``MoveAbsJ`` path reached.
-- ``PROC <program_name>_main()``: the pick, and ``LOCAL PROC`` stubs ``grasplan_gripper_open`` /
-  ``grasplan_gripper_close`` to fill in with the gripper's I/O.
-
-Joint values: ``controller angle [deg] = joint_sign * degrees(q) + joint_offset_deg`` per joint (the
-robot YAML's ``controller_joint_map``). ``rax_1 .. rax_6`` are joints 1..6; a 7-joint arm (Panda) puts
-joint 7 in ``eax_a`` (in the robtargets too, as in the KRL export); unused external axes are
-``9E9``. Other joint counts are refused.
+"""ABB RAPID export: one planned grasp as a RAPID program module (``.mod``) (:func:`rapid_module`;
+its docstring describes the module). See ``docs/robot_programs.md``.
 
 Every text that comes from an input is reduced by :func:`grasplan.export.program.safe_text` and
 appears only in ``!`` comments. Non-finite numbers and joint values outside the limits are refused
-with :class:`~grasplan.errors.InputError`. See ``docs/robot_programs.md``.
+with :class:`~grasplan.errors.InputError`.
 """
 from __future__ import annotations
+
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -48,10 +26,13 @@ from .program import (
 )
 from ..results.export_registry import ExportFormat, ExportOptions, register
 
+if TYPE_CHECKING:
+    from ..results.plan_result import PlanResult
+
 #: speeddata of the joint moves and of the linear approach/retreat (predefined RAPID data)
 JOINT_SPEED = "v200"
 LINEAR_SPEED = "v50"
-#: kg, the tload mass written for a gripper file without ``mass`` (see the module docstring)
+#: kg, the tload mass written for a gripper file without ``mass`` (:func:`tool_load`)
 PLACEHOLDER_MASS_KG = 1.0
 #: seconds the gripper stubs wait (placeholder for the gripper's "done" signal)
 GRIPPER_WAIT_S = 0.5
@@ -101,6 +82,31 @@ def rapid_module(mp: MotionProgram, program_name: str = "grasplan_pick") -> dict
 
     Raises :class:`InputError` for a robot with other than 6 or 7 joints, a non-finite value or a
     joint value outside the limits.
+
+    The module ``MODULE <program_name>`` holds:
+
+    - ``PERS tooldata <program_name>_tool``: the gripper's TCP at the grasp's width
+      (``Gripper.T_flange_tcp_at``) as ``tframe`` (mm, quaternion ``[q1, q2, q3, q4]`` = w, x, y, z). The
+      load (``tload``) is the gripper YAML's ``mass`` (kg) and ``com`` (``cog``, mm in the flange frame),
+      as a point mass (``aom`` = [1, 0, 0, 0], inertia 0 0 0: run LoadIdentify for the inertia); a gripper
+      file without ``mass`` gets a **placeholder** (mass :data:`PLACEHOLDER_MASS_KG`, centre of gravity
+      halfway to the TCP) and a comment saying so (:func:`tool_load`).
+    - ``PERS wobjdata <program_name>_wobj``: ``uframe`` = the plan's ``T_world_base`` (the robot's base
+      frame in the world), ``oframe`` identity; the Cartesian targets are in this work object.
+    - ``LOCAL CONST jointtarget jt_1 .. jt_k``: the planned joint path ``q_home -> q_pregrasp`` (degrees),
+      driven with ``MoveAbsJ ..., fine`` (exact stops: the planner verified straight joint interpolation
+      between waypoints; a zone would cut corners).
+    - ``LOCAL CONST robtarget rt_grasp, rt_retreat``: TCP poses (mm, quaternion w first) for the straight
+      ``MoveL`` approach and retreat. ``confdata`` ``[cf1, cf4, cf6, cfx]``: the quarter revolutions of
+      axes 1, 4 and 6 at the grasp (:func:`confdata`), ``cfx`` 0; the procedure runs the linear moves
+      with ``ConfL \\Off`` so the controller keeps the configuration the ``MoveAbsJ`` path reached.
+    - ``PROC <program_name>_main()``: the pick, and ``LOCAL PROC`` stubs ``grasplan_gripper_open`` /
+      ``grasplan_gripper_close`` to fill in with the gripper's I/O.
+
+    Joint values: ``controller angle [deg] = joint_sign * degrees(q) + joint_offset_deg`` per joint (the
+    robot YAML's ``controller_joint_map``). ``rax_1 .. rax_6`` are joints 1..6; a 7-joint arm (Panda) puts
+    joint 7 in ``eax_a`` (in the robtargets too, as in the KRL export); unused external axes are
+    ``9E9``. Other joint counts are refused.
     """
     # the name is <= 24 characters: + "_main" stays within RAPID's 32
     t = program_targets(mp, program_name, "RAPID", "(rax_1..rax_6) or 7 (joint 7 as eax_a)")
@@ -201,7 +207,7 @@ def _sequence(mp: MotionProgram, t: ProgramTargets, move: str) -> tuple[list[str
     return decl, proc
 
 
-def render(plan, options: ExportOptions) -> dict[str, str]:
+def render(plan: PlanResult, options: ExportOptions) -> dict[str, str]:
     """Registry entry: the RAPID module of ``options.grasp_id`` (default the best planned grasp)."""
     mp = motion_program(plan, options.grasp_id, source=options.source)
     return rapid_module(mp, options.program_name)

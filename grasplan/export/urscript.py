@@ -1,26 +1,13 @@
-"""URScript program for one planned grasp (Universal Robots arms only).
-
-The program (one ``def grasplan_pick(): ... end``, the form the controller runs when the file is
-sent to its script port or loaded by ``ur_robot_driver``):
-
-1. ``grasplan_open_gripper(opening)`` / ``grasplan_close_gripper(width)``: defined at the top, with
-   placeholder bodies (a ``textmsg`` and a ``sleep``). **Fill them in** with your gripper's I/O.
-2. ``set_tcp(p[...])``: the gripper's ``T_flange_tcp`` (flange = URDF ``tool0``).
-3. ``movej([...], a=, v=)`` to every waypoint of the planned joint path from ``q_home`` to
-   ``q_pregrasp`` without blending (``movej`` moves on a straight line in joint space, which is how
-   the planner verified the path; a blend radius would cut corners).
-4. ``movel(p[x, y, z, rx, ry, rz], a=, v=)``: the straight approach to the grasp TCP.
-5. close the gripper; ``movel`` straight back to the pre-grasp pose (the retreat).
-
-Poses are in the controller's base frame, which is the URDF frame ``base`` (rotated 180 deg about z
-from ``base_link`` in the UR description; the robot YAML's ``controller_base_frame``), resolved by
-:func:`grasplan.export.program.motion_program`, which also cross-checks ``FK(q_grasp) @
-T_flange_tcp`` against the grasp TCP. Rotations are rotation vectors (axis * angle, rad). Lengths
+"""URScript program for one planned grasp (Universal Robots arms only): :func:`urscript_program`,
+whose docstring describes the program. Rotations are rotation vectors (axis * angle, rad), lengths
 in metres. Every label from an input (file and gripper names) passes through ``safe_text``.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
 
 from ..errors import InputError
@@ -34,6 +21,9 @@ from .program import (
     sequence_lines,
 )
 from ..results.export_registry import ExportFormat, ExportOptions, register
+
+if TYPE_CHECKING:
+    from ..results.plan_result import PlanResult
 
 #: joint order of every UR arm (URScript's joint vector order)
 UR_JOINTS = ("shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint",
@@ -57,7 +47,7 @@ def pose_vector(T: np.ndarray) -> np.ndarray:
     return np.concatenate([T[:3, 3], rotvec(T[:3, :3])])
 
 
-def fmt_list(v, digits: int = 6) -> str:
+def fmt_list(v: ArrayLike, digits: int = 6) -> str:
     return "[" + ", ".join(f"{x:.{digits}f}" for x in np.asarray(v, dtype=float)) + "]"
 
 
@@ -67,7 +57,25 @@ def fmt_pose(T: np.ndarray) -> str:
 
 def urscript_program(prog: MotionProgram, *, joint_speed: float = JOINT_SPEED, joint_accel: float = JOINT_ACCEL,
                      linear_speed: float = LINEAR_SPEED, linear_accel: float = LINEAR_ACCEL) -> str:
-    """The URScript program text of a :class:`MotionProgram`."""
+    """The URScript program text of a :class:`MotionProgram`.
+
+    The program (one ``def grasplan_pick(): ... end``, the form the controller runs when the file is
+    sent to its script port or loaded by ``ur_robot_driver``):
+
+    1. ``grasplan_open_gripper(opening)`` / ``grasplan_close_gripper(width)``: defined at the top, with
+       placeholder bodies (a ``textmsg`` and a ``sleep``). **Fill them in** with your gripper's I/O.
+    2. ``set_tcp(p[...])``: the gripper's ``T_flange_tcp`` (flange = URDF ``tool0``).
+    3. ``movej([...], a=, v=)`` to every waypoint of the planned joint path from ``q_home`` to
+       ``q_pregrasp`` without blending (``movej`` moves on a straight line in joint space, which is how
+       the planner verified the path; a blend radius would cut corners).
+    4. ``movel(p[x, y, z, rx, ry, rz], a=, v=)``: the straight approach to the grasp TCP.
+    5. close the gripper; ``movel`` straight back to the pre-grasp pose (the retreat).
+
+    Poses are in the controller's base frame, which is the URDF frame ``base`` (rotated 180 deg about z
+    from ``base_link`` in the UR description; the robot YAML's ``controller_base_frame``), resolved by
+    :func:`grasplan.export.program.motion_program`, which also cross-checks ``FK(q_grasp) @
+    T_flange_tcp`` against the grasp TCP.
+    """
     if tuple(prog.joint_names) != UR_JOINTS:
         raise InputError(f"URScript runs only on Universal Robots arms; robot {prog.robot_name!r} has joints "
                          f"{', '.join(prog.joint_names)}. Export --format krl, rapid or joint-trajectory instead")
@@ -158,7 +166,7 @@ def _sequence_lines(prog: MotionProgram, joint_av: str, linear_av: str) -> list[
     return L
 
 
-def _render(plan, opts: ExportOptions) -> dict[str, str]:
+def _render(plan: PlanResult, opts: ExportOptions) -> dict[str, str]:
     return {".script": urscript_program(motion_program(plan, opts.grasp_id, source=opts.source))}
 
 

@@ -48,7 +48,7 @@ class _Grid:
             k += C[:, d]
         return k
 
-    def _bin(self, Y: np.ndarray):
+    def _bin(self, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         k = self.key(self.coords(Y))
         order = np.argsort(k, kind="stable")
         ks = k[order]

@@ -2,27 +2,8 @@
 
 The depth probes of a pile (:mod:`grasplan.pick.depth`, :mod:`grasplan.piles.checks`) ask of
 hundreds of points at a time whether they lie inside a neighbour's mesh and how far from its
-surface. :class:`InsideGrid` answers most of them by one array lookup: the mesh's box (in the
-generic frame of :class:`~grasplan.geometry.containment.RayGrid`, a voxel larger on every side) cut into
-voxels of edge ``h``, each either
-
-* **surface** (state 0): it may hold a point of the surface. Every voxel holding a surface sample
-  (a barycentric grid on every triangle, each surface point within ``e <= h`` of a sample) and
-  those within ``ceil(e / h)`` voxels of one along each axis; a point there is decided by the
-  exact test (:func:`~grasplan.geometry.containment.points_inside_tree`);
-* **inside** (1) or **outside** (-1): it holds no surface point, so every point of it is on the
-  side of its centre, found by counting the signed crossings of the mesh along each row of voxel
-  centres (the winding number of :func:`~grasplan.geometry.containment.ray_crossings`; a row whose ray
-  passes within rounding of an edge is left undecided, state 0).
-
-An inside voxel also records a lower bound of the depth of any point in it: the distance of its
-centre to the nearest surface voxel's centre (Euclidean distance transform) less twice the
-voxel's half-diagonal (the point's offset from its centre, the surface point's from its voxel's).
-Points beyond the grid are outside. Rounding of the voxel index can only misplace a point within
-about 1e-15 m of a voxel face, where a wrong side means a depth of that order.
-
-The grid has at most ``max_voxels`` voxels (coarser ``h`` for a large part) and is built once per
-mesh (:func:`inside_grid`, kept while the mesh lives).
+surface. :class:`InsideGrid` answers most of them by one array lookup and leaves the rest to the
+exact test; :func:`inside_grid` builds it once per mesh (kept while the mesh lives).
 """
 from __future__ import annotations
 
@@ -67,8 +48,27 @@ def _samples(tri: np.ndarray, spacing: float) -> tuple[np.ndarray, float]:
 
 @dataclass(frozen=True, eq=False)
 class InsideGrid:
-    """See the module docstring. ``Q``: the rotation into the grid's frame (a point ``p`` of the
-    mesh's frame is at ``Q @ p`` there); ``origin``: the grid's lowest corner in that frame."""
+    """The mesh's box (in the generic frame of :class:`~grasplan.geometry.containment.RayGrid`, a
+    voxel larger on every side) cut into voxels of edge ``h``, each either
+
+    * **surface** (state 0): it may hold a point of the surface. Every voxel holding a surface sample
+      (a barycentric grid on every triangle, each surface point within ``e <= h`` of a sample:
+      :func:`_samples`) and those within ``ceil(e / h)`` voxels of one along each axis; a point there
+      is decided by the exact test (:func:`~grasplan.geometry.containment.points_inside_tree`);
+    * **inside** (1) or **outside** (-1): it holds no surface point, so every point of it is on the
+      side of its centre, found by counting the signed crossings of the mesh along each row of voxel
+      centres (the winding number of :func:`~grasplan.geometry.containment.ray_crossings`; a row whose
+      ray passes within rounding of an edge is left undecided, state 0).
+
+    An inside voxel also records a lower bound of the depth of any point in it: the distance of its
+    centre to the nearest surface voxel's centre (Euclidean distance transform) less twice the
+    voxel's half-diagonal (the point's offset from its centre, the surface point's from its voxel's).
+    Points beyond the grid are outside. Rounding of the voxel index can only misplace a point within
+    about 1e-15 m of a voxel face, where a wrong side means a depth of that order. The grid has at
+    most ``max_voxels`` voxels (coarser ``h`` for a large part).
+
+    ``Q``: the rotation into the grid's frame (a point ``p`` of the mesh's frame is at ``Q @ p``
+    there); ``origin``: the grid's lowest corner in that frame."""
 
     Q: np.ndarray
     origin: np.ndarray

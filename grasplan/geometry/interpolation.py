@@ -7,6 +7,7 @@ Joint vectors are ``(n,)`` float64 radians; paths are ``(k, n)`` arrays, first r
 from __future__ import annotations
 
 import functools
+from typing import Literal, overload
 
 import numpy as np
 
@@ -14,7 +15,14 @@ import numpy as np
 STEP = 0.01
 
 
-def interpolate_path(path: np.ndarray, *, step: float = STEP, return_index: bool = False):
+@overload
+def interpolate_path(path: np.ndarray, *, step: float = ..., return_index: Literal[False] = ...) -> np.ndarray: ...
+@overload
+def interpolate_path(path: np.ndarray, *, step: float = ...,
+                     return_index: Literal[True]) -> tuple[np.ndarray, np.ndarray]: ...
+
+def interpolate_path(path: np.ndarray, *, step: float = STEP, return_index: bool = False
+                     ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """The one joint-path densifier: every segment of a ``(k, n)`` path split into
     ``ceil(max|dq| / step)`` equal parts (a repeated waypoint adds no point).
 

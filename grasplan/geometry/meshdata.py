@@ -1,32 +1,24 @@
 """A triangle mesh as plain NumPy arrays: what the load and candidate stages need, without trimesh.
 
-Importing trimesh costs 0.5-0.9 s on this project's machines (it pulls in ``scipy.spatial`` and
-``networkx``), more than loading a part and computing its candidates. :class:`MeshData` computes the part of
-``trimesh.Trimesh``'s interface those stages read (``vertices``, ``faces``, ``face_normals``,
-``area_faces``, ``area``, ``triangles``, ``triangles_center``, ``bounds``, ``extents``,
-``is_watertight``, ``is_winding_consistent``, ``body_count``, ``convex_hull``, ``volume``,
-``center_mass``) with NumPy and scipy's Qhull alone, each once and cached. Everything else
-(``centroid``, ``face_adjacency``, ``ray``, ...) is read from an equal ``trimesh.Trimesh`` built on
-first use (:attr:`MeshData.trimesh`), so a ``MeshData`` can stand wherever a read-only trimesh was
-used. :class:`TriangleMesh` is the Protocol of what the stages read of either.
-
-A ``MeshData`` is immutable by contract: its arrays are shared, never written (stages that change
-geometry build a new one). Lengths are whatever the caller's are (the pipeline's are metres).
-
-This is a base module (it imports nothing of grasplan): besides the mesh it holds the mesh
-helpers the stages share, :func:`edge_adjacency` (faces sharing an edge, one sort),
-:func:`connected_components`, :func:`polyhedron_integrals` (volume, centre of mass and inertia of a
-closed mesh; :mod:`grasplan.part.mass` builds the part's mass properties on it) and :func:`convex_hull`.
+:class:`MeshData` is the mesh; :class:`TriangleMesh` is the Protocol of what the stages read of a
+``MeshData`` or a ``trimesh.Trimesh``. This is a base module (it imports nothing of grasplan):
+besides the mesh it holds the mesh helpers the stages share, :func:`edge_adjacency` (faces sharing
+an edge, one sort), :func:`connected_components`, :func:`polyhedron_integrals` (volume, centre of
+mass and inertia of a closed mesh; :mod:`grasplan.part.mass` builds the part's mass properties on
+it) and :func:`convex_hull`.
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Protocol
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, Literal, Protocol, TypeVar, overload
 
 import numpy as np
 
 if TYPE_CHECKING:
     import trimesh as _trimesh  # as _trimesh: in MeshData's body ``trimesh`` is its property
 
+
+_T = TypeVar("_T")
 
 #: trimesh's zero threshold of a cross product's length (``trimesh.util.TOL_ZERO``)
 _TOL_ZERO = float(np.finfo(np.float64).resolution * 100)
@@ -54,7 +46,13 @@ def connected_components(n: int, edges: np.ndarray) -> tuple[int, np.ndarray]:
     return int(label.max()) + 1 if n else 0, label.reshape(-1)
 
 
-def edge_adjacency(faces: np.ndarray, *, slots: bool = False) -> tuple[np.ndarray, ...]:
+@overload
+def edge_adjacency(faces: np.ndarray, *, slots: Literal[False] = ...) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
+@overload
+def edge_adjacency(faces: np.ndarray, *, slots: Literal[True]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]: ...
+
+def edge_adjacency(faces: np.ndarray, *, slots: bool = False
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Pairs of faces sharing an edge (edges with exactly two faces, as ``trimesh.face_adjacency``),
     by one int64 sort instead of trimesh's row hashing (several times faster at 250k faces).
 
@@ -164,7 +162,20 @@ class TriangleMesh(Protocol):
 
 
 class MeshData:
-    """An immutable triangle mesh; see the module docstring.
+    """An immutable triangle mesh.
+
+    Importing trimesh costs 0.5-0.9 s (it pulls in ``scipy.spatial`` and ``networkx``), more than
+    loading a part and computing its candidates. This class computes the part of
+    ``trimesh.Trimesh``'s interface the load and candidate stages read (``vertices``, ``faces``,
+    ``face_normals``, ``area_faces``, ``area``, ``triangles``, ``triangles_center``, ``bounds``,
+    ``extents``, ``is_watertight``, ``is_winding_consistent``, ``body_count``, ``convex_hull``,
+    ``volume``, ``center_mass``) with NumPy and scipy's Qhull alone, each once and cached. Everything
+    else (``centroid``, ``face_adjacency``, ``ray``, ...) is read from an equal ``trimesh.Trimesh``
+    built on first use (:attr:`trimesh`), so a ``MeshData`` can stand wherever a read-only trimesh
+    was used.
+
+    Immutable by contract: its arrays are shared, never written (stages that change geometry build
+    a new one). Lengths are whatever the caller's are (the pipeline's are metres).
 
     Parameters
     ----------
@@ -196,7 +207,7 @@ class MeshData:
     def __repr__(self) -> str:
         return f"MeshData(vertices={len(self._vertices)}, faces={len(self._faces)})"
 
-    def _cached(self, name: str, compute):
+    def _cached(self, name: str, compute: Callable[[], _T]) -> _T:
         c = self._cache
         if name not in c:
             c[name] = compute()
@@ -220,7 +231,7 @@ class MeshData:
     @property
     def triangles_cross(self) -> np.ndarray:
         """(m, 3) float64: (b - a) x (c - b) per face (trimesh's operands, bit-identical results)."""
-        def f():
+        def f() -> np.ndarray:
             t = self.triangles
             d = t[:, 1:, :] - t[:, :2, :]
             return np.cross(d[:, 0], d[:, 1])
@@ -239,7 +250,7 @@ class MeshData:
     def face_normals(self) -> np.ndarray:
         """(m, 3) float64 unit normals by the right-hand rule (zero for a face without area), computed
         as trimesh does (same operations, so the same bits)."""
-        def f():
+        def f() -> np.ndarray:
             c = self.triangles_cross
             norm = np.sqrt(np.dot(c * c, [1.0, 1.0, 1.0]))
             valid = norm > _TOL_ZERO
@@ -255,7 +266,7 @@ class MeshData:
     @property
     def bounds(self) -> np.ndarray:
         """(2, 3) float64: min and max corner of the referenced vertices' box."""
-        def f():
+        def f() -> np.ndarray:
             v = self._vertices[np.unique(self._faces)] if len(self._faces) else self._vertices
             return np.array([v.min(axis=0), v.max(axis=0)])
         return self._cached("bounds", f)
@@ -282,7 +293,7 @@ class MeshData:
     def is_winding_consistent(self) -> bool:
         """Every edge with exactly two faces is walked in opposite directions by them (the two
         directed edges start at different vertices)."""
-        def f():
+        def f() -> bool:
             slot = self.edge_adjacency[3]
             a = self._faces.ravel()
             return bool(np.all(a[slot[:, 0]] != a[slot[:, 1]]))
@@ -305,7 +316,7 @@ class MeshData:
     @property
     def body_count(self) -> int:
         """Connected groups of vertices (joined by face edges), as trimesh's ``body_count``."""
-        def f():
+        def f() -> int:
             F = self._faces
             e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]]]) if len(F) else np.zeros((0, 2), dtype=np.int64)
             return connected_components(len(self._vertices), e)[0]
@@ -333,14 +344,14 @@ class MeshData:
     @property
     def trimesh(self) -> _trimesh.Trimesh:
         """An equal ``trimesh.Trimesh`` (built once, on first use; imports trimesh). Read-only."""
-        def f():
+        def f() -> _trimesh.Trimesh:
             import trimesh
 
             return trimesh.Trimesh(vertices=self._vertices, faces=self._faces,
                                    face_normals=self._cache.get("face_normals"), process=False, validate=False)
         return self._cached("trimesh", f)
 
-    def derived(self, key: str, compute):
+    def derived(self, key: str, compute: Callable[[], _T]) -> _T:
         """``compute()`` once per mesh: a stage's per-part data that depends on nothing but the
         geometry (e.g. the quality step's merged flat faces), cached with the mesh; treat the
         result as read-only."""
@@ -350,7 +361,7 @@ class MeshData:
         """A mutable ``trimesh.Trimesh`` copy (what a copy is for: changing the geometry)."""
         return self.trimesh.copy()
 
-    def __getattr__(self, name: str):
+    def __getattr__(self, name: str) -> Any:
         # only called for what the class does not define: read it from the equal trimesh, but never
         # change it in place (the arrays are shared)
         if name.startswith("_"):

@@ -17,9 +17,11 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Iterable
 from typing import TYPE_CHECKING, Literal
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import InputError
 from .units import parse_angle_deg, parse_length
@@ -31,7 +33,7 @@ if TYPE_CHECKING:
 RIGID_TOL = 1e-6
 
 
-def check_transform(T, name: str = "T", *, batch: bool = False, error: type[Exception] = InputError,
+def check_transform(T: object, name: str = "T", *, batch: bool = False, error: type[Exception] = InputError,
                     tol: float = RIGID_TOL) -> np.ndarray:
     """``T`` as float64 if it is a rigid transform ``(4, 4)`` (or ``(N, 4, 4)`` with ``batch``).
 
@@ -96,7 +98,7 @@ def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
     ])
 
 
-def xyz_rpy(xyz, rpy) -> np.ndarray:
+def xyz_rpy(xyz: ArrayLike, rpy: Iterable[float]) -> np.ndarray:
     """(4, 4) transform with translation ``xyz`` (m) and rotation :func:`rpy_matrix` of ``rpy`` (rad)."""
     T = np.eye(4)
     T[:3, :3] = rpy_matrix(*(float(a) for a in rpy))

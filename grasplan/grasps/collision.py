@@ -1,44 +1,9 @@
 """Stage 6: global collision filter of gripper poses against the part, the table and the obstacles.
 
-Checked geometry per pose, all in the TCP frame of the pose:
-
-* every body shape (boxes, meshes) of the gripper;
-* each jaw swept from the pre-grasp opening ``o_pre = min(max_opening, width + 10 mm)`` inwards to
-  ``o_close = min(width + 2 mm, o_pre)`` (:meth:`Gripper.swept_fingers`: one exact box for a box
-  jaw, the convex hull of the two end placements for a mesh jaw).
-
-Against:
-
-* the part: coal (``coal.BVHModelOBBRSS`` of the part mesh, built once per
-  :class:`GripperCollider`; ``coal.Box`` for boxes). Touching counts as a collision (coal's
-  ``distance <= 0`` within its GJK tolerance, ~1e-6 m). A shape whose oriented box is separated
-  from the part's axis-aligned box (exact 15-axis separating-axis test in NumPy) is free without
-  calling coal. coal tests surfaces: a shape that crosses no triangle is also tested for lying
-  wholly inside a watertight part (one of its points, :func:`grasplan.geometry.containment.points_inside_tree`: signed ray
-  crossings, the winding number of a closed mesh, exact; near-ties by the generalised winding
-  number). Two exact certificates decide box-part hits in NumPy before coal, each only while it
-  keeps finding hits: a box whose centre is inside a watertight part hits it; a box containing a
-  sample of the part's surface (:func:`grasplan.geometry.containment.surface_samples`: convex combinations of a triangle's
-  corners) deeper than ``SAMPLE_DEPTH`` hits it. Shapes are tried in blocks of poses, those that
-  hit most often first; the first hit names the pose's element.
-* the table, the half-space ``z < table_z`` of the world: exactly, in NumPy: a box collides iff
-  its lowest corner is below ``table_z - TABLE_CONTACT_TOL`` (so touching the table top within
-  1 micrometre is not a collision); a mesh iff its lowest vertex is.
-
-* the cell's obstacles (``cell.obstacles``, the bin's floor and walls among them): coal
-  geometry from :func:`grasplan.cell.shapes.obstacle_geometry`, built once per collider; a shape
-  whose oriented bounding box is separated from the obstacle's world axis-aligned box (the same
-  NumPy separating-axis test) is free without calling coal. Touching counts as a collision.
-
-Status per pose: ``collision_part`` when any shape hits the part (checked first, whatever the
-table), else ``collision_table`` when any shape is below the table top, else
-``collision_obstacle`` when any shape hits an obstacle, else ``ok``. So ``collision_part`` is a
-property of the grasp alone, independent of the cell.
-
-:meth:`GripperCollider.check_detail` also returns, per pose, the first gripper element that hit
-(index into :meth:`GripperCollider.element_names`: ``body_<k>``, ``finger_left``,
-``finger_right``) and the body it hit (index into :meth:`GripperCollider.body_names`: ``part``,
-``table``, ``obstacle:<name>``); :func:`hit_reasons` turns them into the grasp-stage reasons
+:class:`GripperCollider` checks each pose's gripper body shapes and its two jaws swept while
+closing (:meth:`GripperCollider.shape_sets`) against the part (coal, with exact NumPy shortcuts),
+the table (exactly, in NumPy) and the cell's obstacles (coal), and gives every pose a status
+(:meth:`GripperCollider.check_detail`); :func:`hit_reasons` words the grasp-stage reasons
 ("grasp stage: gripper:finger_left hits obstacle:wall at the grasp or while closing").
 """
 from __future__ import annotations
@@ -191,7 +156,11 @@ class GripperCollider:
 
     # -- geometry per pose -------------------------------------------------------------------
     def shape_sets(self, width: np.ndarray) -> list[_ShapeSet]:
-        """Body shapes (one variant each) then the two swept jaws (one variant per distinct width)."""
+        """Body shapes (one variant each) then the two swept jaws (one variant per distinct width),
+        all in the TCP frame of the pose: every body shape (boxes, meshes) of the gripper, and each jaw
+        swept from the pre-grasp opening ``o_pre = min(max_opening, width + 10 mm)`` inwards to
+        ``o_close = min(width + 2 mm, o_pre)`` (:meth:`Gripper.swept_fingers`: one exact box for a box
+        jaw, the convex hull of the two end placements for a mesh jaw)."""
         g = self.gripper
         o_pre = g.pregrasp_opening(width)
         o_close = g.close_to_opening(width)
@@ -217,7 +186,10 @@ class GripperCollider:
 
     # -- table ------------------------------------------------------------------------------
     def _table_hits(self, T_part_tcp: np.ndarray, sets: list[_ShapeSet]) -> tuple[np.ndarray, np.ndarray]:
-        """``(hit (M,) bool, first hitting element (M,) int, -1 when free)``."""
+        """``(hit (M,) bool, first hitting element (M,) int, -1 when free)`` against the table, the
+        half-space ``z < table_z`` of the world, exactly: a box collides iff its lowest corner is below
+        ``table_z - TABLE_CONTACT_TOL`` (so touching the table top within 1 micrometre is not a
+        collision); a mesh iff its lowest vertex is."""
         M = len(T_part_tcp)
         hit = np.zeros(M, dtype=bool)
         elem = np.full(M, -1, dtype=np.int64)
@@ -248,8 +220,11 @@ class GripperCollider:
     def _obstacle_hits(self, T_part_tcp: np.ndarray, sets: list[_ShapeSet], todo: np.ndarray
                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(hit (M,), first element (M,), obstacle index (M,))`` for the poses ``todo`` (M,) bool
-        (-1 where free or not checked). Prefilter: each shape's world oriented bounding box against
-        each obstacle's world axis-aligned box; coal for the overlapping ones (first hit decides)."""
+        (-1 where free or not checked). The obstacles (``cell.obstacles``, the bin's floor and walls
+        among them) are coal geometry from :func:`grasplan.cell.shapes.obstacle_geometry`, built once
+        per collider. Prefilter: each shape's world oriented bounding box against each obstacle's
+        world axis-aligned box (the NumPy separating-axis test); coal for the overlapping ones (first
+        hit decides). Touching counts as a collision."""
         M = len(T_part_tcp)
         hit = np.zeros(M, dtype=bool)
         elem = np.full(M, -1, dtype=np.int64)
@@ -387,9 +362,29 @@ class GripperCollider:
         return self.check_detail(T_part_tcp, width)[0]
 
     def check_detail(self, T_part_tcp: np.ndarray, width: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(status (M,) str, element (M,) int, body (M,) int)``: the status per pose (see the
-        module docstring), the gripper element that decided it (index into
-        :meth:`element_names`) and the body it hit (index into :meth:`body_names`); -1 for ``ok``."""
+        """``(status (M,) str, element (M,) int, body (M,) int)``: the status per pose, the gripper
+        element that decided it (index into :meth:`element_names`: ``body_<k>``, ``finger_left``,
+        ``finger_right``) and the body it hit (index into :meth:`body_names`: ``part``, ``table``,
+        ``obstacle:<name>``); -1 for ``ok``.
+
+        Status: ``collision_part`` when any shape hits the part (checked first, whatever the table),
+        else ``collision_table`` when any shape is below the table top (:meth:`_table_hits`), else
+        ``collision_obstacle`` when any shape hits an obstacle (:meth:`_obstacle_hits`), else ``ok``.
+        So ``collision_part`` is a property of the grasp alone, independent of the cell.
+
+        The part (:meth:`_part_hits`): coal (``coal.BVHModelOBBRSS`` of the part mesh, built once per
+        collider; ``coal.Box`` for boxes). Touching counts as a collision (coal's ``distance <= 0``
+        within its GJK tolerance, ~1e-6 m). A shape whose oriented box is separated from the part's
+        axis-aligned box (exact 15-axis separating-axis test in NumPy) is free without calling coal.
+        coal tests surfaces: a shape that crosses no triangle is also tested for lying wholly inside a
+        watertight part (one of its points, :func:`grasplan.geometry.containment.points_inside_tree`:
+        signed ray crossings, the winding number of a closed mesh, exact; near-ties by the generalised
+        winding number). Two exact certificates decide box-part hits in NumPy before coal, each only
+        while it keeps finding hits: a box whose centre is inside a watertight part hits it; a box
+        containing a sample of the part's surface (:func:`grasplan.geometry.containment.surface_samples`:
+        convex combinations of a triangle's corners) deeper than ``SAMPLE_DEPTH`` hits it. Shapes are
+        tried in blocks of poses, those that hit most often first; the first hit names the pose's
+        element."""
         T_part_tcp = check_transform(T_part_tcp, "T_part_tcp", batch=True, error=ValueError)
         width = np.asarray(width, dtype=np.float64).reshape(-1)
         if width.shape != (len(T_part_tcp),):

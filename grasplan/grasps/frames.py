@@ -1,24 +1,8 @@
 """Stage 5: TCP poses from contact pairs, rolled about the closing axis.
 
-For candidate ``i`` with contacts ``c0, c1`` (part frame):
-
-* origin = (c0 + c1) / 2;
-* x = (c1 - c0) / |c1 - c0| (closing axis, contact 0 -> contact 1);
-* z (approach, the fingers point along +z) turns about x: ``z(roll) = cos(roll) z0 + sin(roll) (x cross z0)``
-  for ``roll = 0, step, 2 step, ... < 360 deg``;
-* y = z cross x (right-handed).
-
-Roll 0 (``z0``) is the direction closest to ``reference`` (default: part-frame -z, i.e. an
-approach from above when the part frame's z is up; :func:`grasplan.grasps.pipeline.compute_grasps` passes
-the world's down direction in the part frame) that is perpendicular to x. When x is within
-about 0.06 deg of ``reference`` the fallback reference is ``-e_k`` with ``k`` the axis of the
-smallest ``|x_k|``.
-
-Duplicates: for a gripper that is symmetric under a 180 deg turn about its z axis, the pose
-``(x, z)`` and ``(-x, z)`` are the same grasp. The roll sweep of one candidate never repeats a z,
-so duplicates only come from a candidate listed twice with its contacts swapped (or listed twice
-outright): such candidates are dropped (the first one in the list is kept), so every
-``(contact pair, roll)`` is emitted exactly once.
+:func:`grasp_frames` poses every candidate at every roll angle (:func:`roll_angles`); the frame is
+defined in :class:`GraspFrames`. Repeated and swapped contact pairs are dropped first
+(:func:`unique_pairs`), so every ``(contact pair, roll)`` is emitted exactly once.
 """
 from __future__ import annotations
 
@@ -35,6 +19,20 @@ from ..config.params import GraspParams
 class GraspFrames:
     """TCP poses in the part frame.
 
+    For candidate ``i`` with contacts ``c0, c1`` (part frame):
+
+    * origin = (c0 + c1) / 2;
+    * x = (c1 - c0) / |c1 - c0| (closing axis, contact 0 -> contact 1);
+    * z (approach, the fingers point along +z) turns about x: ``z(roll) = cos(roll) z0 + sin(roll) (x cross z0)``
+      for ``roll = 0, step, 2 step, ... < 360 deg``;
+    * y = z cross x (right-handed).
+
+    Roll 0 (``z0``) is the direction closest to ``reference`` (default: part-frame -z, i.e. an
+    approach from above when the part frame's z is up; :func:`grasplan.grasps.pipeline.compute_grasps` passes
+    the world's down direction in the part frame) that is perpendicular to x. When x is within
+    about 0.06 deg of ``reference`` the fallback reference is ``-e_k`` with ``k`` the axis of the
+    smallest ``|x_k|``.
+
     T_part_tcp : (M, 4, 4) float64
     candidate : (M,) int64, index into the candidates the frames were built from
     roll : (M,) float64, radians in [0, 2 pi)
@@ -44,7 +42,7 @@ class GraspFrames:
     candidate: np.ndarray
     roll: np.ndarray
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         m = len(self.candidate)
         if self.T_part_tcp.shape != (m, 4, 4) or self.roll.shape != (m,):
             raise ValueError(f"GraspFrames: shapes {self.T_part_tcp.shape}, {self.candidate.shape}, {self.roll.shape} disagree")
@@ -52,7 +50,7 @@ class GraspFrames:
     def __len__(self) -> int:
         return int(len(self.candidate))
 
-    def subset(self, index) -> "GraspFrames":
+    def subset(self, index: np.ndarray | slice) -> "GraspFrames":
         return GraspFrames(self.T_part_tcp[index], self.candidate[index], self.roll[index])
 
 
@@ -67,6 +65,11 @@ def roll_angles(roll_step_deg: float) -> np.ndarray:
 
 def unique_pairs(candidates: Candidates, *, resolution: float = 1e-9) -> np.ndarray:
     """(n,) bool: True for the first occurrence of each unordered contact pair.
+
+    For a gripper that is symmetric under a 180 deg turn about its z axis, the pose ``(x, z)`` and
+    ``(-x, z)`` are the same grasp. The roll sweep of one candidate never repeats a z, so duplicates
+    only come from a candidate listed twice with its contacts swapped (or listed twice outright):
+    :func:`grasp_frames` drops such candidates (keeping the first one in the list).
 
     Contacts are compared on a grid of ``resolution`` metres (``floor(c / resolution)``): the
     default 1e-9 m finds exact repeats; a coarser grid (``merge_distance``) also merges

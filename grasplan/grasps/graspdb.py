@@ -4,35 +4,14 @@ A bin-picking cell sees the same part many times at poses a pose estimator repor
 a grasp that does not depend on that pose is computed once (:func:`build_database`): the
 candidates, the gripper poses ``T_part_tcp``, the full-jaw collision check against the part alone
 (cell ``none``: no table, no obstacles), the contact patches and the Ferrari-Canny epsilon. What
-depends on the pose is cheap and recomputed per instance: the gravity margin (gravity's direction
-in the part frame, :meth:`GraspDatabase.quality_at`) and the score's ``top`` term
-(:meth:`GraspDatabase.score_at`); collisions with the bin and the neighbours are the picker's
-(:mod:`grasplan.pick`).
+depends on the pose is cheap and recomputed per instance: the gravity margin
+(:meth:`GraspDatabase.quality_at`) and the score's ``top`` term (:meth:`GraspDatabase.score_at`);
+collisions with the bin and the neighbours are the picker's (:mod:`grasplan.pick`).
 
-File: ``*.graspdb.npz`` (``grasplan database PART -o PART.graspdb.npz``), a NumPy archive of
-plain arrays (no pickles) plus a ``meta`` JSON record: schema ``grasplan.graspdb/1``, the part's
-path, sha256, scale and triangle count, the gripper's full definition and its key (sha256 of that
-definition), the candidate and grasp options and their key, the mass properties, counts and
-timings. Rows (N grasps, only the collision-free ones) are sorted by ``score`` (the score with the
-part upright in its own frame), best first:
-
-===============  ==============  =================================================
-``T_part_tcp``   (N, 4, 4)       TCP pose in the part frame
-``width``        (N,)            contact distance, m
-``contacts``     (N, 2, 3)       contact points, part frame, m (0: the -x jaw's)
-``normals``      (N, 2, 3)       outward unit surface normals at the contacts
-``candidate``    (N,) int64      candidate index (the candidate stage's order)
-``region``       (N,) int64      region of the candidate (-1: none)
-``contact_area`` (N, 2)          patch area per jaw, m^2
-``contact_type`` (N, 2) int8     0 point, 1 line, 2 surface
-``contact_width`` (N, 2, 2)      equivalent (min, max) widths of each patch, m
-``epsilon``      (N,)            Ferrari-Canny L1 quality
-``score``        (N,)            score with the part upright in its frame
-===============  ==============  =================================================
-
-A database is refused (exit 3, both named) for another part (sha256 or scale) or gripper.
-:func:`database_for` keeps databases in the cache folder (:func:`grasplan.cache.cache_dir`,
-``graspdb/``), keyed by the part, the gripper and the options.
+File: ``*.graspdb.npz`` (``grasplan database PART -o PART.graspdb.npz``), its arrays and record:
+:class:`GraspDatabase`. A database is refused (exit 3, both named) for another part (sha256 or
+scale) or gripper. :func:`database_for` keeps databases in the cache folder
+(:func:`grasplan.cache.cache_dir`, ``graspdb/``), keyed by the part, the gripper and the options.
 """
 from __future__ import annotations
 
@@ -98,9 +77,29 @@ def params_key(candidates: CandidateParams, grasps: GraspParams) -> str:
 
 @dataclass(frozen=True, eq=False)
 class GraspDatabase:
-    """The collision-free grasps of one part with one gripper, in the part frame (module docstring).
+    """The collision-free grasps of one part with one gripper, in the part frame.
 
-    Arrays are read-only; rows are sorted by ``score`` (best first)."""
+    File: a NumPy archive of plain arrays (no pickles) plus a ``meta`` JSON record: schema
+    ``grasplan.graspdb/1``, the part's path, sha256, scale and triangle count, the gripper's full
+    definition and its key (sha256 of that definition), the candidate and grasp options and their
+    key, the mass properties, counts and timings. Arrays are read-only; rows (N grasps, only the
+    collision-free ones) are sorted by ``score`` (the score with the part upright in its own
+    frame), best first:
+
+    ===============  ==============  =================================================
+    ``T_part_tcp``   (N, 4, 4)       TCP pose in the part frame
+    ``width``        (N,)            contact distance, m
+    ``contacts``     (N, 2, 3)       contact points, part frame, m (0: the -x jaw's)
+    ``normals``      (N, 2, 3)       outward unit surface normals at the contacts
+    ``candidate``    (N,) int64      candidate index (the candidate stage's order)
+    ``region``       (N,) int64      region of the candidate (-1: none)
+    ``contact_area`` (N, 2)          patch area per jaw, m^2
+    ``contact_type`` (N, 2) int8     0 point, 1 line, 2 surface
+    ``contact_width`` (N, 2, 2)      equivalent (min, max) widths of each patch, m
+    ``epsilon``      (N,)            Ferrari-Canny L1 quality
+    ``score``        (N,)            score with the part upright in its frame
+    ===============  ==============  =================================================
+    """
 
     part_path: str
     part_sha256: str

@@ -231,22 +231,14 @@ def compute_grasps(
         c = replace(c, pose_index=k)
     if candidates.max_opening is None:  # search exactly as far as this gripper opens
         candidates = replace(candidates, max_opening=g.max_opening)
-    timing: dict = {}
+    timing: dict[str, float] = {}
     t = time.perf_counter()
     cand = compute_candidates(part, candidates, load_s=load_s)
     timing.update(cand.timing_s)
     timing["candidates"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    if T_world_part is None and c.name == NO_CELL_NAME:  # the part alone, in its own frame
-        T = np.eye(4)
-        source = "part_frame"
-    elif T_world_part is None:
-        T = stable_pose(part.mesh, c)
-        source = "stable_pose"
-    else:
-        T = check_transform(T_world_part, "T_world_part")
-        source = "given"
+    T, source = _part_pose(part, c, T_world_part)
     timing["stable_pose"] = time.perf_counter() - t
 
     t = time.perf_counter()
@@ -282,6 +274,16 @@ def compute_grasps(
                        timing_s=timing, part_pose_source=source, quality=quality, mass_props=mass_props, score=score,
                        quality_note=note,
                        reasons=reasons)
+
+
+def _part_pose(part: Part, cell: Cell, T_world_part: np.ndarray | None) -> tuple[np.ndarray, str]:
+    """The part's pose ``T_world_part`` (4, 4) and where it came from: ``given``, the cell's
+    ``stable_pose`` or, in cell ``none`` (the part alone), ``part_frame`` (the identity)."""
+    if T_world_part is None and cell.name == NO_CELL_NAME:
+        return np.eye(4), "part_frame"
+    if T_world_part is None:
+        return stable_pose(part.mesh, cell), "stable_pose"
+    return check_transform(T_world_part, "T_world_part"), "given"
 
 
 def _concat_quality(parts: list[Quality], order: np.ndarray) -> Quality | None:

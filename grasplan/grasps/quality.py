@@ -1,21 +1,11 @@
 """Physical grasp quality: the :class:`Quality` of parallel-jaw grasps and the grasp
 stage's quality step.
 
-For ``M`` parallel-jaw grasps of a part (TCP frames ``T_part_tcp`` (M, 4, 4), contacts
-``(M, 2, 3)`` with outward unit normals, widths ``(M,)``; metres, part frame),
-:func:`grasp_quality` computes
-
-- the **contact patch** of each finger pad (area, type point / line / surface, equivalent widths):
-  :func:`grasplan.grasps.patches.contact_patches`;
-- the **gravity margin** (soft-finger friction and pad pressure available / needed under the lift
-  and shake of :data:`grasplan.grasps.wrench.LOAD`, the profile the MuJoCo check applies; below 1 the part
-  slips) and the **Ferrari-Canny epsilon** (L1, two soft-finger
-  contacts): :mod:`grasplan.grasps.wrench`, whose docstring gives the models; each contact is pressed
-  with ``grip_force / CONTACTS_PER_GRIP`` (the datasheet gripping force is the sum of both jaws).
-
-:func:`physical_bounds` bounds both from above without patches (the rank-order evaluation),
-:func:`quality_and_score` is the grasp stage's step (mass properties, quality of the collision-free
-poses, score with :mod:`grasplan.config.scoring`), :func:`holding_warning` says when no grasp holds.
+:func:`grasp_quality` computes each grasp's contact patches, gravity margin and Ferrari-Canny
+epsilon; :func:`physical_bounds` bounds both from above without patches (the rank-order
+evaluation), :func:`quality_and_score` is the grasp stage's step (mass properties, quality of the
+collision-free poses, score with :mod:`grasplan.config.scoring`), :func:`holding_warning` says when
+no grasp holds.
 """
 from __future__ import annotations
 
@@ -39,6 +29,7 @@ from ..geometry.transforms import check_transform
 from .wrench import CONTACTS_PER_GRIP, LOAD, epsilon_dedup, gravity_margin, pressure_widths
 
 if TYPE_CHECKING:
+    from ..candidates.antipodal_base import Candidates
     from ..config.params import GraspParams
 
 
@@ -132,7 +123,15 @@ def part_radius(part_mesh: TriangleMesh, com: np.ndarray) -> float:
 def grasp_quality(part_mesh: TriangleMesh, mass_props: MassProperties, gripper: Gripper,
                   T_part_tcp: np.ndarray, contacts: np.ndarray, normals: np.ndarray, width: np.ndarray, *,
                   T_world_part: np.ndarray, mu: float, grip_force: float | None = None) -> Quality:
-    """Contact patches, gravity margin and epsilon of ``M`` grasps (module docstring).
+    """Contact patches, gravity margin and epsilon of ``M`` grasps:
+
+    - the **contact patch** of each finger pad (area, type point / line / surface, equivalent widths):
+      :func:`grasplan.grasps.patches.contact_patches`;
+    - the **gravity margin** (soft-finger friction and pad pressure available / needed under the lift
+      and shake of :data:`grasplan.grasps.wrench.LOAD`, the profile the MuJoCo check applies; below 1
+      the part slips) and the **Ferrari-Canny epsilon** (L1, two soft-finger contacts):
+      :mod:`grasplan.grasps.wrench`, which gives the models; each contact is pressed with
+      ``grip_force / CONTACTS_PER_GRIP`` (the datasheet gripping force is the sum of both jaws).
 
     Parameters
     ----------
@@ -220,7 +219,7 @@ def quality_columns(quality: Quality, rows: np.ndarray, M: int) -> dict:
 
 
 def quality_and_score(part_mesh: TriangleMesh, gripper: Gripper, T_world_part: np.ndarray, T_part_tcp: np.ndarray,
-                      candidate: np.ndarray, candidates, status: np.ndarray, mu: float, params: GraspParams, *,
+                      candidate: np.ndarray, candidates: Candidates, status: np.ndarray, mu: float, params: GraspParams, *,
                       mass_props: MassProperties | None = None,
                       ) -> tuple[Quality | None, MassProperties | None, np.ndarray, str]:
     """The grasp stage's quality step: mass properties at ``params.density`` / ``params.mass``, the

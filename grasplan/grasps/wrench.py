@@ -2,47 +2,9 @@
 
 For ``M`` grasps (TCP frames ``T_part_tcp`` (M, 4, 4), contacts ``(M, 2, 3)`` with outward unit
 normals, widths ``(M,)``, patch areas ``(M, 2)`` from :func:`grasplan.grasps.patches.contact_patches`;
-metres, part frame):
-
-**Grip force.** ``grip_force`` (gripper YAML, N) is the datasheet gripping force, which Schunk (and
-most makers of parallel grippers) define as the arithmetic sum of the forces of the jaws: each of
-the two contacts is pressed with the normal force ``F = grip_force / 2`` (70 N for the EGP-C 40's
-140 N). ``CONTACTS_PER_GRIP`` is that 2.
-
-**Soft fingers.** A contact resists a torque about its normal of up to ``mu F SOFT_FINGER a``
-(uniform pressure on a disc of radius ``a = sqrt(area / pi)``, at least ``MIN_PATCH_RADIUS``,
-:func:`patch_radius`; :func:`torsion_length` is the one definition, also used by the MuJoCo check).
-
-**Gravity margin** (:func:`gravity_margin`). The largest factor by which the loads can grow and
-still be held: below 1 the part slips. Each contact is pressed with ``F`` (N, above), shifted by the
-load along the closing axis (``F -+ f_x / 2``: the centric jaws). A contact resists a tangential
-force ``|t| <= mu N`` and a torque about the closing axis ``|tau| <= (2/3) mu N a``, combined
-elliptically (the soft finger): the twist is held by both patches' torsion, each what its own
-tangential load leaves, ``sum_j (2/3) mu a_j sqrt(N_j^2 - (|t_j| / mu)^2)``. The loads are those of
-the lift and shake the MuJoCo check applies (:class:`LoadModel`, :data:`LOAD`): ``f = m (g - a)``
-for the gripper accelerations ``a`` of :meth:`LoadModel.accelerations` (the lift's +-1.97 m/s^2, the
-shake's +-5 m/s^2 in 8 horizontal directions), applied at the centre of mass, whose offset from the
-contact axis is the lever arm. Tangential force is shared equally; the torque perpendicular to the
-closing axis goes first to the pads' pressure (a flat patch of smaller equivalent width ``w``
-shifts its centre of pressure by up to ``PRESSURE_ARM w`` = ``w / 2``, its edge; the shifted
-pressure bears on a smaller effective patch, whose torsion radius shrinks by ``sqrt(1 - 2 e / w)``),
-the rest to a couple of opposite tangential forces ``|tau_perp| / width`` at the two contacts. The
-simulation's pads are this model (:mod:`grasplan.sim.simulate`: one torsional resistance per pad).
-
-**Epsilon** (Ferrari-Canny L1). Two soft-finger contacts, unit normal force each: the friction
-cone linearised with ``CONE_EDGES`` (8) edges ``nu + mu (cos k t1 + sin k t2)`` plus the pure normal
-force with torsion ``+-(2/3) mu a nu``; torques about the centre of mass divided by the part's
-radius ``rho`` (largest distance of the part's vertices from the centre of mass), so wrenches are
-in newtons. ``epsilon`` is the radius of the largest origin-centred ball inside the convex hull
-of the 20 wrenches; 0 when the origin is outside or the hull is flat. It is computed in closed form
-(:func:`ferrari_canny_pair`: each contact's wrenches are a linear image of one bipyramid, so the
-hull's facets come from 304 face pairs, each a 2 x 2 solve, vectorised over grasps; ~0.08 ms per
-distinct wrench set instead of ~0.6 ms per Qhull call); the rare degenerate sets it cannot decide
-(flat, origin on a candidate plane) go to Qhull (scipy ConvexHull, :func:`ferrari_canny`). The two
-agree within 1e-9 relative or 1e-10 absolute (Qhull's joggle), tests/test_quality_fast.py.
-For speed the torsion radius of epsilon is rounded down to a 5 % geometric grid
-(``RADIUS_STEP``, :func:`quantised_patch_radius`), so the rolls of one candidate (same contacts)
-share one hull computation (:func:`epsilon_dedup`).
+metres, part frame): :func:`gravity_margin` (below 1 the part slips under the lift and shake of
+:data:`LOAD`) and :func:`epsilon_dedup` (the Ferrari-Canny L1 quality). Both model soft-finger
+contacts (:func:`torsion_length`), each pressed with ``grip_force / CONTACTS_PER_GRIP``.
 """
 from __future__ import annotations
 
@@ -67,7 +29,10 @@ EPSILON_TOL = 1e-9
 CONE_EDGES = 8
 #: standard gravity, m/s^2
 G = 9.81
-#: the gripper's ``grip_force`` is the sum over its jaws: each contact gets grip_force / this
+#: the gripper's ``grip_force`` (gripper YAML, N) is the datasheet gripping force, which Schunk (and
+#: most makers of parallel grippers) define as the arithmetic sum of the forces of the jaws: each of
+#: the two contacts is pressed with the normal force ``F = grip_force / CONTACTS_PER_GRIP`` (70 N for
+#: the EGP-C 40's 140 N)
 CONTACTS_PER_GRIP = 2
 
 
@@ -83,8 +48,10 @@ SOFT_FINGER = 2.0 / 3.0
 
 def torsion_length(area: np.ndarray) -> np.ndarray:
     """Torsional friction per unit ``mu`` and newton of normal force (m) of patches of ``area``
-    (m^2): ``SOFT_FINGER * patch_radius(area)``. The one definition used by
-    :func:`gravity_margin`, epsilon and the MuJoCo check (:mod:`grasplan.sim.simulate`)."""
+    (m^2): ``SOFT_FINGER * patch_radius(area)``: a soft-finger contact resists a torque about its
+    normal of up to ``mu F SOFT_FINGER a`` (uniform pressure on a disc of radius ``a = sqrt(area /
+    pi)``, at least ``MIN_PATCH_RADIUS``). The one definition used by :func:`gravity_margin`,
+    epsilon and the MuJoCo check (:mod:`grasplan.sim.simulate`)."""
     return SOFT_FINGER * patch_radius(area)
 
 
@@ -155,8 +122,8 @@ def gravity_margin(mass_props: MassProperties, T_world_part: np.ndarray, T_part_
                    width: np.ndarray, area: np.ndarray, *, mu: float, normal_force: float,
                    patch_width: np.ndarray | None = None, load: LoadModel = LOAD,
                    lift_only: bool = False) -> np.ndarray:
-    """(M,) the largest factor ``s`` by which the loads of ``load`` can be scaled and still be held
-    (module docstring): below 1 the part slips. ``area`` (M, 2) m^2, ``width`` (M,) m,
+    """(M,) the largest factor ``s`` by which the loads of ``load`` can be scaled and still be held:
+    below 1 the part slips. ``area`` (M, 2) m^2, ``width`` (M,) m,
     ``normal_force``: N pressing each contact (``grip_force / CONTACTS_PER_GRIP``); ``patch_width``
     (M, 2) m: each patch's smaller equivalent width (its pad-pressure moment, :data:`PRESSURE_ARM`;
     ``None``: none). ``lift_only``: the lift's upward acceleration only, one of the loads the margin
@@ -172,7 +139,14 @@ def gravity_margin(mass_props: MassProperties, T_world_part: np.ndarray, T_part_
     patches' torsional friction, each on its soft-finger ellipse: ``|s tau_x| <= sum_j mu N_j L_j
     sqrt(1 - u_j^2)`` (``L_j``: :func:`torsion_length`, times ``sqrt(1 - p)`` when the pressure
     moment is a share ``p`` of its capacity (effective patch), at least the point contact's), the
-    pad model of the MuJoCo check. Homogeneous: the margin grows in proportion to ``normal_force``."""
+    pad model of the MuJoCo check. Homogeneous: the margin grows in proportion to ``normal_force``.
+
+    The loads are those of the lift and shake the MuJoCo check applies (:class:`LoadModel`,
+    :data:`LOAD`): ``f = m (g - a)`` for the gripper accelerations ``a`` of
+    :meth:`LoadModel.accelerations` (the lift's +-1.97 m/s^2, the shake's +-5 m/s^2 in 8 horizontal
+    directions), applied at the centre of mass, whose offset from the contact axis is the lever arm.
+    The simulation's pads are this model (:mod:`grasplan.sim.simulate`: one torsional resistance per
+    pad)."""
     T = np.asarray(T_part_tcp, dtype=np.float64).reshape(-1, 4, 4)
     M = len(T)
     R = T[:, :3, :3]
@@ -241,7 +215,12 @@ def contact_wrenches(contacts: np.ndarray, normals: np.ndarray, com: np.ndarray,
                      torsion: np.ndarray) -> np.ndarray:
     """(M, 2 * (CONE_EDGES + 2), 6) primitive wrenches (force N, torque / ``rho``) of two soft-finger
     contacts with unit normal force: the cone edges and the normal force with +-torsion.
-    ``torsion`` (M, 2): torsional friction per newton of normal force, m."""
+    ``torsion`` (M, 2): torsional friction per newton of normal force, m.
+
+    The friction cone is linearised with ``CONE_EDGES`` (8) edges ``nu + mu (cos k t1 + sin k t2)``,
+    plus the pure normal force with torsion ``+-(2/3) mu a nu``; torques about the centre of mass are
+    divided by the part's radius ``rho`` (largest distance of the part's vertices from the centre of
+    mass), so wrenches are in newtons."""
     nu = -np.asarray(normals, dtype=np.float64)
     nu = nu / np.linalg.norm(nu, axis=-1, keepdims=True)
     t1, t2 = _tangent_basis(nu)
@@ -342,7 +321,8 @@ def ferrari_canny_pair(contacts: np.ndarray, normals: np.ndarray, com: np.ndarra
     return out, exact
 
 
-def _fc_pair_chunk(nu, t1, t2, r, rho, mu, tors) -> tuple[np.ndarray, np.ndarray]:
+def _fc_pair_chunk(nu: np.ndarray, t1: np.ndarray, t2: np.ndarray, r: np.ndarray, rho: float, mu: float,
+                   tors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     B = len(nu)
     # phi_k = L_k^T u: (a + b x r_k / rho, b . nu_k / rho); Lt (B, 8, 6) stacks both contacts
     Lt = np.zeros((B, 8, 6))
@@ -429,8 +409,8 @@ def _fc_pair_chunk(nu, t1, t2, r, rho, mu, tors) -> tuple[np.ndarray, np.ndarray
 
 def quantised_patch_radius(area: np.ndarray) -> np.ndarray:
     """:func:`patch_radius` rounded down to the geometric grid ``MIN_PATCH_RADIUS * (1 +
-    RADIUS_STEP)^k`` (conservative: less torsion), so that grasps with the same contacts share one
-    epsilon."""
+    RADIUS_STEP)^k`` (conservative: less torsion, a 5 % geometric grid), so that grasps with the same
+    contacts (the rolls of one candidate) share one epsilon hull computation (:func:`epsilon_dedup`)."""
     r = patch_radius(area)
     k = np.floor(np.log(r / MIN_PATCH_RADIUS) / math.log1p(RADIUS_STEP) + 1e-9)
     return MIN_PATCH_RADIUS * np.exp(np.maximum(k, 0.0) * math.log1p(RADIUS_STEP))
@@ -441,7 +421,16 @@ def epsilon_dedup(contacts: np.ndarray, normals: np.ndarray, area: np.ndarray, c
     """(M,) Ferrari-Canny epsilon, once per distinct wrench set (the rolls of one candidate share
     contacts and normals, and their patch radii are quantised (:func:`quantised_patch_radius`)):
     :func:`ferrari_canny_pair` (closed form, vectorised), Qhull (:func:`ferrari_canny`) only for the
-    degenerate sets it does not decide."""
+    degenerate sets it does not decide.
+
+    Epsilon (Ferrari-Canny L1) of two soft-finger contacts, unit normal force each
+    (:func:`contact_wrenches`): the radius of the largest origin-centred ball inside the convex hull
+    of the 20 wrenches; 0 when the origin is outside or the hull is flat. The closed form (each
+    contact's wrenches are a linear image of one bipyramid, so the hull's facets come from 304 face
+    pairs, each a 2 x 2 solve, vectorised over grasps; ~0.08 ms per distinct wrench set instead of
+    ~0.6 ms per Qhull call) leaves the rare degenerate sets (flat, origin on a candidate plane) to
+    Qhull (scipy ConvexHull). The two agree within 1e-9 relative or 1e-10 absolute (Qhull's joggle),
+    tests/test_quality_fast.py."""
     M = len(contacts)
     if M == 0:
         return np.zeros(0)

@@ -3,29 +3,11 @@
 
 The pads stay parallel to each other, but each pad's carrier link swings about a pivot in the
 gripper body, so the pad moves on a circular arc: as the jaws close, the fingertips also move along
-the approach axis z. Model (+x pad; the -x pad is it turned 180 deg about z)::
-
-    inner face x = opening / 2 = center_x + radius * sin(theta)
-    tcp_offset(opening) = radius * (cos(theta(opening)) - cos(theta(max_opening)))
-
-``theta`` is the link's angle from the approach axis; ``tcp_offset`` is how far (m, along +z, away
-from the flange) the pads are beyond their place at ``max_opening``. The YAML's ``T_flange_tcp``,
-``body`` and ``fingers`` describe the gripper at ``max_opening`` (the frame the shapes are given in);
-a grasp of contact width ``w`` has its TCP between the contacts, at
-:meth:`~grasplan.gripper.model.Gripper.T_flange_tcp_at` ``(w)`` = ``T_flange_tcp`` moved by
-``tcp_offset(w)`` along z. The stages place the gripper for a grasp with
-:meth:`~grasplan.gripper.model.Gripper.T_tcp_gripper` (grasp collision check, planning, the FK check
-of plans, the robot programs' TCP).
-
-YAML: the ``parallel_jaw`` fields (:mod:`grasplan.gripper.parallel_jaw`) plus, required::
+the approach axis z (:class:`LinkageGripper`). YAML: the ``parallel_jaw`` fields
+(:mod:`grasplan.gripper.parallel_jaw`) plus, required (:func:`from_yaml`)::
 
     kind: parallel_linkage
     arc: {radius: 0.05715, center_x: 0.005342}   # m; |opening/2 - center_x| <= radius over the stroke
-
-The closing sweep of a box finger is one axis-aligned box over its x and z travel (a superset of
-the arc); of a mesh finger, the convex hull of the finger at :data:`SWEEP_SAMPLES` openings along
-the arc (the chord between samples cuts the arc by at most radius * (1 - cos(dtheta / 2)): 0.07 mm
-for the 2F-85's 0.8 rad travel).
 """
 from __future__ import annotations
 
@@ -50,8 +32,20 @@ SWEEP_SAMPLES = 9
 
 @dataclass(frozen=True, eq=False)
 class LinkageGripper(Gripper):
-    """A :class:`~grasplan.gripper.model.Gripper` whose pads move on an arc (see the module docstring):
-    ``arc_radius`` and ``arc_center_x`` in metres."""
+    """A :class:`~grasplan.gripper.model.Gripper` whose pads move on an arc: ``arc_radius`` and
+    ``arc_center_x`` in metres. Model (+x pad; the -x pad is it turned 180 deg about z)::
+
+        inner face x = opening / 2 = center_x + radius * sin(theta)
+        tcp_offset(opening) = radius * (cos(theta(opening)) - cos(theta(max_opening)))
+
+    ``theta`` is the link's angle from the approach axis; ``tcp_offset`` is how far (m, along +z, away
+    from the flange) the pads are beyond their place at ``max_opening``. The YAML's ``T_flange_tcp``,
+    ``body`` and ``fingers`` describe the gripper at ``max_opening`` (the frame the shapes are given in);
+    a grasp of contact width ``w`` has its TCP between the contacts, at
+    :meth:`~grasplan.gripper.model.Gripper.T_flange_tcp_at` ``(w)`` = ``T_flange_tcp`` moved by
+    ``tcp_offset(w)`` along z. The stages place the gripper for a grasp with
+    :meth:`~grasplan.gripper.model.Gripper.T_tcp_gripper` (grasp collision check, planning, the FK check
+    of plans, the robot programs' TCP)."""
 
     kind: ClassVar[str] = PARALLEL_LINKAGE
     moving_tcp: ClassVar[bool] = True
@@ -90,7 +84,9 @@ class LinkageGripper(Gripper):
         """The volume each jaw sweeps between two openings. A box finger: one axis-aligned box
         spanning its x travel and its z travel along the arc (a superset of the arc sweep, as tight
         as the z travel over the interval: 0.2 mm for a 10 mm closing sweep of the 2F-85); a mesh
-        finger: the convex hull of :data:`SWEEP_SAMPLES` placements along the arc."""
+        finger: the convex hull of :data:`SWEEP_SAMPLES` placements along the arc (the chord between
+        samples cuts the arc by at most radius * (1 - cos(dtheta / 2)): 0.07 mm for the 2F-85's 0.8 rad
+        travel)."""
         lo, hi = sorted((float(open_from), float(close_to)))
         if isinstance(self.finger, Box):
             f = self.finger

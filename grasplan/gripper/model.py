@@ -6,9 +6,7 @@ contact 1); z = approach direction, from the gripper towards the part (the finge
 
 A gripper is a fixed ``body`` (boxes and meshes in the TCP frame) and two jaws: ``finger`` is the
 +x jaw at opening 0 (its inner face on the plane x = 0); at opening ``o`` it sits at x = +o/2
-and the -x jaw is it turned 180 deg about z. The closing sweep of a box finger from opening ``a``
-to ``b`` is exactly one box; the sweep of a mesh finger is the convex hull of its two end
-placements (exact for a convex finger, a superset otherwise).
+and the -x jaw is it turned 180 deg about z (:meth:`Gripper.fingers`, :meth:`Gripper.swept_fingers`).
 
 :class:`Gripper` is the model of the ``parallel_jaw`` kind (:mod:`grasplan.gripper.parallel_jaw`
 reads it from YAML and JSON); another kind subclasses it, sets :attr:`Gripper.kind` and
@@ -149,7 +147,9 @@ class Gripper:
 
     def swept_fingers(self, open_from: float, close_to: float) -> tuple[Shape, Shape]:
         """The volume each jaw sweeps while the opening moves between ``open_from`` and
-        ``close_to`` (either order): (-x jaw, +x jaw)."""
+        ``close_to`` (either order): (-x jaw, +x jaw). The sweep of a box finger is exactly one box;
+        the sweep of a mesh finger is the convex hull of its two end placements (exact for a convex
+        finger, a superset otherwise)."""
         lo, hi = sorted((float(open_from), float(close_to)))
         if isinstance(self.finger, Box):
             f = self.finger  # axis-aligned (enforced by the loader): the sweep is one box

@@ -1,35 +1,8 @@
 """The ``parallel_jaw`` gripper kind: two jaws that move apart along the TCP x axis.
 
-Reads :class:`~grasplan.gripper.model.Gripper` from its YAML and from its
-``to_json(definition=True)`` block, and registers itself (:mod:`grasplan.gripper.registry`).
-
-YAML schema (``configs/grippers/<name>.yaml``; lengths in metres, angles in degrees)::
-
-    kind: parallel_jaw               # optional (the default kind)
-    name: schunk_egp_c_40            # optional, defaults to the file stem
-    max_opening: 0.050               # > 0
-    T_flange_tcp:                    # either a 4x4 row-major matrix ...
-      xyz: [0, 0, 0.127]             # ... or xyz (m) + rpy (deg, extrinsic x-y-z = R_z R_y R_x)
-      rpy_deg: [0, 0, 0]
-    body:                            # list of shapes, fixed in the TCP frame
-      - box: {size: [0.060, 0.040, 0.095], center: [0, 0, -0.0795]}
-      - mesh: {path: body.stl, scale: 0.001, T: {xyz: [...], rpy_deg: [...]}}  # path relative to the YAML
-    fingers:                         # ONE finger, the +x jaw; the -x jaw is it rotated 180 deg about z
-      box: {size: [0.008, 0.016, 0.040], center_y: 0.0, center_z: -0.012}
-      # or mesh: {path: finger.stl, scale: 1.0, T: ...}: in the mesh frame the jaw's inner face
-      #   is the plane x = 0 and the jaw extends towards +x; it is placed at x = +opening/2.
-    symmetric: true                  # optional: body invariant under a 180 deg turn about z
-                                     # (default: computed for box bodies, false with meshes)
-    grip_force: 140                  # optional, N (both jaws together)
-    stroke: 0.012                    # optional, m: the jaws' travel (both together), <= max_opening;
-                                     #   they close to max_opening - stroke at the narrowest
-                                     #   (default: fully, stroke = max_opening)
-    mass: 0.32                       # optional, kg: the gripper with its fingers (datasheet)
-    com: [0, 0, 0.04]                # with mass: centre of mass in the FLANGE frame, m (RAPID tload,
-                                     #   the simulation's load); without it the exports say the load
-                                     #   is unknown
-
-A finger box's inner face sits at ``x = +opening/2`` (the other finger's at ``-opening/2``).
+Reads :class:`~grasplan.gripper.model.Gripper` from its YAML (:func:`from_yaml`, whose docstring
+gives the schema) and from its ``to_json(definition=True)`` block (:func:`from_json`), and
+registers itself (:mod:`grasplan.gripper.registry`).
 """
 from __future__ import annotations
 
@@ -140,7 +113,36 @@ def box_body_symmetric(body: tuple[Box, ...]) -> bool:
 
 
 def from_yaml(data: dict[str, Any], *, base: Path, name: str, source: str = "") -> Gripper:
-    """Validate a parsed parallel-jaw gripper YAML (``base``: folder that mesh paths are relative to)."""
+    """Validate a parsed parallel-jaw gripper YAML (``base``: folder that mesh paths are relative to).
+
+    The schema (``configs/grippers/<name>.yaml``; lengths in metres, angles in degrees)::
+
+        kind: parallel_jaw               # optional (the default kind)
+        name: schunk_egp_c_40            # optional, defaults to the file stem
+        max_opening: 0.050               # > 0
+        T_flange_tcp:                    # either a 4x4 row-major matrix ...
+          xyz: [0, 0, 0.127]             # ... or xyz (m) + rpy (deg, extrinsic x-y-z = R_z R_y R_x)
+          rpy_deg: [0, 0, 0]
+        body:                            # list of shapes, fixed in the TCP frame
+          - box: {size: [0.060, 0.040, 0.095], center: [0, 0, -0.0795]}
+          - mesh: {path: body.stl, scale: 0.001, T: {xyz: [...], rpy_deg: [...]}}  # path relative to the YAML
+        fingers:                         # ONE finger, the +x jaw; the -x jaw is it rotated 180 deg about z
+          box: {size: [0.008, 0.016, 0.040], center_y: 0.0, center_z: -0.012}
+          # or mesh: {path: finger.stl, scale: 1.0, T: ...}: in the mesh frame the jaw's inner face
+          #   is the plane x = 0 and the jaw extends towards +x; it is placed at x = +opening/2.
+        symmetric: true                  # optional: body invariant under a 180 deg turn about z
+                                         # (default: computed for box bodies, false with meshes)
+        grip_force: 140                  # optional, N (both jaws together)
+        stroke: 0.012                    # optional, m: the jaws' travel (both together), <= max_opening;
+                                         #   they close to max_opening - stroke at the narrowest
+                                         #   (default: fully, stroke = max_opening)
+        mass: 0.32                       # optional, kg: the gripper with its fingers (datasheet)
+        com: [0, 0, 0.04]                # with mass: centre of mass in the FLANGE frame, m (RAPID tload,
+                                         #   the simulation's load); without it the exports say the load
+                                         #   is unknown
+
+    A finger box's inner face sits at ``x = +opening/2`` (the other finger's at ``-opening/2``).
+    """
     allowed = YAML_FIELDS
     unknown = set(data) - allowed
     if unknown:

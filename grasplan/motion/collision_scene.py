@@ -1,54 +1,12 @@
 """The robot cell's collision scene: robot links, gripper, table, obstacles and part (Pinocchio + coal).
 
 :class:`CollisionScene` is built ONCE per (robot, gripper, part, part pose, cell), then queried thousands
-of times (OMPL's validity checker), so everything is prebuilt: one ``pin.GeometryModel`` holding
-
-* the robot's URDF collision meshes (``robot.collision_model``, coal BVHs),
-* the gripper body shapes and the two finger shapes, attached to the tool frame's joint at
-  ``T_joint_tool @ T_flange_tcp @ T_tcp_shape`` (fingers moved to the requested jaw opening),
-* the table, a 20 m x 20 m x 2 m coal ``Box`` with its top face at ``z = cell.table_z`` (a half-space within reach),
-* the cell's obstacles (``cell.obstacles``: boxes, cylinders, spheres, mesh BVHs; the bin's floor
-  and walls among them), built by :func:`grasplan.cell.shapes.obstacle_geometry`,
-* the part twice: static, a coal BVH (OBBRSS) of ``part_mesh`` at ``T_world_part``, and attached,
-  the same BVH on the tool joint at ``T_tcp_part`` (used by :meth:`CollisionScene.attached`),
-
-and an ordered list of collision pairs (cheap and likely pairs first, early stop at the first hit).
-
-Variants share that geometry model and differ in their scratch data (``pin.Data``,
-``pin.GeometryData``: a scene is not thread-safe, its variants are independent objects) and in
-which pairs are active:
-
-* the scene itself: the part static at ``T_world_part``; :meth:`CollisionScene.with_part_at`: at another pose;
-* :meth:`CollisionScene.attached` ``(T_tcp_part)``: the part rides in the jaws (its pose =
-  FK(TCP) @ T_tcp_part) and is checked against the table, the obstacles and every robot link not
-  moving with the tool joint; not against the gripper (it is rigidly held). A resting contact of
-  at most :data:`ATTACHED_CONTACT_TOL` between the attached part and the table or a box, cylinder
-  or sphere obstacle is not a collision (the part lies on the table at the grasp and at the place;
-  they are checked against copies shrunk by that much). The static part is gone.
-
-Collision pairs (geometry names are Pinocchio's ``<link>_<k>`` plus ``gripper_body_<k>``,
-``finger_left`` (the -x jaw), ``finger_right`` (the +x jaw), ``table``, ``obstacle:<name>``,
-``part`` and ``part_attached``):
-
-* gripper body/fingers vs static part, table and obstacles; every robot link vs the static part and
-  every obstacle, and vs the table except ``robot.mounted_links`` (UR5: base_link, shoulder_link);
-* the attached part vs table, obstacles and the robot links not moving with the tool joint;
-* gripper vs every robot link except those moving with the tool joint (the flange link: the
-  UR5's wrist_3_link and ee_link, the Panda's panda_link7);
-* robot self-collision: all link pairs except those on the same or adjacent joints and the SRDF's
-  ``disable_collisions`` pairs.
-
-Reports use body names: the robot link name, ``gripper:<element>`` (``gripper:body_0``, ``gripper:finger_left``,
-``gripper:finger_right``), ``part``, ``table``, ``obstacle:<name>``. Kinds: ``table``, ``part``, ``obstacle``, ``self``.
-
-All geometry is in the robot model's frame (its URDF root link), world objects placed through ``inv(T_world_base)``.
-
-Extra bodies (``extras``: :class:`ExtraBody`, e.g. the other instances of a pile and a point
-cloud's octree for ``grasplan pick``): static geometry checked against the gripper, every robot
-link and the attached part, reported by their own body names (``instance:<id>``, ``cloud``). They
-are built once; :meth:`CollisionScene.arranged` makes a variant with the part at a pose and each
-extra placed or switched off, so a scene serves every instance of every pile of the same parts.
-The checks before planning (part in the table or an obstacle, ...) are :mod:`grasplan.motion.start_checks`.
+of times (OMPL's validity checker), so everything is prebuilt: one ``pin.GeometryModel``
+(:class:`_SceneModel`) and an ordered list of collision pairs (cheap and likely pairs first, early
+stop at the first hit). Its variants (:meth:`CollisionScene.with_part_at`, :meth:`CollisionScene.attached`,
+:meth:`CollisionScene.arranged` with :class:`ExtraBody` objects) share that model. All geometry is in the
+robot model's frame (its URDF root link), world objects placed through ``inv(T_world_base)``. The
+checks before planning (part in the table or an obstacle, ...) are :mod:`grasplan.motion.start_checks`.
 """
 from __future__ import annotations
 
@@ -59,6 +17,7 @@ from dataclasses import dataclass
 
 import coal
 import numpy as np
+from numpy.typing import ArrayLike
 import pinocchio as pin
 
 from ..cell.model import Cell
@@ -81,9 +40,12 @@ ATTACHED_CONTACT_TOL = 1e-4
 
 @dataclass(frozen=True, eq=False)
 class ExtraBody:
-    """Static geometry besides the cell and the part: ``name`` (the body name in reports, e.g.
-    ``instance:b``), coal ``geometry`` in its own frame, ``kind`` (the pair kind in reports, e.g.
-    ``instance``, ``cloud``). Its world pose is given per variant (:meth:`CollisionScene.arranged`)."""
+    """Static geometry besides the cell and the part (e.g. the other instances of a pile and a point
+    cloud's octree for ``grasplan pick``), checked against the gripper, every robot link and the
+    attached part: ``name`` (the body name in reports, e.g. ``instance:b``, ``cloud``), coal
+    ``geometry`` in its own frame, ``kind`` (the pair kind in reports, e.g. ``instance``, ``cloud``).
+    Built once; its world pose is given per variant (:meth:`CollisionScene.arranged`), so a scene
+    serves every instance of every pile of the same parts."""
 
     name: str
     geometry: coal.CollisionGeometry
@@ -91,7 +53,18 @@ class ExtraBody:
 
 
 class _SceneModel:
-    """The geometry shared by a scene and its variants (built once)."""
+    """The geometry shared by a scene and its variants (built once): one ``pin.GeometryModel`` of
+
+    * the robot's URDF collision meshes (``robot.collision_model``, coal BVHs),
+    * the gripper body shapes and the two finger shapes, attached to the tool frame's joint at
+      ``T_joint_tool @ T_flange_tcp @ T_tcp_shape`` (fingers moved to the requested jaw opening),
+    * the table, a 20 m x 20 m x 2 m coal ``Box`` with its top face at ``z = cell.table_z`` (a
+      half-space within reach),
+    * the cell's obstacles (``cell.obstacles``: boxes, cylinders, spheres, mesh BVHs; the bin's floor
+      and walls among them), built by :func:`grasplan.cell.shapes.obstacle_geometry`,
+    * the part twice: static, a coal BVH (OBBRSS) of ``part_mesh`` at ``T_world_part``, and attached,
+      the same BVH on the tool joint at ``T_tcp_part`` (:meth:`CollisionScene.attached`),
+    * the extra bodies (:class:`ExtraBody`)."""
 
     def __init__(self, robot: Robot, gripper: Gripper, part_mesh: TriangleMesh | None, cell: Cell | None,
                  margin: float, extras: Sequence[ExtraBody] = ()):
@@ -195,6 +168,16 @@ class _SceneModel:
         return self.model.frames[self.gm.geometryObjects[gid].parentFrame].name
 
     def _build_pairs(self) -> None:
+        """The ordered pairs (geometry names: Pinocchio's ``<link>_<k>`` plus ``gripper_body_<k>``,
+        ``finger_left`` (-x jaw), ``finger_right`` (+x jaw), ``table``, ``obstacle:<name>``, ``part``,
+        ``part_attached``): gripper body/fingers vs static part, table and obstacles; every robot
+        link vs the static part and every obstacle, and vs the table except ``robot.mounted_links``
+        (UR5: base_link, shoulder_link); the attached part vs table, obstacles and the robot links not
+        moving with the tool joint; gripper vs every robot link except those moving with the tool
+        joint (the flange link: the UR5's wrist_3_link and ee_link, the Panda's panda_link7); robot
+        self-collision: all link pairs except those on the same or adjacent joints and the SRDF's
+        ``disable_collisions`` pairs; each extra body vs the gripper, the robot links and the
+        attached part."""
         gm, model, robot = self.gm, self.model, self.robot
         disabled = set(robot.disabled_pairs)
         mounted = set(robot.mounted_links)
@@ -205,7 +188,7 @@ class _SceneModel:
         group: list[str] = []  # "static" (static part), "attached" (attached part), "" (always)
         extra_of: list[str] = []  # the extra body of the pair ("" none)
 
-        def add(a, b, kind, grp="", extra=""):
+        def add(a: int, b: int, kind: str, grp: str = "", extra: str = "") -> None:
             pairs.append((a, b))
             kinds.append(kind)
             group.append(grp)
@@ -285,6 +268,8 @@ class _SceneModel:
 
 class CollisionScene:
     """Robot + gripper + table + obstacles + part collision checks. Build once, query many times.
+    Variants share the geometry and differ in their scratch data (``pin.Data``, ``pin.GeometryData``:
+    a scene is not thread-safe, its variants are independent objects) and in which pairs are active.
 
     Parameters
     ----------
@@ -308,7 +293,7 @@ class CollisionScene:
         T_wp = check_transform(T_world_part, "T_world_part") if part_mesh is not None else None
         self._init_variant(shared, "static" if part_mesh is not None else "none", T_wp, None, {})
 
-    def _init_variant(self, shared: _SceneModel, mode: str, T_world_part, T_tcp_part,
+    def _init_variant(self, shared: _SceneModel, mode: str, T_world_part: np.ndarray | None, T_tcp_part: np.ndarray | None,
                       extras: Mapping[str, np.ndarray]) -> None:
         self._shared = shared
         self.robot, self.gripper, self.cell, self.margin = shared.robot, shared.gripper, shared.cell, shared.margin
@@ -357,20 +342,23 @@ class CollisionScene:
         self.set_opening(float(shared.gripper.max_opening))
 
     # -- variants ---------------------------------------------------------------------------------
-    def _variant(self, mode: str, T_world_part, T_tcp_part) -> CollisionScene:
+    def _variant(self, mode: str, T_world_part: np.ndarray | None, T_tcp_part: np.ndarray | None) -> CollisionScene:
         other = CollisionScene.__new__(CollisionScene)
         other._init_variant(self._shared, mode, T_world_part, T_tcp_part, self.extras)
         return other
 
-    def attached(self, T_tcp_part) -> CollisionScene:
+    def attached(self, T_tcp_part: np.ndarray) -> CollisionScene:
         """This scene with the part in the jaws: part pose = FK(TCP) @ ``T_tcp_part`` (4, 4),
-        checked against the table, the obstacles, the placed extras and the robot links; the static
-        part is gone. Shares the geometry (cheap); has its own scratch data."""
+        checked against the table, the obstacles, the placed extras and the robot links not moving
+        with the tool joint (not the gripper: it is rigidly held); the static part is gone. A resting
+        contact of at most :data:`ATTACHED_CONTACT_TOL` with the table or a box, cylinder or sphere
+        obstacle is not a collision (they are checked against copies shrunk by that much). Shares the
+        geometry (cheap); has its own scratch data."""
         if not self._shared.has_part:
             raise InputError("attached(): the scene has no part mesh to attach")
         return self._variant("attached", None, check_transform(T_tcp_part, "T_tcp_part"))
 
-    def with_part_at(self, T_world_part) -> CollisionScene:
+    def with_part_at(self, T_world_part: np.ndarray) -> CollisionScene:
         """This scene with the part static at ``T_world_part`` (4, 4) (e.g. after release at the
         place). Shares the geometry (cheap); has its own scratch data."""
         if not self._shared.has_part:
@@ -407,7 +395,7 @@ class CollisionScene:
         sh = self._shared
         return [(*sh.body_names[k], sh.kinds[k], str(sh.group[k]), str(sh.extra_of[k])) for k in range(len(sh.pairs))]
 
-    def move_attached(self, T_tcp_part) -> None:
+    def move_attached(self, T_tcp_part: np.ndarray) -> None:
         """Set the attached part's ``T_tcp_part`` (4, 4) of this ``attached`` variant in place
         (no new scratch data: the planner holds one attached variant and moves the part per grasp)."""
         if self.mode != "attached":
@@ -420,16 +408,17 @@ class CollisionScene:
         self._apply()
 
     # ------------------------------------------------------------------------------------------
-    def _check_finger_model(self, gripper) -> None:
+    def _check_finger_model(self, gripper: Gripper) -> None:
         """The fingers move as x translations of their opening-0 pose (+ a moving TCP's z offset)."""
         o = float(gripper.max_opening)
         dz = float(gripper.tcp_offset(o)) - float(gripper.tcp_offset(0.0)) if getattr(gripper, "moving_tcp", False) else 0.0
+        # ignores: shape0 is shape's finger at opening 0, the same kind (hasattr narrows shape alone)
         for sign, shape0, shape in zip((-1.0, 1.0), gripper.fingers(0.0), gripper.fingers(o)):
             if hasattr(shape, "T_tcp_box"):
-                exp = translation(sign * o / 2, z=dz) @ np.asarray(shape0.T_tcp_box, dtype=float)
+                exp = translation(sign * o / 2, z=dz) @ np.asarray(shape0.T_tcp_box, dtype=float)  # type: ignore[union-attr]
                 ok = np.allclose(exp, np.asarray(shape.T_tcp_box, dtype=float), atol=1e-9)
             else:
-                v0 = np.asarray(shape0.vertices, dtype=float)
+                v0 = np.asarray(shape0.vertices, dtype=float)  # type: ignore[union-attr]
                 ok = np.allclose(v0 + [sign * o / 2, 0, dz], np.asarray(shape.vertices, dtype=float), atol=1e-9)
             if not ok:
                 raise InputError("gripper.fingers(opening): the jaws must move along the TCP x axis by "
@@ -459,7 +448,7 @@ class CollisionScene:
         self._shared.set_opening(o)
 
     # ------------------------------------------------------------------------------------------
-    def _prep(self, q, opening) -> np.ndarray:
+    def _prep(self, q: ArrayLike, opening: float | None) -> np.ndarray:
         q = np.asarray(q, dtype=float)
         if q.shape != (self.model.nq,):
             raise InputError(f"q: expected shape ({self.model.nq},), got {q.shape}")
@@ -467,7 +456,7 @@ class CollisionScene:
         self._apply()
         return q
 
-    def _hits(self, q, opening, stop: bool) -> list[int]:
+    def _hits(self, q: ArrayLike, opening: float | None, stop: bool) -> list[int]:
         q = self._prep(q, opening)
         if not pin.computeCollisions(self.model, self.data, self.geom_model, self.geom_data, q, stop):
             return []
@@ -486,18 +475,18 @@ class CollisionScene:
             self._broadphase = pin.BroadPhaseManager_SSaPCollisionManager(self.model, self.geom_model, gd)
         return bool(pin.computeCollisions(self.model, self.data, self._broadphase, q, True))
 
-    def is_free(self, q, opening: float | None = None) -> bool:
+    def is_free(self, q: ArrayLike, opening: float | None = None) -> bool:
         """True when configuration q (n,) with the jaws at ``opening`` (m; default max_opening)
         collides with nothing (early stop at the first colliding pair)."""
         q = self._prep(q, opening)
         return self.configs_free(q[None])
 
-    def is_free_exhaustive(self, q, opening: float | None = None) -> bool:
+    def is_free_exhaustive(self, q: ArrayLike, opening: float | None = None) -> bool:
         """:meth:`is_free` checking every active pair (no broad phase): the reference of the tests."""
         q = self._prep(q, opening)
         return not pin.computeCollisions(self.model, self.data, self.geom_model, self.geom_data, q, True)
 
-    def first_collision(self, q, opening: float | None = None) -> str | None:
+    def first_collision(self, q: ArrayLike, opening: float | None = None) -> str | None:
         """``"<body> vs <body>"`` of the first colliding pair in checking order, or None."""
         hits = self._hits(q, opening, True)
         if not hits:
@@ -505,9 +494,11 @@ class CollisionScene:
         a, b = self._shared.body_names[hits[0]]
         return f"{a} vs {b}"
 
-    def colliding_pairs(self, q, opening: float | None = None) -> list[tuple[str, str, str]]:
+    def colliding_pairs(self, q: ArrayLike, opening: float | None = None) -> list[tuple[str, str, str]]:
         """All colliding pairs (no early stop), by body: [(body, body, kind)], kind in
-        {"table", "part", "obstacle", "self"}; a body hit by several of its geometries is listed once."""
+        {"table", "part", "obstacle", "self"}; a body hit by several of its geometries is listed once.
+        Body names: the robot link name, ``gripper:<element>`` (``gripper:body_0``,
+        ``gripper:finger_left``, ``gripper:finger_right``), ``part``, ``table``, ``obstacle:<name>``."""
         out: list[tuple[str, str, str]] = []
         for k in self._hits(q, opening, False):
             row = (*self._shared.body_names[k], self._shared.kinds[k])
@@ -515,16 +506,16 @@ class CollisionScene:
                 out.append(row)
         return out
 
-    def colliding_geometries(self, q, opening: float | None = None) -> list[tuple[str, str, str]]:
+    def colliding_geometries(self, q: ArrayLike, opening: float | None = None) -> list[tuple[str, str, str]]:
         """As :meth:`colliding_pairs` but with Pinocchio's geometry names (``<link>_<k>``)."""
         return [(*self._shared.geom_names[k], self._shared.kinds[k]) for k in self._hits(q, opening, False)]
 
-    def collision_kind(self, q, opening: float | None = None) -> str | None:
+    def collision_kind(self, q: ArrayLike, opening: float | None = None) -> str | None:
         """None when free, else the kind of the first hit: "table", "part", "obstacle" or "self"."""
         hits = self._hits(q, opening, True)
         return self._shared.kinds[hits[0]] if hits else None
 
-    def path_free(self, qs, opening: float | None = None, *, step: float = STEP,
+    def path_free(self, qs: ArrayLike, opening: float | None = None, *, step: float = STEP,
                   reduced: tuple[Callable[[np.ndarray], np.ndarray], np.ndarray] | None = None) -> bool:
         """True when the piecewise-linear joint path qs (k, n) is collision-free, checked at every
         waypoint and at interpolated configurations so that no joint moves more than ``step`` rad
@@ -570,7 +561,7 @@ class CollisionScene:
         pin.updateGeometryPlacements(m, d, gm, gd, q)
         return any(pin.computeCollision(gm, gd, p) for p in pair_ids.tolist())
 
-    def path_collisions(self, qs, opening: float | None = None, *, step: float = STEP
+    def path_collisions(self, qs: ArrayLike, opening: float | None = None, *, step: float = STEP
                         ) -> tuple[int, list[tuple[str, str, str]]] | None:
         """``(row of the path densified at step, colliding_pairs)`` of the first colliding
         configuration, or None (for reasons; :meth:`path_free` decides)."""
@@ -588,7 +579,8 @@ def describe_pairs(pairs: list[tuple[str, str, str]], limit: int = 3) -> str:
     return "; ".join(rows) + more
 
 
-def no_path_reason(scene: CollisionScene, q_start, q_goal, opening: float, time_limit: float, attempts: int,
+def no_path_reason(scene: CollisionScene, q_start: ArrayLike, q_goal: ArrayLike, opening: float, time_limit: float,
+                   attempts: int,
                    *, start: str = "start (q_home)", goal: str = "goal (pre-grasp)") -> str:
     """Why a joint-path query failed: the start or the goal in collision (naming the bodies), or
     RRTConnect's time ran out with both valid."""

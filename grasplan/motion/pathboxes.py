@@ -1,26 +1,12 @@
 """Oriented boxes in front of coal: which pairs of a collision scene can collide at a
-configuration, decided for many configurations in one compiled pass
-(:meth:`grasplan.motion.collision_scene.CollisionScene.configs_free`, and through it ``is_free`` and ``path_free``;
-the pick's lift, :func:`grasplan.pick.motion.lift_collision`).
+configuration, decided for many configurations in one compiled pass (:func:`scene_open`, for
+:meth:`grasplan.motion.collision_scene.CollisionScene.configs_free`, and through it ``is_free`` and
+``path_free``; the pick's lift, :func:`grasplan.pick.lift_check.lift_collision`).
 
 coal reports a collision of two geometries only where they overlap or come within the security
 margin, and every geometry lies inside its local bounding box (coal's ``aabb_local``: a mesh's
 vertices' box, a primitive's exact extent) placed by its joint. So a pair whose two oriented boxes
-lie more than the margin apart cannot collide. :func:`scene_open` lists, per configuration, the
-active pairs whose boxes do not lie apart, in one numba-compiled loop: forward kinematics of the
-chain (revolute and prismatic joints), each box's world pose (the world's fixed boxes once), then
-per pair the world-axis boxes and, where those overlap, the separating-axis test of the two
-oriented boxes (15 axes). Configurations go in chunks of :data:`CHUNK` (a path's neighbours): a
-pair whose world-axis boxes around a whole chunk lie apart is skipped at all of its configurations.
-coal's narrow phase then runs on those pairs alone: a configuration is free exactly when coal finds
-none of them colliding, and one with none listed needs no coal call (tests/test_pathboxes.py
-checks both against coal on every pair).
-
-Measured on the bench piles (docs/pick.md): the boxes leave no pair at 92-94 % of a path's
-configurations, at about 2 us per configuration, against ~13 us for coal's check through
-Pinocchio's broad phase (~26 us on the lift), which they replace. The same test in plain NumPy
-cost 5-10 us per configuration and saved nothing. A model with another joint kind, or a geometry
-whose box is not finite, is left to that broad phase.
+lie more than the margin apart cannot collide.
 """
 from __future__ import annotations
 
@@ -120,7 +106,8 @@ CHUNK = 16
 
 
 @numba.njit(cache=True, nogil=True)
-def _chain(q, parent, R0, t0, kind, axis, iq, oR, ot, RM, rot):  # pragma: no cover
+def _chain(q: np.ndarray, parent: np.ndarray, R0: np.ndarray, t0: np.ndarray, kind: np.ndarray, axis: np.ndarray,
+           iq: np.ndarray, oR: np.ndarray, ot: np.ndarray, RM: np.ndarray, rot: np.ndarray) -> None:  # pragma: no cover
     """Forward kinematics of the chain at ``q``: each joint's world rotation ``oR`` and origin ``ot``."""
     J = parent.shape[0]
     for i in range(3):
@@ -163,7 +150,8 @@ def _chain(q, parent, R0, t0, kind, axis, iq, oR, ot, RM, rot):  # pragma: no co
 
 
 @numba.njit(cache=True, nogil=True)
-def _place(g, jg, oR, ot, R_loc, c_loc, half, R, c, hw):  # pragma: no cover
+def _place(g: int, jg: int, oR: np.ndarray, ot: np.ndarray, R_loc: np.ndarray, c_loc: np.ndarray, half: np.ndarray,
+           R: np.ndarray, c: np.ndarray, hw: np.ndarray) -> None:  # pragma: no cover
     """Box ``g`` on joint ``jg`` in the world: its axes ``R[g]``, centre ``c[g]`` and the
     half-widths ``hw[g]`` of the world-axis box around it."""
     for i in range(3):
@@ -180,7 +168,9 @@ def _place(g, jg, oR, ot, R_loc, c_loc, half, R, c, hw):  # pragma: no cover
 
 
 @numba.njit(cache=True, nogil=True)
-def _open_pairs(qs, parent, R0, t0, kind, axis, iq, gjoint, R_loc, c_loc, half, pairs, tol):  # pragma: no cover
+def _open_pairs(qs: np.ndarray, parent: np.ndarray, R0: np.ndarray, t0: np.ndarray, kind: np.ndarray, axis: np.ndarray,
+                iq: np.ndarray, gjoint: np.ndarray, R_loc: np.ndarray, c_loc: np.ndarray, half: np.ndarray,
+                pairs: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover
     """Per configuration, the pairs (indices into ``pairs``) whose boxes the tests cannot put
     apart: ``(starts (n + 1,), flat)``, configuration k's in ``flat[starts[k]:starts[k + 1]]``.
 
@@ -272,7 +262,8 @@ def _open_pairs(qs, parent, R0, t0, kind, axis, iq, gjoint, R_loc, c_loc, half, 
 
 
 @numba.njit(cache=True, nogil=True)
-def obb_apart(Ra, ca, ha, Rb, cb, hb, tol):  # pragma: no cover
+def obb_apart(Ra: np.ndarray, ca: np.ndarray, ha: np.ndarray, Rb: np.ndarray, cb: np.ndarray, hb: np.ndarray,
+              tol: float) -> bool:  # pragma: no cover
     """Separating-axis test of two oriented boxes in box A's frame (Gottschalk et al.'s OBBTree):
     one of the 15 axes separates them by more than ``tol``. ``|C|`` is padded by 1e-12 and edge
     axes of nearly parallel edges (length < 1e-6) are skipped, so rounding never separates
@@ -359,7 +350,19 @@ def scene_open(scene: Any, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray] | No
     oriented boxes do not lie apart, the only ones coal can find colliding there: ``(starts (N +
     1,), pair ids)`` (indices into the scene's pairs, configuration k's in ``pair_ids[starts[k]:
     starts[k + 1]]``), or None when the boxes cannot serve this scene (a joint or a box the
-    kernel cannot take)."""
+    kernel cannot take).
+
+    One numba-compiled loop (:func:`_open_pairs`): forward kinematics of the chain (revolute and
+    prismatic joints), each box's world pose (the world's fixed boxes once), then per pair the
+    world-axis boxes and, where those overlap, the separating-axis test of the two oriented boxes
+    (15 axes, :func:`obb_apart`). coal's narrow phase then runs on the listed pairs alone: a
+    configuration is free exactly when coal finds none of them colliding, and one with none listed
+    needs no coal call (tests/test_pathboxes.py checks both against coal on every pair). On the
+    bench piles (docs/pick.md) the boxes leave no pair at 92-94 % of a path's configurations, at
+    about 2 us per configuration against ~13 us for coal's check through Pinocchio's broad phase
+    (~26 us on the lift), which they replace; the same test in plain NumPy cost 5-10 us per
+    configuration and saved nothing. A model with another joint kind, or a geometry whose box is
+    not finite, is left to that broad phase."""
     found = _prepared(scene)
     if found is None:
         return None

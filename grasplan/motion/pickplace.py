@@ -1,32 +1,11 @@
 """Pick-and-place after the grasp: close, lift, transfer, descend, release, retreat.
 
 Pure functions of a robot, collision scenes and poses; :func:`grasplan.motion.planning.plan_grasps` calls
-them for every grasp whose approach is planned. The sequence (world frame, lengths m):
-
-1. **close** at the grasp (event, width = the grasp's contact width);
-2. **lift**: the TCP moves straight by ``cell.retreat_distance`` along ``cell.retreat_direction``
-   with the part attached (``scene.attached(T_tcp_part)``, ``T_tcp_part = inv(T_part_tcp)``),
-   checked against table, obstacles and the robot (:func:`plan_lift`);
-3. with a place ``T_world_part_place``: the place TCP ``T_world_part_place @ T_part_tcp``, the
-   above-place TCP = the place TCP moved back up by ``retreat_distance`` along the retreat
-   direction (the descent is the reverse of a lift at the place). IK at the place (the one IK
-   solver, :func:`grasplan.robot.ik.solve_ik`), the straight descent traced back from it
-   (above-place -> place, attached), then the straight **retreat** after the **open** event (width
-   = the pre-grasp opening) along the TCP's -z by ``backoff`` with the part released at the place
-   (``scene.with_part_at(T_world_part_place)``) (:func:`place_candidates`), and the OMPL
-   **transfer** lifted -> above-place with the part attached (:func:`transfer_path`).
-
-Every straight move uses the one straight-line tracker (:func:`grasplan.motion.joint_paths.approach_path_reason`,
+them for every grasp whose approach is planned: :func:`plan_lift`, :func:`place_candidates`,
+:func:`transfer_path`, and :func:`assemble_motion`, whose docstring gives the sequence. Every
+straight move uses the one straight-line tracker (:func:`grasplan.motion.joint_paths.approach_path_reason`,
 CLIK seeded by the previous waypoint, ``max_dev`` from the line) and every path is checked at
-``interpolation.STEP`` rad. The part rests on its support (table, bin floor) when it is grasped and when
-it is placed: within the first and last :data:`SUPPORT_CLEARANCE` of the lift / descent only the
-attached part touching the table or an obstacle is tolerated (every other pair still counts).
-
-Failures: the lift -> ``no_path`` (kinematic: the line leaves the workspace, a joint limit, a
-branch jump) or ``ik_collision`` (collision), reason ``"lift: ..."``; the place ->
-``place_unreachable`` (no IK at the place or above it, the descent or retreat cannot follow the
-line) or ``place_no_path`` (the place pose, the descent, the release or the retreat collides, or
-RRTConnect found no transfer path), reason ``"place: ..."``.
+``interpolation.STEP`` rad.
 """
 from __future__ import annotations
 
@@ -34,6 +13,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..robot.ik.solve import solve_ik
 from ..geometry.interpolation import STEP, interpolate_path
@@ -44,7 +24,8 @@ from .collision_scene import CollisionScene
 from ..status import Status
 
 #: within this TCP travel (m) from the grasp (lift) / to the place (descent) the attached part may
-#: touch the table or an obstacle it rests on
+#: touch the table or an obstacle it rests on (its support: table, bin floor, where it lies when it is
+#: grasped and when it is placed); every other pair still counts (:func:`path_free_near_support`)
 SUPPORT_CLEARANCE = 0.002
 #: jaw openings checked between the contact width and the pre-grasp opening when releasing
 RELEASE_STEPS = 4
@@ -103,7 +84,7 @@ class PlacePoses:
 # ------------------------------------------------------------------------------------------------
 # poses
 # ------------------------------------------------------------------------------------------------
-def unit_direction(direction) -> np.ndarray:
+def unit_direction(direction: ArrayLike) -> np.ndarray:
     d = np.asarray(direction, dtype=np.float64).reshape(3)
     n = float(np.linalg.norm(d))
     if not (np.isfinite(n) and n > 0):
@@ -111,19 +92,19 @@ def unit_direction(direction) -> np.ndarray:
     return d / n
 
 
-def translate_world(T: np.ndarray, v) -> np.ndarray:
+def translate_world(T: np.ndarray, v: ArrayLike) -> np.ndarray:
     """``T`` moved by the world vector ``v`` (orientation unchanged)."""
     out = np.array(T, dtype=np.float64)
     out[:3, 3] += np.asarray(v, dtype=np.float64)
     return out
 
 
-def lift_pose(T_world_tcp: np.ndarray, direction, distance: float) -> np.ndarray:
+def lift_pose(T_world_tcp: np.ndarray, direction: ArrayLike, distance: float) -> np.ndarray:
     """The TCP after the lift: ``distance`` along the world ``direction``."""
     return translate_world(T_world_tcp, unit_direction(direction) * float(distance))
 
 
-def place_poses(T_world_part_place: np.ndarray, T_part_tcp: np.ndarray, direction, distance: float,
+def place_poses(T_world_part_place: np.ndarray, T_part_tcp: np.ndarray, direction: ArrayLike, distance: float,
                 backoff: float) -> PlacePoses:
     """The place TCP ``T_world_part_place @ T_part_tcp``, above it (``distance`` along the retreat
     ``direction``) and the retreat end (``backoff`` along the place TCP's own -z)."""
@@ -193,10 +174,12 @@ def path_free_near_support(scene: CollisionScene, path: np.ndarray, opening: flo
 # lift
 # ------------------------------------------------------------------------------------------------
 def plan_lift(robot: Robot, scene_attached: CollisionScene, q_grasp: np.ndarray, T_world_tcp: np.ndarray, *,
-              direction, distance: float, width: float, max_dev: float, T_flange_tcp: np.ndarray,
+              direction: ArrayLike, distance: float, width: float, max_dev: float, T_flange_tcp: np.ndarray,
               sample: float = LINE_SAMPLE) -> Stage:
     """The straight lift grasp -> ``distance`` along ``direction`` with the part attached and the jaws
-    at ``width``. Stage status: ``ok``, ``no_path`` (kinematic) or ``ik_collision`` (collision)."""
+    at ``width``, checked against table, obstacles and the robot. Stage status: ``ok``, ``no_path``
+    (kinematic: the line leaves the workspace, a joint limit, a branch jump) or ``ik_collision``
+    (collision), reason ``"lift: ..."``."""
     T_lift = lift_pose(T_world_tcp, direction, distance)
     path, why = approach_path_reason(robot, None, T_world_tcp, T_lift, q_grasp, opening=width, max_dev=max_dev,
                                      T_flange_tcp=T_flange_tcp, sample=sample)
@@ -210,7 +193,7 @@ def plan_lift(robot: Robot, scene_attached: CollisionScene, q_grasp: np.ndarray,
     return Stage(path, Status.OK, "ok")
 
 
-def _vec(v) -> str:
+def _vec(v: ArrayLike) -> str:
     return "(" + ", ".join(f"{float(x):.3g}" for x in np.asarray(v).reshape(-1)) + ")"
 
 
@@ -227,8 +210,10 @@ def place_candidates(robot: Robot, scene_attached: CollisionScene, scene_release
     ``opening`` with the part static at the place) and retreat (released) are free.
 
     Returns ``(candidates, status, reason)``: status ``ok`` when there is at least one candidate,
-    else ``place_unreachable`` / ``place_no_path`` and why. ``limit``: stop after this many candidates
-    (the caller tries at most that many transfer paths)."""
+    else ``place_unreachable`` (no IK at the place or above it, the descent or retreat cannot follow
+    the line) or ``place_no_path`` (the place pose, the descent, the release or the retreat collides)
+    and why, ``"place: ..."``. ``limit``: stop after this many candidates (the caller tries at most
+    that many transfer paths)."""
     T_tcp_flange = np.linalg.inv(np.asarray(T_flange_tcp, dtype=np.float64))
     ik = solve_ik(robot, poses.place @ T_tcp_flange, seed=seed, q_ref=q_ref)
     sols = np.asarray(ik.q, dtype=np.float64).reshape(-1, robot.nq)[:max_solutions]
@@ -309,7 +294,7 @@ def _release_collision(scene_released: CollisionScene, q_place: np.ndarray, widt
 def transfer_path(scene_attached: CollisionScene, q_lifted: np.ndarray, cand: PlaceCandidate, *, lower: np.ndarray,
                   upper: np.ndarray, width: float, seed: int, time_limit: float, attempts: int) -> np.ndarray | None:
     """RRTConnect lifted -> above-place with the part attached and the jaws at ``width`` (None: no
-    verified path)."""
+    verified path, a ``place_no_path`` failure)."""
     return plan_joint_path(scene_attached, q_lifted, cand.q_above, lower=lower, upper=upper, opening=width,
                            seed=seed, time_limit=time_limit, attempts=attempts)
 
@@ -321,7 +306,23 @@ def assemble_motion(transit: np.ndarray, approach: np.ndarray, lift: np.ndarray,
                     T_tcp_part: np.ndarray, transfer: np.ndarray | None = None,
                     place: PlaceCandidate | None = None, T_world_part_place: np.ndarray | None = None) -> Motion:
     """One path with labelled segments (consecutive segments share their boundary row) and the
-    gripper events: close (``width``) at the grasp, open (``opening``) at the place."""
+    gripper events: close (``width``) at the grasp, open (``opening``) at the place.
+
+    The sequence (world frame, lengths m):
+
+    1. **close** at the grasp (event, width = the grasp's contact width);
+    2. **lift**: the TCP moves straight by ``cell.retreat_distance`` along ``cell.retreat_direction``
+       with the part attached (``scene.attached(T_tcp_part)``, ``T_tcp_part = inv(T_part_tcp)``)
+       (:func:`plan_lift`);
+    3. with a place ``T_world_part_place``: the place TCP ``T_world_part_place @ T_part_tcp``, the
+       above-place TCP = the place TCP moved back up by ``retreat_distance`` along the retreat
+       direction (the descent is the reverse of a lift at the place; :func:`place_poses`). IK at the
+       place (the one IK solver, :func:`grasplan.robot.ik.solve_ik`), the straight descent traced back
+       from it (above-place -> place, attached), then the straight **retreat** after the **open** event
+       (width = the pre-grasp opening) along the TCP's -z by ``backoff`` with the part released at the
+       place (``scene.with_part_at(T_world_part_place)``) (:func:`place_candidates`), and the OMPL
+       **transfer** lifted -> above-place with the part attached (:func:`transfer_path`).
+    """
     pieces = [("transit", transit), ("approach", approach), ("lift", lift)]
     if place is not None:
         if transfer is None or T_world_part_place is None:

@@ -63,7 +63,7 @@ class MassProperties:
                 "watertight_used": bool(self.watertight_used)}
 
 
-def _positive(value, name: str, fix: str) -> float:
+def _positive(value: float, name: str, fix: str) -> float:
     try:
         v = float(value)
     except (TypeError, ValueError):

@@ -18,7 +18,8 @@ import os
 import warnings as _warnings
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, Literal, ParamSpec, TypeVar
 
 import numpy as np
 
@@ -30,6 +31,8 @@ from ..geometry.tolerance import Tolerance
 from ..geometry.units import LENGTH_UNITS
 
 if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+
     from ..geometry.meshdata import TriangleMesh
 
 Units = Literal["auto", "m", "cm", "mm", "um", "in", "ft"]
@@ -50,6 +53,10 @@ MIN_EXTENT_M, MAX_EXTENT_M = 1e-4, 100.0
 MAX_COORD_M = 1e3
 #: extents (metres) a gripper part plausibly has; outside it the units hint lists alternatives
 PLAUSIBLE_EXTENT_M = (2e-3, 1.0)
+
+_P = ParamSpec("_P")
+_R = TypeVar("_R")
+
 
 @dataclass(frozen=True)
 class MeshReport:
@@ -96,9 +103,10 @@ class Part:
 
     @property
     def triangles(self) -> int:
+        """Number of faces."""
         return len(self.mesh.faces)
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         """The ``part`` block shared by every output schema."""
         return {
             "path": self.path,
@@ -109,6 +117,7 @@ class Part:
 
 
 def _fmt_len(metres: float) -> str:
+    """A length for messages: millimetres below 1 m, else metres."""
     return f"{metres * 1e3:.4g} mm" if metres < 1.0 else f"{metres:.4g} m"
 
 
@@ -185,11 +194,11 @@ def load_part(path: str | os.PathLike, *, units: Units | str = "auto") -> Part:
     return part_from_arrays(v, f, path=str(p), sha256=digest, units=units, source=show_path(p))
 
 
-def _quiet(fn):
+def _quiet(fn: Callable[_P, _R]) -> Callable[_P, _R]:
     """Run ``fn`` with NumPy floating-point and library warnings silenced: callers get a Part or one
     MeshError, never a RuntimeWarning printed on stderr."""
     @functools.wraps(fn)
-    def wrapper(*args, **kwargs):
+    def wrapper(*args: _P.args, **kwargs: _P.kwargs) -> _R:
         with _warnings.catch_warnings(), np.errstate(all="ignore"):
             _warnings.simplefilter("ignore")
             return fn(*args, **kwargs)
@@ -209,7 +218,7 @@ def _row_hash(q: np.ndarray) -> np.ndarray:
     """(n,) uint64 hash of the rows of an (n, 3) int64 array (splitmix64 finaliser, chained)."""
     u = q.astype(np.uint64)
 
-    def mix(z):
+    def mix(z: np.ndarray) -> np.ndarray:
         z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
         z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
         return z ^ (z >> np.uint64(31))
@@ -265,23 +274,9 @@ def signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
     return float(np.einsum("fi,fi->", t[:, 0], np.cross(t[:, 1], t[:, 2]))) / 6.0
 
 
-@_quiet
-def part_from_arrays(
-    vertices: np.ndarray,
-    faces: np.ndarray,
-    *,
-    path: str = "<memory>",
-    sha256: str = "",
-    units: Units | str = "m",
-    source: str | None = None,
-) -> Part:
-    """Build a cleaned :class:`Part` from ``vertices (n, 3)`` and ``faces (m, 3)`` in file units.
-
-    ``source`` is how messages name the input (default ``path``). Raises :class:`MeshError` for
-    an empty or corrupt mesh, more than :data:`MAX_TRIANGLES` faces, NaN/inf coordinates, a
-    largest extent outside [:data:`MIN_EXTENT_M`, :data:`MAX_EXTENT_M`] metres, a vertex more than
-    :data:`MAX_COORD_M` from the origin, or no area."""
-    src = source or show_path(path)
+def _checked_faces(vertices: ArrayLike, faces: ArrayLike, src: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(vertices (n, 3) float64, faces (m, 3) int64)``; MeshError for an empty or corrupt mesh or more
+    than :data:`MAX_TRIANGLES` faces."""
     try:
         v = np.asarray(vertices, dtype=np.float64)
         f = np.asarray(faces)
@@ -296,9 +291,12 @@ def part_from_arrays(
         raise MeshError(f"{src}: face indices must be integers; the file is corrupt")
     if f.min() < 0 or f.max() >= len(v):
         raise MeshError(f"{src}: faces reference vertices that do not exist; the file is corrupt")
-    f = f.astype(np.int64)
-    referenced = np.zeros(len(v), dtype=bool)
-    referenced[f.reshape(-1)] = True
+    return v, f.astype(np.int64)
+
+
+def _extent(v: np.ndarray, referenced: np.ndarray, src: str) -> tuple[float, float]:
+    """``(largest extent, largest |coordinate|)`` of the referenced vertices, file units; MeshError for
+    NaN/inf coordinates, an overflowing extent or a single point."""
     used = np.flatnonzero(referenced)  # = np.unique(f), in O(n)
     vu = v[used]
     if not np.all(np.isfinite(vu)):
@@ -312,7 +310,14 @@ def part_from_arrays(
                         f"the file is corrupt, re-export it")
     if extent == 0.0:
         raise MeshError(f"{src}: all {len(used)} vertices are the same point: the mesh has no area")
-    scale_to_m, unit, note = decide_units(extent, str(units))
+    return extent, reach
+
+
+def _checked_units(extent: float, reach: float, units: str, src: str) -> tuple[float, str, str]:
+    """:func:`decide_units`, then MeshError when the part's size in metres lies outside
+    [:data:`MIN_EXTENT_M`, :data:`MAX_EXTENT_M`] (naming the ``--units`` that would fit) or a vertex lies
+    more than :data:`MAX_COORD_M` from the origin."""
+    scale_to_m, unit, note = decide_units(extent, units)
     size_m, reach_m = extent * scale_to_m, reach * scale_to_m
     if not (MIN_EXTENT_M <= size_m <= MAX_EXTENT_M):
         alts = units_alternatives(extent, exclude=unit)
@@ -324,23 +329,32 @@ def part_from_arrays(
     if reach_m > MAX_COORD_M:
         raise MeshError(f"{src}: the part lies {reach_m:.3g} m from the origin (limit {MAX_COORD_M:g} m): far "
                         f"from the origin floating point loses its shape; move it near the origin in CAD")
-    v_m = v * scale_to_m
-    tol = Tolerance.for_mesh(v_m[used])
+    return scale_to_m, unit, note
 
-    n_faces_in, n_verts_in = len(f), len(v)
 
-    # 1. merge duplicate vertices (STL writes every vertex once per face): vertices equal when
-    # rounded to ``digits`` decimals, kept in order of first use (as trimesh's merge_vertices)
+@dataclass(frozen=True)
+class _Cleaned:
+    """The mesh after merging vertices and dropping bad faces: ``mesh``, vertices ``merged``, and
+    masks (over the merged mesh's faces) of the ``degenerate`` and ``duplicate`` faces dropped."""
+
+    mesh: MeshData
+    merged: int
+    degenerate: np.ndarray
+    duplicate: np.ndarray
+
+
+def _clean(v_m: np.ndarray, f: np.ndarray, referenced: np.ndarray, tol: Tolerance, src: str) -> _Cleaned:
+    """Safe repairs 1-3: merge duplicate vertices (STL writes every vertex once per face: vertices
+    equal when rounded to ``tol.merge`` decimals, kept in order of first use, as trimesh's
+    merge_vertices), drop degenerate faces (a repeated vertex index or (near) zero area) and
+    duplicate faces (the same three vertices, either winding). MeshError when no area is left."""
     digits = int(max(0, np.floor(-np.log10(tol.merge))))
     v_keep, fv = merge_vertices(v_m, f, referenced, digits)
-    merged = n_verts_in - len(v_keep)
+    merged = len(v_m) - len(v_keep)
     full = MeshData(v_keep, fv)
-
-    # 2. drop degenerate faces: repeated vertex index or (near) zero area
     repeated = (fv[:, 0] == fv[:, 1]) | (fv[:, 1] == fv[:, 2]) | (fv[:, 0] == fv[:, 2])
     tiny = full.area_faces <= tol.area
     degenerate = repeated | tiny
-    # 3. drop duplicate faces (same three vertices, either winding)
     keep = ~degenerate
     first = _first_unique_rows(np.sort(fv, axis=1), len(v_keep))
     unique_mask = np.zeros(len(fv), dtype=bool)
@@ -348,17 +362,17 @@ def part_from_arrays(
     duplicate = ~unique_mask & keep
     keep &= unique_mask
     if not keep.any():
-        raise MeshError(f"{src}: the mesh has no area (all {n_faces_in} triangles are degenerate)")
+        raise MeshError(f"{src}: the mesh has no area (all {len(f)} triangles are degenerate)")
     mesh = full.with_faces(keep)  # unreferenced vertices dropped, order kept
     if mesh.area <= tol.area:
         raise MeshError(f"{src}: the mesh has no area")
+    return _Cleaned(mesh, merged, degenerate, duplicate)
 
-    # 4. consistent winding, outward normals (only meaningful on a closed mesh); trimesh's
-    # fix_winding (and its import) only for a mesh whose winding is inconsistent
-    warn: list[str] = []
-    hint = units_hint(extent, unit)
-    if hint:
-        warn.append(f"{src}: {hint}")
+
+def _orient(mesh: MeshData) -> tuple[MeshData, bool, bool, bool]:
+    """Safe repair 4: ``(mesh, winding_fixed, inverted_fixed, watertight)``, the winding made consistent
+    (trimesh's fix_winding, and its import, only for a mesh whose winding is inconsistent) and the
+    normals pointing outwards (only meaningful on a closed mesh)."""
     winding_fixed = False
     if not mesh.is_winding_consistent:
         import trimesh
@@ -373,42 +387,59 @@ def part_from_arrays(
     if watertight and signed_volume(mesh.vertices, mesh.faces) < 0:
         mesh = MeshData(mesh.vertices, mesh.faces[:, ::-1])
         inverted = True
+    return mesh, winding_fixed, inverted, watertight
+
+
+def _input_sha256(vertices: ArrayLike, faces: ArrayLike) -> str:
+    """The sha256 of an in-memory part's input arrays (float64 vertices, int64 faces, little-endian)."""
+    h = hashlib.sha256(np.ascontiguousarray(vertices, dtype="<f8").tobytes())
+    h.update(np.ascontiguousarray(faces, dtype="<i8").tobytes())
+    return h.hexdigest()
+
+
+@_quiet
+def part_from_arrays(
+    vertices: ArrayLike,
+    faces: ArrayLike,
+    *,
+    path: str = "<memory>",
+    sha256: str = "",
+    units: Units | str = "m",
+    source: str | None = None,
+) -> Part:
+    """Build a cleaned :class:`Part` from ``vertices (n, 3)`` and ``faces (m, 3)`` in file units.
+
+    ``source`` is how messages name the input (default ``path``). Raises :class:`MeshError` for
+    an empty or corrupt mesh, more than :data:`MAX_TRIANGLES` faces, NaN/inf coordinates, a
+    largest extent outside [:data:`MIN_EXTENT_M`, :data:`MAX_EXTENT_M`] metres, a vertex more than
+    :data:`MAX_COORD_M` from the origin, or no area. ``sha256`` default: :func:`_input_sha256`."""
+    src = source or show_path(path)
+    v, f = _checked_faces(vertices, faces, src)
+    referenced = np.zeros(len(v), dtype=bool)
+    referenced[f.reshape(-1)] = True
+    extent, reach = _extent(v, referenced, src)
+    scale_to_m, unit, note = _checked_units(extent, reach, str(units), src)
+    v_m = v * scale_to_m
+    tol = Tolerance.for_mesh(v_m[np.flatnonzero(referenced)])
+    cleaned = _clean(v_m, f, referenced, tol, src)
+    mesh, winding_fixed, inverted, watertight = _orient(cleaned.mesh)
     bodies = int(mesh.body_count)
+    n_degenerate, n_duplicate = int(cleaned.degenerate.sum()), int(cleaned.duplicate.sum())
+    hint = units_hint(extent, unit)
+    warn = [f"{src}: {hint}"] if hint else []
     if not watertight:
         warn.append(f"{src}: the mesh is not watertight; convexity and collision results near its holes are unreliable")
     if bodies > 1:
         warn.append(f"{src}: the mesh has {bodies} separate bodies; they are treated as one rigid part")
-    if int(degenerate.sum()):
-        warn.append(f"{src}: dropped {int(degenerate.sum())} degenerate (zero-area) triangles")
-    if int(duplicate.sum()):
-        warn.append(f"{src}: dropped {int(duplicate.sum())} duplicate triangles")
-
-    report = MeshReport(
-        faces_in_file=n_faces_in,
-        vertices_in_file=n_verts_in,
-        merged_vertices=merged,
-        dropped_degenerate=int(degenerate.sum()),
-        dropped_duplicate=int(duplicate.sum()),
-        winding_fixed=winding_fixed,
-        inverted_fixed=inverted,
-        watertight=watertight,
-        bodies=bodies,
-    )
-    if not sha256:  # an in-memory part: the sha256 of its input arrays (float64 vertices, int64 faces)
-        h = hashlib.sha256(np.ascontiguousarray(vertices, dtype="<f8").tobytes())
-        h.update(np.ascontiguousarray(faces, dtype="<i8").tobytes())
-        sha256 = h.hexdigest()
-    return Part(
-        path=path,
-        sha256=sha256,
-        scale_to_m=scale_to_m,
-        units=unit,
-        units_note=note,
-        mesh=mesh,
-        report=report,
-        tol=tol,
-        warnings=tuple(warn),
-    )
+    if n_degenerate:
+        warn.append(f"{src}: dropped {n_degenerate} degenerate (zero-area) triangles")
+    if n_duplicate:
+        warn.append(f"{src}: dropped {n_duplicate} duplicate triangles")
+    report = MeshReport(faces_in_file=len(f), vertices_in_file=len(v), merged_vertices=cleaned.merged,
+                        dropped_degenerate=n_degenerate, dropped_duplicate=n_duplicate, winding_fixed=winding_fixed,
+                        inverted_fixed=inverted, watertight=watertight, bodies=bodies)
+    return Part(path=path, sha256=sha256 or _input_sha256(vertices, faces), scale_to_m=scale_to_m, units=unit,
+                units_note=note, mesh=mesh, report=report, tol=tol, warnings=tuple(warn))
 
 
 def part_from_trimesh(mesh: TriangleMesh, *, path: str = "<memory>", units: Units | str = "m") -> Part:

@@ -20,6 +20,7 @@ import stat
 import warnings as _warnings
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, BinaryIO, cast
 
 import numpy as np
 
@@ -398,14 +399,20 @@ class _GuardedFiles:
         raise OSError("read-only")
 
 
-def _resolver(folder: Path, max_bytes: int):
+if TYPE_CHECKING:  # what _resolver builds (trimesh loads with the first mesh that needs it)
+    import trimesh.resolvers
+
+    class _GuardedResolver(_GuardedFiles, trimesh.resolvers.Resolver): ...
+
+
+def _resolver(folder: Path, max_bytes: int) -> _GuardedResolver:
     """A trimesh resolver (a subclass of its ``Resolver``) over :class:`_GuardedFiles`."""
     import trimesh.resolvers
 
     class GuardedResolver(_GuardedFiles, trimesh.resolvers.Resolver):
         pass
 
-    return GuardedResolver(folder, max_bytes)
+    return cast("_GuardedResolver", GuardedResolver(folder, max_bytes))  # the same bases, declared above
 
 
 def _read_other(path: Path, data: bytes, src: str, lim: ReadLimits) -> tuple[np.ndarray, np.ndarray]:
@@ -517,7 +524,7 @@ _DAE_COUNT = re.compile(rb"<(?:triangles|polylist|polygons|tristrips|trifans)\b[
 _CHUNK = 1 << 20
 
 
-def _stream_count(fh, needles: tuple[bytes, ...], pattern: re.Pattern[bytes] | None = None, *, lower: bool = False) -> int:
+def _stream_count(fh: BinaryIO, needles: tuple[bytes, ...], pattern: re.Pattern[bytes] | None = None, *, lower: bool = False) -> int:
     """Occurrences of ``needles`` (or the sum of ``pattern``'s first group) in the rest of ``fh``,
     read in chunks of 1 MiB (memory bounded whatever the file's size); ``lower``: case-insensitive."""
     overlap = 4096 if pattern is not None else max(map(len, needles)) - 1

@@ -2,17 +2,13 @@
 whole approach decided (:meth:`grasplan.pick.world.PickWorld.gripper_swept_free`).
 
 Once IK has found the grasp reachable, and before any of its solutions is checked, the picker
-sweeps each of the gripper's shapes (jaws at the pre-grasp opening)
-along the straight approach, pre-grasp to grasp, as an oriented box grown by
-:data:`APPROACH_PAD`, and checks those boxes against every body of the pile (the grasped part
-included). When all are apart, the gripper touches nothing at any TCP pose whose shapes lie inside
-them, whatever the arm does: at such a configuration (forward kinematics, then the containment
-test of :class:`grasplan.pick.gripboxes.SweptGripper`) the robot scene skips the gripper's pairs
-with the world (:func:`gripper_world_pairs`) and checks the arm's alone. That covers the grasp
-configuration and every configuration of the approach's path, the ones between waypoints
-included (they stray from the line by micrometres; a configuration whose shapes leave the boxes
-is checked with every pair). tests/test_pick_cover.py checks that a covered configuration is
-free for the robot scene with every pair exactly when it is with the arm's pairs alone.
+sweeps each of the gripper's shapes (jaws at the pre-grasp opening) along the straight approach as
+an oriented box grown by :data:`APPROACH_PAD` and checks those boxes against every body of the
+pile (the grasped part included). When all are apart, the gripper touches nothing at any TCP pose
+whose shapes lie inside them, whatever the arm does: at such a configuration the robot scene skips
+the gripper's pairs with the world (:func:`gripper_world_pairs`) and checks the arm's alone
+(:func:`covered_check`). That covers the grasp configuration and every configuration of the
+approach's path, the ones between waypoints included.
 """
 from __future__ import annotations
 
@@ -46,7 +42,11 @@ def covered_check(robot: Robot, T_flange_tcp: np.ndarray, scene: CollisionScene,
                   ) -> tuple[Callable[[np.ndarray], np.ndarray], np.ndarray]:
     """``(covered, drop)`` for :meth:`grasplan.motion.collision_scene.CollisionScene.path_free`'s ``reduced``:
     ``covered(qs)`` is True at the configurations (k, n) whose gripper shapes lie inside
-    ``swept``; ``drop``: the active pairs of ``scene`` between the gripper and the world."""
+    ``swept`` (forward kinematics, then the containment test of
+    :meth:`grasplan.pick.gripboxes.SweptGripper.holds`; the configurations between the approach's
+    waypoints stray from the line by micrometres, within :data:`APPROACH_PAD`; one whose shapes
+    leave the boxes is checked with every pair); ``drop``: the active pairs of ``scene`` between
+    the gripper and the world."""
     mask = _PAIRS.get(scene._shared)
     if mask is None:
         mask = _PAIRS[scene._shared] = gripper_world_pairs(scene)

@@ -1,25 +1,12 @@
-"""Penetration depth of two part meshes in contact (coal reports mesh-vs-mesh contact, not its depth).
+"""Penetration depth of two part meshes in contact (coal reports mesh-vs-mesh contact, not its
+depth): :func:`pair_depth`, over each part's probes (:class:`PartDepth`, built once per part and
+kept on the :class:`grasplan.Picker`).
 
 The depth of two placed parts A and B is the largest distance to the other mesh's surface of a
 surface point of either one lying inside the other: the points are each mesh's vertices and a
 barycentric grid of :data:`SAMPLE_SPACING` on its faces (:func:`grasplan.geometry.containment.surface_samples`),
 so a penetration is found to within about that spacing (the deepest point of two touching
-polyhedra is a vertex of one of them, except where two edges cross). Inside is decided by the
-part's voxel grid (:mod:`grasplan.geometry.insidegrid`) and, near its surface, by the crossing count of
-:func:`grasplan.piles.checks.inside_for_depth` (a point on the other's surface, undecided by the
-crossings, is outside: at most rounding deep); the distance of an inside point to the surface is
-coal's exact point-to-BVH distance, except that a point the grid proves deeper than ``stop`` ends
-the search at once.
-
-Everything per part (samples, their k-d tree, ray grid, voxel grid, BVH) is built once
-(:class:`PartDepth`) and kept on the :class:`grasplan.Picker`. A query (only for pairs coal reports
-in contact) keeps the samples of one part inside the other part's own box and the overlap of the
-two world boxes, drops those the other's voxel grid puts outside it (and stops at once when the
-grid proves one deeper than ``stop``), then those within ``stop`` of the other part's surface
-samples (k-d tree): a point that close to the surface is at most that deep whether inside or not.
-Only the rest (none when two neighbours touch side by side) get the exact inside test where the
-grid is unsure, and coal's distance, so deciding "deeper than the tolerance?" is a few NumPy and
-k-d tree calls.
+polyhedra is a vertex of one of them, except where two edges cross).
 """
 from __future__ import annotations
 
@@ -72,7 +59,17 @@ def _into(a: PartDepth, T_a: np.ndarray, b: PartDepth, T_b: np.ndarray, lo: np.n
           stop: float, step: int = 1, cap: float = np.inf, budget: Budget = UNLIMITED) -> float:
     """Largest depth of ``a``'s samples (at ``T_a``) inside ``b`` (at ``T_b``), of those in the world
     box ``lo, hi`` (where the two parts' world boxes overlap); stops once above ``stop`` or at
-    ``cap`` or beyond (see :func:`pair_depth`)."""
+    ``cap`` or beyond (see :func:`pair_depth`).
+
+    The samples kept are those inside ``b``'s own box and the overlap of the two world boxes;
+    those ``b``'s voxel grid (:mod:`grasplan.geometry.insidegrid`) puts outside it are dropped (and
+    the search stops at once when the grid proves one deeper than ``stop``), then those within
+    ``stop`` of ``b``'s surface samples (k-d tree): a point that close to the surface is at most
+    that deep whether inside or not. Only the rest (none when two neighbours touch side by side)
+    get the exact inside test where the grid is unsure (the crossing count of
+    :func:`grasplan.piles.checks.inside_for_depth`: a point on the other's surface, undecided by
+    the crossings, is outside: at most rounding deep) and coal's exact point-to-BVH distance, so
+    deciding "deeper than the tolerance?" is a few NumPy and k-d tree calls."""
     pts = placed_in_box(a.samples[::step], np.linalg.inv(T_b) @ T_a, b.lo, b.hi,  # b's frame, in b's box
                         columns=a.columns[:, ::step])
     if not len(pts):

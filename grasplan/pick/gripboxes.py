@@ -66,7 +66,8 @@ class SweptGripper:
 
 
 @numba.njit(cache=True, nogil=True)
-def _inside(T, T_tcp_geom, c_loc, h_loc, Rs, cs, hs, slack):  # pragma: no cover
+def _inside(T: np.ndarray, T_tcp_geom: np.ndarray, c_loc: np.ndarray, h_loc: np.ndarray, Rs: np.ndarray,
+            cs: np.ndarray, hs: np.ndarray, slack: float) -> np.ndarray:  # pragma: no cover
     K, S = T.shape[0], T_tcp_geom.shape[0]
     out = np.ones(K, dtype=np.bool_)
     Tg = np.empty((4, 4))
@@ -95,7 +96,9 @@ def _inside(T, T_tcp_geom, c_loc, h_loc, Rs, cs, hs, slack):  # pragma: no cover
 
 
 @numba.njit(cache=True, nogil=True)
-def _sweep(T, T_tcp_geom, c_loc, h_loc, bc, bh, box, pad):  # pragma: no cover
+def _sweep(T: np.ndarray, T_tcp_geom: np.ndarray, c_loc: np.ndarray, h_loc: np.ndarray, bc: np.ndarray,
+           bh: np.ndarray, box: np.ndarray, pad: float
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover
     K, B = T.shape[0], bc.shape[0]
     Tg = np.empty((K, 4, 4))
     c = np.empty((K, 3))

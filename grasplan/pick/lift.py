@@ -1,24 +1,16 @@
 """The lift of a pick from a pile: its direction and what it may touch (docs/pick.md, "The lift").
 
-**Directions.** A pick lifts the part in the jaws along the cell's retreat (straight up in the bin
-cell) when it can. When that straight lift is blocked (it drags the part through a neighbour, or
-no grasp's gripper and arm can follow it), the planner tries the tilted lifts of
-:func:`lift_directions`: :data:`LIFT_TILTS_DEG` from the retreat in :data:`LIFT_AZIMUTHS`
-azimuths, the smaller tilts first and, per tilt, those leading farthest away from the neighbour
-the straight lift touched and from the bin walls the part is near (``away``; those leading
-towards them are not tried). A lift is still one
-straight TCP line of the retreat's distance (a 45 deg lift raises the part by 71 % of it), planned
-and checked as the straight one is (the part alone against the pile, then the gripper and the arm
-per grasp); a tilted lift must also keep the part inside the bin's walls until it is above the rim
-(:func:`inside_walls`). The pick records its own lift (``Pick.T_world_lifted``, the motion's
-``lift`` segment).
-
-**Resting depth.** Beyond ``lift_contact`` the part in the jaws may touch a neighbour only as deep
-as ``lift_depth``, measured relative to how deep the two already interpenetrate at rest
-(:class:`RestDepth`): poses from a pose estimator put touching neighbours a little into each
-other, and a lift that does not push the part deeper into such a neighbour does not drag it
-through. The resting depth counted is at most the scene's ``overlap_tol`` (deeper is a warning of
-the scene checks: the poses are wrong there).
+A pick lifts the part in the jaws along the cell's retreat (straight up in the bin cell) when it
+can. When that straight lift is blocked (it drags the part through a neighbour, or no grasp's
+gripper and arm can follow it), the planner tries the tilted lifts of :func:`lift_directions`:
+:data:`LIFT_TILTS_DEG` from the retreat in :data:`LIFT_AZIMUTHS` azimuths, the smaller tilts first
+and, per tilt, those leading farthest away from the neighbour the straight lift touched and from
+the bin walls the part is near (``away``; those leading towards them are not tried). A lift is
+still one straight TCP line of the retreat's distance (a 45 deg lift raises the part by 71 % of
+it), planned and checked as the straight one is (the part alone against the pile, then the gripper
+and the arm per grasp); a tilted lift must also keep the part inside the bin's walls until it is
+above the rim (:func:`inside_walls`). The pick records its own lift (``Pick.T_world_lifted``, the
+motion's ``lift`` segment). How deep the part may touch a neighbour: :class:`RestDepth`.
 """
 from __future__ import annotations
 
@@ -127,10 +119,16 @@ def inside_walls(hull_world: np.ndarray, shifts: np.ndarray, b: BinSpec | None) 
 
 
 class RestDepth:
-    """Depth of the carried part into its neighbours relative to their resting interpenetration
-    (module docstring): ``excess(T_world_part, names)`` = the largest ``depth(T) - rest`` over the
-    neighbours ``names``, each rest depth measured once at the part's resting pose and counted up to
-    ``cap``. ``depth_of(name) -> (PartDepth, T_world)`` gives a neighbour's probes and pose."""
+    """Depth of the carried part into its neighbours relative to their resting interpenetration:
+    ``excess(T_world_part, names)`` = the largest ``depth(T) - rest`` over the neighbours
+    ``names``, each rest depth measured once at the part's resting pose and counted up to ``cap``.
+    ``depth_of(name) -> (PartDepth, T_world)`` gives a neighbour's probes and pose.
+
+    Beyond ``lift_contact`` the part in the jaws may touch a neighbour only as deep as
+    ``lift_depth`` (``tol``) measured this way: poses from a pose estimator put touching neighbours
+    a little into each other, and a lift that does not push the part deeper into such a neighbour
+    does not drag it through. The resting depth counted is at most the scene's ``overlap_tol``
+    (``cap``; deeper is a warning of the scene checks: the poses are wrong there)."""
 
     def __init__(self, part: PartDepth, T_rest: np.ndarray, depth_of: Callable[[str], tuple[PartDepth, np.ndarray]],
                  *, tol: float, cap: float, budget: Budget = UNLIMITED):

@@ -1,32 +1,20 @@
-"""One pick's motion: IK at the grasp, the straight approach, the lift with the part in the jaws
-and the transit from home, against a pile (:class:`~grasplan.motion.collision_scene.CollisionScene` variants whose
-extra bodies are the other instances and the cloud).
+"""One grasp's pick motion in a pile (:func:`plan_pick_motion`): IK at the grasp, the straight
+approach, the lift with the part in the jaws and the transit from home, checked against the pile's
+:class:`~grasplan.motion.collision_scene.CollisionScene` variants (the other instances and the
+cloud are their extra bodies).
 
-Per grasp (world TCP ``T_world_tcp``), for each IK solution closest to ``q_home`` first: the
-solution free at the grasp with the jaws at the pre-grasp opening; the straight approach traced
-back from the grasp to the pre-grasp (``backoff`` along the TCP's -z) and free; the straight lift
-(the cell's retreat direction and distance, jaws at the contact width, the part attached) free
-except that within the first ``lift_contact`` of TCP travel the part in the jaws may touch what it
-rests on (the table, the bin, an obstacle, a neighbour) and all along it a neighbour by at most
-``lift_depth`` (:mod:`grasplan.pick.depth`); then the transit ``q_home -> q_pregrasp``:
-the straight joint-space segment when it is free, else through a via point above the pre-grasp
-(:func:`_transit`), else OMPL RRTConnect. Every path is checked at
-``interpolation.STEP`` rad.
-
-Straight moves (:func:`line_path`): TCP waypoints every :data:`grasplan.motion.pickplace.LINE_SAMPLE`
-with constant orientation. With a closed-form IK (the UR5's, :mod:`grasplan.robot.ik.ur`) every waypoint
-is solved exactly and the branch kept continuous (each joint wrapped to the previous waypoint's
-value, the closest of the up to eight solutions taken; a joint moving more than ``max_joint_step``
-between waypoints is a branch jump); the joint-linear motion between waypoints is held to
-``max_dev`` from the line by forward kinematics at every midpoint. Robots without a closed form
-use the CLIK tracker :func:`grasplan.motion.joint_paths.approach_path_reason`.
+Per IK solution, closest to ``q_home`` first: free at the grasp with the jaws at the pre-grasp
+opening; the straight approach (``backoff`` along the TCP's -z) followed and free; the straight
+lift (the cell's retreat, jaws at the contact width, the part attached) followed and free but for
+the contacts :func:`lift_collision` allows; the transit ``q_home -> q_pregrasp`` (:func:`_transit`);
+with a place, the transfer (:func:`_place`). Every path is checked at ``interpolation.STEP`` rad;
+straight TCP lines: :func:`line_path`.
 """
 from __future__ import annotations
 
 import time
-import weakref
-from dataclasses import dataclass
-from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -34,39 +22,38 @@ import numpy as np
 from ..gripper.model import Gripper
 from ..robot.ik.solve import solve_ik
 from ..robot.ik.ur_batch import line_deviation
-from ..geometry.interpolation import interpolate_path
 from ..results.joint_motion import Motion
-from ..motion.pathboxes import scene_open
 from ..motion.joint_paths import approach_path_reason, plan_joint_path
 from ..motion.pickplace import (
     LINE_SAMPLE, T_tcp_part_of, assemble_motion, lift_pose, place_candidates, place_poses, transfer_path
 )
 from ..robot.model import Robot
-from ..motion.collision_scene import PART, CollisionScene, describe_pairs
+from ..motion.collision_scene import CollisionScene, describe_pairs
 from ..geometry.transforms import inv_rigid
 from .budget import UNLIMITED, Budget
-from .cover import APPROACH_PAD, covered_check, gripper_world_pairs
+from .codes import GRASP_STATUS, LIFT_MAY_HELP, PickStatus, Reason
+from .cover import APPROACH_PAD, covered_check
+from .lift_check import LIFT_SAMPLE, _drop_pairs, lift_collision, lift_travel, touch_waypoints
 from .lines import fk_base_tool, ur_closed_form, ur_line, world_fk
 from .params import PickParams
 
-#: what the part in the jaws may rest on at the start of the lift (body name or prefix)
-SUPPORT_BODIES = ("table", "obstacle:", "instance:")
 #: largest per-joint change (rad) between consecutive line waypoints (more: a branch jump)
 MAX_JOINT_STEP = 0.1
-#: the lift's TCP waypoints are this far apart (m), half the approach's
-#: (:data:`~grasplan.motion.pickplace.LINE_SAMPLE`): on the UR5 in the bench piles the joints then move at
-#: most 0.0085 rad between two of them, less than ``interpolation.STEP``, so the lift has no
-#: configuration between waypoints to check and every waypoint is one the checks before IK covered
-#: (:func:`lift_collision`); at 4 mm half the lift's configurations lay between waypoints and were
-#: checked with every pair (docs/pick.md, timing)
-LIFT_SAMPLE = 0.5 * LINE_SAMPLE
 
 
 def line_path(robot: Robot, T_from: np.ndarray, T_to: np.ndarray, q_from: np.ndarray, *, max_dev: float,
               T_flange_tcp: np.ndarray, sample: float = LINE_SAMPLE) -> tuple[np.ndarray | None, str]:
     """Joint waypoints moving the TCP straight ``T_from -> T_to`` (same orientation) from
     ``q_from`` (which reaches ``T_from``): ``(path (k, n), "ok")`` or ``(None, why)`` with why in
-    ``ik``, ``limits``, ``jump``, ``deviation`` (see the module docstring)."""
+    ``start``, ``ik``, ``limits``, ``jump``, ``deviation``.
+
+    TCP waypoints every ``sample`` (:data:`grasplan.motion.pickplace.LINE_SAMPLE`) with constant
+    orientation. With a closed-form IK (the UR5's, :mod:`grasplan.robot.ik.ur`) every waypoint is
+    solved exactly and the branch kept continuous (each joint wrapped to the previous waypoint's
+    value, the closest of the up to eight solutions taken; a joint moving more than
+    :data:`MAX_JOINT_STEP` between waypoints is a branch jump); the joint-linear motion between
+    waypoints is held to ``max_dev`` from the line by forward kinematics at every midpoint. Robots
+    without a closed form use the CLIK tracker :func:`grasplan.motion.joint_paths.approach_path_reason`."""
     closed = ur_closed_form(robot)
     if closed is None:
         return approach_path_reason(robot, None, T_from, T_to, q_from, opening=0.0, max_dev=max_dev,
@@ -91,20 +78,24 @@ def line_path(robot: Robot, T_from: np.ndarray, T_to: np.ndarray, q_from: np.nda
 
 @dataclass(frozen=True)
 class Outcome:
-    """One grasp's motion planning: ``status`` (``planned``, ``unreachable``, ``ik_collision``,
-    ``lift_collision``, ``no_path``, ``place``), why, and the motion when planned."""
+    """One grasp's motion planning: why (``code``; ``reason`` in words), the motion when planned,
+    the jaws' pre-grasp opening and the neighbours (``instance:<id>``) the lift or approach hit."""
 
-    status: str
+    code: Reason
     reason: str
     motion: Motion | None = None
     opening: float = 0.0
-    blockers: tuple[str, ...] = ()  #: neighbours (``instance:<id>``) the lift or approach hit
+    blockers: tuple[str, ...] = ()
+
+    @property
+    def status(self) -> PickStatus:
+        """The status this outcome gives its instance (``picked`` when planned)."""
+        return GRASP_STATUS[self.code]
 
     @property
     def lift_may_help(self) -> bool:
-        """Whether another lift direction may plan the grasp: its lift collided or could not be
-        followed (not: no IK solution, a collision at the grasp or on the approach, no transit)."""
-        return self.status == "lift_collision" or (self.status == "unreachable" and not self.reason.startswith("no IK"))
+        """Whether another lift direction may plan the grasp (:data:`~grasplan.pick.codes.LIFT_MAY_HELP`)."""
+        return self.code in LIFT_MAY_HELP
 
 
 @dataclass
@@ -153,173 +144,6 @@ class MotionContext:
         self.q_home = np.asarray(self.robot.q_home, dtype=np.float64)
         self.T_flange_tcp = np.asarray(self.gripper.T_flange_tcp, dtype=np.float64)
         self.T_tcp_flange = np.linalg.inv(self.T_flange_tcp)
-
-
-def _support_only(pairs: list[tuple[str, str, str]]) -> bool:
-    for a, b, _ in pairs:
-        other = b if a == "part" else a if b == "part" else None
-        if other is None or not other.startswith(SUPPORT_BODIES):
-            return False
-    return True
-
-
-def _part_vs_instances(pairs: list[tuple[str, str, str]]) -> list[str] | None:
-    """The neighbours (``instance:<id>``) of pairs that are all the carried part against an
-    instance, else None."""
-    out = []
-    for a, b, _ in pairs:
-        other = b if a == "part" else a if b == "part" else None
-        if other is None or not other.startswith("instance:"):
-            return None
-        out.append(other)
-    return out
-
-
-_SUPPORT: "weakref.WeakKeyDictionary[Any, np.ndarray]" = weakref.WeakKeyDictionary()
-
-
-def _support_pairs(scene: CollisionScene) -> np.ndarray:
-    """Indices of the pairs of ``scene`` (an attached variant) between the carried part and what it
-    may rest on (:data:`SUPPORT_BODIES`), once per scene model."""
-    idx = _SUPPORT.get(scene._shared)
-    if idx is None:
-        idx = _SUPPORT[scene._shared] = np.array(
-            [k for k, (a, b, _, _, _) in enumerate(scene.pair_rows())
-             if (a == "part" and b.startswith(SUPPORT_BODIES)) or (b == "part" and a.startswith(SUPPORT_BODIES))],
-            dtype=np.int64)
-    return idx
-
-
-def _sample_ok(scene: CollisionScene, q: np.ndarray, width: float, support: bool,
-               shallow: Callable[[np.ndarray, list[str]], bool] | None) -> bool:
-    """Configuration ``q`` of the lift is free, or its contacts are allowed (module docstring):
-    with ``support`` (it may rest) every pair the carried part against what it may rest on
-    (:data:`SUPPORT_BODIES`), else every pair the part against neighbours within the depth rule
-    ``shallow``. :func:`lift_collision` checks a resting configuration of a CollisionScene with
-    those pairs switched off instead (the same answer, without coal finding the contacts)."""
-    if scene.is_free(q, width):
-        return True
-    pairs = scene.colliding_pairs(q, width)
-    if support and _support_only(pairs):
-        return True
-    names = None if shallow is None else _part_vs_instances(pairs)
-    return bool(names and shallow is not None and shallow(q, names))
-
-
-def lift_travel(dist: float) -> np.ndarray:
-    """TCP travel (m) at each waypoint of a straight lift of ``dist`` (:func:`line_path` with
-    :data:`LIFT_SAMPLE`: equal steps of at most that), from 0 to ``dist``: the one definition the
-    lift's line, its gripper check before IK and the picker's part-alone checks share."""
-    m = max(1, int(np.ceil(dist / LIFT_SAMPLE - 1e-12)))
-    return dist * np.arange(m + 1) / m
-
-
-def touch_waypoints(lift_contact: float, travel: np.ndarray) -> int:
-    """``n_touch`` of :func:`lift_collision` for a lift whose waypoints lie at ``travel``
-    (:func:`lift_travel`): the index of the first waypoint beyond ``lift_contact`` of travel (0
-    when no contact is allowed). The waypoints before it, one lying at ``lift_contact`` itself
-    included, may rest where ``resting(q)`` says so; from it on none may."""
-    return int(np.searchsorted(travel, lift_contact + 1e-9, side="right")) if lift_contact > 0 else 0
-
-
-def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touch: int,
-                   shallow: Callable[[np.ndarray, list[str]], bool] | None = None,
-                   covered: np.ndarray | None = None, drop: np.ndarray | Sequence[np.ndarray] | None = None,
-                   resting: Callable[[np.ndarray], bool] | None = None
-                   ) -> list[tuple[str, str, str]] | None:
-    """The colliding pairs where the lift ``path`` (k, n) first hits something with the part
-    attached (None: free), checked at ``interpolation.STEP``. Within the first ``n_touch``
-    waypoints the part resting on a support is allowed; all along, contacts of the part with
-    neighbours only for which ``shallow(q, names)`` is true (their penetration depth within the
-    tolerance, :mod:`grasplan.pick.depth`).
-
-    ``covered`` (per waypoint a level, 0 none; a bool array: level 1), ``drop`` (pair indices of
-    ``scene``, one array per level, or one array for level 1): at the waypoints of level ``l`` the
-    pairs ``drop[l - 1]`` that the checks before IK already decided the same way
-    (:func:`lift_precheck_drop`) are switched off; those waypoints are checked first, the highest
-    level first, then the configurations between waypoints with every pair, up to the first
-    waypoint that failed (the first failing configuration in path order is the one reported).
-
-    ``resting(q)``: whether configuration ``q`` of the first ``n_touch`` waypoints is still within
-    ``lift_contact`` of TCP travel (the waypoints are :data:`LIFT_SAMPLE` apart,
-    so the last of them may lie beyond it); where it is not, resting contact is not allowed
-    either. None: every configuration up to waypoint ``n_touch`` may rest."""
-    n_touch = int(min(max(n_touch, 0), len(path) - 1))
-    drops: list[np.ndarray] = [] if drop is None else [drop] if isinstance(drop, np.ndarray) else list(drop)
-    for k0, k1, support in ((n_touch, len(path), False), (0, n_touch + 1, True)):
-        part = path[k0:k1]
-        if support and n_touch == 0:
-            continue
-        dense, rows = interpolate_path(part, return_index=True)
-        level = np.zeros(len(dense), dtype=np.int64)
-        if covered is not None and drops:
-            level[rows] = np.minimum(np.asarray(covered[k0:k1], dtype=np.int64), len(drops))
-        # a configuration that may rest (within lift_contact of travel) is free exactly when it is
-        # with the part's support pairs off (:func:`_sample_ok`): those are switched off for it too
-        may_rest = np.array([support and (resting is None or resting(q)) for q in dense], dtype=bool)
-        support_ids = _support_pairs(scene) if isinstance(scene, CollisionScene) else None
-        if support_ids is not None:
-            support_ids = support_ids[scene._active[support_ids]]
-        rests = may_rest & (support_ids is not None)
-        bad: int | None = None
-        for lv, rest in sorted({(int(a), bool(b)) for a, b in zip(level, rests)}, reverse=True):
-            idx = np.flatnonzero((level == lv) & (rests == rest))
-            offs = ([drops[lv - 1]] if lv else []) + ([support_ids] if rest and support_ids is not None else [])
-            off = np.union1d(*offs) if len(offs) == 2 else offs[0] if offs else None
-            if off is not None:
-                scene.switch_pairs(off, False)
-            try:
-                # free where coal finds none of the pairs whose oriented boxes overlap colliding
-                # (grasplan.motion.pathboxes: the others cannot); only the rest needs the allowances
-                found = None
-                if isinstance(scene, CollisionScene):
-                    scene.set_opening(width)
-                    found = scene_open(scene, dense[idx])
-                if found is not None:  # only the configurations with pairs left to coal
-                    starts, pair_ids = found
-                    keep = np.flatnonzero(starts[1:] > starts[:-1])
-                    spans = list(zip(starts[keep].tolist(), starts[keep + 1].tolist()))
-                    idx = idx[keep]
-                for j, i in enumerate(idx.tolist()):
-                    if bad is not None and i > bad:
-                        break
-                    if found is not None and not scene.pairs_collide(dense[i], pair_ids[spans[j][0]:spans[j][1]]):
-                        continue
-                    if rest:  # with its support pairs off: colliding is a hit (no boxes: coal decides)
-                        if found is None and scene.is_free(dense[i], width):
-                            continue
-                    elif _sample_ok(scene, dense[i], width, bool(may_rest[i]), shallow):
-                        continue
-                    bad = i
-                    break
-            finally:
-                if off is not None:
-                    scene.switch_pairs(off, True)
-        if bad is not None:
-            return scene.colliding_pairs(dense[bad], width)
-    return None
-
-
-def lift_precheck_drop(scene: CollisionScene, cell: bool = True) -> np.ndarray:
-    """Per pair of ``scene``: decided at the lift's waypoints by the checks before IK, the closed
-    gripper (body and jaws) against the world (``MotionContext.lift_gripper_check``: the same
-    shapes at the same poses) and the carried part against all but the robot's links: the
-    neighbours and the cloud, and with ``cell`` the table and the obstacles
-    (``MotionContext.lift_part_checked``, the picker's straight lift)."""
-    return gripper_world_pairs(scene) | np.array([group == "attached" and kind != PART and (cell or extra != "")
-                                                  for _, _, kind, group, extra in scene.pair_rows()], dtype=bool)
-
-
-_DROP: "weakref.WeakKeyDictionary[Any, tuple[np.ndarray, np.ndarray]]" = weakref.WeakKeyDictionary()
-
-
-def _drop_pairs(att: CollisionScene) -> tuple[np.ndarray, np.ndarray]:
-    """The active pairs of ``att`` that :func:`lift_precheck_drop` names: without the cell (the
-    waypoints of level 1 of :func:`_lift_covered`) and with it (level 2); the masks once per scene model."""
-    masks = _DROP.get(att._shared)
-    if masks is None:
-        masks = _DROP[att._shared] = (lift_precheck_drop(att, cell=False), lift_precheck_drop(att))
-    return np.flatnonzero(att._active & masks[0]), np.flatnonzero(att._active & masks[1])
 
 
 #: a lift waypoint is covered by the checks before IK when its TCP and part poses are theirs within this (m)
@@ -410,141 +234,246 @@ def _transit(ctx: MotionContext, q_pre: np.ndarray, T_pre: np.ndarray, opening: 
                            seed=seed, time_limit=ctx.rrt_time(), attempts=p.path_attempts)
 
 
-def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np.ndarray, width: float,
-                     seed: int) -> Outcome:
-    """Plan one grasp (see the module docstring)."""
-    p, robot, timing = ctx.params, ctx.robot, ctx.timing
-    ctx.budget.check()
-    opening = float(ctx.gripper.pregrasp_opening(width))
-    T_pre = T_world_tcp.copy()
-    T_pre[:3, 3] -= p.backoff * T_world_tcp[:3, 2]
-    T_lift = lift_pose(T_world_tcp, ctx.retreat_dir, ctx.retreat_dist)
-    travel = lift_travel(ctx.retreat_dist)  # the lift's waypoints, as line_path makes them
-    T_line = None
-    if ctx.lift_gripper_check is not None:  # the closed gripper along the lift: the same for every IK branch
-        t = time.perf_counter()
-        T_line = np.broadcast_to(T_world_tcp, (len(travel), 4, 4)).copy()
-        T_line[:, :3, 3] += travel[:, None] * ctx.retreat_dir
-        hit = ctx.lift_gripper_check(T_line, width)
-        timing["lift"] += time.perf_counter() - t
-        if np.any(hit >= 0):
-            k = int(np.flatnonzero(hit >= 0)[0])
-            name = ctx.body_names[int(hit[k])]
-            return Outcome("lift_collision", f"lift: the closed gripper hits {name} {1e3 * travel[k]:.0f} "
-                           f"mm up (any IK solution)", opening=opening,
-                           blockers=(name,) if name.startswith("instance:") else ())
-    t = time.perf_counter()
-    ik = solve_ik(robot, T_world_tcp @ ctx.T_tcp_flange, seed=p.seed, max_solutions=p.max_ik_solutions)
-    timing["ik"] += time.perf_counter() - t
-    sols = np.asarray(ik.q, dtype=np.float64).reshape(-1, robot.nq)[: p.max_ik_solutions]
-    if len(sols) == 0:
-        return Outcome("unreachable", f"no IK solution within the joint limits ({ik.reason})", opening=opening)
-    cover = None
-    if ctx.approach_sweep is not None:  # the open gripper along the approach: the same for every IK branch
-        t = time.perf_counter()
-        swept = ctx.approach_sweep(T_pre, T_world_tcp, opening, APPROACH_PAD)
-        if swept is not None:
-            cover = covered_check(robot, ctx.T_flange_tcp, ctx.static, swept)
-        timing["approach"] += time.perf_counter() - t
-    static, att = ctx.static, ctx.attached
-    att.move_attached(T_tcp_part_of(T_part_tcp))
-    drop = _drop_pairs(att) if T_line is not None and ctx.lift_part_checked is not None else None
-    T_flange_part = ctx.T_flange_tcp @ T_tcp_part_of(T_part_tcp)
-    n_touch = touch_waypoints(p.lift_contact, travel)
-    flange_at_grasp = (T_world_tcp @ ctx.T_tcp_flange)[:3, 3]
+@dataclass(frozen=True, eq=False)
+class GraspPoses:
+    """One grasp's TCP poses in the world (grasp, pre-grasp ``backoff`` along the TCP's -z, lifted),
+    the lift's TCP travel at its waypoints (:func:`lift_travel`), the jaws' contact ``width`` and
+    pre-grasp ``opening``, and the grasp in the part's frame."""
 
-    def resting(q: np.ndarray) -> bool:  # TCP travel from the grasp (FK) within lift_contact
-        return bool(np.linalg.norm(world_fk(robot, q[None])[0, :3, 3] - flange_at_grasp) <= p.lift_contact + 1e-9)
-    why: dict[str, str] = {}
-    blockers: set[str] = set()
-    count = {"grasp": 0, "approach": 0, "approach_kin": 0, "lift": 0, "lift_kin": 0, "path": 0, "place": 0}
-    for j, q_grasp in enumerate(sols):
-        ctx.budget.check()
-        t = time.perf_counter()
-        free = static.path_free(q_grasp[None], opening, reduced=cover)  # the grasp alone
-        timing["collision"] += time.perf_counter() - t
-        if not free:
-            count["grasp"] += 1
-            if "grasp" not in why:
-                pairs_g = static.colliding_pairs(q_grasp, opening)
-                why["grasp"] = describe_pairs(pairs_g, 2)
-                blockers |= _blockers(pairs_g)
-            continue
-        t = time.perf_counter()
-        back, reason = line_path(robot, T_world_tcp, T_pre, q_grasp, max_dev=p.max_dev, T_flange_tcp=ctx.T_flange_tcp)
-        timing["approach"] += time.perf_counter() - t
-        if back is None:
-            count["approach_kin"] += 1
-            why.setdefault("approach_kin", reason)
-            continue
-        t = time.perf_counter()
-        free = static.path_free(back, opening, reduced=cover)
-        timing["collision"] += time.perf_counter() - t
-        if not free:
-            count["approach"] += 1
-            if "approach" not in why:
-                hit_a = static.path_collisions(back, opening)
-                pairs_a = [] if hit_a is None else hit_a[1]
-                why["approach"] = describe_pairs(pairs_a, 2)
-                blockers |= _blockers(pairs_a)
-            continue
-        t = time.perf_counter()
-        lift, reason = line_path(robot, T_world_tcp, T_lift, q_grasp, max_dev=p.max_dev, T_flange_tcp=ctx.T_flange_tcp,
-                                 sample=LIFT_SAMPLE)
-        timing["lift"] += time.perf_counter() - t
-        if lift is None:
-            count["lift_kin"] += 1
-            why.setdefault("lift_kin", reason)
-            continue
-        t = time.perf_counter()
-        shallow = None
-        if ctx.lift_depth is not None and p.lift_depth > 0:
-            def shallow(q: np.ndarray, names: list[str]) -> bool:
-                return bool(ctx.lift_depth(robot.fk(q) @ T_flange_part, names) <= p.lift_depth)
-        covered = None if drop is None or T_line is None else _lift_covered(ctx, lift, T_line, T_flange_part)
-        pairs = lift_collision(att, lift, width, n_touch, shallow, covered, drop, resting)
-        timing["collision"] += time.perf_counter() - t
-        if pairs is not None:
-            count["lift"] += 1
-            why.setdefault("lift", describe_pairs(pairs, 2))
-            blockers |= _blockers(pairs)
-            continue
-        approach = back[::-1]
-        t = time.perf_counter()
-        transit = _transit(ctx, approach[0], T_pre, opening, seed)
-        timing["transit"] += time.perf_counter() - t
-        if transit is None:
-            count["path"] += 1
-            if count["path"] >= p.max_path_queries:
-                break
-            continue
-        transfer = cand = None
-        if ctx.T_place is not None:  # carry it to the place (grasplan.motion.pickplace, neighbours still in the scene)
+    T_grasp: np.ndarray
+    T_pre: np.ndarray
+    T_lift: np.ndarray
+    travel: np.ndarray
+    width: float
+    opening: float
+    T_part_tcp: np.ndarray
+
+    @classmethod
+    def of(cls, ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np.ndarray, width: float) -> GraspPoses:
+        T_pre = T_world_tcp.copy()
+        T_pre[:3, 3] -= ctx.params.backoff * T_world_tcp[:3, 2]
+        return cls(T_world_tcp, T_pre, lift_pose(T_world_tcp, ctx.retreat_dir, ctx.retreat_dist),
+                   lift_travel(ctx.retreat_dist), width, float(ctx.gripper.pregrasp_opening(width)), T_part_tcp)
+
+
+def _gripper_along_lift(ctx: MotionContext, g: GraspPoses) -> tuple[np.ndarray | None, Outcome | None]:
+    """The closed gripper checked along the lift before any IK (the same for every IK branch):
+    ``(TCP poses at the lift's waypoints, None)``, ``(those, the lift_collision outcome)`` when it
+    hits something, ``(None, None)`` when the context has no such check."""
+    if ctx.lift_gripper_check is None:
+        return None, None
+    t = time.perf_counter()
+    T_line = np.broadcast_to(g.T_grasp, (len(g.travel), 4, 4)).copy()
+    T_line[:, :3, 3] += g.travel[:, None] * ctx.retreat_dir
+    hit = ctx.lift_gripper_check(T_line, g.width)
+    ctx.timing["lift"] += time.perf_counter() - t
+    if not np.any(hit >= 0):
+        return T_line, None
+    k = int(np.flatnonzero(hit >= 0)[0])
+    name = ctx.body_names[int(hit[k])]
+    return T_line, Outcome(Reason.LIFT_GRIPPER, f"lift: the closed gripper hits {name} {1e3 * g.travel[k]:.0f} "
+                           f"mm up (any IK solution)", opening=g.opening,
+                           blockers=(name,) if name.startswith("instance:") else ())
+
+
+@dataclass(frozen=True, eq=False)
+class SolutionChecks:
+    """What the checks of every IK solution of one grasp share: the approach's pairs the open
+    gripper's sweep decided (``cover``, :func:`grasplan.pick.cover.covered_check`), the lift's
+    waypoints the checks before IK decided (``T_line``, ``drop``: :func:`_lift_covered`,
+    :func:`_drop_pairs`), the carried part in the flange frame and the lift's resting waypoints
+    (``n_touch``, :func:`touch_waypoints`)."""
+
+    ctx: MotionContext
+    cover: Any
+    T_line: np.ndarray | None
+    drop: tuple[np.ndarray, np.ndarray] | None
+    T_flange_part: np.ndarray
+    n_touch: int
+    flange_at_grasp: np.ndarray
+
+    @classmethod
+    def of(cls, ctx: MotionContext, g: GraspPoses, T_line: np.ndarray | None) -> SolutionChecks:
+        """Sweep the open gripper along the approach, then attach the part to the attached variant."""
+        cover = None
+        if ctx.approach_sweep is not None:  # the open gripper along the approach: the same for every IK branch
             t = time.perf_counter()
-            cand, transfer, place_why = _place(ctx, lift[-1], T_part_tcp, width, opening, seed)
-            timing["place"] += time.perf_counter() - t
-            if cand is None:
-                why.setdefault("place", place_why)
-                count["place"] += 1
-                continue
-        motion = assemble_motion(transit, approach, lift, width=width, opening=opening,
-                                 T_tcp_part=T_tcp_part_of(T_part_tcp), transfer=transfer, place=cand,
-                                 T_world_part_place=ctx.T_place)
-        return Outcome("planned", f"planned with IK solution {j} of {len(sols)} (closest to q_home first)", motion,
-                       opening)
-    detail = (f"{len(sols)} IK solutions: {count['grasp']} collide at the grasp, {count['approach']} on the approach, "
-              f"{count['approach_kin']} cannot follow it, {count['lift']} collide on the lift, {count['lift_kin']} "
-              f"cannot follow it, {count['path']} found no transit")
-    bl = tuple(sorted(blockers))
+            swept = ctx.approach_sweep(g.T_pre, g.T_grasp, g.opening, APPROACH_PAD)
+            if swept is not None:
+                cover = covered_check(ctx.robot, ctx.T_flange_tcp, ctx.static, swept)
+            ctx.timing["approach"] += time.perf_counter() - t
+        ctx.attached.move_attached(T_tcp_part_of(g.T_part_tcp))
+        drop = _drop_pairs(ctx.attached) if T_line is not None and ctx.lift_part_checked is not None else None
+        return cls(ctx, cover, T_line, drop, ctx.T_flange_tcp @ T_tcp_part_of(g.T_part_tcp),
+                   touch_waypoints(ctx.params.lift_contact, g.travel), (g.T_grasp @ ctx.T_tcp_flange)[:3, 3])
+
+    def resting(self, q: np.ndarray) -> bool:
+        """Whether configuration ``q`` is within ``lift_contact`` of TCP travel from the grasp (FK)."""
+        return bool(np.linalg.norm(world_fk(self.ctx.robot, q[None])[0, :3, 3] - self.flange_at_grasp)
+                    <= self.ctx.params.lift_contact + 1e-9)
+
+    def shallow(self) -> Callable[[np.ndarray, list[str]], bool] | None:
+        """The depth rule of the lift's contacts with neighbours (None: any contact is a collision)."""
+        ctx = self.ctx
+        if ctx.lift_depth is None or ctx.params.lift_depth <= 0:
+            return None
+
+        def shallow(q: np.ndarray, names: list[str]) -> bool:
+            return bool(ctx.lift_depth(ctx.robot.fk(q) @ self.T_flange_part, names) <= ctx.params.lift_depth)
+        return shallow
+
+
+@dataclass
+class _Tally:
+    """The IK solutions of one grasp that failed, per kind (``grasp``, ``approach``,
+    ``approach_kin``, ``lift``, ``lift_kin``, ``path``, ``place``): how many, the first one's
+    reason, the neighbours hit; ``stop``: ``max_path_queries`` transits failed."""
+
+    count: dict[str, int] = field(default_factory=lambda: dict.fromkeys(
+        ("grasp", "approach", "approach_kin", "lift", "lift_kin", "path", "place"), 0))
+    why: dict[str, str] = field(default_factory=dict)
+    blockers: set[str] = field(default_factory=set)
+    stop: bool = False
+
+    def fail(self, kind: str, why: str | None = None, pairs: list[tuple[str, str, str]] | None = None) -> None:
+        self.count[kind] += 1
+        if why is not None:
+            self.why.setdefault(kind, why)
+        if pairs is not None:
+            self.blockers |= _blockers(pairs)
+
+
+def _timed(ctx: MotionContext, key: str, fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+    """``fn(*args, **kwargs)``, its seconds added to ``ctx.timing[key]``."""
+    t = time.perf_counter()
+    try:
+        return fn(*args, **kwargs)
+    finally:
+        ctx.timing[key] += time.perf_counter() - t
+
+
+def _approach(ctx: MotionContext, g: GraspPoses, chk: SolutionChecks, q_grasp: np.ndarray, tally: _Tally
+              ) -> np.ndarray | None:
+    """The approach traced back from ``q_grasp`` to the pre-grasp (grasp first), or None when the
+    grasp or the approach collides or the line cannot be followed (recorded in ``tally``)."""
+    static = ctx.static
+    if not _timed(ctx, "collision", static.path_free, q_grasp[None], g.opening, reduced=chk.cover):  # the grasp alone
+        if "grasp" in tally.why:
+            tally.fail("grasp")
+        else:
+            pairs_g = static.colliding_pairs(q_grasp, g.opening)
+            tally.fail("grasp", describe_pairs(pairs_g, 2), pairs_g)
+        return None
+    back, reason = _timed(ctx, "approach", line_path, ctx.robot, g.T_grasp, g.T_pre, q_grasp,
+                          max_dev=ctx.params.max_dev, T_flange_tcp=ctx.T_flange_tcp)
+    if back is None:
+        tally.fail("approach_kin", reason)
+        return None
+    if not _timed(ctx, "collision", static.path_free, back, g.opening, reduced=chk.cover):
+        if "approach" in tally.why:
+            tally.fail("approach")
+        else:
+            hit_a = static.path_collisions(back, g.opening)
+            pairs_a = [] if hit_a is None else hit_a[1]
+            tally.fail("approach", describe_pairs(pairs_a, 2), pairs_a)
+        return None
+    return back
+
+
+def _lift(ctx: MotionContext, g: GraspPoses, chk: SolutionChecks, q_grasp: np.ndarray, tally: _Tally
+          ) -> np.ndarray | None:
+    """The lift from ``q_grasp`` with the part in the jaws, or None when it cannot be followed or
+    collides (recorded in ``tally``)."""
+    lift, reason = _timed(ctx, "lift", line_path, ctx.robot, g.T_grasp, g.T_lift, q_grasp, max_dev=ctx.params.max_dev,
+                          T_flange_tcp=ctx.T_flange_tcp, sample=LIFT_SAMPLE)
+    if lift is None:
+        tally.fail("lift_kin", reason)
+        return None
+    t = time.perf_counter()
+    shallow = chk.shallow()
+    covered = None if chk.drop is None or chk.T_line is None else _lift_covered(ctx, lift, chk.T_line, chk.T_flange_part)
+    pairs = lift_collision(ctx.attached, lift, g.width, chk.n_touch, shallow, covered, chk.drop, chk.resting)
+    ctx.timing["collision"] += time.perf_counter() - t
+    if pairs is not None:
+        tally.fail("lift", describe_pairs(pairs, 2), pairs)
+        return None
+    return lift
+
+
+def _motion_through(ctx: MotionContext, g: GraspPoses, chk: SolutionChecks, q_grasp: np.ndarray, tally: _Tally,
+                    seed: int) -> Motion | None:
+    """The pick's motion through IK solution ``q_grasp``: grasp, approach, lift, transit (and the
+    place), or None (``tally`` records why)."""
+    back = _approach(ctx, g, chk, q_grasp, tally)
+    if back is None:
+        return None
+    lift = _lift(ctx, g, chk, q_grasp, tally)
+    if lift is None:
+        return None
+    approach = back[::-1]
+    transit = _timed(ctx, "transit", _transit, ctx, approach[0], g.T_pre, g.opening, seed)
+    if transit is None:
+        tally.fail("path")
+        tally.stop = tally.count["path"] >= ctx.params.max_path_queries
+        return None
+    transfer = cand = None
+    if ctx.T_place is not None:  # carry it to the place (grasplan.motion.pickplace, neighbours still in the scene)
+        cand, transfer, place_why = _timed(ctx, "place", _place, ctx, lift[-1], g.T_part_tcp, g.width, g.opening, seed)
+        if cand is None:
+            tally.fail("place", place_why)
+            return None
+    return assemble_motion(transit, approach, lift, width=g.width, opening=g.opening,
+                           T_tcp_part=T_tcp_part_of(g.T_part_tcp), transfer=transfer, place=cand,
+                           T_world_part_place=ctx.T_place)
+
+
+def _failed(tally: _Tally, n_solutions: int, opening: float) -> Outcome:
+    """The outcome of a grasp none of whose ``n_solutions`` IK solutions gave a motion: the place,
+    then the lift, the transit, a collision at the grasp or on the approach, else kinematics."""
+    count, why = tally.count, tally.why
+    detail = (f"{n_solutions} IK solutions: {count['grasp']} collide at the grasp, {count['approach']} on the "
+              f"approach, {count['approach_kin']} cannot follow it, {count['lift']} collide on the lift, "
+              f"{count['lift_kin']} cannot follow it, {count['path']} found no transit")
+    bl = tuple(sorted(tally.blockers))
     if count["place"]:
-        return Outcome("place", f"{why['place']}; " + detail, opening=opening)
+        return Outcome(Reason.PLACE, f"{why['place']}; " + detail, opening=opening)
     if count["lift"]:
-        return Outcome("lift_collision", f"lift: with the part in the jaws {why['lift']}; " + detail, opening=opening,
-                       blockers=bl)
+        return Outcome(Reason.LIFT_COLLISION, f"lift: with the part in the jaws {why['lift']}; " + detail,
+                       opening=opening, blockers=bl)
     if count["path"]:
-        return Outcome("no_path", "RRTConnect found no verified transit home -> pre-grasp; " + detail, opening=opening)
+        return Outcome(Reason.NO_TRANSIT, "RRTConnect found no verified transit home -> pre-grasp; " + detail,
+                       opening=opening)
     if count["grasp"] or count["approach"]:
         hit = why.get("grasp", "") or why.get("approach", "")
-        return Outcome("ik_collision", detail + (f"; e.g. {hit}" if hit else ""), opening=opening, blockers=bl)
-    return Outcome("unreachable", detail + (f" ({why['approach_kin']})" if "approach_kin" in why else ""),
+        return Outcome(Reason.IK_COLLISION, detail + (f"; e.g. {hit}" if hit else ""), opening=opening, blockers=bl)
+    return Outcome(Reason.LINE_NOT_FOLLOWED, detail + (f" ({why['approach_kin']})" if "approach_kin" in why else ""),
                    opening=opening)
+
+
+def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np.ndarray, width: float,
+                     seed: int) -> Outcome:
+    """Plan one grasp (module docstring): the closed gripper along the lift, IK, then per IK solution
+    (closest to ``q_home`` first) the grasp, the approach, the lift, the transit and the place
+    until one gives a motion."""
+    p = ctx.params
+    ctx.budget.check()
+    g = GraspPoses.of(ctx, T_world_tcp, T_part_tcp, width)
+    T_line, hit = _gripper_along_lift(ctx, g)
+    if hit is not None:
+        return hit
+    ik = _timed(ctx, "ik", solve_ik, ctx.robot, T_world_tcp @ ctx.T_tcp_flange, seed=p.seed,
+                max_solutions=p.max_ik_solutions)
+    sols = np.asarray(ik.q, dtype=np.float64).reshape(-1, ctx.robot.nq)[: p.max_ik_solutions]
+    if len(sols) == 0:
+        return Outcome(Reason.NO_IK, f"no IK solution within the joint limits ({ik.reason})", opening=g.opening)
+    chk = SolutionChecks.of(ctx, g, T_line)
+    tally = _Tally()
+    for j, q_grasp in enumerate(sols):
+        ctx.budget.check()
+        motion = _motion_through(ctx, g, chk, q_grasp, tally, seed)
+        if motion is not None:
+            return Outcome(Reason.PLANNED, f"planned with IK solution {j} of {len(sols)} (closest to q_home first)",
+                           motion, g.opening)
+        if tally.stop:
+            break
+    return _failed(tally, len(sols), g.opening)

@@ -1,76 +1,99 @@
 """``grasplan.Picker``: picks from a pile of known parts at poses from vision, planned against the
-bin and the neighbours, with the robot, the grasp sets and the collision objects kept warm.
-
-Per :meth:`Picker.plan` call:
-
-1. the scene (:func:`grasplan.piles.scene_file.load_scene`), its parts (added on first use) and grasp
-   databases (:func:`grasplan.grasps.graspdb.database_for`: from the cache folder, else computed once and
-   cached; or the scene's ``grasps`` file), the cloud's octree, the world of
-   the gripper checks (:class:`grasplan.pick.world.PickWorld`) and the robot's collision scenes (one
-   per part, every instance an extra body) are ready: ``timing_s["load"]``; then the geometric
-   checks (:mod:`grasplan.piles.checks`: exit 3 for a part below the floor, warnings for
-   interpenetrating instances);
-2. instances are tried in the accessibility order (:mod:`grasplan.pick.rank`), in passes (the
-   best :data:`FIRST_PASS` grasps of every instance whose straight lift is free, then, in the same
-   order, the deferred and paused ones: the tilted-lift search of those whose straight lift is
-   blocked, the rest of the undecided ones' grasps); per instance first the lift: the part moved along the
-   cell's retreat, at the line's waypoints beyond ``lift_contact``, against the neighbours and the cloud (the
-   same for every grasp: a hit there fails the robot's lift check whatever the arm does, so only tilted lifts
-   can pick the instance, :mod:`grasplan.pick.lift`; and the cell, when a grasp first uses that lift); then
-   its grasps posed in the world are ranked, gripper-checked in chunks against neighbours, cloud, bin and
-   table (the first body hit names the blocker), and the collision-free ones motion-planned
-   (:mod:`grasplan.pick.motion`) until one is planned or ``grasps_per_instance`` were tried;
-3. ``sequence``: after each pick the instance is removed and the rest re-planned (the next pick is
-   the first feasible one in the new order), until none is left or none is feasible. Otherwise each
-   instance gets its best pick with every other instance in place; picks are listed in trying order.
-
-``timing_s["first_pick"]``: seconds from the ready scene (end of step 1 and the checks) to the
-first feasible pick. ``budget_s`` (:mod:`grasplan.pick.budget`) counts from the loaded parts and
-cell (step 1 but the parts' meshes and grasp databases) and is checked inside every long stage.
-What stays warm between calls, and its bounds: :mod:`grasplan.pick.warm`.
+bin, the neighbours and a point cloud, with the robot, the grasp sets and the collision objects
+kept warm between calls (:mod:`grasplan.pick.warm`). Per :meth:`Picker.plan` call the scene's
+parts, grasp databases, cloud and cell are made ready and the scene checked; then the instances
+are tried in the accessibility order (:mod:`grasplan.pick.rank`), in passes: per instance its
+lifts (:mod:`grasplan.pick.lift_search`), its grasps posed in the world, ranked and
+gripper-checked, the collision-free ones motion-planned (:mod:`grasplan.pick.motion`).
 """
 from __future__ import annotations
 
 import os
 import time
 from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ..cell.model import Cell, load_cell
+from ..config.lookup import document_ref, is_path_like
+from ..config.params import DEFAULT_GRIPPER, DEFAULT_ROBOT, GraspParams
 from ..errors import InputError
 from ..gripper.load import load_gripper
 from ..gripper.model import Gripper
+from ..grasps.graspdb import GraspDatabase, database_for, load_database
+from ..motion.collision_scene import CollisionScene
+from ..motion.pickplace import lift_pose
 from ..part.mesh import Part, load_part
-from ..config.params import DEFAULT_GRIPPER, GraspParams
-from ..motion.pickplace import lift_pose, unit_direction
+from ..piles.scene_file import Instance, Scene, load_scene
 from ..robot.description import load_robot
 from ..robot.model import Robot
-from ..motion.collision_scene import CollisionScene
-from ..piles.scene_file import Instance, Scene, load_scene
-from ..grasps.graspdb import GraspDatabase, database_for, load_database
 from .budget import Budget, BudgetSpent
 from .depth import PartDepth
-from .lift import LIFTS_PER_GRASP, Carry, RestDepth, free_to_rise, inside_walls, lift_directions, wall_away
-from .motion import MotionContext, Outcome, lift_travel, plan_pick_motion
+from .lift import LIFTS_PER_GRASP
+from .lift_search import LiftLine, LiftSearch
+from .motion import MotionContext, Outcome, plan_pick_motion
 from .params import PickParams
 from .rank import check_chunks, instance_order, rank_grasps
-from .reasons import blockers_of, hits_text, tilts_text
+from .reasons import collides_report, no_grasp_report, not_tried_report, picked_report, unplanned_report
 from .result import InstanceReport, Pick, PickResult
 from .warm import (MAX_CELLS, MAX_CLOUDS, MAX_SCENE_PARTS, MAX_SCENE_VARIANTS, LRU, CellState, arranged,
                    build_scenes, scene_cloud)
-from .world import CLOUD, INSTANCE_PREFIX, PickWorld
+from .world import Body, PickWorld
 
 #: the first pass over the instances checks this many grasps of each (best ranked) before any instance's
 #: further grasps: a part whose good grasps are free is found before the deep search of a boxed-in one
 FIRST_PASS = 256
 __all__ = ["FIRST_PASS", "MAX_SCENE_VARIANTS", "Picker"]
 _TIMING_KEYS = ("gripper_check", "lift_check", "lift_depth", "ik", "collision", "approach", "lift", "transit", "place")
+#: what an instance's planning yields: ``(pick or None, its report)``, ``(None, None)`` when paused
+Step = tuple[Pick | None, InstanceReport | None]
 
-def _looks_like_path(ref: str) -> bool:
-    return "/" in ref or os.sep in ref or ref.lower().endswith((".yaml", ".yml"))
+
+@dataclass(frozen=True, eq=False)
+class PlanRun:
+    """What every instance of one :meth:`Picker.plan` call shares: the cell's warm state, the
+    options, the budget, the seconds per stage (``timing``) and counters (``stats``) it adds to,
+    whether the scene has a cloud, the cell's lift and the place (pick-and-place; None: none)."""
+
+    st: CellState
+    params: PickParams
+    budget: Budget
+    timing: dict[str, float]
+    stats: dict[str, int]
+    with_cloud: bool
+    line: LiftLine
+    T_place: np.ndarray | None
+
+
+@dataclass(frozen=True, eq=False)
+class RankedGrasps:
+    """An instance's grasps to check, best ranked first (at most ``max_checked``): database
+    ``rows``, world TCP poses ``T_wt`` and the poses checked and planned ``T_plan``: for a gripper
+    whose TCP moves with the opening, the TCP moved to the frame its shapes and ``T_flange_tcp``
+    are given in (``T_tcp_g``, as ``grasplan plan`` does), else ``T_wt``."""
+
+    rows: np.ndarray
+    T_wt: np.ndarray
+    T_plan: np.ndarray
+    T_tcp_g: np.ndarray | None
+
+    @classmethod
+    def of(cls, inst: Instance, db: GraspDatabase, p: PickParams, gripper: Gripper) -> RankedGrasps | None:
+        """None when no grasp approaches within ``max_tilt_deg`` of straight down."""
+        rows, T_wt = rank_grasps(inst.T_world_part, db.T_part_tcp, db.score, p)
+        if len(rows) == 0:
+            return None
+        rows, T_wt = rows[: p.max_checked], T_wt[: p.max_checked]
+        T_tcp_g = gripper.T_tcp_gripper(db.width[rows]) if gripper.moving_tcp else None
+        return cls(rows, T_wt, T_wt if T_tcp_g is None else T_wt @ T_tcp_g, T_tcp_g)
+
+    def T_part_grasp(self, db: GraspDatabase, k: int) -> np.ndarray:
+        """The grasp ranked ``k`` in the part's frame, in the frame it is planned in."""
+        r = int(self.rows[k])
+        return db.T_part_tcp[r] if self.T_tcp_g is None else db.T_part_tcp[r] @ self.T_tcp_g[k]
 
 
 class Picker:
@@ -83,7 +106,7 @@ class Picker:
     a line when a grasp database is computed; ``clock``: seconds (monotonic) the planning budget
     is measured on."""
 
-    def __init__(self, robot: Robot | str = "ur5", *, gripper: Gripper | str = DEFAULT_GRIPPER,
+    def __init__(self, robot: Robot | str = DEFAULT_ROBOT, *, gripper: Gripper | str = DEFAULT_GRIPPER,
                  cell: Cell | str | None = None, params: PickParams = PickParams(),
                  database: GraspParams = GraspParams(),
                  progress: Callable[[str], None] | None = None, clock: Callable[[], float] = time.perf_counter):
@@ -160,10 +183,10 @@ class Picker:
     def _cell_for(self, scene: Scene) -> CellState:
         if self.cell is not None:
             cell = self.cell
-        else:  # by name or path, read once (a path again when the file changed)
-            ref = str(scene.resolve(scene.cell)) if _looks_like_path(scene.cell) else scene.cell
+        else:  # by name or path (relative to the scene's folder), read once (a path again when the file changed)
+            ref = document_ref(scene.cell, scene.base)
             try:
-                stamp = Path(ref).stat().st_mtime_ns if _looks_like_path(ref) else 0
+                stamp = Path(ref).stat().st_mtime_ns if is_path_like(scene.cell, scene.base) else 0
             except OSError:
                 stamp = -1
             cached = self._cell_refs.get(ref)
@@ -207,11 +230,27 @@ class Picker:
     # -- planning -----------------------------------------------------------------------------------
     def plan(self, scene: Scene | str | os.PathLike | Mapping, *, max_picks: int | None = None,
              sequence: bool = False, seed: int | None = None) -> PickResult:
-        """Plan picks for ``scene`` (a Scene, a scene file or a parsed document); see the module docstring."""
+        """Plan picks for ``scene`` (a loaded Scene, a scene file or a parsed document).
+
+        1. The scene's parts (added on first use) and grasp databases (:func:`grasplan.grasps.graspdb.database_for`:
+           from the cache folder, else computed once and cached; or the scene's ``grasps`` file), its
+           cell, the cloud's octree, the world of the gripper checks (:class:`grasplan.pick.world.PickWorld`)
+           and the robot's collision scenes (one per part, every instance an extra body) are made
+           ready (``timing_s["load"]``); then the geometric checks (:mod:`grasplan.piles.checks`:
+           exit 3 for a part below the floor, warnings for interpenetrating instances).
+        2. The instances are tried in the accessibility order, in passes (:meth:`_plan_pile`).
+        3. ``sequence``: after each pick the instance is removed and the rest re-planned, until none
+           is left or none is feasible; otherwise each instance gets its best pick with every other
+           instance in place, the picks listed in the accessibility order.
+
+        ``timing_s["first_pick"]``: seconds from the ready scene to the first feasible pick.
+        ``budget_s`` counts from the loaded parts and cell (:mod:`grasplan.pick.budget`) and is
+        checked inside every long stage; the instance being planned and those not reached when it is
+        spent are ``not_tried``. ``seed``: this call's instead of ``params.seed``."""
         from ..piles.checks import check_instances
 
         t0 = time.perf_counter()
-        sc = load_scene(scene)
+        sc = scene if isinstance(scene, Scene) else load_scene(scene)
         self._ensure_parts(sc)
         st = self._cell_for(sc)
         p = self.params if seed is None else PickParams.from_json({**self.params.to_json(), "seed": int(seed)})
@@ -221,7 +260,6 @@ class Picker:
         reports: dict[str, InstanceReport] = {}
         picks: list[Pick] = []
         warnings: list[str] = []
-        cloud = None
         t_ready = time.perf_counter()
         try:
             cloud = self._cloud(sc)
@@ -235,16 +273,16 @@ class Picker:
                                        hulls={n: st.world.parts[n].hull for n in sc.part_names()})
             timing["checks"] = time.perf_counter() - t
             t_ready = time.perf_counter()
-            self._plan_pile(st, sc, cloud is not None, p, budget, max_picks, sequence, reports, picks, timing,
-                            stats, t_ready)
+            run = PlanRun(st, p, budget, timing, stats, cloud is not None, LiftLine.of(st.cell, p), _place_of(p, st.cell))
+            self._plan_pile(run, sc, max_picks, sequence, reports, picks, t_ready)
         except BudgetSpent:
             pass  # the instance being planned and those not reached: not_tried (below)
         finally:
             timing["load"] = timing["load"] or time.perf_counter() - t0
-        spent = "the planning budget spent" if budget.spent() else "max_picks reached"
+        spent = budget.spent()  # else max_picks reached
         for i in sc.instances:
             if i.id not in reports:
-                reports[i.id] = InstanceReport(i.id, i.part, "not_tried", f"not tried: {spent}")
+                reports[i.id] = not_tried_report(i, spent)
         timing.setdefault("first_pick", float("nan"))
         timing["plan"] = time.perf_counter() - t_ready
         timing["total"] = time.perf_counter() - t0
@@ -254,17 +292,20 @@ class Picker:
                           parts={n: self._parts[n].to_json() for n in sc.part_names()}, warnings=tuple(warnings),
                           sequence=sequence, stats=stats)
 
-    def _plan_pile(self, st: CellState, sc: Scene, with_cloud: bool, p: PickParams, budget: Budget,
-                   max_picks: int | None, sequence: bool, reports: dict[str, InstanceReport], picks: list[Pick],
-                   timing: dict[str, float], stats: dict[str, int], t_ready: float) -> None:
-        """The passes over the instances (module docstring), filling ``reports`` and ``picks``;
-        :class:`BudgetSpent` leaves the instance being planned without a report."""
+    def _plan_pile(self, run: PlanRun, sc: Scene, max_picks: int | None, sequence: bool,
+                   reports: dict[str, InstanceReport], picks: list[Pick], t_ready: float) -> None:
+        """The passes over the instances, filling ``reports`` and ``picks``: first every instance's
+        best :data:`FIRST_PASS` grasps with its straight lift, in order (an instance whose straight
+        lift is blocked is deferred before its tilted-lift search), then the deferred and paused
+        ones, in order, until each is decided; with ``sequence`` again without each picked
+        instance. :class:`BudgetSpent` leaves the instance being planned without a report."""
         cpu_ready = time.process_time()
         present = list(sc.instances)
         rank_of: dict[str, int] = {}
+        timing, st = run.timing, run.st
 
         def out_of_budget() -> bool:
-            return (max_picks is not None and len(picks) >= max_picks) or budget.spent()
+            return (max_picks is not None and len(picks) >= max_picks) or run.budget.spent()
 
         def take(iid: str, pick: Pick | None, rep: InstanceReport) -> bool:
             reports[iid] = rep
@@ -285,16 +326,13 @@ class Picker:
                 by_id = {i.id: i for i in present}
                 picked_now: str | None = None
                 rises: dict[str, bool] = {}  # per instance: free to rise (lift_carry), whichever part is lifted
-                paused: list[tuple[str, Iterator[tuple[Pick | None, InstanceReport | None]]]] = []
-                # pass 1: every instance's best FIRST_PASS grasps with its straight lift, in order (an
-                # instance whose straight lift is blocked is deferred before its tilted-lift search);
-                # then the paused ones, in order, until each is decided
-                for k, iid in enumerate(order):
+                paused: list[tuple[str, Iterator[Step]]] = []
+                for k, iid in enumerate(order):  # the first pass
                     if out_of_budget():
                         break
                     if iid in reports and reports[iid].status == "picked":
                         continue
-                    gen = self._plan_instance(st, by_id[iid], present, with_cloud, p, timing, stats, k, rises, budget)
+                    gen = self._plan_instance(run, by_id[iid], present, k, rises)
                     pick, rep = next(gen)
                     if rep is None:
                         paused.append((iid, gen))
@@ -302,7 +340,7 @@ class Picker:
                         picked_now = iid
                         break
                 while paused and picked_now is None and not out_of_budget():  # the next passes, in order
-                    later: list[tuple[str, Iterator[tuple[Pick | None, InstanceReport | None]]]] = []
+                    later: list[tuple[str, Iterator[Step]]] = []
                     for iid, gen in paused:
                         if out_of_budget():
                             break
@@ -320,163 +358,41 @@ class Picker:
             if not sequence:  # picks listed in the accessibility order, also when the budget stops the passes
                 picks.sort(key=lambda q: rank_of[q.instance])
 
-    def _plan_instance(self, st: CellState, inst: Instance, present: list[Instance], with_cloud: bool, p: PickParams,
-                       timing: dict[str, float], stats: dict[str, int], seed_base: int, rises: dict[str, bool],
-                       budget: Budget) -> Iterator[tuple[Pick | None, InstanceReport | None]]:
+    def _plan_instance(self, run: PlanRun, inst: Instance, present: list[Instance], seed_base: int,
+                       rises: dict[str, bool]) -> Iterator[Step]:
         """Yields ``(pick or None, report)`` once the instance is decided, before that ``(None, None)``
         when its straight lift is blocked (before the tilted-lift search) and when its best
         :data:`FIRST_PASS` grasps gave nothing yet (the caller resumes it in a later pass).
-        :class:`BudgetSpent` once ``budget`` is spent (checked in every loop below)."""
-        budget.check()
+        :class:`BudgetSpent` once the budget is spent (checked in every loop). First the lift: the
+        part moved along the cell's retreat, against the neighbours and the cloud, the same for
+        every grasp (a hit there fails every grasp's lift: only tilted lifts can pick the
+        instance); then its grasps (:meth:`_grasps_of`)."""
+        run.budget.check()
         db = self._grasps[inst.part]
-        rows, T_wt = rank_grasps(inst.T_world_part, db.T_part_tcp, db.score, p)
-        if len(rows) == 0:
-            yield None, InstanceReport(inst.id, inst.part, "no_grasp", (
-                f"none of the part's {len(db)} grasps approaches within {p.max_tilt_deg:g} deg of straight down at this pose"
-                if len(db) else f"its grasp database is empty: no contact pair fits the gripper {self.gripper.name}"))
+        ranked = RankedGrasps.of(inst, db, run.params, self.gripper)
+        if ranked is None:
+            yield None, no_grasp_report(inst, len(db), run.params.max_tilt_deg, self.gripper.name)
             return
+        lifts = LiftSearch(run.st, inst, present, run.line, run.params, run.budget, run.timing,
+                           lambda part: self._depth_of(run.st, part), rises)
+        if not lifts.ok(0):
+            yield None, None  # deferred: the tilted-lift search after every instance's first pass
+        if not lifts.any_free():
+            yield None, lifts.blocked()
+            return
+        yield from self._grasps_of(run, inst, present, db, ranked, lifts, seed_base)
+
+    def _grasps_of(self, run: PlanRun, inst: Instance, present: list[Instance], db: GraspDatabase,
+                   ranked: RankedGrasps, lifts: LiftSearch, seed_base: int) -> Iterator[Step]:
+        """The ranked grasps gripper-checked in chunks against neighbours, cloud, bin and table (the
+        bodies that blocked most grasps so far first; the first body hit names the blocker), the
+        collision-free ones motion-planned until one is planned or ``grasps_per_instance`` were
+        tried; paused once after the first :data:`FIRST_PASS` (see :meth:`_plan_instance`)."""
+        p, st, rows = run.params, run.st, ranked.rows
         bodies = st.world.bodies(inst.id)
         hit_counts: dict[str, int] = {}
         first_fail: Outcome | None = None
         tried = 0
-        rows, T_wt = rows[: p.max_checked], T_wt[: p.max_checked]
-        # checks and motions in the frame the gripper's shapes and T_flange_tcp are given in: for a
-        # gripper whose TCP moves with the opening, the grasp TCP moved to it (as grasplan plan does)
-        T_tcp_g = self.gripper.T_tcp_gripper(db.width[rows]) if self.gripper.moving_tcp else None
-        T_plan = T_wt if T_tcp_g is None else T_wt @ T_tcp_g
-        T_place = p.place_matrix() if p.place is not None else (None if st.cell.place is None
-                                                                  else np.asarray(st.cell.place, dtype=np.float64))
-        retreat = unit_direction(st.cell.retreat_direction)
-        dist = float(st.cell.retreat_distance)
-        fine = lift_travel(dist)  # the lift's waypoints (plan_pick_motion's)
-        # the line's waypoints beyond lift_contact, and the lift_contact point itself (where resting
-        # contact stops being allowed: between it and the next waypoint a part may be deep already);
-        # every second one and the far end (`steps`) decide whether a direction is free for the part
-        # alone; the others (`between`) are checked when a grasp is first motion-planned along it
-        lc = min(p.lift_contact, dist)
-        steps = np.unique(np.append(fine[::2][fine[::2] >= lc - 1e-12], [lc, dist]))
-        between = np.setdiff1d(fine[fine >= lc - 1e-12], steps)
-        by_name = {INSTANCE_PREFIX + i.id: i for i in present}
-
-        def pile_of(i: Instance) -> tuple[list[Any], RestDepth]:
-            """The bodies the part of ``i`` lifted alone may hit (the other instances, the cloud; the
-            cell's boxes are the robot check's) and its depth into them beyond the resting one."""
-            return ([b for b in st.world.bodies(i.id) if b.name.startswith(INSTANCE_PREFIX) or b.name == CLOUD],
-                    RestDepth(self._depth_of(st, i.part), i.T_world_part,
-                              lambda n: (self._depth_of(st, by_name[n].part), by_name[n].T_world_part),
-                              tol=p.lift_depth, cap=p.overlap_tol, budget=budget))
-        pile, rest = pile_of(inst)
-        carry = Carry(lambda n: free_to_rise(st.world, by_name[n].part, by_name[n].T_world_part,  # --lift-carry
-                                             steps[:, None] * retreat, *pile_of(by_name[n]), set(by_name)), rises)
-
-        def lift_depth(T_world_part: np.ndarray, names: list[str], carrying: bool = False) -> float:
-            """Deepest penetration of the carried part at ``T_world_part`` into the neighbours
-            ``names`` beyond their resting one (:class:`grasplan.pick.lift.RestDepth`); ``carrying``:
-            but into those lying on it (:class:`grasplan.pick.lift.Carry`)."""
-            t_d = time.perf_counter()
-            d = rest.excess(T_world_part, [n for n in names if not (carrying and n in by_name and carry.free(n))])
-            timing["lift_depth"] += time.perf_counter() - t_d
-            return d
-
-        def shallow_hit(T_world_part: np.ndarray, b: Any) -> bool:
-            if not (p.lift_depth > 0 and b.name in by_name):
-                return False
-            if carry.raises(b.name):  # lying on the part: any contact raises it
-                return True
-            t_d = time.perf_counter()  # lift_depth(...) <= lift_depth, a deep contact found on coarse samples first
-            deep = rest.exceeds(T_world_part, [b.name])
-            timing["lift_depth"] += time.perf_counter() - t_d
-            return not deep
-
-        hull_w = st.world.parts[inst.part].hull @ inst.T_world_part[:3, :3].T + inst.T_world_part[:3, 3]
-        dirs: list[tuple[float, np.ndarray]] = [(0.0, retreat)]
-        carrying: list[bool] = [False]  # per direction: lifted raising the neighbours lying on the part
-        lift_free: list[bool | None] = [None]
-        hit_first: dict[str, Any] = {}
-
-        def lift_ok(j: int) -> bool:
-            """Whether lifting the part alone along direction ``j`` is free (the same motion for every
-            grasp: when it drags the part through a neighbour or the cloud beyond lift_contact, or
-            a tilted one through a bin wall, no grasp can lift it that way)."""
-            if lift_free[j] is None:
-                budget.check()
-                t, (carry.on, carry.direction) = time.perf_counter(), (carrying[j], j)
-                shifts = steps[:, None] * dirs[j][1]
-                ok = dirs[j][0] == 0.0 or inside_walls(hull_w, shifts, st.cell.bin)
-                if ok:
-                    # the straight lift's first hit names the blocker; a tilted one only needs yes or no
-                    lh = st.world.part_hits(inst.part, inst.T_world_part, shifts, pile, shallow_hit, first_only=True,
-                                            far_first=dirs[j][0] > 0.0)
-                    ok = not np.any(lh >= 0)
-                    if dirs[j][0] == 0.0 and not ok:  # what blocks the straight lift (raising nothing / some)
-                        k_hit = int(np.flatnonzero(lh >= 0)[0])
-                        if j == 0:
-                            hit_first.update(name=pile[int(lh[k_hit])].name, step=float(steps[k_hit]))
-                        else:
-                            hit_first["carry_name"] = pile[int(lh[k_hit])].name
-                lift_free[j] = ok
-                timing["lift_check"] += time.perf_counter() - t
-            return bool(lift_free[j])
-
-        grasp_blocker: list[str] = []  # the neighbour the last grasp's lift (or approach) hit
-
-        def tilted(blocker: str, carrying_: bool) -> None:
-            """Add the tilted lifts leading away from the walls and the neighbour ``blocker``."""
-            away = wall_away(hull_w, st.cell.bin)
-            b = by_name.get(blocker)
-            if b is not None:
-                v = st.world.instances[inst.id].center - st.world.instances[b.id].center
-                away = away + v / max(float(np.linalg.norm(v)), 1e-9)
-            more = lift_directions(retreat, away, p.max_lift_tilt_deg)[1:]
-            dirs.extend(more)
-            carrying.extend([carrying_] * len(more))
-            lift_free.extend([None] * len(more))
-
-        def lifts() -> Iterator[int]:
-            """Indices of the free lift directions, the straight one first, then the tilted ones
-            (:func:`grasplan.pick.lift.lift_directions`) leading away from the walls and the
-            neighbour that blocked the straight lift (the part alone, else the last grasp's); with
-            ``lift_carry`` (a neighbour blocked the part's straight lift) then the same raising the
-            neighbours lying on the part, the tilted ones leading away from what still blocks."""
-            if lift_ok(0):
-                yield 0
-            if len(dirs) == 1:
-                tilted(hit_first.get("name") or (grasp_blocker[0] if grasp_blocker else ""), False)
-                if p.lift_carry and p.lift_depth > 0 and hit_first.get("name") in by_name:
-                    dirs.append((0.0, retreat))
-                    carrying.append(True)
-                    lift_free.append(None)
-            j = 1
-            while j < len(dirs):
-                if lift_ok(j):
-                    yield j
-                if carrying[j] and dirs[j][0] == 0.0 and j == len(dirs) - 1:
-                    tilted(hit_first.get("carry_name") or hit_first["name"], True)
-                j += 1
-
-        if not lift_ok(0):
-            yield None, None  # deferred: the tilted-lift search after every instance's first pass
-        if not any(True for _ in lifts()):
-            name, deep = hit_first["name"], None
-            if name in by_name and p.lift_depth > 0:
-                T_hit = inst.T_world_part.copy()
-                T_hit[:3, 3] += hit_first["step"] * retreat
-                deep = rest.excess(T_hit, [name], exact=True)  # the whole depth for the report
-            rd = rest.rest(name) if name in by_name else 0.0
-            yield None, InstanceReport(
-                inst.id, inst.part, "blocked" if name.startswith(INSTANCE_PREFIX) else "cloud",
-                f"lifting it {1e3 * dist:g} mm along the retreat drags it through {name} "
-                f"after {1e3 * hit_first['step']:.0f} mm" + (
-                    (f" ({1e3 * deep:.1f} mm deep" if rd < 5e-5 else
-                     f" ({1e3 * deep:.1f} mm deeper than the {1e3 * rd:.1f} mm of resting overlap counted")
-                    + f"; at most {1e3 * p.lift_depth:g} mm allowed)" if deep is not None else
-                    f" (more than the {1e3 * p.lift_contact:g} mm of resting contact allowed)")
-                + (f", and so does every one of the {carrying.count(False) - 1} tilted lifts "
-                   f"({tilts_text(p.max_lift_tilt_deg)})" if carrying.count(False) > 1 else "")
-                + (", raising what lies on it or not" if any(carrying) else "")
-                + ", whatever the grasp",
-                blockers_of({name: 1}))
-            return
         ctxs: dict[int, MotionContext] = {}
         paused = False
         for c0, c1 in check_chunks(len(rows)):
@@ -484,85 +400,82 @@ class Picker:
                 paused = True
                 ctxs.clear()  # a paused instance holds no robot scene variant (rebuilt, or kept, for its next pass)
                 yield None, None  # paused: the other instances' best grasps first
-            budget.check()
-            sel = slice(c0, c1)
+            run.budget.check()
             t = time.perf_counter()
-            # the bodies that blocked most grasps so far first: a blocked grasp needs fewer coal calls
             order = sorted(bodies, key=lambda b: -hit_counts.get(b.name, 0))
-            first, _ = st.world.gripper_hits(inst.part, inst.id, T_plan[sel], db.width[rows[sel]], order)
-            timing["gripper_check"] += time.perf_counter() - t
-            stats["grasps_checked"] += len(first)
+            first, _ = st.world.gripper_hits(inst.part, inst.id, ranked.T_plan[c0:c1], db.width[rows[c0:c1]], order)
+            run.timing["gripper_check"] += time.perf_counter() - t
+            run.stats["grasps_checked"] += len(first)
             for k_local, b in enumerate(first):
                 if b >= 0:
-                    name = order[b].name
-                    hit_counts[name] = hit_counts.get(name, 0) + 1
+                    hit_counts[order[b].name] = hit_counts.get(order[b].name, 0) + 1
                     continue
                 k = c0 + k_local
                 r = int(rows[k])
                 tried += 1
-                stats["grasps_tried"] += 1
-                T_part_g = db.T_part_tcp[r] if T_tcp_g is None else db.T_part_tcp[r] @ T_tcp_g[k]
-                out = None
-                n_dirs = [0, 0]  # per grasp LIFTS_PER_GRASP clean lifts, then as many raising a neighbour
-                for j in lifts():
-                    if (out is not None and not out.lift_may_help) or n_dirs[1] >= LIFTS_PER_GRASP:
-                        break
-                    if n_dirs[carrying[j]] >= LIFTS_PER_GRASP:
-                        continue
-                    n_dirs[carrying[j]] += 1
-                    ctx = ctxs.get(j)
-                    if ctx is None:
-                        static, att = self._variants(st, inst, present, with_cloud)
-                        # the lift's other waypoints, the part alone (as lift_ok); then all against the cell
-                        t_b, (carry.on, carry.direction) = time.perf_counter(), (carrying[j], j)
-                        hits_b = st.world.part_hits(inst.part, inst.T_world_part, between[:, None] * dirs[j][1],
-                                                    pile, shallow_hit)
-                        checked = np.concatenate([steps, between[hits_b < 0]])
-                        clear = st.world.clear_of_cell(inst.part, inst.T_world_part, checked, dirs[j][1])
-                        timing["lift_check"] += time.perf_counter() - t_b
-                        ctx = ctxs[j] = MotionContext(
-                            self.robot, self.gripper, p, static, att, dirs[j][1], dist, timing, T_place=T_place,
-                            lift_gripper_check=lambda T, w: st.world.gripper_at_hits(T, w, bodies),
-                            approach_sweep=st.world.gripper_swept_free,  # against every body, the grasped part's too
-                            body_names=tuple(b.name for b in bodies), lift_depth=None if p.lift_depth <= 0 else
-                            lambda T, names, c=carrying[j]: lift_depth(T, names, c),
-                            lift_part_checked=(inst.T_world_part, checked[:, None] * dirs[j][1], clear),  # lift_ok(j)
-                            budget=budget)
-                    out = plan_pick_motion(ctx, T_plan[k], T_part_g, float(db.width[r]),
-                                           seed=p.seed * 1_000_003 + seed_base * 10_007 + r)
-                    grasp_blocker[:] = list(out.blockers[:1])
-                    if out.motion is not None:
-                        tilt = dirs[j][0]
-                        up = tuple(sorted(by_name[n].id for n in carry.raised.get(j, ())))
-                        yield self._pick(inst, db, r, k, T_wt[k], out, dirs[j][1], dist, up), InstanceReport(
-                            inst.id, inst.part, "picked", f"grasp ranked {k} of {len(rows)}: {out.reason}"
-                            + ("" if not up else f"; the lift raises {', '.join(up)} lying on it")
-                            + ("" if tilt == 0 else f"; lifted {tilt:g} deg from the retreat (the straight lift "
-                               + ("drags the part through " + hit_first["name"] if "name" in hit_first
-                                  else "is blocked for this grasp") + ")")
-                            + hits_text(hit_counts, " better-ranked grasps"), blockers_of(hit_counts))
-                        return
-                assert out is not None
+                run.stats["grasps_tried"] += 1
+                out, j = self._grasp_motion(run, inst, present, lifts, bodies, ctxs, ranked.T_plan[k],
+                                            ranked.T_part_grasp(db, k), float(db.width[r]),
+                                            seed=p.seed * 1_000_003 + seed_base * 10_007 + r)
+                if out.motion is not None:
+                    tilt, u = lifts.dirs[j]
+                    yield (self._pick(inst, db, r, k, ranked.T_wt[k], out, u, run.line.dist, lifts.raised(j)),
+                           picked_report(inst, k, len(rows), out, lifts.raised(j), tilt, lifts.blocker, hit_counts))
+                    return
                 first_fail = first_fail or out
-                for b in out.blockers:  # neighbours hit by the robot or the carried part
-                    hit_counts[b] = hit_counts.get(b, 0) + 1
+                for name in out.blockers:  # neighbours hit by the robot or the carried part
+                    hit_counts[name] = hit_counts.get(name, 0) + 1
                 if tried >= p.grasps_per_instance:
                     break
             if tried >= p.grasps_per_instance:
                 break
         if first_fail is not None:
-            status = "blocked" if first_fail.blockers else first_fail.status
-            yield None, InstanceReport(inst.id, inst.part, status,
-                                       f"{tried} collision-free grasps tried, none planned; the best: "
-                                       f"{first_fail.reason}" + hits_text(hit_counts, " grasps"),
-                                       blockers_of(hit_counts))
-            return
-        blockers = blockers_of(hit_counts)
-        n_cloud = hit_counts.get(CLOUD, 0)
-        status = "blocked" if blockers else "cloud" if n_cloud else "bin"
-        yield None, InstanceReport(inst.id, inst.part, status,
-                                   f"every one of the {len(rows)} best-ranked grasps from above collides"
-                                   + hits_text(hit_counts, " grasps"), blockers)
+            yield None, unplanned_report(inst, tried, first_fail, hit_counts)
+        else:
+            yield None, collides_report(inst, len(rows), hit_counts)
+
+    def _grasp_motion(self, run: PlanRun, inst: Instance, present: list[Instance], lifts: LiftSearch,
+                      bodies: list[Body], ctxs: dict[int, MotionContext], T_world_tcp: np.ndarray,
+                      T_part_tcp: np.ndarray, width: float, seed: int) -> tuple[Outcome, int]:
+        """One grasp motion-planned along the free lift directions (per grasp
+        :data:`~grasplan.pick.lift.LIFTS_PER_GRASP` clean lifts, then as many raising a neighbour)
+        until it is planned or another lift cannot help: the last outcome and its direction."""
+        out: Outcome | None = None
+        j_out = 0
+        n_dirs = [0, 0]
+        for j in lifts.free_directions():
+            if (out is not None and not out.lift_may_help) or n_dirs[1] >= LIFTS_PER_GRASP:
+                break
+            c = int(lifts.carrying[j])
+            if n_dirs[c] >= LIFTS_PER_GRASP:
+                continue
+            n_dirs[c] += 1
+            ctx = ctxs.get(j)
+            if ctx is None:
+                ctx = ctxs[j] = self._motion_context(run, inst, present, lifts, bodies, j)
+            out, j_out = plan_pick_motion(ctx, T_world_tcp, T_part_tcp, width, seed=seed), j
+            lifts.grasp_blocker = out.blockers[:1]
+            if out.motion is not None:
+                break
+        assert out is not None  # the caller found a free direction
+        return out, j_out
+
+    def _motion_context(self, run: PlanRun, inst: Instance, present: list[Instance], lifts: LiftSearch,
+                        bodies: list[Body], j: int) -> MotionContext:
+        """What every grasp of ``inst`` lifted along direction ``j`` shares: the arranged robot
+        scenes, the lift, and what the checks before IK decided (the lift's other waypoints for
+        the part alone, as :meth:`LiftSearch.ok`; then all of them against the cell)."""
+        st, p = run.st, run.params
+        static, att = self._variants(st, inst, present, run.with_cloud)
+        checked, clear = lifts.part_checked(j)
+        u = lifts.dirs[j][1]
+        return MotionContext(
+            self.robot, self.gripper, p, static, att, u, run.line.dist, run.timing, T_place=run.T_place,
+            lift_gripper_check=lambda T, w: st.world.gripper_at_hits(T, w, bodies),
+            approach_sweep=st.world.gripper_swept_free,  # against every body, the grasped part's too
+            body_names=tuple(b.name for b in bodies), lift_depth=None if p.lift_depth <= 0 else
+            lambda T, names, c=lifts.carrying[j]: lifts.depth(T, names, c),
+            lift_part_checked=(inst.T_world_part, checked[:, None] * u, clear), budget=run.budget)
 
     def _depth_of(self, st: CellState, part: str) -> PartDepth:
         d = self._depth.get(part)
@@ -587,3 +500,10 @@ class Picker:
                     width=float(db.width[r]), opening=out.opening, score=score, quality=quality,
                     motion=out.motion, T_world_tcp=T_world_tcp.copy(), T_world_pregrasp=T_pre,
                     T_world_lifted=lift_pose(T_world_tcp, lift_dir, lift_dist), rank=k, carries=carries)
+
+
+def _place_of(p: PickParams, cell: Cell) -> np.ndarray | None:
+    """The picked part's pose after release: ``p.place``, else the cell's place, else None."""
+    if p.place is not None:
+        return p.place_matrix()
+    return None if cell.place is None else np.asarray(cell.place, dtype=np.float64)

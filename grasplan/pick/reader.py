@@ -28,6 +28,7 @@ from ..results.joint_motion import Motion
 from ..results.plan_result import PartRecord, PlanResult
 from ..piles.scene_file import scene_from_dict
 from ..status import Status
+from .codes import PickStatus
 from .params import PickParams
 from .result import PICKS_SCHEMA, InstanceReport, Pick, PickResult
 
@@ -141,7 +142,7 @@ def result_from_picks(doc: Any, *, where: str = "picks", base: Path | None = Non
                           motion=m, T_world_tcp=nums["T_world_tcp"][k], T_world_pregrasp=nums["T_world_pregrasp"][k],
                           T_world_lifted=nums["T_world_lifted"][k], rank=int(nums["rank"][k]),
                           carries=tuple(d.get("lift_carries", ()))))
-    reports = tuple(InstanceReport(r["id"], r["part"], r["status"], r["reason"], tuple(r["blocked_by"]))
+    reports = tuple(InstanceReport(r["id"], r["part"], PickStatus(r["status"]), r["reason"], tuple(r["blocked_by"]))
                     for r in doc["instances"])
     return PickResult(picks=tuple(picks), instances=reports, timing_s=dict(doc["timing_s"]), scene=scene,
                       robot=robot, gripper=gripper, cell=cell, params=PickParams.from_json(doc["params"]),

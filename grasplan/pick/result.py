@@ -26,12 +26,11 @@ from ..io import to_json_text, write_json
 from ..results.joint_motion import Motion
 from ..robot.model import Robot
 from ..piles.scene_file import Scene
+from .codes import INSTANCE_STATUSES, PickStatus, Reason
 from .params import PickParams
 
 PICKS_SCHEMA = "grasplan.picks/1"
-#: instance statuses, in the order the counts list them
-INSTANCE_STATUSES = ("picked", "blocked", "cloud", "bin", "unreachable", "ik_collision", "lift_collision",
-                     "no_path", "place", "no_grasp", "not_tried")
+__all__ = ["INSTANCE_STATUSES", "PICKS_SCHEMA", "InstanceReport", "Pick", "PickResult"]
 
 
 class _Text(NamedTuple):
@@ -104,20 +103,23 @@ class Pick:
 
 @dataclass(frozen=True)
 class InstanceReport:
-    """Status of one instance: ``picked``, ``blocked`` (every grasp hits a neighbour, the bin or the
-    table), ``cloud`` (the best grasps hit the cloud), ``bin`` (they hit the bin, the table or an
-    obstacle), ``unreachable`` / ``ik_collision`` / ``lift_collision`` / ``no_path`` (collision-free
-    grasps exist but no motion: the reason of the best), ``no_grasp`` (no grasp approaches from
-    above), ``not_tried`` (budget or ``max_picks``)."""
+    """Status of one instance (:class:`~grasplan.pick.codes.PickStatus`), why in words
+    (``reason``) and as a code (``code``, :class:`~grasplan.pick.codes.Reason`; None in a report
+    read from a file, which holds the words only), and the neighbours that block it or block the
+    grasps ranked ahead of the one picked (``blocked_by``)."""
 
     id: str
     part: str
-    status: str
+    status: PickStatus
     reason: str
     blocked_by: tuple[str, ...] = ()
+    code: Reason | None = field(default=None, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "status", PickStatus(self.status))  # a status string given: its member
 
     def to_json(self) -> dict[str, Any]:
-        return {"id": self.id, "part": self.part, "status": self.status, "reason": self.reason,
+        return {"id": self.id, "part": self.part, "status": self.status.value, "reason": self.reason,
                 "blocked_by": list(self.blocked_by)}
 
 
@@ -158,7 +160,7 @@ class PickResult:
         return next(r for r in self.instances if r.id == instance)
 
     def counts(self) -> dict[str, int]:
-        st = [r.status for r in self.instances]
+        st = [r.status.value for r in self.instances]
         return {s: st.count(s) for s in INSTANCE_STATUSES if s in st}
 
     def _items(self, parts: dict[str, dict[str, Any]] | None, static_text: bool) -> list[tuple[str, Any]]:

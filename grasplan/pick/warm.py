@@ -1,22 +1,12 @@
 """What a :class:`grasplan.Picker` keeps between ``plan()`` calls, every cache bounded by entries and
 by (estimated) bytes: the bounds are the constants of this module, the one place they are set
-(docs/pick.md, "Memory of a long-running picker").
-
-* Cells (:class:`CellState`, at most :data:`MAX_CELLS`, the least recently used dropped): per cell
-  the gripper checks' world (:class:`grasplan.pick.world.PickWorld`, a BVH, hull and gripper
-  collider per part) and the robot's collision scenes below.
-* Robot collision scenes (:func:`build_scenes`): one per part, every instance an extra body named
-  by its id. They hold the current scene's instances and at most :data:`MAX_KEPT_EXTRAS` of earlier
-  scenes (an id seen again soon rebuilds nothing); a scene with an id they do not hold rebuilds
-  them (once per part), so a scene's size, not the number of ids ever seen, bounds them.
-* Arranged variants (:func:`arranged`: an instance's scene with its neighbours placed, the static
-  and the attached one), kept for a scene seen again with the same poses: at most
-  :data:`MAX_SCENE_VARIANTS` and :data:`MAX_SCENE_VARIANT_BYTES` (each estimated from the scene
-  model's collision pairs, :func:`variant_bytes`: Pinocchio's per-pair data dominates), the least
-  recently used dropped first; a variant larger than the byte bound is used and not kept.
-* The parts a scene file names with a mesh: at most :data:`MAX_SCENE_PARTS` beyond the current
-  scene's, the least recently used dropped (parts given to ``Picker.add_part`` stay).
-* The last cloud read (:data:`MAX_CLOUDS`, :func:`scene_cloud`).
+(docs/pick.md, "Memory of a long-running picker"). Kept: per cell (:class:`CellState`, at most
+:data:`MAX_CELLS`, the least recently used dropped) the gripper checks' world
+(:class:`grasplan.pick.world.PickWorld`: a BVH, hull and gripper collider per part), the robot's
+collision scenes (:func:`build_scenes`) and their arranged variants (:func:`arranged`); the parts
+a scene file names with a mesh (at most :data:`MAX_SCENE_PARTS` beyond the current scene's, the
+least recently used dropped; parts given to ``Picker.add_part`` stay); the last cloud read
+(:data:`MAX_CLOUDS`, :func:`scene_cloud`).
 
 Not kept here, bounded where they live: a part's depth probes and voxel grid (one per part),
 Pinocchio's data and the pathboxes' arguments of a variant (with the variant;
@@ -145,9 +135,11 @@ class CellState:
 
 def build_scenes(st: CellState, robot: Robot, gripper: Gripper, meshes: Mapping[str, Any], scene: Scene,
                  cloud: tuple | None, budget: Budget = UNLIMITED) -> None:
-    """Make ``st``'s robot scenes hold every instance of ``scene`` (and the cloud): nothing when they
-    do; else rebuilt with the scene's instances and, when few enough, the earlier ones they held
-    (:data:`MAX_KEPT_EXTRAS`). ``meshes``: each part's mesh. The new scenes replace the old ones
+    """Make ``st``'s robot scenes (one per part, every instance an extra body named by its id) hold
+    every instance of ``scene`` (and the cloud): nothing when they do (an id seen again soon
+    rebuilds nothing); else rebuilt, once per part, with the scene's instances and, when few
+    enough, the earlier ones they held (:data:`MAX_KEPT_EXTRAS`): a scene's size, not the number of
+    ids ever seen, bounds them. ``meshes``: each part's mesh. The new scenes replace the old ones
     only once all are built (``budget`` is checked before each)."""
     need = frozenset((i.id, i.part) for i in scene.instances)
     cloud_key = None if cloud is None else id(cloud[0])
@@ -172,7 +164,10 @@ def arranged(st: CellState, inst: Instance, present: list[Instance], with_cloud:
              ) -> tuple[CollisionScene, CollisionScene]:
     """The static and attached variants of the robot scene of ``inst``'s part with the part at its
     pose and the other instances of ``present`` (and the cloud when ``with_cloud``) placed; kept
-    in ``st.variants`` for a scene seen again."""
+    in ``st.variants`` for a scene seen again with the same poses: at most
+    :data:`MAX_SCENE_VARIANTS` and :data:`MAX_SCENE_VARIANT_BYTES` (each estimated from the scene
+    model's collision pairs, :func:`variant_bytes`: Pinocchio's per-pair data dominates), the least
+    recently used dropped first; a variant larger than the byte bound is used and not kept."""
     key = (inst.id, inst.part, inst.T_world_part.tobytes(),
            tuple((i.id, i.T_world_part.tobytes()) for i in present if i.id != inst.id), with_cloud)
     v = st.variants.get(key)

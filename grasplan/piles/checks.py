@@ -1,22 +1,9 @@
 """Geometric checks of a scene's instances against the cell and each other (``grasplan pick``).
 
 :func:`check_instances` needs the meshes (the scene file's own checks, :mod:`grasplan.piles.scene_file`,
-do not):
-
-* a part reaching more than ``tol`` below the table top, or more than ``tol`` into a box, cylinder
-  or sphere obstacle (the bin's floor and walls among them): :class:`~grasplan.errors.InputError`
-  naming the instance, the body and the depth (a pose estimate that cannot be: exit 3);
-* two instances in the same place (:func:`check_coincident`: every vertex of either one's convex
-  hull within ``tol``, and half the part's thickness, of a hull vertex of the other, such as one
-  part reported twice by a pose estimator): :class:`~grasplan.errors.InputError` naming both ids;
-* two instances interpenetrating by more than ``tol`` (pose-estimator noise): a warning naming
-  the pairs and the depth; by more than :func:`deep_limit` (:data:`MAX_OVERLAP_TOLS` times ``tol``,
-  at least :data:`MIN_DEEP_M`): InputError naming both (no pose estimate is that wrong). The depth
-  is estimated from surface samples of each mesh (its vertices and a grid of
-  :data:`PROBE_SPACING` on its faces, :func:`grasplan.geometry.containment.surface_samples`) inside the
-  other (its voxel grid, :mod:`grasplan.geometry.insidegrid`, and near its surface signed ray crossings,
-  :func:`inside_for_depth`) and their distance to the other's surface (coal): a lower bound,
-  within about the sample spacing of the true depth.
+do not): a part below the table top or inside an obstacle (:func:`check_cell`), two instances in
+the same place (:func:`check_coincident`) and two instances interpenetrating
+(:func:`overlap_warnings`).
 """
 from __future__ import annotations
 
@@ -305,7 +292,13 @@ def overlap_warnings(instances: Sequence[Instance], meshes: Mapping[str, MeshDat
     """One warning per pair of instances interpenetrating by more than ``tol`` (m); InputError for
     the first pair deeper than ``refuse`` (m; None: none). ``spent``: asked before each pair's depth
     estimate; when it answers True (a planning budget spent) the pairs left are not estimated and
-    the last warning says how many."""
+    the last warning says how many.
+
+    The depth is estimated from surface samples of each mesh (its vertices and a grid of
+    :data:`PROBE_SPACING` on its faces, :func:`grasplan.geometry.containment.surface_samples`) inside the
+    other (its voxel grid, :mod:`grasplan.geometry.insidegrid`, and near its surface signed ray crossings,
+    :func:`inside_for_depth`) and their distance to the other's surface (coal): a lower bound,
+    within about the sample spacing of the true depth (:func:`_depth_into`)."""
     bvhs = dict(bvhs or {})
     for name in meshes:
         if name not in bvhs:
@@ -357,7 +350,18 @@ def check_instances(instances: Sequence[Instance], meshes: Mapping[str, MeshData
                     spent: Callable[[], bool] | None = None, hulls: Mapping[str, np.ndarray] | None = None
                     ) -> list[str]:
     """:func:`check_cell` and :func:`check_coincident` (raise) then :func:`overlap_warnings` (returned;
-    raises for a pair deeper than :func:`deep_limit`)."""
+    raises for a pair deeper than :func:`deep_limit`):
+
+    * a part reaching more than ``tol`` below the table top, or more than ``tol`` into a box, cylinder
+      or sphere obstacle (the bin's floor and walls among them): :class:`~grasplan.errors.InputError`
+      naming the instance, the body and the depth (a pose estimate that cannot be: exit 3);
+    * two instances in the same place (every vertex of either one's convex hull within ``tol``, and
+      half the part's thickness, of a hull vertex of the other, such as one part reported twice by a
+      pose estimator): :class:`~grasplan.errors.InputError` naming both ids;
+    * two instances interpenetrating by more than ``tol`` (pose-estimator noise): a warning naming
+      the pairs and the depth; by more than :func:`deep_limit` (:data:`MAX_OVERLAP_TOLS` times ``tol``,
+      at least :data:`MIN_DEEP_M`): InputError naming both (no pose estimate is that wrong).
+    """
     check_cell(instances, meshes, cell, tol=tol)
     check_coincident(instances, meshes, tol=tol, hulls=hulls)
     return overlap_warnings(instances, meshes, tol=tol, bvhs=bvhs, spent=spent, refuse=deep_limit(tol))

@@ -16,11 +16,15 @@ import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import InputError
 from ..config.inputs import read_input_bytes
+
+if TYPE_CHECKING:  # coal loads with the first octree
+    import coal
 
 #: largest cloud file read (bytes) and most points kept
 MAX_CLOUD_BYTES = 1 << 30
@@ -223,7 +227,7 @@ def check_resolution(resolution: float, where: str = "cloud.resolution") -> floa
     return r
 
 
-def cloud_octree(points: np.ndarray, resolution: float):
+def cloud_octree(points: np.ndarray, resolution: float) -> coal.OcTree:
     """A coal ``OcTree`` of ``points`` (N, 3) with leaf size ``resolution`` (m): each leaf holding a
     point is occupied (a solid cube of that size)."""
     import coal

@@ -1,24 +1,10 @@
 """Scenes: many parts at known poses in a cell, the input of ``grasplan pick`` (``grasplan.scene/1``).
 
 A scene file is YAML or JSON (JSON Schema: ``grasplan/schemas/scene.schema.json``; reference in
-docs/pick.md). Lengths are metres; a pose ``T`` is ``{xyz: [m], rpy_deg: [deg]}`` with R = Rz(yaw)
-Ry(pitch) Rx(roll), as in cells, or a 4x4 row-major matrix::
-
-    schema: grasplan.scene/1
-    cell: bin                      # a cell name or path: table, bin, obstacles
-    parts:
-      tless20: {mesh: parts/TLess20.stl, units: mm}          # optional grasps: path to a database
-    instances:                      # T_world_part of each part, e.g. from a pose estimator
-      - {id: a, part: tless20, T: {xyz: [0.40, 0.03, 0.03], rpy_deg: [0, 0, 30]}}
-      - {id: b, part: tless20, T: [[1,0,0,0.5],[0,1,0,0],[0,0,1,0.03],[0,0,0,1]]}
-    cloud: {path: scan.ply, resolution: 0.005}   # optional: points of what is not modelled
-
-Paths (meshes, databases, the cloud, a cell YAML) are relative to the scene file. A part named by a
-scene but not given a mesh is resolved by whoever plans it (``grasplan.Picker.add_part``, or the
-service's parts folder). :func:`load_scene` checks the structure and every value (unknown keys,
-an instance naming an unknown part, a non-rigid or non-finite T, duplicate ids) and raises
-:class:`~grasplan.errors.InputError` naming the field; geometric checks against the cell and the
-other instances need the meshes and are the planner's (:func:`grasplan.piles.checks.check_instances`).
+docs/pick.md; the format: :class:`Scene`). :func:`load_scene` checks the structure and every value
+and raises :class:`~grasplan.errors.InputError` naming the field; geometric checks against the cell
+and the other instances need the meshes and are the planner's
+(:func:`grasplan.piles.checks.check_instances`).
 """
 from __future__ import annotations
 
@@ -121,11 +107,27 @@ class CloudSpec:
 
 @dataclass(frozen=True, eq=False)
 class Scene:
-    """Instances of parts at poses in a cell (see the module docstring).
+    """Instances of parts at poses in a cell.
 
     ``cell``: a cell name or YAML path; ``parts``: the parts the file declares (possibly none, when
     the planner knows them by name); ``instances`` in file order; ``base``: the folder relative
-    paths are resolved against (the scene file's; None: the current folder)."""
+    paths are resolved against (the scene file's; None: the current folder).
+
+    In a file, lengths are metres; a pose ``T`` is ``{xyz: [m], rpy_deg: [deg]}`` with R = Rz(yaw)
+    Ry(pitch) Rx(roll), as in cells, or a 4x4 row-major matrix::
+
+        schema: grasplan.scene/1
+        cell: bin                      # a cell name or path: table, bin, obstacles
+        parts:
+          tless20: {mesh: parts/TLess20.stl, units: mm}          # optional grasps: path to a database
+        instances:                      # T_world_part of each part, e.g. from a pose estimator
+          - {id: a, part: tless20, T: {xyz: [0.40, 0.03, 0.03], rpy_deg: [0, 0, 30]}}
+          - {id: b, part: tless20, T: [[1,0,0,0.5],[0,1,0,0],[0,0,1,0.03],[0,0,0,1]]}
+        cloud: {path: scan.ply, resolution: 0.005}   # optional: points of what is not modelled
+
+    Paths (meshes, databases, the cloud, a cell YAML) are relative to the scene file. A part named by
+    a scene but not given a mesh is resolved by whoever plans it (``grasplan.Picker.add_part``, or the
+    service's parts folder)."""
 
     instances: tuple[Instance, ...]
     cell: str = DEFAULT_CELL
@@ -296,7 +298,8 @@ def scene_from_dict(doc: Any, *, source: str = "scene", base: Path | None = None
 def load_scene(source: str | os.PathLike | Mapping[str, Any] | Scene) -> Scene:
     """A :class:`Scene` from a scene file (YAML or JSON), a parsed document or a Scene.
 
-    Raises InputError (exit 3) naming the file and the field for anything malformed."""
+    Raises InputError (exit 3) naming the file and the field for anything malformed (unknown keys,
+    an instance naming an unknown part, a non-rigid or non-finite T, duplicate ids)."""
     if isinstance(source, Scene):
         return source
     if isinstance(source, Mapping):

@@ -3,8 +3,9 @@
 :func:`write_scene` writes YAML (``.yaml``, ``.yml``) or JSON (``.json``) by the suffix, atomically.
 Paths the scene names (part meshes, grasp databases, the cloud, a cell YAML) are written relative
 to the output file's folder when they share a folder other than the root with it (a scene and its
-meshes move together), else absolute; names (``cell: bin``) are kept. Floats are written exactly
-(YAML and JSON both round-trip Python floats), so :func:`grasplan.piles.scene_file.load_scene` reads back
+meshes move together), else absolute; names (``cell: bin``) are kept (a cell reference is a path
+or a name by :func:`grasplan.config.lookup.is_path_like`). Floats are written exactly (YAML and
+JSON both round-trip Python floats), so :func:`grasplan.piles.scene_file.load_scene` reads back
 the same poses bit for bit. YAML files may start with comment lines (``header``): what made the
 scene, the parts' sha256 and scale; readers ignore them.
 """
@@ -15,14 +16,11 @@ from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
 
+from ..config.lookup import is_path_like
 from ..errors import InputError
 from .scene_file import Scene
 
 SCENE_SUFFIXES = (".yaml", ".yml", ".json")
-
-
-def _looks_like_path(ref: str) -> bool:
-    return "/" in ref or os.sep in ref or ref.lower().endswith((".yaml", ".yml"))
 
 
 def relative_ref(path: str, folder: Path, *, base: Path | None = None) -> str:
@@ -47,7 +45,8 @@ def rebased(scene: Scene, folder: Path) -> Scene:
                   for p in scene.parts)
     cloud = None if scene.cloud is None else replace(scene.cloud, path=relative_ref(scene.cloud.path, folder,
                                                                                      base=scene.base))
-    cell = relative_ref(scene.cell, folder, base=scene.base) if _looks_like_path(scene.cell) else scene.cell
+    cell = relative_ref(scene.cell, folder, base=scene.base) if is_path_like(scene.cell, scene.base) \
+        else scene.cell
     return replace(scene, parts=parts, cloud=cloud, cell=cell, base=Path(os.path.abspath(folder)))
 
 

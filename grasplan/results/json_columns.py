@@ -2,21 +2,12 @@
 ``json.dumps`` writes for them, both from one definition of each field.
 
 A :class:`Record` (a JSON object per row) is a tuple of :class:`Field` (key, column, the rows that
-have it). Columns: :class:`Numbers` (int / float arrays of any row shape, rounded or not, null
-where a test says), :class:`Strings`, :class:`Bools`, :class:`Names` (codes into a tuple of
-names), :class:`Items` (a fixed-length JSON list of columns), a nested :class:`Record` (null where
-a test says) and :class:`Spread` (per-row objects whose keys join the enclosing record). Every
-column answers for rows ``rows`` (int indices into its arrays):
-
-* ``values(rows)``: the Python values; ``json.dumps`` of each is that row's JSON;
-* ``pieces(rows)``: the same text as pieces, str constants and (n,) object arrays of str, whose
-  row-wise concatenation is each row's JSON (no per-row Python work for numeric columns: each
-  distinct number is formatted once);
-* ``encodable(rows)``: whether json writes every value (finite numbers, strings it can order);
-  when not, the caller goes through ``values`` so json raises exactly what it would.
-
-:func:`join_rows` turns a record's pieces into the text of its rows. :mod:`grasplan.results.writer`
-builds the per-grasp record of the grasps/1 and plan/1 files from these.
+have it). Columns (:class:`Column`): :class:`Numbers` (int / float arrays of any row shape, rounded
+or not, null where a test says), :class:`Strings`, :class:`Bools`, :class:`Names` (codes into a
+tuple of names), :class:`Items` (a fixed-length JSON list of columns), a nested :class:`Record`
+(null where a test says) and :class:`Spread` (per-row objects whose keys join the enclosing
+record). :func:`join_rows` turns a record's pieces into the text of its rows.
+:mod:`grasplan.results.writer` builds the per-grasp record of the grasps/1 and plan/1 files from these.
 """
 from __future__ import annotations
 
@@ -35,6 +26,16 @@ RowMask = Callable[[np.ndarray], np.ndarray]
 
 
 class Column(Protocol):
+    """What every column answers for rows ``rows`` (int indices into its arrays):
+
+    * ``values(rows)``: the Python values; ``json.dumps`` of each is that row's JSON;
+    * ``pieces(rows)``: the same text as pieces, str constants and (n,) object arrays of str, whose
+      row-wise concatenation is each row's JSON (no per-row Python work for numeric columns: each
+      distinct number is formatted once);
+    * ``encodable(rows)``: whether json writes every value (finite numbers, strings it can order);
+      when not, the caller goes through ``values`` so json raises exactly what it would.
+    """
+
     def values(self, rows: np.ndarray) -> list[Any]: ...
 
     def pieces(self, rows: np.ndarray) -> list[Piece]: ...

@@ -1,11 +1,13 @@
 """Plans of every resting pose (``pose_index="all"``): one standalone plan file per stable pose
 (``OUT.pose<k>.json``) and ``OUT.json`` = the pose with the most planned grasps (ties: the more
 probable) plus a ``poses`` block with the counts per pose. ``grasplan plan --pose-index all`` and
-``grasplan batch --pose-index all`` both write them with :func:`write_pose_plans`.
+``grasplan batch --pose-index all`` both write them with :func:`write_pose_plans`, from one
+:class:`PosePlan` (a result or an error) per pose.
 """
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -20,6 +22,22 @@ if TYPE_CHECKING:
 
 #: statuses of a pose the gripper cannot take (the rest are collision-free)
 _COLLISIONS = (Status.COLLISION_PART.value, Status.COLLISION_TABLE.value, Status.COLLISION_OBSTACLE.value)
+
+
+@dataclass(frozen=True)
+class PosePlan:
+    """One resting pose's plan (``pose_index="all"``): the stable pose ``index`` (0 = most probable),
+    its ``probability`` and either its ``result`` or, when its checks before planning failed, the
+    ``error`` message: exactly one of the two."""
+
+    index: int
+    probability: float
+    result: PlanResult | None = None
+    error: str | None = None
+
+    def __post_init__(self) -> None:
+        if (self.result is None) == (self.error is None):
+            raise ValueError(f"PosePlan of pose {self.index}: give a result or an error, exactly one")
 
 
 @dataclass(frozen=True)
@@ -50,18 +68,17 @@ def pose_file(output: Path, k: int) -> Path:
     return output.with_name(f"{output.stem}.pose{k}{output.suffix}")
 
 
-def write_pose_plans(runs: list[tuple[int, float, PlanResult | str]], output: str | os.PathLike, *,
-                     min_probability: float) -> PosePlans:
-    """Write the plans of :func:`grasplan.motion.planning.plan_poses` (``[(pose_index, probability,
-    PlanResult or the error message)]``): ``OUT.pose<k>.json`` per planned pose, then ``OUT.json``
-    (not when no pose could be planned at all: ``result`` None)."""
+def write_pose_plans(runs: Sequence[PosePlan], output: str | os.PathLike, *, min_probability: float) -> PosePlans:
+    """Write the plans of :func:`grasplan.motion.planning.plan_poses`: ``OUT.pose<k>.json`` per
+    planned pose, then ``OUT.json`` (not when no pose could be planned at all: ``result`` None)."""
     output = Path(output)
     block: list[dict[str, Any]] = []
     best: tuple[int, int, PlanResult] | None = None
-    for k, pr, res in runs:
-        if isinstance(res, str):
+    for run in runs:
+        k, pr, res = run.index, run.probability, run.result
+        if res is None:
             block.append({"pose_index": k, "probability": pr, "planned": 0, "collision_free": 0, "file": None,
-                          "error": res})
+                          "error": run.error})
             continue
         f = pose_file(output, k)
         res.write(f)

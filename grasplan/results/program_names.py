@@ -1,27 +1,7 @@
-"""What a KRL / RAPID program may be called: the one rule every program name passes, from the
-``program_name`` option (Python API, the service's ``/export``) and from the output file's stem
-(``grasplan export --format krl|rapid -o NAME.src``).
-
-A program name is a letter, then letters, digits or ``_``, at most :data:`MAX_LENGTH` characters;
-it is not a reserved word of KRL or of RAPID, and not a name the exported program itself declares
-or calls (its targets, tool and base data, gripper routine, the KUKA ``BAS`` program). Both
-languages ignore case, so neither does the rule. One rule for both languages: the option is shared
-by the two formats (``grasplan.results.export_registry.ExportOptions``), and a name one controller refuses
-is a poor name for the other.
-
-A refused name gets a suggestion that passes: the name with ``_1`` appended (``END`` -> ``END_1``),
-shortened to fit when needed.
-
-Sources (the lists below are theirs, upper-cased):
-
-- KRL (KUKA System Software 8.x): KUKA "Quickguide KRL-Syntax, KSS Release 8.x" (2012): names have
-  at most 24 characters, letters, digits, ``_`` and ``$``, do not begin with a digit and are not a
-  keyword. Keywords: the KRL reference's keyword list (as in the grammars-v4 ``krl.g4`` lexer) plus
-  the KSS 8 spline, trigger and interrupt keywords (as highlighted by krl-for-vim
-  ``syntax/krl.vim``).
-- RAPID (ABB RobotWare 6/7): ABB "Technical reference manual - RAPID kernel" (3HAC050946-001),
-  "Reserved words" (identifiers at most 32 characters); the same list as the token set of the
-  intellij-rapid grammar (``Rapid.bnf``).
+"""What a KRL / RAPID program may be called: the one rule every program name passes
+(:func:`program_name_problem`), from the ``program_name`` option (Python API, the service's
+``/export``) and from the output file's stem (``grasplan export --format krl|rapid -o NAME.src``),
+and a suggestion for a refused name (:func:`suggest_program_name`).
 
 This module imports nothing from grasplan but its errors: the export registry (below the result
 module) and the service's body checks call it.
@@ -36,7 +16,11 @@ MAX_LENGTH = 24
 #: the form of a program name
 PROGRAM_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,%d}" % (MAX_LENGTH - 1))
 
-#: KRL keywords (KUKA System Software 8.x; see the module docstring)
+#: KRL keywords (KUKA System Software 8.x), upper-cased. Source: KUKA "Quickguide KRL-Syntax, KSS
+#: Release 8.x" (2012): names have at most 24 characters, letters, digits, ``_`` and ``$``, do not
+#: begin with a digit and are not a keyword. Keywords: the KRL reference's keyword list (as in the
+#: grammars-v4 ``krl.g4`` lexer) plus the KSS 8 spline, trigger and interrupt keywords (as
+#: highlighted by krl-for-vim ``syntax/krl.vim``)
 KRL_RESERVED = frozenset("""
 AND ANIN ANOUT ASYCANCEL ASYCONT ASYPTP ASYSTOP B_AND B_EXOR B_NOT B_OR BOOL BRAKE BRAKE_F C_DIS
 C_ORI C_PTP C_SPL C_VEL CASE CAST_FROM CAST_TO CHANNEL CHAR CIRC CIRC_REL CONFIRM CONST CONST_VEL
@@ -48,7 +32,9 @@ SCIRC_REL SEC SIGNAL SLIN SLIN_REL SPL SPLINE SPTP SPTP_REL STEP STOP STRUC SWIT
 TO TRIGGER TRUE UNTIL WAIT WHEN WHILE WITH
 """.split())
 
-#: RAPID reserved words (ABB RobotWare 6/7; see the module docstring)
+#: RAPID reserved words (ABB RobotWare 6/7), upper-cased. Source: ABB "Technical reference manual -
+#: RAPID kernel" (3HAC050946-001), "Reserved words" (identifiers at most 32 characters); the same
+#: list as the token set of the intellij-rapid grammar (``Rapid.bnf``)
 RAPID_RESERVED = frozenset("""
 ALIAS AND BACKWARD CASE CONNECT CONST DEFAULT DIV DO ELSE ELSEIF ENDFOR ENDFUNC ENDIF ENDMODULE
 ENDPROC ENDRECORD ENDTEST ENDTRAP ENDWHILE ERROR EXIT FALSE FOR FROM FUNC GOTO IF INOUT LOCAL MOD
@@ -78,7 +64,14 @@ _RAPID = "RAPID (ABB RobotWare 6/7)"
 
 def program_name_problem(name: object) -> str | None:
     """Why ``name`` cannot name a KRL/RAPID program (``None`` when it can), one clause for a
-    message: what is wrong, in the user's spelling."""
+    message: what is wrong, in the user's spelling.
+
+    A program name is a letter, then letters, digits or ``_``, at most :data:`MAX_LENGTH` characters;
+    it is not a reserved word of KRL or of RAPID, and not a name the exported program itself declares
+    or calls (its targets, tool and base data, gripper routine, the KUKA ``BAS`` program). Both
+    languages ignore case, so neither does the rule. One rule for both languages: the option is
+    shared by the two formats (``grasplan.results.export_registry.ExportOptions``), and a name one
+    controller refuses is a poor name for the other."""
     if not isinstance(name, str):
         return f"expected a string, got {type(name).__name__}"
     if not PROGRAM_NAME.fullmatch(name):

@@ -2,18 +2,7 @@
 
 Loaded from a robot YAML by :func:`grasplan.robot.description.load_robot` (once per name). Solvers (IK,
 collision scenes) own their scratch ``pin.Data``; :meth:`Robot.fk` and :meth:`Robot.link_poses`
-use a private per-thread ``Data`` for convenience.
-
-Frames
-------
-* The Pinocchio model's universe is the robot's URDF root link (``base_link`` for the UR5,
-  ``panda_link0`` for the Panda). ``T_world_base`` places that root link in the world
-  (identity for every shipped robot), so ``fk(q) = T_world_base @ T_base_tool(q)``.
-* Extra fixed frames listed in the YAML's ``frames`` are added to the model at load time. The
-  UR5 URDF of example-robot-data already defines ``tool0`` and ``base`` as ``ur_description`` does
-  for the UR controller: ``tool0`` = ``wrist_3_link``
-  translated (0, 0.0823, 0) and rotated -90 deg about x (z along the flange normal), ``base`` =
-  ``base_link`` rotated 180 deg about z (the controller's base frame, used for URScript poses).
+use a private per-thread ``Data`` for convenience. The frames: :class:`Robot`.
 """
 from __future__ import annotations
 
@@ -50,6 +39,17 @@ class Robot:
     ``T_world_base`` (4, 4). ``disabled_pairs`` holds sorted (link, link) name pairs from the
     SRDF. ``mounted_links`` are exempt from table checks; ``kind`` names the robot's IK family
     (:mod:`grasplan.robot.ik.registry`: ``"ur"`` or ``"generic"`` today).
+
+    Frames:
+
+    * The Pinocchio model's universe is the robot's URDF root link (``base_link`` for the UR5,
+      ``panda_link0`` for the Panda). ``T_world_base`` places that root link in the world
+      (identity for every shipped robot), so ``fk(q) = T_world_base @ T_base_tool(q)``.
+    * Extra fixed frames listed in the YAML's ``frames`` are added to the model at load time. The
+      UR5 URDF of example-robot-data already defines ``tool0`` and ``base`` as ``ur_description`` does
+      for the UR controller: ``tool0`` = ``wrist_3_link`` translated (0, 0.0823, 0) and rotated
+      -90 deg about x (z along the flange normal), ``base`` = ``base_link`` rotated 180 deg about z
+      (the controller's base frame, used for URScript poses).
     """
 
     name: str

@@ -1,15 +1,6 @@
-"""JSON Schemas (draft 2020-12) of every JSON file grasplan writes, shipped with the package.
-
-=============================== ==================================== ===============================
-``doc["schema"]``               file                                 written by
-=============================== ==================================== ===============================
-``grasplan.candidates/1``       ``candidates.schema.json``           ``grasplan candidates``
-``grasplan.grasps/1``           ``grasps.schema.json``               ``grasplan grasps``
-``grasplan.plan/1``             ``plan.schema.json``                 ``grasplan plan``
-``grasplan.joint_trajectory/1`` ``joint_trajectory.schema.json``     ``grasplan export --format joint-trajectory``
-``grasplan.picks/1``            ``picks.schema.json``                ``grasplan pick``
-``grasplan.scene/1``            ``scene.schema.json``                ``grasplan scene drop`` (read by ``grasplan pick``)
-=============================== ==================================== ===============================
+"""JSON Schemas (draft 2020-12) of every JSON file grasplan writes, shipped with the package
+(:data:`SCHEMA_FILES`: each document's ``"schema"`` field, its schema file and the command that
+writes it).
 
 >>> from grasplan.schemas import validate
 >>> validate(json.load(open("plan.json")))        # doctest: +SKIP
@@ -30,12 +21,12 @@ from ..errors import InputError
 
 #: schema name (the ``"schema"`` field of a document) -> schema file in this package
 SCHEMA_FILES: dict[str, str] = {
-    "grasplan.candidates/1": "candidates.schema.json",
-    "grasplan.grasps/1": "grasps.schema.json",
-    "grasplan.plan/1": "plan.schema.json",
-    "grasplan.joint_trajectory/1": "joint_trajectory.schema.json",
-    "grasplan.picks/1": "picks.schema.json",
-    "grasplan.scene/1": "scene.schema.json",
+    "grasplan.candidates/1": "candidates.schema.json",                # written by grasplan candidates
+    "grasplan.grasps/1": "grasps.schema.json",                        # grasplan grasps
+    "grasplan.plan/1": "plan.schema.json",                            # grasplan plan
+    "grasplan.joint_trajectory/1": "joint_trajectory.schema.json",    # grasplan export --format joint-trajectory
+    "grasplan.picks/1": "picks.schema.json",                          # grasplan pick
+    "grasplan.scene/1": "scene.schema.json",                          # grasplan scene drop (read by grasplan pick)
 }
 
 

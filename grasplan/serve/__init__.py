@@ -1,19 +1,13 @@
-"""``grasplan serve``: an HTTP JSON service holding a warm planner (docs/serve.md).
+"""``grasplan serve``: an HTTP JSON service holding a warm planner (docs/serve.md): ``POST /pick``
+(a ``grasplan.scene/1`` document -> ``grasplan.picks/1``), ``POST /plan`` (a part by name ->
+``grasplan.plan/1``), ``POST /export`` (a plan -> program text), ``GET /health``, ``/robots``,
+``/grippers``, ``/parts``; OpenAPI at ``/docs``.
 
-A cell's vision PC (HALCON, C++, a ROS node) asks for picks, plans and robot programs over HTTP:
-``POST /pick`` (a ``grasplan.scene/1`` document -> ``grasplan.picks/1``), ``POST /plan`` (a part
-by name -> ``grasplan.plan/1``), ``POST /export`` (a plan -> program text), ``GET /health``,
-``/robots``, ``/grippers``, ``/parts``; OpenAPI at ``/docs``.
-
-Modules: :mod:`~grasplan.serve.config` (settings), :mod:`~grasplan.serve.state` (the warm robot,
-gripper, cell, parts and picker), :mod:`~grasplan.serve.bodies` (reading request bodies),
-:mod:`~grasplan.serve.handlers` (the work), :mod:`~grasplan.serve.jobs` (one request at a time on
-a thread, time limits), :mod:`~grasplan.serve.pool` (``--workers N``: N planner processes, each
-request to a free one), :mod:`~grasplan.serve.guard` (token, body limit), :mod:`~grasplan.serve.app`
-(FastAPI), :mod:`~grasplan.serve.protocol` (HTTP connections: timeouts, connection caps, malformed
-HTTP), :mod:`~grasplan.serve.run` (uvicorn, signals). FastAPI and uvicorn are the optional
-``serve`` extra: only ``app``, ``protocol``, ``run`` and ``loopback`` import them (``run`` and
-``loopback`` when called).
+Modules: ``config`` (settings), ``state`` (the warm setup, parts and picker), ``bodies`` (request
+bodies), ``handlers`` (the work), ``jobs`` (one request at a time on a thread, time limits),
+``pool`` (``--workers N`` planner processes), ``guard`` (token, body limit), ``app`` (FastAPI),
+``protocol`` (HTTP connections), ``run`` (uvicorn, signals). FastAPI and uvicorn are the optional
+``serve`` extra: only ``app``, ``protocol``, ``run`` and ``loopback`` import them.
 
     from grasplan.serve import ServeConfig, create_app
     app = create_app(ServeConfig(parts_dir="parts", cell="bin"))    # any ASGI server runs it

@@ -19,7 +19,7 @@ import uuid
 import zlib
 from collections.abc import AsyncIterator, Callable
 from contextlib import asynccontextmanager
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 from fastapi import FastAPI, Request
@@ -123,6 +123,19 @@ def gunzip(data: bytes, limit: int) -> bytes:
     return out
 
 
+@dataclass(frozen=True)
+class _Serving:
+    """What the routes answer from: the settings, the warm state of this process, the planning
+    thread's queue, the planner processes (None: plans run on the planning thread) and whether
+    ``POST /pick`` can be served."""
+
+    config: ServeConfig
+    service: Service
+    jobs: JobQueue
+    pool: PlannerPool | None
+    can_pick: bool
+
+
 def create_app(config: ServeConfig, *, service: Service | None = None,
                progress: Callable[[str], None] | None = None) -> FastAPI:
     """The service's app (OpenAPI at ``/docs``), behind the token and body-size guard.
@@ -135,30 +148,54 @@ def create_app(config: ServeConfig, *, service: Service | None = None,
     seconds to minutes, reported on ``progress``; a plan past the time limit is stopped with its
     process; stopped when the app's lifespan ends). Raises InputError/ConfigError for a
     configuration that cannot start."""
+    serving = _start(config, service, progress or log.info)
+    api = _application(serving)
+    _add_error_handlers(api)
+    _add_info_routes(api, serving)
+    _add_planning_routes(api, serving)
+    _answer_head(api)
+    return api
+
+
+def _start(config: ServeConfig, service: Service | None, progress: Callable[[str], None]) -> _Serving:
+    """The warm state: ``service`` with this config's limits, or one started here (robot, gripper
+    and cell resolved once, by this process) and the planner processes, which load the very files
+    it resolved them to."""
     pool: PlannerPool | None = None
     if service is not None:
         service = service.with_config(config)
     else:  # planner processes; this one parses, checks and answers
         service = Service.start(replace(config, databases=False))
-        pool = PlannerPool(config, config.workers, progress or log.info)
+        pool = PlannerPool(service.resolved_config(config), config.workers, progress)
     jobs = JobQueue(time_limit_s=config.time_limit_s, max_queue=config.max_queue)
     can_pick = service.picker is not None if pool is None else pool.picks
+    return _Serving(config, service, jobs, pool, can_pick)
+
+
+def _application(serving: _Serving) -> FastAPI:
+    """The FastAPI app holding ``serving`` (``app.state``), its lifespan (the queue and the planner
+    processes stopped at its end) and the token and body-size guard."""
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         yield
-        jobs.close()
-        if pool is not None:
-            pool.close()
+        serving.jobs.close()
+        if serving.pool is not None:
+            serving.pool.close()
 
     api = FastAPI(title="grasplan", version=__version__, lifespan=lifespan,
                   description="Grasps, plans and picks for the parts in this service's parts folder "
                               "(docs/serve.md). Bodies are JSON; errors are {error, detail}.")
-    api.state.config = config
-    api.state.service = service
-    api.state.jobs = jobs
-    api.state.pool = pool
-    api.add_middleware(Guard, token=config.token, max_body=config.max_body)
+    api.state.config = serving.config
+    api.state.service = serving.service
+    api.state.jobs = serving.jobs
+    api.state.pool = serving.pool
+    api.add_middleware(Guard, token=serving.config.token, max_body=serving.config.max_body)
+    return api
+
+
+def _add_error_handlers(api: FastAPI) -> None:
+    """404/405 as ``{error, detail}``; any exception outside the planning routes a logged 500."""
 
     @api.exception_handler(StarletteHTTPException)
     async def http_error(request: Request, exc: StarletteHTTPException) -> JSONResponse:
@@ -173,63 +210,14 @@ def create_app(config: ServeConfig, *, service: Service | None = None,
         log.exception("%s %s: internal error", request.method, request.url.path)
         return error(500, "internal", f"internal error ({type(exc).__name__}); it is logged")
 
-    async def run(request: Request, fn: Callable[[Service, Any], Any], what: str) -> Any:
-        """Body -> JSON document -> ``fn(service, doc)`` on the planning thread; errors mapped to
-        responses (the caller gets either the result or a Response)."""
-        rid = uuid.uuid4().hex[:12]
-        problem = media_type_problem(request)
-        if problem is not None:
-            return error(415, "unsupported_media_type", problem)
-        try:
-            body = await read_body(request, config.max_body)
-            doc = await asyncio.to_thread(parse_json, body) if len(body) > _BIG_BODY else parse_json(body)
-            if what == "pick" and not can_pick:
-                return error(503, "unavailable", "this service has no picker (started without grasp databases, or "
-                                                 "this build has no grasplan.pick); POST /plan still works")
-            if pool is not None:
-                return await pool.run(what, doc, what=what)
-            return await jobs.run(fn, service, doc, what=what)
-        except ClientDisconnect:  # the client hung up (or the connection layer answered and closed it)
-            if CLOSED_KEY not in request.scope:
-                log.info("%s %s [%s]: the client closed the connection before its body arrived", request.method,
-                         request.url.path, rid)
-            return error(400, "bad_request", "the connection closed before the body arrived")
-        except asyncio.CancelledError:  # the service stopped before this request could finish
-            log.info("%s %s [%s]: cancelled: the service is stopping", request.method, request.url.path, rid)
-            return error(503, "unavailable", "the service is stopping; retry on another instance")
-        except TooLarge as exc:
-            return error(413, "too_large", str(exc))
-        except Unsupported as exc:
-            return error(415, "unsupported_encoding", str(exc))
-        except BadRequest as exc:
-            return error(400, "bad_request", str(exc))
-        except InputError as exc:
-            return error(422, "invalid", str(exc))
-        except GrasplanError as exc:  # an impossible request (nothing usable), not a bug
-            return error(422, "unprocessable", str(exc))
-        except Busy as exc:
-            return error(503, "busy", str(exc))
-        except TimedOut as exc:
-            return error(504, "time_limit", str(exc))
-        except PlannerError as exc:  # a bug in a planner process: its traceback to the log
-            log.error("%s %s [%s]: internal error in a planner process:\n%s", request.method, request.url.path, rid,
-                      exc.traceback)
-            return error(500, "internal", f"internal error ({exc.type_name}) [{rid}]; it is logged and the "
-                                          "service keeps serving; please report it with the request")
-        except MemoryError:
-            log.error("%s %s [%s]: out of memory", request.method, request.url.path, rid)
-            return error(507, "out_of_memory", f"the request needs more memory than this machine has [{rid}]")
-        except Exception as exc:  # a bug: one line to the client, the traceback in the log
-            log.exception("%s %s [%s]: internal error", request.method, request.url.path, rid)
-            return error(500, "internal", f"internal error ({type(exc).__name__}) [{rid}]; it is logged and the "
-                                          "service keeps serving; please report it with the request")
 
-    def json_bytes(out: Any) -> Response:
-        return out if isinstance(out, Response) else Response(out, media_type="application/json")
+def _add_info_routes(api: FastAPI, serving: _Serving) -> None:
+    """``GET /health``, ``/robots``, ``/grippers``, ``/parts``: answered by this process."""
+    service, jobs, pool = serving.service, serving.jobs, serving.pool
 
     @api.get("/health", summary="Liveness: status, robot, gripper, cell, parts, queue, memory (no token needed)")
     async def health() -> dict[str, Any]:
-        return {"status": "ok", "version": __version__, **service.info(), "pick": can_pick,
+        return {"status": "ok", "version": __version__, **service.info(), "pick": serving.can_pick,
                 "queued": jobs.pending if pool is None else pool.pending, "planners": 1 if pool is None else pool.n,
                 "rss_mib": {"http": process_rss_mib(None),
                             "planners": [] if pool is None else [process_rss_mib(p) for p in pool.pids()]}}
@@ -246,22 +234,29 @@ def create_app(config: ServeConfig, *, service: Service | None = None,
     async def parts() -> dict[str, Any]:
         return {"parts": [e.to_json() for e in service.parts.values()]}
 
+
+def _add_planning_routes(api: FastAPI, serving: _Serving) -> None:
+    """``POST /plan``, ``/pick`` and ``/export``: each body run by :func:`_run`."""
+
+    def json_bytes(out: Any) -> Response:
+        return out if isinstance(out, Response) else Response(out, media_type="application/json")
+
     @api.post("/plan", summary="Plan grasps of a part: grasplan.plan/1", openapi_extra=plan_body(),
               responses={200: {"description": "A grasplan.plan/1 document"}})
     async def plan(request: Request) -> Response:
-        return json_bytes(await run(request, handlers.plan, "plan"))
+        return json_bytes(await _run(serving, request, handlers.plan, "plan"))
 
     @api.post("/pick", summary="Plan picks from a scene: grasplan.picks/1", openapi_extra=pick_body(),
               responses={200: {"description": "A grasplan.picks/1 document"}})
     async def pick(request: Request) -> Response:
-        return json_bytes(await run(request, handlers.pick, "pick"))
+        return json_bytes(await _run(serving, request, handlers.pick, "pick"))
 
     @api.post("/export", summary="A robot program of a plan: {format, extension, text, files}",
               openapi_extra=export_body(),
               responses={200: {"description": "JSON {format, extension, text, files}; with 'Accept: text/plain' "
                                               "the program text alone (single-file formats)"}})
     async def export(request: Request) -> Response:
-        out = await run(request, handlers.export, "export")
+        out = await _run(serving, request, handlers.export, "export")
         if isinstance(out, Response):
             return out
         if _wants_text(request):
@@ -271,11 +266,67 @@ def create_app(config: ServeConfig, *, service: Service | None = None,
             return PlainTextResponse(out["text"])
         return JSONResponse(out)
 
-    api.openapi()  # the description is made (and kept) before HEAD joins the GET routes: it lists GET
+
+def _answer_head(api: FastAPI) -> None:
+    """Every GET route answers HEAD too (the OpenAPI description, made first, lists GET only)."""
+    api.openapi()
     for route in api.routes:
         if isinstance(route, APIRoute) and route.methods and "GET" in route.methods:
             route.methods.add("HEAD")
-    return api
+
+
+async def _run(serving: _Serving, request: Request, fn: Callable[[Service, Any], Any], what: str) -> Any:
+    """Body -> JSON document -> ``fn(service, doc)`` on the planning thread or a planner process;
+    errors mapped to responses (the caller gets either the result or a Response)."""
+    rid = uuid.uuid4().hex[:12]
+    problem = media_type_problem(request)
+    if problem is not None:
+        return error(415, "unsupported_media_type", problem)
+    try:
+        body = await read_body(request, serving.config.max_body)
+        doc = await asyncio.to_thread(parse_json, body) if len(body) > _BIG_BODY else parse_json(body)
+        if what == "pick" and not serving.can_pick:
+            return error(503, "unavailable", "this service has no picker (started without grasp databases, or "
+                                             "this build has no grasplan.pick); POST /plan still works")
+        if serving.pool is not None:
+            return await serving.pool.run(what, doc, what=what)
+        return await serving.jobs.run(fn, serving.service, doc, what=what)
+    except ClientDisconnect:  # the client hung up (or the connection layer answered and closed it)
+        if CLOSED_KEY not in request.scope:
+            log.info("%s %s [%s]: the client closed the connection before its body arrived", request.method,
+                     request.url.path, rid)
+        return error(400, "bad_request", "the connection closed before the body arrived")
+    except asyncio.CancelledError:  # the service stopped before this request could finish
+        log.info("%s %s [%s]: cancelled: the service is stopping", request.method, request.url.path, rid)
+        return error(503, "unavailable", "the service is stopping; retry on another instance")
+    except MemoryError:
+        log.error("%s %s [%s]: out of memory", request.method, request.url.path, rid)
+        return error(507, "out_of_memory", f"the request needs more memory than this machine has [{rid}]")
+    except Exception as exc:  # noqa: BLE001 - every kind is answered (and a bug logged) by _failure
+        return _failure(request, rid, exc)
+
+
+#: the exceptions a planning request ends with that are answers, not bugs: (class, status, kind)
+_ANSWERS: tuple[tuple[type[BaseException], int, str], ...] = (
+    (TooLarge, 413, "too_large"), (Unsupported, 415, "unsupported_encoding"), (BadRequest, 400, "bad_request"),
+    (InputError, 422, "invalid"), (GrasplanError, 422, "unprocessable"),  # an impossible request, not a bug
+    (Busy, 503, "busy"), (TimedOut, 504, "time_limit"))
+
+
+def _failure(request: Request, rid: str, exc: Exception) -> JSONResponse:
+    """The response for a planning request that raised ``exc`` (after read and parse)."""
+    for cls, status, kind in _ANSWERS:
+        if isinstance(exc, cls):
+            return error(status, kind, str(exc))
+    if isinstance(exc, PlannerError):  # a bug in a planner process: its traceback to the log
+        log.error("%s %s [%s]: internal error in a planner process:\n%s", request.method, request.url.path, rid,
+                  exc.traceback)
+        return error(500, "internal", f"internal error ({exc.type_name}) [{rid}]; it is logged and the "
+                                      "service keeps serving; please report it with the request")
+    # a bug: one line to the client, the traceback in the log
+    log.exception("%s %s [%s]: internal error", request.method, request.url.path, rid)
+    return error(500, "internal", f"internal error ({type(exc).__name__}) [{rid}]; it is logged and the "
+                                  "service keeps serving; please report it with the request")
 
 
 def _wants_text(request: Request) -> bool:

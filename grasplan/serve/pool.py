@@ -1,26 +1,16 @@
 """``--workers N``: N planner processes (one or more) behind the one HTTP process, each request
-handed to a free planner.
+handed to a free planner (reference: docs/serve.md, "Planners").
 
-The HTTP process (uvicorn's event loop) reads, checks and parses every body (401, 413, 400 at once)
-and answers ``/health``, ``/parts``, ``/robots``, ``/grippers`` itself; ``/plan``, ``/pick`` and
-``/export`` documents go to the first free planner process, which validates (422), plans and
-serialises them with its own warm :class:`~grasplan.serve.state.Service` (robot, parts, grasp
-databases, picker) and sends the response body back over a pipe. Requests wait in arrival order
-for a free planner (:class:`PlannerPool`), so 4 clients on 2 planners keep both busy whichever
-connection they came on.
-
-Per request, as on a planning thread (:class:`grasplan.serve.jobs.JobQueue`): the time limit counts from
-its arrival: still waiting for a planner when it passes -> :class:`~grasplan.serve.jobs.Busy`
-(503); planning past it -> :class:`~grasplan.serve.jobs.TimedOut` (504), and the planner process
-is killed and a fresh one started in its place (a process, unlike a thread, can be stopped
-half-way; the replacement loads the databases from the cache in a few seconds, meanwhile the other
-planners serve). More than ``max_queue`` requests waiting -> 503 at once. An exception in a planner
-is sent back as its kind (refusal 422, impossible request 422, out of memory 507, bug 500 with the
-traceback logged here); a planner that dies (a crash, the kernel's OOM killer) gives that request a
-500 and is replaced. The processes are fresh interpreters (nothing inherited from the HTTP process,
-which they talk to over a socket pair); they ignore Ctrl-C and SIGTERM (sent to a whole process
-group, e.g. by systemd: the HTTP process finishes the requests in progress, then stops them) and
-exit when its end of the socket closes.
+The HTTP process reads, checks and parses every body and answers ``/health``, ``/parts``,
+``/robots``, ``/grippers`` itself; ``/plan``, ``/pick`` and ``/export`` documents go, in arrival
+order, to the first free planner process (:class:`PlannerPool`), which validates, plans and
+serialises them with its own warm :class:`~grasplan.serve.state.Service` (started from the files
+the HTTP process resolved the robot, gripper and cell to) and sends the body back over a socket
+pair. The time limit counts from a request's arrival: still waiting past it -> 503
+(:class:`~grasplan.serve.jobs.Busy`); planning past it -> 504 (:class:`~grasplan.serve.jobs.TimedOut`),
+the planner killed and replaced. A planner's exception comes back as its kind (422, 507, a bug
+500); one that dies is replaced. Planners are fresh interpreters that ignore Ctrl-C and SIGTERM
+(the HTTP process finishes the requests in progress, then stops them) and exit when their socket closes.
 """
 from __future__ import annotations
 

@@ -1,35 +1,15 @@
 """The HTTP connections of ``grasplan serve``: uvicorn's h11 protocol with the limits a service left
-running needs (docs/serve.md, "Connections"). uvicorn is given this class (``http=``), whichever
-HTTP parsers are installed, so the behaviour below does not depend on them.
-
-- **Header timeout** (``--header-timeout``): a request's headers must be complete within this many
-  seconds of the connection's opening or of its previous response. A connection that sent nothing
-  (or nothing since its last response: an idle keep-alive connection) is closed; one that began a
-  request is answered 408 and closed. Counted from the start, not reset by each byte, so sending a
-  header one byte at a time does not keep a connection.
-- **Body timeout** (``--body-timeout``): a request body may pause at most this long between two
-  arrivals, and must arrive whole within the request's time limit (``--time-limit``); else 408 and
-  the connection is closed.
-- **Connections per client address** (``--max-connections-per-client``) **and in all**
-  (``--max-connections``): a new connection beyond either replaces the oldest idle connection (no
-  request in progress: nothing sent yet, headers still arriving, or between requests) of that
-  address (resp. of all); when every one is busy with a request, the new one is answered 503 and
-  closed. Idle sockets therefore never shut requests out.
-- **Malformed HTTP**: what h11 refuses (a bad request line or header, a chunk size that is not hex,
-  a missing CRLF after a chunk, trailer garbage) is answered 400 ``{"error": "bad_request"}``
-  naming the problem; headers (or a chunk-size line) over :data:`MAX_HEADER_BYTES` 431; a chunk
-  that leaves more than :data:`MAX_CHUNK` bytes to come (more than any body may have) 400, and
-  more than ``--max-body`` 413, before its data is awaited. The connection is closed after such
-  an answer. What h11 cannot tell from a slow body (a chunk size line ended by LF alone, a chunk
-  shorter than its size) ends at the body timeout: 408.
-- A response sent before the request's body was read (401, 413, 415, ...) closes the connection,
-  after a short linger (:data:`LINGER_S`) in which further body bytes are discarded, so that the
-  client reads the response instead of a reset.
-
-Each of these is one log line on ``grasplan.serve``, never a traceback: at most one info line per
-kind of answer (408, 400, ...) and one warning about refused connections per :data:`LOG_EVERY_S`,
-with the count of those not logged since (a flood of bad connections does not flood the log). Nothing here is FastAPI's: the limits hold for every
-route and before any route runs.
+running needs (reference: docs/serve.md, "Connections"). uvicorn is given this class (``http=``),
+whichever HTTP parsers are installed. It enforces: the header timeout (a request's headers complete
+within ``--header-timeout`` of the connection's opening or previous response, not reset by each
+byte: idle connections are closed, begun requests answered 408); the body timeout (a body pauses
+at most ``--body-timeout`` and arrives within ``--time-limit``, else 408); connection caps per
+client address and in all (a new connection replaces the oldest idle one, or is answered 503 when
+every one is busy); malformed HTTP (400; over-long headers 431; a chunk beyond any body 400, beyond
+``--max-body`` 413); a response sent before the body was read closes the connection after a short
+linger (:data:`LINGER_S`) discarding further body bytes. Each is one log line on
+``grasplan.serve``, never a traceback, rate-limited per kind (:data:`LOG_EVERY_S`). Nothing here is
+FastAPI's: the limits hold for every route and before any route runs.
 """
 from __future__ import annotations
 

@@ -12,14 +12,17 @@ from __future__ import annotations
 import importlib.util
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..errors import InputError
 from ..part.meshfile import SUPPORTED_SUFFIXES
 from ..piles.scene_file import MAX_PARTS, NAME_RE, NAME_RULE
 from .config import ServeConfig
+
+if TYPE_CHECKING:
+    from ..setup.resolved import Setup
 
 #: a part's grasp database kept next to its mesh (``grasplan database PART -o NAME.graspdb.npz``)
 SIDE_DB_SUFFIX = ".graspdb.npz"
@@ -82,15 +85,13 @@ def picker_available() -> bool:
 
 
 class Service:
-    """The warm state of one worker: see the module docstring. Built by :meth:`start`."""
+    """The warm state of one worker: see the module docstring. Built by :meth:`start`; ``setup``:
+    the robot, gripper and cell (:class:`~grasplan.setup.resolved.Setup`), resolved once."""
 
-    def __init__(self, config: ServeConfig, *, robot: Any, gripper: Any, cell: Any,
-                 parts: dict[str, PartEntry], picker: Any | None, started_s: float,
-                 available: dict[str, list[str]] | None = None):
+    def __init__(self, config: ServeConfig, *, setup: Setup, parts: dict[str, PartEntry], picker: Any | None,
+                 started_s: float, available: dict[str, list[str]] | None = None):
         self.config = config
-        self.robot = robot
-        self.gripper = gripper
-        self.cell = cell
+        self.setup = setup
         self.parts = parts
         self.picker = picker
         self.started_s = started_s
@@ -98,22 +99,37 @@ class Service:
         self.available = available or {"robots": [], "grippers": []}
         self._by_sha = {(e.part.sha256): e for e in parts.values()}
 
+    @property
+    def robot(self) -> Any:
+        """The :class:`~grasplan.robot.model.Robot` every plan and pick is for."""
+        return self.setup.robot
+
+    @property
+    def gripper(self) -> Any:
+        """The :class:`~grasplan.gripper.model.Gripper` every plan and pick uses."""
+        return self.setup.gripper
+
+    @property
+    def cell(self) -> Any:
+        """The :class:`~grasplan.cell.model.Cell` every plan and pick is in."""
+        return self.setup.cell
+
     @classmethod
     def start(cls, config: ServeConfig, progress: Callable[[str], None] = lambda s: None) -> Service:
         """Load the robot, gripper, cell and every part; with ``config.databases`` also each part's
         grasp database and the picker. InputError/ConfigError (exit 3) for anything unusable."""
-        from ..cell.model import load_cell
         from ..config.lookup import use_config_dirs
-        from ..gripper.load import available_grippers, load_gripper
+        from ..gripper.load import available_grippers
         from ..part.mesh import load_part
-        from ..robot.description import available_robots, load_robot
+        from ..robot.description import available_robots
+        from ..setup.resolved import build_setup
 
         t0 = time.perf_counter()
         with use_config_dirs(*config.config_dirs):
-            gripper = load_gripper(config.gripper)
-            cell = load_cell(config.cell)
-            robot = load_robot(config.robot)
+            setup = build_setup(robot=config.robot, gripper=config.gripper, cell=config.cell)
             available = {"robots": available_robots(), "grippers": available_grippers()}
+        robot, gripper, cell = setup.robot, setup.gripper, setup.cell
+        assert robot is not None and gripper is not None and cell is not None  # build_setup loaded each
         progress(f"robot {robot.name}, gripper {gripper.name}, cell {cell.name} ({time.perf_counter() - t0:.1f} s)")
         parts: dict[str, PartEntry] = {}
         for name, path in scan_parts(config.parts_dir, lambda w: progress(f"warning: {w}")).items():
@@ -126,14 +142,20 @@ class Service:
         elif config.databases:
             progress("warning: this build has no grasplan.pick; POST /pick answers 503")
         progress(f"ready: {len(parts)} parts in {time.perf_counter() - t0:.1f} s")
-        return cls(config, robot=robot, gripper=gripper, cell=cell, parts=parts, picker=picker,
-                   started_s=time.time(), available=available)
+        return cls(config, setup=setup, parts=parts, picker=picker, started_s=time.time(), available=available)
 
     def with_config(self, config: ServeConfig) -> Service:
         """This warm state served with other limits (token, body size, time limit, queue); the
         robot, gripper, cell, parts and picker stay the ones loaded."""
-        return Service(config, robot=self.robot, gripper=self.gripper, cell=self.cell, parts=self.parts,
-                       picker=self.picker, started_s=self.started_s, available=self.available)
+        return Service(config, setup=self.setup, parts=self.parts, picker=self.picker, started_s=self.started_s,
+                       available=self.available)
+
+    def resolved_config(self, config: ServeConfig) -> ServeConfig:
+        """``config`` with the robot, gripper and cell given as the files this service loaded them
+        from (:meth:`~grasplan.setup.resolved.Setup.resolved_refs`): what a planner process starts
+        from, so that it loads the same files without looking a name up again."""
+        refs = self.setup.resolved_refs()
+        return replace(config, robot=refs["robot"], gripper=refs["gripper"], cell=refs["cell"])
 
     # -- look-ups ------------------------------------------------------------------------------
     def part(self, name: Any, where: str = "part") -> PartEntry:

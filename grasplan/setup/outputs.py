@@ -1,26 +1,12 @@
 """The one output guard: before any work, every file a command will write (its ``-o`` file and every
-companion: KRL's ``.dat`` next to the ``.src``, ``--pose-index all``'s ``OUT.pose<k>.json``, a
-batch's ``summary.csv``/``summary.json``/``index.html``) is checked against every file the command
-reads and every file a document it reads names, and against what the output path itself is (a
-folder, a device, a system folder, a file among installed files: see
-:func:`grasplan.io.check_output_path`). An output that would replace one of them is refused with
-:class:`~grasplan.errors.InputError` (exit 3) naming both, so no command can destroy its input.
-
-The files that count as inputs, each resolved as its reader resolves it:
-
-- the files named on the command line (part, plan, scene, ``--part``, ``--scoring``, a
-  ``--part-pose`` file, a batch manifest);
-- the YAML a ``--gripper``/``--cell``/``--robot`` name or path resolves to (``--config-dir``
-  first) and the files it names: a gripper's or cell's mesh ``path`` (:func:`config_files`), a
-  robot's ``urdf``/``srdf`` (relative to the YAML, or to the installed package its ``package:``
-  names) and every ``<mesh filename>`` of the URDF, ``package://`` resolved (:func:`robot_yaml_files`);
-- the files a document the command reads names, once it is loaded: a plan's or grasps file's
-  part (its recorded path, also looked up next to the file) and its robot's YAML, URDF, SRDF and
-  meshes (:func:`result_files`); a picks file's parts, its scene's meshes, grasp databases, cloud
-  and cell, and its robot's files (:func:`picks_files`); a scene's meshes, grasp databases, cloud
-  and cell (:func:`scene_files`).
-
-Writing the files is :mod:`grasplan.io`'s (atomic, and all or nothing for a group).
+companion: KRL's ``.dat``, ``--pose-index all``'s ``OUT.pose<k>.json``, a batch's summary files) is
+checked against every file the command reads, and against what the output path itself is (a
+folder, a device, a system folder, an installed file: :func:`grasplan.io.check_output_path`). One
+that would replace an input is refused with :class:`~grasplan.errors.InputError` (exit 3) naming
+both. The inputs: the files named on the command line; a :class:`~grasplan.setup.resolved.Setup`'s
+files (the gripper, cell and robot YAMLs and the files they name: :func:`config_files`,
+:func:`robot_yaml_files`); the files a document the command reads names, once it is loaded
+(:func:`result_files`, :func:`picks_files`, :func:`scene_files`). Writing is :mod:`grasplan.io`'s.
 """
 from __future__ import annotations
 
@@ -169,8 +155,11 @@ def scene_files(scene: Any) -> list[Path]:
     if scene.cloud is not None and _path_text(scene.cloud.path):
         out.append(scene.resolve(scene.cloud.path))
     cell = _path_text(scene.cell)
-    if cell is not None and ("/" in cell or cell.endswith((".yaml", ".yml"))):
-        out += config_files("cell", str(scene.resolve(cell)))
+    if cell is not None:
+        from ..config.lookup import document_ref, is_path_like
+
+        if is_path_like(cell, scene.base):
+            out += config_files("cell", document_ref(cell, scene.base))
     return out
 
 

@@ -1,34 +1,10 @@
 """Piles made in physics: parts dropped into a bin one after another in MuJoCo (``grasplan scene
 drop``), written as a ``grasplan.scene/1`` scene of settled poses.
 
-Protocol (:func:`drop_pile`; the world is :class:`grasplan.sim.pileworld.PileWorld`):
-
-1. **Fit, before simulating** (:func:`check_fit`): every part's convex hull must fit inside the
-   bin (between its walls, :data:`WALL_CLEARANCE` from each, and below their top) in some
-   orientation: lying flat along the bin (:func:`flat_rotation`) or one of :data:`ORIENT_TRIES`
-   random ones; and the parts' convex hulls together may fill at most :data:`MAX_FILL` of the
-   bin's inner volume (floor area x wall height). Else :class:`PileError` (exit 3) with the numbers.
-2. **Order and poses**: the instances (ids ``<part>_<k>``, k counting from 0 per part in the
-   order given) are dropped in a seeded random order, each in a uniformly random orientation
-   whose footprint fits the bin's inner area (:data:`WALL_CLEARANCE` from each wall; after
-   :data:`ORIENT_TRIES` misses, lying flat), at a uniformly random xy where it does.
-3. **Release height**: the part's lowest point starts ``drop_gap`` (default :data:`DROP_GAP`)
-   above the highest point of the parts already in the bin whose footprint overlaps its own (the
-   floor's top when none does), at rest.
-4. **Settle**: simulate until every part in the bin has been at rest for :data:`REST_HOLD_S`:
-   centre-of-mass speed below :data:`REST_LIN` and turning rate below :data:`REST_ANG`; at most
-   :data:`MAX_SETTLE_S` simulated seconds.
-5. **In the bin, after settling**: every part's whole mesh (its convex hull) lies within the bin's
-   inner walls, above its floor and below the top of its walls, each within :data:`FIT_TOL`.
-6. **Tries**: a drop that fails 4 or 5 (a part leaning out above the rim, bounced out, still
-   moving) is undone (:meth:`PileWorld.snapshot`/``restore``) and tried again from a new random
-   pose, :data:`DROP_TRIES` times in all; then :class:`PileError` (exit 3: the pile does not fit)
-   or :class:`SettleError` (exit 4: it does not come to rest), naming the part and by how much.
-
-Physics: uniform density (default :data:`PILE_DENSITY`, plastic, as clutter removal's targets),
-friction ``mu`` (default: the candidates' ``mu``, 0.3), each part colliding through its CoACD
-convex pieces (:func:`grasplan.sim.simulate.convex_pieces`, seed 0 whatever the pile's seed, cached
-where ``grasplan simulate`` caches them), the bin and table exact boxes.
+:func:`drop_pile` (the world is :class:`grasplan.sim.pileworld.PileWorld`): refuse a pile that
+cannot fit (:func:`check_fit`), then drop the parts in a seeded random order, each from a random
+pose above the pile (:func:`_release_pose`), settle, check the pile (:func:`_problem`) and retry a
+failed drop (:func:`_give_up`). The physics: :class:`DropParams`.
 
 Deterministic: the pile's ``seed`` drives one NumPy generator (order, orientations, positions);
 MuJoCo runs single-threaded; the same inputs give the same scene bits.
@@ -89,7 +65,12 @@ class SettleError(PlanningError):
 
 @dataclass(frozen=True, kw_only=True)
 class DropParams(OptionSet):
-    """Options of a drop (validated here; ``grasplan scene drop`` builds its options from them)."""
+    """Options of a drop (validated here; ``grasplan scene drop`` builds its options from them).
+
+    Physics: uniform density (default :data:`PILE_DENSITY`, plastic, as clutter removal's targets),
+    friction ``mu`` (default: the candidates' ``mu``, 0.3), each part colliding through its CoACD
+    convex pieces (:func:`grasplan.sim.simulate.convex_pieces`, seed 0 whatever the pile's seed, cached
+    where ``grasplan simulate`` caches them), the bin and table exact boxes."""
 
     seed: int = spec(0, "int", "Seed of the drop order, orientations and positions (same seed, same pile).",
                      lo=0, hi=2**31 - 1)
@@ -282,8 +263,12 @@ def _orientation_fits(hull: np.ndarray, R: np.ndarray, room: np.ndarray, dims: i
 
 
 def check_fit(cell: Cell, items: Sequence[PileItem], bodies: dict[str, PartBody], *, seed: int = 0) -> None:
-    """Refuse, before simulating, a pile that cannot fit the cell's bin (module docstring, step 1):
-    :class:`PileError` naming the part or the volumes."""
+    """Refuse, before simulating, a pile that cannot fit the cell's bin: :class:`PileError` (exit 3)
+    naming the part or the volumes. Every part's convex hull must fit inside the bin (between its
+    walls, :data:`WALL_CLEARANCE` from each, and below their top) in some orientation: lying flat
+    along the bin (:func:`flat_rotation`) or one of :data:`ORIENT_TRIES` random ones; and the parts'
+    convex hulls together may fill at most :data:`MAX_FILL` of the bin's inner volume (floor area x
+    wall height)."""
     b = _bin(cell)
     inner = np.asarray(b.inner, dtype=np.float64)
     room = _room(b)
@@ -332,7 +317,13 @@ def outside_bin(cell: Cell, hull_world: np.ndarray) -> tuple[float, str]:
 # the drop
 # ------------------------------------------------------------------------------------------------
 def _release_pose(world: PileWorld, i: int, rng: np.random.Generator, gap: float) -> np.ndarray:
-    """A random ``T_world_part`` above the bin for body ``i`` (module docstring, steps 2-3)."""
+    """A random ``T_world_part`` above the bin for body ``i``. The instances (ids ``<part>_<k>``, k
+    counting from 0 per part in the order given) are dropped in a seeded random order, each in a
+    uniformly random orientation whose footprint fits the bin's inner area (:data:`WALL_CLEARANCE`
+    from each wall; after :data:`ORIENT_TRIES` misses, lying flat), at a uniformly random xy where
+    it does. Release height: the part's lowest point starts ``gap`` (``drop_gap``, default
+    :data:`DROP_GAP`) above the highest point of the parts already in the bin whose footprint
+    overlaps its own (the floor's top when none does), at rest."""
     b = _bin(world.cell)
     T_bin = np.asarray(b.T_world_bin)  # z up, a yaw only: bin-frame z is height above the floor's top
     inner = np.asarray(b.inner, dtype=np.float64)
@@ -360,7 +351,11 @@ def _release_pose(world: PileWorld, i: int, rng: np.random.Generator, gap: float
 
 
 def _problem(world: PileWorld, s: Settled) -> PileError | SettleError | None:
-    """Why the settled pile is not acceptable (module docstring, steps 4-5), None when it is."""
+    """Why the settled pile is not acceptable, None when it is. Settled: every part in the bin at
+    rest for :data:`REST_HOLD_S` (centre-of-mass speed below :data:`REST_LIN` and turning rate below
+    :data:`REST_ANG`) within :data:`MAX_SETTLE_S` simulated seconds. In the bin: every part's whole
+    mesh (its convex hull) within the bin's inner walls, above its floor and below the top of its
+    walls, each within :data:`FIT_TOL`."""
     if not s.at_rest:
         return SettleError(f"{s.moving} moving at {s.lin * 1e3:.1f} mm/s, {math.degrees(s.ang):.1f} deg/s")
     for j in np.flatnonzero(world.present):
@@ -371,6 +366,11 @@ def _problem(world: PileWorld, s: Settled) -> PileError | SettleError | None:
 
 
 def _give_up(problem: PileError | SettleError, name: str, i: int, n: int) -> PileError | SettleError:
+    """The error once a drop failed :data:`DROP_TRIES` times. A drop that fails (:func:`_problem`: a
+    part leaning out above the rim, bounced out, still moving) is undone
+    (:meth:`PileWorld.snapshot`/``restore``) and tried again from a new random pose, DROP_TRIES
+    times in all; then :class:`PileError` (exit 3: the pile does not fit) or :class:`SettleError`
+    (exit 4: it does not come to rest), naming the part and by how much."""
     where = f"dropping {name} ({i + 1} of {n}) from {DROP_TRIES} random poses, the last left {problem}"
     if isinstance(problem, SettleError):
         return SettleError(f"the pile did not come to rest within {MAX_SETTLE_S:g} s: {where}; try another --seed")

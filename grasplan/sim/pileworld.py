@@ -1,40 +1,10 @@
 """A MuJoCo world of a bin cell holding many free parts: the physics of ``grasplan scene drop``
 (:mod:`grasplan.sim.drop`) and of the clutter loop, which adds a gripper to the same world.
 
-The world (:func:`pile_mjcf`, :class:`PileWorld`):
-
-- **static**: the table (a box whose top is the cell's ``table_z``, reaching :data:`TABLE_MARGIN`
-  beyond the bin), the bin's floor and four walls (``cell.bin.obstacles()``, exact boxes) and every
-  other obstacle of the cell (boxes, cylinders, spheres; mesh obstacles as their convex pieces);
-- **parts**: one free body per part instance (:class:`PartBody`), uniform density
-  (:func:`grasplan.part.mass.mass_properties`: mass, centre of mass, inertia), colliding through its
-  convex pieces: the CoACD decomposition of :func:`grasplan.sim.simulate.convex_pieces`, cached in the
-  same place ``grasplan simulate`` caches it (``decomposition="hull"``: the convex hull).
-
-**Frames.** A part body's frame *is* the part (mesh) frame: the MJCF body is placed at
-``T_world_part``, its inertial frame (centre of mass, principal axes) is given explicitly inside it
-and ``alignfree`` is off, so MuJoCo's body pose (``xpos``, ``xmat``; a free joint's ``qpos``) is
-the part frame's pose and never the centre-of-mass frame. :meth:`PileWorld.pose` reads it,
-:meth:`PileWorld.place` writes it.
-
-**Present and parked.** Every body exists from the start (one compile); a body is either present
-(colliding, under gravity) or *parked*: its geoms collide with nothing (``contype`` =
-``conaffinity`` = 0), its weight is cancelled (``gravcomp`` 1), it is at rest far below the table.
-:meth:`PileWorld.place` makes a body present at a pose, :meth:`PileWorld.park` takes it out of the
-world (a dropped part not yet released, a picked part): nothing is recompiled.
-
-**Contacts.** Friction ``mu`` (elliptic cones) with torsional and rolling resistance
-(``condim`` 6, :data:`ROLLING_LENGTH`); MuJoCo's multi-contact convex collision, on by default,
-keeps flat faces from rocking on one point. Contact time constant
-:data:`SOLREF_TIMECONST` (>= 2 timesteps). Collision bits: every geom of the pile world has
-``contype`` = ``conaffinity`` = :data:`PILE_BIT`; a gripper added through ``extra_worldbody``
-collides with the pile when its geoms share that bit.
-
-**At rest** (:meth:`PileWorld.speeds`, :meth:`PileWorld.settle`): every present part's centre of
-mass moves slower than ``lin`` (m/s) and it turns slower than ``ang`` (rad/s), checked every
-:data:`CHECK_DT` and held for ``hold`` seconds of simulated time.
-
-Deterministic: MuJoCo runs single-threaded from a reset state; the same calls give the same bits.
+:func:`pile_mjcf` writes the world (the static cell and one free body per part,
+:class:`PartBody`); :class:`PileWorld` compiles it, places and parks the parts and steps it until
+they are at rest. Deterministic: MuJoCo runs single-threaded from a reset state; the same calls
+give the same bits.
 """
 from __future__ import annotations
 
@@ -42,6 +12,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..cell.model import Cell, Obstacle
 from ..errors import InputError
@@ -102,7 +73,7 @@ def part_body(name: str, mesh: MeshData, *, density: float, decomposition: str =
 # ------------------------------------------------------------------------------------------------
 # MJCF
 # ------------------------------------------------------------------------------------------------
-def _fmt(a) -> str:
+def _fmt(a: ArrayLike) -> str:
     return " ".join(f"{x:.17g}" for x in np.asarray(a, dtype=np.float64).ravel())
 
 
@@ -159,9 +130,28 @@ def arena_mb(bodies: Sequence[PartBody]) -> int:
 
 def pile_mjcf(cell: Cell, bodies: Sequence[PartBody], *, mu: float, extra_asset: str = "",
               extra_worldbody: str = "", extra: str = "", arena: int | None = None) -> str:
-    """MJCF text of the pile world (module docstring): the cell's table and obstacles (static),
-    one free body per entry of ``bodies`` (named ``body.name``, each parked: :func:`park_pose`),
-    friction ``mu``.
+    """MJCF text of the pile world: the cell's table and obstacles (static), one free body per entry
+    of ``bodies`` (named ``body.name``, each parked: :func:`park_pose`), friction ``mu``.
+
+    - **static**: the table (a box whose top is the cell's ``table_z``, reaching :data:`TABLE_MARGIN`
+      beyond the bin), the bin's floor and four walls (``cell.bin.obstacles()``, exact boxes) and every
+      other obstacle of the cell (boxes, cylinders, spheres; mesh obstacles as their convex pieces);
+    - **parts**: one free body per part instance (:class:`PartBody`), uniform density
+      (:func:`grasplan.part.mass.mass_properties`: mass, centre of mass, inertia), colliding through its
+      convex pieces: the CoACD decomposition of :func:`grasplan.sim.simulate.convex_pieces`, cached in the
+      same place ``grasplan simulate`` caches it (``decomposition="hull"``: the convex hull).
+
+    **Frames.** A part body's frame *is* the part (mesh) frame: the MJCF body is placed at
+    ``T_world_part``, its inertial frame (centre of mass, principal axes) is given explicitly inside it
+    and ``alignfree`` is off, so MuJoCo's body pose (``xpos``, ``xmat``; a free joint's ``qpos``) is
+    the part frame's pose and never the centre-of-mass frame (:meth:`PileWorld.pose`).
+
+    **Contacts.** Friction ``mu`` (elliptic cones) with torsional and rolling resistance
+    (``condim`` 6, :data:`ROLLING_LENGTH`); MuJoCo's multi-contact convex collision, on by default,
+    keeps flat faces from rocking on one point. Contact time constant
+    :data:`SOLREF_TIMECONST` (>= 2 timesteps). Collision bits: every geom of the pile world has
+    ``contype`` = ``conaffinity`` = :data:`PILE_BIT`; a gripper added through ``extra_worldbody``
+    collides with the pile when its geoms share that bit.
 
     A caller adds its own things as MJCF fragments: ``extra_asset`` (inside ``<asset>``),
     ``extra_worldbody`` (inside ``<worldbody>``: e.g. a gripper on mocap or joints; give its geoms
@@ -232,11 +222,17 @@ class Settled:
 
 
 class PileWorld:
-    """One compiled pile world (module docstring) and its state.
+    """One compiled pile world (:func:`pile_mjcf`) and its state.
 
     ``PileWorld(cell, bodies, mu=...)``, or ``PileWorld.from_xml(xml, cell, bodies)`` for a model
     a caller extended (:func:`pile_mjcf`'s ``extra_*``). ``model`` and ``data`` are MuJoCo's, open
     to a caller that drives more (a gripper's actuators, mocap); the methods here handle the parts.
+
+    **Present and parked.** Every body exists from the start (one compile); a body is either present
+    (colliding, under gravity) or *parked*: its geoms collide with nothing (``contype`` =
+    ``conaffinity`` = 0), its weight is cancelled (``gravcomp`` 1), it is at rest far below the table.
+    :meth:`place` makes a body present at a pose, :meth:`park` takes it out of the world (a dropped
+    part not yet released, a picked part): nothing is recompiled.
     """
 
     def __init__(self, cell: Cell, bodies: Sequence[PartBody], *, mu: float, xml: str | None = None):
@@ -278,7 +274,7 @@ class PileWorld:
 
     # -- poses -------------------------------------------------------------------------------------
     def pose(self, i: int) -> np.ndarray:
-        """``T_world_part`` (4, 4) of body ``i`` (the part mesh's frame; module docstring)."""
+        """``T_world_part`` (4, 4) of body ``i`` (the part mesh's frame: :func:`pile_mjcf`'s frames)."""
         T = np.eye(4)
         b = self._body[i]
         T[:3, :3] = self.data.xmat[b].reshape(3, 3)
@@ -384,7 +380,9 @@ class PileWorld:
 
     def settle(self, *, lin: float, ang: float, hold: float, max_s: float, min_s: float = 0.0) -> Settled:
         """Step until every present part has been at rest (speeds below ``lin`` m/s and ``ang``
-        rad/s) for ``hold`` simulated seconds, at least ``min_s`` and at most ``max_s`` seconds."""
+        rad/s: its centre of mass moves slower than ``lin`` and it turns slower than ``ang``,
+        :meth:`speeds`, checked every :data:`CHECK_DT`) for ``hold`` simulated seconds, at least
+        ``min_s`` and at most ``max_s`` seconds."""
         n_check = max(1, round(CHECK_DT / self.model.opt.timestep))
         dt = n_check * self.model.opt.timestep
         need = max(1, round(hold / dt))

@@ -1,47 +1,9 @@
 """Lift-and-shake check of grasps in MuJoCo, headless, on the CPU.
 
-Model (one per part and gripper, reused for every grasp):
-
-- the **part** is a free body of uniform density (:mod:`grasplan.part.mass`: mass, centre of mass and
-  inertia), colliding through convex pieces: a CoACD convex decomposition (``decomposition=
-  "coacd"``, cached per part geometry in ``$GRASPLAN_CACHE_DIR`` or ``~/.cache/grasplan``, written
-  atomically) or the part's convex hull (``"hull"``: a cheap stand-in, exact for convex parts, for
-  tests);
-- the **gripper**: its body shapes fixed, its two jaws (the gripper's own finger shapes) on
-  prismatic joints along the closing axis, coupled (centric, as the real gripper) and each pushed
-  by a motor of at most ``grip_force / 2`` N (``grip_force`` is the datasheet gripping force, the
-  sum of both jaws' forces, as in :mod:`grasplan.grasps.wrench`), with damping so they close at about
-  5 cm/s and the drive's reflected inertia (``armature``) so they reach that speed in
-  ``DRIVE_TAU`` (2 ms; without it the jaws rang against many-piece parts);
-- the **table**: a box whose top is the cell's table plane, touching only the part.
-
-Contacts: friction ``mu`` (elliptic cones). **Twist: one torsional resistance per pad**.
-MuJoCo touches a pad at several points (the corners of each convex piece's overlap with the pad,
-one per piece and pad for curved pieces); when each point carried its own soft-finger torsion sized
-for the whole patch, and their spread added the torque tangential friction gives, a pad resisted
-twist according to how many points it got (a box face: 4 corners, twice the patch's torsion; a
-grasp and its mirror image split). Each finger therefore sits on a **hinge about the closing axis**
-(``pad0``/``pad1``) whose dry friction (``frictionloss``) is the pad patch's soft-finger torsion
-under the pad's present contact forces, updated every control period (:func:`pad_twist_caps`):
-``mu (2/3) a sqrt(N^2 - (|t| / mu)^2)`` with ``a = sqrt(area / pi)`` of the patch between the pad
-and the part (:func:`grasplan.grasps.patches.contact_patches`, :func:`grasplan.grasps.wrench.torsion_length`), ``N``
-the pad's normal force and ``t`` the vector sum of its tangential forces: the soft-finger ellipse
-``gravity_margin`` uses. The pad-part contacts themselves grip in twist (``condim`` 4 with
-``PAD_GRIP_TORSION``), so the twist slips at the hinge, whatever the number of points; their
-normal and tangential forces, and the pressure moment their spread carries, stay MuJoCo's. The
-hinge's stiction is near rigid (``PAD_SOLIMP``: no creep below the capacity). Part against table:
-``TORSION_LENGTH``.
-
-The simulation runs in the gripper's (TCP) frame, which only translates: lifting and shaking the
-gripper is exactly a change of the effective gravity ``R_world_tcp^T (g - a_gripper(t))`` and a
-table moving away. The lift and the shake are :data:`grasplan.grasps.wrench.LOAD`, the load model
-``gravity_margin`` checks (the margin takes their peaks: lift +-2 m/s^2, shake +-5 m/s^2 in any
-horizontal direction, x and y among them). Protocol: settle ``SETTLE_S``, close ``CLOSE_S`` (pre-grasp opening
-``gripper.pregrasp_opening(width)``), lift ``LIFT_HEIGHT`` (10 cm) in ``LIFT_S`` (0.5 s, cosine
-profile, peak 2 m/s^2), shake ``SHAKE_ACCEL`` (+-5 m/s^2) along world x then y for ``SHAKE_S``
-(1 s in all, ``SHAKE_HZ`` sine). Success: at the end the part moved less than ``SLIP_TOL`` (5 mm, its
-centre of mass) and turned less than ``TURN_TOL_DEG`` (5 deg) relative to the jaws since they closed.
-A part more than ``ABORT_SLIP`` off stops its run early (``slip_m`` is then the distance then).
+:func:`simulate_grasps` builds one model per part and gripper (:func:`build_model_xml`) and closes,
+lifts and shakes each grasp in it (:func:`_run_grasps`, the protocol of :func:`_profile`), each pad
+on a hinge that carries its twist (:func:`pad_twist_caps`); :func:`simulate_result` and
+:func:`simulate_plan` simulate the best grasps of a result and rank those that held first.
 
 Deterministic: MuJoCo runs single-threaded from a reset state; ``seed`` only selects the CoACD
 decomposition (it is part of the cache key).
@@ -51,12 +13,14 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .decomposition import convex_pieces  # also the name the pile world and benchmarks import
 from ..errors import InputError
-from ..gripper.model import Box, Gripper
+from ..gripper.model import Box, Gripper, Shape
 from ..part.mass import DEFAULT_DENSITY, MassProperties, mass_properties
 from ..geometry.meshdata import TriangleMesh
 from ..grasps.patches import contact_patches
@@ -64,6 +28,11 @@ from ..config.scoring import distinct_order
 from ..status import Status
 from ..geometry.transforms import check_transform, quaternions
 from ..grasps.wrench import CONTACTS_PER_GRIP, LOAD, torsion_length
+
+if TYPE_CHECKING:  # MuJoCo loads with the first simulation
+    import mujoco
+
+    from ..results.plan_result import PlanResult
 
 #: lift height (m) and duration (s); shake amplitude (m/s^2), total duration (s, half along world x
 #: then half along y), frequency (Hz): the load model :data:`grasplan.grasps.wrench.LOAD`, which
@@ -154,11 +123,11 @@ def flange_payload(gripper: Gripper, mass_props: MassProperties, T_part_tcp: np.
 # ------------------------------------------------------------------------------------------------
 # the MuJoCo model
 # ------------------------------------------------------------------------------------------------
-def _fmt(a) -> str:
+def _fmt(a: ArrayLike) -> str:
     return " ".join(f"{x:.9g}" for x in np.asarray(a, dtype=np.float64).ravel())
 
 
-def _shape_xml(shape, name: str, assets: list, attrs: str) -> str:
+def _shape_xml(shape: Shape, name: str, assets: list, attrs: str) -> str:
     if isinstance(shape, Box):
         q = quaternions(shape.T_tcp_box[:3, :3])
         return (f'<geom name="{name}" type="box" size="{_fmt(0.5 * np.asarray(shape.extents))}" '
@@ -178,7 +147,7 @@ def pad_xml(name: str, geom: str, body_attrs: str = "") -> str:
     """A jaw's finger on its pad hinge: a body ``name`` (its hinge joint too) turning about the
     closing axis (the x axis of its parent, the jaw, through the jaw's origin) whose dry friction
     (``frictionloss``, set per grasp and control period by :func:`pad_twist_caps`) is the pad patch's
-    torsional friction (module docstring); ``geom`` the finger's shape. Also the clutter world's pads
+    torsional friction (:func:`pad_twist_caps`); ``geom`` the finger's shape. Also the clutter world's pads
     (:mod:`grasplan.clutter.world`)."""
     return (f'<body name="{name}" pos="0 0 0" {body_attrs}><inertial pos="0 0 0" mass="{PAD_MASS}" '
             f'diaginertia="{_fmt([PAD_INERTIA] * 3)}"/><joint name="{name}" type="hinge" axis="1 0 0" pos="0 0 0" '
@@ -189,7 +158,22 @@ def pad_xml(name: str, geom: str, body_attrs: str = "") -> str:
 def build_model_xml(pieces: list[np.ndarray], mass_props: MassProperties, gripper: Gripper, *, mu: float,
                     grip_force: float) -> str:
     """MJCF text of the part (free body, convex ``pieces``), the gripper (world = TCP frame) and a
-    mocap table."""
+    mocap table:
+
+    - the **part** is a free body of uniform density (:mod:`grasplan.part.mass`: mass, centre of mass
+      and inertia), colliding through convex pieces: a CoACD convex decomposition (``decomposition=
+      "coacd"``, cached per part geometry in ``$GRASPLAN_CACHE_DIR`` or ``~/.cache/grasplan``, written
+      atomically) or the part's convex hull (``"hull"``: a cheap stand-in, exact for convex parts, for
+      tests);
+    - the **gripper**: its body shapes fixed, its two jaws (the gripper's own finger shapes) on
+      prismatic joints along the closing axis, coupled (centric, as the real gripper) and each pushed
+      by a motor of at most ``grip_force / 2`` N (``grip_force`` is the datasheet gripping force, the
+      sum of both jaws' forces, as in :mod:`grasplan.grasps.wrench`), with damping so they close at
+      about 5 cm/s and the drive's reflected inertia (``armature``) so they reach that speed in
+      ``DRIVE_TAU``; each finger on its pad hinge (:func:`pad_xml`, :func:`pad_twist_caps`);
+    - the **table**: a box whose top is the cell's table plane, touching only the part.
+
+    Contacts: friction ``mu`` (elliptic cones); part against table: ``TORSION_LENGTH``."""
     assets: list[str] = []
     fr = f'friction="{mu:.6g} {mu * TORSION_LENGTH:.6g} 0" condim="4" solref="{SOLREF_TIMECONST:.6g} 1"'
     grip_geoms = " ".join(_shape_xml(s, f"body{i}", assets, f'contype="1" conaffinity="0" {fr}')
@@ -248,7 +232,14 @@ def build_model_xml(pieces: list[np.ndarray], mass_props: MassProperties, grippe
 
 def _profile() -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """Per control period: gripper acceleration (P, 3) m/s^2 and height (P,) m in the world, the
-    close flag (P,) and the index where the jaws have closed."""
+    close flag (P,) and the index where the jaws have closed.
+
+    The protocol: settle ``SETTLE_S``, close ``CLOSE_S`` (from the pre-grasp opening
+    ``gripper.pregrasp_opening(width)``), lift ``LIFT_HEIGHT`` (10 cm) in ``LIFT_S`` (0.5 s, cosine
+    profile, peak 2 m/s^2), shake ``SHAKE_ACCEL`` (+-5 m/s^2) along world x then y for ``SHAKE_S``
+    (1 s in all, ``SHAKE_HZ`` sine): :data:`grasplan.grasps.wrench.LOAD`, the load model
+    ``gravity_margin`` checks (the margin takes their peaks: lift +-2 m/s^2, shake +-5 m/s^2 in any
+    horizontal direction, x and y among them)."""
     n_settle = round(SETTLE_S / CONTROL_DT)
     n_close = round(CLOSE_S / CONTROL_DT)
     n_lift = round(LIFT_S / CONTROL_DT)
@@ -272,13 +263,27 @@ def _profile() -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     return acc, z, close, n_settle + n_close
 
 
-def pad_twist_caps(model, data, jaw_geom: list[int], part_body: int, torsion: np.ndarray, mu: float,
-                    nominal: np.ndarray) -> np.ndarray:
+def pad_twist_caps(model: mujoco.MjModel, data: mujoco.MjData, jaw_geom: list[int], part_body: int,
+                   torsion: np.ndarray, mu: float, nominal: np.ndarray) -> np.ndarray:
     """(2,) twist capacity (N m) of each pad's hinge now: the soft-finger ellipse of the pad's patch
     under its present contact forces, ``torsion * sqrt(N^2 - (|t| / mu)^2)`` (``N``: the pad's total
     normal force on the part, ``t``: the vector sum of its tangential forces, ``torsion``: the
     patch's torsional friction per newton, :func:`grasplan.grasps.wrench.torsion_length` times ``mu``).
-    A pad touching nothing keeps ``nominal``."""
+    A pad touching nothing keeps ``nominal``.
+
+    **Twist: one torsional resistance per pad.** MuJoCo touches a pad at several points (the corners
+    of each convex piece's overlap with the pad, one per piece and pad for curved pieces); when each
+    point carried its own soft-finger torsion sized for the whole patch, and their spread added the
+    torque tangential friction gives, a pad resisted twist according to how many points it got (a
+    box face: 4 corners, twice the patch's torsion; a grasp and its mirror image split). Each finger
+    therefore sits on a **hinge about the closing axis** (``pad0``/``pad1``, :func:`pad_xml`) whose
+    dry friction (``frictionloss``) is this capacity, ``mu (2/3) a sqrt(N^2 - (|t| / mu)^2)`` with
+    ``a = sqrt(area / pi)`` of the patch between the pad and the part
+    (:func:`grasplan.grasps.patches.contact_patches`), updated every control period: the soft-finger
+    ellipse ``gravity_margin`` uses. The pad-part contacts themselves grip in twist (``condim`` 4 with
+    ``PAD_GRIP_TORSION``), so the twist slips at the hinge, whatever the number of points; their
+    normal and tangential forces, and the pressure moment their spread carries, stay MuJoCo's. The
+    hinge's stiction is near rigid (``PAD_SOLIMP``: no creep below the capacity)."""
     normal = np.zeros(2)
     tangent = np.zeros((2, 3))
     if data.ncon:
@@ -309,7 +314,7 @@ def simulate_grasps(part_mesh: TriangleMesh, gripper: Gripper, T_world_part: np.
                     grip_force: float | None = None, mu: float = 0.3, seed: int = 0,
                     decomposition: str = "coacd", cache: bool = True,
                     contact_area: np.ndarray | None = None) -> SimResult:
-    """Close, lift and shake each grasp; see the module docstring.
+    """Close, lift and shake each grasp (:func:`build_model_xml`, :func:`_run_grasps`).
 
     Parameters
     ----------
@@ -339,7 +344,7 @@ def simulate_grasps(part_mesh: TriangleMesh, gripper: Gripper, T_world_part: np.
     contact_area : (k, 2), optional
         Patch area (m^2) of each jaw (jaw 0 on the TCP's -x side), e.g. a grasp's recorded
         ``quality.contact``; computed here (:func:`grasplan.grasps.patches.contact_patches`) when not
-        given or not finite. Sets each jaw's torsional friction (module docstring).
+        given or not finite. Sets each jaw's torsional friction (:func:`pad_twist_caps`).
     """
     import mujoco
 
@@ -392,10 +397,19 @@ def simulate_grasps(part_mesh: TriangleMesh, gripper: Gripper, T_world_part: np.
         mujoco.set_mju_user_warning(previous_handler)
 
 
-def _run_grasps(model, data, pieces, Twp, T, w, gripper, F, q_part, q_jaw, part_body, T_world_table, t_start, k,
-                jaw_torsion, mu):
+def _run_grasps(model: mujoco.MjModel, data: mujoco.MjData, pieces: list[np.ndarray], Twp: np.ndarray,
+                T: np.ndarray, w: np.ndarray, gripper: Gripper, F: float, q_part: int, q_jaw: list[int],
+                part_body: int, T_world_table: np.ndarray, t_start: float, k: int, jaw_torsion: np.ndarray,
+                mu: float) -> SimResult:
     """The lift-and-shake of :func:`simulate_grasps` for each of the ``k`` poses ``T``;
-    ``jaw_torsion`` (k, 2): each jaw's torsional friction coefficient (m) per grasp."""
+    ``jaw_torsion`` (k, 2): each jaw's torsional friction coefficient (m) per grasp.
+
+    The simulation runs in the gripper's (TCP) frame, which only translates: lifting and shaking the
+    gripper is exactly a change of the effective gravity ``R_world_tcp^T (g - a_gripper(t))`` and a
+    table moving away (:func:`_profile`). Success: at the end the part moved less than ``SLIP_TOL``
+    (5 mm, its centre of mass) and turned less than ``TURN_TOL_DEG`` (5 deg) relative to the jaws
+    since they closed. A part more than ``ABORT_SLIP`` off stops its run early (``slip_m`` is then
+    the distance then)."""
     import mujoco
 
     jaw_geom = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f"jaw{j}") for j in range(2)]
@@ -494,8 +508,9 @@ def rank_held_first(rank: np.ndarray, success: np.ndarray) -> np.ndarray:
     return new
 
 
-def simulate_result(result, top: int, *, mass_props: MassProperties | None = None, grip_force: float | None = None,
-                    seed: int = 0, decomposition: str = "coacd", cache: bool = True):
+def simulate_result(result: PlanResult, top: int, *, mass_props: MassProperties | None = None,
+                    grip_force: float | None = None, seed: int = 0, decomposition: str = "coacd", cache: bool = True
+                    ) -> tuple[np.ndarray, SimResult, MassProperties, float]:
     """Simulate the ``top`` best grasps of a :class:`grasplan.results.plan_result.PlanResult` (a plan: its planned
     grasps in rank order; a grasps result: the collision-free ones by score with the diversity
     rule of the plan's ranking, ``distinct_order``).
@@ -527,7 +542,7 @@ def simulate_result(result, top: int, *, mass_props: MassProperties | None = Non
     return rows, sim, mp, mu
 
 
-def with_sim(result, rows: np.ndarray, sim: SimResult, *, rerank: bool = True):
+def with_sim(result: PlanResult, rows: np.ndarray, sim: SimResult, *, rerank: bool = True) -> PlanResult:
     """``result`` with the ``sim`` columns of ``rows`` set (others not simulated) and, for a plan
     (``rerank``), the grasps that held ranked first."""
     g = result.grasps
@@ -543,8 +558,8 @@ def with_sim(result, rows: np.ndarray, sim: SimResult, *, rerank: bool = True):
     return replace(result, grasps=table, timing_s=timing)
 
 
-def simulate_plan(result, top: int, *, mass_props: MassProperties | None = None, seed: int = 0,
-                  decomposition: str = "coacd"):
+def simulate_plan(result: PlanResult, top: int, *, mass_props: MassProperties | None = None, seed: int = 0,
+                  decomposition: str = "coacd") -> PlanResult:
     """``plan --simulate N``: simulate the top ``N`` planned grasps of a plan result, record ``sim``
     per grasp and rank the grasps that held first (a plan without planned grasps is returned as is)."""
     if not np.any(np.asarray(result.grasps.status).astype(str) == Status.PLANNED.value):

@@ -3,23 +3,8 @@
 :func:`build_html` returns ONE HTML document that works offline with no server: three.js (npm
 ``three@0.187.0`` with OrbitControls, bundled into ``three.iife.min.js``) and the page's script are
 inlined, every mesh and pose is embedded as base64 Float32/Uint32 arrays, and a
-Content-Security-Policy ``default-src 'none'`` forbids the page any request at all.
-
-What is computed here (Python), not in the browser:
-
-- the part mesh (loaded with :func:`grasplan.part.mesh.load_part` at the result's ``scale_to_m``) and its
-  cell pose ``T_world_part``;
-- the contact points of every grasp in the world frame and the TCP pose ``T_world_tcp`` of every
-  grasp (``T_world_part @ T_part_tcp``);
-- the gripper boxes in the TCP frame (body, and the fingers at the pre-grasp opening of each grasp);
-- for a plan: the robot's collision meshes (each embedded once, decimated when big) and the pose of
-  every link, computed with Pinocchio, at q_home and along each planned path densified to at most
-  :data:`PATH_STEP_RAD` per sample, so the browser only plays back poses (no FK in JavaScript);
-- a pick(-and-place) path's segments and gripper events in samples, and the part's pose rule: at
-  ``T_world_part`` until the close, ``TCP @ T_tcp_part`` while attached, ``T_world_part_place``
-  after the release (see :func:`_sequence_data`);
-- the cell's obstacles and bin (from the cell JSON embedded in the plan), drawn semi-transparent;
-- per-grasp quality / simulation values when the result has them.
+Content-Security-Policy ``default-src 'none'`` forbids the page any request at all. Everything the
+page shows is computed here, in Python (:func:`build_data`): the browser only plays back poses.
 """
 from __future__ import annotations
 
@@ -34,15 +19,24 @@ import zlib
 from collections.abc import Sequence
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
+from numpy.typing import ArrayLike, DTypeLike
 
 from ..errors import InputError, MeshError
 from ..io import write_atomic_text
 from ..results.writer import GRASPS_SCHEMA, PLAN_SCHEMA
 from ..status import Status
 from ..geometry.transforms import pose7, quaternions
+
+if TYPE_CHECKING:
+    from ..cell.model import Cell
+    from ..gripper.model import Shape
+    from ..results.grasp_table import GraspTable
+    from ..results.joint_motion import Motion
+    from ..results.plan_result import PlanResult
+    from ..robot.model import Robot
 
 SCHEMAS = (GRASPS_SCHEMA, PLAN_SCHEMA)
 #: display order (and drawing priority, last on top) of the statuses, with their colours
@@ -79,7 +73,7 @@ _HERE = Path(__file__).resolve().parent
 
 
 # --------------------------------------------------------------------------- encoding helpers
-def encode_array(a, dtype) -> str:
+def encode_array(a: ArrayLike, dtype: DTypeLike) -> str:
     """Array -> base64 of its zlib-deflated little-endian bytes (the page inflates them with the
     browser's DecompressionStream('deflate'))."""
     raw = np.ascontiguousarray(np.asarray(a), dtype=dtype).tobytes()
@@ -117,7 +111,7 @@ def decimate_mesh(vertices: np.ndarray, faces: np.ndarray, max_faces: int) -> tu
     raise MeshError(f"cannot decimate a mesh of {len(F)} triangles to {max_faces}")
 
 
-def mesh_block(vertices, faces) -> dict:
+def mesh_block(vertices: ArrayLike, faces: ArrayLike) -> dict:
     V = np.asarray(vertices, dtype=np.float64)
     F = np.asarray(faces, dtype=np.int64)
     return {"v": encode_array(V.reshape(-1), "<f4"), "f": encode_array(F.reshape(-1), "<u4"), "nv": int(len(V)), "nf": int(len(F))}
@@ -125,12 +119,13 @@ def mesh_block(vertices, faces) -> dict:
 
 # --------------------------------------------------------------------------- inputs
 # --------------------------------------------------------------------------- gripper
-def shape_json(shape, mesh_cache: dict, meshes: list) -> dict:
+def shape_json(shape: Shape, mesh_cache: dict, meshes: list) -> dict:
     """A gripper shape -> ``{"box": [ex, ey, ez], "pose": [7]}`` (a :class:`grasplan.gripper.Box`) or
     ``{"mesh": index, "pose": identity}`` (a ``MeshShape``, vertices already in the TCP frame)."""
     if hasattr(shape, "extents"):
         return {"box": [float(x) for x in np.asarray(shape.extents).reshape(3)],
-                "pose": pose7(np.asarray(shape.T_tcp_box, dtype=np.float64), order="xyzw").tolist()}
+                "pose": pose7(np.asarray(shape.T_tcp_box, dtype=np.float64),  # type: ignore[union-attr]  # a Box
+                              order="xyzw").tolist()}
     if not (hasattr(shape, "vertices") and hasattr(shape, "faces")):
         raise InputError(f"cannot display gripper shape {type(shape).__name__}: neither a box nor a mesh")
     if id(shape) not in mesh_cache:
@@ -141,7 +136,7 @@ def shape_json(shape, mesh_cache: dict, meshes: list) -> dict:
 
 
 # --------------------------------------------------------------------------- robot
-def _load_link_mesh(mesh_path: str, scale) -> tuple[np.ndarray, np.ndarray] | None:
+def _load_link_mesh(mesh_path: str, scale: ArrayLike) -> tuple[np.ndarray, np.ndarray] | None:
     import trimesh
 
     if not mesh_path or not os.path.isfile(mesh_path):
@@ -155,7 +150,8 @@ def _load_link_mesh(mesh_path: str, scale) -> tuple[np.ndarray, np.ndarray] | No
     return decimate_mesh(V, np.asarray(m.faces), MAX_LINK_TRIANGLES)
 
 
-def densify_path(path: np.ndarray, *, step: float = PATH_STEP_RAD, max_samples: int = MAX_SAMPLES_PER_PATH):
+def densify_path(path: np.ndarray, *, step: float = PATH_STEP_RAD, max_samples: int = MAX_SAMPLES_PER_PATH
+                 ) -> tuple[np.ndarray, np.ndarray]:
     """Joint path (k, n) -> (samples (s, n), index of each original waypoint in the samples (k,)).
 
     The planner's densifier (:func:`grasplan.geometry.interpolation.interpolate_path`) at ``step`` rad per joint,
@@ -174,9 +170,16 @@ def densify_path(path: np.ndarray, *, step: float = PATH_STEP_RAD, max_samples: 
 
 
 # --------------------------------------------------------------------------- page data
-def build_data(res, *, part_path=None, allow_other_part: bool = False) -> tuple[dict, list[str]]:
+def build_data(res: PlanResult, *, part_path: str | os.PathLike[str] | None = None, allow_other_part: bool = False) -> tuple[dict, list[str]]:
     """Everything the page needs for a :class:`~grasplan.results.plan_result.PlanResult`, as one JSON-able dict
-    (arrays base64-encoded), plus notes/warnings."""
+    (arrays base64-encoded), plus notes/warnings: the part mesh (at the result's ``scale_to_m``) and
+    its pose ``T_world_part``; every grasp's world contact points and TCP pose ``T_world_part @
+    T_part_tcp``; the gripper shapes in the TCP frame (the fingers at each grasp's pre-grasp opening);
+    for a plan, the robot's meshes and every link's pose (Pinocchio) at q_home and along each path
+    densified to at most :data:`PATH_STEP_RAD` per sample, with its segments and events
+    (:func:`_robot_data`, :func:`_sequence_data`: no FK in JavaScript); the cell's obstacles and bin,
+    drawn semi-transparent (:func:`cell_data`); per-grasp quality / simulation values when the
+    result has them (:func:`_quality_data`)."""
     notes: list[str] = []
     schema = res.schema
     mesh = res.mesh(part_path, allow_other_part=allow_other_part)
@@ -271,7 +274,7 @@ def build_data(res, *, part_path=None, allow_other_part: bool = False) -> tuple[
 OBSTACLE_KINDS = ("box", "cylinder", "sphere", "mesh")
 
 
-def cell_data(cell, notes: list[str]) -> dict:
+def cell_data(cell: Cell, notes: list[str]) -> dict:
     """The cell's obstacles (from its JSON, so the page draws what the plan file holds) and bin:
     ``{"obstacles": [{"name", "kind", "box": [sx, sy, sz] | "cylinder": [r, length] | "sphere": [r] |
     "mesh": {v, f, nv, nf}, "T": 16 row-major (T_world_obstacle)}], "bin": {...} | None}``."""
@@ -300,7 +303,7 @@ def cell_data(cell, notes: list[str]) -> dict:
     return {"obstacles": out, "bin": doc.get("bin")}
 
 
-def _quality_data(t) -> dict:
+def _quality_data(t: GraspTable) -> dict:
     """Per-grasp quality / simulation arrays of the grasp table when the result has
     them: ``gravity_margin``, ``epsilon`` (NaN: none), contact area (m^2) and type per jaw,
     simulation ``success`` (1 held, 0 slipped, -1 not simulated), slip (m), turn (deg)."""
@@ -324,8 +327,8 @@ def _quality_data(t) -> dict:
     return out
 
 
-def _robot_data(res, T_flange_tcp: np.ndarray, notes: list[str]) -> dict:
-    robot = res.robot
+def _robot_data(res: PlanResult, T_flange_tcp: np.ndarray, notes: list[str]) -> dict:
+    robot = cast("Robot", res.robot)  # the caller's test: a plan
     q_home = np.asarray(robot.q_home, dtype=np.float64)
     first = robot.link_poses(q_home)
     links: list[dict] = []
@@ -360,13 +363,13 @@ def _robot_data(res, T_flange_tcp: np.ndarray, notes: list[str]) -> dict:
     chunks = [home.reshape(-1)]
     offset = 1  # in frames
     for gid in sorted(res.motions):
-        m = res.motions[gid]
-        P = np.asarray(m.path, dtype=np.float64)
+        motion = res.motions[gid]
+        P = np.asarray(motion.path, dtype=np.float64)
         S, idx = densify_path(P)
         frames = frames_of(S)
-        pre_s = int(idx[int(m.pregrasp_index)])
+        pre_s = int(idx[int(motion.pregrasp_index)])
         paths[str(gid)] = {"start": offset, "count": int(len(S)), "pregrasp": pre_s, "waypoints": int(len(P)),
-                           **_sequence_data(res, gid, m, idx)}
+                           **_sequence_data(res, gid, motion, idx)}
         chunks.append(frames.reshape(-1))
         offset += len(S)
     return {
@@ -380,11 +383,13 @@ def _robot_data(res, T_flange_tcp: np.ndarray, notes: list[str]) -> dict:
     }
 
 
-def _sequence_data(res, gid: int, m, idx: np.ndarray) -> dict:
+def _sequence_data(res: PlanResult, gid: int, m: Motion, idx: np.ndarray) -> dict:
     """A path's segments and gripper events in played-back samples (``idx``: the sample of each
     path row), the jaw opening per phase and, for a pick(-and-place) plan, what the part does:
     ``attached`` = [close sample, open sample or null], ``T_tcp_part`` (part pose while attached =
-    TCP @ T_tcp_part) and ``T_world_part_place`` (its pose after the release), 16 row-major."""
+    TCP @ T_tcp_part) and ``T_world_part_place`` (its pose after the release), 16 row-major. The
+    page's part pose rule: at ``T_world_part`` until the close, ``TCP @ T_tcp_part`` while attached,
+    ``T_world_part_place`` after the release."""
     from ..export.program import motion_segments
 
     g = res.grasp(gid)
@@ -419,7 +424,9 @@ def script_safe(text: str) -> str:
     return text.replace("</script", "<\\/script").replace("</SCRIPT", "<\\/SCRIPT")
 
 
-def build_html(result, *, part_path=None, allow_other_part: bool = False, notes: Sequence[str] = ()) -> str:
+def build_html(result: PlanResult | dict[str, Any] | str | os.PathLike[str], *,
+               part_path: str | os.PathLike[str] | None = None, allow_other_part: bool = False,
+               notes: Sequence[str] = ()) -> str:
     """The viewer page for a grasps or plan result, as one HTML string (``notes``: lines shown under
     the page's summary, e.g. why a pile has no pick).
 
@@ -462,7 +469,9 @@ def build_html(result, *, part_path=None, allow_other_part: bool = False, notes:
     return re.sub(r"\{\{([A-Z_]+)\}\}", lambda m: values[m.group(1)], template)
 
 
-def write_viewer(result, out_path, *, part_path=None, allow_other_part: bool = False, notes: Sequence[str] = ()) -> Path:
+def write_viewer(result: PlanResult | dict[str, Any] | str | os.PathLike[str],
+                 out_path: str | os.PathLike[str], *,
+                 part_path: str | os.PathLike[str] | None = None, allow_other_part: bool = False, notes: Sequence[str] = ()) -> Path:
     """Write :func:`build_html`'s page atomically to ``out_path``; returns the path."""
     return write_atomic_text(out_path, build_html(result, part_path=part_path, allow_other_part=allow_other_part,
                                                   notes=notes))

@@ -1,15 +1,6 @@
 """Inverse kinematics of a robot's tool frame: the IK families' closed forms, then Pinocchio CLIK.
 
-:func:`solve_ik` is the entry point. The robot YAML's ``kind:`` names an IK family
-(:mod:`grasplan.robot.ik.registry`); when that family has a closed form that fits the robot (``ur``:
-:mod:`grasplan.robot.ik.ur`, all eight branches), it runs first: every one of its solutions is checked
-by Pinocchio FK (position <= ``pos_tol`` = 1e-6 m, orientation <= ``rot_tol`` = 1e-6 rad) and
-wrapped into the joint limits (each joint shifted by multiples of 2 pi towards the reference
-configuration). Other robots (``generic``), and targets where the closed form yields candidates
-but none verified, use damped least squares CLIK (:mod:`grasplan.robot.ik.clik`) from several
-deterministic seeds (q_ref, q_home, then seeded random configurations within the limits), with
-the joint limits enforced at every step.
-
+:func:`solve_ik` is the entry point (its docstring gives the order of the solvers and the checks).
 Results never raise for an unreachable target: :class:`IKResult` holds zero solutions and a
 ``reason``. Solutions are deduplicated and sorted by the distance (Euclidean norm of the joint
 difference) to the reference configuration ``q_ref`` (default: ``robot.q_home``).
@@ -235,6 +226,16 @@ def solve_ik(robot: Robot, T_world_tool: np.ndarray, *, seeds: np.ndarray | None
              max_solutions: int | None = None, pos_tol: float = 1e-6, rot_tol: float = 1e-6
              ) -> IKResult:
     """IK of the tool frame (``robot.tool_frame``) for ``T_world_tool`` (4, 4).
+
+    The robot YAML's ``kind:`` names an IK family (:mod:`grasplan.robot.ik.registry`); when that
+    family has a closed form that fits the robot (``ur``: :mod:`grasplan.robot.ik.ur`, all eight
+    branches), it runs first: every one of its solutions is checked by Pinocchio FK (position <=
+    ``pos_tol`` = 1e-6 m, orientation <= ``rot_tol`` = 1e-6 rad) and wrapped into the joint limits
+    (each joint shifted by multiples of 2 pi towards the reference configuration). Other robots
+    (``generic``), and targets where the closed form yields candidates but none verified, use damped
+    least squares CLIK (:mod:`grasplan.robot.ik.clik`) from several deterministic seeds (q_ref,
+    q_home, then seeded random configurations within the limits), with the joint limits enforced at
+    every step.
 
     seeds: optional (k, n) CLIK start configurations (default: q_ref, q_home and
         ``n_random_seeds`` uniform random ones drawn with ``seed``).

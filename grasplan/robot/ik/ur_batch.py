@@ -110,7 +110,7 @@ def solve_one(chain: Chain, T_base_tool: np.ndarray) -> tuple[np.ndarray, bool, 
 
 
 @numba.njit(cache=True, nogil=True)
-def _dh_into(out, theta, d, a, alpha):  # pragma: no cover
+def _dh_into(out: np.ndarray, theta: float, d: float, a: float, alpha: float) -> None:  # pragma: no cover
     ct, st, ca, sa = math.cos(theta), math.sin(theta), math.cos(alpha), math.sin(alpha)
     out[0, 0], out[0, 1], out[0, 2], out[0, 3] = ct, -st * ca, st * sa, a * ct
     out[1, 0], out[1, 1], out[1, 2], out[1, 3] = st, ct * ca, -ct * sa, a * st
@@ -119,14 +119,14 @@ def _dh_into(out, theta, d, a, alpha):  # pragma: no cover
 
 
 @numba.njit(cache=True, nogil=True)
-def _mul(A, B, out):  # pragma: no cover
+def _mul(A: np.ndarray, B: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover
     for i in range(4):
         for j in range(4):
             out[i, j] = A[i, 0] * B[0, j] + A[i, 1] * B[1, j] + A[i, 2] * B[2, j] + A[i, 3] * B[3, j]
 
 
 @numba.njit(cache=True, nogil=True)
-def _inv_rigid_into(T, out):  # pragma: no cover
+def _inv_rigid_into(T: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover
     for i in range(3):
         for j in range(3):
             out[i, j] = T[j, i]
@@ -136,7 +136,7 @@ def _inv_rigid_into(T, out):  # pragma: no cover
 
 
 @numba.njit(cache=True, nogil=True)
-def _fk(q, dh, T_pre, T_post):  # pragma: no cover
+def _fk(q: np.ndarray, dh: np.ndarray, T_pre: np.ndarray, T_post: np.ndarray) -> np.ndarray:  # pragma: no cover
     m = q.shape[0]
     out = np.empty((m, 4, 4))
     A = np.empty((4, 4))
@@ -154,7 +154,8 @@ def _fk(q, dh, T_pre, T_post):  # pragma: no cover
 
 
 @numba.njit(cache=True, nogil=True)
-def _branch(T_base_tool, dh, T_pre, T_post, i1s, sign5s, sign3s):  # pragma: no cover
+def _branch(T_base_tool: np.ndarray, dh: np.ndarray, T_pre: np.ndarray, T_post: np.ndarray, i1s: np.ndarray,
+            sign5s: np.ndarray, sign3s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover
     """The branches ``(i1s, sign5s, sign3s)`` (each (b,)) at every pose of ``T_pre @ T_base_tool @
     T_post`` (m, 4, 4; DH frame 0 -> DH frame 6): ``(q (b, m, 6), ok_r (m,), ok3 (b, m))``."""
     m, nb = T_base_tool.shape[0], i1s.shape[0]
@@ -213,7 +214,8 @@ def _branch(T_base_tool, dh, T_pre, T_post, i1s, sign5s, sign3s):  # pragma: no 
 
 
 @numba.njit(cache=True, nogil=True)
-def _follow(T, q0, dh, pre, post, i1, s5, s3, lower, upper, max_step):  # pragma: no cover
+def _follow(T: np.ndarray, q0: np.ndarray, dh: np.ndarray, pre: np.ndarray, post: np.ndarray, i1: int, s5: float,
+            s3: float, lower: np.ndarray, upper: np.ndarray, max_step: float) -> tuple[np.ndarray, int]:  # pragma: no cover
     m = T.shape[0]
     Q, ok_r, ok3 = _branch(T, dh, pre, post, np.array([i1]), np.array([s5]), np.array([s3]))
     q = np.empty((m + 1, 6))
@@ -235,7 +237,8 @@ def _follow(T, q0, dh, pre, post, i1, s5, s3, lower, upper, max_step):  # pragma
 
 
 @numba.njit(cache=True, nogil=True)
-def _line_deviation(path, dh, pre, post, a, b):  # pragma: no cover
+def _line_deviation(path: np.ndarray, dh: np.ndarray, pre: np.ndarray, post: np.ndarray, a: np.ndarray,
+                    b: np.ndarray) -> float:  # pragma: no cover
     k = path.shape[0] - 1
     if k < 1:
         return 0.0
@@ -256,7 +259,7 @@ def _line_deviation(path, dh, pre, post, a, b):  # pragma: no cover
 
 
 @numba.njit(cache=True, nogil=True)
-def unwrap_rows(q):  # pragma: no cover
+def unwrap_rows(q: np.ndarray) -> np.ndarray:  # pragma: no cover
     """In place: each row's joints shifted by multiples of 2 pi to the previous row's values."""
     for i in range(1, q.shape[0]):
         for j in range(q.shape[1]):
