@@ -1,21 +1,32 @@
 # grasplan: two commands set everything up on a fresh machine.
-#   make demo   - create .venv, install, run the main job on examples/parts/bracket.stl
-#   make test   - create .venv, install, run the whole test suite
+#   make demo   - create .venv, install grasplan (runtime only), run the main job on examples/parts/bracket.stl
+#   make test   - also install the test tools (pytest, hypothesis, mypy, Ray, build), run the whole test suite
 PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
+TEST_STAMP := $(VENV)/.installed-test
 OUT    ?= out
+#: what `make install` puts in .venv: grasplan, its dependencies and the HTTP service (grasplan serve)
+RUNTIME_EXTRAS := serve
+#: what `make test` adds: the test extra (pytest, hypothesis, mypy, Ray, build)
+TEST_EXTRAS    := test,serve
 
-.PHONY: install demo test typecheck bench parts wheel fuzz clean
+.PHONY: install install-test demo test typecheck bench parts wheel fuzz clean
 
 install: $(STAMP)
+
+install-test: $(TEST_STAMP)
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test,serve]'
+	$(PY) -m pip install --quiet -e '.[$(RUNTIME_EXTRAS)]'
 	touch $(STAMP)
+
+$(TEST_STAMP): $(STAMP)
+	$(PY) -m pip install --quiet -e '.[$(TEST_EXTRAS)]'
+	touch $(TEST_STAMP)
 
 parts: install
 	$(PY) examples/make_parts.py
@@ -27,14 +38,14 @@ demo: install
 	$(VENV)/bin/grasplan view $(OUT)/bracket_plan.json -o $(OUT)/bracket_view.html
 	@echo "Viewer: $(abspath $(OUT)/bracket_view.html)"
 
-test: install
+test: install-test
 	$(VENV)/bin/mypy
 	$(PY) -m pytest -n 2 -q
 
-typecheck: install
+typecheck: install-test
 	$(VENV)/bin/mypy
 
-wheel: install
+wheel: install-test
 	$(PY) -m build --wheel --outdir dist .
 	@rm -rf build
 	@ls -1 dist/*.whl

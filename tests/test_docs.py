@@ -219,3 +219,17 @@ def test_paths_and_names_in_the_docs_exist(copy):
     problems = reference_problems(copy)
     assert any("grasplan/pick/nowhere.py" in p for p in problems), problems
     assert any("grasplan.pick.world.NoSuchThing" in p for p in problems), problems
+
+
+def readme_statuses(text: str) -> list[str]:
+    """The plan statuses README's walkthrough lists (the backticked words of its status sentence)."""
+    m = re.search(r"prints the grasps per status \(([^)]*)\)", text.replace("\n", " "))
+    assert m, "README no longer has the sentence listing the plan statuses"
+    return re.findall(r"`([a-z_]+)`", m.group(1).split(":")[0])
+
+
+def test_readme_lists_every_plan_status():
+    from grasplan.status import PLAN_STATUSES
+
+    assert readme_statuses("x prints the grasps per status (`planned`, `no_path`: see) y") == ["planned", "no_path"]
+    assert readme_statuses((ROOT / "README.md").read_text(encoding="utf-8")) == [str(s) for s in PLAN_STATUSES]

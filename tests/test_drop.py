@@ -19,10 +19,10 @@ from click.testing import CliRunner
 from grasplan.cell.model import load_cell
 from grasplan.cli import main
 from grasplan.errors import InputError
-from grasplan.sim.drop import DropParams, PileError, PileItem, SettleError, drop_pile, outside_bin, part_name
+from grasplan.sim.drop import DropParams, PileError, PileItem, SettleError, drop_pile, outside_bin
 from grasplan.part.mesh import load_part
 from grasplan.sim.pileworld import PileWorld, part_body
-from grasplan.piles.scene_file import load_scene
+from grasplan.piles.scene_file import load_scene, part_name
 from grasplan.piles.scene_write import write_scene
 
 #: settled parts: inside the bin within this (m); resting: within this of the floor or a neighbour (m);
@@ -36,7 +36,7 @@ PAPER_PILE = ("TLess20.stl", "TLess22.stl", "SileanePepper.stl", "IPARingScrew.s
 def _items(paths_counts) -> list[PileItem]:
     items: list[PileItem] = []
     for path, n in paths_counts:
-        items.append(PileItem(part_name(path, [it.name for it in items]), load_part(path), n))
+        items.append(PileItem(part_name(path), load_part(path), n))
     return items
 
 
@@ -323,8 +323,8 @@ def test_a_pile_that_does_not_come_to_rest_is_an_error(cell, monkeypatch):
 
 
 def test_part_names():
-    assert part_name("x/TLess20.stl") == "tless20"
-    assert part_name("a b(1).STL", taken=["a_b_1_"]) == "a_b_1_-2"
+    assert part_name("x/TLess20.stl") == "TLess20"
+    assert part_name("a b(1).STL") == "a_b_1_"
     assert part_name("-x.stl") == "_-x"
 
 
@@ -362,11 +362,15 @@ def test_cli_writes_the_scene(tmp_path):
     (("--part", "{gear}:500"), "does not fit the bin"),
     (("--part", "{box}:1", "--units", "cm"), "does not fit in the bin"),
     (("--part", "{box}:1", "--part", "{box}:2"), "given twice"),
+    (("--part", "{box}:1", "--part", "{other_box}:2"), "both give part name 'box'"),
     (("--part", "{box}:1", "--density", "-3"), "density"),
 ])
 def test_cli_refuses_bad_input_with_exit_3_and_writes_nothing(tmp_path, args, match):
     out = tmp_path / "pile.yaml"
-    args = [a.format(box=EXAMPLES / "box.stl", gear=EXAMPLES / "gear.stl") for a in args]
+    other = tmp_path.parent / f"{tmp_path.name}-other" / "box.stl"  # outside tmp_path: nothing written there
+    other.parent.mkdir(exist_ok=True)
+    other.write_bytes((EXAMPLES / "gear.stl").read_bytes())
+    args = [a.format(box=EXAMPLES / "box.stl", gear=EXAMPLES / "gear.stl", other_box=other) for a in args]
     r = _cli(*args, "-o", out)
     assert r.exit_code == 3, r.output
     assert match in r.stderr and "Traceback" not in r.output

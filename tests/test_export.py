@@ -407,8 +407,14 @@ def test_urscript_refuses_inconsistent_and_non_ur(plan_doc, tmp_path):
     doc["grasps"] = [g]
     doc["robot"] = robot_block("panda")
     assert load_result(doc).robot.nq == 7
-    with pytest.raises(InputError, match="only on Universal Robots.*joint-trajectory"):
+    with pytest.raises(InputError, match="only on Universal Robots.*joint-trajectory") as err:
         render(doc, "urscript")
+    # the formats it suggests run on a Panda: robot-neutral ones, not KUKA's or ABB's languages
+    from grasplan.export.urscript import NON_UR_FORMATS
+    from grasplan.results.export_registry import FORMATS
+
+    assert all(f in str(err.value) and f in FORMATS for f in NON_UR_FORMATS)
+    assert "krl" not in str(err.value).lower() and "rapid" not in str(err.value).lower()
 
 
 def test_rotvec_near_pi():

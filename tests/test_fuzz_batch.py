@@ -312,6 +312,10 @@ def _session(sid: int) -> list[tuple[int, str]]:
 
 def _no_core() -> None:
     resource.setrlimit(resource.RLIMIT_CORE, (0, 0))  # SIGQUIT's default action dumps core
+    # a shell starts background jobs with SIGINT and SIGQUIT ignored, and children inherit that:
+    # the batch must meet these signals as a terminal's user sends them
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGQUIT, signal.SIG_DFL)
 
 
 SIGNALS = [(name,) for name in ("SIGHUP", "SIGINT", "SIGQUIT", "SIGTERM", "SIGUSR1", "SIGALRM", "SIGKILL")]

@@ -116,6 +116,9 @@ CASES = _cases()
 
 def _no_core() -> None:
     resource.setrlimit(resource.RLIMIT_CORE, (0, 0))  # SIGQUIT/SIGABRT: no core file in the test folder
+    # a shell starts background jobs with SIGINT and SIGQUIT ignored, and children inherit that
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGQUIT, signal.SIG_DFL)
 
 
 def _start(role: str, mode: str, folder: Path, release: Path) -> subprocess.Popen:

@@ -66,8 +66,9 @@ def test_scan_parts_names_and_refusals(tmp_path):
     (d / "notes.txt").write_text("x")
     (d / "my part.stl").write_bytes((d / "box.stl").read_bytes())
     warnings: list[str] = []
-    assert list(scan_parts(d, warnings.append)) == ["box", "gear"]
-    assert any("my part.stl" in w for w in warnings)
+    found = scan_parts(d, warnings.append)
+    assert list(found) == ["box", "gear", "my_part"] and found["my_part"] == d / "my part.stl"
+    assert any("my part.stl: part name 'my_part'" in w for w in warnings)
     (d / "box.obj").write_text("v 0 0 0\n")
     with pytest.raises(InputError, match="box.obj and box.stl|box.stl and box.obj"):
         scan_parts(d, warnings.append)

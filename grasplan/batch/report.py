@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import quote
 
+from ..config.params import ALL_POSES
 from ..io import to_json_text, write_atomic_chunks, write_atomic_text
 from .layout import FINAL_STATUSES, LOG_FILE, SUMMARY_SCHEMA, VIEW_FILE, BatchStatus
 from .manifest import PartJob
@@ -47,10 +48,28 @@ class BatchSummary:
 
 def summary_row(job: PartJob, r: dict[str, Any]) -> dict[str, Any]:
     """The summary row of ``job`` from its worker's row ``r`` (:func:`grasplan.batch.worker.run_part`)."""
+    error = r["error"]
+    if r["status"] == BatchStatus.NOTHING.value:
+        error += other_poses_hint(job)
     return {"part": job.path, "dir": job.dir_name, "status": r["status"], "exit_code": r["exit_code"],
             "planned": r["planned"], "grasps": r["grasps"], "best_score": r["best_score"],
-            "seconds": r["timing_s"].get("total"), "timing_s": r["timing_s"], "error": r["error"],
+            "seconds": r["timing_s"].get("total"), "timing_s": r["timing_s"], "error": error,
             "resumed": False, "sha256": job.sha256, "options_hash": job.options_hash}
+
+
+def other_poses_hint(job: PartJob) -> str:
+    """What to try when a part planned in one resting pose has no planned grasp (as ``grasplan plan``
+    says it): another pose, or every pose; ``""`` when the part's pose or a place was given or every
+    pose was planned already."""
+    o = job.options
+    if o.T_world_part is not None or o.planning.place_matrix() is not None or o.grasps.pose_index == ALL_POSES:
+        return ""
+    used = o.grasps.single_pose_index()
+    if used is None and job.setup is not None and job.setup.cell is not None:
+        used = job.setup.cell.pose_index
+    other = 1 if not used else 0
+    return (f"; other resting poses may have grasps: try --pose-index {other} or --pose-index all "
+            "(every pose of probability >= 2 %)")
 
 
 def pending_row(job: PartJob) -> dict[str, Any]:

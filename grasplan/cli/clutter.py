@@ -27,7 +27,8 @@ def _pct(x) -> str:
 @click.option("--cell", default="bin", show_default=True,
               help="Cell with a bin: a name (see --config-dir) or a cell YAML path.")
 @click.option("--part", "parts", multiple=True, required=True, metavar="PATH:COUNT",
-              help="A part's mesh file and how many of it go into each pile (repeatable; one per part).")
+              help="A part's mesh file and how many of it go into each pile (repeatable; one per part). The "
+                   "part is named by the file's stem as written (TLess20.stl -> TLess20), as in `scene drop`.")
 @units_option
 @click.option("--rounds", type=click.IntRange(1, 1000), default=20, show_default=True,
               help="Piles to drop and clear; round r drops with seed --seed + r.")

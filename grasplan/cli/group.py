@@ -12,14 +12,15 @@ import click
 
 from ..errors import GrasplanError
 
-#: command name -> (module, one-line help shown by ``grasplan --help``)
+#: command name -> (module, one-line help shown by ``grasplan --help``; export's line lists the
+#: registered formats, :func:`export_help`)
 COMMANDS: dict[str, tuple[str, str]] = {
     "blm": ("blm", "Insert the boundary layer into a part's mesh and write the remeshed part."),
     "candidates": ("candidates", "Convex antipodal contact pairs for a part (BLM, convexity, antipodal)."),
     "grasps": ("grasps", "Gripper poses from candidates, filtered by full-jaw collision checks."),
     "database": ("database", "A part's grasp database: its grasps in the part frame, computed once for picking."),
     "plan": ("plan", "Grasps a robot can reach: IK and collision-free approach paths."),
-    "export": ("export", "Write a planned grasp as URScript, a timed joint trajectory or CSV."),
+    "export": ("export", "Write a planned grasp as a robot program or data file."),
     "view": ("view", "Write a self-contained HTML viewer for a grasps or plan file."),
     "simulate": ("simulate", "Close, lift and shake grasps in MuJoCo; record which ones hold the part."),
     "batch": ("batch", "Plan a whole catalogue of parts (files, folders, manifests), locally or on Ray."),
@@ -41,7 +42,7 @@ class LazyGroup(click.Group):
         return module.command
 
     def format_commands(self, ctx, formatter):
-        rows = [(name, help_) for name, (_, help_) in COMMANDS.items()]
+        rows = [(name, export_help() if name == "export" else help_) for name, (_, help_) in COMMANDS.items()]
         with formatter.section("Commands"):
             formatter.write_dl(rows)
 
@@ -74,6 +75,14 @@ class LazyGroup(click.Group):
             click.echo(f"grasplan: internal error ({type(exc).__name__}); no output was written. This is a bug: "
                        "please report it with the command line (GRASPLAN_DEBUG=1 shows the traceback)", err=True)
             sys.exit(1)
+
+
+def export_help() -> str:
+    """``grasplan --help``'s line for export: the formats as registered (read only when help is shown)."""
+    from ..results.export_registry import load_builtin_formats
+
+    names = list(load_builtin_formats())
+    return f"Write a planned grasp in one of {len(names)} formats: {', '.join(names)}."
 
 
 def _one_line(msg: str, limit: int = 2000) -> str:

@@ -3,7 +3,8 @@ the neighbours and a point cloud (docs/pick.md)."""
 from __future__ import annotations
 
 import time
-from typing import Any
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 import click
 
@@ -12,6 +13,9 @@ from ..config.params import DEFAULT_GRIPPER, GraspParams
 from ..pick.params import PickParams
 from .common import check_output, info, table, warn_all
 from .options import apply_config_dirs, config_dir_option, output_option, param_options, robot_option
+
+if TYPE_CHECKING:
+    from ..pick.result import InstanceReport
 
 
 @click.command(name="pick")
@@ -60,11 +64,21 @@ def command(scene: str, robot: str, gripper: str, cell: str | None, sequence: bo
     result = picker.plan(sc, sequence=sequence, max_picks=max_picks)
     warn_all(result.warnings)
     result.write(output)
-    rows = [(r.id, r.part, r.status, ",".join(r.blocked_by) or "-") for r in result.instances]
-    click.echo(table(rows, header=("instance", "part", "status", "blocked_by")))
+    click.echo(instance_table(result.instances))
     order = " -> ".join(p.instance for p in result.picks) or "(none)"
     click.echo(f"{len(result.picks)} of {len(result.instances)} instances picked ({order}); wrote {output}")
     click.echo(table([(k, float(v)) for k, v in result.timing_s.items()] + [("wall", time.perf_counter() - t0)],
                      header=("stage", "seconds")))
     if not result.picks:
         raise PlanningError(f"no instance of {scene} can be picked; {output} lists every instance's status and reason")
+
+
+def instance_table(instances: Sequence[InstanceReport]) -> str:
+    """The instances' table (id, part, status, blocked_by), with a footer saying what ``blocked_by``
+    means for a picked and for a blocked instance when any instance has one."""
+    rows = [(r.id, r.part, r.status.value, ",".join(r.blocked_by) or "-") for r in instances]
+    text = table(rows, header=("instance", "part", "status", "blocked_by"))
+    if any(r.blocked_by for r in instances):
+        text += ("\nblocked_by: on a picked instance, the neighbours hit by its better-ranked grasps (it was picked "
+                 "with a lower-ranked one); on any other, the neighbours its grasps, arm or lift hit")
+    return text

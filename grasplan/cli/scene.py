@@ -39,7 +39,9 @@ def parse_part_count(text: str) -> tuple[str, int]:
 @click.option("--cell", default="bin", show_default=True,
               help="Cell with a bin: a name (see --config-dir) or a cell YAML path.")
 @click.option("--part", "parts", multiple=True, required=True, metavar="PATH:COUNT",
-              help="A part's mesh file and how many to drop (repeatable; one per part).")
+              help="A part's mesh file and how many to drop (repeatable; one per part). The part is named by "
+                   "the file's stem as written (TLess20.stl -> TLess20, instances TLess20_0, ...), as "
+                   "`grasplan serve` names it.")
 @units_option
 @param_options(DropParams)
 @config_dir_option

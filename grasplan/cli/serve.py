@@ -27,7 +27,7 @@ from .options import FLOAT, INT, config_dir_option, robot_option
 @click.command(name="serve")
 @click.option("--parts", "parts_dir", required=True, type=click.Path(file_okay=False),
               help="Folder of the part meshes a request may name; a part's name is its file's stem "
-                   "(TLess20.stl -> TLess20). Not searched recursively.")
+                   "(TLess20.stl -> TLess20), as `scene drop` and `clutter` name it. Not searched recursively.")
 @click.option("--host", default=DEFAULT_HOST, show_default=True,
               help="Address to listen on. The default accepts this machine only; 0.0.0.0 accepts the network "
                    "(then set --token).")

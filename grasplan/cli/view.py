@@ -38,13 +38,16 @@ def command(result: str, output: str, part: str | None, allow_other_part: bool, 
     from ..pick.reader import is_picks_file, load_picks, pick_as_plan, pile_as_plan
 
     notes: list[str] = []
+    blockers: tuple[str, ...] = ()  # instances drawn as what blocks the shown one
     if is_picks_file(result):  # the pick as a one-grasp plan; the other instances are cell obstacles
         picks = load_picks(result)
         check_output(output, result, part, *picks_files(picks))  # the files it names are inputs too
         if picks.picks or instance is not None:
             res = pick_as_plan(picks, instance)
+            blockers = tuple(picks.report(picks.pick(instance).instance).blocked_by)
         else:  # no pick: the pile, and why each instance cannot be picked
             res, notes = pile_as_plan(picks)
+            blockers = tuple(picks.report(picks.scene.instances[0].id).blocked_by)
     elif instance is not None:
         from ..errors import InputError
 
@@ -54,6 +57,7 @@ def command(result: str, output: str, part: str | None, allow_other_part: bool, 
         check_output(output, result, part, *result_files(res))  # its part and robot files are inputs too
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        path = write_viewer(res, output, part_path=part, allow_other_part=allow_other_part, notes=notes)
+        path = write_viewer(res, output, part_path=part, allow_other_part=allow_other_part, notes=notes,
+                            blockers=blockers)
     warn_all(str(w.message) for w in caught)
     click.echo(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB)")

@@ -28,6 +28,9 @@ if TYPE_CHECKING:
 #: joint order of every UR arm (URScript's joint vector order)
 UR_JOINTS = ("shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint",
              "wrist_1_joint", "wrist_2_joint", "wrist_3_joint")
+#: the formats an arm other than a UR runs (named when a URScript export is refused): ROS/MoveIt
+#: read them whatever the robot's vendor
+NON_UR_FORMATS = ("joint-trajectory", "path-csv", "moveit-grasp")
 
 #: URScript defaults: joint moves (rad/s, rad/s^2) and the linear approach/retreat (m/s, m/s^2)
 JOINT_SPEED = 1.05
@@ -78,7 +81,8 @@ def urscript_program(prog: MotionProgram, *, joint_speed: float = JOINT_SPEED, j
     """
     if tuple(prog.joint_names) != UR_JOINTS:
         raise InputError(f"URScript runs only on Universal Robots arms; robot {prog.robot_name!r} has joints "
-                         f"{', '.join(prog.joint_names)}. Export --format krl, rapid or joint-trajectory instead")
+                         f"{', '.join(prog.joint_names)}. Export --format {', '.join(NON_UR_FORMATS[:-1])} or {NON_UR_FORMATS[-1]} instead "
+                         "(robot-neutral: ROS/MoveIt controllers read them)")
     for name, limit in (("joint_speed", joint_speed), ("joint_accel", joint_accel),
                         ("linear_speed", linear_speed), ("linear_accel", linear_accel)):
         if not (np.isfinite(limit) and limit > 0):

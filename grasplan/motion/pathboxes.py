@@ -19,6 +19,9 @@ import numpy as np
 import pinocchio as pin
 
 from ..cell.shapes import local_box
+from ..robot.ik.ur_batch import announce_compiling
+
+announce_compiling()  # one line on stderr when these kernels compile (a cold cache)
 
 #: the boxes must lie this much (m) beyond the security margin apart: float rounding of the box
 #: arithmetic (~1e-15 m) and coal's own tolerances are far below it

@@ -18,6 +18,9 @@ import numba
 import numpy as np
 
 from ..motion.pathboxes import obb_apart
+from ..robot.ik.ur_batch import announce_compiling
+
+announce_compiling()  # one line on stderr when these kernels compile (a cold cache)
 
 #: the swept box is this much (m) larger than the boxes it holds along each of its axes
 SWEPT_PAD = 1e-9

@@ -119,15 +119,16 @@ class Scene:
         schema: grasplan.scene/1
         cell: bin                      # a cell name or path: table, bin, obstacles
         parts:
-          tless20: {mesh: parts/TLess20.stl, units: mm}          # optional grasps: path to a database
+          TLess20: {mesh: parts/TLess20.stl, units: mm}          # optional grasps: path to a database
         instances:                      # T_world_part of each part, e.g. from a pose estimator
-          - {id: a, part: tless20, T: {xyz: [0.40, 0.03, 0.03], rpy_deg: [0, 0, 30]}}
-          - {id: b, part: tless20, T: [[1,0,0,0.5],[0,1,0,0],[0,0,1,0.03],[0,0,0,1]]}
+          - {id: a, part: TLess20, T: {xyz: [0.40, 0.03, 0.03], rpy_deg: [0, 0, 30]}}
+          - {id: b, part: TLess20, T: [[1,0,0,0.5],[0,1,0,0],[0,0,1,0.03],[0,0,0,1]]}
         cloud: {path: scan.ply, resolution: 0.005}   # optional: points of what is not modelled
 
     Paths (meshes, databases, the cloud, a cell YAML) are relative to the scene file. A part named by
     a scene but not given a mesh is resolved by whoever plans it (``grasplan.Picker.add_part``, or the
-    service's parts folder)."""
+    service's parts folder). ``scene drop`` names a part by its mesh file's stem as written
+    (:func:`part_name`), as ``grasplan serve`` names the files of its parts folder."""
 
     instances: tuple[Instance, ...]
     cell: str = DEFAULT_CELL
@@ -199,6 +200,42 @@ class Scene:
         if self.cloud is not None:
             d["cloud"] = self.cloud.to_json()
         return d
+
+
+# ------------------------------------------------------------------------------------------------
+# part names from mesh files: the one rule of ``scene drop``, ``clutter`` and ``serve --parts``
+# ------------------------------------------------------------------------------------------------
+# A part is named by its mesh file's stem exactly as written (``parts/TLess20.stl`` -> ``TLess20``);
+# its instances are ``TLess20_0``, ``TLess20_1``, ... A stem that is no valid name has each character
+# other than letters, digits, '_', '.', '+', '-' made '_', a leading '.', '+' or '-' prefixed by '_',
+# and is cut to MAX_PART_NAME characters (so that its instance ids stay valid names): ``a b(1).STL``
+# -> ``a_b_1_``. Two files that give one name are refused (name_parts), naming both files: the name
+# is what a scene, a picks file and the service call the part, so it must say which mesh.
+
+#: longest part name: an instance id is ``<name>_<k>`` with k < MAX_INSTANCES, at most 64 characters
+MAX_PART_NAME = 64 - len(f"_{MAX_INSTANCES - 1}")
+PART_NAME_RULE = "the mesh file's stem as written (characters other than letters, digits, '_', '.', '+', '-' made '_')"
+
+
+def part_name(path: str | Path) -> str:
+    """The name of the part whose mesh is ``path``: its stem as written (the rule above)."""
+    name = re.sub(r"[^A-Za-z0-9_.+-]", "_", Path(path).stem) or "part"
+    if not re.match(r"[A-Za-z0-9_]", name):
+        name = "_" + name
+    return name[:MAX_PART_NAME]
+
+
+def name_parts(paths: Iterable[str | Path], *, where: str) -> dict[str, str | Path]:
+    """``{part name: path}`` of ``paths`` in their order; InputError (exit 3) naming ``where`` and
+    both files when two of them give one name."""
+    out: dict[str, str | Path] = {}
+    for p in paths:
+        name = part_name(p)
+        if name in out:
+            raise InputError(f"{where}: {out[name]} and {p} both give part name {name!r} (a part's name is "
+                             f"{PART_NAME_RULE}); rename one of the files")
+        out[name] = p
+    return out
 
 
 # ------------------------------------------------------------------------------------------------

@@ -1,8 +1,9 @@
 """Reading request bodies: strict JSON (:func:`parse_json`, HTTP 400 for what is not JSON) and the
 documents of ``POST /plan``, ``/pick`` and ``/export`` (:class:`~grasplan.errors.InputError`
 naming the field, HTTP 422). No request names a file: parts are names from the service's parts
-folder, and every field that would read a file (a scene's ``mesh``, ``grasps`` or ``cloud``, a
-plan option's ``scoring``, a plan document's robot) is refused or must match the service's own.
+folder, and every field that would read a file (a scene's ``grasps`` or ``cloud``, a plan option's
+``scoring``, a plan document's robot) is refused or must match the service's own; a scene's
+``mesh`` only names the part (its file is never read).
 
 Plan options are the fields of :class:`~grasplan.config.params.CandidateParams`,
 :class:`~grasplan.config.params.GraspParams` and :class:`~grasplan.config.params.PlanParams`, by field name or
@@ -25,7 +26,7 @@ from ..config.jsontext import DuplicateKeyError, loads_strict
 from ..config.option_kinds import KINDS, OptionSpec, check_fields, option_spec, read_value
 from ..config.params import ALL_POSES, PARAM_CLASSES, PlanParams, option_fields
 from ..geometry.transforms import MAX_CELL_COORD_M
-from ..piles.scene_file import MAX_INSTANCES, SCENE_SCHEMA, Scene, scene_from_dict
+from ..piles.scene_file import MAX_INSTANCES, PART_NAME_RULE, SCENE_SCHEMA, Scene, part_name, scene_from_dict
 from .state import BUDGET_SHARE, PartEntry, Service
 
 #: the largest whole number a request may hold (digits); longer ones are refused as malformed
@@ -216,8 +217,8 @@ class PickRequest:
 
 def pick_request(doc: Any, service: Service) -> PickRequest:
     """A ``POST /pick`` body: a ``grasplan.scene/1`` document whose parts are the service's (by
-    name: no ``mesh``, ``grasps`` or ``cloud`` file), plus an optional ``options`` object
-    ``{max_picks, seed, sequence}``."""
+    name, or a ``mesh`` field's file name: :func:`_service_parts`; no ``grasps`` or ``cloud``
+    file is read), plus an optional ``options`` object ``{max_picks, seed, sequence}``."""
     if not isinstance(doc, dict):
         raise InputError(f"scene: expected a {SCENE_SCHEMA} document (a JSON object), got {_type(doc)}")
     doc = dict(doc)
@@ -226,15 +227,8 @@ def pick_request(doc: Any, service: Service) -> PickRequest:
     max_picks = None if opts.get("max_picks") is None else _checked(_MAX_PICKS, opts["max_picks"], "options.max_picks")
     seed = None if opts.get("seed") is None else _checked(_SEED, opts["seed"], "options.seed")
     sequence = _bool(opts.get("sequence", False), "options.sequence")
-    parts = doc.get("parts")
-    if isinstance(parts, dict):
-        for name, spec in parts.items():
-            service.part(name, f"scene: parts.{str(name)[:40]}")
-            if isinstance(spec, dict):
-                for key in ("mesh", "grasps"):
-                    if key in spec:
-                        raise InputError(f"scene: parts.{name}.{key}: the service takes parts by name from its parts "
-                                         "folder and reads no file a client names; leave it out")
+    if isinstance(doc.get("parts"), dict):
+        doc = _service_parts(doc, service)
     if doc.get("cloud") is not None:
         raise InputError("scene: cloud: the service reads no file a client names (a cloud is a file path); "
                          "leave it out")
@@ -247,6 +241,52 @@ def pick_request(doc: Any, service: Service) -> PickRequest:
     for k, inst in enumerate(scene.instances):
         service.part(inst.part, f"scene: instances[{k}].part")
     return PickRequest(scene, max_picks, seed, sequence)
+
+
+def _service_parts(doc: dict[str, Any], service: Service) -> dict[str, Any]:
+    """``doc`` with its ``parts`` matched to the service's: a part by its name; one with a ``mesh``
+    (as ``scene drop`` writes it) by that file's part name (:func:`grasplan.piles.scene_file.part_name`),
+    which must be the part's own name or, for a name the service does not hold (a scene written
+    with lower-cased names), replaces it in the parts and instances. The mesh is never read (the
+    service's file of that name is used) and is left out. InputError naming the field and the
+    service's parts when nothing matches, for a ``grasps`` file and for ``units`` other than those
+    the service read the part in."""
+    renamed: dict[str, str] = {}
+    parts: dict[str, Any] = {}
+    for name, spec in doc["parts"].items():
+        where = f"scene: parts.{str(name)[:40]}"
+        spec = dict(spec) if isinstance(spec, dict) else spec
+        mesh = spec.pop("mesh", None) if isinstance(spec, dict) else None
+        if isinstance(spec, dict) and "grasps" in spec:
+            raise InputError(f"{where}.grasps: the service uses its own grasp databases and reads no file a client "
+                             "names; leave it out")
+        if mesh is not None:
+            if not isinstance(mesh, str) or not mesh.strip() or "\x00" in mesh or len(mesh) > 4096:
+                raise InputError(f"{where}.mesh: expected a mesh file path (only its file name is used)")
+            by_file = part_name(mesh.replace("\\", "/"))
+            if by_file not in service.parts:
+                raise InputError(f"{where}.mesh: the file's part name {by_file!r} is none of the service's parts "
+                                 f"({', '.join(service.parts)}); a part's name is {PART_NAME_RULE}")
+            if by_file != name:
+                if name in service.parts:
+                    raise InputError(f"{where}.mesh: the file gives part name {by_file!r}, not {str(name)[:40]!r}; "
+                                     "give the part its mesh file's name")
+                renamed[name] = by_file
+        entry = service.part(renamed.get(name, name), where)
+        units = spec.get("units") if isinstance(spec, dict) else None
+        if mesh is not None and units not in (None, "auto", entry.part.units):
+            raise InputError(f"{where}.units: the service reads part {entry.name!r} in {entry.part.units}, the scene "
+                             f"says {str(units)[:20]!r}; give {entry.part.units!r} or leave units out")
+        if entry.name in parts:
+            raise InputError(f"{where}: another scene part is also the service's part {entry.name!r}; give each part "
+                             "once")
+        parts[entry.name] = spec
+    out = dict(doc, parts=parts)
+    if renamed and isinstance(doc.get("instances"), list):
+        out["instances"] = [dict(i, part=renamed.get(i["part"], i["part"]))
+                            if isinstance(i, dict) and isinstance(i.get("part"), str) else i
+                            for i in doc["instances"]]
+    return out
 
 
 # -------------------------------------------------------------------------------------- /export

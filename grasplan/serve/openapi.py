@@ -52,8 +52,10 @@ def pick_body() -> dict[str, Any]:
     schema = {"type": "object", "required": ["schema", "instances"], "properties": {
         "schema": {"const": "grasplan.scene/1"},
         "cell": {"type": "string", "description": "Optional; must be the service's cell (GET /health)."},
-        "parts": {"type": "object", "description": "Optional: {name: {units}}; names from GET /parts. No mesh, "
-                                                   "grasps or cloud files: the service reads none a client names."},
+        "parts": {"type": "object", "description": "Optional: {name: {units}} or, as `scene drop` writes it, "
+                                                   "{name: {mesh, units}}; names from GET /parts. A mesh is never "
+                                                   "read: its file's stem must be the part's name. No grasps or "
+                                                   "cloud files: the service reads none a client names."},
         "instances": {"type": "array", "items": {"type": "object", "required": ["id", "part", "T"],
                                                  "properties": {"id": {"type": "string"},
                                                                 "part": {"type": "string"}, "T": pose}}},

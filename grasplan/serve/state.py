@@ -1,9 +1,11 @@
 """What a running service holds warm: its parts (by name), robot, gripper, cell, grasp databases
 and picker. Built once per worker process (:meth:`Service.start`); nothing here imports FastAPI.
 
-A part's name is its mesh file's stem in ``--parts`` (``TLess20.stl`` -> ``TLess20``); names follow
-the scene file's rule (:data:`grasplan.piles.scene_file.NAME_RE`), so a client can only ever name a part
-the folder holds. Each part's grasp database is ``NAME.graspdb.npz`` next to its mesh when there
+A part's name is its mesh file's stem in ``--parts`` (``TLess20.stl`` -> ``TLess20``), by the rule
+``scene drop`` and ``clutter`` name parts with (:func:`grasplan.piles.scene_file.part_name`), so a
+pile they write can be posted to ``/pick``; names are valid scene names
+(:data:`grasplan.piles.scene_file.NAME_RE`), so a client can only ever name a part the folder holds.
+Each part's grasp database is ``NAME.graspdb.npz`` next to its mesh when there
 is one, else it comes from the cache or is computed when the service starts
 (:func:`grasplan.grasps.graspdb.database_for`, through the picker), with a progress line per part.
 """
@@ -18,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..errors import InputError
 from ..part.meshfile import SUPPORTED_SUFFIXES
-from ..piles.scene_file import MAX_PARTS, NAME_RE, NAME_RULE
+from ..piles.scene_file import MAX_PARTS, NAME_RE, NAME_RULE, PART_NAME_RULE, name_parts
 from .config import ServeConfig
 
 if TYPE_CHECKING:
@@ -46,19 +48,15 @@ class PartEntry:
 
 
 def scan_parts(folder: Path, warn: Callable[[str], None]) -> dict[str, Path]:
-    """``{name: mesh path}`` of the meshes in ``folder`` (not recursive), sorted by name. A file whose
-    stem is no valid name is skipped with a warning; two meshes with one stem are an InputError."""
-    out: dict[str, Path] = {}
-    for p in sorted(folder.iterdir()):
-        if p.suffix.lower() not in SUPPORTED_SUFFIXES or not p.is_file():
-            continue
-        if not NAME_RE.match(p.stem):
-            warn(f"{p.name}: skipped; a part's name is its file's stem, which must be {NAME_RULE}")
-            continue
-        if p.stem in out:
-            raise InputError(f"--parts {folder}: {out[p.stem].name} and {p.name} both give part name {p.stem!r}; "
-                             "keep one mesh per name")
-        out[p.stem] = p
+    """``{name: mesh path}`` of the meshes in ``folder`` (not recursive), in file-name order; a part's
+    name is :func:`grasplan.piles.scene_file.part_name` of its file (the stem as written, as ``scene
+    drop`` and ``clutter`` name it). Two meshes that give one name are an InputError naming both."""
+    meshes = [p for p in sorted(folder.iterdir()) if p.suffix.lower() in SUPPORTED_SUFFIXES and p.is_file()]
+    named = name_parts([p.name for p in meshes], where=f"--parts {folder}")
+    out = {name: folder / f for name, f in named.items()}
+    for name, p in out.items():
+        if name != p.stem:
+            warn(f"{p.name}: part name {name!r} (a part's name is {PART_NAME_RULE})")
     if not out:
         raise InputError(f"--parts {folder}: no part meshes ({', '.join(SUPPORTED_SUFFIXES)}) in it")
     if len(out) > MAX_PARTS:

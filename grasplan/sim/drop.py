@@ -12,7 +12,6 @@ MuJoCo runs single-threaded; the same inputs give the same scene bits.
 from __future__ import annotations
 
 import math
-import re
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -27,7 +26,7 @@ from ..part.mesh import Part
 from ..config.option_kinds import spec
 from ..config.params import CandidateParams, OptionSet
 from .pileworld import PartBody, PileWorld, Settled, part_body
-from ..piles.scene_file import MAX_INSTANCES, NAME_RE, Instance, Scene, ScenePart
+from ..piles.scene_file import MAX_INSTANCES, NAME_RE, Instance, Scene, ScenePart, name_parts
 
 #: default density of a pile's parts, kg/m^3 (plastic, as clutter removal's targets)
 PILE_DENSITY = 1200.0
@@ -150,38 +149,27 @@ class DropResult:
 # ------------------------------------------------------------------------------------------------
 # names and items
 # ------------------------------------------------------------------------------------------------
-def part_name(path: str | Path, taken: Sequence[str] = ()) -> str:
-    """A scene part name from a mesh file name: the lower-case stem with anything but letters,
-    digits, '_', '.', '+', '-' made '_' (``TLess20.stl`` -> ``tless20``), ``-2``, ``-3``, ... added
-    when ``taken`` has it."""
-    stem = re.sub(r"[^a-z0-9_.+-]", "_", Path(path).stem.lower())[:56] or "part"
-    if not re.match(r"[a-z0-9_]", stem):
-        stem = "_" + stem[:55]
-    name, k = stem, 2
-    while name in taken:
-        name, k = f"{stem}-{k}", k + 1
-    return name
-
-
 def load_items(specs: Sequence[tuple[str, int]], *, units: str = "auto",
                info: Callable[[str], None] | None = None, warn: Callable[[str], None] | None = None) -> list[PileItem]:
     """:class:`PileItem` s from ``(mesh path, count)`` pairs (``--part PATH:COUNT``), named by
-    :func:`part_name`; InputError (exit 3) for a file given twice or an unreadable mesh."""
+    :func:`grasplan.piles.scene_file.part_name` (the file's stem); InputError (exit 3) for a file
+    given twice, two files that give one name or an unreadable mesh."""
     from ..part.mesh import load_part
 
     seen: dict[str, str] = {}
-    items: list[PileItem] = []
-    for path, n in specs:
+    for path, _ in specs:
         key = str(Path(path).resolve())
         if key in seen:
             raise InputError(f"--part {path}: given twice (also as {seen[key]}); give each part once with the total "
                              f"count")
         seen[key] = path
+    names = list(name_parts((path for path, _ in specs), where="--part"))
+    items: list[PileItem] = []
+    for name, (path, n) in zip(names, specs):
         p = load_part(path, units=units)
         for w in p.warnings:
             if warn is not None:
                 warn(w)
-        name = part_name(path, taken=[it.name for it in items])
         if info is not None:
             info(f"part {name}: {path} ({p.units_note}; sha256 {p.sha256[:16]}, scale_to_m {p.scale_to_m:g})")
         items.append(PileItem(name=name, part=p, count=n))

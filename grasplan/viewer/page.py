@@ -16,7 +16,7 @@ import os
 import re
 import warnings
 import zlib
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
@@ -170,7 +170,8 @@ def densify_path(path: np.ndarray, *, step: float = PATH_STEP_RAD, max_samples: 
 
 
 # --------------------------------------------------------------------------- page data
-def build_data(res: PlanResult, *, part_path: str | os.PathLike[str] | None = None, allow_other_part: bool = False) -> tuple[dict, list[str]]:
+def build_data(res: PlanResult, *, part_path: str | os.PathLike[str] | None = None, allow_other_part: bool = False,
+               blockers: Collection[str] = ()) -> tuple[dict, list[str]]:
     """Everything the page needs for a :class:`~grasplan.results.plan_result.PlanResult`, as one JSON-able dict
     (arrays base64-encoded), plus notes/warnings: the part mesh (at the result's ``scale_to_m``) and
     its pose ``T_world_part``; every grasp's world contact points and TCP pose ``T_world_part @
@@ -179,7 +180,8 @@ def build_data(res: PlanResult, *, part_path: str | os.PathLike[str] | None = No
     densified to at most :data:`PATH_STEP_RAD` per sample, with its segments and events
     (:func:`_robot_data`, :func:`_sequence_data`: no FK in JavaScript); the cell's obstacles and bin,
     drawn semi-transparent (:func:`cell_data`); per-grasp quality / simulation values when the
-    result has them (:func:`_quality_data`)."""
+    result has them (:func:`_quality_data`). ``blockers``: the pile instances drawn as what blocked
+    the pick (a pick's ``blocked_by``; every other instance is drawn neutral)."""
     notes: list[str] = []
     schema = res.schema
     mesh = res.mesh(part_path, allow_other_part=allow_other_part)
@@ -242,7 +244,7 @@ def build_data(res: PlanResult, *, part_path: str | os.PathLike[str] | None = No
         "title": res.part.label,
         "part": {**mesh_block(V, F), "T_world_part": T_world_part.reshape(-1).tolist(), "path": res.part.path,
                  "scale_to_m": float(res.part.scale_to_m), "sha256": res.part.sha256},
-        "cell": {"name": res.cell.name, "table_z": float(res.cell.table_z), **cell_data(res.cell, notes)},
+        "cell": {"name": res.cell.name, "table_z": float(res.cell.table_z), **cell_data(res.cell, notes, blockers)},
         "statuses": [{"name": s, "color": STATUS_COLORS.get(s, OTHER_COLOR)} for s in status_names],
         "grasps": {
             "n": n,
@@ -272,12 +274,35 @@ def build_data(res: PlanResult, *, part_path: str | os.PathLike[str] | None = No
 
 #: obstacle kinds the page draws (the cell JSON's shape keys)
 OBSTACLE_KINDS = ("box", "cylinder", "sphere", "mesh")
+#: how the page draws each obstacle role (:func:`obstacle_role`): fill colour, edge colour, legend text.
+#: Red is kept for what blocked the pick (``blocked_by``); other pile instances are a neutral grey
+OBSTACLE_ROLES: dict[str, tuple[str, str, str]] = {
+    "blocker": ("#c62828", "#8e0000", "neighbour in the way (blocked_by)"),
+    "neighbour": ("#90a4ae", "#546e7a", "other instance of the pile"),
+    "obstacle": ("#ef6c00", "#a84300", "cell obstacle"),
+    "bin": ("#8d6e63", "#5d4037", "bin floor and walls"),
+}
+#: obstacle name prefixes: the cell's bin walls and the pile's other instances (``instance_<id>``)
+BIN_PREFIX, INSTANCE_PREFIX = "bin_", "instance_"
 
 
-def cell_data(cell: Cell, notes: list[str]) -> dict:
+def obstacle_role(name: str, blockers: Collection[str] = ()) -> str:
+    """``"bin"``, ``"blocker"`` (an instance named in ``blockers``), ``"neighbour"`` (another
+    instance of a pile) or ``"obstacle"`` (the cell's own) for an obstacle called ``name``."""
+    if name.startswith(BIN_PREFIX):
+        return "bin"
+    if name.startswith(INSTANCE_PREFIX):
+        return "blocker" if name[len(INSTANCE_PREFIX):] in blockers else "neighbour"
+    return "obstacle"
+
+
+def cell_data(cell: Cell, notes: list[str], blockers: Collection[str] = ()) -> dict:
     """The cell's obstacles (from its JSON, so the page draws what the plan file holds) and bin:
-    ``{"obstacles": [{"name", "kind", "box": [sx, sy, sz] | "cylinder": [r, length] | "sphere": [r] |
-    "mesh": {v, f, nv, nf}, "T": 16 row-major (T_world_obstacle)}], "bin": {...} | None}``."""
+    ``{"obstacles": [{"name", "kind", "role", "box": [sx, sy, sz] | "cylinder": [r, length] | "sphere": [r] |
+    "mesh": {v, f, nv, nf}, "T": 16 row-major (T_world_obstacle)}], "bin": {...} | None,
+    "roles": [{"role", "color", "edge", "label", "n"}]}``: ``role`` from :func:`obstacle_role`
+    (``blockers``: the instance ids a pick's ``blocked_by`` names), ``roles`` the legend of the
+    roles present, in :data:`OBSTACLE_ROLES` order."""
     doc = cell.to_json()
     out = []
     for i, ob in enumerate(doc.get("obstacles") or []):
@@ -288,7 +313,7 @@ def cell_data(cell: Cell, notes: list[str]) -> dict:
             notes.append(f"obstacle {name}: no drawable shape or pose; not shown")
             continue
         sh = ob[kind]
-        e: dict[str, Any] = {"name": name, "kind": kind, "T": T.reshape(-1).tolist()}
+        e: dict[str, Any] = {"name": name, "kind": kind, "role": obstacle_role(name, blockers), "T": T.reshape(-1).tolist()}
         if kind == "box":
             e["box"] = [float(x) for x in sh["size"]]
         elif kind == "cylinder":
@@ -300,7 +325,10 @@ def cell_data(cell: Cell, notes: list[str]) -> dict:
                                  MAX_LINK_TRIANGLES)
             e["mesh"] = mesh_block(V, F)
         out.append(e)
-    return {"obstacles": out, "bin": doc.get("bin")}
+    n_role = {r: sum(e["role"] == r for e in out) for r in OBSTACLE_ROLES}
+    roles = [{"role": r, "color": c, "edge": edge, "label": label, "n": n_role[r]}
+             for r, (c, edge, label) in OBSTACLE_ROLES.items() if n_role[r]]
+    return {"obstacles": out, "bin": doc.get("bin"), "roles": roles}
 
 
 def _quality_data(t: GraspTable) -> dict:
@@ -426,9 +454,10 @@ def script_safe(text: str) -> str:
 
 def build_html(result: PlanResult | dict[str, Any] | str | os.PathLike[str], *,
                part_path: str | os.PathLike[str] | None = None, allow_other_part: bool = False,
-               notes: Sequence[str] = ()) -> str:
+               notes: Sequence[str] = (), blockers: Collection[str] = ()) -> str:
     """The viewer page for a grasps or plan result, as one HTML string (``notes``: lines shown under
-    the page's summary, e.g. why a pile has no pick).
+    the page's summary, e.g. why a pile has no pick; ``blockers``: for a pick shown as a plan, the
+    instance ids its ``blocked_by`` names, drawn red, every other instance neutral).
 
     Parameters
     ----------
@@ -448,7 +477,7 @@ def build_html(result: PlanResult | dict[str, Any] | str | os.PathLike[str], *,
     from ..results.reader import load_result
 
     res = load_result(result)
-    data, found = build_data(res, part_path=part_path, allow_other_part=allow_other_part)
+    data, found = build_data(res, part_path=part_path, allow_other_part=allow_other_part, blockers=blockers)
     for note in found:
         warnings.warn(note, stacklevel=2)
     data["notes"] = [*(str(n) for n in notes), *found]
@@ -471,10 +500,11 @@ def build_html(result: PlanResult | dict[str, Any] | str | os.PathLike[str], *,
 
 def write_viewer(result: PlanResult | dict[str, Any] | str | os.PathLike[str],
                  out_path: str | os.PathLike[str], *,
-                 part_path: str | os.PathLike[str] | None = None, allow_other_part: bool = False, notes: Sequence[str] = ()) -> Path:
+                 part_path: str | os.PathLike[str] | None = None, allow_other_part: bool = False, notes: Sequence[str] = (),
+                 blockers: Collection[str] = ()) -> Path:
     """Write :func:`build_html`'s page atomically to ``out_path``; returns the path."""
     return write_atomic_text(out_path, build_html(result, part_path=part_path, allow_other_part=allow_other_part,
-                                                  notes=notes))
+                                                  notes=notes, blockers=blockers))
 
 
 __all__ = ["build_html", "write_viewer", "build_data", "densify_path", "decimate_mesh", "STATUS_COLORS",

@@ -130,6 +130,7 @@
     // ------------------------------------------------------------------ obstacles and bin (semi-transparent)
     const obstacles = new THREE.Group();
     const obstacleList = D.cell.obstacles || [];
+    const roleOf = new Map((D.cell.roles || []).map((r) => [r.role, r]));
     for (const ob of obstacleList) {
       let geom;
       if (ob.box) geom = new THREE.BoxGeometry(ob.box[0], ob.box[1], ob.box[2]);
@@ -137,13 +138,15 @@
       else if (ob.sphere) geom = new THREE.SphereGeometry(ob.sphere[0], 24, 16);
       else if (ob.mesh) geom = await geometryOf(ob.mesh);
       else continue;
-      const isBin = /^bin_/.test(ob.name);
-      const mat = new THREE.MeshStandardMaterial({ color: isBin ? 0x8d6e63 : 0xc62828, roughness: 0.8, transparent: true,
+      // colour by role (page.py OBSTACLE_ROLES): red only for a neighbour that blocked the pick
+      const role = roleOf.get(ob.role) || roleOf.get('obstacle') || { color: '#ef6c00', edge: '#a84300' };
+      const isBin = ob.role === 'bin';
+      const mat = new THREE.MeshStandardMaterial({ color: new THREE.Color(role.color), roughness: 0.8, transparent: true,
         opacity: isBin ? 0.45 : 0.35, depthWrite: false, side: THREE.DoubleSide });
       const m = new THREE.Mesh(geom, mat);
       matFromRowMajor(ob.T).decompose(m.position, m.quaternion, m.scale);
       m.userData.name = ob.name;
-      const edges = new THREE.LineSegments(new THREE.EdgesGeometry(geom, 30), new THREE.LineBasicMaterial({ color: isBin ? 0x5d4037 : 0x8e0000 }));
+      const edges = new THREE.LineSegments(new THREE.EdgesGeometry(geom, 30), new THREE.LineBasicMaterial({ color: new THREE.Color(role.edge) }));
       m.add(edges);
       obstacles.add(m);
     }
@@ -303,6 +306,16 @@
       });
       legend.appendChild(lab);
     });
+
+    // what the semi-transparent bodies are: one swatch per obstacle role present
+    const bodies = document.getElementById('bodies');
+    for (const r of D.cell.roles || []) {
+      const lab = document.createElement('span');
+      lab.dataset.role = r.role;
+      lab.innerHTML = `<span class="sw sq" style="background:${esc(r.color)}"></span>${esc(r.label)} (${r.n})`;
+      bodies.appendChild(lab);
+    }
+    document.getElementById('bodies-box').hidden = !(D.cell.roles || []).length;
 
     // groups: planned by rank, the rest by score (best first), then id
     const order = statuses.map(() => []);

@@ -16,10 +16,50 @@ IK pose (its per-call overhead on small matrices); here a few microseconds.
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+import sys
+from typing import Any, NamedTuple
 
 import numba
 import numpy as np
+from numba.core import event as numba_event
+
+#: printed on stderr, once per process, when a grasplan kernel is compiled rather than loaded from
+#: numba's on-disk cache (``__pycache__`` next to the module, or ``$NUMBA_CACHE_DIR``)
+COMPILE_MESSAGE = ("grasplan: compiling its numba kernels once (about 10 s; later runs load them from "
+                   "the cache) ...")
+
+
+class _CompileNotice(numba_event.Listener):
+    """Writes :data:`COMPILE_MESSAGE` at the first compile of a grasplan kernel (numba signals a
+    compile only on a cache miss: a warm cache says nothing)."""
+
+    def __init__(self) -> None:
+        self.told = False
+
+    def on_start(self, event: Any) -> None:
+        if self.told:
+            return
+        dispatcher = (event.data or {}).get("dispatcher")
+        module = getattr(getattr(dispatcher, "py_func", None), "__module__", "") or ""
+        if module.split(".")[0] == "grasplan":
+            self.told = True
+            print(COMPILE_MESSAGE, file=sys.stderr, flush=True)
+
+    def on_end(self, event: Any) -> None:
+        pass
+
+
+_NOTICE = _CompileNotice()
+
+
+def announce_compiling() -> None:
+    """Have :data:`COMPILE_MESSAGE` printed at the first cold compile of a grasplan kernel (every
+    module holding kernels calls this at import; registering twice is a no-op)."""
+    if _NOTICE not in numba_event._registered["numba:compile"]:
+        numba_event.register("numba:compile", _NOTICE)
+
+
+announce_compiling()
 
 TWO_PI = 2.0 * math.pi
 #: DH twist angles of the UR chain (rad)
