@@ -562,8 +562,9 @@ NO_CELL = Cell(name=NO_CELL_NAME, table_z=-MAX_CELL_COORD_M, part_xy=(0.0, 0.0),
                source="the part alone in its own frame: no table, no obstacles")
 
 
-def load_cell(name_or_path: str | os.PathLike = DEFAULT_CELL) -> Cell:
-    """A cell by name (``configs/cells/<name>.yaml``; ``none``: :data:`NO_CELL`) or path to a YAML file."""
+def load_cell(name_or_path: str | os.PathLike | Cell = DEFAULT_CELL) -> Cell:
+    """A cell by name (``configs/cells/<name>.yaml``; ``none``: :data:`NO_CELL`) or path to a YAML
+    file; a :class:`Cell` is returned as is."""
     if isinstance(name_or_path, Cell):
         return name_or_path
     if isinstance(name_or_path, str) and name_or_path == NO_CELL_NAME:

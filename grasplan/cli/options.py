@@ -19,7 +19,7 @@ import click
 
 from ..errors import InputError
 from ..config.option_kinds import OptionSpec, is_option, metavar, option_name, option_spec, read_value
-from ..config.params import DEFAULT_CELL, DEFAULT_GRIPPER, DEFAULT_ROBOT, PARAM_CLASSES
+from ..config.params import DEFAULT_CELL, DEFAULT_GRIPPER, DEFAULT_ROBOT
 from .common import units_option
 
 #: a command function being decorated with options

@@ -278,7 +278,7 @@ def build_database(part: Part, gripper: Gripper | str, *, candidates: CandidateP
                    grasps: GraspParams = GraspParams()) -> GraspDatabase:
     """Compute the database of ``part`` with ``gripper`` (module docstring): the grasp stage in
     cell ``none`` (the part alone in its own frame), its collision-free poses sorted by score."""
-    g = gripper if isinstance(gripper, Gripper) else load_gripper(gripper)
+    g = load_gripper(gripper)
     t = time.perf_counter()
     res = compute_grasps(part, gripper=g, cell=NO_CELL, candidates=candidates, grasps=grasps)
     ok = np.flatnonzero(np.asarray(res.status).astype(str) == Status.OK.value)
@@ -322,7 +322,7 @@ def database_for(part: Part, gripper: Gripper | str, *, candidates: CandidatePar
     """The database of ``part`` with ``gripper``: from the cache folder when it holds one for
     exactly this part, gripper and options, else computed (and, with ``cache``, stored there).
     ``progress`` gets a line before and after a computation."""
-    g = gripper if isinstance(gripper, Gripper) else load_gripper(gripper)
+    g = load_gripper(gripper)
     path = cache_path(part, g, candidates, grasps)
     name = Path(part.path).name
     if cache and path.is_file():

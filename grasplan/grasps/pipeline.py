@@ -224,8 +224,8 @@ def compute_grasps(
     ``not_checked`` and ``result.lazy`` (a :class:`LazyGrasps`) collision-checks and scores them in
     chunks of ``chunk`` poses in the order of their score bound as the planner asks for grasps.
     """
-    g = gripper if isinstance(gripper, Gripper) else load_gripper(gripper)
-    c = cell if isinstance(cell, Cell) else load_cell(cell)
+    g = load_gripper(gripper)
+    c = load_cell(cell)
     k = grasps.single_pose_index()
     if k is not None:
         c = replace(c, pose_index=k)

@@ -293,9 +293,9 @@ def plan(
         raises ``InputError`` before planning.
     """
     t = time.perf_counter()
-    rob = robot if isinstance(robot, Robot) else load_robot(robot)
-    g = gripper if isinstance(gripper, Gripper) else load_gripper(gripper)
-    c = cell if isinstance(cell, Cell) else load_cell(cell)
+    rob = load_robot(robot)
+    g = load_gripper(gripper)
+    c = load_cell(cell)
     if c.name == NO_CELL_NAME:
         raise InputError("cell 'none' holds the part alone, with nothing to plan a robot against: it is for "
                          "`grasplan grasps` and `grasplan database`; plan in a cell (e.g. --cell table or bin)")
@@ -384,7 +384,7 @@ def plan_poses(part: Part | str | os.PathLike, robot: Robot | str | Path = DEFAU
         raise InputError("--pose-index all: the resting poses replace --part-pose; give one or the other")
     if not isinstance(part, Part):
         part = load_part(part, units=units)
-    rob = robot if isinstance(robot, Robot) else load_robot(robot)
+    rob = load_robot(robot)
     out: list[PosePlan] = []
     for k, p in stable_pose_indices(part.mesh, min_probability):
         try:

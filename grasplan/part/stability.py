@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import ConfigError, InputError
+from ..errors import InputError
 from .mass import mass_properties
 from ..geometry.meshdata import MeshData, TriangleMesh
 

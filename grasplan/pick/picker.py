@@ -110,9 +110,9 @@ class Picker:
                  cell: Cell | str | None = None, params: PickParams = PickParams(),
                  database: GraspParams = GraspParams(),
                  progress: Callable[[str], None] | None = None, clock: Callable[[], float] = time.perf_counter):
-        self.robot = robot if isinstance(robot, Robot) else load_robot(robot)
-        self.gripper = gripper if isinstance(gripper, Gripper) else load_gripper(gripper)
-        self.cell = None if cell is None else (cell if isinstance(cell, Cell) else load_cell(cell))
+        self.robot = load_robot(robot)
+        self.gripper = load_gripper(gripper)
+        self.cell = None if cell is None else load_cell(cell)
         self.params = params
         self.database = database
         self.progress = progress

@@ -88,7 +88,7 @@ def _resolve(name_or_path: str | Path) -> tuple[str, Path]:
     return str(path), path
 
 
-def load_robot(name_or_path: str | Path = DEFAULT_ROBOT) -> Robot:
+def load_robot(name_or_path: str | Path | Robot = DEFAULT_ROBOT) -> Robot:
     """The robot named ``name_or_path`` (``robots/<name>.yaml``) or described by a YAML file.
 
     YAML schema (all lengths m, angles rad; angles may be written as expressions such as ``-pi/2``)::
@@ -112,8 +112,10 @@ def load_robot(name_or_path: str | Path = DEFAULT_ROBOT) -> Robot:
 
     Cached: the URDF/SRDF are parsed once per name/path (and file version); the same
     :class:`Robot` is returned on every later call. Raises ConfigError for an unknown name (listing the available ones) or a
-    malformed file (naming the field).
+    malformed file (naming the field). A :class:`Robot` is returned as is.
     """
+    if isinstance(name_or_path, Robot):
+        return name_or_path
     key, path = _resolve(name_or_path)
     st = path.stat()
     return _load_cached(key, str(path), st.st_mtime_ns, st.st_size)
