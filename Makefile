@@ -1,5 +1,5 @@
 # grasplan: two commands set everything up on a fresh machine.
-#   make demo   - create .venv, install grasplan (runtime only), run the main job on examples/parts/bracket.stl
+#   make demo   - create .venv, install grasplan (runtime only, numba kernels compiled), run the main job on examples/parts/bracket.stl
 #   make test   - also install the test tools (pytest, hypothesis, mypy, Ray, build), run the whole test suite
 PYTHON ?= python3
 VENV   := .venv
@@ -22,6 +22,8 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[$(RUNTIME_EXTRAS)]'
+	@# compiles the numba kernels into numba's cache now rather than in the first plan; never fails the install
+	-$(PY) -m grasplan.cli.warmup || echo "grasplan: numba kernels not cached; the first plan or pick compiles them"
 	touch $(STAMP)
 
 $(TEST_STAMP): $(STAMP)

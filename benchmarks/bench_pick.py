@@ -55,6 +55,8 @@ bin: {inner: [0.60, 0.40], wall: 0.01, height: 0.15, T: {xyz: [0.45, 0.0, 0.01],
 
 def _drop(folder: Path, name: str, cell_ref: str, items: list[tuple[str, int]], seed: int) -> Path | None:
     """The cached scene ``name``, dropped now when missing (None: that seed's pile fails)."""
+    from dataclasses import replace
+
     from grasplan.sim.drop import DropParams, PileItem, drop_pile, part_name
     from grasplan.piles.scene_write import write_scene
 
@@ -68,11 +70,14 @@ def _drop(folder: Path, name: str, cell_ref: str, items: list[tuple[str, int]], 
     cell = load_cell(cell_ref)
     its = [PileItem(part_name(p), load_part(PAPER_DIR / p), n) for p, n in items]
     try:
-        res = drop_pile(cell, its, params=DropParams(seed=seed), cell_ref=cell_ref)
+        res = drop_pile(cell, its, params=DropParams(seed=seed, material="plastic"), cell_ref=cell_ref)
     except GrasplanError as exc:
         fail.write_text(str(exc))
         return None
-    write_scene(path, res.scene, header=[f"bench_pick: seed {seed}"])
+    # the bench picks its plastic piles with the default (steel) grasp databases: the scene leaves the
+    # parts' material out
+    plain = replace(res.scene, parts=tuple(replace(p, material=None, density=None) for p in res.scene.parts))
+    write_scene(path, plain, header=[f"bench_pick: seed {seed}"])
     print(f"  dropped {path.name}", flush=True)
     return path
 

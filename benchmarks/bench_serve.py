@@ -95,7 +95,7 @@ def dropped_piles(name: str, part: Any, cell: Any, piles: int) -> list[dict]:
             doc = json.loads(path.read_text())
         else:
             try:
-                res = drop_pile(cell, [PileItem(name, part, 10)], params=DropParams(seed=seed))
+                res = drop_pile(cell, [PileItem(name, part, 10)], params=DropParams(seed=seed, material="plastic"))
                 doc = {"schema": "grasplan.scene/1", "instances": [i.to_json() for i in res.scene.instances]}
             except GrasplanError:
                 doc = None

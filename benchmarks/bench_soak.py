@@ -65,7 +65,8 @@ def pile_doc(part_path: Path) -> dict:
         if path.exists():
             return json.loads(path.read_text())
         try:
-            res = drop_pile(load_cell("bin"), [PileItem(PART, part, PILE)], params=DropParams(seed=seed))
+            res = drop_pile(load_cell("bin"), [PileItem(PART, part, PILE)],
+                            params=DropParams(seed=seed, material="plastic"))
         except GrasplanError:
             continue
         doc = {"schema": "grasplan.scene/1", "instances": [i.to_json() for i in res.scene.instances]}

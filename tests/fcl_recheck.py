@@ -376,6 +376,7 @@ def recheck_result(result, grasp_ids=None, *, step: float = 0.01, world: FclWorl
     out = {}
     for i in ids:
         m = result.motions[i]
+        w = width[result.grasps.index_of(i)]  # motions are keyed by grasp id, the table by row
         out[i] = recheck_motion(world, m, T_world_part=result.T_world_part,
-                                pregrasp_opening=float(result.gripper.pregrasp_opening(width[i])), step=step)
+                                pregrasp_opening=float(result.gripper.pregrasp_opening(w)), step=step)
     return out

@@ -127,9 +127,12 @@ def test_batch_summary_rows_and_exit_code(batch, catalogue):
         assert row["status"] == "planned" and row["exit_code"] == "0"
         plan = json.loads((out / row["dir"] / "plan.json").read_text())
         planned = [g for g in plan["grasps"] if g["status"] == "planned"]
+        from plan_docs import REJECTED, kept_grasps
+
         # the row agrees with the plan it summarises
         assert int(row["planned"]) == len(planned) == 3
-        assert int(row["grasps"]) == len(plan["grasps"])
+        kept, rejected = kept_grasps(plan), sum(sum(plan["rejected"][s]) for s in REJECTED)
+        assert int(row["grasps"]) == len(kept) + rejected == plan["counts"]["poses"]  # every pose, counted or kept
         assert float(row["best_score"]) == pytest.approx(max(g["score"] for g in planned), rel=1e-5)
         assert row["dir"] == f"{Path(name).stem}-{plan['part']['sha256'][:8]}"
         assert float(row["s_plan"]) > 0 and float(row["seconds"]) >= float(row["s_plan"])

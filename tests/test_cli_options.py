@@ -134,6 +134,8 @@ def test_cli_and_manifests_read_every_option_alike(cls, f, tmp_path):
 
     s = option_spec(f)
     texts = list(TEXTS.get(s.kind, []))
+    if s.kind == "choice":  # this option's own choices (two of them) and one spelling it refuses
+        texts = [(c, None) for c in s.choices[:2]] + [(s.choices[0].upper() + "x", False)]
     if s.kind == "file":
         (tmp_path / "w.yaml").write_text("weights: {top: 1}\n")
         texts = [(str(tmp_path / "w.yaml"), None), ("w.yaml", None),  # relative: to the manifest's folder

@@ -55,7 +55,7 @@ def test_a_lone_part_is_picked_on_the_first_attempt(cell, gripper):
     part = load_part(BRACKET)
     picker = _picker(cell, gripper, bracket=part)
     rr = run_round(cell, [PileItem("bracket", part, 1)], gripper, lambda s: picker.plan(s, max_picks=1),
-                   drop=DropParams(seed=2, decomposition="hull"))
+                   drop=DropParams(seed=2, decomposition="hull", material="plastic"))
     assert [a.outcome for a in rr.attempts] == [SUCCESS], [a.reason for a in rr.attempts]
     assert rr.ended == "empty" and rr.removed == 1
     ex = rr.attempts[0].execution
@@ -103,7 +103,8 @@ def cli_run(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("clutter")
     out, page = tmp / "report.json", tmp / "clutter.html"
     r = CliRunner().invoke(main, ["clutter", "--cell", "bin", "--part", f"{BOX}:2", "--part", f"{BRACKET}:1",
-                                  "--rounds", "1", "--seed", "4", "--decomposition", "hull", "--pose-noise", "1mm,1deg",
+                                  "--rounds", "1", "--seed", "4", "--decomposition", "hull", "--material", "plastic",
+                                  "--pose-noise", "1mm,1deg",
                                   "--view", str(page), "-o", str(out)])
     assert r.exit_code == 0, r.output
     return r, json.loads(out.read_text()), page

@@ -67,7 +67,8 @@ def lone_box(cell, gripper):
         holder["cw"] = ClutterWorld(cell, bodies, gripper, mu=0.3)
         return holder["cw"].world
 
-    res = drop_pile(cell, [PileItem("box", part, 1)], params=DropParams(seed=1, decomposition="hull"), make_world=make)
+    res = drop_pile(cell, [PileItem("box", part, 1)],
+                    params=DropParams(seed=1, decomposition="hull", material="plastic"), make_world=make)
     return part, holder["cw"], res.scene.instances[0].T_world_part
 
 
@@ -188,7 +189,8 @@ def _tiny_round(cell, gripper, seen=None):
         (T, w), = _top_down(part, gripper, cell, inst.T_world_part)
         return SimpleNamespace(picks=(_pick(T, w, gripper, inst.id),), instances=())
 
-    return run_round(cell, [PileItem("box", part, 2)], gripper, plan, drop=DropParams(seed=3, decomposition="hull"),
+    return run_round(cell, [PileItem("box", part, 2)], gripper, plan,
+                     drop=DropParams(seed=3, decomposition="hull", material="plastic"),
                      record=True)
 
 
@@ -227,7 +229,8 @@ def test_linkage_pads_ride_their_arc(cell, gripper_name):
         holder["cw"] = ClutterWorld(cell, bodies, g, mu=0.3)
         return holder["cw"].world
 
-    drop_pile(cell, [PileItem("box", part, 1)], params=DropParams(seed=1, decomposition="hull"), make_world=make)
+    drop_pile(cell, [PileItem("box", part, 1)], params=DropParams(seed=1, decomposition="hull", material="plastic"),
+              make_world=make)
     cw = holder["cw"]
     T = np.eye(4)
     T[:3, 3] = [0.45, 0.0, 0.4]  # in the air above the bin

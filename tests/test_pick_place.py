@@ -91,9 +91,10 @@ class PickPlaceChecker:
         return hits
 
 
-def check_pick_place(chk: PickPlaceChecker, result, i: int, *, placed: bool, max_dev: float):
-    """Segments, events, the straight lift and an fcl re-check of the whole path at 0.01 rad."""
-    m = result.motions[i]
+def check_pick_place(chk: PickPlaceChecker, result, gid: int, *, placed: bool, max_dev: float):
+    """Segments, events, the straight lift and an fcl re-check of the whole path at 0.01 rad (grasp
+    ``gid``)."""
+    m, i = result.motions[gid], result.grasps.index_of(gid)
     cell = result.cell
     segs = m.segment_list()
     labels = [s[0] for s in segs]
@@ -200,7 +201,7 @@ def bracket_plans():
 
 def test_bracket_lift_always_planned_and_rechecked(bracket_plans):
     part, res, _ = bracket_plans
-    ids = [res.grasps.index_of(g) for g in res.planned_ids()]
+    ids = res.planned_ids()
     assert len(ids) == 2
     robot = _robot()
     chk = PickPlaceChecker(robot, res.gripper, part.mesh, table_z=res.cell.table_z)
@@ -214,7 +215,7 @@ def test_bracket_pick_and_place_rechecked_and_round_trips(bracket_plans, tmp_pat
     from grasplan.results.reader import load_result
 
     part, _, res = bracket_plans
-    ids = [res.grasps.index_of(g) for g in res.planned_ids()]
+    ids = res.planned_ids()
     assert len(ids) == 2
     robot = _robot()
     chk = PickPlaceChecker(robot, res.gripper, part.mesh, table_z=res.cell.table_z)
@@ -224,7 +225,7 @@ def test_bracket_pick_and_place_rechecked_and_round_trips(bracket_plans, tmp_pat
     # JSON round trip: the file carries the segments, events, the place and the part in the jaws
     path = res.write(tmp_path / "pp.json")
     doc = json.loads(path.read_text())
-    g = doc["grasps"][ids[0]]
+    g = next(x for x in doc["grasps"] if x["id"] == ids[0])
     assert [s["label"] for s in g["segments"]][-1] == "retreat"
     assert [e["action"] for e in g["gripper"]] == ["close", "open"]
     back = load_result(path)
@@ -240,8 +241,8 @@ def test_bracket_pick_and_place_rechecked_and_round_trips(bracket_plans, tmp_pat
 def test_checker_can_fail(bracket_plans):
     """The re-check sees a part carried through the table, and a part left in the jaws' way."""
     part, _, res = bracket_plans
-    i = res.grasps.index_of(res.planned_ids()[0])
-    m = res.motions[i]
+    gid = res.planned_ids()[0]
+    m, i = res.motions[gid], res.grasps.index_of(gid)
     robot = _robot()
     chk = PickPlaceChecker(robot, res.gripper, part.mesh, table_z=res.cell.table_z)
     sunk = chk.fk_tcp(m.q_grasp) @ m.T_tcp_part
@@ -269,9 +270,9 @@ def test_loader_rejects_tampered_sequences(bracket_plans, bad, match):
 
     _, _, res = bracket_plans
     doc = json.loads(json.dumps(res.to_json()))
-    i = res.grasps.index_of(res.planned_ids()[0])
+    gid = res.planned_ids()[0]
     result_from_document(doc)  # the untouched document loads
-    bad(doc["grasps"][i])
+    bad(next(g for g in doc["grasps"] if g["id"] == gid))
     with pytest.raises(InputError, match=match):
         result_from_document(doc)
 
@@ -374,7 +375,7 @@ def test_pepper_pick_and_place_part_touches_only_the_jaws(paper):
 
     T_rest = stable_pose(part.mesh, load_cell("table"))
     res = plan(part, "ur5", planning=prm, place=_place_of(T_rest))
-    ids = [res.grasps.index_of(g) for g in res.planned_ids()]
+    ids = res.planned_ids()
     assert ids, res.counts()
     robot = _robot()
     chk = PickPlaceChecker(robot, res.gripper, part.mesh, table_z=res.cell.table_z)

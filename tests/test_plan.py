@@ -172,7 +172,9 @@ def check_scores(doc: dict, mesh) -> None:
     assert doc["plan_params"]["score_weights"] is None  # the plan uses the grasp stage's score
     weights = dict(doc["params"]["score_weights"])
     refs = dict(doc["params"]["score_refs"])
-    ranked = [g for g in doc["grasps"] if g["rank"] is not None]
+    from plan_docs import kept_grasps
+
+    ranked = [g for g in kept_grasps(doc) if g["rank"] is not None]  # a compact plan's untried columns too
     assert ranked
     T = np.array([g["T_part_tcp"] for g in ranked])
     w = np.array([g["width"] for g in ranked])
@@ -194,15 +196,22 @@ def check_scores(doc: dict, mesh) -> None:
 
 
 def check_plan_doc(doc: dict, top: int):
+    from plan_docs import REJECTED, kept_grasps, status_counts
+
     assert doc["schema"] == "grasplan.plan/1"
     r = doc["robot"]
     assert set(r) >= {"name", "joint_names", "T_world_base", "q_home"}
-    grasps = doc["grasps"]
-    assert [g["id"] for g in grasps] == list(range(len(grasps)))
+    grasps = kept_grasps(doc)
+    ids = [g["id"] for g in grasps]
+    if doc.get("keep", "all") == "all":
+        assert ids == list(range(len(grasps)))
+    else:  # compact: the colliding poses are counted, every other pose is listed once
+        assert ids == sorted(set(ids)) and not any(g["status"] in REJECTED for g in doc["grasps"])
+        assert len(ids) + sum(sum(doc["rejected"][s]) for s in REJECTED) == doc["counts"]["poses"]
     for g in grasps:
         assert g["status"] in STATUSES
         assert isinstance(g["reason"], str) and g["reason"]
-    counts = {s: sum(g["status"] == s for g in grasps) for s in STATUSES}
+    counts = status_counts(doc, STATUSES)
     for s in STATUSES:
         assert doc["counts"][s] == counts[s]
     assert counts["planned"] <= top

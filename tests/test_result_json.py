@@ -61,14 +61,17 @@ def test_grasps_file_bytes_identical(grasps_result, tmp_path):
     assert fast_bytes(res, tmp_path, only_ok=True) == reference_bytes(res, only_ok=True)
 
 
-def test_plan_bytes_identical_and_round_trip(plan_result, tmp_path):
+@pytest.mark.parametrize("keep", ["collision_free", "all"])
+def test_plan_bytes_identical_and_round_trip(plan_result, tmp_path, keep):
     res = plan_result
     assert res.motions
-    got = fast_bytes(res, tmp_path)
-    assert got == reference_bytes(res)
-    # a loaded plan writes the same bytes again, through both paths
+    got = fast_bytes(res, tmp_path, keep=keep)
+    assert got == reference_bytes(res, keep=keep)
+    # a loaded plan writes the same bytes again, through both paths (a compact one keeps its form)
     back = load_result(tmp_path / "out.json")
-    assert fast_bytes(back, tmp_path, "again.json") == got == reference_bytes(back)
+    assert fast_bytes(back, tmp_path, "again.json", keep=keep) == got == reference_bytes(back, keep=keep)
+    if keep == "collision_free":
+        assert fast_bytes(back, tmp_path, "again_all.json", keep="all") == got  # its rejected poses are counts
 
 
 def test_plan_with_place_bytes_identical(part, plan_result, tmp_path):
@@ -106,8 +109,8 @@ def test_edge_values(plan_result, tmp_path):
     reason = t.reason.copy()
     reason[0] = 'quote " backslash \\ non-ascii \u00e9 \n'
     res = replace(plan_result, grasps=replace(t, score=score, T_part_tcp=T, width=width, reason=reason))
-    got = fast_bytes(res, tmp_path)
-    assert got == reference_bytes(res)
+    got = fast_bytes(res, tmp_path, keep="all")
+    assert got == reference_bytes(res, keep="all")
     doc = json.loads(got)
     assert doc["grasps"][0]["T_part_tcp"][3][0] == 0.0 and '"T_part_tcp": [[' in got.decode()
     assert doc["grasps"][0]["score"] is None and doc["grasps"][0]["reason"] == reason[0]
@@ -136,13 +139,13 @@ def test_values_json_refuses_take_the_reference_path(plan_result, tmp_path):
     width = t.width.copy()
     width[-1] = np.nan
     res = replace(plan_result, grasps=replace(t, width=width))
-    assert _stream_document(res) is None
+    assert _stream_document(res, keep="all") is None
     with pytest.raises(ValueError, match="JSON compliant"):
-        reference_bytes(res)
+        reference_bytes(res, keep="all")
     out = tmp_path / "bad.json"
     out.write_text("previous")
     with pytest.raises(ValueError, match="JSON compliant"):
-        res.write(out)
+        res.write(out, keep="all")
     assert out.read_text() == "previous" and list(tmp_path.iterdir()) == [out]
 
 
@@ -150,9 +153,9 @@ def test_streamed_in_chunks(plan_result, tmp_path, monkeypatch):
     import grasplan.results.writer as gr
 
     monkeypatch.setattr(gr, "WRITE_CHUNK", 7)
-    chunks = list(_stream_document(plan_result))
+    chunks = list(_stream_document(plan_result, keep="all"))
     assert len(chunks) >= 2 + len(plan_result.grasps) // 7
-    assert "".join(chunks).encode() == reference_bytes(plan_result)
+    assert "".join(chunks).encode() == reference_bytes(plan_result, keep="all")
 
 
 def test_indent_uses_the_dict(plan_result, tmp_path):

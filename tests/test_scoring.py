@@ -177,7 +177,8 @@ def test_scoring_option_changes_the_score(bracket, tmp_path, grasps_doc):
 @pytest.fixture(scope="module")
 def plan_doc(bracket, tmp_path_factory):
     out = tmp_path_factory.mktemp("plan") / "p.json"
-    run(["plan", bracket, *BRACKET, "--top", "3", "--simulate", "2", "-o", out])
+    # every pose in full: the tests below index the grasps by id
+    run(["plan", bracket, *BRACKET, "--top", "3", "--simulate", "2", "--keep", "all", "-o", out])
     return out, json.loads(out.read_text())
 
 
@@ -231,15 +232,18 @@ def test_rank_held_first_is_stable_and_applied_to_a_plan(plan_doc):
     from grasplan.results.reader import load_result
 
     path, _ = plan_doc
-    res = load_result(path)
+    compact = path.with_name("compact.json")
+    load_result(path).write(compact)  # a compact plan: rows are not ids
+    res = load_result(compact)
     ids = res.planned_ids()
-    assert len(ids) >= 2
+    assert len(ids) >= 2 and res.grasps.index_of(ids[0]) != ids[0]
     # pretend the best planned grasp slipped and the second held: the second must come first
     fake = SimResult(success=np.array([False, True]), slip_m=np.array([0.02, 0.0]), turn_deg=np.zeros(2),
                      seconds=0.1, pieces=1)
-    out = with_sim(res, np.array(ids[:2]), fake)
+    out = with_sim(res, np.array([res.grasps.index_of(i) for i in ids[:2]]), fake)
     assert out.planned_ids()[:2] == [ids[1], ids[0]]
-    assert out.to_json()["grasps"][ids[0]]["sim"] == {"success": False, "slip_m": 0.02, "turn_deg": 0.0}
+    by_id = {g["id"]: g for g in out.to_json()["grasps"]}
+    assert by_id[ids[0]]["sim"] == {"success": False, "slip_m": 0.02, "turn_deg": 0.0}
 
 
 def test_simulate_cli_on_a_plan_takes_the_planned_grasps_in_rank_order(plan_doc, tmp_path):

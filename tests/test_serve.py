@@ -285,6 +285,19 @@ def test_plan_matches_the_library(client, box_plan, service):
         assert np.allclose(res.motions[i].q_grasp, ref.motions[i].q_grasp)
 
 
+def test_plan_keep_chooses_the_document_form(client):
+    body = {"part": "bracket", "options": {**FAST_PLAN, "top": 1, "seed": 3}}
+    status, compact = client.json("POST", "/plan", body)
+    assert status == 200 and compact["keep"] == "collision_free" and "rejected" in compact
+    status, full = client.json("POST", "/plan", {**body, "keep": "all"})
+    assert status == 200 and full["keep"] == "all" and "rejected" not in full
+    assert compact["counts"] == full["counts"]
+    assert [g["id"] for g in compact["grasps"] if g["status"] == "planned"] == \
+        [g["id"] for g in full["grasps"] if g["status"] == "planned"]
+    status, err = client.json("POST", "/plan", {**body, "keep": "some"})
+    assert status == 422 and "keep" in err["detail"] and "collision_free" in err["detail"]
+
+
 def test_plan_options_reach_the_planner(client):
     status, doc = client.json("POST", "/plan", {"part": "bracket", "options": {**FAST_PLAN, "top": 1, "seed": 3}})
     assert status == 200

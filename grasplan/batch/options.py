@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 from ..errors import InputError
 from ..io import sha256_file
 from ..part.mesh import UNIT_CHOICES
+from ..results.compact import DEFAULT_KEEP, check_keep
 from ..config.params import (
     ALL_POSES, DEFAULT_CELL, DEFAULT_GRIPPER, DEFAULT_ROBOT, CandidateParams, GraspParams, PlanParams
 )
@@ -43,6 +44,7 @@ class BatchOptions:
     T_world_part: tuple[tuple[float, ...], ...] | None = None
     exports: tuple[str, ...] = ()
     view: bool = True
+    keep: str = DEFAULT_KEEP  #: what plan.json keeps (grasplan.results.compact)
 
     def __post_init__(self) -> None:
         if self.units not in UNIT_CHOICES:
@@ -55,6 +57,7 @@ class BatchOptions:
             if self.grasps.pose_index == ALL_POSES:
                 raise InputError("--pose-index all: the resting poses replace --part-pose; give one or the other")
         check_exports(self.exports)
+        check_keep(self.keep)
 
     def to_json(self) -> dict[str, Any]:
         """The options as JSON (``done.json``, ``summary.json``, the hash and the workers): the
@@ -67,14 +70,16 @@ class BatchOptions:
         """:meth:`to_json` but the three parameter sets."""
         return {"robot": self.robot, "gripper": self.gripper, "cell": self.cell, "units": self.units,
                 "T_world_part": None if self.T_world_part is None else [list(r) for r in self.T_world_part],
-                "exports": list(self.exports), "view": self.view}
+                "exports": list(self.exports), "view": self.view,
+                **({"keep": self.keep} if self.keep != DEFAULT_KEEP else {})}  # the default keeps older hashes
 
     @classmethod
     def from_json(cls, data: dict[str, Any]) -> BatchOptions:
         return cls(robot=data["robot"], gripper=data["gripper"], cell=data["cell"], units=data["units"],
                    candidates=CandidateParams.from_json(data["candidates"]),
                    grasps=GraspParams.from_json(data["grasps"]), planning=PlanParams.from_json(data["planning"]),
-                   T_world_part=data.get("T_world_part"), exports=tuple(data["exports"]), view=bool(data["view"]))
+                   T_world_part=data.get("T_world_part"), exports=tuple(data["exports"]), view=bool(data["view"]),
+                   keep=str(data.get("keep", DEFAULT_KEEP)))
 
 
 def export_formats() -> dict[str, Any]:

@@ -187,12 +187,12 @@ def _plan_files(o: BatchOptions, setup: Setup, part: Part, load_s: float, out: P
                               grasps=o.grasps, planning=o.planning, T_world_part=T, place=o.planning.place_matrix())
     if o.grasps.pose_index != ALL_POSES:
         result = plan(part, load_s=load_s, **kw)
-        result.write(out / PLAN_FILE)
+        result.write(out / PLAN_FILE, keep=o.keep)
         return result
     from ..results.pose_plans import write_pose_plans
 
     done = write_pose_plans(plan_poses(part, load_s=load_s, **kw), out / PLAN_FILE,
-                            min_probability=MIN_POSE_PROBABILITY)
+                            min_probability=MIN_POSE_PROBABILITY, keep=o.keep)
     log += [f"pose {p['pose_index']} ({p['probability'] * 100:.1f} %): "
             + (f"{p['planned']} planned, {p['collision_free']} collision-free, {p['file']}" if p["file"]
                else p["error"]) for p in done.poses]

@@ -8,7 +8,7 @@ import click
 from ..batch.engines import ENGINES
 from ..config.params import CandidateParams, GraspParams, PlanParams
 from .common import info
-from .options import cell_options, param_options, robot_option
+from .options import cell_options, keep_option, param_options, robot_option
 
 
 def _split_exports(ctx, param, value):
@@ -31,6 +31,7 @@ def _split_exports(ctx, param, value):
 @click.option("--no-view", is_flag=True, help="Do not write each part's view.html.")
 @robot_option
 @cell_options
+@keep_option
 @param_options(CandidateParams, GraspParams, PlanParams)
 def command(parts, out_dir, workers, engine, ray_address, exports, no_view, **kwargs):
     """Plan every part in PARTS: mesh files, folders (searched recursively for STL/OBJ/PLY) or
@@ -60,7 +61,7 @@ def command(parts, out_dir, workers, engine, ray_address, exports, no_view, **kw
     options = BatchOptions(robot=kwargs.pop("robot"), gripper=kwargs.pop("gripper"), cell=kwargs.pop("cell"),
                            units=kwargs.pop("units"), T_world_part=T_world_part, exports=exports,
                            view=not no_view, candidates=params.candidates, grasps=params.grasps,
-                           planning=params.planning)
+                           planning=params.planning, keep=kwargs.pop("keep"))
     config_dirs = kwargs.pop("config_dir")  # run_batch puts them first in the lookup, here and in every worker
 
     bar = _Progress()

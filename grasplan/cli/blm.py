@@ -3,9 +3,9 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
-import trimesh
 
 from ..errors import InputError
 from ..io import write_atomic_bytes
@@ -13,12 +13,17 @@ from ..config.params import CandidateParams
 from .common import check_output, info, table, units_option, warn_all
 from .options import param_options
 
+if TYPE_CHECKING:
+    import trimesh
+
 #: output formats by suffix (trimesh exporter names)
 OUTPUT_TYPES = {".stl": "stl", ".ply": "ply", ".obj": "obj"}
 
 
 def export_bytes(mesh: trimesh.Trimesh, file_type: str) -> bytes:
     """Serialise ``mesh`` (binary STL / binary PLY / OBJ text) to bytes."""
+    import trimesh.exchange.export  # trimesh loads when a mesh is written, not with --help
+
     data = trimesh.exchange.export.export_mesh(mesh, None, file_type=file_type)
     return data.encode("utf-8") if isinstance(data, str) else bytes(data)
 
@@ -88,6 +93,8 @@ def command(part: Path, output: Path, alpha: float, gamma_deg: float, units: str
 
     unit = p.units if output_units == "input" else output_units
     m_per_unit = LENGTH_UNITS[unit]
+    import trimesh
+
     out_mesh = trimesh.Trimesh(vertices=r.mesh.vertices / m_per_unit, faces=r.mesh.faces, process=False)
     note = (f"grasplan blm: units {unit} (scale_to_m {m_per_unit:g}); source {part.name} in {p.units} "
             f"(scale_to_m {p.scale_to_m:g}); alpha {alpha:g} m, gamma {gamma_deg:g} deg")

@@ -26,9 +26,10 @@ def _pct(x) -> str:
 @click.command("clutter")
 @click.option("--cell", default="bin", show_default=True,
               help="Cell with a bin: a name (see --config-dir) or a cell YAML path.")
-@click.option("--part", "parts", multiple=True, required=True, metavar="PATH:COUNT",
-              help="A part's mesh file and how many of it go into each pile (repeatable; one per part). The "
-                   "part is named by the file's stem as written (TLess20.stl -> TLess20), as in `scene drop`.")
+@click.option("--part", "parts", multiple=True, required=True, metavar="PATH:COUNT[:MATERIAL]",
+              help="A part's mesh file, how many of it go into each pile and optionally its material (else "
+                   "--material's; repeatable; one per part). The part is named by the file's stem as written "
+                   "(TLess20.stl -> TLess20), as in `scene drop`.")
 @units_option
 @click.option("--rounds", type=click.IntRange(1, 1000), default=20, show_default=True,
               help="Piles to drop and clear; round r drops with seed --seed + r.")
@@ -68,7 +69,7 @@ def command(cell: str, parts: tuple[str, ...], units: str, rounds: int, pose_noi
     noise = parse_pose_noise(pose_noise)
     specs = [parse_part_count(p) for p in parts]
     apply_config_dirs(kwargs)  # first: --config-dir decides which files the names below read
-    inputs = [p for p, _ in specs]
+    inputs = [s[0] for s in specs]
     _check_outputs(output, view, inputs)  # the outputs themselves first: nothing loads for a bad one
     pick_kw = {k: kwargs.pop(k) for k in PICK_OPTIONS if k in kwargs}
     drop = DropParams(**kwargs)
@@ -87,12 +88,14 @@ def command(cell: str, parts: tuple[str, ...], units: str, rounds: int, pose_noi
     tol = PickParams.default("overlap_tol") + noise_reach([it.part for it in items], noise)
     # the grasp databases ranked for the parts' simulated mass (the gravity margin and the score depend on it)
     picker = Picker(rob, gripper=g, cell=c, params=PickParams(overlap_tol=min(tol, 0.05), **pick_kw),
-                    database=GraspParams(density=drop.density))
-    for it in items:
-        picker.add_part(it.name, it.part)
+                    database=GraspParams(material=drop.material, density=drop.density))
+    for it in items:  # each part's grasp database at the density it is dropped with
+        material, density = it.physics(drop)
+        picker.add_part(it.name, it.part, material=material, density=density)
     n = sum(it.count for it in items)
-    info(f"clutter: {rounds} rounds of {n} parts in {cell} (seed {drop.seed}, {drop.density:g} kg/m^3, "
-         f"pose noise {noise[0] * 1e3:g} mm, {noise[1]:g} deg); robot {picker.robot.name}, gripper {g.name}")
+    info(f"clutter: {rounds} rounds of {n} parts in {cell} (seed {drop.seed}, {drop.material} "
+         f"{drop.density:g} kg/m^3, pose noise {noise[0] * 1e3:g} mm, {noise[1]:g} deg); "
+         f"robot {picker.robot.name}, gripper {g.name}")
 
     results = []
     for r in range(rounds):
@@ -103,7 +106,7 @@ def command(cell: str, parts: tuple[str, ...], units: str, rounds: int, pose_noi
              f"{rr.removed}/{rr.parts} removed, ended: {rr.ended} ({rr.seconds:.1f} s)")
     params = {**drop.to_json(), "rounds": rounds, "pose_noise_m": noise[0], "pose_noise_deg": noise[1],
               "pick": picker.params.to_json(), "protocol": PROTOCOL}
-    doc = report_json(results, params=params, parts=parts_record(items), cell=cell,
+    doc = report_json(results, params=params, parts=parts_record(items, drop), cell=cell,
                       gripper=g.to_json(), robot=picker.robot.name)
     if page is not None:
         from ..clutter.replay import write_replay

@@ -13,7 +13,7 @@ from contextlib import contextmanager
 
 import click
 
-from ..part.mesh import UNIT_CHOICES
+from ..geometry.units import UNIT_CHOICES
 
 units_option = click.option(
     "--units",

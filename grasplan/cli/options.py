@@ -126,3 +126,13 @@ def robot_option(fn: _F) -> _F:
 def output_option(help_: str) -> Callable[[_F], _F]:
     return click.option("-o", "--output", "output", required=True, type=click.Path(dir_okay=False),
                         help=help_)
+
+
+def keep_option(fn: _F) -> _F:
+    """``--keep``: what a plan file keeps of the poses the robot stage did not plan."""
+    from ..results.compact import DEFAULT_KEEP, KEEP_CHOICES
+
+    return click.option("--keep", type=click.Choice(KEEP_CHOICES), default=DEFAULT_KEEP, show_default=True,
+                        help="What the plan file keeps: collision_free (the grasps the robot tried in full, the other "
+                             "collision-free grasps in columns, colliding poses as counts per candidate) or all "
+                             "(every pose in full; files 10-30x larger).")(fn)

@@ -30,7 +30,7 @@ if TYPE_CHECKING:
 @click.option("--max-picks", type=click.IntRange(1, 100000), default=None,
               help="Stop after this many picks (the other instances are not_tried).")
 @param_options(PickParams)
-@param_options(GraspParams, only=("density",))
+@param_options(GraspParams, only=("material", "density"))
 @config_dir_option
 @output_option("Output JSON (grasplan.picks/1): the scene, robot, gripper and cell, every pick in pick order and "
                "every instance's status and reason.")
@@ -49,7 +49,8 @@ def command(scene: str, robot: str, gripper: str, cell: str | None, sequence: bo
 
     t0 = time.perf_counter()
     apply_config_dirs(kwargs)
-    database = GraspParams(density=kwargs.pop("density"))  # the grasp databases computed (and cached) for the parts
+    # the grasp databases computed (and cached) for the parts; a scene part's material or density wins
+    database = GraspParams(material=kwargs.pop("material"), density=kwargs.pop("density"))
     params = PickParams(**kwargs)
     check_output(output, scene)  # the output itself first: nothing is read for a bad one
     sc = load_scene(scene)  # bad input: exit 3 before anything is computed

@@ -10,7 +10,7 @@ from ..errors import PlanningError
 from ..config.params import ALL_POSES, CandidateParams, GraspParams, PlanParams, RunParams
 from ..status import PLAN_STATUSES, Status
 from .common import check_output, info, pose_family, progress, table, warn_all
-from .options import apply_config_dirs, cell_options, output_option, param_options, robot_option
+from .options import apply_config_dirs, cell_options, keep_option, output_option, param_options, robot_option
 
 if TYPE_CHECKING:
     import numpy as np
@@ -28,9 +28,10 @@ if TYPE_CHECKING:
 @robot_option
 @output_option("Output JSON (grasplan.plan/1), self-contained: export and view need only it and the part.")
 @cell_options
+@keep_option
 @param_options(PlanParams, GraspParams, CandidateParams)
 def command(part: str, robot: str, output: str, gripper: str, cell: str, part_pose: str | None, units: str,
-            **kwargs: Any) -> None:
+            keep: str, **kwargs: Any) -> None:
     """Plan grasps of PART that ROBOT can reach: IK, straight approach, OMPL path from home.
 
     Writes grasplan.plan/1 JSON (the grasps file plus robot, per-grasp status, score, rank and,
@@ -61,7 +62,7 @@ def command(part: str, robot: str, output: str, gripper: str, cell: str, part_po
     info("computing grasps (candidates, frames, collision) ...")
 
     if prm.grasps.pose_index == ALL_POSES:
-        return _plan_all_poses(p, part, rob, g, c, T_world_part, output, prm, t0)
+        return _plan_all_poses(p, part, rob, g, c, T_world_part, output, prm, t0, keep)
     bar = _PlanBar()
     try:
         result = plan(p, rob, gripper=g, cell=c, candidates=prm.candidates, grasps=prm.grasps,
@@ -71,7 +72,7 @@ def command(part: str, robot: str, output: str, gripper: str, cell: str, part_po
     gr = result.grasp_result
     if gr is not None:
         warn_all(gr.quality_warnings())
-    result.write(output)
+    result.write(output, keep=keep)
 
     counts = result.counts()
     robot_name = rob.name
@@ -139,7 +140,7 @@ def _other_poses_hint(p: Part, g: Gripper, c: Cell, prm: RunParams, result: Plan
 
 
 def _plan_all_poses(p: Part, part: str, rob: Robot, g: Gripper, c: Cell, T_world_part: np.ndarray | None,
-                    output: str, prm: RunParams, t0: float) -> None:
+                    output: str, prm: RunParams, t0: float, keep: str) -> None:
     """``--pose-index all``: one standalone plan file per pose (OUT.pose<k>.json), OUT.json = the
     pose with the most planned grasps (ties: the more probable) plus a ``poses`` block."""
     from ..motion.planning import MIN_POSE_PROBABILITY, plan_poses
@@ -148,7 +149,7 @@ def _plan_all_poses(p: Part, part: str, rob: Robot, g: Gripper, c: Cell, T_world
     info(f"planning every stable pose of probability >= {MIN_POSE_PROBABILITY * 100:g} % ...")
     runs = plan_poses(p, rob, gripper=g, cell=c, candidates=prm.candidates, grasps=prm.grasps, planning=prm.planning,
                       T_world_part=T_world_part)
-    done = write_pose_plans(runs, output, min_probability=MIN_POSE_PROBABILITY)
+    done = write_pose_plans(runs, output, min_probability=MIN_POSE_PROBABILITY, keep=keep)
     click.echo(table(done.table_rows(), header=("pose", "probability", "planned", "collision-free", "file")), err=True)
     if done.result is None:
         raise done.error(str(part))

@@ -18,13 +18,22 @@ def command() -> None:
     """Make scenes (grasplan.scene/1): many parts at poses in a cell."""
 
 
-def parse_part_count(text: str) -> tuple[str, int]:
-    """``PATH:COUNT`` -> (path, count); InputError (exit 3) naming what would pass."""
+def parse_part_count(text: str) -> tuple[str, int, str | None]:
+    """``PATH:COUNT`` or ``PATH:COUNT:MATERIAL`` -> (path, count, material or None); InputError
+    (exit 3) naming what would pass (an unknown material lists the valid names)."""
+    from ..config.materials import MATERIAL_NAMES, material_density
     from ..sim.drop import MAX_COUNT
 
     path, sep, count = str(text).rpartition(":")
+    material = None
+    if sep and count.strip().lower() in MATERIAL_NAMES or (sep and not count.strip().isdigit()
+                                                            and path.rpartition(":")[2].strip().isdigit()):
+        material = count.strip()
+        material_density(material, option=f"--part {text}")
+        path, sep, count = path.rpartition(":")
     if not sep or not path.strip():
-        raise InputError(f"--part {text!r}: expected PATH:COUNT, e.g. --part parts/TLess20.stl:3")
+        raise InputError(f"--part {text!r}: expected PATH:COUNT or PATH:COUNT:MATERIAL, e.g. --part "
+                         f"parts/TLess20.stl:3 or parts/TLess20.stl:3:plastic")
     try:
         n = int(count.strip())
     except ValueError:
@@ -32,16 +41,16 @@ def parse_part_count(text: str) -> tuple[str, int]:
                          f"e.g. {path}:3") from None
     if not 1 <= n <= MAX_COUNT:
         raise InputError(f"--part {text!r}: the count must be 1..{MAX_COUNT}, got {n}")
-    return path, n
+    return path, n, material.lower() if material is not None else None
 
 
 @command.command("drop")
 @click.option("--cell", default="bin", show_default=True,
               help="Cell with a bin: a name (see --config-dir) or a cell YAML path.")
-@click.option("--part", "parts", multiple=True, required=True, metavar="PATH:COUNT",
-              help="A part's mesh file and how many to drop (repeatable; one per part). The part is named by "
-                   "the file's stem as written (TLess20.stl -> TLess20, instances TLess20_0, ...), as "
-                   "`grasplan serve` names it.")
+@click.option("--part", "parts", multiple=True, required=True, metavar="PATH:COUNT[:MATERIAL]",
+              help="A part's mesh file, how many to drop and optionally its material (else --material's; "
+                   "repeatable; one per part). The part is named by the file's stem as written (TLess20.stl -> "
+                   "TLess20, instances TLess20_0, ...), as `grasplan serve` names it.")
 @units_option
 @param_options(DropParams)
 @config_dir_option
@@ -65,10 +74,10 @@ def drop(cell: str, parts: tuple[str, ...], units: str, output: str, **kwargs) -
         raise InputError(f"-o {output}: a scene file is YAML or JSON; name it *.yaml, *.yml or *.json")
     specs = [parse_part_count(p) for p in parts]
     apply_config_dirs(kwargs)  # first: --config-dir decides which file the cell name reads
-    check_output(output, *[p for p, _ in specs])  # the output itself first: nothing loads for a bad one
+    check_output(output, *[s[0] for s in specs])  # the output itself first: nothing loads for a bad one
     params = DropParams(**kwargs)
     setup = build_setup(cell=cell)
-    out = check_output(output, *[p for p, _ in specs], setup=setup)  # nor replaces the cell's files
+    out = check_output(output, *[s[0] for s in specs], setup=setup)  # nor replaces the cell's files
     c = setup.cell
     assert c is not None  # build_setup(cell=...) loads one
     if c.bin is None:
@@ -76,7 +85,8 @@ def drop(cell: str, parts: tuple[str, ...], units: str, output: str, **kwargs) -
                          f"(e.g. --cell bin; docs/cells.md)")
     items = load_items(specs, units=units, info=info, warn=lambda w: warn_all([w]))
     total = sum(it.count for it in items)
-    info(f"scene drop: {total} parts into {cell} (seed {params.seed}, {params.density:g} kg/m^3, mu {params.mu:g}); "
+    info(f"scene drop: {total} parts into {cell} (seed {params.seed}, {params.material} {params.density:g} kg/m^3, "
+         f"mu {params.mu:g}); "
          f"convex pieces take minutes per part the first time, then come from the cache")
 
     floor = float(c.bin.T_world_bin[2, 3])
@@ -87,8 +97,9 @@ def drop(cell: str, parts: tuple[str, ...], units: str, output: str, **kwargs) -
              f"({d.seconds:.1f} s{tries}), pile {1e3 * (d.top - floor):.0f} mm high")
 
     res = drop_pile(c, items, params=params, cell_ref=cell, progress=on_drop, log=lambda s: info(f"  {s}"))
-    header = [f"grasplan scene drop: seed {params.seed}, density {params.density:g} kg/m^3, mu {params.mu:g}, "
-              f"drop gap {params.drop_gap:g} m, {params.decomposition}; settled in {res.sim_s:.2f} s simulated"]
+    header = [f"grasplan scene drop: seed {params.seed}, {params.material} {params.density:g} kg/m^3, "
+              f"mu {params.mu:g}, drop gap {params.drop_gap:g} m, {params.decomposition}; "
+              f"settled in {res.sim_s:.2f} s simulated"]
     header += [f"part {n}: {r['path']} sha256 {r['sha256']} scale_to_m {r['scale_to_m']:g} ({r['count']} dropped)"
                for n, r in res.parts.items()]
     write_scene(out, res.scene, header=header)

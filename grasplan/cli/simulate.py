@@ -27,7 +27,7 @@ SCHEMA = "grasplan.sim/1"
               help="The part's mesh file. Default: part.path recorded in RESULT (sha256-checked).")
 @click.option("--seed", type=click.IntRange(0, 2**31 - 1), default=0, show_default=True,
               help="Seed of the convex decomposition (the simulation itself is deterministic).")
-@param_options(GraspParams, only=("density", "mass"))
+@param_options(GraspParams, only=("material", "density", "mass"))
 @click.option("--grip-force", "grip_force", type=click.FloatRange(min=0, min_open=True), default=None,
               help="Gripping force, N: the sum of both jaws' forces, as on a datasheet [default: the gripper's "
                    "grip_force].")
@@ -35,12 +35,12 @@ SCHEMA = "grasplan.sim/1"
               help="Part collision shape: CoACD convex decomposition (cached) or the convex hull (fast, "
                    "exact only for convex parts).")
 @click.pass_context
-def command(ctx, result: Path, output: Path, top: int, part: Path | None, seed: int, density: float,
-            mass: float | None, grip_force: float | None, decomposition: str) -> None:
+def command(ctx, result: Path, output: Path, top: int, part: Path | None, seed: int, material: str | None,
+            density: float | None, mass: float | None, grip_force: float | None, decomposition: str) -> None:
     """Close, lift (10 cm in 0.5 s) and shake (+-5 m/s^2 along x then y for 1 s) the best grasps
     of a grasps or plan file in MuJoCo; a grasp holds when the part moved < 5 mm and turned < 5 deg
     relative to the jaws. Writes per grasp ``sim`` {success, slip_m, turn_deg} (grasplan.sim/1).
-    Density and mass default to those the file was made with."""
+    Material, density and mass default to those the file was made with."""
     from ..io import write_json
     from ..part.mass import mass_properties
     from ..setup.outputs import result_files
@@ -53,13 +53,15 @@ def command(ctx, result: Path, output: Path, top: int, part: Path | None, seed: 
     res = load_result(result, part=part, load_mesh=True)
     check_output(output, result, part, *result_files(res))  # its part and robot files are inputs too
     gp = res.params.grasps
-    given = {k for k in ("density", "mass")
+    given = {k for k in ("material", "density", "mass")
              if ctx.get_parameter_source(k) not in (click.core.ParameterSource.DEFAULT, None)}
     if given:  # validated by GraspParams (InputError naming the option)
-        gp = GraspParams.from_json({**gp.to_json(), **({"density": density} if "density" in given else {}),
-                                    **({"mass": mass} if "mass" in given else {})})
+        kw = gp.to_json()
+        if given & {"material", "density"}:
+            kw.update(material=material, density=density)
+        gp = GraspParams.from_json({**kw, **({"mass": mass} if "mass" in given else {})})
         res = replace(res, params=replace(res.params, grasps=gp))
-    mp = mass_properties(res.mesh(), density=gp.density, mass=gp.mass)
+    mp = mass_properties(res.mesh(), density=gp.density, mass=gp.mass, material=gp.material)
     warn_all(mp.warnings)
     info(f"simulate: {result} (mass {mp.mass:.3f} kg, mu {res.params.candidates.mu:g}, {decomposition})")
     rows, sim, mp, mu = simulate_result(res, top, mass_props=mp, grip_force=grip_force, seed=seed,

@@ -40,8 +40,8 @@ from .scoring import SCORING_HELP
 
 DEFAULT_SCORE_WEIGHTS: tuple[tuple[str, float], ...] = _DEFAULT_SCORING.weights
 DEFAULT_SCORE_REFS: tuple[tuple[str, float], ...] = _DEFAULT_SCORING.refs
-#: default part density, kg/m^3 (steel)
-DEFAULT_DENSITY = 7850.0
+#: the default part material and its density, kg/m^3 (steel; grasplan.config.materials)
+from .materials import CUSTOM, DEFAULT_DENSITY, DEFAULT_MATERIAL, MATERIAL_HELP, MATERIAL_NAMES, resolve_material
 #: ``pose_index="all"``: plan every stable pose (grasplan.motion.planning.plan_poses), one plan per pose
 ALL_POSES = "all"
 
@@ -105,6 +105,35 @@ class OptionSet:
         return f.default_factory()
 
 
+class MaterialOptions:
+    """``material`` and ``density`` fields resolved before validation
+    (:func:`grasplan.config.materials.resolve_material`): the material's density, or the density
+    named by its material (``custom`` when none has it), or the default, steel; a ``mass`` (when
+    the class has one) is recorded as ``custom`` unless a material was named. After
+    ``__post_init__`` both are set."""
+
+    material: str
+    density: float
+
+    def _resolve_material(self) -> None:
+        material, density = resolve_material(self.material, self.density)
+        if getattr(self, "mass", None) is not None and self.material is None:
+            material = CUSTOM
+        object.__setattr__(self, "material", material)
+        object.__setattr__(self, "density", density)
+
+    def with_material(self: _M, material: str | None = None, density: float | None = None) -> _M:
+        """These options with another ``material`` or ``density`` (as given on the command line:
+        None for not given; both None: the default)."""
+        kw = {f.name: getattr(self, f.name) for f in fields(self)  # type: ignore[arg-type]
+              if f.init and f.name not in ("material", "density")}
+        cls: Any = type(self)  # a dataclass that has the two fields
+        return cls(material=material, density=density, **kw)
+
+
+_M = TypeVar("_M", bound=MaterialOptions)
+
+
 @dataclass(frozen=True, kw_only=True)
 class CandidateParams(OptionSet):
     """Stages 2-4: BLM, convexity, antipodal search. Lengths m, angles degrees."""
@@ -128,8 +157,9 @@ class CandidateParams(OptionSet):
 
 
 @dataclass(frozen=True, kw_only=True)
-class GraspParams(OptionSet):
-    """Stages 5-6: TCP frames rolled about each closing axis, full-jaw collision filter."""
+class GraspParams(MaterialOptions, OptionSet):
+    """Stages 5-6: TCP frames rolled about each closing axis, full-jaw collision filter; the part's
+    material (:class:`MaterialOptions`)."""
 
     roll_step_deg: float = spec(15.0, "float", "Roll step of the TCP about the closing axis, degrees "
                                 "(poses at 0, step, ... < 360).", cli="--roll-step", lo=1.0, hi=360.0)
@@ -147,9 +177,11 @@ class GraspParams(OptionSet):
                                         "'poses' block with the counts per pose.", lo=0, hi=10000, optional=True,
                                         words=(ALL_POSES,), metavar="INDEX|all")
     # grasp quality (grasplan.grasps.quality): mass properties and the score
-    density: float = spec(DEFAULT_DENSITY, "float", "Part density, kg/m^3 (uniform; 7850 steel, 2700 aluminium, "
-                          "~1200 plastic): mass and centre of mass for the grasp quality.", lo=0.0, lo_open=True,
-                          hi=1e5)
+    material: str = spec(None, "choice", MATERIAL_HELP, choices=(*MATERIAL_NAMES, CUSTOM), record="never",
+                         show=DEFAULT_MATERIAL, metavar="NAME")
+    density: float = spec(None, "float", "Part density, kg/m^3 (uniform; 7850 steel, 2700 aluminium, "
+                          "~1200 plastic): mass and centre of mass for the grasp quality; by default --material's.",
+                          lo=0.0, lo_open=True, hi=1e5, show=f"{DEFAULT_DENSITY:g}")
     mass: float | None = spec(None, "float", "Part mass, kg (overrides --density).", lo=0.0, lo_open=True,
                               hi=1e4, optional=True)
     # a scoring YAML: its weights and normalisation replace score_weights and score_refs (the outputs
@@ -159,6 +191,10 @@ class GraspParams(OptionSet):
                                                          "Score terms and weights (configs/scoring.yaml or --scoring).")
     score_refs: tuple[tuple[str, float], ...] = spec(DEFAULT_SCORE_REFS, "internal",
                                                       "Normalisation of the physical score terms (scoring YAML).")
+
+    def __post_init__(self) -> None:
+        self._resolve_material()
+        super().__post_init__()
 
     def single_pose_index(self) -> int | None:
         """:attr:`pose_index` as the one resting pose a grasp stage or a plan uses (None: the cell's);

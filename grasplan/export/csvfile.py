@@ -86,28 +86,29 @@ def grasps_csv(plan: PlanResult, *, grasp_id: int | None = None) -> str:
       per jaw the contact patch area (m^2) and type (point, line, surface); empty for grasps without
       quality (collisions). ``sim_*``: the MuJoCo lift-and-shake result (``success`` 1 held / 0
       slipped, ``slip_m`` m, ``turn_deg`` deg), empty when the grasp was not simulated.
-    - Rows in the plan's grasp order. Numbers are written with up to 9 significant digits.
+    - Rows in the plan's grasp order: the grasps the plan file keeps (a compact plan: the collision-free
+      ones; ``grasplan plan --keep all`` keeps every pose). Numbers have up to 9 significant digits.
     """
     t = plan.grasps
     joints = list(cast("Robot", plan.robot).joint_names)  # exports refuse a result without a robot
-    ids = np.arange(len(t)) if grasp_id is None else np.asarray([plan.select(grasp_id).id])
+    rows = np.arange(len(t)) if grasp_id is None else np.asarray([t.index_of(plan.select(grasp_id).id)])
     buf = io.StringIO()
     csv.writer(buf, lineterminator="\n").writerow(header(joints))
     lines = [buf.getvalue().rstrip("\n")]
-    if len(ids) == 0:
+    if len(rows) == 0:
         return lines[0] + "\n"
-    T_part_tcp = t.T_part_tcp[ids]
+    T_part_tcp = t.T_part_tcp[rows]
     poses = np.concatenate([pose7(T_part_tcp), pose7(plan.T_world_part @ T_part_tcp)], axis=1) + 0.0  # no "-0"
-    if not np.all(np.isfinite(poses)) or not np.all(np.isfinite(t.width[ids])):
+    if not np.all(np.isfinite(poses)) or not np.all(np.isfinite(t.width[rows])):
         raise InputError("the plan has non-finite poses or widths; it is corrupt")
     scale = _num(plan.part.scale_to_m)
     fmt = ",".join(["{:.9g}"] * 14)
     empty_q = "," * (len(joints) - 1)
-    status = t.status[ids].astype(str).tolist()
-    width = t.width[ids].tolist()
-    score = t.score[ids].tolist()
-    quality = _quality_text(t, ids)
-    for k, (i, p) in enumerate(zip(ids.tolist(), poses.tolist())):
+    status = t.status[rows].astype(str).tolist()
+    width = t.width[rows].tolist()
+    score = t.score[rows].tolist()
+    quality = _quality_text(t, rows)
+    for k, (i, p) in enumerate(zip(t.ids[rows].tolist(), poses.tolist())):
         m = plan.motions.get(i)
         qtxt = ",".join(_num(v) for v in m.q_grasp) if m is not None else empty_q
         sc = None if score[k] != score[k] else score[k]

@@ -11,7 +11,6 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from .program import (
     SEGMENT_TEXT,
@@ -43,6 +42,8 @@ __all__ = ["krl_program", "kuka_abc_deg", "render"]
 
 def kuka_abc_deg(R: np.ndarray) -> np.ndarray:
     """KUKA ``A, B, C`` (degrees) of rotation matrices ``(..., 3, 3)``: ``R = Rz(A) Ry(B) Rx(C)``."""
+    from scipy.spatial.transform import Rotation  # SciPy loads when a program is written, not with the registry
+
     R = np.asarray(R, dtype=np.float64)
     return Rotation.from_matrix(R.reshape(-1, 3, 3)).as_euler("ZYX", degrees=True).reshape(R.shape[:-2] + (3,))
 

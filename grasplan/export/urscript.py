@@ -8,7 +8,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.spatial.transform import Rotation
 
 from ..errors import InputError
 from .program import (
@@ -40,6 +39,8 @@ LINEAR_ACCEL = 0.5
 
 def rotvec(R: np.ndarray) -> np.ndarray:
     """Rotation vector (3,) of a rotation matrix (3, 3), robust near pi (via the quaternion)."""
+    from scipy.spatial.transform import Rotation  # SciPy loads when a program is written, not with the registry
+
     U, _, Vt = np.linalg.svd(np.asarray(R, dtype=np.float64))
     R = U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt  # nearest rotation
     return Rotation.from_matrix(R).as_rotvec()

@@ -20,6 +20,8 @@ LENGTH_UNITS: dict[str, float] = {
     "in": 0.0254,
     "ft": 0.3048,
 }
+#: what ``--units`` (and a mesh's ``units``) accepts: ``auto`` (mm or m by the part's size) or a unit
+UNIT_CHOICES: tuple[str, ...] = ("auto", *LENGTH_UNITS)
 
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _LENGTH_RE = re.compile(rf"^\s*({_NUMBER})\s*([a-zA-Z]*)\s*$")

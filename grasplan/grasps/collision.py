@@ -1,13 +1,16 @@
 """Stage 6: global collision filter of gripper poses against the part, the table and the obstacles.
 
 :class:`GripperCollider` checks each pose's gripper body shapes and its two jaws swept while
-closing (:meth:`GripperCollider.shape_sets`) against the part (coal, with exact NumPy shortcuts),
-the table (exactly, in NumPy) and the cell's obstacles (coal), and gives every pose a status
-(:meth:`GripperCollider.check_detail`); :func:`hit_reasons` words the grasp-stage reasons
+closing (:meth:`GripperCollider.shape_sets`, :mod:`grasplan.grasps.collision_shapes`) against the
+part (coal, after exact shortcuts: NumPy, and the compiled box pre-pass of
+:mod:`grasplan.grasps.collision_boxes`), the table (exactly, in NumPy) and the cell's obstacles
+(coal), and gives every pose a status (:meth:`GripperCollider.check_detail`); :func:`hit_reasons`
+words the grasp-stage reasons
 ("grasp stage: gripper:finger_left hits obstacle:wall at the grasp or while closing").
 """
 from __future__ import annotations
 
+import time
 from typing import Any, Protocol
 
 import coal
@@ -16,10 +19,12 @@ import numpy as np
 from ..cell.model import Cell
 from ..geometry.containment import RayGrid, inside_box, obb_aabb_separated, points_inside_tree, surface_samples
 from ..cell.shapes import bvh, obstacle_geometry
-from ..gripper.model import Box, Gripper
+from ..gripper.model import Gripper
 from ..geometry.meshdata import TriangleMesh, convex_hull
 from ..status import Status
 from ..geometry.transforms import check_transform
+from .collision_boxes import HIT, UNSURE, PartBoxes, points_inside_compiled, prefilter
+from .collision_shapes import ShapeSet, Sweeps, unique_rows
 
 #: a shape reaching below the table top by less than this (m) only touches it
 TABLE_CONTACT_TOL = 1e-6
@@ -33,38 +38,6 @@ class PartMesh(TriangleMesh, Protocol):
 
     @property
     def is_watertight(self) -> bool: ...
-
-
-class _ShapeSet:
-    """One gripper shape per pose: coal geometry per unique variant, ``T_tcp_shape`` per pose."""
-
-    def __init__(self, variants: list, index: np.ndarray):
-        self.variants = variants  # list of Box | MeshShape
-        self.index = index  # (M,) variant per pose
-        self.is_box = isinstance(variants[0], Box)
-        geoms = []
-        for v in variants:
-            if isinstance(v, Box):
-                geoms.append(coal.Box(*np.asarray(v.extents, dtype=np.float64)))
-            else:
-                geoms.append(bvh(v.vertices, v.faces))
-        self.geoms = geoms
-        # local bounding box of each variant, in the TCP frame (for the prefilter)
-        Ts: list[np.ndarray] = []
-        hs: list[np.ndarray] = []
-        for v in variants:
-            if isinstance(v, Box):
-                Ts.append(v.T_tcp_box)
-                hs.append(0.5 * np.asarray(v.extents, dtype=np.float64))
-            else:
-                lo, hi = v.vertices.min(axis=0), v.vertices.max(axis=0)
-                T = np.eye(4)
-                T[:3, 3] = 0.5 * (lo + hi)
-                Ts.append(T)
-                hs.append(0.5 * (hi - lo))
-        self.T_tcp_geom = np.array([v.T_tcp_box if isinstance(v, Box) else np.eye(4) for v in variants])
-        self.T_tcp_bb = np.array(Ts)
-        self.half_bb = np.array(hs)
 
 
 class GripperCollider:
@@ -83,8 +56,21 @@ class GripperCollider:
     T_world_part : (4, 4)
     """
 
-    def __init__(self, part_mesh: PartMesh, gripper: Gripper, cell: Cell, T_world_part: np.ndarray):
+    def __init__(self, part_mesh: PartMesh, gripper: Gripper, cell: Cell, T_world_part: np.ndarray, *,
+                 prepass: bool = True):
         T_world_part = check_transform(T_world_part, "T_world_part", error=ValueError)
+        #: decide (shape, pose) pairs on boxes against the part's triangles before coal
+        #: (:mod:`grasplan.grasps.collision_boxes`); False: coal for every pair the prefilter leaves
+        self.prepass = bool(prepass)
+        self._boxes: PartBoxes | None = None
+        #: seconds spent so far, summed over :meth:`check_detail` calls: ``shapes`` (the shapes per
+        #: pose, :meth:`shape_sets`), ``part`` (the whole part check: prefilter, inside tests,
+        #: pre-pass and coal), of it ``part_boxes`` (the compiled pre-pass) and ``part_coal`` (coal's
+        #: calls on the part), ``table``, ``obstacle``
+        self.timing = {"shapes": 0.0, "part": 0.0, "part_boxes": 0.0, "part_coal": 0.0, "table": 0.0,
+                       "obstacle": 0.0}
+        #: pairs the pre-pass decided: ``apart``, ``hit``; ``unsure`` went to coal
+        self.prepass_counts = {"apart": 0, "hit": 0, "unsure": 0}
         self.part_mesh = part_mesh
         self.gripper = gripper
         self.cell = cell
@@ -108,11 +94,12 @@ class GripperCollider:
         self.result = coal.CollisionResult()
         self._tf = coal.Transform3s()
         self._identity = coal.Transform3s()
-        self._body = [_ShapeSet([b], np.zeros(0, dtype=np.int64)) for b in gripper.body]  # index set per batch
-        self._finger_cache: dict = {}
+        self._body = [ShapeSet([b], np.zeros(0, dtype=np.int64)) for b in gripper.body]  # index set per batch
+        self._sweeps = Sweeps(gripper)
         self.coal_calls = 0
         #: poses decided as hits without coal: "centre" (box centre inside the closed part),
-        #: "sample" (a part surface sample inside the box)
+        #: "sample" (a point of the part's surface deeper than SAMPLE_DEPTH inside the box: a stored
+        #: surface sample, or a triangle's point found by the compiled pre-pass)
         self.certified = {"centre": 0, "sample": 0}
         # obstacles: coal geometry, world pose and world axis-aligned box (centre, half extents)
         self.obstacles = tuple(getattr(cell, "obstacles", ()) or ())
@@ -129,6 +116,13 @@ class GripperCollider:
         if self._bvh is None:
             self._bvh = bvh(self.part_mesh.vertices, self.part_mesh.faces)
         return self._bvh
+
+    @property
+    def part_boxes(self) -> PartBoxes:
+        """The part's triangles in the compiled box hierarchy of the pre-pass (built on first use)."""
+        if self._boxes is None:
+            self._boxes = PartBoxes(self.part_mesh.vertices, self.part_mesh.faces)
+        return self._boxes
 
     @property
     def sample_tree(self) -> Any:
@@ -155,7 +149,7 @@ class GripperCollider:
         return ["part", "table"] + [f"obstacle:{o.name}" for o in self.obstacles]
 
     # -- geometry per pose -------------------------------------------------------------------
-    def shape_sets(self, width: np.ndarray) -> list[_ShapeSet]:
+    def shape_sets(self, width: np.ndarray) -> list[ShapeSet]:
         """Body shapes (one variant each) then the two swept jaws (one variant per distinct width),
         all in the TCP frame of the pose: every body shape (boxes, meshes) of the gripper, and each jaw
         swept from the pre-grasp opening ``o_pre = min(max_opening, width + 10 mm)`` inwards to
@@ -165,32 +159,36 @@ class GripperCollider:
         o_pre = g.pregrasp_opening(width)
         o_close = g.close_to_opening(width)
         key = np.round(np.stack([o_pre, o_close], axis=1), 12)
-        uk, inv = np.unique(key, axis=0, return_inverse=True)
-        inv = inv.reshape(-1)
-        left, right = [], []
-        for a, b in uk:
-            k = (float(a), float(b))
-            if k not in self._finger_cache:
-                self._finger_cache[k] = g.swept_fingers(a, b)
-            sl, sr = self._finger_cache[k]
-            left.append(sl)
-            right.append(sr)
+        uk, inv = unique_rows(key)
+        index = self._sweeps.rows(uk)[inv]
         M = len(width)
         body = []
         for s in self._body:
-            s2 = _ShapeSet.__new__(_ShapeSet)
+            s2 = ShapeSet.__new__(ShapeSet)
             s2.__dict__.update(s.__dict__)
             s2.index = np.zeros(M, dtype=np.int64)
             body.append(s2)
-        return body + [_ShapeSet(left, inv), _ShapeSet(right, inv)]
+        return body + [self._sweeps.shape_set(0, index), self._sweeps.shape_set(1, index)]
 
     # -- table ------------------------------------------------------------------------------
-    def _table_hits(self, T_part_tcp: np.ndarray, sets: list[_ShapeSet]) -> tuple[np.ndarray, np.ndarray]:
+    def _table_hits(self, T_part_tcp: np.ndarray, sets: list[ShapeSet], todo: np.ndarray | None = None
+                    ) -> tuple[np.ndarray, np.ndarray]:
         """``(hit (M,) bool, first hitting element (M,) int, -1 when free)`` against the table, the
         half-space ``z < table_z`` of the world, exactly: a box collides iff its lowest corner is below
         ``table_z - TABLE_CONTACT_TOL`` (so touching the table top within 1 micrometre is not a
-        collision); a mesh iff its lowest vertex is."""
+        collision); a mesh iff its lowest vertex is. ``todo`` (M,) bool: check only those poses
+        (the others are free here)."""
         M = len(T_part_tcp)
+        if todo is not None:
+            idx = np.flatnonzero(todo)
+            hit = np.zeros(M, dtype=bool)
+            elem = np.full(M, -1, dtype=np.int64)
+            sub = [ShapeSet.__new__(ShapeSet) for _ in sets]
+            for s2, s in zip(sub, sets):
+                s2.__dict__.update(s.__dict__)
+                s2.index = s.index[idx]
+            hit[idx], elem[idx] = self._table_hits(T_part_tcp[idx], sub)
+            return hit, elem
         hit = np.zeros(M, dtype=bool)
         elem = np.full(M, -1, dtype=np.int64)
         zrow = self.zrow
@@ -201,14 +199,13 @@ class GripperCollider:
             if s.is_box:
                 Tg = s.T_tcp_geom[s.index]  # (M,4,4)
                 zr = np.einsum("mj,mjk->mk", zr_tcp, Tg)  # world-z row of T_world_box
-                h = 0.5 * np.array([np.asarray(v.extents) for v in s.variants])[s.index]
+                h = s.half_bb[s.index]  # a box's half extents
                 zmin = zr[:, 3] - np.sum(np.abs(zr[:, :3]) * h, axis=1)
                 h_s |= zmin < limit
             else:
-                for k, v in enumerate(s.variants):
+                for k in np.unique(s.index).tolist():
+                    v = s.variants[k]
                     sel = np.flatnonzero(s.index == k)
-                    if len(sel) == 0:
-                        continue
                     hv = convex_hull(v.vertices).vertices if len(v.vertices) > 64 else v.vertices
                     z = zr_tcp[sel, :3] @ hv.T + zr_tcp[sel, 3:4]
                     h_s[sel] |= z.min(axis=1) < limit
@@ -217,7 +214,7 @@ class GripperCollider:
         return hit, elem
 
     # -- obstacles --------------------------------------------------------------------------
-    def _obstacle_hits(self, T_part_tcp: np.ndarray, sets: list[_ShapeSet], todo: np.ndarray
+    def _obstacle_hits(self, T_part_tcp: np.ndarray, sets: list[ShapeSet], todo: np.ndarray
                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(hit (M,), first element (M,), obstacle index (M,))`` for the poses ``todo`` (M,) bool
         (-1 where free or not checked). The obstacles (``cell.obstacles``, the bin's floor and walls
@@ -263,34 +260,78 @@ class GripperCollider:
         return hit, elem, obs
 
     # -- part ------------------------------------------------------------------------------
-    def _part_hits(self, T_part_tcp: np.ndarray, sets: list[_ShapeSet]) -> tuple[np.ndarray, np.ndarray]:
-        """``(hit (M,) bool, first hitting element (M,) int, -1 when free)``."""
+    def _part_prefilter(self, T_part_tcp: np.ndarray, sets: list[ShapeSet]
+                        ) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
+        """``(T_part_geom per set (M, 4, 4), need (S, M), inside_cand (S, M))``: where each shape's
+        geometry is, whether its box is not separated from the part's box, and whether its box's
+        world-axis box lies within the part's box (a closed part only: it might lie inside)."""
         M = len(T_part_tcp)
-        elem = np.full(M, -1, dtype=np.int64)
-        hit = np.zeros(M, dtype=bool)
         Tgs = []
         need = np.zeros((len(sets), M), dtype=bool)
         inside_cand = np.zeros((len(sets), M), dtype=bool)
         for si, s in enumerate(sets):
             Tbb = T_part_tcp @ s.T_tcp_bb[s.index]
             h = s.half_bb[s.index]
-            need[si] = ~obb_aabb_separated(Tbb[:, :3, 3], Tbb[:, :3, :3], h, self.aabb_center, self.aabb_half)
-            if self.watertight:
-                # bounding box of the shape's box wholly within the part's box: might be inside the part
-                ext = np.einsum("mij,mj->mi", np.abs(Tbb[:, :3, :3]), h)
-                inside_cand[si] = np.all(np.abs(Tbb[:, :3, 3] - self.aabb_center) + ext <= self.aabb_half, axis=1)
-            Tgs.append(T_part_tcp @ s.T_tcp_geom[s.index] if s.is_box else T_part_tcp)
-        collide = coal.collide
-        req, res, tf, I, part_bvh = self.request, self.result, self._tf, self._identity, self.part_bvh
-        calls = 0
+            if self.prepass:  # the same two tests compiled, in one pass
+                need[si], within = prefilter(Tbb, h, self.aabb_center, self.aabb_half)
+                if self.watertight:
+                    inside_cand[si] = within
+            else:
+                need[si] = ~obb_aabb_separated(Tbb[:, :3, 3], Tbb[:, :3, :3], h, self.aabb_center, self.aabb_half)
+                if self.watertight:
+                    # bounding box of the shape's box wholly within the part's box: might be inside the part
+                    ext = np.einsum("mij,mj->mi", np.abs(Tbb[:, :3, :3]), h)
+                    inside_cand[si] = np.all(np.abs(Tbb[:, :3, 3] - self.aabb_center) + ext <= self.aabb_half, axis=1)
+            Tgs.append(Tbb if s.is_box else T_part_tcp)  # a box's bounding box is the box
+        return Tgs, need, inside_cand
 
-        def coal_hit(si: int, m: int) -> bool:
-            T = Tgs[si][m]
+    def _inside(self, pts: np.ndarray) -> np.ndarray:
+        """(k,) bool: the points (k, 3) inside the closed part (ray crossings, compiled with ``prepass``)."""
+        if self.prepass:
+            return points_inside_compiled(self.ray_grid, self.part_mesh, pts)
+        return points_inside_tree(self.ray_grid, self.part_mesh, pts)
+
+    def _prepass(self, s: ShapeSet, T_geom: np.ndarray, T_part_tcp: np.ndarray, todo: np.ndarray,
+                 half: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(hit poses, poses for coal)`` of ``todo`` for the shape set ``s`` (geometry at ``T_geom``,
+        per-variant half extents ``half`` of a box set), by :meth:`PartBoxes.classify`."""
+        t0 = time.perf_counter()
+        if s.is_box:
+            code = self.part_boxes.classify(T_geom[todo], half[s.index[todo]], prove_hit=True, tol=SAMPLE_DEPTH)
+        else:  # the shape's local bounding box holds it: apart proofs only
+            code = self.part_boxes.classify(T_part_tcp[todo] @ s.T_tcp_bb[s.index[todo]], s.half_bb[s.index[todo]],
+                                            prove_hit=False, tol=SAMPLE_DEPTH)
+        sure, unsure = todo[code == HIT], todo[code == UNSURE]
+        self.prepass_counts["hit"] += len(sure)
+        self.certified["sample"] += len(sure)
+        self.prepass_counts["unsure"] += len(unsure)
+        self.prepass_counts["apart"] += len(todo) - len(sure) - len(unsure)
+        self.timing["part_boxes"] += time.perf_counter() - t0
+        return sure, unsure
+
+    def _coal_part(self, s: ShapeSet, T_geom: np.ndarray, todo: np.ndarray) -> np.ndarray:
+        """The poses of ``todo`` at which coal finds the shape set ``s`` (geometry at ``T_geom``)
+        colliding with the part."""
+        t0 = time.perf_counter()
+        collide, req, res, tf, I = coal.collide, self.request, self.result, self._tf, self._identity
+        hl = []
+        for m in todo:
+            T = T_geom[m]
             tf.setRotation(T[:3, :3])
             tf.setTranslation(T[:3, 3])
             res.clear()
-            return bool(collide(sets[si].geoms[sets[si].index[m]], tf, part_bvh, I, req, res))
+            if collide(s.geoms[s.index[m]], tf, self.part_bvh, I, req, res):
+                hl.append(m)
+        self.coal_calls += len(todo)
+        self.timing["part_coal"] += time.perf_counter() - t0
+        return np.asarray(hl, dtype=np.int64)
 
+    def _part_hits(self, T_part_tcp: np.ndarray, sets: list[ShapeSet]) -> tuple[np.ndarray, np.ndarray]:
+        """``(hit (M,) bool, first hitting element (M,) int, -1 when free)``."""
+        M = len(T_part_tcp)
+        elem = np.full(M, -1, dtype=np.int64)
+        hit = np.zeros(M, dtype=bool)
+        Tgs, need, inside_cand = self._part_prefilter(T_part_tcp, sets)
         # in blocks of poses, per shape: shapes that hit most often so far are tried first (jaws
         # first to begin with); the first shape that hits decides the pose. On a closed part a box
         # whose centre is inside it hits it (it crosses the surface or lies inside): that exact
@@ -300,8 +341,7 @@ class GripperCollider:
         centre_rate = np.ones(len(sets))
         sample_rate = np.ones(len(sets))
         # half extents per variant of the box shapes (no box certificate for mesh shapes)
-        half = [0.5 * np.array([np.asarray(v.extents, dtype=np.float64) for v in s.variants]) if s.is_box
-                else np.zeros((0, 3)) for s in sets]
+        half = [s.half_bb if s.is_box else np.zeros((0, 3)) for s in sets]
         for b0 in range(0, M, self.block):
             blk = np.arange(b0, min(M, b0 + self.block))
             for si in order:
@@ -311,14 +351,14 @@ class GripperCollider:
                     continue
                 if self.watertight and s.is_box and centre_rate[si] >= 0.2:
                     cand = todo[inside_box(Tgs[si][todo, :3, 3], self.aabb_center, self.aabb_half)]
-                    ins = cand[points_inside_tree(self.ray_grid, self.part_mesh, Tgs[si][cand, :3, 3])]
+                    ins = cand[self._inside(Tgs[si][cand, :3, 3])]
                     centre_rate[si] = 0.5 * centre_rate[si] + 0.5 * len(ins) / max(len(todo), 1)
                     self.certified["centre"] += len(ins)
                     hit[ins] = True
                     elem[ins] = si
                     first_hits[si] += len(ins)
                     todo = todo[~hit[todo]]
-                if s.is_box and sample_rate[si] >= 0.1 and len(todo):
+                if s.is_box and sample_rate[si] >= 0.1 and len(todo) and not self.prepass:
                     # the part's surface sample nearest the box centre lies inside the box: a hit
                     T = Tgs[si][todo]
                     _, j = self.sample_tree.query(T[:, :3, 3])
@@ -331,29 +371,37 @@ class GripperCollider:
                     elem[ins] = si
                     first_hits[si] += len(ins)
                     todo = todo[~hit[todo]]
-                hl = []
-                for m in todo:
-                    calls += 1
-                    if coal_hit(si, m):
-                        hl.append(m)
-                hits = np.asarray(hl, dtype=np.int64)
+                sure = np.zeros(0, dtype=np.int64)
+                if self.prepass and len(todo):
+                    sure, todo = self._prepass(s, Tgs[si], T_part_tcp, todo, half[si])
+                hits = np.concatenate([sure, self._coal_part(s, Tgs[si], todo)])
                 hit[hits] = True
                 elem[hits] = si
                 first_hits[si] += len(hits)
             order = sorted(order, key=lambda i: -first_hits[i])
-        self.coal_calls += calls
-        # a shape crossing no triangle may still lie wholly inside a closed part
-        pts_idx = [(si, m) for si in range(len(sets)) for m in np.flatnonzero(inside_cand[si] & ~hit)]
-        if pts_idx:
-            pts = np.array([Tgs[si][m][:3, 3] if sets[si].is_box else
-                            (sets[si].variants[sets[si].index[m]].vertices[0] @ Tgs[si][m][:3, :3].T + Tgs[si][m][:3, 3])
-                            for si, m in pts_idx])
-            inside = points_inside_tree(self.ray_grid, self.part_mesh, pts)
-            for (si, m), ins in zip(pts_idx, inside):
-                if ins and not hit[m]:
-                    hit[m] = True
-                    elem[m] = si
+        self._inside_hits(sets, Tgs, inside_cand, hit, elem)
         return hit, elem
+
+    def _inside_hits(self, sets: list[ShapeSet], Tgs: list[np.ndarray], inside_cand: np.ndarray, hit: np.ndarray,
+                     elem: np.ndarray) -> None:
+        """A shape crossing no triangle may still lie wholly inside a closed part: the poses not hit
+        yet whose shape (a candidate by ``inside_cand``) has a point inside the part are hit (``hit``,
+        ``elem`` updated in place; the first such shape in element order names the pose)."""
+        cand = [np.flatnonzero(inside_cand[si] & ~hit) for si in range(len(sets))]
+        if sum(len(c) for c in cand):
+            # one point per shape: a box's centre, a mesh's first vertex
+            pts = np.concatenate([Tgs[si][c, :3, 3] if sets[si].is_box else
+                                  np.array([sets[si].variants[sets[si].index[m]].vertices[0] @ Tgs[si][m][:3, :3].T
+                                            + Tgs[si][m][:3, 3] for m in c]).reshape(-1, 3)
+                                  for si, c in enumerate(cand)])
+            inside = self._inside(pts)
+            k0 = 0
+            for si, c in enumerate(cand):  # the first shape (in element order) inside names the pose
+                ins = c[inside[k0:k0 + len(c)]]
+                k0 += len(c)
+                new = ins[~hit[ins]]
+                hit[new] = True
+                elem[new] = si
 
     def check(self, T_part_tcp: np.ndarray, width: np.ndarray) -> np.ndarray:
         """Status per pose: (M,) array of :class:`~grasplan.status.Status` values (str).
@@ -379,12 +427,17 @@ class GripperCollider:
         coal tests surfaces: a shape that crosses no triangle is also tested for lying wholly inside a
         watertight part (one of its points, :func:`grasplan.geometry.containment.points_inside_tree`:
         signed ray crossings, the winding number of a closed mesh, exact; near-ties by the generalised
-        winding number). Two exact certificates decide box-part hits in NumPy before coal, each only
-        while it keeps finding hits: a box whose centre is inside a watertight part hits it; a box
-        containing a sample of the part's surface (:func:`grasplan.geometry.containment.surface_samples`:
-        convex combinations of a triangle's corners) deeper than ``SAMPLE_DEPTH`` hits it. Shapes are
-        tried in blocks of poses, those that hit most often first; the first hit names the pose's
-        element."""
+        winding number). Exact certificates decide box-part hits before coal: a box whose centre is
+        inside a watertight part hits it (NumPy, while it keeps finding hits); then, with ``prepass``
+        (the default), the compiled pre-pass (:class:`grasplan.grasps.collision_boxes.PartBoxes`)
+        decides each remaining (shape, pose) pair against the part's triangles: apart (every triangle
+        more than ``SAMPLE_DEPTH`` away along a separating axis), hit (a point of a triangle deeper
+        than ``SAMPLE_DEPTH`` inside a box) or unsure, and coal runs on the unsure ones alone. Without
+        ``prepass``, a box containing a sample of the part's surface
+        (:func:`grasplan.geometry.containment.surface_samples`: convex combinations of a triangle's
+        corners) deeper than ``SAMPLE_DEPTH`` hits it (while it keeps finding hits) and coal decides
+        the rest. Both give the same statuses. Shapes are tried in blocks of poses, those that hit
+        most often first; the first hit names the pose's element."""
         T_part_tcp = check_transform(T_part_tcp, "T_part_tcp", batch=True, error=ValueError)
         width = np.asarray(width, dtype=np.float64).reshape(-1)
         if width.shape != (len(T_part_tcp),):
@@ -397,14 +450,26 @@ class GripperCollider:
             return status, elem, body
         if self.gripper.moving_tcp:  # the shapes are given at max_opening: place them for each width
             T_part_tcp = T_part_tcp @ self.gripper.T_tcp_gripper(width)
+        t0 = time.perf_counter()
         sets = self.shape_sets(width)
+        self.timing["shapes"] += time.perf_counter() - t0
+        t0 = time.perf_counter()
         part, e_part = self._part_hits(T_part_tcp, sets)
-        table, e_table = self._table_hits(T_part_tcp, sets)
+        t1 = time.perf_counter()
+        table, e_table = self._table_hits(T_part_tcp, sets, ~part)  # a part hit decides the pose
+        t2 = time.perf_counter()
         obst, e_obst, which = self._obstacle_hits(T_part_tcp, sets, ~(part | table))
+        self.timing["part"] += t1 - t0
+        self.timing["table"] += t2 - t1
+        self.timing["obstacle"] += time.perf_counter() - t2
         status[obst], elem[obst], body[obst] = Status.COLLISION_OBSTACLE.value, e_obst[obst], 2 + which[obst]
         status[table], elem[table], body[table] = Status.COLLISION_TABLE.value, e_table[table], 1
         status[part], elem[part], body[part] = Status.COLLISION_PART.value, e_part[part], 0
         return status, elem, body
+
+    def timing_s(self) -> dict[str, float]:
+        """:attr:`timing` under the keys of a plan's ``timing_s``: ``collision_<key>``."""
+        return {f"collision_{k}": v for k, v in self.timing.items()}
 
     def reasons(self, status: np.ndarray, element: np.ndarray, body: np.ndarray) -> np.ndarray:
         """(M,) object array of grasp-stage reasons from :meth:`check_detail` ("" for ``ok``)."""
@@ -430,7 +495,11 @@ def hit_reasons(status: np.ndarray, element: np.ndarray, body: np.ndarray, eleme
     bad = np.flatnonzero(status != Status.OK.value)
     if len(bad) == 0:
         return out
-    codes, inv = np.unique(np.stack([element[bad], body[bad]], axis=1), axis=0, return_inverse=True)
+    # the distinct (element, body) pairs in lexicographic order, as one integer key each
+    e, b = element[bad] + 1, body[bad] + 1
+    span = int(b.max()) + 1
+    keys, inv = np.unique(e * span + b, return_inverse=True)
+    codes = np.stack([keys // span - 1, keys % span - 1], axis=1)
     texts = np.array([
         f"grasp stage: gripper:{element_names[e] if 0 <= e < len(element_names) else '?'} hits "
         f"{body_names[b] if 0 <= b < len(body_names) else '?'} at the grasp or while closing"

@@ -225,7 +225,7 @@ def _mass_from_json(d: Any, src: str) -> MassProperties | None:
         return MassProperties(mass=float(d["mass"]), com=np.asarray(d["com"], dtype=np.float64).reshape(3),
                               inertia=np.asarray(d["inertia"], dtype=np.float64).reshape(3, 3),
                               volume=float(d["volume"]), density=float(d["density"]),
-                              watertight_used=bool(d["watertight_used"]))
+                              watertight_used=bool(d["watertight_used"]), material=str(d.get("material", "")))
     except (KeyError, TypeError, ValueError) as exc:
         raise InputError(f"{src}: meta.mass is malformed ({exc}); recompute the database") from None
 

@@ -265,6 +265,7 @@ def compute_grasps(
     status, hit_elem, hit_body = collider.check_detail(frames.T_part_tcp, cand.candidates.width[frames.candidate])
     reasons = collider.reasons(status, hit_elem, hit_body)
     timing["collision"] = time.perf_counter() - t
+    timing.update(collider.timing_s())
 
     t = time.perf_counter()
     quality, mass_props, score, note = quality_and_score(part.mesh, g, T, frames.T_part_tcp, frames.candidate,
@@ -351,7 +352,8 @@ class LazyGrasps:
         physical_bounds`: the pad's whole area, the load straight down), or ``fallback`` for a part
         without mass properties (its score has no physical terms)."""
         try:
-            mp = mass_properties(self.part.mesh, density=self.params.density, mass=self.params.mass)
+            mp = mass_properties(self.part.mesh, density=self.params.density, mass=self.params.mass,
+                                 material=self.params.material)
         except InputError:
             return fallback  # quality_and_score says why, with the first chunk
         ci = self.frames.candidate
@@ -385,6 +387,7 @@ class LazyGrasps:
         self.status[idx] = st
         self.reasons[idx] = self.collider.reasons(st, elem, body)
         self.timing["collision"] += time.perf_counter() - t
+        self.timing.update(self.collider.timing_s())
         t = time.perf_counter()
         q, mp, sc, note = quality_and_score(self.part.mesh, self.gripper, self.T, self.T_part_tcp[idx],
                                             self.frames.candidate[idx], self.cand.candidates, st, self.mu, self.params,

@@ -185,20 +185,35 @@ def grasp_quality(part_mesh: TriangleMesh, mass_props: MassProperties, gripper: 
 
 def holding_warning(quality: Quality | None, mass_props: MassProperties | None, *, part: str = "the part") -> str:
     """A warning when no grasp of ``quality`` reaches ``gravity_margin >= 1`` ("" otherwise): the
-    best margin, the grip force that would reach 1 (the margin is proportional to the gripping
-    force: friction and soft-finger torsion both scale with it) and what to change."""
+    best margin, what would have held: the largest density (or mass) the best grasp holds (the
+    loads are proportional to the mass, so the margin to its inverse) and the lighter materials
+    within it, and the grip force that would (the margin is proportional to the gripping force:
+    friction and soft-finger torsion both scale with it)."""
+    from ..config.materials import CUSTOM, MATERIALS
+
     if quality is None or mass_props is None or len(quality) == 0:
         return ""
     best = float(np.max(quality.gravity_margin))
     if not np.isfinite(best) or best >= 1.0:
         return ""
     need = quality.grip_force / max(best, 1e-12)
-    return (f"no collision-free grasp is predicted to hold {part} ({mass_props.mass:.3g} kg, "
-            f"{mass_props.density:.4g} kg/m^3) through the lift and shake "
-            f"(peak {LOAD.peak_g():.2f} g): the best gravity_margin is {best:.2f} (< 1: it slips); it would take about {need:.0f} N of "
-            f"grip force at mu {quality.mu:g} (the gripper gives {quality.grip_force:g} N). The ranking leads with the "
-            f"grasps closest to holding; give the real material (--density, --mass), a stronger gripper "
-            f"(grip_force in its YAML), or check them in simulation (grasplan simulate)")
+    limit = mass_props.density * best
+    lighter = [n for n, d in sorted(MATERIALS.items(), key=lambda kv: -kv[1]) if d <= limit]
+    what = f"{mass_props.material} at " if mass_props.material and mass_props.material != CUSTOM else ""
+    if mass_props.material == CUSTOM and lighter == []:
+        would = f"it would hold at <= {mass_props.mass * best:.3g} kg"
+    else:
+        would = f"it would hold at <= {limit:.4g} kg/m^3"
+        if lighter:
+            hint = "--material plastic if it is plastic" if "plastic" in lighter else f"--material {lighter[0]}"
+            would += f" ({', '.join(lighter)}: give {hint}, or --density, --mass)"
+        else:
+            would += " (lighter than any --material: give the real --density or --mass)"
+    return (f"no collision-free grasp is predicted to hold {part} ({mass_props.mass:.3g} kg, {what}"
+            f"{mass_props.density:.4g} kg/m^3) through the lift and shake (peak {LOAD.peak_g():.2f} g): the best "
+            f"gravity_margin is {best:.2f} (< 1: it slips); {would}, or with about {need:.0f} N of grip force at "
+            f"mu {quality.mu:g} (the gripper gives {quality.grip_force:g} N; grip_force in its YAML); the ranking "
+            f"leads with the grasps closest to holding (check them with grasplan simulate)")
 
 
 # ------------------------------------------------------------------------------------------------
@@ -238,7 +253,7 @@ def quality_and_score(part_mesh: TriangleMesh, gripper: Gripper, T_world_part: n
     cfg = ScoringConfig.from_params(params.score_weights, params.score_refs)
     try:
         mp = mass_props if mass_props is not None else mass_properties(part_mesh, density=params.density,
-                                                                        mass=params.mass)
+                                                                        mass=params.mass, material=params.material)
     except InputError as exc:
         if params.mass is not None or params.density != type(params)().density:
             raise  # the user asked for a mass: say why there is none

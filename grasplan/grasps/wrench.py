@@ -12,7 +12,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import ConvexHull, QhullError
 
 from ..part.mass import MassProperties
 
@@ -238,6 +237,8 @@ def contact_wrenches(contacts: np.ndarray, normals: np.ndarray, com: np.ndarray,
 def ferrari_canny(W: np.ndarray) -> np.ndarray:
     """(M,) L1 epsilon: distance from the origin to the hull of each wrench set ``W`` (M, k, 6);
     0 when the origin is not strictly inside or the hull is degenerate. One Qhull call per grasp."""
+    from scipy.spatial import ConvexHull, QhullError  # SciPy loads with the first quality computed
+
     out = np.zeros(len(W))
     for m in range(len(W)):
         try:

@@ -14,12 +14,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..config.materials import CUSTOM, DEFAULT_DENSITY, material_of
 from ..errors import InputError
 from ..geometry.meshdata import TriangleMesh, convex_hull, polyhedron_integrals
 from ..geometry.tolerance import Tolerance
 
-#: default density, kg/m^3 (steel)
-DEFAULT_DENSITY = 7850.0
+__all__ = ["DEFAULT_DENSITY", "MassProperties", "mass_properties"]
 
 
 @dataclass(frozen=True)
@@ -41,6 +41,9 @@ class MassProperties:
     watertight_used : bool
         True when the mesh itself was integrated, False when its convex hull was.
     warnings : tuple of str
+    material : str
+        The material named (``--material``), the one whose density it is, or ``custom``
+        (:mod:`grasplan.config.materials`); "" when not known (an older record).
     """
 
     mass: float
@@ -50,16 +53,20 @@ class MassProperties:
     density: float
     watertight_used: bool
     warnings: tuple[str, ...] = ()
+    material: str = ""
 
     def record(self) -> dict:
         """The few numbers a grasps/plan file records under ``part``: ``mass_kg``, ``com`` (m, part
-        frame), ``density`` (kg/m^3) and ``mass_from`` ("mesh" or "convex_hull")."""
+        frame), ``density`` (kg/m^3), ``material`` (when known) and ``mass_from`` ("mesh" or
+        "convex_hull")."""
         return {"mass_kg": float(self.mass), "com": [float(x) for x in self.com], "density": float(self.density),
+                **({"material": self.material} if self.material else {}),
                 "mass_from": "mesh" if self.watertight_used else "convex_hull"}
 
     def to_json(self) -> dict:
         return {"mass": float(self.mass), "com": self.com.tolist(), "inertia": self.inertia.tolist(),
                 "volume": float(self.volume), "density": float(self.density),
+                **({"material": self.material} if self.material else {}),
                 "watertight_used": bool(self.watertight_used)}
 
 
@@ -74,7 +81,7 @@ def _positive(value: float, name: str, fix: str) -> float:
 
 
 def mass_properties(mesh: TriangleMesh, *, density: float = DEFAULT_DENSITY,
-                    mass: float | None = None) -> MassProperties:
+                    mass: float | None = None, material: str | None = None) -> MassProperties:
     """Mass, centre of mass and inertia of ``mesh`` (part frame, metres) at uniform density.
 
     Parameters
@@ -85,6 +92,9 @@ def mass_properties(mesh: TriangleMesh, *, density: float = DEFAULT_DENSITY,
         kg/m^3 (default 7850, steel). Ignored when ``mass`` is given.
     mass : float, optional
         kg; sets the density to ``mass / volume``.
+    material : str, optional
+        The material's name as recorded (:attr:`MassProperties.material`); default: the one whose
+        density is ``density`` (``custom`` for none, or when ``mass`` is given).
 
     Raises
     ------
@@ -92,6 +102,8 @@ def mass_properties(mesh: TriangleMesh, *, density: float = DEFAULT_DENSITY,
         Non-positive density or mass, or a body without volume (flat or degenerate mesh).
     """
     density = _positive(density, "density", "give kg/m^3, e.g. 7850 for steel, 2700 for aluminium")
+    if material is None:
+        material = CUSTOM if mass is not None else material_of(density)
     if mass is not None:
         mass = _positive(mass, "mass", "give the part's mass in kg")
     if not hasattr(mesh, "faces") or len(mesh.faces) == 0:
@@ -130,4 +142,4 @@ def mass_properties(mesh: TriangleMesh, *, density: float = DEFAULT_DENSITY,
     inertia = sign * density * np.asarray(inertia_b, dtype=np.float64)
     inertia = 0.5 * (inertia + inertia.T)
     return MassProperties(mass=float(mass), com=com, inertia=inertia, volume=volume, density=float(density),
-                          watertight_used=watertight, warnings=tuple(warnings))
+                          watertight_used=watertight, warnings=tuple(warnings), material=str(material))

@@ -28,7 +28,7 @@ from ..io import show_path
 from ..geometry.meshdata import MeshData
 from .meshfile import ReadLimits, read_mesh, too_many_triangles
 from ..geometry.tolerance import Tolerance
-from ..geometry.units import LENGTH_UNITS
+from ..geometry.units import LENGTH_UNITS, UNIT_CHOICES
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike
@@ -36,7 +36,6 @@ if TYPE_CHECKING:
     from ..geometry.meshdata import TriangleMesh
 
 Units = Literal["auto", "m", "cm", "mm", "um", "in", "ft"]
-UNIT_CHOICES: tuple[str, ...] = ("auto", *LENGTH_UNITS)
 #: largest extent (file units) from which ``auto`` reads a file as millimetres
 AUTO_MM_THRESHOLD = 2.0
 #: parts with more triangles are refused before they are read (decimate first): time and memory of

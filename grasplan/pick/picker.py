@@ -27,7 +27,7 @@ from ..grasps.graspdb import GraspDatabase, database_for, load_database
 from ..motion.collision_scene import CollisionScene
 from ..motion.pickplace import lift_pose
 from ..part.mesh import Part, load_part
-from ..piles.scene_file import Instance, Scene, load_scene
+from ..piles.scene_file import Instance, Scene, ScenePart, load_scene
 from ..robot.description import load_robot
 from ..robot.model import Robot
 from .budget import Budget, BudgetSpent
@@ -127,13 +127,16 @@ class Picker:
 
     # -- parts --------------------------------------------------------------------------------------
     def add_part(self, name: str, mesh: str | os.PathLike | Part, *, units: str = "auto",
-                 grasps: str | os.PathLike | GraspDatabase | None = None) -> None:
+                 grasps: str | os.PathLike | GraspDatabase | None = None, material: str | None = None,
+                 density: float | None = None) -> None:
         """Make part ``name`` known: a mesh file (read in ``units``) or a loaded Part; ``grasps``:
         its grasp database (a ``.graspdb.npz`` file or a loaded one; refused for another part or
-        gripper; default: :func:`grasplan.grasps.graspdb.database_for`, cached)."""
+        gripper; default: :func:`grasplan.grasps.graspdb.database_for`, cached, computed with
+        :attr:`database` or, given ``material`` / ``density``, at that part's density)."""
         part = mesh if isinstance(mesh, Part) else load_part(mesh, units=units)
         if grasps is None:
-            db = database_for(part, self.gripper, grasps=self.database, progress=self.progress)
+            db = database_for(part, self.gripper, grasps=self._database_params(material, density),
+                              progress=self.progress)
         elif isinstance(grasps, GraspDatabase):
             grasps.check_for(part, self.gripper)
             db = grasps
@@ -146,6 +149,18 @@ class Picker:
         for st in self._cells.values():  # scenes holding the old geometry are rebuilt
             st.world.add_part(name, part)
             st.forget()
+
+    def _database_params(self, material: str | None, density: float | None) -> GraspParams:
+        """:attr:`database` at a part's own ``material`` / ``density`` (both None: as it is)."""
+        if material is None and density is None:
+            return self.database
+        return self.database.with_material(material, density)
+
+    def material_of(self, name: str) -> dict[str, Any]:
+        """``{material, density}`` part ``name``'s grasp database was computed with (kg/m^3)."""
+        g = self._grasps[name].grasps
+        mp = self._grasps[name].mass_props
+        return {"material": g.material, "density": float(mp.density if mp is not None else g.density)}
 
     def _drop_part(self, name: str) -> None:
         self._parts.pop(name, None)
@@ -163,21 +178,38 @@ class Picker:
             sp = scene.part(name)
             if sp is not None and sp.mesh is not None:
                 path = scene.resolve(sp.mesh)
-                if name in self._parts and Path(self._parts[name].path) == path:
+                if name in self._parts and Path(self._parts[name].path) == path and self._fits(name, sp):
                     self._scene_parts.get(name)  # used again
                     continue
-                self.add_part(name, path, units=sp.units,
-                              grasps=None if sp.grasps is None else scene.resolve(sp.grasps))
+                part = load_part(path, units=sp.units)
+                _check_sha256(sp, part, str(path))
+                self.add_part(name, part, grasps=None if sp.grasps is None else scene.resolve(sp.grasps),
+                              material=sp.material, density=sp.density)
                 self._scene_parts.put(name, None)
             elif name not in self._parts:
                 known = ", ".join(self._parts) or "(none)"
                 raise InputError(f"scene: part {name!r} has no mesh in the scene and was not added to the picker "
                                  f"(Picker.add_part); known parts: {known}")
+            elif sp is not None:
+                _check_sha256(sp, self._parts[name], self._parts[name].path)
+                if not self._fits(name, sp):  # the scene gives the part another material: its database at it
+                    self.add_part(name, self._parts[name], material=sp.material, density=sp.density)
         now = set(scene.part_names())  # parts of earlier scene files beyond MAX_SCENE_PARTS: dropped
         for name in [n for n in self._scene_parts.keys() if n not in now][: max(len(self._scene_parts) - len(now)
                                                                               - MAX_SCENE_PARTS, 0)]:
             self._scene_parts.pop(name)
             self._drop_part(name)
+
+    def _fits(self, name: str, sp: ScenePart) -> bool:
+        """Part ``name`` as loaded is the scene part ``sp``: the same mesh (sha256, when the scene
+        records it) and a grasp database at its density (when it gives a material or density and
+        no database file)."""
+        if sp.sha256 is not None and self._parts[name].sha256 != sp.sha256:
+            return False
+        if (sp.material is None and sp.density is None) or sp.grasps is not None:
+            return True  # a database file keeps the density it was computed with
+        want = self._database_params(sp.material, sp.density)
+        return want.density == self._grasps[name].grasps.density and want.mass == self._grasps[name].grasps.mass
 
     # -- warm state ---------------------------------------------------------------------------------
     def _cell_for(self, scene: Scene) -> CellState:
@@ -289,7 +321,8 @@ class Picker:
         timing_out = {k: v for k, v in timing.items() if np.isfinite(v)}
         return PickResult(picks=tuple(picks), instances=tuple(reports[i.id] for i in sc.instances), timing_s=timing_out,
                           scene=sc, robot=self.robot, gripper=self.gripper, cell=st.cell, params=p,
-                          parts={n: self._parts[n].to_json() for n in sc.part_names()}, warnings=tuple(warnings),
+                          parts={n: {**self._parts[n].to_json(), **self.material_of(n)} for n in sc.part_names()},
+                          warnings=tuple(warnings),
                           sequence=sequence, stats=stats)
 
     def _plan_pile(self, run: PlanRun, sc: Scene, max_picks: int | None, sequence: bool,
@@ -500,6 +533,14 @@ class Picker:
                     width=float(db.width[r]), opening=out.opening, score=score, quality=quality,
                     motion=out.motion, T_world_tcp=T_world_tcp.copy(), T_world_pregrasp=T_pre,
                     T_world_lifted=lift_pose(T_world_tcp, lift_dir, lift_dist), rank=k, carries=carries)
+
+
+def _check_sha256(sp: ScenePart, part: Part, path: str) -> None:
+    """InputError (exit 3) when the scene records a sha256 for part ``sp`` that its mesh does not have."""
+    if sp.sha256 is not None and part.sha256 != sp.sha256:
+        raise InputError(f"scene: parts.{sp.name}.sha256: the mesh {path} has sha256 {part.sha256[:16]}..., the scene "
+                         f"recorded {sp.sha256[:16]}...: the mesh changed since the scene was written; write the "
+                         f"scene again (grasplan scene drop) or give the mesh it was written with")
 
 
 def _place_of(p: PickParams, cell: Cell) -> np.ndarray | None:

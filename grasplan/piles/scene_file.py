@@ -21,9 +21,10 @@ import numpy as np
 from ..errors import ConfigError, InputError
 from ..config.inputs import read_input_bytes
 from ..config.jsontext import DuplicateKeyError, loads_strict
+from ..config.materials import MATERIAL_NAMES, material_density, resolve_material
 from ..config.poses import parse_pose
 from ..geometry.transforms import MAX_ANGLE_DEG, MAX_CELL_COORD_M, check_transform
-from ..geometry.units import LENGTH_UNITS
+from ..geometry.units import UNIT_CHOICES
 from ..config.yamlfile import load_yaml_text
 
 SCENE_SCHEMA = "grasplan.scene/1"
@@ -34,12 +35,12 @@ MAX_PARTS = 100
 #: ids and part names: what a robot program, a file name and a URL can carry unescaped
 NAME_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.+-]{0,63}$")
 NAME_RULE = "1-64 characters of letters, digits, '_', '.', '+', '-' (not starting with '.', '+' or '-')"
-#: the units a scene part's mesh may be read in (as ``--units``)
-UNIT_CHOICES = ("auto", *LENGTH_UNITS)
 DEFAULT_CELL = "bin"
 
 _TOP_KEYS = ("schema", "cell", "parts", "instances", "cloud")
-_PART_KEYS = ("mesh", "units", "grasps")
+_PART_KEYS = ("mesh", "units", "grasps", "material", "density", "sha256")
+#: a mesh file's sha256 as a scene records it
+SHA256_RE = re.compile(r"^[0-9a-f]{64}$")
 _INSTANCE_KEYS = ("id", "part", "T")
 _CLOUD_KEYS = ("path", "resolution")
 
@@ -53,12 +54,19 @@ def _readonly(T: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True)
 class ScenePart:
     """A part a scene uses: ``mesh`` (a path, absolute or relative to the scene file; None: the
-    planner knows the part by ``name``), ``units`` of the mesh file, optional ``grasps`` database."""
+    planner knows the part by ``name``), ``units`` of the mesh file, optional ``grasps`` database,
+    ``material`` (a name of :data:`grasplan.config.materials.MATERIALS`) and ``density`` (kg/m^3;
+    None: the planner's, default steel; given together they must agree) and the mesh file's
+    ``sha256`` (64 lowercase hex: a planner refuses a mesh that differs; the service matches its
+    parts by it)."""
 
     name: str
     mesh: str | None = None
     units: str = "auto"
     grasps: str | None = None
+    material: str | None = None
+    density: float | None = None
+    sha256: str | None = None
 
     def to_json(self) -> dict:
         d: dict[str, Any] = {}
@@ -67,6 +75,12 @@ class ScenePart:
         d["units"] = self.units
         if self.grasps is not None:
             d["grasps"] = self.grasps
+        if self.material is not None:
+            d["material"] = self.material
+        if self.density is not None:
+            d["density"] = float(self.density)
+        if self.sha256 is not None:
+            d["sha256"] = self.sha256
         return d
 
 
@@ -119,7 +133,7 @@ class Scene:
         schema: grasplan.scene/1
         cell: bin                      # a cell name or path: table, bin, obstacles
         parts:
-          TLess20: {mesh: parts/TLess20.stl, units: mm}          # optional grasps: path to a database
+          TLess20: {mesh: parts/TLess20.stl, units: mm, material: plastic}   # optional grasps: a database
         instances:                      # T_world_part of each part, e.g. from a pose estimator
           - {id: a, part: TLess20, T: {xyz: [0.40, 0.03, 0.03], rpy_deg: [0, 0, 30]}}
           - {id: b, part: TLess20, T: [[1,0,0,0.5],[0,1,0,0],[0,0,1,0.03],[0,0,0,1]]}
@@ -272,6 +286,33 @@ def _pose(v: Any, where: str) -> np.ndarray:
         raise InputError(str(exc)) from None
 
 
+def _material(material: Any, density: Any, where: str) -> tuple[str | None, float | None]:
+    """A scene part's ``material`` and ``density`` as given (both None: the planner's), else
+    :func:`scene_part_material`."""
+    if material is None and density is None:
+        return None, None
+    return scene_part_material(material, density, where)
+
+
+def scene_part_material(material: Any, density: Any, where: str) -> tuple[str, float]:
+    """A scene part's ``material`` and ``density`` (either may be None) checked and resolved
+    (:func:`grasplan.config.materials.resolve_material`: a known name, a density in (0, 1e5], the
+    two agreeing); InputError naming the field (``where``: the part, e.g. ``scene: parts.gear``)."""
+    if density is not None and (isinstance(density, bool) or not isinstance(density, (int, float))
+                                or not 0 < density <= 1e5):
+        raise InputError(f"{where}.density: expected kg/m^3 in (0, 1e5] (e.g. 1200 for plastic), "
+                         f"got {str(density)[:40]!r}")
+    if material is not None and material not in MATERIAL_NAMES:
+        raise InputError(f"{where}.material: unknown material {str(material)[:40]!r}; valid: "
+                         f"{', '.join(MATERIAL_NAMES)} (or give density in kg/m^3)")
+    try:
+        name, d = resolve_material(material, density)
+    except InputError:
+        raise InputError(f"{where}: material {material} ({material_density(material):g} kg/m^3) and density "
+                         f"{density:g} disagree; give one of them") from None
+    return name, float(d)
+
+
 def scene_from_dict(doc: Any, *, source: str = "scene", base: Path | None = None) -> Scene:
     """A :class:`Scene` from a parsed ``grasplan.scene/1`` document; InputError naming the field."""
     d = _keys(doc, _TOP_KEYS, source, "a mapping with schema, cell, parts, instances and cloud")
@@ -282,20 +323,28 @@ def scene_from_dict(doc: Any, *, source: str = "scene", base: Path | None = None
         raise InputError(f"{source}: cell: expected a cell name (table, bin, ...) or a cell YAML path")
     parts_in = d.get("parts") or {}
     if not isinstance(parts_in, dict):
-        raise InputError(f"{source}: parts: expected a mapping of part name -> {{mesh, units, grasps}}")
+        raise InputError(f"{source}: parts: expected a mapping of part name -> {{mesh, units, grasps, "
+                         f"material, density, sha256}}")
     if len(parts_in) > MAX_PARTS:
         raise InputError(f"{source}: parts: {len(parts_in)} parts; at most {MAX_PARTS}")
     parts = []
     for key, spec in parts_in.items():
         name = _name(key, f"{source}: parts")
         w = f"{source}: parts.{name}"
-        spec = _keys(spec if spec is not None else {}, _PART_KEYS, w, "a mapping {mesh, units, grasps}")
+        spec = _keys(spec if spec is not None else {}, _PART_KEYS, w,
+                     "a mapping {mesh, units, grasps, material, density, sha256}")
         units = spec.get("units", "auto")
         if units not in UNIT_CHOICES:
             raise InputError(f"{w}.units: {str(units)[:20]!r} is not one of {', '.join(UNIT_CHOICES)}")
+        material, density = _material(spec.get("material"), spec.get("density"), w)
+        sha = spec.get("sha256")
+        if sha is not None and not (isinstance(sha, str) and SHA256_RE.match(sha)):
+            raise InputError(f"{w}.sha256: expected the mesh file's sha256 (64 lowercase hex digits), "
+                             f"got {str(sha)[:70]!r}")
         parts.append(ScenePart(name=name, mesh=_path(spec["mesh"], f"{w}.mesh") if "mesh" in spec else None,
                                units=units,
-                               grasps=_path(spec["grasps"], f"{w}.grasps") if "grasps" in spec else None))
+                               grasps=_path(spec["grasps"], f"{w}.grasps") if "grasps" in spec else None,
+                               material=material, density=density, sha256=sha))
     inst_in = d.get("instances")
     if not isinstance(inst_in, list) or not inst_in:
         raise InputError(f"{source}: instances: expected a non-empty list of {{id, part, T}}")

@@ -63,3 +63,34 @@ class GraspTable:
     def with_plan(self, status: np.ndarray, score: np.ndarray, rank: np.ndarray, reason: np.ndarray) -> GraspTable:
         """This table with the plan stage's status, score, rank and reason columns."""
         return replace(self, status=status, score=score, rank=rank, reason=reason)
+
+
+#: optional columns and the value of a row that lacks them
+_OPTIONAL_FILL = {"contact_area": np.nan, "contact_type": -1, "gravity_margin": np.nan, "epsilon": np.nan,
+                  "sim_success": -1, "sim_slip_m": np.nan, "sim_turn_deg": np.nan}
+_REQUIRED = ("candidate", "region", "contacts", "normals", "width", "T_part_tcp", "roll", "status", "score", "rank",
+             "reason")
+
+
+def join_tables(a: GraspTable, b: GraspTable) -> GraspTable:
+    """The rows of ``a`` and ``b`` in one table ordered by grasp id (ids 0..M-1 when they are
+    exactly those); an optional column present in one only is filled (NaN, -1) for the other's
+    rows. ValueError when an id is in both."""
+    ids = np.concatenate([a.ids, b.ids])
+    order = np.argsort(ids, kind="stable")
+    ids = ids[order]
+    if len(ids) > 1 and np.any(np.diff(ids) <= 0):
+        raise ValueError("a grasp id appears twice")
+    cols: dict[str, np.ndarray | None] = {k: np.concatenate([getattr(a, k), getattr(b, k)])[order] for k in _REQUIRED}
+    for k, fill in _OPTIONAL_FILL.items():
+        x, y = getattr(a, k), getattr(b, k)
+        if x is None and y is None:
+            cols[k] = None
+            continue
+        like = x if x is not None else y
+        assert like is not None
+        x = x if x is not None else np.full((len(a), *like.shape[1:]), fill, dtype=like.dtype)
+        y = y if y is not None else np.full((len(b), *like.shape[1:]), fill, dtype=like.dtype)
+        cols[k] = np.concatenate([x, y])[order]
+    dense = len(ids) == 0 or (ids[0] == 0 and ids[-1] == len(ids) - 1)
+    return GraspTable(id_values=None if dense else ids.astype(np.int64), **cols)  # type: ignore[arg-type]

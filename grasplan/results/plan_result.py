@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 from ..errors import InputError
+from .compact import DEFAULT_KEEP, RejectedCounts
 from .export_registry import write_export
 from .grasp_table import GraspTable
 from ..part.mesh import load_recorded_part
@@ -134,6 +135,8 @@ class PlanResult:
     part_mesh: TriangleMesh | None = None
     origin: Path | None = None   #: the file this result was loaded from (relative part paths resolve next to it)
     mass: dict[str, Any] | None = None  #: the part's mass record (grasplan.part.mass.MassProperties.record), written under part
+    #: poses that collide, counted per candidate, that ``grasps`` does not hold (read from a compact plan)
+    rejected: RejectedCounts | None = None
 
     def mesh(self, part: str | os.PathLike[str] | None = None, *, allow_other_part: bool = False) -> TriangleMesh:
         """The part's mesh (metres): in memory, else loaded from ``part`` or the recorded path
@@ -162,14 +165,17 @@ class PlanResult:
         names = PLAN_STATUSES if self.robot is not None else GRASP_STATUSES
         u, c = np.unique(self.grasps.status.astype(str), return_counts=True)
         got = dict(zip(u.tolist(), c.tolist()))
+        if self.rejected is not None:
+            for s, n in self.rejected.totals().items():
+                got[s] = got.get(s, 0) + n
         out = {s: int(got.get(s, 0)) for s in names}
-        out["grasps"] = len(self.grasps)
+        out["grasps"] = len(self.grasps) + (int(self.rejected.counts.sum()) if self.rejected is not None else 0)
         return out
 
     def planned_ids(self) -> list[int]:
         """Ids of the planned grasps, best first (rank, then id)."""
-        ids = np.flatnonzero(self.grasps.status.astype(str) == Status.PLANNED.value)
-        rank = self.grasps.rank[ids]
+        rows = np.flatnonzero(self.grasps.status.astype(str) == Status.PLANNED.value)
+        ids, rank = self.grasps.ids[rows], self.grasps.rank[rows]
         order = np.lexsort((ids, np.where(rank < 0, np.iinfo(np.int64).max, rank)))
         return ids[order].tolist()
 
@@ -183,7 +189,7 @@ class PlanResult:
         return GraspView(id=int(t.ids[i]), T_part_tcp=t.T_part_tcp[i], T_world_tcp=self.T_world_part @ t.T_part_tcp[i],
                          width=float(t.width[i]), status=str(t.status[i]),
                          score=None if math.isnan(sc) else sc, rank=None if t.rank[i] < 0 else int(t.rank[i]),
-                         motion=self.motions.get(i))
+                         motion=self.motions.get(int(t.ids[i])))
 
     def select(self, grasp_id: int | None = None) -> GraspView:
         """The planned grasp ``grasp_id``, or the best planned one; InputError saying what exists."""
@@ -214,13 +220,14 @@ class PlanResult:
 
     def planned(self) -> list[dict[str, Any]]:
         """Planned grasps as JSON dicts, best first."""
-        return grasp_entries(self, self.planned_ids())
+        return grasp_entries(self, [self.grasps.index_of(i) for i in self.planned_ids()])
 
     # ---- JSON and exports -------------------------------------------------------------------
-    def to_json(self, *, only_ok: bool = False) -> dict[str, Any]:
+    def to_json(self, *, only_ok: bool = False, keep: str = DEFAULT_KEEP) -> dict[str, Any]:
         """``grasplan.grasps/1`` (no robot) or ``grasplan.plan/1``; self-contained: the gripper's
-        resolved shapes, the whole cell and the robot's source are embedded."""
-        return document(self, only_ok=only_ok)
+        resolved shapes, the whole cell and the robot's source are embedded. ``keep``: what a plan
+        keeps of its rejected and untried poses (:mod:`grasplan.results.compact`)."""
+        return document(self, only_ok=only_ok, keep=keep)
 
     def document_head(self, only_ok: bool = False) -> tuple[dict[str, Any], np.ndarray]:
         """The document without its ``grasps`` list (which comes last), and the rows it lists."""
@@ -254,12 +261,12 @@ class PlanResult:
             doc["only_ok"] = True
         return doc, ids
 
-    def write(self, path: str | os.PathLike[str], *, only_ok: bool = False, indent: int | None = None,
-              extra: dict[str, Any] | None = None) -> Path:
-        """Write the result's JSON atomically: the text of ``json.dumps(to_json(only_ok))`` (with
-        ``extra``'s keys appended after ``grasps``), streamed in chunks
+    def write(self, path: str | os.PathLike[str], *, only_ok: bool = False, keep: str = DEFAULT_KEEP,
+              indent: int | None = None, extra: dict[str, Any] | None = None) -> Path:
+        """Write the result's JSON atomically: the text of ``json.dumps(to_json(only_ok, keep))``
+        (with ``extra``'s keys appended at the end), streamed in chunks
         (:func:`grasplan.results.writer.write_result`; ``indent`` given: through the dict)."""
-        return write_result(self, path, only_ok=only_ok, indent=indent, extra=extra)
+        return write_result(self, path, only_ok=only_ok, keep=keep, indent=indent, extra=extra)
 
     def export(self, fmt: str, path: str | os.PathLike[str], grasp_id: int | None = None, *,
                part: str | os.PathLike[str] | None = None, **options: Any) -> Path:

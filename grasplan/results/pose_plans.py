@@ -16,6 +16,7 @@ import numpy as np
 
 from ..errors import PlanningError
 from ..status import Status
+from .compact import DEFAULT_KEEP
 
 if TYPE_CHECKING:
     from .plan_result import PlanResult
@@ -68,7 +69,8 @@ def pose_file(output: Path, k: int) -> Path:
     return output.with_name(f"{output.stem}.pose{k}{output.suffix}")
 
 
-def write_pose_plans(runs: Sequence[PosePlan], output: str | os.PathLike, *, min_probability: float) -> PosePlans:
+def write_pose_plans(runs: Sequence[PosePlan], output: str | os.PathLike, *, min_probability: float,
+                     keep: str = DEFAULT_KEEP) -> PosePlans:
     """Write the plans of :func:`grasplan.motion.planning.plan_poses`: ``OUT.pose<k>.json`` per
     planned pose, then ``OUT.json`` (not when no pose could be planned at all: ``result`` None)."""
     output = Path(output)
@@ -81,7 +83,7 @@ def write_pose_plans(runs: Sequence[PosePlan], output: str | os.PathLike, *, min
                           "error": run.error})
             continue
         f = pose_file(output, k)
-        res.write(f)
+        res.write(f, keep=keep)
         n = res.counts()
         cf = int(np.count_nonzero(~np.isin(res.grasps.status.astype(str), _COLLISIONS)))
         block.append({"pose_index": k, "probability": pr, "planned": int(n[Status.PLANNED.value]),
@@ -90,5 +92,6 @@ def write_pose_plans(runs: Sequence[PosePlan], output: str | os.PathLike, *, min
             best = (k, n[Status.PLANNED.value], res)
     if best is None:
         return PosePlans(chosen=None, result=None, planned=0, poses=tuple(block))
-    best[2].write(output, extra={"poses": {"chosen": best[0], "min_probability": min_probability, "poses": block}})
+    best[2].write(output, keep=keep,
+                  extra={"poses": {"chosen": best[0], "min_probability": min_probability, "poses": block}})
     return PosePlans(chosen=best[0], result=best[2], planned=int(best[1]), poses=tuple(block))

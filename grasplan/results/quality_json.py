@@ -117,4 +117,8 @@ def parse_mass_record(part: Any, where: str) -> dict[str, Any] | None:
         ok = False
     if not ok:
         raise InputError(f"{where}: part.mass_kg must be a positive number and part.com three finite numbers (m)")
-    return {"mass_kg": m, "com": com.tolist(), "density": d, "mass_from": str(part.get("mass_from", "mesh"))}
+    out: dict[str, Any] = {"mass_kg": m, "com": com.tolist(), "density": d}
+    if "material" in part:  # files before materials were recorded have none
+        out["material"] = str(part["material"])
+    out["mass_from"] = str(part.get("mass_from", "mesh"))
+    return out

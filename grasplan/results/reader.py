@@ -25,7 +25,8 @@ from ..errors import InputError
 from ..config.inputs import read_input_bytes
 from ..config.jsontext import DuplicateKeyError, loads_strict
 from ..io import show_path
-from .grasp_table import GraspTable
+from .compact import KEEP_COLLISION_FREE, RejectedCounts, untried_from_json
+from .grasp_table import GraspTable, join_tables
 from ..gripper.model import Gripper
 from ..gripper.load import gripper_from_json
 from .joint_motion import GRIPPER_ACTIONS, SEGMENT_SEQUENCES, GripperEvent, Motion
@@ -156,22 +157,28 @@ def result_from_document(doc: Any, *, where: str = "document", part_mesh: Triang
     grasps = doc.get("grasps")
     if not isinstance(grasps, list):
         raise InputError(f"{where}: $.grasps must be a list")
+    # the untried columns and rejected counts are checked in full by their parsers (compact.py)
+    head = {k: v for k, v in doc.items() if k not in ("untried", "rejected")}
     if len(grasps) > SCHEMA_SAMPLE:
         step = max(1, len(grasps) // SCHEMA_SAMPLE)
         picked = [i for i, g in enumerate(grasps) if i % step == 0
                   or (isinstance(g, dict) and g.get("status") == Status.PLANNED.value)]
-        _validate({**doc, "grasps": [grasps[i] for i in picked]}, schema, where, picked)
+        _validate({**head, "grasps": [grasps[i] for i in picked]}, schema, where, picked)
     else:
-        _validate(doc, schema, where)
+        _validate(head, schema, where)
+    compact = schema == PLAN_SCHEMA and doc.get("keep") == KEEP_COLLISION_FREE
+    if schema == PLAN_SCHEMA and compact != ("untried" in doc and "rejected" in doc):
+        raise InputError(f"{where}: a plan with keep {KEEP_COLLISION_FREE!r} has 'untried' and 'rejected' blocks "
+                         "and no other plan has them")
     M = len(grasps)
     ids = rows_array(grasps, "id", (), np.float64, where)
     id_values = None
     if M and not np.array_equal(ids, np.arange(M)):
-        filtered = doc.get("only_ok") is True and schema == GRASPS_SCHEMA
+        filtered = (doc.get("only_ok") is True and schema == GRASPS_SCHEMA) or compact
         if not (filtered and np.all(ids == np.round(ids)) and ids[0] >= 0 and np.all(np.diff(ids) > 0)
                 and ids[-1] < 2**53):
-            raise InputError(f"{where}: grasp ids must be 0..{M - 1} in order (a file written with --only-ok: "
-                             "strictly increasing ids)")
+            raise InputError(f"{where}: grasp ids must be 0..{M - 1} in order (a file written with --only-ok or "
+                             f"keep {KEEP_COLLISION_FREE!r}: strictly increasing ids)")
         id_values = ids.astype(np.int64)
     names = PLAN_STATUSES if schema == PLAN_SCHEMA else GRASP_STATUSES
     status = rows_array(grasps, "status", (), object, where)
@@ -199,6 +206,10 @@ def result_from_document(doc: Any, *, where: str = "document", part_mesh: Triang
         **parse_quality_sim(grasps, where),
     )
     check_grasp_values(table.width, table.score, table.normals, where)
+    listed = table.ids
+    rejected = None
+    if compact:
+        table, rejected = _join_compact(table, doc, where)
     p = doc["part"]
     part = PartRecord(path=str(p["path"]), sha256=str(p["sha256"]), scale_to_m=float(p["scale_to_m"]),
                       triangles=int(p["triangles"]),
@@ -215,8 +226,10 @@ def result_from_document(doc: Any, *, where: str = "document", part_mesh: Triang
         from ..robot.description import robot_from_json  # Pinocchio loads only when a plan is read
 
         robot = robot_from_json(doc["robot"], where=f"{where}: robot")
-        motions = _motions(grasps, status, robot, where)
-        check_fk(robot, gripper, part.T_world_part, table.T_part_tcp, motions, where, width=table.width)
+        motions = {int(listed[i]): m for i, m in _motions(grasps, status, robot, where).items()}  # by grasp id
+        rows = {int(table.index_of(i)): m for i, m in motions.items()}  # type: ignore[arg-type]
+        check_fk(robot, gripper, part.T_world_part, table.T_part_tcp, rows, where, width=table.width,
+                 ids=table.ids)
     counts = {k: v for k, v in (doc.get("counts") or {}).items() if k in ("candidates", "posed_candidates", "poses",
                                                                            "regions")}
     timing = {str(k): float(v) for k, v in (doc.get("timing_s") or {}).items()
@@ -224,7 +237,21 @@ def result_from_document(doc: Any, *, where: str = "document", part_mesh: Triang
     return PlanResult(part=part, gripper=gripper, cell=cell, robot=robot, grasps=table, motions=motions,
                       params=Params(cp, gp, pp), counts_stage=counts, timing_s=timing,
                       part_pose_source=str((doc.get("cell") or {}).get("part_pose", "stable_pose")), part_mesh=part_mesh,
-                      mass=parse_mass_record(p, where))
+                      mass=parse_mass_record(p, where), rejected=rejected)
+
+
+def _join_compact(table: GraspTable, doc: dict[str, Any], where: str) -> tuple[GraspTable, RejectedCounts]:
+    """The grasps of a compact plan's list and ``untried`` block in one table, and its rejected
+    counts; InputError for a malformed block or an id in both."""
+    untried = untried_from_json(doc["untried"], where)
+    check_grasp_values(untried.width, untried.score, untried.normals, where, what="untried")
+    try:
+        joined = join_tables(table, untried)
+    except ValueError:
+        raise InputError(f"{where}: a grasp id is both in $.grasps and in $.untried.id; each grasp is listed once") from None
+    if joined.id_values is not None and (joined.id_values[0] < 0 or joined.id_values[-1] >= 2**53):
+        raise InputError(f"{where}: $.untried.id: grasp ids must be non-negative integers")
+    return joined, RejectedCounts.from_json(doc["rejected"], where)
 
 
 def _validate(doc: dict[str, Any], schema: str, where: str, picked: list[int] | None = None) -> None:
@@ -376,47 +403,50 @@ FK_ROT_TOL = 1e-2
 
 
 def check_fk(robot: Robot, gripper: Gripper, T_world_part: np.ndarray, T_part_tcp: np.ndarray,
-             motions: dict[int, Motion], where: str, *, width: np.ndarray | None = None) -> None:
+             motions: dict[int, Motion], where: str, *, width: np.ndarray | None = None,
+             ids: np.ndarray | None = None) -> None:
     """Each planned grasp re-checked by forward kinematics: ``FK(q_grasp) @ T_flange_tcp`` is its
     recorded TCP, the attached part is the grasp's inverse, and at the open event the part is at
     ``T_world_part_place`` (within :data:`FK_POS_TOL` / :data:`FK_ROT_TOL`); InputError otherwise.
     For a gripper whose TCP moves with the opening (``moving_tcp``) the TCPs are first taken to the
-    frame ``T_flange_tcp`` is given in, at each grasp's ``width`` (m)."""
+    frame ``T_flange_tcp`` is given in, at each grasp's ``width`` (m). ``motions`` are keyed by row
+    of ``T_part_tcp``; ``ids`` (per row) name the grasps in messages (default: the rows)."""
     if not motions:
         return
     if gripper.moving_tcp and width is not None:
         T_part_tcp = np.asarray(T_part_tcp, dtype=np.float64) @ gripper.T_tcp_gripper(np.asarray(width, dtype=np.float64))
-    ids = np.fromiter(motions, dtype=np.int64)
-    q = np.stack([motions[i].q_grasp for i in ids])
+    rows = np.fromiter(motions, dtype=np.int64)
+    name = rows if ids is None else np.asarray(ids)[rows]  # the grasp ids messages name
+    q = np.stack([motions[i].q_grasp for i in rows])
     T_fk = robot.fk_batch(q) @ gripper.T_flange_tcp
-    T_rec = T_world_part @ T_part_tcp[ids]
+    T_rec = T_world_part @ T_part_tcp[rows]
     dp = np.linalg.norm(T_fk[:, :3, 3] - T_rec[:, :3, 3], axis=1)
     cos = np.clip((np.einsum("nij,nij->n", T_fk[:, :3, :3], T_rec[:, :3, :3]) - 1.0) / 2.0, -1.0, 1.0)
     dr = np.arccos(cos)
     bad = np.flatnonzero(~((dp <= FK_POS_TOL) & (dr <= FK_ROT_TOL)))
     if len(bad):
         b = int(bad[0])
-        raise InputError(f"{where}: planned grasp {int(ids[b])}: FK(q_grasp) is {dp[b] * 1000:.1f} mm / {dr[b]:.3f} rad "
+        raise InputError(f"{where}: planned grasp {int(name[b])}: FK(q_grasp) is {dp[b] * 1000:.1f} mm / {dr[b]:.3f} rad "
                          f"from its recorded TCP with robot {robot.name!r}; the plan was made with another robot or "
                          "gripper, or was edited")
     # the part in the jaws is the grasp's own inverse, and the jaws open where the part is placed
-    for i in ids.tolist():
-        m = motions[i]
+    for k, i in enumerate(rows.tolist()):
+        m, gid = motions[i], int(name[k])
         if m.T_tcp_part is None:
             continue
         d_att = pose_error(m.T_tcp_part @ T_part_tcp[i], np.eye(4))
         if not (d_att[0] <= FK_POS_TOL and d_att[1] <= FK_ROT_TOL):
-            raise InputError(f"{where}: planned grasp {i}: T_tcp_part is not the inverse of its T_part_tcp "
+            raise InputError(f"{where}: planned grasp {gid}: T_tcp_part is not the inverse of its T_part_tcp "
                              f"({d_att[0] * 1000:.1f} mm / {d_att[1]:.3f} rad); the plan file was edited")
         if m.T_world_part_place is not None:
             opened = m.event("open")
             if opened is None:
-                raise InputError(f"{where}: planned grasp {i}: a placed part needs an open gripper event")
+                raise InputError(f"{where}: planned grasp {gid}: a placed part needs an open gripper event")
             o = opened.index
             T_part = robot.fk_batch(m.path[o][None])[0] @ gripper.T_flange_tcp @ m.T_tcp_part
             d_pl = pose_error(T_part, m.T_world_part_place)
             if not (d_pl[0] <= FK_POS_TOL and d_pl[1] <= FK_ROT_TOL):
-                raise InputError(f"{where}: planned grasp {i}: at the open event (row {o}) the part is "
+                raise InputError(f"{where}: planned grasp {gid}: at the open event (row {o}) the part is "
                                  f"{d_pl[0] * 1000:.1f} mm / {d_pl[1]:.3f} rad from T_world_part_place with robot "
                                  f"{robot.name!r}; the plan was made with another robot or gripper, or was edited")
 

@@ -17,6 +17,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from .compact import DEFAULT_KEEP, KEEP_ALL, KEEP_COLLISION_FREE, RejectedCounts, split_rows, untried_json
 from .grasp_table import GraspTable
 from ..io import to_json_text, write_atomic_chunks, write_json
 from .json_columns import Field, Numbers, Record, Spread, Strings, join_rows
@@ -44,11 +45,14 @@ class WritableResult(Protocol):
     @property
     def motions(self) -> Mapping[int, Motion]: ...
 
+    @property
+    def rejected(self) -> RejectedCounts | None: ...
+
     def document_head(self, only_ok: bool = False) -> tuple[dict[str, Any], np.ndarray]: ...
 
 
 def grasp_record(table: GraspTable, motions: Mapping[int, Motion] | None) -> Record:
-    """The JSON object of each grasp (row) of ``table``, in the file's key order; ``motions`` (row
+    """The JSON object of each grasp (row) of ``table``, in the file's key order; ``motions`` (grasp id
     -> Motion) given: a plan's grasp (score always, rank, reason, the motion's keys when planned),
     None: a grasps file's (score only where there is one)."""
     plan = motions is not None
@@ -68,7 +72,7 @@ def grasp_record(table: GraspTable, motions: Mapping[int, Motion] | None) -> Rec
     ]
     fields += [f for f in (quality_field(table, score), sim_field(table)) if f is not None]
     if motions is not None:
-        spread = Spread(motions)
+        spread = Spread({int(table.index_of(int(i))): m for i, m in motions.items()})  # type: ignore[arg-type]
         fields += [Field("rank", Numbers(table.rank, null=lambda rows: table.rank[rows] < 0)),
                    Field("reason", Strings(table.reason)),
                    Field(None, spread, present=spread.has)]
@@ -84,49 +88,72 @@ def grasp_entries(res: WritableResult, rows: Any) -> list[dict[str, Any]]:
     return _record(res).values(np.asarray(rows, dtype=np.int64))
 
 
-def document(res: WritableResult, *, only_ok: bool = False) -> dict[str, Any]:
-    """The whole document as a dict (``grasps`` last)."""
-    doc, rows = res.document_head(only_ok)
+def document_parts(res: WritableResult, *, only_ok: bool = False,
+                   keep: str = DEFAULT_KEEP) -> tuple[dict[str, Any], np.ndarray, dict[str, Any]]:
+    """The document's head (``keep`` recorded in a plan's), the rows its ``grasps`` list holds and
+    the blocks that follow the list (a plan's ``untried`` and ``rejected``:
+    :mod:`grasplan.results.compact`). A result loaded from a compact file keeps its counts (its
+    rejected poses are not there to write in full)."""
+    head, rows = res.document_head(only_ok)
+    if res.schema != PLAN_SCHEMA:
+        return head, rows, {}
+    if res.rejected is not None:
+        keep = KEEP_COLLISION_FREE
+    split = split_rows(res.grasps, rows, keep)
+    head["keep"] = keep
+    if keep == KEEP_ALL:
+        return head, split.grasps, {}
+    rejected = RejectedCounts.of_rows(res.grasps, split.rejected)
+    if res.rejected is not None:
+        rejected = res.rejected.merged(rejected)
+    return head, split.grasps, {"untried": untried_json(res.grasps, split.untried), "rejected": rejected.to_json()}
+
+
+def document(res: WritableResult, *, only_ok: bool = False, keep: str = DEFAULT_KEEP) -> dict[str, Any]:
+    """The whole document as a dict (``grasps`` after the head, then a plan's ``untried`` and
+    ``rejected`` blocks)."""
+    doc, rows, tail = document_parts(res, only_ok=only_ok, keep=keep)
     doc["grasps"] = grasp_entries(res, rows)
+    doc.update(tail)
     return doc
 
 
-def stream_document(res: WritableResult, *, only_ok: bool = False,
+def stream_document(res: WritableResult, *, only_ok: bool = False, keep: str = DEFAULT_KEEP,
                     extra: dict[str, Any] | None = None) -> Iterator[str] | None:
     """Chunks (str) whose concatenation is byte-identical to ``json.dumps(doc)`` for ``doc =
-    document(res, only_ok=only_ok)`` updated with ``extra`` (what :func:`grasplan.io.write_json`
-    writes), :data:`WRITE_CHUNK` grasps at a time; None when the document must go through the dict
-    (a value json refuses (NaN / inf), ``extra`` repeating a key), so that path raises exactly what
-    it raised before."""
-    head, rows = res.document_head(only_ok)
-    if extra and (set(extra) & (set(head) | {"grasps"})):
+    document(res, only_ok=only_ok, keep=keep)`` updated with ``extra`` (what
+    :func:`grasplan.io.write_json` writes), :data:`WRITE_CHUNK` grasps at a time; None when the
+    document must go through the dict (a value json refuses (NaN / inf), ``extra`` repeating a
+    key), so that path raises exactly what it raised before."""
+    head, rows, tail = document_parts(res, only_ok=only_ok, keep=keep)
+    if extra and (set(extra) & (set(head) | {"grasps"} | set(tail))):
         return None
     record = _record(res)
     if not record.encodable(rows):
         return None
-    return _chunks(head, record, rows, extra)
+    return _chunks(head, record, rows, {**tail, **(extra or {})})
 
 
-def _chunks(head: dict[str, Any], record: Record, rows: np.ndarray, extra: dict[str, Any] | None) -> Iterator[str]:
+def _chunks(head: dict[str, Any], record: Record, rows: np.ndarray, tail: dict[str, Any]) -> Iterator[str]:
     text = to_json_text(head)
     yield text[:-1] + (", " if len(head) else "") + '"grasps": ['
     for c0 in range(0, len(rows), WRITE_CHUNK):
         chunk = rows[c0:c0 + WRITE_CHUNK]
         yield ("" if c0 == 0 else ", ") + join_rows(record.pieces(chunk), len(chunk))
-    tail = "]"
-    if extra:
-        tail += ", " + to_json_text(extra)[1:-1]
-    yield tail + "}"
+    end = "]"
+    if tail:
+        end += ", " + to_json_text(tail)[1:-1]
+    yield end + "}"
 
 
 def write_result(res: WritableResult, path: str | os.PathLike[str], *, only_ok: bool = False,
-                 indent: int | None = None, extra: dict[str, Any] | None = None) -> Path:
-    """Write the document atomically: the text of ``json.dumps(document(res, only_ok))`` (with
-    ``extra``'s keys appended after ``grasps``), streamed in chunks by :func:`stream_document`
+                 keep: str = DEFAULT_KEEP, indent: int | None = None, extra: dict[str, Any] | None = None) -> Path:
+    """Write the document atomically: the text of ``json.dumps(document(res, only_ok, keep))``
+    (with ``extra``'s keys appended at the end), streamed in chunks by :func:`stream_document`
     (``indent`` given, or a value json refuses: through the dict)."""
-    chunks = None if indent is not None else stream_document(res, only_ok=only_ok, extra=extra)
+    chunks = None if indent is not None else stream_document(res, only_ok=only_ok, keep=keep, extra=extra)
     if chunks is None:
-        doc = document(res, only_ok=only_ok)
+        doc = document(res, only_ok=only_ok, keep=keep)
         doc.update(extra or {})
         return write_json(path, doc, indent=indent)
     return write_atomic_chunks(path, chunks)

@@ -26,14 +26,16 @@ from ..config.jsontext import DuplicateKeyError, loads_strict
 from ..config.option_kinds import KINDS, OptionSpec, check_fields, option_spec, read_value
 from ..config.params import ALL_POSES, PARAM_CLASSES, PlanParams, option_fields
 from ..geometry.transforms import MAX_CELL_COORD_M
-from ..piles.scene_file import MAX_INSTANCES, PART_NAME_RULE, SCENE_SCHEMA, Scene, part_name, scene_from_dict
+from ..piles.scene_file import (MAX_INSTANCES, PART_NAME_RULE, SCENE_SCHEMA, SHA256_RE, Scene, part_name,
+                                scene_from_dict, scene_part_material)
+from ..results.compact import DEFAULT_KEEP, KEEP_CHOICES
 from .state import BUDGET_SHARE, PartEntry, Service
 
 #: the largest whole number a request may hold (digits); longer ones are refused as malformed
 MAX_INT_DIGITS = 20
 #: JSON nesting deeper than this is refused (a grasplan document is at most ~8 deep)
 MAX_DEPTH = 64
-PLAN_KEYS = ("part", "options", "part_pose")
+PLAN_KEYS = ("part", "options", "part_pose", "keep")
 PICK_OPTION_KEYS = ("max_picks", "seed", "sequence")
 EXPORT_KEYS = ("document", "format", "grasp", "instance", "max_accel", "velocity_scale", "program_name")
 _PARAM_ATTRS = dict(zip(PARAM_CLASSES, ("candidates", "grasps", "planning")))
@@ -141,6 +143,7 @@ class PlanRequest:
     part: PartEntry
     params: dict[str, Any]           #: candidates, grasps, planning (the dataclasses)
     T_world_part: np.ndarray | None  #: the part's pose instead of its resting pose
+    keep: str = DEFAULT_KEEP          #: what the plan document keeps (grasplan.results.compact)
 
 
 def read_options(options: Any, *, budget_cap_s: float | None = None) -> dict[str, Any]:
@@ -191,7 +194,7 @@ def _replace_checked(obj: Any, **changes: Any) -> Any:
 
 
 def plan_request(doc: Any, service: Service) -> PlanRequest:
-    """A ``POST /plan`` body: ``{"part": NAME, "options": {...}, "part_pose": ...}``."""
+    """A ``POST /plan`` body: ``{"part": NAME, "options": {...}, "part_pose": ..., "keep": ...}``."""
     d = _object(doc, "body", PLAN_KEYS)
     if "part" not in d:
         raise InputError(f"part: missing; name one of the service's parts: {', '.join(service.parts)}")
@@ -203,7 +206,10 @@ def plan_request(doc: Any, service: Service) -> PlanRequest:
         if np.abs(T[:3, 3]).max() > MAX_CELL_COORD_M:
             raise InputError(f"part_pose: the position is beyond {MAX_CELL_COORD_M:g} m of the world origin; give the "
                              "part's pose in the cell (m)")
-    return PlanRequest(entry, params, T)
+    keep = d.get("keep", DEFAULT_KEEP)
+    if keep not in KEEP_CHOICES:
+        raise InputError(f"keep: {str(keep)[:40]!r} is not one of {', '.join(KEEP_CHOICES)}")
+    return PlanRequest(entry, params, T, keep)
 
 
 # ---------------------------------------------------------------------------------------- /pick
@@ -213,6 +219,7 @@ class PickRequest:
     max_picks: int | None
     seed: int | None
     sequence: bool
+    notes: tuple[str, ...] = ()  #: warnings the picks document carries (a lighter material ranked as the service's)
 
 
 def pick_request(doc: Any, service: Service) -> PickRequest:
@@ -227,8 +234,9 @@ def pick_request(doc: Any, service: Service) -> PickRequest:
     max_picks = None if opts.get("max_picks") is None else _checked(_MAX_PICKS, opts["max_picks"], "options.max_picks")
     seed = None if opts.get("seed") is None else _checked(_SEED, opts["seed"], "options.seed")
     sequence = _bool(opts.get("sequence", False), "options.sequence")
+    notes: list[str] = []
     if isinstance(doc.get("parts"), dict):
-        doc = _service_parts(doc, service)
+        doc = _service_parts(doc, service, notes)
     if doc.get("cloud") is not None:
         raise InputError("scene: cloud: the service reads no file a client names (a cloud is a file path); "
                          "leave it out")
@@ -240,17 +248,57 @@ def pick_request(doc: Any, service: Service) -> PickRequest:
     scene = scene_from_dict(doc, source="scene")
     for k, inst in enumerate(scene.instances):
         service.part(inst.part, f"scene: instances[{k}].part")
-    return PickRequest(scene, max_picks, seed, sequence)
+    return PickRequest(scene, max_picks, seed, sequence, tuple(notes))
 
 
-def _service_parts(doc: dict[str, Any], service: Service) -> dict[str, Any]:
-    """``doc`` with its ``parts`` matched to the service's: a part by its name; one with a ``mesh``
-    (as ``scene drop`` writes it) by that file's part name (:func:`grasplan.piles.scene_file.part_name`),
-    which must be the part's own name or, for a name the service does not hold (a scene written
-    with lower-cased names), replaces it in the parts and instances. The mesh is never read (the
-    service's file of that name is used) and is left out. InputError naming the field and the
-    service's parts when nothing matches, for a ``grasps`` file and for ``units`` other than those
-    the service read the part in."""
+def _by_sha256(name: Any, sha: Any, service: Service, where: str) -> str:
+    """The service's part whose mesh has sha256 ``sha``; InputError naming ``where.sha256`` when
+    the service's part called ``name`` has another mesh (the meshes differ) or no part has it
+    (listing the parts and their sha256 prefixes)."""
+    if not isinstance(sha, str) or not SHA256_RE.match(sha):
+        raise InputError(f"{where}.sha256: expected the mesh file's sha256 (64 lowercase hex digits), "
+                         f"got {str(sha)[:70]!r}")
+    served = ", ".join(f"{n} ({e.part.sha256[:12]})" for n, e in service.parts.items())
+    if isinstance(name, str) and name in service.parts and service.parts[name].part.sha256 != sha:
+        raise InputError(f"{where}.sha256: the scene's mesh of {name} ({sha[:12]}...) differs from the service's "
+                         f"{service.parts[name].path.name} ({service.parts[name].part.sha256[:12]}...): the meshes "
+                         f"differ; write the scene with the service's mesh or serve this one")
+    entry = service.part_by_sha256(sha)
+    if entry is None:
+        raise InputError(f"{where}.sha256: {sha[:12]}... is none of the service's parts (name (sha256)): {served}")
+    return entry.name
+
+
+def _service_material(spec: dict[str, Any], name: str, service: Service, where: str, notes: list[str]) -> None:
+    """Check a scene part's ``material`` / ``density`` against the density the service's grasp
+    database of part ``name`` was computed at, and leave them out of ``spec``: a lighter part is
+    ranked with it (a grasp that holds the heavier part holds it) and ``notes`` says so; a heavier
+    one is refused (InputError naming the field), as a material and a density that disagree."""
+    material, density = spec.pop("material", None), spec.pop("density", None)
+    if (material is None and density is None) or service.picker is None:
+        return
+    m, d = scene_part_material(material, density, where)
+    served = service.picker.material_of(name)
+    if d > served["density"] * (1 + 1e-9):
+        raise InputError(f"{where}.{'material' if material is not None else 'density'}: the service ranks "
+                         f"{name}'s grasps for {served['material']} ({served['density']:g} kg/m^3); a heavier part "
+                         f"({m}, {d:g} kg/m^3) needs its own grasp databases: plan it with grasplan pick, or leave "
+                         f"material and density out to rank it as {served['material']}")
+    if d < served["density"] * (1 - 1e-9):
+        notes.append(f"part {name}: {m} ({d:g} kg/m^3) ranked with the service's grasp databases for "
+                     f"{served['material']} ({served['density']:g} kg/m^3): a grasp that holds the heavier part "
+                     f"holds it too")
+
+
+def _service_parts(doc: dict[str, Any], service: Service, notes: list[str]) -> dict[str, Any]:
+    """``doc`` with its ``parts`` matched to the service's: a part with a ``sha256`` (as ``scene
+    drop`` writes it) by that sha256 (:func:`_by_sha256`); else by its name; one with a ``mesh``
+    by that file's part name (:func:`grasplan.piles.scene_file.part_name`), which must be the
+    part's own name or, for a name the service does not hold (a scene written with lower-cased
+    names), replaces it in the parts and instances. The mesh is never read (the service's file
+    is used) and is left out; ``material`` / ``density``: :func:`_service_material`. InputError
+    naming the field and the service's parts when nothing matches, for a ``grasps`` file and for
+    ``units`` other than those the service read the part in."""
     renamed: dict[str, str] = {}
     parts: dict[str, Any] = {}
     for name, spec in doc["parts"].items():
@@ -260,7 +308,11 @@ def _service_parts(doc: dict[str, Any], service: Service) -> dict[str, Any]:
         if isinstance(spec, dict) and "grasps" in spec:
             raise InputError(f"{where}.grasps: the service uses its own grasp databases and reads no file a client "
                              "names; leave it out")
-        if mesh is not None:
+        if isinstance(spec, dict) and spec.get("sha256") is not None:
+            by_sha = _by_sha256(name, spec["sha256"], service, where)
+            if by_sha != name:
+                renamed[name] = by_sha
+        elif mesh is not None:
             if not isinstance(mesh, str) or not mesh.strip() or "\x00" in mesh or len(mesh) > 4096:
                 raise InputError(f"{where}.mesh: expected a mesh file path (only its file name is used)")
             by_file = part_name(mesh.replace("\\", "/"))
@@ -280,6 +332,8 @@ def _service_parts(doc: dict[str, Any], service: Service) -> dict[str, Any]:
         if entry.name in parts:
             raise InputError(f"{where}: another scene part is also the service's part {entry.name!r}; give each part "
                              "once")
+        if isinstance(spec, dict):
+            _service_material(spec, entry.name, service, where, notes)
         parts[entry.name] = spec
     out = dict(doc, parts=parts)
     if renamed and isinstance(doc.get("instances"), list):

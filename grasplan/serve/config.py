@@ -14,7 +14,7 @@ from ..errors import InputError
 from ..io import show_path
 from ..config.params import DEFAULT_GRIPPER, DEFAULT_ROBOT
 from ..piles.scene_file import DEFAULT_CELL as SCENE_DEFAULT_CELL
-from ..piles.scene_file import UNIT_CHOICES
+from ..geometry.units import UNIT_CHOICES
 
 #: where ``--token`` is read from when not given on the command line (a command line is visible to
 #: every user of the machine in ``ps``; the environment is not)

@@ -29,9 +29,9 @@ def plan(service: Service, doc: Any) -> bytes:
     result = plan_part(req.part.part, service.robot, gripper=service.gripper, cell=service.cell,
                        T_world_part=req.T_world_part, **req.params)
     result = replace(result, part=replace(result.part, path=req.part.path.name))
-    chunks = stream_document(result)
+    chunks = stream_document(result, keep=req.keep)
     if chunks is None:  # a value the fast writer cannot encode: through the dict (refuses NaN)
-        return to_json_text(result.to_json()).encode("utf-8")
+        return to_json_text(result.to_json(keep=req.keep)).encode("utf-8")
     return "".join(chunks).encode("utf-8")
 
 
@@ -41,6 +41,8 @@ def pick(service: Service, doc: Any) -> bytes:
     if service.picker is None:
         raise RuntimeError("pick requested from a service without a picker")  # the app answers 503 before
     result = service.picker.plan(req.scene, max_picks=req.max_picks, sequence=req.sequence, seed=req.seed)
+    if req.notes:
+        result = replace(result, warnings=(*req.notes, *result.warnings))
     return result.to_json_text(parts=public_parts(result.parts, service)).encode("utf-8")
 
 

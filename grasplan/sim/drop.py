@@ -24,12 +24,12 @@ from ..cell.model import BinSpec, Cell
 from ..errors import InputError, PlanningError
 from ..part.mesh import Part
 from ..config.option_kinds import spec
-from ..config.params import CandidateParams, OptionSet
+from ..config.materials import (CUSTOM, DEFAULT_DENSITY, DEFAULT_MATERIAL, MATERIAL_HELP, MATERIAL_NAMES,
+                                resolve_material)
+from ..config.params import CandidateParams, MaterialOptions, OptionSet
 from .pileworld import PartBody, PileWorld, Settled, part_body
 from ..piles.scene_file import MAX_INSTANCES, NAME_RE, Instance, Scene, ScenePart, name_parts
 
-#: default density of a pile's parts, kg/m^3 (plastic, as clutter removal's targets)
-PILE_DENSITY = 1200.0
 #: a released part's lowest point starts this far (m) above the pile under it
 DROP_GAP = 0.03
 #: at rest: centre-of-mass speed (m/s) and turning rate (rad/s) below these for REST_HOLD_S (s)
@@ -63,18 +63,22 @@ class SettleError(PlanningError):
 
 
 @dataclass(frozen=True, kw_only=True)
-class DropParams(OptionSet):
+class DropParams(MaterialOptions, OptionSet):
     """Options of a drop (validated here; ``grasplan scene drop`` builds its options from them).
 
-    Physics: uniform density (default :data:`PILE_DENSITY`, plastic, as clutter removal's targets),
+    Physics: uniform density (``material`` or ``density``, default steel as in every command,
+    :mod:`grasplan.config.materials`; a :class:`PileItem` may have its own),
     friction ``mu`` (default: the candidates' ``mu``, 0.3), each part colliding through its CoACD
     convex pieces (:func:`grasplan.sim.simulate.convex_pieces`, seed 0 whatever the pile's seed, cached
     where ``grasplan simulate`` caches them), the bin and table exact boxes."""
 
     seed: int = spec(0, "int", "Seed of the drop order, orientations and positions (same seed, same pile).",
                      lo=0, hi=2**31 - 1)
-    density: float = spec(PILE_DENSITY, "float", "Part density, kg/m^3 (uniform; ~1200 plastic, 2700 aluminium, "
-                          "7850 steel).", lo=0.0, lo_open=True, hi=1e5)
+    material: str = spec(None, "choice", MATERIAL_HELP, choices=(*MATERIAL_NAMES, CUSTOM), record="never",
+                         show=DEFAULT_MATERIAL, metavar="NAME")
+    density: float = spec(None, "float", "Part density, kg/m^3 (uniform; 7850 steel, 2700 aluminium, ~1200 "
+                          "plastic); by default --material's.", lo=0.0, lo_open=True, hi=1e5,
+                          show=f"{DEFAULT_DENSITY:g}")
     mu: float = spec(CandidateParams.default("mu"), "float", "Friction coefficient of every contact.", lo=0.0,
                      hi=10.0)
     drop_gap: float = spec(DROP_GAP, "length", "Release height: a part's lowest point starts this far above the "
@@ -82,22 +86,39 @@ class DropParams(OptionSet):
     decomposition: str = spec("coacd", "choice", "Part collision shape: CoACD convex pieces (cached) or the convex "
                               "hull (fast, exact only for convex parts).", choices=("coacd", "hull"))
 
+    def __post_init__(self) -> None:
+        self._resolve_material()
+        super().__post_init__()
+
 
 @dataclass(frozen=True)
 class PileItem:
     """One kind of part in a pile: ``count`` instances of ``part`` named ``name`` (ids
     ``<name>_<k>``). ``mesh`` and ``units`` are what the scene file records (default the part's
-    path and the units it was read in)."""
+    path and the units it was read in); ``material`` / ``density``: this part's (None: the drop's
+    :class:`DropParams`)."""
 
     name: str
     part: Part
     count: int
     mesh: str | None = None
     units: str | None = None
+    material: str | None = None
+    density: float | None = None
 
-    def scene_part(self) -> ScenePart:
+    def physics(self, params: DropParams) -> tuple[str, float]:
+        """``(material, density kg/m^3)`` this part is dropped with: its own, else ``params``'."""
+        if self.material is None and self.density is None:
+            return params.material, params.density
+        material, density = resolve_material(self.material, self.density, where=f"part {self.name}: ")
+        return material, float(density)
+
+    def scene_part(self, params: DropParams | None = None) -> ScenePart:
+        """The scene's record of the part: mesh, units, material and density, the mesh's sha256."""
+        material, density = self.physics(params if params is not None else DropParams())
         return ScenePart(name=self.name, mesh=self.mesh if self.mesh is not None else self.part.path,
-                         units=self.units if self.units is not None else self.part.units)
+                         units=self.units if self.units is not None else self.part.units,
+                         material=material, density=density, sha256=self.part.sha256)
 
 
 @dataclass(frozen=True)
@@ -127,7 +148,8 @@ class PartDrop:
 @dataclass(frozen=True, eq=False)
 class DropResult:
     """A settled pile: the ``scene`` (instances in drop order), each drop's record, the parts'
-    records (``parts``: name -> {path, sha256, scale_to_m, units, pieces, mass_kg, volume_m3}),
+    records (``parts``: name -> {path, sha256, scale_to_m, units, count, material, density, pieces,
+    mass_kg, volume_m3}),
     the parameters, wall-clock ``seconds`` (total, including the convex decompositions) and the
     simulated seconds ``sim_s``."""
 
@@ -149,37 +171,41 @@ class DropResult:
 # ------------------------------------------------------------------------------------------------
 # names and items
 # ------------------------------------------------------------------------------------------------
-def load_items(specs: Sequence[tuple[str, int]], *, units: str = "auto",
-               info: Callable[[str], None] | None = None, warn: Callable[[str], None] | None = None) -> list[PileItem]:
-    """:class:`PileItem` s from ``(mesh path, count)`` pairs (``--part PATH:COUNT``), named by
-    :func:`grasplan.piles.scene_file.part_name` (the file's stem); InputError (exit 3) for a file
-    given twice, two files that give one name or an unreadable mesh."""
+def load_items(specs: Sequence[tuple], *, units: str = "auto", info: Callable[[str], None] | None = None,
+               warn: Callable[[str], None] | None = None) -> list[PileItem]:
+    """:class:`PileItem` s from ``(mesh path, count[, material])`` (``--part PATH:COUNT[:MATERIAL]``;
+    material None: the drop's), named by :func:`grasplan.piles.scene_file.part_name` (the file's
+    stem); InputError (exit 3) for a file given twice, two files that give one name or an
+    unreadable mesh."""
     from ..part.mesh import load_part
 
     seen: dict[str, str] = {}
-    for path, _ in specs:
+    for path, *_ in specs:
         key = str(Path(path).resolve())
         if key in seen:
             raise InputError(f"--part {path}: given twice (also as {seen[key]}); give each part once with the total "
                              f"count")
         seen[key] = path
-    names = list(name_parts((path for path, _ in specs), where="--part"))
+    names = list(name_parts((spec[0] for spec in specs), where="--part"))
     items: list[PileItem] = []
-    for name, (path, n) in zip(names, specs):
+    for name, (path, n, *rest) in zip(names, specs):
         p = load_part(path, units=units)
         for w in p.warnings:
             if warn is not None:
                 warn(w)
         if info is not None:
             info(f"part {name}: {path} ({p.units_note}; sha256 {p.sha256[:16]}, scale_to_m {p.scale_to_m:g})")
-        items.append(PileItem(name=name, part=p, count=n))
+        items.append(PileItem(name=name, part=p, count=n, material=rest[0] if rest else None))
     return items
 
 
-def parts_record(items: Sequence[PileItem]) -> dict[str, dict[str, Any]]:
-    """What an output records of each part: path, sha256, scale_to_m, units and count."""
+def parts_record(items: Sequence[PileItem], params: DropParams | None = None) -> dict[str, dict[str, Any]]:
+    """What an output records of each part: path, sha256, scale_to_m, units, count, material and
+    density (kg/m^3, :meth:`PileItem.physics` with ``params``, default ``DropParams()``)."""
+    p = params if params is not None else DropParams()
     return {it.name: {"path": it.part.path, "sha256": it.part.sha256, "scale_to_m": float(it.part.scale_to_m),
-                      "units": it.part.units, "count": it.count} for it in items}
+                      "units": it.part.units, "count": it.count,
+                      **dict(zip(("material", "density"), it.physics(p)))} for it in items}
 
 
 def _items(items: Sequence[PileItem | tuple]) -> list[PileItem]:
@@ -408,11 +434,12 @@ def drop_pile(cell: Cell, items: Sequence[PileItem | tuple], *, params: DropPara
     shared: dict[str, PartBody] = {}
     for it in its:
         t = time.perf_counter()
-        shared[it.name] = body = part_body(it.name, it.part.mesh, density=p.density, decomposition=p.decomposition,
+        material, density = it.physics(p)
+        shared[it.name] = body = part_body(it.name, it.part.mesh, density=density, decomposition=p.decomposition,
                                            cache=cache)
         if log is not None:
             log(f"{it.name}: {len(body.pieces)} convex pieces ({p.decomposition}, {time.perf_counter() - t:.1f} s), "
-                f"{body.mass.mass * 1e3:.0f} g at {p.density:g} kg/m^3")
+                f"{body.mass.mass * 1e3:.0f} g ({material}, {density:g} kg/m^3)")
     check_fit(cell, its, shared, seed=p.seed)
     rng = np.random.default_rng(p.seed)
     ids = [(f"{it.name}_{k}", it.name) for it in its for k in range(it.count)]
@@ -447,10 +474,8 @@ def drop_pile(cell: Cell, items: Sequence[PileItem | tuple], *, params: DropPara
             progress(d)
     instances = tuple(Instance(b.name, ids[order[i]][1], world.pose(i)) for i, b in enumerate(bodies))
     scene = Scene(instances=instances, cell=cell_ref if cell_ref is not None else cell.name,
-                  parts=tuple(it.scene_part() for it in its))
-    parts = {it.name: {"path": it.part.path, "sha256": it.part.sha256, "scale_to_m": float(it.part.scale_to_m),
-                       "units": it.part.units, "count": it.count, "pieces": len(shared[it.name].pieces),
-                       "mass_kg": float(shared[it.name].mass.mass), "volume_m3": float(shared[it.name].mass.volume)}
-             for it in its}
+                  parts=tuple(it.scene_part(p) for it in its))
+    parts = {name: {**rec, "pieces": len(shared[name].pieces), "mass_kg": float(shared[name].mass.mass),
+                    "volume_m3": float(shared[name].mass.volume)} for name, rec in parts_record(its, p).items()}
     return DropResult(scene=scene, drops=tuple(drops), parts=parts, params=p, seconds=time.perf_counter() - t0,
                       sim_s=sim_s, world=world)

@@ -21,7 +21,8 @@ from numpy.typing import ArrayLike
 from .decomposition import convex_pieces  # also the name the pile world and benchmarks import
 from ..errors import InputError
 from ..gripper.model import Box, Gripper, Shape
-from ..part.mass import DEFAULT_DENSITY, MassProperties, mass_properties
+from ..config.materials import DEFAULT_DENSITY
+from ..part.mass import MassProperties, mass_properties
 from ..geometry.meshdata import TriangleMesh
 from ..grasps.patches import contact_patches
 from ..config.scoring import distinct_order
@@ -519,7 +520,7 @@ def simulate_result(result: PlanResult, top: int, *, mass_props: MassProperties 
     recorded density/mass (``params.grasps``); ``mu`` is the candidates' friction coefficient."""
     mesh = result.part_mesh if result.part_mesh is not None else result.mesh()
     gp = result.params.grasps
-    mp = mass_props if mass_props is not None else mass_properties(mesh, density=gp.density, mass=gp.mass)
+    mp = mass_props if mass_props is not None else mass_properties(mesh, density=gp.density, mass=gp.mass, material=gp.material)
     mu = float(result.params.candidates.mu)
     g = result.grasps
     if result.robot is not None:

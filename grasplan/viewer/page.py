@@ -182,7 +182,7 @@ def build_data(res: PlanResult, *, part_path: str | os.PathLike[str] | None = No
     drawn semi-transparent (:func:`cell_data`); per-grasp quality / simulation values when the
     result has them (:func:`_quality_data`). ``blockers``: the pile instances drawn as what blocked
     the pick (a pick's ``blocked_by``; every other instance is drawn neutral)."""
-    notes: list[str] = []
+    notes: list[str] = _counted_note(res)
     schema = res.schema
     mesh = res.mesh(part_path, allow_other_part=allow_other_part)
     V = np.asarray(mesh.vertices, dtype=np.float64)
@@ -270,6 +270,14 @@ def build_data(res: PlanResult, *, part_path: str | os.PathLike[str] | None = No
         data["robot"] = _robot_data(res, T_flange_tcp, notes)
     data["notes"] = notes
     return data, notes
+
+
+def _counted_note(res: PlanResult) -> list[str]:
+    """The note of a compact plan whose colliding poses are counts, not grasps to draw."""
+    if res.rejected is None or not res.rejected.counts.sum():
+        return []
+    what = ", ".join(f"{k} {v}" for k, v in res.rejected.totals().items() if v)
+    return [f"colliding poses are counted, not drawn ({what}): plan with --keep all to draw them"]
 
 
 #: obstacle kinds the page draws (the cell JSON's shape keys)

@@ -14,6 +14,7 @@ joint's local y (the ``ur_description`` URDFs of the UR3/5/10/16 and their e-ser
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
@@ -21,7 +22,9 @@ import pinocchio as pin
 from ..model import Robot
 from ...geometry.transforms import inv_rigid, pose_error
 from .registry import IKFamily, register
-from .ur_batch import Chain, fk_dh, make_chain, solve_one
+
+if TYPE_CHECKING:
+    from .ur_batch import Chain
 
 
 def ur_eligibility(robot: Robot) -> str:
@@ -51,6 +54,10 @@ class URAnalytic:
         self.why = ur_eligibility(robot)
         if self.why:
             return
+        # the compiled kernels (numba) load with the first closed form, not with the robot
+        from . import ur_batch
+
+        self._kernels = ur_batch
         jp = [m.jointPlacements[i].translation for i in range(1, 7)]
         self.d1 = float(jp[0][2])
         shoulder_offset = float(jp[1][1])
@@ -69,11 +76,11 @@ class URAnalytic:
         q0 = np.zeros(6)
         pin.forwardKinematics(m, data, q0)
         T_tool0 = pin.updateFramePlacement(m, data, robot.tool_frame_id).homogeneous
-        T_dh6_0 = fk_dh(make_chain(*lengths, self.T_urdf_dh0, np.eye(4)), q0)
+        T_dh6_0 = ur_batch.fk_dh(ur_batch.make_chain(*lengths, self.T_urdf_dh0, np.eye(4)), q0)
         self.T_dh6_tool = inv_rigid(T_dh6_0) @ inv_rigid(self.T_urdf_dh0) @ T_tool0
         self.T_tool_dh6 = inv_rigid(self.T_dh6_tool)
         #: the kernels' view of this arm (:mod:`grasplan.robot.ik.ur_batch`)
-        self.chain: Chain = make_chain(*lengths, self.T_urdf_dh0, self.T_dh6_tool)
+        self.chain: Chain = ur_batch.make_chain(*lengths, self.T_urdf_dh0, self.T_dh6_tool)
         # prove the chain against Pinocchio on random configurations
         rng = np.random.default_rng(12345)
         for q in rng.uniform(-math.pi, math.pi, size=(20, 6)):
@@ -88,13 +95,13 @@ class URAnalytic:
 
     def fk_dh(self, q: np.ndarray) -> np.ndarray:
         """DH frame 0 -> DH frame 6 (4, 4) at ``q`` (6,)."""
-        return fk_dh(self.chain, q)
+        return self._kernels.fk_dh(self.chain, q)
 
     def solve(self, T_base_tool: np.ndarray) -> tuple[list[np.ndarray], str]:
         """Up to eight raw solutions (angles in [-pi, pi), in :data:`~grasplan.robot.ik.ur_batch.BRANCHES`
         order) for T_base_tool (the robot's model frame, i.e. base_link) and a reason when there
         are none (:func:`grasplan.robot.ik.ur_batch.solve_one`)."""
-        q, ok_r, ok3 = solve_one(self.chain, T_base_tool)
+        q, ok_r, ok3 = self._kernels.solve_one(self.chain, T_base_tool)
         if not ok_r:
             return [], "out_of_reach: wrist centre inside the shoulder cylinder (|p05_xy| < d4)"
         sols = [q[b] for b in np.flatnonzero(ok3)]

@@ -1,0 +1,116 @@
+"""The gripper's shapes per pose for the collision filter (:class:`grasplan.grasps.collision.GripperCollider`):
+one :class:`ShapeSet` per gripper element (each body shape, each swept jaw), its variants' coal
+geometry built on first use (:class:`Geoms`), and the jaws' sweeps met so far kept per collider
+(:class:`Sweeps`).
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import coal
+import numpy as np
+
+from ..cell.shapes import bvh
+from ..gripper.model import Box, Gripper
+
+
+class Geoms:
+    """The coal geometry of each variant of a shape, built when first asked for (most variants never
+    reach coal): ``geoms[k]``."""
+
+    def __init__(self, variants: list):
+        self.variants = variants  # may grow (the swept jaws met so far, :class:`Sweeps`)
+        self._built: dict[int, Any] = {}
+
+    def __len__(self) -> int:
+        return len(self.variants)
+
+    def __getitem__(self, k: int) -> Any:
+        g = self._built.get(k)
+        if g is None:
+            v = self.variants[k]
+            g = self._built[k] = (coal.Box(*np.asarray(v.extents, dtype=np.float64)) if isinstance(v, Box)
+                                  else bvh(v.vertices, v.faces))
+        return g
+
+
+class ShapeSet:
+    """One gripper shape per pose: coal geometry per unique variant, ``T_tcp_shape`` per pose."""
+
+    def __init__(self, variants: list, index: np.ndarray):
+        self.variants = variants  # list of Box | MeshShape
+        self.index = index  # (M,) variant per pose
+        self.is_box = isinstance(variants[0], Box)
+        self.geoms = Geoms(variants)
+        # per variant: the geometry's placement and its local bounding box in the TCP frame (for the
+        # prefilter), :func:`shape_frames` of each variant
+        frames = [shape_frames(v) for v in variants]
+        self.T_tcp_geom = np.array([f[0] for f in frames])
+        self.T_tcp_bb = np.array([f[1] for f in frames])
+        self.half_bb = np.array([f[2] for f in frames])
+
+
+class Sweeps:
+    """The two jaws' sweeps met so far by one collider, one row per distinct (pre-grasp opening,
+    closed opening) pair: the shapes (:meth:`Gripper.swept_fingers`), their coal geometry (on first
+    use) and their :func:`shape_frames` as arrays, so that a batch of poses only looks its pairs up."""
+
+    def __init__(self, gripper: Gripper):
+        self.gripper = gripper
+        self.ids: dict[tuple[float, float], int] = {}
+        self.shapes: tuple[list, list] = ([], [])
+        self.geoms = (Geoms(self.shapes[0]), Geoms(self.shapes[1]))
+        self.frames = [(np.zeros((0, 4, 4)), np.zeros((0, 4, 4)), np.zeros((0, 3))) for _ in range(2)]
+
+    def rows(self, pairs: np.ndarray) -> np.ndarray:
+        """The row of each ``(o_pre, o_close)`` pair of ``pairs`` (n, 2), new pairs added."""
+        out = np.empty(len(pairs), dtype=np.int64)
+        new: tuple[list, list] = ([], [])
+        for i, (a, b) in enumerate(pairs.tolist()):
+            r = self.ids.get((a, b))
+            if r is None:
+                r = self.ids[(a, b)] = len(self.shapes[0])
+                for side, shape in enumerate(self.gripper.swept_fingers(a, b)):
+                    self.shapes[side].append(shape)
+                    new[side].append(shape_frames(shape))
+            out[i] = r
+        if new[0]:
+            for side in range(2):
+                old = self.frames[side]
+                self.frames[side] = tuple(np.concatenate([old[j], np.array([f[j] for f in new[side]])])
+                                          for j in range(3))  # type: ignore[assignment]
+        return out
+
+    def shape_set(self, side: int, index: np.ndarray) -> ShapeSet:
+        """The ``side`` (0: -x, 1: +x) jaw's sweeps for poses of rows ``index`` (M,)."""
+        s = ShapeSet.__new__(ShapeSet)
+        s.variants, s.index, s.geoms = self.shapes[side], index, self.geoms[side]
+        s.is_box = isinstance(self.shapes[side][0], Box) if self.shapes[side] else isinstance(self.gripper.finger, Box)
+        s.T_tcp_geom, s.T_tcp_bb, s.half_bb = self.frames[side]
+        return s
+
+
+def shape_frames(v: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(T_tcp_geom, T_tcp_bb, half_bb)`` of a shape: where its coal geometry sits in the TCP frame
+    (a box's own frame; a mesh's vertices are in the TCP frame), the centre frame and half extents
+    of its local bounding box (a box: itself)."""
+    if isinstance(v, Box):
+        return v.T_tcp_box, v.T_tcp_box, 0.5 * np.asarray(v.extents, dtype=np.float64)
+    lo, hi = v.vertices.min(axis=0), v.vertices.max(axis=0)
+    T = np.eye(4)
+    T[:3, 3] = 0.5 * (lo + hi)
+    return np.eye(4), T, 0.5 * (hi - lo)
+
+
+def unique_rows(key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(key, axis=0, return_inverse=True)`` of the (M, 2) float rows (no NaN): the
+    distinct rows in lexicographic order and each row's index among them, by one lexsort."""
+    if not len(key):
+        return key[:0], np.zeros(0, dtype=np.int64)
+    o = np.lexsort((key[:, 1], key[:, 0]))
+    k = key[o]
+    new = np.ones(len(k), dtype=bool)
+    new[1:] = np.any(k[1:] != k[:-1], axis=1)
+    inv = np.empty(len(k), dtype=np.int64)
+    inv[o] = np.cumsum(new) - 1
+    return k[new], inv
