@@ -12,7 +12,7 @@ from grasplan.gripper.load import load_gripper
 from grasplan.robot.ik.solve import get_solver, solve_ik
 from grasplan.part.mesh import load_part
 from grasplan.motion.joint_paths import approach_path_reason
-from grasplan.pick.lines import world_fk
+from grasplan.robot.ik.lines import world_fk
 from grasplan.pick.motion import line_path
 from grasplan.piles.checks import check_cell, overlap_warnings
 from grasplan.robot.description import load_robot
@@ -95,7 +95,7 @@ def test_scene_checks_depths():
 def test_ur_line_branch_named_by_the_start_signs_is_the_best_match(ur5):
     """ur_line solves only the branch the start's signs name (start_branch); the paths are those of
     comparing all eight branches, on random lines from random starts."""
-    import grasplan.pick.lines as lines
+    import grasplan.robot.ik.lines as lines
     from grasplan.robot.ik.ur_batch import branch_many, solve_one
 
     robot, _ = ur5

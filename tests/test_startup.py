@@ -137,3 +137,29 @@ def test_after_the_warm_up_plan_and_pick_compile_nothing(tmp_path):
                            cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
         assert r.returncode == 0, r.stderr
         assert COMPILE_MESSAGE not in r.stderr, (args[0], r.stderr)
+
+
+def test_numba_gets_a_cache_folder_when_its_own_places_are_read_only(tmp_path, monkeypatch):
+    """A read-only install with an unwritable home: numba would refuse every cached kernel ("no
+    locator available"); grasplan sends its cache to a temporary folder instead, where a kernel
+    defined afterwards stores its cache."""
+    import tempfile
+
+    import numba
+
+    from grasplan.robot.ik import ur_batch
+
+    monkeypatch.setattr(numba.config, "CACHE_DIR", "")
+    monkeypatch.setattr(tempfile, "gettempdir", lambda: str(tmp_path))
+    assert ur_batch.ensure_cache_dir(writable=lambda folder: True) is None  # numba's own places do
+    folder = ur_batch.ensure_cache_dir(writable=lambda folder: False)
+    assert folder is not None and folder.parent == tmp_path and folder.name.startswith("grasplan-numba-")
+    assert numba.config.CACHE_DIR == str(folder)
+    assert ur_batch.ensure_cache_dir(writable=lambda folder: False) is None  # set once: numba uses it
+
+    @numba.njit(cache=True)
+    def twice(x):
+        return 2 * x
+
+    assert twice(21) == 42
+    assert any(folder.rglob("*.nbi")), "the kernel's cache index is in the folder grasplan chose"

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from ..robot.ik.lines import closed_form_line, ur_closed_form
 from ..robot.ik.solve import get_solver
 from ..geometry.interpolation import STEP, interpolate_path
 from ..robot.model import Robot
@@ -291,10 +292,12 @@ def approach_path_reason(
     """Joint waypoints moving the TCP on the straight line ``T_world_tcp_pre -> T_world_tcp_grasp``.
 
     The two TCP poses must share their orientation (the pre-grasp is the grasp backed off along its
-    own -z). TCP poses are sampled every ``sample`` metres, each solved by a damped least-squares IK
-    seeded with the previous joint vector (continuity: no branch switch, :func:`_track_line`). The
-    function is symmetric: it follows the line from the first pose to the second, starting at
-    ``q_pre`` (which must reach the first pose), so it can also trace grasp -> pre-grasp.
+    own -z). TCP poses are sampled every ``sample`` metres. A UR arm solves each exactly on the
+    branch ``q_pre`` is on (:func:`grasplan.robot.ik.lines.closed_form_line`, compiled); other arms
+    by a damped least-squares IK seeded with the previous joint vector (continuity: no branch
+    switch, :func:`_track_line`). The function is symmetric: it follows the line from the first
+    pose to the second, starting at ``q_pre`` (which must reach the first pose), so it can also
+    trace grasp -> pre-grasp.
 
     Parameters
     ----------
@@ -329,6 +332,25 @@ def approach_path_reason(
             raise ValueError("T_flange_tcp (4, 4) is required without a scene (default: scene.gripper.T_flange_tcp)")
         T_flange_tcp = scene.gripper.T_flange_tcp
     T_flange_tcp = np.asarray(T_flange_tcp, dtype=np.float64)
+    closed = ur_closed_form(robot)
+    if closed is not None:  # a UR arm: every waypoint exactly, in one compiled pass (pick's lines too)
+        path, reason = closed_form_line(closed, robot, T_pre, T_gr, np.asarray(q_pre, dtype=np.float64),
+                                        max_dev=max_dev, T_flange_tcp=T_flange_tcp, sample=sample,
+                                        max_joint_step=max_joint_step)
+    else:
+        path, reason = _clik_line(robot, T_pre, T_gr, q_pre, max_dev=max_dev, T_flange_tcp=T_flange_tcp,
+                                  sample=sample, max_joint_step=max_joint_step)
+    if path is None:
+        return None, reason
+    if scene is not None and not scene.path_free(path, opening, step=step):
+        return None, "collision"
+    return path, "ok"
+
+
+def _clik_line(robot: Robot, T_pre: np.ndarray, T_gr: np.ndarray, q_pre: np.ndarray, *, max_dev: float,
+               T_flange_tcp: np.ndarray, sample: float, max_joint_step: float) -> tuple[np.ndarray | None, str]:
+    """The straight line of :func:`approach_path_reason` by the damped least-squares tracker (arms
+    without a closed form), collisions not checked."""
     T_tcp_flange = np.linalg.inv(T_flange_tcp)
     solver = get_solver(robot).clik  # this thread's own Pinocchio data
     q = np.asarray(q_pre, dtype=np.float64).copy()
@@ -348,6 +370,4 @@ def approach_path_reason(
     tcp = np.array([(solver.fk(p) @ T_flange_tcp)[:3, 3] for p in probes])
     if np.max(_dist_to_segment(tcp, a, b)) > max_dev:
         return None, "deviation"
-    if scene is not None and not scene.path_free(path, opening, step=step):
-        return None, "collision"
     return path, "ok"

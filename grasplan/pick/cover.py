@@ -21,7 +21,7 @@ import numpy as np
 from ..robot.model import Robot
 from ..motion.collision_scene import CollisionScene
 from .gripboxes import SweptGripper
-from .lines import world_fk
+from ..robot.ik.lines import world_fk
 
 #: the approach's swept boxes are this much (m) larger than the shapes' boxes along the line, so
 #: that the configurations between waypoints (micrometres off the line) lie inside them too

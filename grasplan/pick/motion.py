@@ -21,7 +21,6 @@ import numpy as np
 
 from ..gripper.model import Gripper
 from ..robot.ik.solve import solve_ik
-from ..robot.ik.ur_batch import line_deviation
 from ..results.joint_motion import Motion
 from ..motion.joint_paths import approach_path_reason, plan_joint_path
 from ..motion.pickplace import (
@@ -29,12 +28,11 @@ from ..motion.pickplace import (
 )
 from ..robot.model import Robot
 from ..motion.collision_scene import CollisionScene, describe_pairs
-from ..geometry.transforms import inv_rigid
 from .budget import UNLIMITED, Budget
 from .codes import GRASP_STATUS, LIFT_MAY_HELP, PickStatus, Reason
 from .cover import APPROACH_PAD, covered_check
 from .lift_check import LIFT_SAMPLE, _drop_pairs, lift_collision, lift_travel, touch_waypoints
-from .lines import fk_base_tool, ur_closed_form, ur_line, world_fk
+from ..robot.ik.lines import world_fk
 from .params import PickParams
 
 #: largest per-joint change (rad) between consecutive line waypoints (more: a branch jump)
@@ -44,36 +42,12 @@ MAX_JOINT_STEP = 0.1
 def line_path(robot: Robot, T_from: np.ndarray, T_to: np.ndarray, q_from: np.ndarray, *, max_dev: float,
               T_flange_tcp: np.ndarray, sample: float = LINE_SAMPLE) -> tuple[np.ndarray | None, str]:
     """Joint waypoints moving the TCP straight ``T_from -> T_to`` (same orientation) from
-    ``q_from`` (which reaches ``T_from``): ``(path (k, n), "ok")`` or ``(None, why)`` with why in
-    ``start``, ``ik``, ``limits``, ``jump``, ``deviation``.
-
-    TCP waypoints every ``sample`` (:data:`grasplan.motion.pickplace.LINE_SAMPLE`) with constant
-    orientation. With a closed-form IK (the UR5's, :mod:`grasplan.robot.ik.ur`) every waypoint is
-    solved exactly and the branch kept continuous (each joint wrapped to the previous waypoint's
-    value, the closest of the up to eight solutions taken; a joint moving more than
-    :data:`MAX_JOINT_STEP` between waypoints is a branch jump); the joint-linear motion between
-    waypoints is held to ``max_dev`` from the line by forward kinematics at every midpoint. Robots
-    without a closed form use the CLIK tracker :func:`grasplan.motion.joint_paths.approach_path_reason`."""
-    closed = ur_closed_form(robot)
-    if closed is None:
-        return approach_path_reason(robot, None, T_from, T_to, q_from, opening=0.0, max_dev=max_dev,
-                                    T_flange_tcp=T_flange_tcp, sample=sample)
-    T_base = inv_rigid(np.asarray(robot.T_world_base, dtype=np.float64))
-    T_tcp_flange = inv_rigid(T_flange_tcp)
-    a, b = T_from[:3, 3], T_to[:3, 3]
-    m = max(1, int(np.ceil(float(np.linalg.norm(b - a)) / sample - 1e-12)))
-    T = np.broadcast_to(np.asarray(T_from, dtype=np.float64), (m, 4, 4)).copy()
-    T[:, :3, 3] = a + (b - a) * (np.arange(1, m + 1) / m)[:, None]
-    T0 = fk_base_tool(closed, np.asarray(q_from, dtype=np.float64)[None])[0]
-    T0_want = T_base @ np.asarray(T_from, dtype=np.float64) @ T_tcp_flange
-    if np.linalg.norm(T0[:3, 3] - T0_want[:3, 3]) > 0.5 * max_dev or np.max(np.abs(T0[:3, :3] - T0_want[:3, :3])) > 1e-4:
-        return None, "start"
-    path, why = ur_line(closed, T_base @ T @ T_tcp_flange, q_from, robot.lower, robot.upper, MAX_JOINT_STEP)
-    if path is None:
-        return None, why
-    if line_deviation(closed.chain, path, robot.T_world_base, T_flange_tcp, a, b) > max_dev:
-        return None, "deviation"
-    return path, "ok"
+    ``q_from``: the one line tracker of ``plan`` and ``pick``
+    (:func:`grasplan.motion.joint_paths.approach_path_reason`, collisions left to the caller) with
+    the pick's waypoint spacing (:data:`grasplan.motion.pickplace.LINE_SAMPLE`) and
+    :data:`MAX_JOINT_STEP`: ``(path (k, n), "ok")`` or ``(None, why)``."""
+    return approach_path_reason(robot, None, T_from, T_to, q_from, opening=0.0, max_dev=max_dev,
+                                T_flange_tcp=T_flange_tcp, sample=sample, max_joint_step=MAX_JOINT_STEP)
 
 
 @dataclass(frozen=True)

@@ -3,7 +3,7 @@
 :class:`grasplan.robot.ik.ur.URAnalytic` builds a :data:`Chain` (DH parameters and the constant frames
 around them) and calls these kernels: :func:`solve_one` (all eight branches at one pose, what IK
 needs), :func:`branch_many` (one branch, shoulder choice, wrist sign and elbow sign, at every
-pose of a stack, what a straight TCP line needs: :mod:`grasplan.pick.lines`) and :func:`fk_many`.
+pose of a stack, what a straight TCP line needs: :mod:`grasplan.robot.ik.lines`) and :func:`fk_many`.
 The arithmetic is the classic UR closed form (Hawkins, "Analytic inverse kinematics for the
 Universal Robots UR-5/UR-10 arms", 2013) on the chain ``T_urdf_dh0 @ A1 ... A6 @ T_dh6_tool``;
 the chain is proven against Pinocchio when the closed form is built, and every IK solution is
@@ -16,7 +16,11 @@ IK pose (its per-call overhead on small matrices); here a few microseconds.
 from __future__ import annotations
 
 import math
+import os
 import sys
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
 from typing import Any, NamedTuple
 
 import numba
@@ -25,7 +29,7 @@ from numba.core import event as numba_event
 
 #: printed on stderr, once per process, when a grasplan kernel is compiled rather than loaded from
 #: numba's on-disk cache (``__pycache__`` next to the module, or ``$NUMBA_CACHE_DIR``)
-COMPILE_MESSAGE = ("grasplan: compiling its numba kernels once (about 10 s; later runs load them from "
+COMPILE_MESSAGE = ("grasplan: compiling its numba kernels once (10-40 s; later runs load them from "
                    "the cache) ...")
 
 
@@ -52,11 +56,42 @@ class _CompileNotice(numba_event.Listener):
 _NOTICE = _CompileNotice()
 
 
+def _writable(folder: Path) -> bool:
+    """Whether a file can be created in ``folder`` (made if missing), as numba's locators test it."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=folder):
+            return True
+    except OSError:
+        return False
+
+
+def ensure_cache_dir(writable: Callable[[Path], bool] = _writable) -> Path | None:
+    """The folder numba's cache is sent to when neither of its own places is ``writable`` (the
+    kernels' ``__pycache__`` of a read-only install, ``~/.cache/numba`` of an account without a
+    writable home): ``$TMPDIR/grasplan-numba-<uid>`` (set as ``numba.config.CACHE_DIR``); None when
+    numba has a place (or ``$NUMBA_CACHE_DIR`` is set). Without it numba refuses to define a cached
+    kernel at all ("no locator available")."""
+    from numba.misc.appdirs import AppDirs
+
+    if numba.config.CACHE_DIR:
+        return None
+    if writable(Path(__file__).resolve().parent / "__pycache__"):
+        return None
+    if writable(Path(AppDirs(appname="numba", appauthor=False).user_cache_dir)):
+        return None
+    folder = Path(tempfile.gettempdir()) / f"grasplan-numba-{os.getuid() if hasattr(os, 'getuid') else 0}"
+    numba.config.CACHE_DIR = str(folder)
+    return folder
+
+
 def announce_compiling() -> None:
     """Have :data:`COMPILE_MESSAGE` printed at the first cold compile of a grasplan kernel (every
-    module holding kernels calls this at import; registering twice is a no-op)."""
+    module holding kernels calls this at import, before its kernels; registering twice is a no-op),
+    and give numba a cache folder when it has none (:func:`ensure_cache_dir`)."""
     if _NOTICE not in numba_event._registered["numba:compile"]:
         numba_event.register("numba:compile", _NOTICE)
+        ensure_cache_dir()
 
 
 announce_compiling()

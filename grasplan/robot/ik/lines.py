@@ -1,8 +1,9 @@
 """Straight TCP lines for a UR arm in one NumPy pass: the closed form of :mod:`grasplan.robot.ik.ur`
 evaluated for every waypoint of a line at once, on the one branch the start configuration is on.
 
-:func:`ur_line` is what :func:`grasplan.pick.motion.line_path` uses when the robot's IK family is
-``ur``: the branch (shoulder, wrist and elbow signs) is the one whose solution at the first pose
+:func:`closed_form_line` is what every straight TCP line of ``plan`` and ``pick`` runs on a UR arm
+(:func:`grasplan.motion.joint_paths.approach_path_reason`; other arms: its CLIK tracker), through
+:func:`ur_line`: the branch (shoulder, wrist and elbow signs) is the one whose solution at the first pose
 equals the start configuration (modulo 2 pi); each waypoint's joints are wrapped to the previous
 waypoint's, so the path is continuous unless the branch passes a singularity (then a joint jumps
 and the line is refused). Forward kinematics of the same DH chain (proven against Pinocchio when
@@ -14,10 +15,11 @@ import math
 
 import numpy as np
 
-from ..robot.ik.solve import get_solver
-from ..robot.ik.ur import URAnalytic
-from ..robot.ik.ur_batch import BRANCHES, fk_many, follow, solve_one
-from ..robot.model import Robot
+from .solve import get_solver
+from .ur import URAnalytic
+from .ur_batch import BRANCHES, fk_many, follow, line_deviation, solve_one
+from ..model import Robot
+from ...geometry.transforms import inv_rigid
 
 TWO_PI = 2.0 * np.pi
 #: the start configuration must match its branch's solution within this (rad)
@@ -89,3 +91,29 @@ def world_fk(robot: Robot, qs: np.ndarray) -> np.ndarray:
     if closed is not None:
         return np.asarray(robot.T_world_base, dtype=np.float64) @ fk_base_tool(closed, np.asarray(qs, dtype=np.float64))
     return robot.fk_batch(qs)
+
+
+def closed_form_line(closed: URAnalytic, robot: Robot, T_from: np.ndarray, T_to: np.ndarray, q_from: np.ndarray, *,
+                     max_dev: float, T_flange_tcp: np.ndarray, sample: float,
+                     max_joint_step: float) -> tuple[np.ndarray | None, str]:
+    """Joint waypoints (k, 6) moving the TCP straight ``T_from -> T_to`` (world, same orientation)
+    from ``q_from`` (which reaches ``T_from``), TCP waypoints every ``sample`` m, each solved
+    exactly on ``q_from``'s branch (:func:`ur_line`), the joint-linear motion between waypoints
+    held to ``max_dev`` (m) from the line: ``(path, "ok")`` or ``(None, why)``, why in ``start``,
+    ``ik``, ``limits``, ``jump``, ``deviation``."""
+    T_base = inv_rigid(np.asarray(robot.T_world_base, dtype=np.float64))
+    T_tcp_flange = inv_rigid(np.asarray(T_flange_tcp, dtype=np.float64))
+    a, b = T_from[:3, 3], T_to[:3, 3]
+    m = max(1, int(np.ceil(float(np.linalg.norm(b - a)) / sample - 1e-12)))
+    T = np.broadcast_to(np.asarray(T_from, dtype=np.float64), (m, 4, 4)).copy()
+    T[:, :3, 3] = a + (b - a) * (np.arange(1, m + 1) / m)[:, None]
+    T0 = fk_base_tool(closed, np.asarray(q_from, dtype=np.float64)[None])[0]
+    T0_want = T_base @ np.asarray(T_from, dtype=np.float64) @ T_tcp_flange
+    if np.linalg.norm(T0[:3, 3] - T0_want[:3, 3]) > 0.5 * max_dev or np.max(np.abs(T0[:3, :3] - T0_want[:3, :3])) > 1e-4:
+        return None, "start"
+    path, why = ur_line(closed, T_base @ T @ T_tcp_flange, q_from, robot.lower, robot.upper, max_joint_step)
+    if path is None:
+        return None, why
+    if line_deviation(closed.chain, path, robot.T_world_base, T_flange_tcp, a, b) > max_dev:
+        return None, "deviation"
+    return path, "ok"
