@@ -72,16 +72,17 @@ def ensure_cache_dir(writable: Callable[[Path], bool] = _writable) -> Path | Non
     writable home): ``$TMPDIR/grasplan-numba-<uid>`` (set as ``numba.config.CACHE_DIR``); None when
     numba has a place (or ``$NUMBA_CACHE_DIR`` is set). Without it numba refuses to define a cached
     kernel at all ("no locator available")."""
+    from numba.core import config  # the module numba reads CACHE_DIR from when a cached kernel is defined
     from numba.misc.appdirs import AppDirs
 
-    if numba.config.CACHE_DIR:
+    if getattr(config, "CACHE_DIR", ""):  # set at run time from $NUMBA_CACHE_DIR (no static attribute)
         return None
     if writable(Path(__file__).resolve().parent / "__pycache__"):
         return None
     if writable(Path(AppDirs(appname="numba", appauthor=False).user_cache_dir)):
         return None
     folder = Path(tempfile.gettempdir()) / f"grasplan-numba-{os.getuid() if hasattr(os, 'getuid') else 0}"
-    numba.config.CACHE_DIR = str(folder)
+    setattr(config, "CACHE_DIR", str(folder))
     return folder
 
 
