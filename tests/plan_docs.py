@@ -32,6 +32,8 @@ def kept_grasps(doc: dict) -> list[dict]:
                 g["quality"] = None if q["gravity_margin"][k] is None else {
                     "score": u["score"][k], "gravity_margin": q["gravity_margin"][k], "epsilon": q["epsilon"][k],
                     "contact": [{"area_m2": a, "type": q["types"][t]} for a, t in zip(q["area_m2"][k], q["type"][k])]}
+                if g["quality"] is not None and "hold_force_N" in q:
+                    g["quality"]["hold_force_N"] = q["hold_force_N"][k]
             out.append(g)
     return sorted(out, key=lambda g: g["id"])
 

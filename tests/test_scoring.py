@@ -105,7 +105,8 @@ def test_grasps_json_has_quality_for_ok_grasps_and_null_for_collisions(grasps_do
     assert all(x["quality"] is None and "score" not in x for x in bad)
     for x in ok:
         q = x["quality"]
-        assert set(q) == {"score", "gravity_margin", "epsilon", "contact"}
+        assert set(q) == {"score", "gravity_margin", "hold_force_N", "epsilon", "contact"}
+        assert q["hold_force_N"] > 0
         assert 0.0 <= q["score"] <= 1.0 and q["score"] == x["score"]
         assert q["gravity_margin"] > 0 and q["epsilon"] >= 0
         assert [set(c) for c in q["contact"]] == [{"area_m2", "type"}] * 2

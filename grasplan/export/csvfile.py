@@ -31,12 +31,13 @@ def header(joint_names: Iterable[str]) -> list[str]:
 
 #: grasp quality and simulation columns, after every earlier column
 QUALITY_COLS = ("gravity_margin", "epsilon", "contact0_area_m2", "contact0_type", "contact1_area_m2", "contact1_type",
-                "sim_success", "sim_slip_m", "sim_turn_deg")
+                "sim_success", "sim_slip_m", "sim_turn_deg", "hold_force_N")
 
 
-def _quality_text(t: GraspTable, ids: np.ndarray) -> list[str]:
-    """The QUALITY_COLS cells (comma-joined, no leading comma) of grasp rows ``ids``."""
-    from ..results.quality_json import CONTACT_TYPES
+def _quality_text(t: GraspTable, ids: np.ndarray, grip_force: float) -> list[str]:
+    """The QUALITY_COLS cells (comma-joined, no leading comma) of grasp rows ``ids``; ``grip_force``
+    (N): the gripper's, for ``hold_force_N``."""
+    from ..results.quality_json import CONTACT_TYPES, hold_force
 
     n = len(ids)
     gm = t.gravity_margin[ids] if t.gravity_margin is not None else np.full(n, np.nan)
@@ -54,7 +55,8 @@ def _quality_text(t: GraspTable, ids: np.ndarray) -> list[str]:
         return ["" if v < 0 else CONTACT_TYPES[v] for v in np.asarray(a).tolist()]
 
     cols = [num(gm), num(eps), num(area[:, 0]), typ(kind[:, 0]), num(area[:, 1]), typ(kind[:, 1]),
-            ["" if v < 0 else str(v) for v in np.asarray(succ).tolist()], num(slip), num(turn)]
+            ["" if v < 0 else str(v) for v in np.asarray(succ).tolist()], num(slip), num(turn),
+            num(hold_force(gm, grip_force))]
     return [",".join(c) for c in zip(*cols)]
 
 
@@ -73,7 +75,7 @@ def grasps_csv(plan: PlanResult, *, grasp_id: int | None = None) -> str:
         world_x, world_y, world_z, world_qw, world_qx, world_qy, world_qz,
         q_<joint name> ... (one column per robot joint), part_scale_to_m,
         gravity_margin, epsilon, contact0_area_m2, contact0_type, contact1_area_m2, contact1_type,
-        sim_success, sim_slip_m, sim_turn_deg
+        sim_success, sim_slip_m, sim_turn_deg, hold_force_N
 
     (the quality columns are appended after every earlier column: no column moves)
 
@@ -85,7 +87,8 @@ def grasps_csv(plan: PlanResult, *, grasp_id: int | None = None) -> str:
     - Grasp quality (docs/quality.md): ``gravity_margin`` (< 1 slips), ``epsilon`` (Ferrari-Canny),
       per jaw the contact patch area (m^2) and type (point, line, surface); empty for grasps without
       quality (collisions). ``sim_*``: the MuJoCo lift-and-shake result (``success`` 1 held / 0
-      slipped, ``slip_m`` m, ``turn_deg`` deg), empty when the grasp was not simulated.
+      slipped, ``slip_m`` m, ``turn_deg`` deg), empty when the grasp was not simulated. ``hold_force_N``:
+      the grip force (N) at which the grasp just holds (grip_force / gravity_margin), empty without quality.
     - Rows in the plan's grasp order: the grasps the plan file keeps (a compact plan: the collision-free
       ones; ``grasplan plan --keep all`` keeps every pose). Numbers have up to 9 significant digits.
     """
@@ -107,7 +110,7 @@ def grasps_csv(plan: PlanResult, *, grasp_id: int | None = None) -> str:
     status = t.status[rows].astype(str).tolist()
     width = t.width[rows].tolist()
     score = t.score[rows].tolist()
-    quality = _quality_text(t, rows)
+    quality = _quality_text(t, rows, float(plan.gripper.grip_force))
     for k, (i, p) in enumerate(zip(t.ids[rows].tolist(), poses.tolist())):
         m = plan.motions.get(i)
         qtxt = ",".join(_num(v) for v in m.q_grasp) if m is not None else empty_q

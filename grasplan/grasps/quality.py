@@ -20,7 +20,7 @@ from ..gripper.model import Gripper
 from ..part.mass import MassProperties, mass_properties
 from ..geometry.meshdata import TriangleMesh
 from .patches import contact_patches, pad_rectangle
-from ..results.quality_json import CONTACT_TYPES
+from ..results.quality_json import CONTACT_TYPES, hold_force
 from ..config.scoring import (
     DEFAULT_SCORING, PHYSICAL_TERMS, ScoringConfig, epsilon_term, gravity_margin_term, score_grasps
 )
@@ -65,6 +65,13 @@ class Quality:
 
     def __len__(self) -> int:
         return len(self.epsilon)
+
+    @property
+    def hold_force(self) -> np.ndarray:
+        """(M,) grip force (N, both jaws) at which each grasp just holds under the shared load
+        (:func:`grasplan.results.quality_json.hold_force`: ``grip_force / gravity_margin``; NaN:
+        no force holds it)."""
+        return hold_force(self.gravity_margin, self.grip_force)
 
     def to_json(self, i: int, *, score: float | None = None) -> dict:
         """The ``quality`` object of grasp ``i`` (areas m^2; ``score`` added when given)."""

@@ -21,6 +21,7 @@ from ..cell.model import Cell, load_cell
 from ..config.lookup import document_ref, is_path_like
 from ..config.params import DEFAULT_GRIPPER, DEFAULT_ROBOT, GraspParams
 from ..errors import InputError
+from ..results.quality_json import HOLD_FORCE_DECIMALS
 from ..gripper.load import load_gripper
 from ..gripper.model import Gripper
 from ..grasps.graspdb import GraspDatabase, database_for, load_database
@@ -527,6 +528,9 @@ class Picker:
         quality: dict[str, float] = {"epsilon": float(db.epsilon[r])}
         if q is not None:
             quality["gravity_margin"] = float(q.gravity_margin[0])
+            hold = float(q.hold_force[0])
+            if hold == hold:  # NaN: no force holds it (left out)
+                quality["hold_force_N"] = round(hold, HOLD_FORCE_DECIMALS)
         score = float(db.score_at(self._parts[inst.part].mesh, inst.T_world_part, rows, quality=q)[0])
         return Pick(instance=inst.id, part=inst.part, T_world_part=np.array(inst.T_world_part),
                     T_part_tcp=db.T_part_tcp[r].copy(), contacts=db.contacts[r].copy(), normals=db.normals[r].copy(),

@@ -23,7 +23,7 @@ import numpy as np
 from ..errors import InputError
 from ..status import Status
 from .grasp_table import GraspTable
-from .quality_json import CONTACT_TYPES
+from .quality_json import CONTACT_TYPES, HOLD_FORCE_DECIMALS, hold_force
 
 KEEP_COLLISION_FREE = "collision_free"
 KEEP_ALL = "all"
@@ -147,8 +147,9 @@ def _nullable(a: np.ndarray, null: np.ndarray, decimals: int | None = None) -> l
     return vals
 
 
-def untried_json(table: GraspTable, rows: np.ndarray) -> dict[str, Any]:
-    """The ``untried`` block: ``rows`` of ``table`` in column form (module docstring)."""
+def untried_json(table: GraspTable, rows: np.ndarray, grip_force: float) -> dict[str, Any]:
+    """The ``untried`` block: ``rows`` of ``table`` in column form (module docstring);
+    ``grip_force`` (N) gives each grasp's ``hold_force_N``."""
     r = np.asarray(rows, dtype=np.int64)
     T0 = table.T_part_tcp[r] @ _rx(-table.roll[r]) if len(r) else np.zeros((0, 4, 4))
     key = np.concatenate([table.candidate[r, None].astype(np.float64), table.region[r, None].astype(np.float64),
@@ -177,7 +178,10 @@ def untried_json(table: GraspTable, rows: np.ndarray) -> dict[str, Any]:
     gm, eps, area, kind = table.gravity_margin, table.epsilon, table.contact_area, table.contact_type
     if gm is not None and eps is not None and area is not None and kind is not None:
         none = ~np.isfinite(gm[r])
-        out["quality"] = {"gravity_margin": _nullable(gm[r], none), "epsilon": _nullable(eps[r], none),
+        hold = hold_force(gm[r], grip_force)
+        out["quality"] = {"gravity_margin": _nullable(gm[r], none),
+                          "hold_force_N": _nullable(hold, np.isnan(hold), HOLD_FORCE_DECIMALS),
+                          "epsilon": _nullable(eps[r], none),
                           "area_m2": _nullable(area[r], none, AREA_DECIMALS),
                           "type": _nullable(kind[r].astype(np.int64), none), "types": list(CONTACT_TYPES)}
     return out
@@ -269,7 +273,7 @@ def untried_from_json(doc: Any, where: str) -> GraspTable:
 
 def _quality(q: Any, n: int, where: str) -> dict[str, np.ndarray]:
     keys = {"gravity_margin", "epsilon", "area_m2", "type", "types"}
-    if not isinstance(q, dict) or set(q) != keys or q.get("types") != list(CONTACT_TYPES):
+    if not isinstance(q, dict) or not keys <= set(q) <= keys | {"hold_force_N"} or q.get("types") != list(CONTACT_TYPES):
         raise InputError(f"{where}: $.untried.quality malformed; expected {{{', '.join(sorted(keys))}}} with "
                          f"types {list(CONTACT_TYPES)}")
     w = where + " quality"
@@ -280,10 +284,11 @@ def _quality(q: Any, n: int, where: str) -> dict[str, np.ndarray]:
     none = np.isnan(gm)
     if np.any(np.isnan(eps) != none) or np.any(np.isnan(area[:, 0]) != none) or np.any(np.isnan(kind[:, 0]) != none):
         raise InputError(f"{where}: $.untried.quality: a grasp has some quality columns null and others not")
-    bad = (gm[~none] < 0).any() or (eps[~none] < 0).any() or (area[~none] < 0).any() \
+    hold = _column(q, "hold_force_N", (), w, null=True, n=n) if "hold_force_N" in q else np.zeros(n)
+    bad = (gm[~none] < 0).any() or (eps[~none] < 0).any() or (area[~none] < 0).any() or (hold[~np.isnan(hold)] < 0).any() \
         or (kind[~none] < 0).any() or (kind[~none] >= len(CONTACT_TYPES)).any() or (kind[~none] != np.round(kind[~none])).any()
     if bad:
-        raise InputError(f"{where}: $.untried.quality: gravity_margin, epsilon and area_m2 must be >= 0 and type an "
-                         f"index into types")
+        raise InputError(f"{where}: $.untried.quality: gravity_margin, hold_force_N, epsilon and area_m2 must be >= 0 "
+                         f"and type an index into types")
     return {"gravity_margin": gm, "epsilon": eps, "contact_area": area,
             "contact_type": np.where(np.isnan(kind), -1, kind).astype(np.int8)}

@@ -18,12 +18,25 @@ if TYPE_CHECKING:
 
 #: contact type codes (``Quality.contact_type``, ``GraspTable.contact_type``): the JSON names they index
 CONTACT_TYPES = ("point", "line", "surface")
+#: decimals of ``hold_force_N`` in files (0.01 N)
+HOLD_FORCE_DECIMALS = 2
 
 
-def quality_field(table: GraspTable, score: Numbers) -> Field | None:
+def hold_force(gravity_margin: np.ndarray, grip_force: float) -> np.ndarray:
+    """(M,) the grip force (N, both jaws) at which each grasp is predicted to just hold under the
+    shared lift-and-shake load: ``grip_force / gravity_margin``, exact because the margin is
+    homogeneous in the normal force (:func:`grasplan.grasps.wrench.gravity_margin`); NaN where the
+    margin is not positive (no force holds it) or unknown."""
+    gm = np.asarray(gravity_margin, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(np.isfinite(gm) & (gm > 0), float(grip_force) / np.where(gm > 0, gm, 1.0), np.nan)
+
+
+def quality_field(table: GraspTable, score: Numbers, grip_force: float) -> Field | None:
     """The ``quality`` field of each grasp, None when the table has no quality columns:
-    ``{score, gravity_margin, epsilon, contact: [{area_m2, type}] * 2}`` (``score``: the grasp's
-    score column), ``null`` for grasps without quality (gravity margin not finite)."""
+    ``{score, gravity_margin, hold_force_N, epsilon, contact: [{area_m2, type}] * 2}`` (``score``:
+    the grasp's score column; ``hold_force_N``: :func:`hold_force` at the gripper's ``grip_force``,
+    null when no force holds it), ``null`` for grasps without quality (gravity margin not finite)."""
     gm, eps, area, kind = table.gravity_margin, table.epsilon, table.contact_area, table.contact_type
     if gm is None:
         return None
@@ -33,7 +46,10 @@ def quality_field(table: GraspTable, score: Numbers) -> Field | None:
     def jaw(j: int) -> Record:
         return Record((Field("area_m2", Numbers(area[:, j], decimals=12)), Field("type", Names(kind[:, j], CONTACT_TYPES))))
 
+    hold = hold_force(gm, grip_force)
     return Field("quality", Record((Field("score", score), Field("gravity_margin", Numbers(gm)),
+                                    Field("hold_force_N", Numbers(hold, decimals=HOLD_FORCE_DECIMALS,
+                                                                  null=lambda rows: np.isnan(hold[rows]))),
                                     Field("epsilon", Numbers(eps)), Field("contact", Items((jaw(0), jaw(1))))),
                                    null=lambda rows: ~np.isfinite(gm[rows])))
 
@@ -73,14 +89,17 @@ def parse_quality_sim(grasps: list[Any], where: str) -> dict[str, np.ndarray]:
                 con = q["contact"]
                 area = [float(c["area_m2"]) for c in con]
                 kind = [CONTACT_TYPES.index(c["type"]) for c in con]
+                hold = q.get("hold_force_N")  # derived (grip_force / gravity_margin): checked, not read
                 ok = (len(con) == 2 and math.isfinite(gm) and gm >= 0 and math.isfinite(eps) and eps >= 0
                       and all(math.isfinite(a) and a >= 0 for a in area)
-                      and not any(isinstance(v, bool) for v in (q["gravity_margin"], q["epsilon"])))
+                      and not any(isinstance(v, bool) for v in (q["gravity_margin"], q["epsilon"], hold))
+                      and (hold is None or (math.isfinite(float(hold)) and float(hold) >= 0)))
             except (KeyError, TypeError, ValueError, OverflowError, AttributeError):
                 ok = False
             if not ok:
                 raise _bad(where, i, grasps[i], "'quality' malformed; expected {score, gravity_margin >= 0, "
-                           "epsilon >= 0, contact: [{area_m2 >= 0, type: point|line|surface}] x 2} or null")
+                           "hold_force_N >= 0 or null, epsilon >= 0, contact: [{area_m2 >= 0, type: "
+                           "point|line|surface}] x 2} or null")
             cols["gravity_margin"][i], cols["epsilon"][i] = gm, eps
             cols["contact_area"][i], cols["contact_type"][i] = area, kind
         out.update(cols)

@@ -48,13 +48,17 @@ class WritableResult(Protocol):
     @property
     def rejected(self) -> RejectedCounts | None: ...
 
+    @property
+    def gripper(self) -> Any: ...  #: a grasplan.gripper.model.Gripper (its grip_force, N)
+
     def document_head(self, only_ok: bool = False) -> tuple[dict[str, Any], np.ndarray]: ...
 
 
-def grasp_record(table: GraspTable, motions: Mapping[int, Motion] | None) -> Record:
+def grasp_record(table: GraspTable, motions: Mapping[int, Motion] | None, grip_force: float) -> Record:
     """The JSON object of each grasp (row) of ``table``, in the file's key order; ``motions`` (grasp id
     -> Motion) given: a plan's grasp (score always, rank, reason, the motion's keys when planned),
-    None: a grasps file's (score only where there is one)."""
+    None: a grasps file's (score only where there is one); ``grip_force`` (N): the gripper's, for
+    each grasp's ``hold_force_N``."""
     plan = motions is not None
     score = Numbers(table.score, null=lambda rows: np.isnan(table.score[rows]))
     fields = [
@@ -70,7 +74,7 @@ def grasp_record(table: GraspTable, motions: Mapping[int, Motion] | None) -> Rec
         Field("status", Strings(table.status, as_str=True)),
         Field("score", score, present=None if plan else lambda rows: ~np.isnan(table.score[rows])),
     ]
-    fields += [f for f in (quality_field(table, score), sim_field(table)) if f is not None]
+    fields += [f for f in (quality_field(table, score, grip_force), sim_field(table)) if f is not None]
     if motions is not None:
         spread = Spread({int(table.index_of(int(i))): m for i, m in motions.items()})  # type: ignore[arg-type]
         fields += [Field("rank", Numbers(table.rank, null=lambda rows: table.rank[rows] < 0)),
@@ -80,7 +84,7 @@ def grasp_record(table: GraspTable, motions: Mapping[int, Motion] | None) -> Rec
 
 
 def _record(res: WritableResult) -> Record:
-    return grasp_record(res.grasps, res.motions if res.schema == PLAN_SCHEMA else None)
+    return grasp_record(res.grasps, res.motions if res.schema == PLAN_SCHEMA else None, float(res.gripper.grip_force))
 
 
 def grasp_entries(res: WritableResult, rows: Any) -> list[dict[str, Any]]:
@@ -106,7 +110,8 @@ def document_parts(res: WritableResult, *, only_ok: bool = False,
     rejected = RejectedCounts.of_rows(res.grasps, split.rejected)
     if res.rejected is not None:
         rejected = res.rejected.merged(rejected)
-    return head, split.grasps, {"untried": untried_json(res.grasps, split.untried), "rejected": rejected.to_json()}
+    untried = untried_json(res.grasps, split.untried, float(res.gripper.grip_force))
+    return head, split.grasps, {"untried": untried, "rejected": rejected.to_json()}
 
 
 def document(res: WritableResult, *, only_ok: bool = False, keep: str = DEFAULT_KEEP) -> dict[str, Any]:

@@ -1,0 +1,91 @@
+"""``hold_force_N``, the grip force at which a grasp just holds (grip_force / gravity_margin): checked
+on every collision-free grasp of the bracket by recomputing the margin at that force (the wrench
+model itself, not the division), and carried alike by plan files (both forms), the CSV export and
+picks files."""
+from __future__ import annotations
+
+import csv
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from grasplan.config.params import PlanParams
+from grasplan.results.quality_json import hold_force
+
+BRACKET = Path(__file__).resolve().parents[1] / "examples" / "parts" / "bracket.stl"
+
+
+@pytest.fixture(scope="module")
+def grasps():
+    from grasplan.grasps.pipeline import compute_grasps
+    from grasplan.part.mesh import load_part
+
+    return compute_grasps(load_part(BRACKET, units="mm"))
+
+
+def test_the_margin_at_the_hold_force_is_one_on_every_grasp(grasps):
+    from grasplan.grasps.wrench import CONTACTS_PER_GRIP, gravity_margin, pressure_widths
+
+    q = grasps.quality
+    ok = np.flatnonzero(np.asarray(grasps.status).astype(str) == "ok")
+    assert q is not None and len(ok) == len(q) > 100
+    hold = q.hold_force
+    assert np.all(np.isfinite(hold)) and np.all(hold > 0)
+    T = grasps.table().T_part_tcp[ok]
+    width = grasps.table().width[ok]
+
+    def margin_at(rows: np.ndarray, force: np.ndarray) -> np.ndarray:  # grasp rows[k] pressed with force[k]
+        return np.array([gravity_margin(grasps.mass_props, grasps.T_world_part, T[r:r + 1], width[r:r + 1],
+                                        q.contact_area[r:r + 1], mu=q.mu, normal_force=f / CONTACTS_PER_GRIP,
+                                        patch_width=pressure_widths(q.contact_type[r:r + 1], q.contact_width[r:r + 1]))[0]
+                         for r, f in zip(rows.tolist(), force.tolist())])
+
+    pick = np.unique(np.linspace(0, len(ok) - 1, 200).astype(int))  # 200 spread over the grasps, margins recomputed
+    np.testing.assert_allclose(margin_at(pick, hold[pick]), 1.0, rtol=1e-6)
+    assert np.all(margin_at(pick, 0.99 * hold[pick]) < 1.0) and np.all(margin_at(pick, 1.01 * hold[pick]) > 1.0)
+    # and the formula on every grasp: the margin is proportional to the force
+    np.testing.assert_allclose(hold * q.gravity_margin, q.grip_force, rtol=1e-12)
+
+
+def test_no_force_holds_a_grasp_without_margin():
+    assert np.isnan(hold_force(np.array([0.0, np.nan]), 140.0)).all()
+    assert hold_force(np.array([2.0]), 140.0).tolist() == [70.0]
+
+
+@pytest.mark.parametrize("keep", ["collision_free", "all"])
+def test_plan_files_and_csv_carry_it(tmp_path, keep):
+    from grasplan import plan
+    from grasplan.part.mesh import load_part
+    from grasplan.results.reader import load_result
+    from plan_docs import kept_grasps
+
+    res = plan(load_part(BRACKET, units="mm"), "ur5", planning=PlanParams(top=2))
+    out = res.write(tmp_path / "p.json", keep=keep)
+    doc = json.loads(out.read_text())
+    F = float(res.gripper.grip_force)
+    rows = [g for g in kept_grasps(doc) if g.get("quality")]
+    assert rows
+    for g in rows:
+        q = g["quality"]
+        assert q["hold_force_N"] == pytest.approx(F / q["gravity_margin"], abs=0.005 + 1e-9)
+    text = load_result(out).export("csv", tmp_path / "p.csv").read_text()
+    by_id = {int(r["id"]): r for r in csv.DictReader(io.StringIO(text))}
+    for g in rows:
+        assert float(by_id[g["id"]]["hold_force_N"]) == pytest.approx(F / g["quality"]["gravity_margin"], rel=1e-8)
+
+
+def test_picks_carry_it(tmp_path):
+    from grasplan.pick import Picker
+
+    scene = Path(__file__).resolve().parents[1] / "examples" / "scenes" / "pile.json"
+    result = Picker().plan(scene, max_picks=2)
+    picks = json.loads(result.to_json_text())["picks"]
+    assert picks
+    assert result.gripper is not None
+    force = float(result.gripper.grip_force)
+    for p in picks:
+        q = p["quality"]
+        assert q["hold_force_N"] == pytest.approx(force / q["gravity_margin"], abs=0.005 + 1e-9)
