@@ -89,3 +89,34 @@ def test_picks_carry_it(tmp_path):
     for p in picks:
         q = p["quality"]
         assert q["hold_force_N"] == pytest.approx(force / q["gravity_margin"], abs=0.005 + 1e-9)
+
+
+def test_pose_plans_give_the_least_hold_force_per_pose(tmp_path):
+    from grasplan.motion.planning import plan_poses
+    from grasplan.part.mesh import load_part
+    from grasplan.results.pose_plans import write_pose_plans
+    from plan_docs import kept_grasps
+
+    runs = plan_poses(load_part(BRACKET, units="mm"), "ur5", planning=PlanParams(top=1))
+    done = write_pose_plans(runs, tmp_path / "out.json", min_probability=0.02)
+    assert len(done.poses) >= 2
+    for p in done.poses:
+        doc = json.loads((tmp_path / p["file"]).read_text())
+        holds = [g["quality"]["hold_force_N"] for g in kept_grasps(doc) if g.get("quality")
+                 and g["quality"]["hold_force_N"] is not None]
+        assert p["hold_force_N"] == min(holds)  # the pose file's own grasps, read independently
+    assert all(len(r) == 6 for r in done.table_rows())
+
+
+def test_hold_note_names_the_poses_that_hold():
+    from grasplan.results.pose_plans import PosePlans
+
+    poses = ({"pose_index": 0, "probability": 0.5, "hold_force_N": 150.0, "file": "o.pose0.json"},
+             {"pose_index": 1, "probability": 0.3, "hold_force_N": 90.0, "file": "o.pose1.json"},
+             {"pose_index": 2, "probability": 0.2, "hold_force_N": None, "file": "o.pose2.json"})
+    done = PosePlans(chosen=0, result=None, planned=3, poses=poses)
+    note = done.hold_note(140.0)
+    assert "pose 0" in note and "150.0 N" in note and "pose 1 (30.0 %) holds from 90.0 N (o.pose1.json)" in note
+    assert "pose 2" not in note
+    assert done.hold_note(150.0) == ""  # the chosen pose holds
+    assert done.hold_note(80.0) == ""  # no pose holds: nothing better to name

@@ -150,11 +150,15 @@ def _plan_all_poses(p: Part, part: str, rob: Robot, g: Gripper, c: Cell, T_world
     runs = plan_poses(p, rob, gripper=g, cell=c, candidates=prm.candidates, grasps=prm.grasps, planning=prm.planning,
                       T_world_part=T_world_part)
     done = write_pose_plans(runs, output, min_probability=MIN_POSE_PROBABILITY, keep=keep)
-    click.echo(table(done.table_rows(), header=("pose", "probability", "planned", "collision-free", "file")), err=True)
+    click.echo(table(done.table_rows(), header=("pose", "probability", "planned", "collision-free", "holds from N",
+                                                "file")), err=True)
     if done.result is None:
         raise done.error(str(part))
     click.echo(f"{part}: {len(done.poses)} resting poses planned; wrote {output} (pose {done.chosen}, {done.planned} "
                f"planned) and one file per pose; total {time.perf_counter() - t0:.1f} s")
+    note = done.hold_note(float(g.grip_force))
+    if note:
+        warn_all([note])
     if done.planned == 0:
         raise PlanningError(f"no grasp could be planned for {part} in any resting pose of probability >= "
                             f"{MIN_POSE_PROBABILITY * 100:g} %; the files list every grasp's status and reason")

@@ -17,6 +17,7 @@ import numpy as np
 from ..errors import PlanningError
 from ..status import Status
 from .compact import DEFAULT_KEEP
+from .quality_json import HOLD_FORCE_DECIMALS, hold_force
 
 if TYPE_CHECKING:
     from .plan_result import PlanResult
@@ -58,10 +59,38 @@ class PosePlans:
                              + "; ".join(f"pose {b['pose_index']}: {b.get('error', '')}" for b in self.poses))
 
     def table_rows(self) -> list[tuple[Any, ...]]:
-        """``(pose, probability, planned, collision-free, file or error)`` per pose, for a table."""
-        return [(p["pose_index"], f"{p['probability'] * 100:.1f} %", "-", "-", p["error"][:60]) if p["file"] is None
-                else (p["pose_index"], f"{p['probability'] * 100:.1f} %", p["planned"], p["collision_free"], p["file"])
+        """``(pose, probability, planned, collision-free, holds from N, file or error)`` per pose, for
+        a table."""
+        return [(p["pose_index"], f"{p['probability'] * 100:.1f} %", "-", "-", "-", p["error"][:60]) if p["file"] is None
+                else (p["pose_index"], f"{p['probability'] * 100:.1f} %", p["planned"], p["collision_free"],
+                      "-" if p["hold_force_N"] is None else f"{p['hold_force_N']:.1f}", p["file"])
                 for p in self.poses]
+
+    def hold_note(self, grip_force: float) -> str:
+        """A line when the chosen pose has no grasp predicted to hold at ``grip_force`` (N) and
+        another pose has ("" otherwise): which poses, from which force."""
+        chosen = next((p for p in self.poses if p["pose_index"] == self.chosen), None)
+        if chosen is None or chosen["hold_force_N"] is None or chosen["hold_force_N"] <= grip_force:
+            return ""
+        better = [p for p in self.poses if p["hold_force_N"] is not None and p["hold_force_N"] <= grip_force]
+        if not better:
+            return ""
+        return (f"no grasp of pose {self.chosen} is predicted to hold at {grip_force:g} N (it needs "
+                f"{chosen['hold_force_N']:.1f} N); " + ", ".join(
+                    f"pose {p['pose_index']} ({p['probability'] * 100:.1f} %) holds from {p['hold_force_N']:.1f} N "
+                    f"({p['file']})" for p in better))
+
+
+def _min_hold_force(res: PlanResult) -> float | None:
+    """The least grip force (N) at which a collision-free grasp of ``res`` is predicted to hold
+    (:func:`grasplan.results.quality_json.hold_force`), None when none would."""
+    gm = res.grasps.gravity_margin
+    if gm is None:
+        return None
+    free = ~np.isin(res.grasps.status.astype(str), _COLLISIONS)
+    hold = hold_force(gm[free], float(res.gripper.grip_force))
+    hold = hold[np.isfinite(hold)]
+    return round(float(hold.min()), HOLD_FORCE_DECIMALS) if len(hold) else None
 
 
 def pose_file(output: Path, k: int) -> Path:
@@ -79,15 +108,16 @@ def write_pose_plans(runs: Sequence[PosePlan], output: str | os.PathLike, *, min
     for run in runs:
         k, pr, res = run.index, run.probability, run.result
         if res is None:
-            block.append({"pose_index": k, "probability": pr, "planned": 0, "collision_free": 0, "file": None,
-                          "error": run.error})
+            block.append({"pose_index": k, "probability": pr, "planned": 0, "collision_free": 0,
+                          "hold_force_N": None, "file": None, "error": run.error})
             continue
         f = pose_file(output, k)
         res.write(f, keep=keep)
         n = res.counts()
         cf = int(np.count_nonzero(~np.isin(res.grasps.status.astype(str), _COLLISIONS)))
         block.append({"pose_index": k, "probability": pr, "planned": int(n[Status.PLANNED.value]),
-                      "collision_free": cf, "file": f.name, "T_world_part": np.asarray(res.T_world_part).tolist()})
+                      "collision_free": cf, "hold_force_N": _min_hold_force(res), "file": f.name,
+                      "T_world_part": np.asarray(res.T_world_part).tolist()})
         if best is None or n[Status.PLANNED.value] > best[1]:
             best = (k, n[Status.PLANNED.value], res)
     if best is None:
