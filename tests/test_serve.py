@@ -174,9 +174,19 @@ def test_planner_processes(tmp_path):
         assert any("queued" in d["detail"] for _, d in got) and any("waited" in d["detail"] for _, d in got)
         until_replaced(stuck)
         busy: dict[str, tuple[int, dict]] = {}
-        slow = threading.Thread(target=lambda: busy.__setitem__("r", ask({"part": "box", "options": {"spacing": "0.3mm"}})))
+
+        def cpu_s(pid: int) -> float:  # user + system CPU seconds of a planner
+            fields = open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()
+            return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+        before = {pid: cpu_s(pid) for pid in pool.pids()}
+        # a plan of ~1.5 s in a planner (fine spacing, 1 deg rolls), killed once a planner works on it
+        slow = threading.Thread(target=lambda: busy.__setitem__(
+            "r", ask({"part": "box", "options": {"spacing": "0.2mm", "roll_step": 1}})))
         slow.start()
-        time.sleep(1.0)
+        t_end = time.monotonic() + 30.0
+        while time.monotonic() < t_end and not any(cpu_s(pid) > c + 0.1 for pid, c in before.items()):
+            time.sleep(0.02)
         killed = pool.pids()
         for pid in killed:  # killed while planning (a crash, the OOM killer)
             os.kill(pid, signal.SIGKILL)
