@@ -6,6 +6,7 @@ import json
 import math
 import shutil
 from pathlib import Path
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -23,6 +24,22 @@ def parts_folder(dest: Path, names: tuple[str, ...] = ("box", "bracket", "gear")
     for n in names:
         shutil.copy(EXAMPLE_PARTS / f"{n}.stl", dest / f"{n}.stl")
     return dest
+
+
+def picking_service(tmp_path_factory, tag: str, names: tuple[str, ...] = ("box", "bracket")) -> Iterator[Any]:
+    """A module fixture's body: a picking :class:`grasplan.serve.state.Service` of the example parts
+    ``names``, its grasp databases in a cache folder of its own (``GRASPLAN_CACHE_DIR``, restored after)."""
+    import pytest
+
+    from grasplan.serve.config import ServeConfig
+    from grasplan.serve.state import Service
+
+    mp = pytest.MonkeyPatch()
+    mp.setenv("GRASPLAN_CACHE_DIR", str(tmp_path_factory.mktemp(f"{tag}_cache")))
+    try:
+        yield Service.start(ServeConfig(parts_dir=parts_folder(tmp_path_factory.mktemp(f"{tag}_parts"), names)))
+    finally:
+        mp.undo()
 
 
 class GridScenes:

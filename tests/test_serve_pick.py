@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +26,7 @@ from serve_support import (  # noqa: E402
     malformed_requests,
     parts_folder,
     percentile_ms,
+    picking_service,
     run_load,
 )
 
@@ -34,14 +36,8 @@ LOAD_CLIENTS = 4
 
 
 @pytest.fixture(scope="module")
-def service(tmp_path_factory) -> Service:
-    mp = pytest.MonkeyPatch()
-    mp.setenv("GRASPLAN_CACHE_DIR", str(tmp_path_factory.mktemp("serve_cache")))
-    try:
-        folder = parts_folder(tmp_path_factory.mktemp("serve_pick_parts"), ("box", "bracket"))
-        yield Service.start(ServeConfig(parts_dir=folder))
-    finally:
-        mp.undo()
+def service(tmp_path_factory) -> Iterator[Service]:
+    yield from picking_service(tmp_path_factory, "serve_pick")
 
 
 @pytest.fixture(scope="module")

@@ -5,6 +5,8 @@ a part's material lighter than the service's databases is ranked with them (a wa
 heavier one is a 422."""
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import pytest
 
 pytest.importorskip("fastapi")
@@ -14,18 +16,12 @@ pytest.importorskip("grasplan.pick")
 from grasplan.serve import ServeConfig, create_app  # noqa: E402
 from grasplan.serve.loopback import Client, LoopbackServer  # noqa: E402
 from grasplan.serve.state import Service  # noqa: E402
-from serve_support import TOKEN, GridScenes, parts_folder  # noqa: E402
+from serve_support import TOKEN, GridScenes, picking_service  # noqa: E402
 
 
 @pytest.fixture(scope="module")
-def service(tmp_path_factory) -> Service:
-    mp = pytest.MonkeyPatch()
-    mp.setenv("GRASPLAN_CACHE_DIR", str(tmp_path_factory.mktemp("serve_sha_cache")))
-    try:
-        folder = parts_folder(tmp_path_factory.mktemp("serve_sha_parts"), ("box", "bracket"))
-        yield Service.start(ServeConfig(parts_dir=folder))
-    finally:
-        mp.undo()
+def service(tmp_path_factory) -> Iterator[Service]:
+    yield from picking_service(tmp_path_factory, "serve_sha")
 
 
 @pytest.fixture(scope="module")

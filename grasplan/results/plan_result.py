@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 from ..errors import InputError
-from .compact import DEFAULT_KEEP, RejectedCounts
+from .compact import DEFAULT_KEEP, REJECTED, RejectedCounts
 from .export_registry import write_export
 from .grasp_table import GraspTable
 from ..part.mesh import load_recorded_part
@@ -246,9 +246,7 @@ class PlanResult:
             counts.update({s: int(np.count_nonzero(st == s)) for s in GRASP_STATUSES})
         else:
             counts.pop(Status.OK.value, None)
-            counts["collision_free"] = int(np.count_nonzero((st != Status.COLLISION_PART.value)
-                                                            & (st != Status.COLLISION_TABLE.value)
-                                                            & (st != Status.COLLISION_OBSTACLE.value)))
+            counts["collision_free"] = int(np.count_nonzero(~np.isin(st, REJECTED)))
             c = self.counts()
             c.pop("grasps")
             counts.update(c)

@@ -16,14 +16,12 @@ import numpy as np
 
 from ..errors import PlanningError
 from ..status import Status
-from .compact import DEFAULT_KEEP
+from .compact import DEFAULT_KEEP, REJECTED
 from .quality_json import HOLD_FORCE_DECIMALS, hold_force
 
 if TYPE_CHECKING:
     from .plan_result import PlanResult
 
-#: statuses of a pose the gripper cannot take (the rest are collision-free)
-_COLLISIONS = (Status.COLLISION_PART.value, Status.COLLISION_TABLE.value, Status.COLLISION_OBSTACLE.value)
 
 
 @dataclass(frozen=True)
@@ -87,7 +85,7 @@ def _min_hold_force(res: PlanResult) -> float | None:
     gm = res.grasps.gravity_margin
     if gm is None:
         return None
-    free = ~np.isin(res.grasps.status.astype(str), _COLLISIONS)
+    free = ~np.isin(res.grasps.status.astype(str), REJECTED)
     hold = hold_force(gm[free], float(res.gripper.grip_force))
     hold = hold[np.isfinite(hold)]
     return round(float(hold.min()), HOLD_FORCE_DECIMALS) if len(hold) else None
@@ -114,7 +112,7 @@ def write_pose_plans(runs: Sequence[PosePlan], output: str | os.PathLike, *, min
         f = pose_file(output, k)
         res.write(f, keep=keep)
         n = res.counts()
-        cf = int(np.count_nonzero(~np.isin(res.grasps.status.astype(str), _COLLISIONS)))
+        cf = int(np.count_nonzero(~np.isin(res.grasps.status.astype(str), REJECTED)))
         block.append({"pose_index": k, "probability": pr, "planned": int(n[Status.PLANNED.value]),
                       "collision_free": cf, "hold_force_N": _min_hold_force(res), "file": f.name,
                       "T_world_part": np.asarray(res.T_world_part).tolist()})
