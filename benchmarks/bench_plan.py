@@ -4,15 +4,17 @@
     .venv/bin/python benchmarks/bench_plan.py [--parts TLess20.stl,SileanePepper.stl,IPAGearShaft.stl]
                                               [--runs 3] [--queries 30]
 
-1. ``plan(part, "ur5")`` with the defaults, each run in a fresh process (so the first-use costs a
-   process pays - imports, the robot model - are in it and RSS is per run): medians over
-   ``--runs`` of the seconds per stage (``PlanResult.timing_s``), of ``plan()`` as a whole, of a
-   second ``plan()`` in the same process (what a long-lived caller such as ``grasplan batch``
-   pays; target < 150 ms) and of the imports, the robot stages per planned grasp (target <= 2 ms),
-   the planned count and the peak RSS.
-2. ``grasplan plan PART --robot ur5 -o OUT`` as a new user runs it: median wall time over
-   ``--runs`` and its peak RSS (``wait4`` of that process). Target: < 1 s median on TLess20,
-   SileanePepper and IPAGearShaft with >= 20 planned each.
+1. ``plan(part, "ur5")`` with the defaults, each run in a fresh process with an empty cache
+   folder (so the first-use costs a process pays - imports, the robot model - are in it and RSS
+   is per run): medians over ``--runs`` of the seconds per stage (``PlanResult.timing_s``) and of
+   ``plan()`` as a whole, the first time (database miss: it computes the part's grasp database)
+   and a second time in the same process (hit: it reads it; what a long-lived caller such as
+   ``grasplan batch`` pays; target < 150 ms), of the imports, the robot stages per planned grasp
+   (target <= 2 ms), the planned count and the peak RSS.
+2. ``grasplan plan PART --robot ur5 -o OUT`` as a new user runs it (bytecode cached, as installed):
+   median wall time over ``--runs`` with an empty cache folder (target < 2 s) and again with the
+   database it left (target < 1 s), on TLess20, SileanePepper and IPAGearShaft with >= 20
+   planned each, and the peak RSS.
 3. RRTConnect: the UR5 in the table cell with TLess20 (or the example bracket) at its stable pose;
    goals are collision-free IK solutions of random reachable TCP poses above the table and random
    collision-free configurations; ``plan_joint_path(q_home -> goal)`` per query (``--queries 0``
@@ -39,17 +41,18 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from fresh import run_cli  # noqa: E402
+from fresh import bytecode_env, run_cli  # noqa: E402
 
 PAPER = Path(os.environ.get("GRASPLAN_PAPER_PARTS", ROOT.parent / "shared" / "parts" / "paper"))
-TARGET_CLI_S = 1.0  #: whole ``grasplan plan --robot ur5`` median (with a cached grasp database: < 1 s)
+TARGET_CLI_S = 1.0  #: whole ``grasplan plan --robot ur5`` median with the part's grasp database cached
+TARGET_CLI_MISS_S = 2.0  #: and on the first plan of the part (computes the database)
 TARGET_WARM_S = 0.150  #: a second ``plan()`` of the same part in one process
 TARGET_PER_GRASP_MS = 2.0  #: the robot stages (IK, approach, joint path, lift) per planned grasp
 ROBOT_STAGES = ("ik", "approach", "joint_path", "lift")
 MIN_PLANNED = 20
 #: stages of PlanResult.timing_s shown (the grasp stage's, then the robot's)
-STAGES = ("load", "blm", "convexity", "antipodal", "stable_pose", "frames", "collision", "quality", "robot", "ik",
-          "approach", "joint_path", "lift", "plan")
+STAGES = ("load", "blm", "convexity", "antipodal", "frames", "collision", "quality", "database", "stable_pose",
+          "place_collision", "place_quality", "robot", "ik", "approach", "joint_path", "lift", "plan")
 
 
 def _table(rows, header):
@@ -70,16 +73,17 @@ t = time.perf_counter()
 part = load_part(path)
 t_load = time.perf_counter() - t
 t = time.perf_counter()
-res = plan(part, "ur5")
+res = plan(part, "ur5")  # a fresh cache folder: computes the grasp database
 t_plan = time.perf_counter() - t
 t = time.perf_counter()
-res2 = plan(part, "ur5")
+res2 = plan(part, "ur5")  # reads it
 t_plan2 = time.perf_counter() - t
-st = res.grasps.status.astype(str)
-timing = dict(res.timing_s)
-timing["load"] = t_load
-print(json.dumps({"import": t_import, "plan": t_plan, "plan_again": t_plan2, "timing": timing,
-                  "planned": int((st == "planned").sum()), "poses": int(len(st)),
+st = res2.grasps.status.astype(str)
+timing, timing2 = dict(res.timing_s), dict(res2.timing_s)
+timing["load"] = timing2["load"] = t_load
+print(json.dumps({"import": t_import, "plan": t_plan, "plan_again": t_plan2, "timing": timing, "timing2": timing2,
+                  "planned": int((st == "planned").sum()), "poses": int(res2.counts()["grasps"]),
+                  "same": res.planned_ids() == res2.planned_ids(),
                   "rss_mib": float([ln.split()[1] for ln in open("/proc/self/status")
                                     if ln.startswith("VmHWM:")][0]) / 1024}))
 """
@@ -90,8 +94,9 @@ def bench_inprocess(parts: list[Path], runs: int) -> list[tuple]:
     for path in parts:
         out = []
         for _ in range(runs):
-            p = subprocess.run([sys.executable, "-c", _WORKER, str(path)], capture_output=True, text=True, cwd=ROOT,
-                               check=False)
+            with tempfile.TemporaryDirectory() as cache:
+                p = subprocess.run([sys.executable, "-c", _WORKER, str(path)], capture_output=True, text=True,
+                                   cwd=ROOT, check=False, env={**os.environ, "GRASPLAN_CACHE_DIR": cache})
             if p.returncode:
                 print(f"  {path.name}: worker failed: {p.stderr.strip().splitlines()[-1:]}", file=sys.stderr)
                 break
@@ -99,50 +104,62 @@ def bench_inprocess(parts: list[Path], runs: int) -> list[tuple]:
         if not out:
             continue
         med = {k: statistics.median(o[k] for o in out) for k in ("import", "plan", "plan_again", "rss_mib")}
-        st = {k: statistics.median(float(o["timing"].get(k, 0.0)) for o in out) for k in STAGES}
-        per_grasp = 1e3 * sum(st[k] for k in ROBOT_STAGES) / max(1, out[0]["planned"])
+        for key, label in (("timing", "miss"), ("timing2", "hit")):
+            st = {k: statistics.median(float(o[key].get(k, 0.0)) for o in out) for k in STAGES}
+            stage_rows.append((path.name, label, *[st[k] for k in STAGES]))
+        st2 = {k: statistics.median(float(o["timing2"].get(k, 0.0)) for o in out) for k in ROBOT_STAGES}
+        per_grasp = 1e3 * sum(st2.values()) / max(1, out[0]["planned"])
         rows.append((path.name, out[0]["poses"], out[0]["planned"], med["import"], med["plan"], med["plan_again"],
-                     med["plan_again"] / TARGET_WARM_S, per_grasp, per_grasp / TARGET_PER_GRASP_MS, med["rss_mib"]))
-        stage_rows.append((path.name, *[st[k] for k in STAGES]))
-        print(f"  {path.name}: plan() {med['plan']:.2f} s", file=sys.stderr)
-    print(f"\nplan(part, 'ur5') in a fresh process, medians of {runs} runs (s); 'again' = a second plan() in the "
-          f"same process (warm; ratio to the {TARGET_WARM_S * 1e3:g} ms target); per grasp = the robot stages "
-          f"({', '.join(ROBOT_STAGES)}) per planned grasp, ms (ratio to {TARGET_PER_GRASP_MS:g} ms)")
-    print(_table(rows, ("part", "poses", "planned", "imports", "plan()", "plan() again", "warm ratio", "per grasp ms",
-                        "ratio", "peak RSS MiB")))
-    print("\nplan() per stage (PlanResult.timing_s; load = load_part; plan = the planning loop)")
-    print(_table(stage_rows, ("part", *STAGES)))
+                     med["plan_again"] / TARGET_WARM_S, per_grasp, per_grasp / TARGET_PER_GRASP_MS, med["rss_mib"],
+                     "yes" if all(o["same"] for o in out) else "NO"))
+        print(f"  {path.name}: plan() {med['plan']:.2f} s, again {med['plan_again']:.2f} s", file=sys.stderr)
+    print(f"\nplan(part, 'ur5') in a fresh process with an empty cache folder, medians of {runs} runs (s): "
+          f"'miss' = the first plan() (computes the grasp database), 'hit' = a second plan() in the same process "
+          f"(reads it; ratio to the {TARGET_WARM_S * 1e3:g} ms target); per grasp = the robot stages "
+          f"({', '.join(ROBOT_STAGES)}) per planned grasp of the hit, ms (ratio to {TARGET_PER_GRASP_MS:g} ms); "
+          f"same = both planned the same grasps")
+    print(_table(rows, ("part", "poses", "planned", "imports", "plan() miss", "plan() hit", "hit ratio",
+                        "per grasp ms", "ratio", "peak RSS MiB", "same")))
+    print("\nplan() per stage (PlanResult.timing_s; load = load_part; database = reading it (hit) or its "
+          "computation's total (miss); plan = the planning loop)")
+    print(_table(stage_rows, ("part", "db", *STAGES)))
     return rows
 
 
 # -- 2. the command line, wall time --------------------------------------------------------------------
-_run_cli = run_cli  # grasplan in a fresh interpreter: (wall s, exit code, peak RSS MiB)
-
-
 def bench_cli(parts: list[Path], runs: int) -> tuple[list[tuple], bool]:
-    cmd: list[str] = []
+    """``grasplan plan`` in fresh processes, bytecode cached as installed: per run one process with
+    an empty cache folder (miss: it computes the grasp database) and one reading what it left (hit)."""
     rows, ok = [], True
     with tempfile.TemporaryDirectory() as tmp:
+        env0 = bytecode_env(os.path.join(tmp, "pycache"))
+        run_cli(["plan", str(parts[0]), "--robot", "ur5", "-o", os.path.join(tmp, "warmup.json")],
+                env={**env0, "GRASPLAN_CACHE_DIR": os.path.join(tmp, "warmup")})  # fills the bytecode cache
         for path in parts:
             out = Path(tmp) / f"{path.stem}.json"
-            walls, rss, rc = [], [], 0
-            for _ in range(runs):
-                dt, rc, r = _run_cli(cmd + ["plan", str(path), "--robot", "ur5", "-o", str(out)])
-                walls.append(dt)
-                rss.append(r)
+            miss, hit, rss, rc = [], [], [], 0
+            for k in range(runs):
+                env = {**env0, "GRASPLAN_CACHE_DIR": os.path.join(tmp, f"cache-{path.stem}-{k}")}
+                for walls in (miss, hit):
+                    dt, rc, r = run_cli(["plan", str(path), "--robot", "ur5", "-o", str(out)], env=env)
+                    walls.append(dt)
+                    rss.append(r)
             planned = 0
             if out.exists():
                 st = [g.get("status") for g in json.loads(out.read_text()).get("grasps", [])]
                 planned = sum(s == "planned" for s in st)
-            med = statistics.median(walls)
-            met = med < TARGET_CLI_S and planned >= MIN_PLANNED
+            m_hit, m_miss = statistics.median(hit), statistics.median(miss)
+            met = m_hit < TARGET_CLI_S and m_miss < TARGET_CLI_MISS_S and planned >= MIN_PLANNED
             ok &= met
-            rows.append((path.name, rc, planned, med, min(walls), med / TARGET_CLI_S, max(rss),
-                         "met" if met else "MISSED"))
-            print(f"  {path.name}: grasplan plan {med:.2f} s", file=sys.stderr)
-    print(f"\ngrasplan plan PART --robot ur5 -o OUT: wall time, median of {runs} runs; target < {TARGET_CLI_S:g} s "
-          f"and >= {MIN_PLANNED} planned")
-    print(_table(rows, ("part", "exit", "planned", "median s", "min s", "ratio", "peak RSS MiB", "target")))
+            rows.append((path.name, rc, planned, m_hit, m_hit / TARGET_CLI_S, m_miss, m_miss / TARGET_CLI_MISS_S,
+                         max(rss), "met" if met else "MISSED"))
+            print(f"  {path.name}: grasplan plan {m_hit:.2f} s (database cached), {m_miss:.2f} s (computed)",
+                  file=sys.stderr)
+    print(f"\ngrasplan plan PART --robot ur5 -o OUT: wall time, median of {runs} runs each with the grasp database "
+          f"cached (target < {TARGET_CLI_S:g} s) and computed (target < {TARGET_CLI_MISS_S:g} s); >= {MIN_PLANNED} "
+          f"planned")
+    print(_table(rows, ("part", "exit", "planned", "cached s", "ratio", "computed s", "ratio", "peak RSS MiB",
+                        "target")))
     if os.getloadavg()[0] > (os.cpu_count() or 1):
         print(f"note: load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores; wall times are inflated")
     return rows, ok
@@ -237,7 +254,8 @@ def main(argv=None) -> int:
     _, ok = bench_cli(parts, runs)
     if args.queries > 0:
         bench_rrt(args.queries)
-    print("\ntarget " + ("met" if ok else "MISSED") + " (grasplan plan < 1 s median, >= 20 planned, every part)")
+    print("\ntarget " + ("met" if ok else "MISSED") + f" (grasplan plan < {TARGET_CLI_S:g} s median with the grasp "
+          f"database cached, < {TARGET_CLI_MISS_S:g} s computing it, >= {MIN_PLANNED} planned, every part)")
     return 0 if ok else 1
 
 

@@ -8,8 +8,8 @@ import enum
 class Status(str, enum.Enum):
     """Per-grasp status: the grasp stage gives ``ok`` / ``collision_*``; the plan stage splits
     ``ok`` into ``planned``, ``unreachable``, ``ik_collision``, ``no_path`` and ``not_tried``;
-    ``not_checked``: the plan's rank-order evaluation never collision-checked the pose (its score
-    bound is below the planned ranks; ``--check-all`` checks every pose)."""
+    ``not_checked``: read from older plan files only (grasplan 0.2's rank-order evaluation never
+    collision-checked the pose); plans now check every pose."""
 
     OK = "ok"
     PLANNED = "planned"

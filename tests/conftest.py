@@ -16,6 +16,30 @@ PAPER_PARTS = ["IPAGearShaft.stl", "IPARingScrew.stl", "SileaneBunny.obj", "Sile
 SHARP_PAPER_PARTS = [p for p in PAPER_PARTS if p != "SileaneBunny.obj"]
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _cache_folder(tmp_path_factory):
+    """One cache folder per test process: grasp databases start empty (the first plan of a part
+    computes its database, later plans read it) and never reach the user's cache. The convex
+    decompositions (minutes per paper part, a pure function of the mesh) stay shared with the
+    user's cache. Tests of the cache itself set their own folder."""
+    from grasplan.cache import cache_dir
+
+    old = os.environ.get("GRASPLAN_CACHE_DIR")
+    user = cache_dir()
+    folder = tmp_path_factory.mktemp("cache")
+    try:
+        (user / "coacd").mkdir(parents=True, exist_ok=True)
+        (folder / "coacd").symlink_to(user / "coacd", target_is_directory=True)
+    except OSError:  # no writable user cache: the decompositions are computed in the session folder
+        (folder / "coacd").mkdir(exist_ok=True)
+    os.environ["GRASPLAN_CACHE_DIR"] = str(folder)
+    yield
+    if old is None:
+        os.environ.pop("GRASPLAN_CACHE_DIR", None)
+    else:
+        os.environ["GRASPLAN_CACHE_DIR"] = old
+
+
 def paper_part(name: str) -> Path:
     """Path of a paper part, or skip the test with the reason."""
     path = PAPER_DIR / name

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import fcl
 import numpy as np
+from types import SimpleNamespace
 import pytest
 import trimesh
 from hypothesis import given, settings
@@ -23,7 +24,9 @@ from grasplan.part.mesh import load_part
 @pytest.fixture(scope="module")
 def bracket_poses(example_part):
     part = load_part(example_part("bracket.stl"))
-    ev = compute_grasps(part, lazy=True).lazy  # the poses, the cell and the resting pose, nothing checked
+    gr = compute_grasps(part)  # the poses, the cell and the resting pose
+    ev = SimpleNamespace(gripper=gr.gripper, cell=gr.cell, T=gr.T_world_part, T_part_tcp=gr.frames.T_part_tcp,
+                         width=gr.width)
     return part, ev
 
 

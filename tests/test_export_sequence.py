@@ -564,7 +564,7 @@ def real_plan(tmp_path_factory):
         res = grasplan.plan(part, robot="ur5", place=trans(*PLACE_SHIFT) @ T0, planning=PlanParams(top=2, seed=0))
     except TypeError as exc:  # the planner without pick-and-place
         pytest.skip(f"grasplan.plan has no pick-and-place yet: {exc}")
-    ids = [i for i in res.planned_ids() if "descend" in [s[0] for s in res.motions[res.grasps.index_of(i)].segment_list()]]
+    ids = [i for i in res.planned_ids() if "descend" in [s[0] for s in res.motions[i].segment_list()]]
     if not ids:
         pytest.skip(f"the planner planned no pick-and-place of the bracket: {res.counts()}")
     folder = tmp_path_factory.mktemp("real")

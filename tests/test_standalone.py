@@ -180,6 +180,6 @@ def test_plan_passes_every_plan_param(tmp_path):
     gid = res.planned_ids()[0]
     m = res.motions[gid]
     T_pre = res.robot.fk(m.q_pregrasp) @ res.gripper.T_flange_tcp
-    T_grasp = res.T_world_part @ res.grasps.T_part_tcp[gid]
+    T_grasp = res.T_world_part @ res.grasps.T_part_tcp[res.grasps.index_of(gid)]
     assert np.linalg.norm(T_pre[:3, 3] - T_grasp[:3, 3]) == pytest.approx(0.08, abs=2e-3)
     assert res.params.planning.backoff == 0.08

@@ -180,11 +180,12 @@ def _plan_files(o: BatchOptions, setup: Setup, part: Part, load_s: float, out: P
     chosen one, as ``grasplan plan`` writes them); the result ``plan.json`` holds."""
     import numpy as np
 
-    from ..motion.planning import MIN_POSE_PROBABILITY, plan, plan_poses
+    from ..motion.planning import MIN_POSE_PROBABILITY, plan, plan_poses, planning_for_keep
 
     T = None if o.T_world_part is None else np.asarray(o.T_world_part, dtype=np.float64)
     kw: dict[str, Any] = dict(robot=setup.robot, gripper=setup.gripper, cell=setup.cell, candidates=o.candidates,
-                              grasps=o.grasps, planning=o.planning, T_world_part=T, place=o.planning.place_matrix())
+                              grasps=o.grasps, planning=planning_for_keep(o.planning, o.keep), T_world_part=T,
+                              place=o.planning.place_matrix())
     if o.grasps.pose_index != ALL_POSES:
         result = plan(part, load_s=load_s, **kw)
         result.write(out / PLAN_FILE, keep=o.keep)

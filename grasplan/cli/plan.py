@@ -38,8 +38,10 @@ def command(part: str, robot: str, output: str, gripper: str, cell: str, part_po
     when planned, q_grasp, q_pregrasp, path, pregrasp_index). Exit code 4 (file still written)
     when no grasp could be planned: the per-grasp statuses say why.
     """
+    from dataclasses import replace
+
     from ..part.mesh import load_part
-    from ..motion.planning import plan
+    from ..motion.planning import plan, planning_for_keep
     from ..config.poses import parse_part_pose
     from ..setup.resolved import build_setup
 
@@ -48,6 +50,7 @@ def command(part: str, robot: str, output: str, gripper: str, cell: str, part_po
     fam = [pose_family(output)] if kwargs.get("pose_index") == ALL_POSES else []
     check_output(output, part, scoring=kwargs.get("scoring"), part_pose=part_pose, families=fam)  # the output itself first
     prm = RunParams.from_options(kwargs)  # --scoring is read here, --place and --pose-index parsed
+    prm = replace(prm, planning=planning_for_keep(prm.planning, keep))
     # resolve everything cheap first: nothing is written on bad input
     setup = build_setup(robot=robot, gripper=gripper, cell=cell)  # gripper, cell, robot: each loaded once
     output = check_output(output, part, setup=setup, scoring=kwargs.get("scoring"), part_pose=part_pose, families=fam)
@@ -59,7 +62,6 @@ def command(part: str, robot: str, output: str, gripper: str, cell: str, part_po
     load_s = time.perf_counter() - t
     info(f"part {part}: {p.triangles} triangles ({p.units_note})")
     warn_all(p.warnings)
-    info("computing grasps (candidates, frames, collision) ...")
 
     if prm.grasps.pose_index == ALL_POSES:
         return _plan_all_poses(p, part, rob, g, c, T_world_part, output, prm, t0, keep)
@@ -105,8 +107,11 @@ class _PlanBar:
         self.done = 0
 
     def update(self, ev: PlanProgress) -> None:
-        from ..motion.planning import GraspStageDone
+        from ..motion.planning import GraspDatabaseNote, GraspStageDone
 
+        if isinstance(ev, GraspDatabaseNote):
+            info(ev.message)
+            return
         if isinstance(ev, GraspStageDone):
             info(f"grasps: {ev.counts}")
             return
@@ -122,6 +127,14 @@ class _PlanBar:
         if self.ctx is not None:
             self.ctx.__exit__(None, None, None)
             self.ctx = None
+
+
+def _database_lines(ev: PlanProgress) -> None:
+    """The grasp database's progress lines of a plan (stderr)."""
+    from ..motion.planning import GraspDatabaseNote
+
+    if isinstance(ev, GraspDatabaseNote):
+        info(ev.message)
 
 
 def _other_poses_hint(p: Part, g: Gripper, c: Cell, prm: RunParams, result: PlanResult) -> str:
@@ -147,8 +160,8 @@ def _plan_all_poses(p: Part, part: str, rob: Robot, g: Gripper, c: Cell, T_world
     from ..results.pose_plans import write_pose_plans
 
     info(f"planning every stable pose of probability >= {MIN_POSE_PROBABILITY * 100:g} % ...")
-    runs = plan_poses(p, rob, gripper=g, cell=c, candidates=prm.candidates, grasps=prm.grasps, planning=prm.planning,
-                      T_world_part=T_world_part)
+    runs = plan_poses(p, rob, gripper=g, cell=c, candidates=prm.candidates, grasps=prm.grasps,
+                      planning=prm.planning, T_world_part=T_world_part, progress=_database_lines)
     done = write_pose_plans(runs, output, min_probability=MIN_POSE_PROBABILITY, keep=keep)
     click.echo(table(done.table_rows(), header=("pose", "probability", "planned", "collision-free", "holds from N",
                                                 "file")), err=True)

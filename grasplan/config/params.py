@@ -44,6 +44,9 @@ DEFAULT_SCORE_REFS: tuple[tuple[str, float], ...] = _DEFAULT_SCORING.refs
 from .materials import CUSTOM, DEFAULT_DENSITY, DEFAULT_MATERIAL, MATERIAL_HELP, MATERIAL_NAMES, resolve_material
 #: ``pose_index="all"``: plan every stable pose (grasplan.motion.planning.plan_poses), one plan per pose
 ALL_POSES = "all"
+#: PlanParams.grasp_db: place the part's cached grasp database, or compute the grasp stage in the cell
+GRASP_DB_CACHE, GRASP_DB_OFF = "cache", "off"
+GRASP_DB_CHOICES = (GRASP_DB_CACHE, GRASP_DB_OFF)
 
 
 _Set = TypeVar("_Set", bound="OptionSet")
@@ -247,9 +250,11 @@ class PlanParams(OptionSet):
                                                                 "(GraspParams.score_weights, the scoring YAML).")
     simulate: int = spec(0, "int", "After planning, simulate the top N planned grasps (MuJoCo lift and shake, "
                          "grasplan simulate) and rank those that held first; 0 = off.", lo=0, hi=1000)
-    check_all: bool = spec(True, "bool", "Collision-check and score every pose before planning; --no-check-all: "
-                           "only the poses whose score bound can reach the planned ranks, the rest are not_checked "
-                           "(docs/plan.md).", flag="--check-all/--no-check-all")
+    grasp_db: str = spec(GRASP_DB_CACHE, "choice", "Where the grasp stage comes from: 'cache' places the part's "
+                         "grasp database (computed on the first plan of a part with this gripper and these options, "
+                         "then read from the cache folder); 'off' computes the stage in the cell, every pose "
+                         "(--keep all implies it). Same grasps either way (docs/plan.md).",
+                         choices=GRASP_DB_CHOICES, cli="--grasp-db")
     place: tuple[tuple[float, ...], ...] | None = spec(
         None, "pose", "Pick-and-place: the part's pose after release, 'x,y,z,roll,pitch,yaw' (lengths m or with "
         "units, angles deg, R = Rz(yaw) Ry(pitch) Rx(roll)); overrides the cell's place. Every plan lifts the part "

@@ -409,7 +409,8 @@ class GripperCollider:
         T_part_tcp : (M, 4, 4) TCP poses in the part frame; width : (M,) contact distance (m)."""
         return self.check_detail(T_part_tcp, width)[0]
 
-    def check_detail(self, T_part_tcp: np.ndarray, width: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def check_detail(self, T_part_tcp: np.ndarray, width: np.ndarray, *, part_free: bool = False
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(status (M,) str, element (M,) int, body (M,) int)``: the status per pose, the gripper
         element that decided it (index into :meth:`element_names`: ``body_<k>``, ``finger_left``,
         ``finger_right``) and the body it hit (index into :meth:`body_names`: ``part``, ``table``,
@@ -437,7 +438,11 @@ class GripperCollider:
         (:func:`grasplan.geometry.containment.surface_samples`: convex combinations of a triangle's
         corners) deeper than ``SAMPLE_DEPTH`` hits it (while it keeps finding hits) and coal decides
         the rest. Both give the same statuses. Shapes are tried in blocks of poses, those that hit
-        most often first; the first hit names the pose's element."""
+        most often first; the first hit names the pose's element.
+
+        ``part_free``: the poses are known to be free of the part (a grasp database's, checked in
+        the part frame once, :mod:`grasplan.grasps.graspdb`): only the table and the obstacles are
+        checked."""
         T_part_tcp = check_transform(T_part_tcp, "T_part_tcp", batch=True, error=ValueError)
         width = np.asarray(width, dtype=np.float64).reshape(-1)
         if width.shape != (len(T_part_tcp),):
@@ -454,7 +459,10 @@ class GripperCollider:
         sets = self.shape_sets(width)
         self.timing["shapes"] += time.perf_counter() - t0
         t0 = time.perf_counter()
-        part, e_part = self._part_hits(T_part_tcp, sets)
+        if part_free:
+            part, e_part = np.zeros(M, dtype=bool), np.full(M, -1, dtype=np.int64)
+        else:
+            part, e_part = self._part_hits(T_part_tcp, sets)
         t1 = time.perf_counter()
         table, e_table = self._table_hits(T_part_tcp, sets, ~part)  # a part hit decides the pose
         t2 = time.perf_counter()

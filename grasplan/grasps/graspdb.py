@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from ..cache import cache_dir
+from ..cache import CACHE_ENV, cache_dir
 from ..cell.model import NO_CELL
 from ..errors import InputError
 from .pipeline import compute_grasps
@@ -52,13 +52,15 @@ DB_SUFFIX = ".graspdb.npz"
 MAX_DB_BYTES = 1 << 30
 #: bumped when the computation behind a database changes: cached databases of another version are
 #: recomputed, files of another version are refused
-DB_VERSION = 2  # 2: gravity_margin as a load factor, pad model; gravity_margin_ref 2)
+DB_VERSION = 3  # 3: pose ids, rolls and the part's rejected poses per candidate
 _ARRAYS = ("T_part_tcp", "width", "contacts", "normals", "candidate", "region", "contact_area", "contact_type",
-           "contact_width", "epsilon", "score")
+           "contact_width", "epsilon", "score", "pose", "roll")
 _SHAPES: dict[str, tuple[int, ...]] = {"T_part_tcp": (4, 4), "width": (), "contacts": (2, 3), "normals": (2, 3),
                                        "candidate": (), "region": (), "contact_area": (2,), "contact_type": (2,),
-                                       "contact_width": (2, 2), "epsilon": (), "score": ()}
-_DTYPES = {"candidate": np.int64, "region": np.int64, "contact_type": np.int8}
+                                       "contact_width": (2, 2), "epsilon": (), "score": (), "pose": (), "roll": ()}
+_DTYPES = {"candidate": np.int64, "region": np.int64, "contact_type": np.int8, "pose": np.int64}
+#: the arrays of the poses that hit the part, one row per candidate (K rows, candidates increasing)
+_REJECTED = ("rejected_candidate", "rejected_part")
 
 
 def _sha(doc: Any) -> str:
@@ -98,7 +100,14 @@ class GraspDatabase:
     ``contact_width`` (N, 2, 2)      equivalent (min, max) widths of each patch, m
     ``epsilon``      (N,)            Ferrari-Canny L1 quality
     ``score``        (N,)            score with the part upright in its frame
+    ``pose``         (N,) int64      pose id: the index of the pose among every posed
+                                     (candidate, roll), the grasp id plans use
+    ``roll``         (N,)            roll about the closing axis, rad (roll 0: the
+                                     approach closest to the part frame's -z)
     ===============  ==============  =================================================
+
+    The poses that hit the part are counted, not stored: ``rejected_candidate`` (K,) int64
+    (increasing) and ``rejected_part`` (K,) int64, how many poses of that candidate hit the part.
     """
 
     part_path: str
@@ -122,8 +131,16 @@ class GraspDatabase:
     contact_width: np.ndarray
     epsilon: np.ndarray
     score: np.ndarray
+    pose: np.ndarray
+    roll: np.ndarray
+    rejected_candidate: np.ndarray
+    rejected_part: np.ndarray
     counts: dict[str, int] = field(default_factory=dict)
     timing_s: dict[str, float] = field(default_factory=dict)
+    #: what the candidate and pose stages did to bound their work (one line each; usually none)
+    notes: tuple[str, ...] = ()
+    #: the file it was read from ("": computed in this process)
+    origin: str = ""
 
     def __post_init__(self) -> None:
         n = len(self.width)
@@ -133,6 +150,17 @@ class GraspDatabase:
                 raise InputError(f"grasp database: {name} has shape {a.shape}, expected {(n, *_SHAPES[name])}")
             a.flags.writeable = False
             object.__setattr__(self, name, a)
+        k = len(self.rejected_candidate)
+        for name in _REJECTED:
+            a = np.ascontiguousarray(getattr(self, name), dtype=np.int64)
+            if a.shape != (k,):
+                raise InputError(f"grasp database: {name} has shape {a.shape}, expected ({k},)")
+            a.flags.writeable = False
+            object.__setattr__(self, name, a)
+        if n > 1 and len(np.unique(self.pose)) != n:
+            raise InputError("grasp database: a pose id appears twice")
+        if k and (np.any(np.diff(self.rejected_candidate) <= 0) or np.any(self.rejected_part < 0)):
+            raise InputError("grasp database: rejected_candidate must increase and rejected_part be >= 0")
 
     def __len__(self) -> int:
         return len(self.width)
@@ -204,12 +232,12 @@ class GraspDatabase:
                 "params_key": self.params_key, "candidates": self.candidates.options_json(),
                 "grasps": self.grasps.options_json(),
                 "mass": None if self.mass_props is None else self.mass_props.to_json(),
-                "counts": dict(self.counts), "timing_s": dict(self.timing_s)}
+                "counts": dict(self.counts), "timing_s": dict(self.timing_s), "notes": list(self.notes)}
 
     def to_bytes(self) -> bytes:
         buf = io.BytesIO()
         meta = np.frombuffer(json.dumps(self.meta(), allow_nan=False).encode(), dtype=np.uint8)
-        np.savez(buf, meta=meta, **{n: getattr(self, n) for n in _ARRAYS})
+        np.savez(buf, meta=meta, **{n: getattr(self, n) for n in (*_ARRAYS, *_REJECTED)})
         return buf.getvalue()
 
 
@@ -239,12 +267,12 @@ def load_database(path: str | Path, *, part: Part | None = None, gripper: Grippe
     try:
         with np.load(Path(path), allow_pickle=False) as z:
             names = set(z.files)
-            missing = sorted({"meta", *_ARRAYS} - names)
+            missing = sorted({"meta", *_ARRAYS, *_REJECTED} - names)
             if missing:
                 raise InputError(f"grasp database {src}: not a grasplan grasp database (missing {', '.join(missing)}); "
                                  f"write one with grasplan database PART -o FILE{DB_SUFFIX}")
             meta = json.loads(bytes(z["meta"]).decode("utf-8"))
-            arrays = {n: z[n] for n in _ARRAYS}
+            arrays = {n: z[n] for n in (*_ARRAYS, *_REJECTED)}
     except InputError:
         raise
     except (OSError, ValueError, KeyError, zipfile.BadZipFile, UnicodeDecodeError, EOFError) as exc:
@@ -264,7 +292,8 @@ def load_database(path: str | Path, *, part: Part | None = None, gripper: Grippe
             gripper_key=str(meta["gripper_key"]), params_key=str(meta["params_key"]),
             candidates=CandidateParams.from_json(meta["candidates"]), grasps=GraspParams.from_json(meta["grasps"]),
             mass_props=_mass_from_json(meta.get("mass"), src), counts=dict(meta.get("counts", {})),
-            timing_s=dict(meta.get("timing_s", {})), **arrays)
+            timing_s=dict(meta.get("timing_s", {})), notes=tuple(str(n) for n in meta.get("notes", [])),
+            origin=str(path), **arrays)
     except (KeyError, TypeError, ValueError) as exc:
         raise InputError(f"grasp database {src}: meta record is malformed ({type(exc).__name__}: {exc}); "
                          f"recompute it with grasplan database") from None
@@ -279,6 +308,7 @@ def build_database(part: Part, gripper: Gripper | str, *, candidates: CandidateP
     """Compute the database of ``part`` with ``gripper`` (module docstring): the grasp stage in
     cell ``none`` (the part alone in its own frame), its collision-free poses sorted by score."""
     g = load_gripper(gripper)
+    grasps = database_params(grasps)
     t = time.perf_counter()
     res = compute_grasps(part, gripper=g, cell=NO_CELL, candidates=candidates, grasps=grasps)
     ok = np.flatnonzero(np.asarray(res.status).astype(str) == Status.OK.value)
@@ -293,6 +323,8 @@ def build_database(part: Part, gripper: Gripper | str, *, candidates: CandidateP
         k = len(order)
         area, kind, cw, eps = np.full((k, 2), np.nan), np.full((k, 2), -1), np.full((k, 2, 2), np.nan), np.full(k, np.nan)
     counts = res.counts()
+    st = np.asarray(res.status).astype(str)
+    rej_cand, rej_n = np.unique(np.asarray(res.frames.candidate)[st == Status.COLLISION_PART.value], return_counts=True)
     timing = {**res.timing_s, "database": time.perf_counter() - t}
     return GraspDatabase(
         part_path=part.path, part_sha256=part.sha256, scale_to_m=float(part.scale_to_m), triangles=part.triangles,
@@ -301,18 +333,33 @@ def build_database(part: Part, gripper: Gripper | str, *, candidates: CandidateP
         T_part_tcp=tab.T_part_tcp[order], width=tab.width[order], contacts=tab.contacts[order],
         normals=tab.normals[order], candidate=tab.candidate[order], region=tab.region[order],
         contact_area=area, contact_type=kind, contact_width=cw, epsilon=eps,
-        score=np.nan_to_num(np.asarray(tab.score)[order], nan=0.0),
-        counts={"candidates": counts["candidates"], "poses": counts["poses"], "ok": int(len(order)),
-                "collision_part": counts.get(Status.COLLISION_PART.value, 0)},
-        timing_s=timing)
+        score=np.nan_to_num(np.asarray(tab.score)[order], nan=0.0), pose=order, roll=tab.roll[order],
+        rejected_candidate=rej_cand, rejected_part=rej_n,
+        counts={"candidates": counts["candidates"], "posed_candidates": counts["posed_candidates"],
+                "poses": counts["poses"], "ok": int(len(order)),
+                "collision_part": counts.get(Status.COLLISION_PART.value, 0),
+                **({"regions": counts["regions"]} if "regions" in counts else {})},
+        timing_s=timing, notes=tuple(res.cand.notes))
+
+
+def database_params(grasps: GraspParams) -> GraspParams:
+    """The options a database depends on: ``grasps`` without the resting pose (a database holds
+    the part alone, in its own frame)."""
+    return replace(grasps, pose_index=None) if grasps.pose_index is not None else grasps
+
+
+def options_key(gripper: Gripper, candidates: CandidateParams, grasps: GraspParams) -> str:
+    """:func:`params_key` of these options as a database computed with ``gripper`` records them
+    (the candidate search reaching the gripper's ``max_opening`` unless set, no resting pose)."""
+    if candidates.max_opening is None:  # as compute_grasps resolves it
+        candidates = replace(candidates, max_opening=gripper.max_opening)
+    return params_key(candidates, database_params(grasps))
 
 
 def cache_path(part: Part, gripper: Gripper, candidates: CandidateParams, grasps: GraspParams) -> Path:
     """Where :func:`database_for` keeps the database of ``part`` with ``gripper`` and these options."""
-    if candidates.max_opening is None:  # as compute_grasps resolves it
-        candidates = replace(candidates, max_opening=gripper.max_opening)
     key = _sha({"part": part.sha256, "scale": repr(float(part.scale_to_m)), "gripper": gripper_key(gripper),
-                "params": params_key(candidates, grasps)})
+                "params": options_key(gripper, candidates, grasps)})
     return cache_dir() / "graspdb" / f"{key}{DB_SUFFIX}"
 
 
@@ -334,9 +381,13 @@ def database_for(part: Part, gripper: Gripper | str, *, candidates: CandidatePar
     if progress is not None:
         progress(f"grasp database for {name} with {g.name}: computing (candidates, poses, collisions, quality) ...")
     db = build_database(part, g, candidates=candidates, grasps=grasps)
+    where = ""
     if cache:
-        write_database(db, path)
+        try:
+            write_database(db, path)
+            where = f", cached in {show_path(path)}"
+        except (OSError, InputError) as exc:  # a read-only or full cache folder costs the next run the computation
+            where = f"; not cached ({exc}); set {CACHE_ENV} to a writable folder to keep it"
     if progress is not None:
-        where = f", cached in {show_path(path)}" if cache else ""
         progress(f"grasp database for {name}: {len(db)} grasps in {db.timing_s.get('database', 0.0):.1f} s{where}")
     return db

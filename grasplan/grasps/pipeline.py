@@ -27,7 +27,7 @@ from ..gripper.model import Gripper
 from ..part.mass import MassProperties, mass_properties
 from ..part.mesh import Part
 from ..config.params import DEFAULT_CELL, DEFAULT_GRIPPER, CandidateParams, GraspParams
-from .quality import Quality, holding_warning, physical_bounds, quality_and_score, quality_columns
+from .quality import Quality, holding_warning, quality_and_score, quality_columns
 from ..results.plan_result import Params, PartRecord, PlanResult
 from ..config.scoring import (
     PHYSICAL_TERMS, ScoringConfig, distinct_order, epsilon_term, gravity_margin_term, score_grasps
@@ -64,9 +64,6 @@ class GraspResult:
     quality_note: str = ""
     #: (M,) grasp-stage reason per pose ("grasp stage: gripper:finger_left hits obstacle:wall ..."; "" for ok)
     reasons: np.ndarray | None = None
-    #: rank-order evaluation (``compute_grasps(..., lazy=True)``): the :class:`LazyGrasps` that checks
-    #: poses on demand; ``status`` is ``not_checked`` for the poses it has not checked
-    lazy: LazyGrasps | None = None
 
     def quality_warnings(self) -> list[str]:
         """What to tell the user: the work bounds the candidate and pose stages applied
@@ -99,10 +96,6 @@ class GraspResult:
         if region is not None and len(region):
             out["regions"] = int(len(np.unique(region[region >= 0])))
         out.update({s: int(np.count_nonzero(st == s)) for s in GRASP_STATUSES})
-        n_unchecked = int(np.count_nonzero(st == Status.NOT_CHECKED.value))
-        if n_unchecked:
-            out["checked"] = int(len(st)) - n_unchecked
-            out[Status.NOT_CHECKED.value] = n_unchecked
         return out
 
     def table(self) -> GraspTable:
@@ -145,8 +138,6 @@ class GraspResult:
         return self.to_result().to_json(only_ok=only_ok)
 
 
-#: poses collision-checked and scored per step of the rank-order evaluation
-LAZY_CHUNK = 2000
 #: at most this many poses (posed candidates x rolls) per part: more are thinned (see
 #: :func:`bounded_selection`). The paper parts pose up to ~100 k (SileaneGear, pose 1).
 MAX_POSES = 200_000
@@ -190,8 +181,6 @@ def bounded_selection(cands: Candidates, select: np.ndarray | None, params: Gras
             f"{params.thin_axis_deg:g} deg cluster (as --thin {pitch * 1e3:.3g}mm); choose with --thin, a larger "
             f"--roll-step, or --spacing")
     return keep, note
-#: added to every score upper bound (float rounding of the two ways of summing the terms)
-_BOUND_SLACK = 1e-9
 
 
 def compute_grasps(
@@ -203,8 +192,6 @@ def compute_grasps(
     grasps: GraspParams = GraspParams(),
     T_world_part: np.ndarray | None = None,
     load_s: float = 0.0,
-    lazy: bool = False,
-    chunk: int = LAZY_CHUNK,
 ) -> GraspResult:
     """Candidates, TCP poses every ``grasps.roll_step_deg`` about each closing axis, and the
     collision status of each pose against the part and the cell's table.
@@ -219,10 +206,10 @@ def compute_grasps(
     ``grasps.thin_spacing`` (m; 0 = off) poses one candidate per cluster of
     :func:`grasplan.candidates.thinning.thin_candidates`; ``grasps.merge_distance`` (m; 0 = off) additionally
     skips a candidate whose two contacts fall in the same grid cells as an earlier candidate's.
-
-    ``lazy=True`` (``grasplan plan`` without ``--check-all``) checks nothing yet: every pose is
-    ``not_checked`` and ``result.lazy`` (a :class:`LazyGrasps`) collision-checks and scores them in
-    chunks of ``chunk`` poses in the order of their score bound as the planner asks for grasps.
+    The poses (and so the grasp ids) depend on the part, the gripper and these options only, not
+    on the cell or the part's pose: roll 0 is the approach closest to the part frame's -z
+    (:func:`grasplan.grasps.frames.grasp_frames`), so a grasp database's poses
+    (:mod:`grasplan.grasps.graspdb`) are these.
     """
     g = load_gripper(gripper)
     c = load_cell(cell)
@@ -238,11 +225,10 @@ def compute_grasps(
     timing["candidates"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    T, source = _part_pose(part, c, T_world_part)
+    T, source = part_pose(part, c, T_world_part)
     timing["stable_pose"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    down_in_part = T[:3, :3].T @ np.array([0.0, 0.0, -1.0])
     select = None
     if grasps.thin_spacing > 0:
         select = thin_candidates(cand.candidates, spacing=float(grasps.thin_spacing),
@@ -250,18 +236,13 @@ def compute_grasps(
     select, cap_note = bounded_selection(cand.candidates, select, grasps, g, n_triangles=len(part.mesh.faces))
     if cap_note:
         cand = replace(cand, notes=(*cand.notes, cap_note))
-    frames = grasp_frames(cand.candidates, roll_step_deg=grasps.roll_step_deg, reference=down_in_part,
+    frames = grasp_frames(cand.candidates, roll_step_deg=grasps.roll_step_deg,
                           max_width=g.max_opening, min_width=g.min_opening, dedupe_swapped=g.symmetric,
                           merge_distance=grasps.merge_distance, select=select)
     timing["frames"] = time.perf_counter() - t
 
     t = time.perf_counter()
     collider = GripperCollider(part.mesh, g, c, T)
-    if lazy:
-        timing["collision"] = time.perf_counter() - t
-        ev = LazyGrasps(part=part, gripper=g, cell=c, T_world_part=T, cand=cand, frames=frames, params=grasps,
-                        mu=candidates.mu, collider=collider, timing=timing, source=source, chunk=chunk)
-        return ev.result()
     status, hit_elem, hit_body = collider.check_detail(frames.T_part_tcp, cand.candidates.width[frames.candidate])
     reasons = collider.reasons(status, hit_elem, hit_body)
     timing["collision"] = time.perf_counter() - t
@@ -277,7 +258,7 @@ def compute_grasps(
                        reasons=reasons)
 
 
-def _part_pose(part: Part, cell: Cell, T_world_part: np.ndarray | None) -> tuple[np.ndarray, str]:
+def part_pose(part: Part, cell: Cell, T_world_part: np.ndarray | None) -> tuple[np.ndarray, str]:
     """The part's pose ``T_world_part`` (4, 4) and where it came from: ``given``, the cell's
     ``stable_pose`` or, in cell ``none`` (the part alone), ``part_frame`` (the identity)."""
     if T_world_part is None and cell.name == NO_CELL_NAME:
@@ -285,168 +266,3 @@ def _part_pose(part: Part, cell: Cell, T_world_part: np.ndarray | None) -> tuple
     if T_world_part is None:
         return stable_pose(part.mesh, cell), "stable_pose"
     return check_transform(T_world_part, "T_world_part"), "given"
-
-
-def _concat_quality(parts: list[Quality], order: np.ndarray) -> Quality | None:
-    """One :class:`grasplan.grasps.quality.Quality` of the rows of ``parts`` (in order), permuted by ``order``."""
-    if not parts:
-        return None
-    cat = {k: np.concatenate([getattr(q, k) for q in parts])[order]
-           for k in ("contact_area", "contact_type", "contact_width", "gravity_margin", "epsilon")}
-    return Quality(**cat, grip_force=parts[0].grip_force, mu=parts[0].mu)
-
-
-class LazyGrasps:
-    """Rank-order, chunked evaluation of the grasp stage (``grasplan plan`` without ``--check-all``).
-
-    The cheap score terms (every term but :data:`grasplan.config.scoring.PHYSICAL_TERMS`) are computed for
-    every pose; the physical terms lie in [0, 1], so ``(cheap + sum of the physical weights) /
-    sum of the weights`` is an upper bound ``ub`` of each pose's score (also of the score without
-    quality when the part has no mass). Poses are collision-checked and their quality computed in
-    chunks of ``chunk`` in order of ``ub`` (ties by id). :meth:`ranked` yields the collision-free
-    poses in the order of the full computation's distinct ranking, checking the next chunk whenever
-    the next exact candidate is not certainly ahead of every unchecked pose. Mutable: one per plan.
-    """
-
-    def __init__(self, *, part: Part, gripper: Gripper, cell: Cell, T_world_part: np.ndarray, cand: CandidateResult,
-                 frames: GraspFrames, params: GraspParams, mu: float, collider: GripperCollider,
-                 timing: dict[str, float], source: str, chunk: int = LAZY_CHUNK):
-        self.part, self.gripper, self.cell, self.T = part, gripper, cell, T_world_part
-        self.cand, self.frames, self.params, self.mu = cand, frames, params, float(mu)
-        self.collider, self.timing, self.source, self.chunk = collider, timing, source, max(1, int(chunk))
-        M = len(frames.candidate)
-        self.M = M
-        self.width = np.asarray(cand.candidates.width, dtype=np.float64)[frames.candidate]
-        self.T_part_tcp = np.asarray(frames.T_part_tcp, dtype=np.float64).reshape(M, 4, 4)
-        cfg = ScoringConfig.from_params(params.score_weights, params.score_refs)
-        total = sum(w for _, w in cfg.weights)
-        cheap_w = tuple((n, w) for n, w in cfg.weights if n not in PHYSICAL_TERMS and w)
-        phys = sum(w for n, w in cfg.weights if n in PHYSICAL_TERMS)
-        cheap_total = sum(w for _, w in cheap_w)
-        t = time.perf_counter()
-        cheap = (score_grasps(part.mesh, T_world_part, self.T_part_tcp, self.width, float(gripper.max_opening),
-                              cheap_w, scoring=cfg) * (cheap_total / total) if cheap_total > 0 and M
-                 else np.zeros(M))
-        self.mass_props: MassProperties | None = None
-        every_term_one = phys / total if total > 0 else 0.0  # every physical term is at most 1
-        phys_ub = self._physical_bound(cfg, total, every_term_one) if phys > 0 and M else every_term_one
-        #: (M,) upper bound of each pose's score
-        self.ub = cheap + phys_ub + _BOUND_SLACK if total > 0 else np.full(M, np.inf)
-        self.timing["score_bound"] = time.perf_counter() - t
-        self.queue = np.lexsort((np.arange(M), -self.ub)).astype(np.int64)  # check order
-        self.pos = 0
-        self.status = np.full(M, Status.NOT_CHECKED.value, dtype="<U18")
-        self.reasons = np.full(M, "", dtype=object)
-        self.score = np.full(M, np.nan)
-        self._q_parts: list[Quality] = []
-        self._q_rows: list[np.ndarray] = []
-        self.note = ""
-        self.timing.setdefault("collision", 0.0)
-        self.timing["quality"] = 0.0
-        self._order = np.zeros(0, dtype=np.int64)
-        self._order_key: tuple[int, float, float] | None = None
-        self._n_distinct = 0
-
-    def _physical_bound(self, cfg: ScoringConfig, total: float, fallback: float) -> np.ndarray | float:
-        """(M,) ``sum_k w_k term_k(bound_k) / total`` over the physical terms (:func:`grasplan.grasps.quality.
-        physical_bounds`: the pad's whole area, the load straight down), or ``fallback`` for a part
-        without mass properties (its score has no physical terms)."""
-        try:
-            mp = mass_properties(self.part.mesh, density=self.params.density, mass=self.params.mass,
-                                 material=self.params.material)
-        except InputError:
-            return fallback  # quality_and_score says why, with the first chunk
-        ci = self.frames.candidate
-        b = physical_bounds(self.part.mesh, mp, self.gripper, self.T_part_tcp, ci, self.cand.candidates.contacts,
-                            self.cand.candidates.normals, self.width, T_world_part=self.T, mu=self.mu)
-        term = {"gravity_margin": gravity_margin_term(b["gravity_margin"], cfg.gravity_margin_ref),
-                "epsilon": epsilon_term(b["epsilon"], cfg.epsilon_ref)}
-        self.mass_props = mp
-        return sum(w * term[n] for n, w in cfg.weights if n in PHYSICAL_TERMS and w) / total
-
-    # -- state -------------------------------------------------------------------------------------
-    @property
-    def checked(self) -> int:
-        return self.pos
-
-    @property
-    def done(self) -> bool:
-        return self.pos >= self.M
-
-    def bound(self) -> float:
-        """The best upper bound among the unchecked poses (-inf when every pose is checked)."""
-        return float(self.ub[self.queue[self.pos]]) if self.pos < self.M else -np.inf
-
-    def check_next(self) -> int:
-        """Collision-check and score the next chunk in bound order; returns how many were checked."""
-        idx = self.queue[self.pos: self.pos + self.chunk]
-        if not len(idx):
-            return 0
-        t = time.perf_counter()
-        st, elem, body = self.collider.check_detail(self.T_part_tcp[idx], self.width[idx])
-        self.status[idx] = st
-        self.reasons[idx] = self.collider.reasons(st, elem, body)
-        self.timing["collision"] += time.perf_counter() - t
-        self.timing.update(self.collider.timing_s())
-        t = time.perf_counter()
-        q, mp, sc, note = quality_and_score(self.part.mesh, self.gripper, self.T, self.T_part_tcp[idx],
-                                            self.frames.candidate[idx], self.cand.candidates, st, self.mu, self.params,
-                                            mass_props=self.mass_props)  # computed once, by the first chunk
-        self.score[idx] = sc
-        if q is not None:
-            self._q_parts.append(q)
-            self._q_rows.append(idx[np.asarray(st).astype(str) == Status.OK.value])
-        self.mass_props = mp if mp is not None else self.mass_props
-        self.note = note or self.note
-        self.timing["quality"] += time.perf_counter() - t
-        self.pos += len(idx)
-        return len(idx)
-
-    def check_all(self) -> None:
-        while not self.done:
-            self.check_next()
-
-    # -- ranking -----------------------------------------------------------------------------------
-    def order(self, min_distance: float, min_angle_deg: float) -> tuple[np.ndarray, int]:
-        """``(order, n_certain)``: the distinct ranking of the checked ``ok`` poses (as
-        :func:`grasplan.config.scoring.distinct_order`) and how many of its leading entries are certainly
-        the full computation's (their score is above every unchecked pose's bound; all of them
-        once every pose is checked)."""
-        key = (self.pos, min_distance, min_angle_deg)
-        if key != self._order_key:
-            ok = np.flatnonzero(self.status == Status.OK.value)
-            order = ok[np.lexsort((ok, -self.score[ok]))] if len(ok) else ok
-            self._order, self._n_distinct = distinct_order(self.T_part_tcp, order, min_distance=min_distance,
-                                                           min_angle_deg=min_angle_deg, return_count=True)
-            self._order_key = key
-        order = self._order
-        if self.done:
-            return order, len(order)
-        # certain: the leading distinct grasps (score order) with a score above every unchecked
-        # pose's bound; duplicates go behind every distinct grasp, so they wait for the last chunk
-        s = self.score[order[: self._n_distinct]]
-        return order, int(np.count_nonzero(s > self.bound()))
-
-    def ranked(self, min_distance: float = 0.005, min_angle_deg: float = 15.0) -> Iterator[int]:
-        """Generator of pose indices in the full computation's rank order (checking chunks as needed)."""
-        k = 0
-        while True:
-            order, n = self.order(min_distance, min_angle_deg)
-            if k < n:
-                yield int(order[k])
-                k += 1
-                continue
-            if self.done:
-                return
-            self.check_next()
-
-    # -- the grasp result ----------------------------------------------------------------------------
-    def result(self) -> GraspResult:
-        """The :class:`GraspResult` of the poses checked so far (``not_checked`` for the others)."""
-        rows = np.concatenate(self._q_rows) if self._q_rows else np.zeros(0, dtype=np.int64)
-        perm = np.argsort(rows, kind="stable")
-        return GraspResult(cand=self.cand, gripper=self.gripper, cell=self.cell, T_world_part=self.T,
-                           frames=self.frames, status=self.status.copy(), params=self.params,
-                           timing_s=dict(self.timing), part_pose_source=self.source,
-                           quality=_concat_quality(self._q_parts, perm), mass_props=self.mass_props,
-                           score=self.score.copy(), quality_note=self.note, reasons=self.reasons.copy(), lazy=self)

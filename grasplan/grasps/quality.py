@@ -2,8 +2,7 @@
 stage's quality step.
 
 :func:`grasp_quality` computes each grasp's contact patches, gravity margin and Ferrari-Canny
-epsilon; :func:`physical_bounds` bounds both from above without patches (the rank-order
-evaluation), :func:`quality_and_score` is the grasp stage's step (mass properties, quality of the
+epsilon, :func:`quality_and_score` is the grasp stage's step (mass properties, quality of the
 collision-free poses, score with :mod:`grasplan.config.scoring`), :func:`holding_warning` says when
 no grasp holds.
 """
@@ -85,40 +84,6 @@ class Quality:
         if score is not None:
             out["score"] = float(score)
         return out
-
-
-def physical_bounds(part_mesh: TriangleMesh, mass_props: MassProperties, gripper: Gripper, T_part_tcp: np.ndarray,
-                    candidate: np.ndarray, contacts: np.ndarray, normals: np.ndarray, width: np.ndarray, *,
-                    T_world_part: np.ndarray, mu: float, grip_force: float | None = None) -> dict[str, np.ndarray]:
-    """Upper bounds of ``gravity_margin`` and ``epsilon`` of ``M`` poses without their contact
-    patches or collision status (the rank-order evaluation checks poses in the order of their
-    score's upper bound, :class:`grasplan.grasps.pipeline.LazyGrasps`). Both grow with the patch area (more
-    torsional friction: the wrench set grows, the demand falls), and a patch is never larger than
-    the finger's pad: each is computed with the pad's whole area on both jaws; the margin also
-    with the widest pressure patch a pad allows and the lift's load only (it takes the worst of
-    several loads), the epsilon once
-    per candidate (its rolls share the contacts). ``T_part_tcp`` (M, 4, 4), ``candidate`` (M,)
-    into ``contacts``/``normals`` (K, 2, 3); ``width`` (M,). Returns ``(M,)`` arrays."""
-    T = np.asarray(T_part_tcp, dtype=np.float64).reshape(-1, 4, 4)
-    M = len(T)
-    ci = np.asarray(candidate, dtype=np.int64).reshape(-1)
-    rect = pad_rectangle(gripper)
-    pad = float(np.prod(rect[:, 1] - rect[:, 0]))
-    F = float(gripper.grip_force if grip_force is None else grip_force)
-    Twp = np.asarray(T_world_part, dtype=np.float64)
-    # a patch inside the pad: its smaller equivalent width sqrt(12 var) is at most sqrt(3) x the pad's short side
-    pad_w = math.sqrt(3.0) * float(np.min(rect[:, 1] - rect[:, 0]))
-    gm = np.empty(M)
-    for s in range(0, M, 65536):  # (chunk, 1, 3) temporaries
-        e = min(M, s + 65536)
-        gm[s:e] = gravity_margin(mass_props, Twp, T[s:e], width[s:e], np.full((e - s, 2), pad), mu=mu,
-                                 normal_force=F / CONTACTS_PER_GRIP, patch_width=np.full((e - s, 2), pad_w),
-                                 lift_only=True)
-    used, inv = np.unique(ci, return_inverse=True)
-    eps_c = epsilon_dedup(np.asarray(contacts, dtype=np.float64)[used], np.asarray(normals, dtype=np.float64)[used],
-                          np.full((len(used), 2), pad), mass_props.com,
-                          max(part_radius(part_mesh, mass_props.com), 1e-9), mu)
-    return {"gravity_margin": gm, "epsilon": eps_c[inv.reshape(-1)]}
 
 
 def part_radius(part_mesh: TriangleMesh, com: np.ndarray) -> float:
@@ -257,27 +222,47 @@ def quality_and_score(part_mesh: TriangleMesh, gripper: Gripper, T_world_part: n
     ok = np.flatnonzero(np.asarray(status).astype(str) == Status.OK.value)
     ci = np.asarray(candidate, dtype=np.int64)[ok]
     width = np.asarray(candidates.width, dtype=np.float64)[ci]
-    cfg = ScoringConfig.from_params(params.score_weights, params.score_refs)
+    note = ""
+    mp = mass_props
+    if mp is None:
+        mp, note = mass_or_note(part_mesh, params)
+    q = None if mp is None else grasp_quality(part_mesh, mp, gripper, T[ok], candidates.contacts[ci],
+                                              candidates.normals[ci], width, T_world_part=T_world_part, mu=mu)
+    score = np.full(M, np.nan)
+    score[ok] = stage_score(part_mesh, gripper, T_world_part, T[ok], width, params, q, mp)
+    return q, mp, score, note
+
+
+def mass_or_note(part_mesh: TriangleMesh, params: GraspParams) -> tuple[MassProperties | None, str]:
+    """``(mass properties at params.density / params.mass, "")``, or ``(None, why)`` for a part
+    without volume (flat, degenerate) at the default density: its grasps get no quality and the
+    score only the other terms. InputError when the user asked for a density or mass."""
     try:
-        mp = mass_props if mass_props is not None else mass_properties(part_mesh, density=params.density,
-                                                                        mass=params.mass, material=params.material)
+        return mass_properties(part_mesh, density=params.density, mass=params.mass, material=params.material), ""
     except InputError as exc:
         if params.mass is not None or params.density != type(params)().density:
             raise  # the user asked for a mass: say why there is none
-        note = f"no grasp quality: {exc}; the score uses only the other terms"
+        return None, f"no grasp quality: {exc}; the score uses only the other terms"
+
+
+def stage_score(part_mesh: TriangleMesh, gripper: Gripper, T_world_part: np.ndarray, T_part_tcp: np.ndarray,
+                width: np.ndarray, params: GraspParams, quality: Quality | None, mass_props: MassProperties | None
+                ) -> np.ndarray:
+    """(k,) the grasp stage's score of ``k`` collision-free poses (:func:`grasplan.config.scoring.score_grasps`,
+    weights ``params.score_weights``): with ``quality`` (and ``mass_props``) every term, without
+    only the terms that need no quality (NaN when those weigh nothing)."""
+    cfg = ScoringConfig.from_params(params.score_weights, params.score_refs)
+    k = len(width)
+    if quality is None or mass_props is None:
         weights = tuple((n, w) for n, w in cfg.weights if n not in PHYSICAL_TERMS)
-        score = np.full(M, np.nan)
-        if len(ok) and sum(w for _, w in weights) > 0:
-            score[ok] = score_grasps(part_mesh, T_world_part, T[ok], width, float(gripper.max_opening), weights,
-                                     scoring=cfg)
-        return None, None, score, note
-    q = grasp_quality(part_mesh, mp, gripper, T[ok], candidates.contacts[ci], candidates.normals[ci], width,
-                      T_world_part=T_world_part, mu=mu)
-    score = np.full(M, np.nan)
-    if len(ok):
-        score[ok] = score_grasps(part_mesh, T_world_part, T[ok], width, float(gripper.max_opening), cfg.weights,
-                                 quality=q, scoring=cfg, com=mp.com)
-    return q, mp, score, ""
+        if not k or sum(w for _, w in weights) <= 0:
+            return np.full(k, np.nan)
+        return score_grasps(part_mesh, T_world_part, T_part_tcp, width, float(gripper.max_opening), weights,
+                            scoring=cfg)
+    if not k:
+        return np.zeros(0)
+    return score_grasps(part_mesh, T_world_part, T_part_tcp, width, float(gripper.max_opening), cfg.weights,
+                        quality=quality, scoring=cfg, com=mass_props.com)
 
 
 def score_quality_terms(quality: Quality, config: ScoringConfig | None = None) -> dict[str, np.ndarray]:

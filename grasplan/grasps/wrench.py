@@ -119,15 +119,12 @@ MARGIN_BRACKET, MARGIN_ITERATIONS = (1e-4, 1e4), 36
 
 def gravity_margin(mass_props: MassProperties, T_world_part: np.ndarray, T_part_tcp: np.ndarray,
                    width: np.ndarray, area: np.ndarray, *, mu: float, normal_force: float,
-                   patch_width: np.ndarray | None = None, load: LoadModel = LOAD,
-                   lift_only: bool = False) -> np.ndarray:
+                   patch_width: np.ndarray | None = None, load: LoadModel = LOAD) -> np.ndarray:
     """(M,) the largest factor ``s`` by which the loads of ``load`` can be scaled and still be held:
     below 1 the part slips. ``area`` (M, 2) m^2, ``width`` (M,) m,
     ``normal_force``: N pressing each contact (``grip_force / CONTACTS_PER_GRIP``); ``patch_width``
     (M, 2) m: each patch's smaller equivalent width (its pad-pressure moment, :data:`PRESSURE_ARM`;
-    ``None``: none). ``lift_only``: the lift's upward acceleration only, one of the loads the margin
-    takes the worst of, so the result is >= the margin (an upper bound,
-    :func:`grasplan.grasps.quality.physical_bounds`).
+    ``None``: none).
 
     At a load ``s f`` (TCP frame, at the centre of mass) the jaws press with ``F -+ s f_x / 2``
     (contact 0 on the -x side; the centric jaws share the load along the closing axis); the
@@ -149,7 +146,7 @@ def gravity_margin(mass_props: MassProperties, T_world_part: np.ndarray, T_part_
     T = np.asarray(T_part_tcp, dtype=np.float64).reshape(-1, 4, 4)
     M = len(T)
     R = T[:, :3, :3]
-    acc = load.accelerations()[:1] if lift_only else load.accelerations()
+    acc = load.accelerations()
     if not (mu * normal_force > 0) or M == 0:  # no friction: nothing holds the part against a tangential load
         return np.zeros(M)
     # load on the part that the jaws must hold, world: m (g - a); in each TCP frame

@@ -1,7 +1,7 @@
 """Stages 7-8 composed: grasps a robot can reach, each with a verified joint path from home.
 
-:func:`plan` (behind ``grasplan plan``) runs the grasp stage (:func:`~grasplan.grasps.pipeline.compute_grasps`)
-and :func:`plan_grasps`: the ``ok`` grasps ranked by score (:mod:`grasplan.config.scoring`, distinct
+:func:`plan` (behind ``grasplan plan``) runs the grasp stage (:func:`~grasplan.grasps.placed.grasp_stage`:
+the part's grasp database placed in the pose and the cell) and :func:`plan_grasps`: the ``ok`` grasps ranked by score (:mod:`grasplan.config.scoring`, distinct
 ones first), planned in rank order (:func:`grasplan.motion.grasp_plan.plan_grasp`: IK, approach,
 lift, place, paths) until ``top`` are planned or ``budget_s`` is spent; ``ok`` grasps never tried
 are ``not_tried``, grasps the grasp stage rejected keep its status (docs/plan.md).
@@ -25,16 +25,20 @@ import numpy as np
 
 from ..cell.model import NO_CELL_NAME, Cell, load_cell
 from ..errors import ConfigError, InputError
-from ..grasps.pipeline import GraspResult, LazyGrasps, compute_grasps
+from ..grasps.graspdb import GraspDatabase, database_for
+from ..grasps.placed import PlacedGrasps, grasp_stage
 from ..gripper.load import load_gripper
 from ..gripper.model import Gripper
 from ..part.mass import MassProperties
 from ..geometry.meshdata import TriangleMesh
 from ..part.mesh import Part, load_part
-from ..config.params import DEFAULT_CELL, DEFAULT_GRIPPER, DEFAULT_ROBOT, CandidateParams, GraspParams, PlanParams
+from ..config.params import (
+    DEFAULT_CELL, DEFAULT_GRIPPER, DEFAULT_ROBOT, GRASP_DB_OFF, CandidateParams, GraspParams, PlanParams
+)
 from .grasp_plan import PlanSetting, plan_grasp
+from ..results.compact import KEEP_ALL
 from ..results.joint_motion import Motion
-from ..results.plan_result import Params, PlanResult
+from ..results.plan_result import Params, PartRecord, PlanResult
 from ..results.pose_plans import PosePlan
 from ..robot.description import load_robot
 from ..robot.model import Robot
@@ -61,10 +65,17 @@ STAGE_REJECTION_REASONS = {
 # -- progress events ---------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class GraspStageDone:
-    """The grasp stage is done: ``counts`` per status and stage (:meth:`GraspResult.counts
-    <grasplan.grasps.pipeline.GraspResult.counts>`)."""
+    """The grasp stage is done: ``counts`` per status and stage (:meth:`PlacedGrasps.counts
+    <grasplan.grasps.placed.PlacedGrasps.counts>`)."""
 
     counts: dict[str, int]
+
+
+@dataclass(frozen=True)
+class GraspDatabaseNote:
+    """A line about the part's grasp database: computing it (the first plan of a part), done, cached."""
+
+    message: str
 
 
 @dataclass(frozen=True)
@@ -81,7 +92,7 @@ class GraspTried:
 
 
 #: an event of a plan's progress, and the ``progress`` callback of :func:`plan` that gets them
-PlanProgress = Union[GraspStageDone, GraspTried]
+PlanProgress = Union[GraspDatabaseNote, GraspStageDone, GraspTried]
 ProgressCallback = Callable[[PlanProgress], None]
 
 
@@ -92,9 +103,7 @@ class PlanOutcome:
     ``status`` (M,) object: the plan status values (:class:`~grasplan.status.Status` ``.value``);
     ``score`` (M,) float64 (NaN: not ranked); ``rank`` (M,) int64 (-1: not ranked); ``reason``
     (M,) object str; ``motions`` ``{pose id: Motion}`` of the planned grasps; ``timing_s`` seconds
-    per stage; ``grasp_result``: the final :class:`~grasplan.grasps.pipeline.GraspResult` when the
-    rank-order evaluation checked poses while planning (its unchecked poses ``not_checked``), else
-    None (the grasp result planned from is final)."""
+    per stage."""
 
     status: np.ndarray
     score: np.ndarray
@@ -102,29 +111,23 @@ class PlanOutcome:
     reason: np.ndarray
     motions: dict[int, Motion]
     timing_s: dict[str, float]
-    grasp_result: GraspResult | None = None
 
 
-def plan_grasps(grasps: GraspResult, robot: Robot, scene: CollisionScene, *, params: PlanParams = PlanParams(),
-                progress: ProgressCallback | None = None, ranked: Iterable[int] | None = None) -> PlanOutcome:
+def plan_grasps(grasps: PlacedGrasps, robot: Robot, scene: CollisionScene, *, params: PlanParams = PlanParams(),
+                progress: ProgressCallback | None = None) -> PlanOutcome:
     """Plan the ranked ``ok`` grasps of ``grasps`` for ``robot`` in ``scene``.
 
-    Returns a :class:`PlanOutcome` ((M,) status, score, rank and reason arrays, ``{id: Motion}``
-    for the planned grasps and seconds per stage). ``progress`` gets a :class:`GraspTried` after
-    every tried grasp. ``ranked``: the pose ids to try in this order instead of the ranking (the
-    rank-order evaluation's).
+    Returns a :class:`PlanOutcome` ((M,) status, score, rank and reason arrays over the rows of
+    ``grasps.table``, ``{grasp id: Motion}`` for the planned grasps and seconds per stage).
+    ``progress`` gets a :class:`GraspTried` after every tried grasp.
     """
     t_all = time.perf_counter()
     timing = {"ik": 0.0, "approach": 0.0, "joint_path": 0.0, "lift": 0.0, "place": 0.0, "transfer": 0.0}
-    lazy = grasps.lazy
-    if isinstance(lazy, LazyGrasps) and params.score_weights is None and not params.check_all:
-        return _plan_lazy(lazy, robot, scene, params=params, progress=progress, timing=timing, t_all=t_all)
-    if isinstance(lazy, LazyGrasps):  # other weights or --check-all: check every pose first
-        lazy.check_all()
-        grasps = lazy.result()
-    status_in = np.asarray(grasps.status).astype(str)
-    T_part_tcp = np.asarray(grasps.frames.T_part_tcp, dtype=np.float64).reshape(-1, 4, 4)
-    width = np.asarray(grasps.width, dtype=np.float64)
+    tab = grasps.table
+    status_in = tab.status.astype(str)
+    T_part_tcp = np.asarray(tab.T_part_tcp, dtype=np.float64).reshape(-1, 4, 4)
+    width = np.asarray(tab.width, dtype=np.float64)
+    ids = tab.ids
     scores, order = _ranking(grasps, status_in, T_part_tcp, width, params)
     rank = np.full(len(status_in), -1, dtype=np.int64)
     rank[order] = np.arange(len(order))
@@ -133,25 +136,26 @@ def plan_grasps(grasps: GraspResult, robot: Robot, scene: CollisionScene, *, par
     setting = _setting(grasps, robot, scene, params, timing)
     planned = tried = 0
     n_candidates = len(order)
-    for i in (order if ranked is None else ranked):
+    for i in order:
         if planned >= params.top:
             break
         if params.budget_s is not None and time.perf_counter() - t_all > params.budget_s:
             break
         tried += 1
-        out = plan_grasp(setting, int(i), T_part_tcp[i], float(width[i]))
+        gid = int(ids[i])
+        out = plan_grasp(setting, gid, T_part_tcp[i], float(width[i]))
         if out.motion is not None:
-            motions[int(i)] = out.motion
+            motions[gid] = out.motion
             planned += 1
         status[i], reason[i] = out.status.value, out.reason
         if progress is not None:
             progress(GraspTried(tried=tried, planned=planned, top=params.top, candidates=n_candidates,
-                                grasp_id=int(i), status=out.status))
+                                grasp_id=gid, status=out.status))
     timing["plan"] = time.perf_counter() - t_all
     return PlanOutcome(status=status, score=scores, rank=rank, reason=reason, motions=motions, timing_s=timing)
 
 
-def _ranking(grasps: GraspResult, status_in: np.ndarray, T_part_tcp: np.ndarray, width: np.ndarray,
+def _ranking(grasps: PlacedGrasps, status_in: np.ndarray, T_part_tcp: np.ndarray, width: np.ndarray,
              params: PlanParams) -> tuple[np.ndarray, np.ndarray]:
     """The (M,) scores (NaN but for ``ok`` grasps: the grasp stage's, or re-scored with
     ``params.score_weights``) and the ``ok`` pose ids in plan order (best score first, ties by id,
@@ -159,13 +163,13 @@ def _ranking(grasps: GraspResult, status_in: np.ndarray, T_part_tcp: np.ndarray,
     T_world_part = np.asarray(grasps.T_world_part, dtype=np.float64)
     ok = np.flatnonzero(status_in == Status.OK.value)
     scores = np.full(len(status_in), np.nan)
-    if grasps.score is not None and params.score_weights is None:
-        scores[ok] = np.asarray(grasps.score, dtype=np.float64)[ok]  # the grasp stage's score (quality + reach)
+    if params.score_weights is None:
+        scores[ok] = np.asarray(grasps.table.score, dtype=np.float64)[ok]  # the grasp stage's score (quality + reach)
     elif len(ok):
         mp = grasps.mass_props
         gp = grasps.params
         cfg = ScoringConfig.from_params(params.score_weights or gp.score_weights, gp.score_refs)
-        scores[ok] = score_grasps(grasps.cand.part.mesh, T_world_part, T_part_tcp[ok], width[ok],
+        scores[ok] = score_grasps(grasps.part.mesh, T_world_part, T_part_tcp[ok], width[ok],
                                   float(grasps.gripper.max_opening), weights=cfg.weights, quality=grasps.quality,
                                   scoring=cfg, com=mp.com if isinstance(mp, MassProperties) else None)
     order = ok[np.lexsort((ok, -scores[ok]))] if len(ok) else ok
@@ -174,7 +178,7 @@ def _ranking(grasps: GraspResult, status_in: np.ndarray, T_part_tcp: np.ndarray,
     return scores, order
 
 
-def _stage_statuses(grasps: GraspResult, status_in: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _stage_statuses(grasps: PlacedGrasps, status_in: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The (M,) plan status and reason before planning: ``ok`` grasps ``not_tried``, the grasp
     stage's rejections with its reasons (naming the gripper element and the body)."""
     M = len(status_in)
@@ -183,14 +187,13 @@ def _stage_statuses(grasps: GraspResult, status_in: np.ndarray) -> tuple[np.ndar
     reason[:] = NOT_TRIED_REASON
     for st, text in STAGE_REJECTION_REASONS.items():
         reason[status_in == st.value] = text
-    stage_reasons = grasps.reasons
-    if stage_reasons is not None:
-        rejected = (status_in != Status.OK.value) & (np.asarray(stage_reasons, dtype=object) != "")
-        reason[rejected] = np.asarray(stage_reasons, dtype=object)[rejected]
+    stage_reasons = np.asarray(grasps.table.reason, dtype=object)
+    rejected = (status_in != Status.OK.value) & (stage_reasons != "")
+    reason[rejected] = stage_reasons[rejected]
     return status, reason
 
 
-def _setting(grasps: GraspResult, robot: Robot, scene: CollisionScene, params: PlanParams,
+def _setting(grasps: PlacedGrasps, robot: Robot, scene: CollisionScene, params: PlanParams,
              timing: dict[str, float]) -> PlanSetting:
     """What every grasp of the plan shares; pick-and-place (:mod:`grasplan.motion.pickplace`): the
     lift always, the place when the cell has one."""
@@ -204,52 +207,6 @@ def _setting(grasps: GraspResult, robot: Robot, scene: CollisionScene, params: P
                        retreat_dir=np.asarray(cell.retreat_direction, dtype=np.float64),
                        retreat_dist=float(cell.retreat_distance), T_place=T_place,
                        scene_released=scene.with_part_at(T_place) if T_place is not None else None, timing=timing)
-
-
-def _plan_lazy(lazy: LazyGrasps, robot: Robot, scene: CollisionScene, *, params: PlanParams,
-               progress: ProgressCallback | None, timing: dict[str, float], t_all: float) -> PlanOutcome:
-    """:func:`plan_grasps` with the rank-order evaluation of :class:`grasplan.grasps.pipeline.LazyGrasps`:
-    the planning loop takes the grasps in the full ranking's order, checking chunks of poses only
-    while an unchecked pose could still rank ahead. The outcome carries the final
-    :class:`grasplan.grasps.pipeline.GraspResult` (unchecked poses ``not_checked``)."""
-    it = lazy.ranked(params.distinct_distance, params.distinct_angle_deg)
-    tried: list[int] = []
-
-    def gen() -> Iterator[int]:
-        for i in it:
-            tried.append(i)
-            yield i
-
-    # the loop of plan_grasps writes into arrays of its own; run it on a placeholder and re-apply
-    sub = plan_grasps(replace(lazy.result(), lazy=None), robot, scene, params=params, progress=progress,
-                      ranked=gen())
-    timing.update(sub.timing_s)
-    final = lazy.result()
-    status_in = np.asarray(final.status).astype(str)
-    M = len(status_in)
-    ok = status_in == Status.OK.value
-    scores = np.where(ok, np.asarray(final.score, dtype=np.float64), np.nan)
-    order, n = lazy.order(params.distinct_distance, params.distinct_angle_deg)
-    rank = np.full(M, -1, dtype=np.int64)
-    rank[order[:n]] = np.arange(n)
-    status = np.where(ok, Status.NOT_TRIED.value, status_in).astype(object)
-    reason = np.asarray(final.reasons, dtype=object).copy()
-    reason[ok] = NOT_TRIED_REASON
-    bound = lazy.bound()
-    unchecked = status_in == Status.NOT_CHECKED.value
-    best = np.nanmax(scores[order[:n]]) if n else float("nan")
-    floor = float(scores[order[n - 1]]) if n else float("nan")
-    reason[unchecked] = (f"not checked: ranked below the planned grasps (the upper bound of its score is below "
-                         f"{bound:.6g}, the best unchecked bound, <= the ranked grasps' scores {floor:.6g}..{best:.6g}); "
-                         f"--check-all checks every pose")
-    tried_a = np.asarray(tried, dtype=np.int64)  # pulled from the ranking; the last one may not be tried
-    if len(tried_a):
-        tried_a = tried_a[np.asarray(sub.status, dtype=object)[tried_a] != Status.NOT_CHECKED.value]
-    status[tried_a] = sub.status[tried_a]
-    reason[tried_a] = sub.reason[tried_a]
-    timing["plan"] = time.perf_counter() - t_all
-    return PlanOutcome(status=status, score=scores, rank=rank, reason=reason, motions=sub.motions, timing_s=timing,
-                       grasp_result=final)
 
 
 def plan(
@@ -266,8 +223,14 @@ def plan(
     progress: ProgressCallback | None = None,
     load_s: float = 0.0,
     place: np.ndarray | None = None,
+    database: GraspDatabase | None = None,
 ) -> PlanResult:
     """Grasps of ``part`` that ``robot`` can reach, each with a verified path from ``q_home``.
+
+    The grasp stage is the part's grasp database placed in the pose and the cell
+    (:func:`grasplan.grasps.placed.grasp_stage`: read from the cache, or computed and cached on the
+    first plan of a part); ``planning.grasp_db == "off"`` computes it in the cell instead, every
+    pose in the result. Both give the same grasps, ids and statuses.
 
     Parameters
     ----------
@@ -291,6 +254,9 @@ def plan(
         cell's ``place``. Every plan lifts the part after the grasp; with a place it is also carried
         there, released and the gripper retreats. A place reaching into the table or an obstacle
         raises ``InputError`` before planning.
+    database : GraspDatabase, optional
+        The part's grasp database computed with these options (from ``grasplan database`` or
+        :func:`grasplan.grasps.graspdb.database_for`) instead of the cache's.
     """
     t = time.perf_counter()
     rob = load_robot(robot)
@@ -309,16 +275,23 @@ def plan(
         part = load_part(part, units=units)
         load_s = time.perf_counter() - t
     _check_before_planning(part, rob, g, c, grasps, T_world_part)
-    lazy = not planning.check_all and planning.score_weights is None
-    gr = compute_grasps(part, gripper=g, cell=c, candidates=candidates, grasps=grasps, T_world_part=T_world_part,
-                        load_s=load_s, lazy=lazy)
+    notify = (lambda text: progress(GraspDatabaseNote(text))) if progress is not None else None
+    gr = grasp_stage(part, g, c, candidates=candidates, grasps=grasps, T_world_part=T_world_part,
+                     every_pose=planning.grasp_db == GRASP_DB_OFF, database=database, load_s=load_s, notify=notify)
     if progress is not None:
         progress(GraspStageDone(gr.counts()))
     t = time.perf_counter()
     scene = CollisionScene(rob, gr.gripper, part.mesh, gr.T_world_part, gr.cell)
     t_robot += time.perf_counter() - t
     out = plan_grasps(gr, rob, scene, params=planning, progress=progress)
-    return _plan_result(part, rob, gr, out, grasps, planning, t_robot)
+    return _plan_result(part, rob, gr, out, planning, t_robot)
+
+
+def planning_for_keep(planning: PlanParams, keep: str) -> PlanParams:
+    """``planning`` for a plan file that keeps ``keep``: ``all`` (every pose written in full) needs
+    the grasp stage computed in the cell (``grasp_db`` ``off``: a grasp database holds the poses
+    that hit the part as counts only)."""
+    return replace(planning, grasp_db=GRASP_DB_OFF) if keep == KEEP_ALL else planning
 
 
 def _check_before_planning(part: Part, robot: Robot, gripper: Gripper, cell: Cell, grasps: GraspParams,
@@ -335,22 +308,22 @@ def _check_before_planning(part: Part, robot: Robot, gripper: Gripper, cell: Cel
     check_start(CollisionScene(robot, gripper, part.mesh, T_start, cell), part_mesh=part.mesh)
 
 
-def _plan_result(part: Part, robot: Robot, gr: GraspResult, out: PlanOutcome, grasps: GraspParams,
-                 planning: PlanParams, t_robot: float) -> PlanResult:
+def _plan_result(part: Part, robot: Robot, gr: PlacedGrasps, out: PlanOutcome, planning: PlanParams,
+                 t_robot: float) -> PlanResult:
     """The :class:`PlanResult` of the grasp stage ``gr`` and the plan stage ``out`` (with
     ``planning.simulate``: the top planned grasps lifted and shaken in MuJoCo, held ones first)."""
-    if out.grasp_result is not None:  # rank-order evaluation: the poses checked while planning
-        gr = out.grasp_result
-    base = gr.to_result()
-    result = PlanResult(part=base.part, gripper=gr.gripper, cell=gr.cell, robot=robot,
-                        grasps=base.grasps.with_plan(out.status, out.score, out.rank, out.reason),
-                        motions=out.motions, params=Params(gr.cand.params, grasps, planning),
-                        counts_stage=base.counts_stage, timing_s={**gr.timing_s, "robot": t_robot, **out.timing_s},
-                        part_pose_source=gr.part_pose_source, grasp_result=gr, part_mesh=part.mesh, mass=base.mass)
+    rec = PartRecord(path=part.path, sha256=part.sha256, scale_to_m=part.scale_to_m, triangles=part.triangles,
+                     T_world_part=np.asarray(gr.T_world_part, dtype=np.float64))
+    mp = gr.mass_props
+    result = PlanResult(part=rec, gripper=gr.gripper, cell=gr.cell, robot=robot,
+                        grasps=gr.table.with_plan(out.status, out.score, out.rank, out.reason),
+                        motions=out.motions, params=Params(gr.candidate_params, gr.params, planning),
+                        counts_stage=dict(gr.counts_stage), timing_s={**gr.timing_s, "robot": t_robot, **out.timing_s},
+                        part_pose_source=gr.part_pose_source, grasp_result=gr, part_mesh=part.mesh,
+                        mass=None if mp is None else mp.record(), rejected=gr.rejected)
     if planning.simulate > 0:
         from ..sim.simulate import simulate_plan  # MuJoCo and trimesh load only when simulating
 
-        mp = gr.mass_props
         result = simulate_plan(result, planning.simulate, mass_props=mp if isinstance(mp, MassProperties) else None,
                                seed=planning.seed)
     return result
@@ -385,12 +358,17 @@ def plan_poses(part: Part | str | os.PathLike, robot: Robot | str | Path = DEFAU
     if not isinstance(part, Part):
         part = load_part(part, units=units)
     rob = load_robot(robot)
+    g = load_gripper(gripper)
+    db = None
+    if planning.grasp_db != GRASP_DB_OFF:  # one database serves every pose
+        notify = (lambda text: progress(GraspDatabaseNote(text))) if progress is not None else None
+        db = database_for(part, g, candidates=candidates, grasps=grasps, progress=notify)
     out: list[PosePlan] = []
     for k, p in stable_pose_indices(part.mesh, min_probability):
         try:
-            res = plan(part, rob, gripper=gripper, cell=cell, candidates=candidates,
+            res = plan(part, rob, gripper=g, cell=cell, candidates=candidates,
                        grasps=replace(grasps, pose_index=k), planning=planning, progress=progress, load_s=load_s,
-                       place=place)
+                       place=place, database=db)
         except ConfigError:
             raise
         except InputError as exc:
@@ -405,13 +383,15 @@ def grasp_counts_by_pose(part: Part, *, gripper: Gripper | str = DEFAULT_GRIPPER
                          min_probability: float = MIN_POSE_PROBABILITY, skip: int | None = None
                          ) -> list[tuple[int, float, int]]:
     """``[(pose_index, probability, collision-free grasps)]`` for the stable poses of probability
-    >= ``min_probability`` except ``skip``: the grasp stage only (cheap), for the exit-4 message."""
+    >= ``min_probability`` except ``skip``: the grasp stage only (the part's grasp database placed
+    in each pose), for the exit-4 message."""
+    g = load_gripper(gripper)
+    c = load_cell(cell)
+    db = database_for(part, g, candidates=candidates, grasps=grasps)
     out = []
     for k, p in stable_pose_indices(part.mesh, min_probability):
         if k == skip:
             continue
-        gr = compute_grasps(part, gripper=gripper, cell=cell, candidates=candidates,
-                            grasps=replace(grasps, pose_index=k))
-        out.append((k, p, int(np.count_nonzero(np.asarray(gr.status).astype(str) == Status.OK.value))))
+        gr = grasp_stage(part, g, c, candidates=candidates, grasps=replace(grasps, pose_index=k), database=db)
+        out.append((k, p, int(np.count_nonzero(gr.table.status.astype(str) == Status.OK.value))))
     return out
-

@@ -23,11 +23,15 @@ PICKS_SCHEMA = "grasplan.picks/1"
 def plan(service: Service, doc: Any) -> bytes:
     """``grasplan.plan/1`` JSON for a ``POST /plan`` body (see :func:`~grasplan.serve.bodies.plan_request`)."""
     from ..motion.planning import plan as plan_part
+    from ..motion.planning import planning_for_keep
     from ..results.writer import stream_document
 
     req = plan_request(doc, service)
+    params = dict(req.params)
+    if "planning" in params:
+        params["planning"] = planning_for_keep(params["planning"], req.keep)
     result = plan_part(req.part.part, service.robot, gripper=service.gripper, cell=service.cell,
-                       T_world_part=req.T_world_part, **req.params)
+                       T_world_part=req.T_world_part, **params)
     result = replace(result, part=replace(result.part, path=req.part.path.name))
     chunks = stream_document(result, keep=req.keep)
     if chunks is None:  # a value the fast writer cannot encode: through the dict (refuses NaN)

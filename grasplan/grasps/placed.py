@@ -1,0 +1,181 @@
+"""The grasp stage as the planner takes it: a part resting in a cell and the gripper poses there.
+
+:class:`PlacedGrasps` holds one resting pose's grasps (a :class:`~grasplan.results.grasp_table.GraspTable`:
+id, pose, grasp-stage status and reason, score, quality) and the poses the table leaves out
+(they hit the part) counted per candidate. Two roads lead to it, with the same poses, ids,
+statuses, quality and scores (:func:`grasp_stage` chooses):
+
+* :func:`place_database`: the part's grasp database (:mod:`grasplan.grasps.graspdb`, computed once
+  in the part frame and cached) placed in the pose and the cell: its collision-free poses checked
+  against the table and the obstacles, their gravity margin and score computed for the pose;
+* :func:`placed_from_result`: the whole stage computed in the cell
+  (:func:`grasplan.grasps.pipeline.compute_grasps`), every pose in the table.
+"""
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..cell.model import Cell
+from ..config.params import CandidateParams, GraspParams
+from ..errors import InputError
+from ..gripper.model import Gripper
+from ..part.mass import MassProperties
+from ..part.mesh import Part
+from ..results.compact import REJECTED, RejectedCounts
+from ..results.grasp_table import GraspTable
+from ..status import GRASP_STATUSES, Status
+from .collision import GripperCollider
+from .graspdb import GraspDatabase, database_for, options_key
+from .pipeline import GraspResult, compute_grasps, part_pose
+from .quality import Quality, holding_warning, mass_or_note, quality_columns, stage_score
+
+
+@dataclass(frozen=True, eq=False)
+class PlacedGrasps:
+    """One resting pose's grasps, as the planner (:func:`grasplan.motion.planning.plan_grasps`) takes them.
+
+    ``table``: the poses held in full, grasp ids increasing (``table.ids``), ``status`` a grasp-stage
+    status (:data:`grasplan.status.GRASP_STATUSES`), ``reason`` ("" for ``ok``), ``score`` (NaN
+    but for ``ok``) and the quality columns; ``quality``: the :class:`~grasplan.grasps.quality.Quality`
+    of the table's ``ok`` rows in row order (None: no mass properties, ``quality_note`` says why);
+    ``rejected``: the poses not in the table (they hit the part), counted per candidate (None:
+    every pose is in the table); ``counts_stage``: ``candidates``, ``posed_candidates``, ``poses``
+    (every pose, in the table or counted) and ``regions``; ``notes``: the work bounds the candidate
+    and pose stages applied."""
+
+    part: Part
+    gripper: Gripper
+    cell: Cell
+    T_world_part: np.ndarray
+    part_pose_source: str
+    candidate_params: CandidateParams
+    params: GraspParams
+    table: GraspTable
+    quality: Quality | None
+    mass_props: MassProperties | None
+    rejected: RejectedCounts | None = None
+    counts_stage: dict[str, int] = field(default_factory=dict)
+    timing_s: dict[str, float] = field(default_factory=dict)
+    notes: tuple[str, ...] = ()
+    quality_note: str = ""
+
+    @property
+    def status(self) -> np.ndarray:
+        """(M,) grasp-stage status of the table's rows."""
+        return self.table.status
+
+    def counts(self) -> dict[str, int]:
+        """``counts_stage`` and the poses per grasp-stage status (the counted ones included)."""
+        st = self.table.status.astype(str)
+        out = dict(self.counts_stage)
+        out.update({s: int(np.count_nonzero(st == s)) for s in GRASP_STATUSES})
+        if self.rejected is not None:
+            for s, n in self.rejected.totals().items():
+                out[s] = out.get(s, 0) + n
+        return out
+
+    def quality_warnings(self) -> list[str]:
+        """What to tell the user: the work bounds applied, the mass properties' warnings (or why
+        there is no quality) and :func:`grasplan.grasps.quality.holding_warning`."""
+        out = list(self.notes)
+        out += list(self.mass_props.warnings) if self.mass_props is not None else \
+            [self.quality_note] if self.quality_note else []
+        w = holding_warning(self.quality, self.mass_props, part=Path(self.part.path).name)
+        return out + [w] if w else out
+
+
+def placed_from_result(gr: GraspResult) -> PlacedGrasps:
+    """A whole grasp stage (every pose computed in the cell) as :class:`PlacedGrasps`."""
+    counts = gr.counts()
+    stage: dict[str, int] = {k: counts[k] for k in ("candidates", "posed_candidates", "poses", "regions") if k in counts}
+    return PlacedGrasps(part=gr.cand.part, gripper=gr.gripper, cell=gr.cell, T_world_part=gr.T_world_part,
+                        part_pose_source=gr.part_pose_source, candidate_params=gr.cand.params, params=gr.params,
+                        table=gr.table(), quality=gr.quality, mass_props=gr.mass_props, counts_stage=stage,
+                        timing_s=dict(gr.timing_s), notes=tuple(gr.cand.notes), quality_note=gr.quality_note)
+
+
+def place_database(db: GraspDatabase, part: Part, cell: Cell, *, params: GraspParams,
+                   T_world_part: np.ndarray | None = None, timing_s: dict[str, float] | None = None) -> PlacedGrasps:
+    """``db``'s grasps with ``part`` resting in ``cell`` (at ``T_world_part``, else the cell's stable
+    pose, ``params.pose_index`` when given): the database's collision-free poses checked against
+    the table and the obstacles (:meth:`~grasplan.grasps.collision.GripperCollider.check_detail` with
+    ``part_free``), the ``ok`` ones' quality for this pose (:meth:`GraspDatabase.quality_at`: the
+    stored patches and epsilon, the gravity margin for gravity's direction here) and score
+    (:func:`grasplan.grasps.quality.stage_score`); the poses that hit the part counted per candidate.
+    ``params``: the grasp options the database was computed with (and the pose index);
+    ``timing_s``: seconds already spent (the database's load or computation), added to:
+    ``stable_pose``, ``place_collision`` (of it ``collision_table``, ``_obstacle``, ``_shapes``)
+    and ``place_quality`` (gravity margin and score)."""
+    timing = dict(timing_s or {})
+    db.check_for(part, None)
+    k = params.single_pose_index()
+    c = replace(cell, pose_index=k) if k is not None else cell
+    t = time.perf_counter()
+    T, source = part_pose(part, c, T_world_part)
+    timing["stable_pose"] = time.perf_counter() - t
+    t = time.perf_counter()
+    order = np.argsort(db.pose, kind="stable")
+    T_part_tcp, width = db.T_part_tcp[order], db.width[order]
+    collider = GripperCollider(part.mesh, db.gripper, c, T)
+    status, elem, body = collider.check_detail(T_part_tcp, width, part_free=True)
+    reasons = collider.reasons(status, elem, body)
+    timing["place_collision"] = time.perf_counter() - t
+    for key, v in collider.timing_s().items():  # the table and obstacles here, the part when the database was built
+        timing[key] = timing.get(key, 0.0) + v
+    t = time.perf_counter()
+    ok = np.flatnonzero(status == Status.OK.value)
+    mp, note = (db.mass_props, "") if db.mass_props is not None else mass_or_note(part.mesh, params)
+    q = db.quality_at(T, order[ok]) if mp is not None else None
+    M = len(order)
+    score = np.full(M, np.nan)
+    score[ok] = stage_score(part.mesh, db.gripper, T, T_part_tcp[ok], width[ok], params, q, mp)
+    quality = quality_columns(q, ok, M) if q is not None else {}
+    timing["place_quality"] = time.perf_counter() - t
+    table = GraspTable(candidate=db.candidate[order], region=db.region[order], contacts=db.contacts[order],
+                       normals=db.normals[order], width=width, T_part_tcp=T_part_tcp, roll=db.roll[order],
+                       status=status.astype(object), score=score, rank=np.full(M, -1, dtype=np.int64),
+                       reason=reasons, id_values=db.pose[order], **quality)
+    counts = np.zeros((len(db.rejected_candidate), len(REJECTED)), dtype=np.int64)
+    counts[:, REJECTED.index(Status.COLLISION_PART.value)] = db.rejected_part
+    stage: dict[str, int] = {key: int(db.counts[key]) for key in ("candidates", "posed_candidates", "poses", "regions")
+             if key in db.counts}
+    return PlacedGrasps(part=part, gripper=db.gripper, cell=c, T_world_part=T, part_pose_source=source,
+                        candidate_params=db.candidates, params=params, table=table, quality=q, mass_props=mp,
+                        rejected=RejectedCounts(db.rejected_candidate, counts), counts_stage=stage,
+                        timing_s=timing, notes=tuple(db.notes), quality_note=note)
+
+
+def grasp_stage(part: Part, gripper: Gripper, cell: Cell, *, candidates: CandidateParams, grasps: GraspParams,
+                T_world_part: np.ndarray | None = None, every_pose: bool = False,
+                database: GraspDatabase | None = None, load_s: float = 0.0,
+                notify: Callable[[str], None] | None = None) -> PlacedGrasps:
+    """The grasp stage of a plan: ``part`` in ``cell`` with ``gripper``.
+
+    By default the part's grasp database (``database``, else :func:`grasplan.grasps.graspdb.database_for`:
+    read from the cache, or computed and cached; ``notify`` gets its progress lines) placed in the
+    pose (:func:`place_database`). ``every_pose``: the whole stage computed in the cell instead
+    (:func:`grasplan.grasps.pipeline.compute_grasps`), every pose in the table. ``timing_s``
+    records ``load`` and, from the cache, ``database`` (seconds to read it), else the computation's stages."""
+    if every_pose:
+        return placed_from_result(compute_grasps(part, gripper=gripper, cell=cell, candidates=candidates,
+                                                 grasps=grasps, T_world_part=T_world_part, load_s=load_s))
+    timing: dict[str, float] = {"load": float(load_s)}
+    if database is None:
+        t = time.perf_counter()
+        database = database_for(part, gripper, candidates=candidates, grasps=grasps, progress=notify)
+        if database.origin:
+            timing["database"] = time.perf_counter() - t
+        else:
+            timing.update({k: v for k, v in database.timing_s.items() if k != "load"})
+    else:
+        database.check_for(part, gripper, source=database.origin)
+        if database.params_key != options_key(gripper, candidates, grasps):
+            raise InputError(f"grasp database {database.origin or '(in memory)'}: computed with other candidate or "
+                             f"grasp options than this plan's (its own: {database.candidates.options_json()}, "
+                             f"{database.grasps.options_json()}); plan with those, or let the plan compute its own")
+    return place_database(database, part, cell, params=grasps, T_world_part=T_world_part, timing_s=timing)
