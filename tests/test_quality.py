@@ -11,7 +11,8 @@ from grasplan.errors import ConfigError, InputError
 from grasplan.gripper.load import load_gripper
 from grasplan.part.mass import mass_properties
 from grasplan.grasps.patches import contact_patches, pad_rectangle
-from grasplan.geometry.polygons import clip_polygons, polygon_moments
+from grasplan.geometry.polygons import polygon_moments
+from grasplan.grasps.quality_kernels import accumulate_pairs, slab_polygons
 from grasplan.grasps.quality import Quality, grasp_quality, score_quality_terms
 from grasplan.results.quality_json import CONTACT_TYPES
 from grasplan.config.scoring import load_score_weights, load_scoring
@@ -59,11 +60,14 @@ def test_clip_triangle_area_matches_monte_carlo():
     rng = np.random.default_rng(1)
     tri = rng.uniform(-1, 1, size=(40, 3, 2))
     lo, hi = -0.3, 0.5
-    P, n = np.concatenate([tri, np.zeros((40, 3, 1))], axis=2), np.full(40, 3)
-    for axis in (0, 1):
-        P, n = clip_polygons(P, n, axis, np.full(40, lo), keep_below=False)
-        P, n = clip_polygons(P, n, axis, np.full(40, hi), keep_below=True)
-    m = polygon_moments(P[..., 0], P[..., 1], n)
+    # the compiled pad clip: triangle k in the plane x = 0 of grasp k's TCP frame, the pad [lo, hi]^2
+    P = np.ascontiguousarray(np.concatenate([np.zeros((40, 3, 1)), tri], axis=2))
+    mom = np.zeros((40, 2, 2, 6))
+    R = np.repeat(np.eye(3)[None], 40, axis=0)
+    accumulate_pairs(P, np.full(40, 3), np.ones(40), np.zeros(40, dtype=bool), np.arange(40), np.arange(40),
+                     np.zeros((40, 3)), R, np.array([lo, hi, lo, hi]), mom, 1)
+    m = mom[:, 1, 0]
+    assert not mom[:, 0].any() and not mom[:, 1, 1].any()  # jaw 1 only; no face flagged flat
     # Monte Carlo: points in the square, inside each triangle by barycentric signs
     pts = rng.uniform(lo, hi, size=(200_000, 2))
     a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
@@ -79,6 +83,21 @@ def test_clip_triangle_area_matches_monte_carlo():
     mc_mean_y = np.where(inside.sum(1) > 0, (inside * pts[None, :, 0]).sum(1) / np.maximum(inside.sum(1), 1), 0)
     big = mc_area > 0.05
     np.testing.assert_allclose((m[big, 1] / m[big, 0]), mc_mean_y[big], atol=0.01)
+
+
+def test_slab_clip_keeps_the_part_of_a_polygon_within_the_depth():
+    """A unit square in the plane y = 0 crossing the contact plane x = 0: clipped to |x| <= 0.1
+    it is the 0.2 x 1 strip; a square wholly beyond the slab is dropped."""
+    sq = np.array([[-0.5, 0, 0], [0.5, 0, 0], [0.5, 0, 1], [-0.5, 0, 1]], dtype=np.float64)
+    far = sq + [2.0, 0, 0]
+    pts = np.concatenate([sq, far])
+    keep, poly, n = slab_polygons(pts, np.array([0, 4]), np.array([4, 4]), np.array([0, 1]), np.array([0, 0]),
+                                  np.zeros((1, 3)), np.array([[1.0, 0, 0]]), 0.1)
+    assert keep.tolist() == [True, False] and n.tolist() == [4]
+    got = poly[0, :4]
+    assert sorted(map(tuple, np.round(got[:, [0, 2]], 12))) == [(-0.1, 0.0), (-0.1, 1.0), (0.1, 0.0), (0.1, 1.0)]
+    A = polygon_moments(got[None, :, 0], got[None, :, 2], n)[0, 0]
+    assert A == pytest.approx(0.2)
 
 
 def test_polygon_moments_of_a_rectangle():

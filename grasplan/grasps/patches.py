@@ -4,8 +4,9 @@ For ``M`` grasps of a part (TCP frames ``T_part_tcp`` (M, 4, 4), contacts ``(M, 
 part frame), :func:`contact_patches` gives per jaw the patch's area, its type (point, line or
 surface contact) and its equivalent widths. The part's surface is first reduced to elements
 (:func:`patch_elements`: triangles, coplanar areas as their boundary loops); the elements near
-each contact are clipped exactly to the pad's box (vectorised Sutherland-Hodgman,
-:mod:`grasplan.geometry.polygons`) and integrated, in chunks of at most ``MAX_PAIRS``
+each contact are clipped exactly to the pad's box (Sutherland-Hodgman: on the contact's slab
+vectorised, :mod:`grasplan.geometry.polygons`; on the pad per grasp compiled,
+:mod:`grasplan.grasps.quality_kernels`) and integrated, in chunks of at most ``MAX_PAIRS``
 triangle-equivalent pairs: memory stays bounded.
 """
 from __future__ import annotations
@@ -19,7 +20,8 @@ from ..errors import ConfigError
 from ..geometry.grouping import expand
 from ..gripper.model import Gripper
 from ..geometry.meshdata import TriangleMesh, edge_adjacency
-from ..geometry.polygons import clip_polygons, equivalent_widths, polygon_moments
+from ..geometry.polygons import equivalent_widths, polygon_moments
+from .quality_kernels import accumulate_pairs, slab_polygons
 from .patch_search import near_faces_dense, near_faces_slab
 
 #: part surface within this distance of the pad plane touches the pad, m (pad compliance)
@@ -84,34 +86,18 @@ class _JawPass:
     max_pairs: int
 
 
-def _accumulate(jp: _JawPass, poly: np.ndarray, n: np.ndarray, nx: np.ndarray, w: np.ndarray, g: np.ndarray) -> None:
-    """Clip the polygons ``poly`` (K, V, 3) (part frame, the first ``n[k]`` vertices valid, already
-    clipped to the contact's slab ``|x - x_contact| <= depth``) paired with grasps ``g`` (K,) to the
-    jaw's pad rectangle and add their moments."""
-    mom, j, cos_flat, M = jp.mom, jp.j, jp.cos_flat, len(jp.o)
-    o, R = jp.o[g], jp.R[g]
-    y_lo, y_hi, z_lo, z_hi = jp.rect
-    P = np.matmul(poly - o[:, None], R)  # v_tcp = R^T (v - o)
-    K, V = P.shape[:2]
-    valid = np.arange(V)[None, :] < n[:, None]
-    Y, Z = P[..., 1], P[..., 2]
-    ymin = np.where(valid, Y, np.inf).min(axis=1)
-    ymax = np.where(valid, Y, -np.inf).max(axis=1)
-    zmin = np.where(valid, Z, np.inf).min(axis=1)
-    zmax = np.where(valid, Z, -np.inf).max(axis=1)
-    meets = (ymin <= y_hi) & (ymax >= y_lo) & (zmin <= z_hi) & (zmax >= z_lo)  # cull before clipping
-    P, n, g, nx, w = P[meets], n[meets], g[meets], nx[meets], w[meets]
-    K = len(P)
-    for axis, lo, hi in ((1, y_lo, y_hi), (2, z_lo, z_hi)):
-        P, n = clip_polygons(P, n, axis, np.full(K, lo), keep_below=False)
-        P, n = clip_polygons(P, n, axis, np.full(K, hi), keep_below=True)
-    if len(P) == 0 or P.shape[1] == 0:
+def _accumulate(jp: _JawPass, poly: np.ndarray, n: np.ndarray, nx: np.ndarray, w: np.ndarray, src: np.ndarray,
+                g: np.ndarray) -> None:
+    """Clip the polygons ``poly`` (P, V, 3) (part frame, the first ``n[p]`` vertices valid, already
+    clipped to the contact's slab ``|x - x_contact| <= depth``; face normal's x ``nx``, weight ``w``)
+    of the pairs ``(src[k], g[k])`` (polygon, grasp) to the jaw's pad rectangle and add their
+    moments (:func:`grasplan.grasps.quality_kernels.accumulate_pairs`)."""
+    if len(src) == 0 or poly.shape[1] == 0:
         return
-    m6 = polygon_moments(P[..., 1], P[..., 2], n) * w[:, None]  # holes of merged areas subtract
-    flat = np.abs(nx) >= cos_flat
-    for k in range(6):
-        mom[:, j, 0, k] += np.bincount(g, weights=m6[:, k], minlength=M)
-        mom[:, j, 1, k] += np.bincount(g, weights=m6[:, k] * flat, minlength=M)
+    accumulate_pairs(np.ascontiguousarray(poly, dtype=np.float64), np.ascontiguousarray(n, dtype=np.int64),
+                     np.ascontiguousarray(w, dtype=np.float64), np.ascontiguousarray(np.abs(nx) >= jp.cos_flat),
+                     np.ascontiguousarray(src, dtype=np.int64), np.ascontiguousarray(g, dtype=np.int64), jp.o, jp.R,
+                     np.array(jp.rect, dtype=np.float64), jp.mom, jp.j)
 
 
 def _doubling_steps(n: int) -> int:
@@ -366,7 +352,7 @@ class _Elements:
 
 def _elements(part_mesh: TriangleMesh, pad_reach: float, depth: float) -> _Elements:
     """The :class:`_Elements` of ``part_mesh`` (its elements computed once per part when the mesh
-    caches derived data: the rank-order evaluation calls :func:`contact_patches` per chunk)."""
+    caches derived data: callers may call :func:`contact_patches` per chunk of grasps)."""
     derived = getattr(part_mesh, "derived", None)
     pts, first, count, fn, weight = derived("patch_elements", lambda: patch_elements(part_mesh)) if derived \
         else patch_elements(part_mesh)
@@ -412,7 +398,7 @@ def _distinct_contacts(C: np.ndarray, R: np.ndarray, o: np.ndarray, j: int) -> _
     members = np.argsort(inv, kind="stable")
     gsize = np.bincount(inv, minlength=U)
     gstart = np.cumsum(gsize) - gsize
-    return _Contacts(inv, members, gsize, gstart, C[rep, j], R[rep, :, 0])
+    return _Contacts(inv, members, gsize, gstart, np.ascontiguousarray(C[rep, j]), np.ascontiguousarray(R[rep, :, 0]))
 
 
 def _patch_pairs(jp: _JawPass, f: np.ndarray, gu: np.ndarray, nx: np.ndarray, el: _Elements, ct: _Contacts,
@@ -425,16 +411,10 @@ def _patch_pairs(jp: _JawPass, f: np.ndarray, gu: np.ndarray, nx: np.ndarray, el
     count, weight, gsize, gstart, members = el.count, el.weight, ct.gsize, ct.gstart, ct.members
     o, R, depth = jp.o, jp.R, jp.depth
     # exact cull and clip on the contact slab (x only, the same for every roll): once per
-    # (contact, element), in the part frame with x = (v - contact) . axis as a clip coordinate
-    polys = gather_polygons(el.pts, el.first, count, f)  # padding repeats a vertex: min / max unchanged
-    x = np.einsum("kvi,ki->kv", polys - ct.cu[gu][:, None], ct.axu[gu])  # x - x_contact
-    keep = (x.min(axis=1) <= depth) & (x.max(axis=1) >= -depth)
-    gu, f, nx, x = gu[keep], f[keep], nx[keep], x[keep]
-    Px = np.concatenate([x[..., None], polys[keep]], axis=2)  # (k, V, 4): x, part-frame point
-    npx = count[f]
-    Px, npx = clip_polygons(Px, npx, 0, np.full(len(Px), -depth), keep_below=False)
-    Px, npx = clip_polygons(Px, npx, 0, np.full(len(Px), depth), keep_below=True)
-    poly = Px[..., 1:]
+    # (contact, element), compiled (grasplan.grasps.quality_kernels.slab_polygons)
+    keep, poly, npx = slab_polygons(el.pts, el.first, count, np.ascontiguousarray(f, dtype=np.int64),
+                                    np.ascontiguousarray(gu, dtype=np.int64), ct.cu, ct.axu, float(depth))
+    gu, f, nx = gu[keep], f[keep], nx[keep]
     if disc > 0 and same_origin is not None and len(gu):
         ref = members[gstart[gu]]
         d = poly - o[ref][:, None]
@@ -446,9 +426,10 @@ def _patch_pairs(jp: _JawPass, f: np.ndarray, gu: np.ndarray, nx: np.ndarray, el
             _rotated(jp, poly[fast], npx[fast], nx[fast], weight[f[fast]], gu[fast], ct)
             slow = ~fast
             gu, f, nx, poly, npx = gu[slow], f[slow], nx[slow], poly[slow], npx[slow]
-    # expand the survivors to every roll of their contact, in bounded sub-chunks
+    # pair the survivors with every roll of their contact, in bounded sub-chunks
     nrep = gsize[gu]
     ends = np.cumsum(nrep)
+    wf = weight[f]
     s0 = 0
     while s0 < len(gu):
         s1 = s0 + max(1, int(np.searchsorted(ends[s0:] - (ends[s0 - 1] if s0 else 0), max_pairs, side="right")))
@@ -456,7 +437,7 @@ def _patch_pairs(jp: _JawPass, f: np.ndarray, gu: np.ndarray, nx: np.ndarray, el
         pu = np.repeat(np.arange(s0, s1), r)
         within = np.arange(len(pu)) - np.repeat(np.cumsum(r) - r, r)
         g = members[gstart[gu[pu]] + within]
-        _accumulate(jp, poly[pu], npx[pu], nx[pu], weight[f[pu]], g)
+        _accumulate(jp, poly, npx, nx, wf, pu, g)
         s0 = s1
 
 
@@ -473,9 +454,13 @@ def _pairs_by_class(jp: _JawPass, f: np.ndarray, b: np.ndarray, nx: np.ndarray, 
 def _dense_search(jp: _JawPass, el: _Elements, ct: _Contacts) -> None:
     """Elements near each contact's pad by the dense test (:func:`grasplan.grasps.patch_search.near_faces_dense`);
     their patches accumulated."""
+    y_lo, y_hi, z_lo, z_hi = jp.rect
+    disc = (1.0 - 1e-9) * min(-y_lo, y_hi, -z_lo, z_hi)
+    ref_o = jp.o[ct.members[ct.gstart[ct.inv]]]
+    same = np.bincount(ct.inv, weights=np.any(jp.o != ref_o, axis=1), minlength=len(ct.cu)) == 0
     for f, b, nx in near_faces_dense(el.cent, el.fn, el.cent_sq, el.slab_tol, el.lat_tol, ct.cu, ct.axu, jp.j,
                                      jp.max_pairs):
-        _pairs_by_class(jp, f, b, nx, el, ct)
+        _pairs_by_class(jp, f, b, nx, el, ct, disc=disc, same_origin=same)
 
 
 def _grid_search(jp: _JawPass, el: _Elements, ct: _Contacts, pad_reach: float) -> None:
@@ -521,8 +506,8 @@ def contact_patches(part_mesh: TriangleMesh, gripper: Gripper, T_part_tcp: np.nd
     cos_flat = math.cos(math.radians(flat_deg))
     # moments: [grasp, jaw, (all, flat), 6]
     mom = np.zeros((M, 2, 2, 6))
-    R = T[:, :3, :3]
-    o = T[:, :3, 3]
+    R = np.ascontiguousarray(T[:, :3, :3])
+    o = np.ascontiguousarray(T[:, :3, 3])
     for j in range(2):
         ysgn = -1.0 if j == 0 else 1.0
         y_lo, y_hi = sorted(ysgn * rect[0])

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..part.mass import MassProperties
+from .quality_kernels import margin_bisection
 
 #: torsional friction radius of a point or line contact on a compliant pad, m
 MIN_PATCH_RADIUS = 5e-4
@@ -136,6 +137,7 @@ def gravity_margin(mass_props: MassProperties, T_world_part: np.ndarray, T_part_
     sqrt(1 - u_j^2)`` (``L_j``: :func:`torsion_length`, times ``sqrt(1 - p)`` when the pressure
     moment is a share ``p`` of its capacity (effective patch), at least the point contact's), the
     pad model of the MuJoCo check. Homogeneous: the margin grows in proportion to ``normal_force``.
+    The bisection on the scale is compiled (:func:`grasplan.grasps.quality_kernels.margin_bisection`).
 
     The loads are those of the lift and shake the MuJoCo check applies (:class:`LoadModel`,
     :data:`LOAD`): ``f = m (g - a)`` for the gripper accelerations ``a`` of
@@ -170,34 +172,10 @@ def gravity_margin(mass_props: MassProperties, T_world_part: np.ndarray, T_part_
     F = float(normal_force)
     LMIN = SOFT_FINGER * MIN_PATCH_RADIUS
 
-    def holds(s: np.ndarray) -> np.ndarray:
-        """(M,) every load of grasp m held at scale s[m]."""
-        sc = s[:, None]
-        n0 = F - 0.5 * sc * fx
-        n1 = F + 0.5 * sc * fx
-        cap = arm0 * n0 + arm1 * n1  # the pads' pressure moment at the edge of their patches
-        used = np.where(cap > 0, np.clip(sc * tp / np.maximum(cap, 1e-300), 0.0, 1.0), 0.0)  # 2 e / w
-        rest = np.maximum(sc * tp - cap, 0.0) * inv_w  # couple force per contact
-        hy, hz = rest * uz, -rest * uy  # (tau_rest x x_hat) / width
-        t0 = (0.5 * sc * fy - hy) ** 2 + (0.5 * sc * fz - hz) ** 2
-        t1 = (0.5 * sc * fy + hy) ** 2 + (0.5 * sc * fz + hz) ** 2
-        c0, c1 = (mu * n0) ** 2, (mu * n1) ** 2
-        ok = (n0 > 0) & (n1 > 0) & (t0 <= c0) & (t1 <= c1)
-        # an eccentric pressure bears on the effective patch (1 - used) of the area (Meyerhof): less torsion
-        shrink = np.sqrt(1.0 - used)
-        twist = (np.maximum(L0 * shrink, LMIN) * np.sqrt(np.maximum(c0 - t0, 0.0))
-                 + np.maximum(L1 * shrink, LMIN) * np.sqrt(np.maximum(c1 - t1, 0.0)))
-        return (ok & (sc * tau_x <= twist)).all(axis=1)
-
-    lo = np.full(M, math.log(MARGIN_BRACKET[0]))
-    hi = np.full(M, math.log(MARGIN_BRACKET[1]))
-    for _ in range(MARGIN_ITERATIONS):
-        mid = 0.5 * (lo + hi)
-        h = holds(np.exp(mid))
-        lo = np.where(h, mid, lo)
-        hi = np.where(h, hi, mid)
-    out = np.exp(lo)
-    return np.where(holds(np.exp(lo)), out, 0.0)
+    c = np.ascontiguousarray
+    return margin_bisection(c(fx), c(fy), c(fz), c(tau_x), c(tp), c(uy), c(uz), c(arm0[:, 0]), c(arm1[:, 0]),
+                            c(inv_w[:, 0]), c(L0[:, 0]), c(L1[:, 0]), F, float(mu), LMIN,
+                            math.log(MARGIN_BRACKET[0]), math.log(MARGIN_BRACKET[1]), MARGIN_ITERATIONS)
 
 
 def _tangent_basis(nu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

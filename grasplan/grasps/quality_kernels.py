@@ -1,0 +1,228 @@
+"""Compiled inner loop of the contact patches: (polygon, grasp) pairs clipped to a finger pad and integrated.
+
+:func:`slab_polygons` clips each (element, contact) pair to the contact's slab, once for every roll;
+:func:`accumulate_pairs` turns each (polygon, grasp) pair into the grasp's TCP frame, culls it
+against the pad's rectangle, clips it to it (Sutherland-Hodgman, one side at a time) and adds its
+area and first and second moments (the formulas of :func:`grasplan.geometry.polygons.polygon_moments`)
+to the grasp's. Used by :mod:`grasplan.grasps.patches` (``cache=True``: compiled once, at
+install by :mod:`grasplan.cli.warmup`).
+"""
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from ..robot.ik.ur_batch import announce_compiling
+
+announce_compiling()
+
+
+@numba.njit(cache=True)
+def _clip(ys: np.ndarray, zs: np.ndarray, m: int, axis: int, bound: float, sgn: float,
+          oy: np.ndarray, oz: np.ndarray) -> int:
+    """Clip polygon ``ys, zs`` (first ``m`` vertices) to ``sgn * (coord - bound) <= 0`` of ``axis``
+    (0: y, 1: z) into ``oy, oz``; returns the new vertex count."""
+    k = 0
+    for i in range(m):
+        j = i + 1 if i + 1 < m else 0
+        p = ys[i] if axis == 0 else zs[i]
+        q = ys[j] if axis == 0 else zs[j]
+        dp = sgn * (p - bound)
+        dq = sgn * (q - bound)
+        in_p = dp <= 0.0
+        if in_p:
+            oy[k] = ys[i]
+            oz[k] = zs[i]
+            k += 1
+        if in_p != (dq <= 0.0):
+            t = dp / (dp - dq)
+            oy[k] = ys[i] + t * (ys[j] - ys[i])
+            oz[k] = zs[i] + t * (zs[j] - zs[i])
+            k += 1
+    return k
+
+
+@numba.njit(cache=True)
+def accumulate_pairs(poly: np.ndarray, n: np.ndarray, w: np.ndarray, flat: np.ndarray, src: np.ndarray,
+                     g: np.ndarray, o: np.ndarray, R: np.ndarray, rect: np.ndarray, mom: np.ndarray, jaw: int) -> None:
+    """Add the pad moments of ``K`` (polygon, grasp) pairs to ``mom`` (M, 2, 2, 6) in place.
+
+    ``poly`` (P, V, 3) part-frame polygons (the first ``n[p]`` vertices valid) with weights ``w``
+    (P,) (+-1: holes of merged areas subtract) and ``flat`` (P,) bool (the face is parallel to the
+    pad); pair ``k`` is polygon ``src[k]`` with grasp ``g[k]``; TCP origins ``o`` (M, 3) and
+    rotations ``R`` (M, 3, 3); ``rect`` (4,)
+    ``y_lo, y_hi, z_lo, z_hi`` in the TCP frame; ``jaw`` 0 or 1. Adds ``w * [A, int y, int z,
+    int y^2, int z^2, int yz]`` to ``mom[g, jaw, 0]`` and, when ``flat``, to ``mom[g, jaw, 1]``."""
+    K, V = len(src), poly.shape[1]
+    cap = 16 * V + 16  # each clip at most doubles a polygon's vertices
+    ay = np.empty(cap)
+    az = np.empty(cap)
+    by = np.empty(cap)
+    bz = np.empty(cap)
+    y_lo, y_hi, z_lo, z_hi = rect[0], rect[1], rect[2], rect[3]
+    for k in range(K):
+        gi = g[k]
+        pk = src[k]
+        m = n[pk]
+        ymin = np.inf
+        ymax = -np.inf
+        zmin = np.inf
+        zmax = -np.inf
+        for v in range(m):
+            d0 = poly[pk, v, 0] - o[gi, 0]
+            d1 = poly[pk, v, 1] - o[gi, 1]
+            d2 = poly[pk, v, 2] - o[gi, 2]
+            y = d0 * R[gi, 0, 1] + d1 * R[gi, 1, 1] + d2 * R[gi, 2, 1]
+            z = d0 * R[gi, 0, 2] + d1 * R[gi, 1, 2] + d2 * R[gi, 2, 2]
+            ay[v] = y
+            az[v] = z
+            ymin = min(ymin, y)
+            ymax = max(ymax, y)
+            zmin = min(zmin, z)
+            zmax = max(zmax, z)
+        if not (ymin <= y_hi and ymax >= y_lo and zmin <= z_hi and zmax >= z_lo):
+            continue  # outside the pad: culled before clipping
+        m = _clip(ay, az, m, 0, y_lo, -1.0, by, bz)
+        m = _clip(by, bz, m, 0, y_hi, 1.0, ay, az)
+        m = _clip(ay, az, m, 1, z_lo, -1.0, by, bz)
+        m = _clip(by, bz, m, 1, z_hi, 1.0, ay, az)
+        if m == 0:
+            continue
+        a = sy = sz = syy = szz = syz = 0.0
+        for i in range(m):
+            j = i + 1 if i + 1 < m else 0
+            Y, Z, Y1, Z1 = ay[i], az[i], ay[j], az[j]
+            c = Y * Z1 - Y1 * Z
+            a += c
+            sy += (Y + Y1) * c
+            sz += (Z + Z1) * c
+            syy += (Y * Y + Y * Y1 + Y1 * Y1) * c
+            szz += (Z * Z + Z * Z1 + Z1 * Z1) * c
+            syz += (Y * Z1 + 2 * Y * Z + 2 * Y1 * Z1 + Y1 * Z) * c
+        A = 0.5 * a
+        s = (1.0 if A > 0 else -1.0 if A < 0 else 0.0) * w[pk]
+        vals = (A * s, sy / 6.0 * s, sz / 6.0 * s, syy / 12.0 * s, szz / 12.0 * s, syz / 24.0 * s)
+        for c6 in range(6):
+            mom[gi, jaw, 0, c6] += vals[c6]
+            if flat[pk]:
+                mom[gi, jaw, 1, c6] += vals[c6]
+
+
+@numba.njit(cache=True)
+def slab_polygons(pts: np.ndarray, first: np.ndarray, count: np.ndarray, f: np.ndarray, gu: np.ndarray,
+                  cu: np.ndarray, axu: np.ndarray, depth: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The elements ``f`` (K,) clipped to the slabs of their contacts ``gu`` (K,): ``|(v - cu) . axu|
+    <= depth`` (``cu``, ``axu`` (U, 3): contact points and closing axes). Elements are polygons of
+    ``pts`` (``count[e]`` vertices from ``first[e]``). Returns ``(keep (K,) bool, poly (k, V, 3),
+    n (k,))``: the pairs that reach the slab (some vertex within ``depth`` of the contact plane on
+    each side) and their clipped polygons (part frame, the first ``n`` vertices valid)."""
+    K = len(f)
+    vmax = 0
+    for k in range(K):
+        vmax = max(vmax, count[f[k]])
+    cap = 4 * vmax + 4
+    keep = np.zeros(K, dtype=np.bool_)
+    xs = np.empty(cap)
+    xa = np.empty((cap, 3))
+    ys = np.empty(cap)
+    ya = np.empty((cap, 3))
+    out = np.zeros((K, cap, 3))
+    nout = np.zeros(K, dtype=np.int64)
+    kept = 0
+    for k in range(K):
+        e, u = f[k], gu[k]
+        m = count[e]
+        lo, hi = np.inf, -np.inf
+        for v in range(m):
+            p = pts[first[e] + v]
+            x = (p[0] - cu[u, 0]) * axu[u, 0] + (p[1] - cu[u, 1]) * axu[u, 1] + (p[2] - cu[u, 2]) * axu[u, 2]
+            xs[v] = x
+            xa[v, 0], xa[v, 1], xa[v, 2] = p[0], p[1], p[2]
+            lo = min(lo, x)
+            hi = max(hi, x)
+        if not (lo <= depth and hi >= -depth):
+            continue
+        keep[k] = True
+        for side in range(2):  # x >= -depth, then x <= depth
+            sgn = -1.0 if side == 0 else 1.0
+            bound = -depth if side == 0 else depth
+            c = 0
+            for i in range(m):
+                j = i + 1 if i + 1 < m else 0
+                dp = sgn * (xs[i] - bound)
+                dq = sgn * (xs[j] - bound)
+                in_p = dp <= 0.0
+                if in_p:
+                    ys[c] = xs[i]
+                    ya[c] = xa[i]
+                    c += 1
+                if in_p != (dq <= 0.0):
+                    t = dp / (dp - dq)
+                    ys[c] = xs[i] + t * (xs[j] - xs[i])
+                    for d in range(3):
+                        ya[c, d] = xa[i, d] + t * (xa[j, d] - xa[i, d])
+                    c += 1
+            m = c
+            for i in range(m):
+                xs[i] = ys[i]
+                xa[i] = ya[i]
+        for i in range(m):
+            out[kept, i] = xa[i]
+        nout[kept] = m
+        kept += 1
+    return keep, out[:kept], nout[:kept]
+
+
+@numba.njit(cache=True)
+def _holds(s: float, m: int, fx: np.ndarray, fy: np.ndarray, fz: np.ndarray, tau_x: np.ndarray, tp: np.ndarray,
+           uy: np.ndarray, uz: np.ndarray, arm0: np.ndarray, arm1: np.ndarray, inv_w: np.ndarray, L0: np.ndarray,
+           L1: np.ndarray, F: float, mu: float, lmin: float) -> bool:
+    """Every load ``d`` of grasp ``m`` held at scale ``s`` (the arithmetic of
+    :func:`grasplan.grasps.wrench.gravity_margin`)."""
+    for d in range(fx.shape[1]):
+        n0 = F - 0.5 * s * fx[m, d]
+        n1 = F + 0.5 * s * fx[m, d]
+        cap = arm0[m] * n0 + arm1[m] * n1
+        if cap > 0:
+            used = min(max(s * tp[m, d] / max(cap, 1e-300), 0.0), 1.0)
+        else:
+            used = 0.0
+        rest = max(s * tp[m, d] - cap, 0.0) * inv_w[m]
+        hy = rest * uz[m, d]
+        hz = -rest * uy[m, d]
+        t0 = (0.5 * s * fy[m, d] - hy) ** 2 + (0.5 * s * fz[m, d] - hz) ** 2
+        t1 = (0.5 * s * fy[m, d] + hy) ** 2 + (0.5 * s * fz[m, d] + hz) ** 2
+        c0 = (mu * n0) ** 2
+        c1 = (mu * n1) ** 2
+        if not (n0 > 0 and n1 > 0 and t0 <= c0 and t1 <= c1):
+            return False
+        shrink = np.sqrt(1.0 - used)
+        twist = (max(L0[m] * shrink, lmin) * np.sqrt(max(c0 - t0, 0.0))
+                 + max(L1[m] * shrink, lmin) * np.sqrt(max(c1 - t1, 0.0)))
+        if not (s * tau_x[m, d] <= twist):
+            return False
+    return True
+
+
+@numba.njit(cache=True)
+def margin_bisection(fx: np.ndarray, fy: np.ndarray, fz: np.ndarray, tau_x: np.ndarray, tp: np.ndarray,
+                     uy: np.ndarray, uz: np.ndarray, arm0: np.ndarray, arm1: np.ndarray, inv_w: np.ndarray,
+                     L0: np.ndarray, L1: np.ndarray, F: float, mu: float, lmin: float, log_lo: float,
+                     log_hi: float, iterations: int) -> np.ndarray:
+    """(M,) the largest load scale each grasp holds: bisection on ``log s`` over ``[log_lo, log_hi]``
+    (``iterations`` steps), 0 when even the lower end slips. Loads (M, D) in each TCP frame as
+    :func:`grasplan.grasps.wrench.gravity_margin` prepares them."""
+    M = fx.shape[0]
+    out = np.zeros(M)
+    for m in range(M):
+        lo, hi = log_lo, log_hi
+        for _ in range(iterations):
+            mid = 0.5 * (lo + hi)
+            if _holds(np.exp(mid), m, fx, fy, fz, tau_x, tp, uy, uz, arm0, arm1, inv_w, L0, L1, F, mu, lmin):
+                lo = mid
+            else:
+                hi = mid
+        s = np.exp(lo)
+        if _holds(s, m, fx, fy, fz, tau_x, tp, uy, uz, arm0, arm1, inv_w, L0, L1, F, mu, lmin):
+            out[m] = s
+    return out
