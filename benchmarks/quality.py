@@ -32,7 +32,7 @@ sys.path.insert(0, str(ROOT))
 from grasplan.grasps.pipeline import compute_grasps
 from grasplan.part.mesh import load_part
 from grasplan.config.params import CandidateParams, GraspParams
-from grasplan.config.scoring import distinct_order
+from grasplan.grasps.ranking import distinct_order
 from grasplan.sim.simulate import convex_pieces, simulate_grasps
 
 PAPER = Path(os.environ.get("GRASPLAN_PAPER_PARTS", ROOT.parent / "shared" / "parts" / "paper"))
@@ -62,7 +62,7 @@ def run_part(path: Path, args, gr, density: float) -> dict:
     T = gr.frames.T_part_tcp[ok]
     width = gr.cand.candidates.width[gr.frames.candidate[ok]]
     s = score_all[ok]
-    order = distinct_order(T, np.lexsort((np.arange(len(ok)), -s)))
+    order, _ = distinct_order(T, np.lexsort((np.arange(len(ok)), -s)))
     top = order[: args.top]
     rng = np.random.default_rng(args.seed)
     rand = rng.choice(len(ok), size=min(args.top, len(ok)), replace=False)

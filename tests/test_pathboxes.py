@@ -19,7 +19,7 @@ from grasplan.gripper.load import load_gripper
 from grasplan.geometry.interpolation import interpolate_path
 from grasplan.part.mesh import load_part
 from grasplan.motion.pathboxes import SLACK, obb_apart, scene_open
-from grasplan.pick.lift_check import lift_precheck_drop
+from grasplan.motion.lift_check import lift_precheck_drop
 from grasplan.robot.description import load_robot
 from grasplan.motion.collision_scene import CollisionScene, ExtraBody
 

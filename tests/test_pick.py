@@ -316,7 +316,7 @@ def test_lift_shortcut_still_checks_the_arm(picker, rest):
     """At the lift's waypoints the robot check skips only what the checks before IK decided (the
     gripper against the world, the carried part against the neighbours, the cloud and the cell): a
     neighbour where the wrist passes during the lift is still a lift collision of that link."""
-    from grasplan.pick.lift_check import _drop_pairs, lift_collision, lift_precheck_drop
+    from grasplan.motion.lift_check import _drop_pairs, lift_collision, lift_precheck_drop
     from grasplan.motion.pickplace import T_tcp_part_of
 
     pk = picker.plan(scene(("a", "bracket", rest))).pick("a")
@@ -354,8 +354,8 @@ def test_resting_shortcut_matches_every_pair(picker, rest, monkeypatch):
     answer is the reference's, every configuration checked with every pair (a resting one may touch
     only supports, the others only neighbours within the depth rule), the same first colliding
     configuration reported; resting configurations in contact were met."""
-    import grasplan.pick.lift_check as lift_check
-    import grasplan.pick.motion as motion
+    import grasplan.motion.lift_check as lift_check
+    import grasplan.motion.grasp_motion as motion
     from grasplan.geometry.interpolation import interpolate_path
 
     seen = []
@@ -409,7 +409,7 @@ def test_resting_shortcut_matches_every_pair(picker, rest, monkeypatch):
         qb[1 + k % 3] += 0.05 * k * (-1) ** k
         pairs = sc.colliding_pairs(qb, width)
         if pairs and not lift_check._support_only(pairs):
-            assert lift_check._sample_ok(sc, qb, width, True, None) is False
+            assert lift_check.sample_ok(sc, qb, width, True, None) is False
             # a path resting all along (the far end free: the arm at home): qb's pairs are still reported
             assert orig(sc, np.stack([qb, picker.robot.q_home]), width, 1) is not None
             bad += 1

@@ -15,7 +15,7 @@ from grasplan.robot.ik.solve import solve_ik
 from grasplan.geometry.interpolation import check_order
 from grasplan.part.mesh import load_part
 from grasplan.pick.cover import APPROACH_PAD, covered_check
-from grasplan.pick.motion import line_path
+from grasplan.motion.grasp_motion import line_path
 from grasplan.pick.world import INSTANCE_PREFIX, PickWorld
 from grasplan.robot.description import load_robot
 from grasplan.motion.collision_scene import CollisionScene, ExtraBody

@@ -1,5 +1,5 @@
 """The carried part against the cell before IK (grasplan/pick/world.py ``PickWorld.cell_shrunk``,
-grasplan/pick/picker.py, grasplan/pick/motion.py ``lift_precheck_drop``): the picker checks the part
+grasplan/pick/picker.py, grasplan/motion/grasp_motion.py ``lift_precheck_drop``): the picker checks the part
 alone along each lift against the table and the obstacles shrunk as the robot scene's attached
 part meets them, and the lift's waypoints it covers then skip those pairs in the robot scene. So
 the bodies must be the scene's (the same answer for every pose, grazing ones included) and mean
@@ -15,7 +15,7 @@ import numpy as np
 from grasplan.cell.model import load_cell
 from grasplan.gripper.load import load_gripper
 from grasplan.part.mesh import load_part
-from grasplan.pick.lift_check import lift_precheck_drop
+from grasplan.motion.lift_check import lift_precheck_drop
 from grasplan.pick.world import PickWorld
 from grasplan.robot.description import load_robot
 from grasplan.motion.collision_scene import ATTACHED_CONTACT_TOL, CollisionScene

@@ -1,11 +1,11 @@
 """The lift's resting-contact window is ``lift_contact`` of TCP travel, not the first line waypoint
-(:func:`grasplan.pick.lift_check.lift_collision` with ``resting``): a part still touching the table
+(:func:`grasplan.motion.lift_check.lift_collision` with ``resting``): a part still touching the table
 3 mm up is a lift collision when 2 mm are allowed, although the first waypoint lies 4 mm up."""
 from __future__ import annotations
 
 import numpy as np
 
-from grasplan.pick.lift_check import lift_collision, lift_travel, touch_waypoints
+from grasplan.motion.lift_check import lift_collision, lift_travel, touch_waypoints
 
 
 class _TableScene:

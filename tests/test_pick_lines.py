@@ -13,7 +13,7 @@ from grasplan.robot.ik.solve import get_solver, solve_ik
 from grasplan.part.mesh import load_part
 from grasplan.motion.joint_paths import approach_path_reason
 from grasplan.robot.ik.lines import world_fk
-from grasplan.pick.motion import line_path
+from grasplan.motion.grasp_motion import line_path
 from grasplan.piles.checks import check_cell, overlap_warnings
 from grasplan.robot.description import load_robot
 from grasplan.piles.scene_file import Instance

@@ -175,7 +175,7 @@ def test_the_budget_stops_inside_an_instance(picker, rest, monkeypatch):
     other instance) is planned: the plan returns with both not_tried."""
     import grasplan.pick.picker as pm
     from grasplan.pick.codes import Reason
-    from grasplan.pick.motion import Outcome
+    from grasplan.motion.grasp_motion import Outcome
 
     clock = JumpClock()
     calls = []
@@ -246,7 +246,7 @@ def test_the_budget_stops_a_depth_measurement(part):
 def test_the_budget_caps_each_path_query():
     from types import SimpleNamespace
 
-    from grasplan.pick.motion import MotionContext
+    from grasplan.motion.grasp_motion import MotionContext
 
     clock = JumpClock()
     ctx = SimpleNamespace(params=PickParams(time_limit_per_query=0.2, path_attempts=2), budget=Budget(0.1, clock))

@@ -401,7 +401,7 @@ def test_distinct_ranking_at_the_roll_step(example_part):
     from grasplan.grasps.pipeline import compute_grasps
     from grasplan.part.mesh import load_part
     from grasplan.config.params import GraspParams, PlanParams
-    from grasplan.config.scoring import distinct_order
+    from grasplan.grasps.ranking import distinct_order
 
     gr = compute_grasps(load_part(example_part("bracket.stl"), units="mm"), grasps=GraspParams(roll_step_deg=15.0))
     T, cand, roll = gr.frames.T_part_tcp, gr.frames.candidate, gr.frames.roll
@@ -409,6 +409,6 @@ def test_distinct_ranking_at_the_roll_step(example_part):
     a, b = same[0], same[1]
     assert np.degrees(roll[b] - roll[a]) == pytest.approx(15.0) and np.allclose(T[a][:3, 3], T[b][:3, 3])
     far = int(np.argmax(np.linalg.norm(T[:, :3, 3] - T[a][:3, 3], axis=1)))
-    order = distinct_order(T, np.array([a, b, far]), min_distance=PlanParams().distinct_distance,
-                           min_angle_deg=PlanParams().distinct_angle_deg)
-    assert order.tolist() == [a, far, b]
+    order, n = distinct_order(T, np.array([a, b, far]), min_distance=PlanParams().distinct_distance,
+                              min_angle_deg=PlanParams().distinct_angle_deg)
+    assert order.tolist() == [a, far, b] and n == 2

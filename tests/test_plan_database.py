@@ -138,3 +138,69 @@ def test_cli_keep_all_writes_every_pose_and_default_reads_the_cache(tmp_path, ow
     r = CliRunner().invoke(main, [*base, "-o", str(tmp_path / "c.json")])
     assert r.exit_code == 0 and "computing" not in r.output
     assert os.listdir(own_cache / "graspdb")
+
+
+def test_a_plan_from_the_cache_computes_no_hull_and_imports_no_scipy_spatial(tmp_path, own_cache):
+    """The database keeps the part's resting poses: a plan that reads it places the part without
+    the convex hull (SciPy's Qhull, scipy.spatial) and ranks without a k-d tree, in a fresh process
+    as a cell runs it."""
+    from test_startup import imported_heavy
+
+    base = ["plan", str(BRACKET), "--units", "mm", "--robot", "ur5", "--roll-step", "30", "--top", "2"]
+    code, heavy, _ = imported_heavy(*base, "-o", str(tmp_path / "a.json"))
+    assert code == 0 and "scipy.spatial" in heavy  # computing the database needs the hull
+    code, heavy, _ = imported_heavy(*base, "-o", str(tmp_path / "b.json"))
+    assert code == 0 and not [m for m in heavy if m.startswith("scipy.spatial")], heavy
+    a = json.loads((tmp_path / "a.json").read_text())
+    b = json.loads((tmp_path / "b.json").read_text())
+    assert a["part"]["T_world_part"] == b["part"]["T_world_part"] and a["counts"] == b["counts"]
+
+
+def test_resting_poses_stored_in_the_database_are_the_computed_ones(bracket, own_cache):
+    from grasplan.part.stability import stable_poses
+
+    db = database_for(bracket, "schunk_egp_c_40", grasps=FAST)
+    R, p = stable_poses(load_part(BRACKET, units="mm").mesh)  # a fresh mesh: computed
+    np.testing.assert_array_equal(db.rest_R, R)
+    np.testing.assert_array_equal(db.rest_prob, p)
+    fresh = load_part(BRACKET, units="mm")
+    loaded = load_database(cache_path(fresh, load_gripper("schunk_egp_c_40"), CandidateParams(), FAST), part=fresh)
+    loaded.prime_resting_poses(fresh)
+    R2, p2 = stable_poses(fresh.mesh)  # primed: the stored ones
+    np.testing.assert_array_equal(R2, R)
+    np.testing.assert_array_equal(p2, p)
+
+
+def test_hold_by_pose_counts_what_the_cell_computation_predicts(bracket, own_cache):
+    """Per resting pose, the grasps predicted to hold (the database placed in each pose) are those
+    the whole grasp stage computed in that pose predicts, at a density where some poses hold."""
+    from grasplan.cell.model import load_cell
+    from grasplan.grasps.pipeline import compute_grasps
+    from grasplan.grasps.placed import hold_by_pose
+    from grasplan.motion.planning import stable_pose_indices
+
+    heavy = GraspParams(roll_step_deg=30.0, density=60000.0)
+    g, cell = load_gripper("schunk_egp_c_40"), load_cell("table")
+    poses = stable_pose_indices(bracket.mesh)[:3]
+    rows = hold_by_pose(bracket, g, cell, candidates=CandidateParams(), grasps=heavy, poses=poses)
+    assert [r[:2] for r in rows] == poses and sum(r[2] for r in rows) > 0
+    for k, _, n, force in rows:
+        gr = compute_grasps(bracket, gripper=g, cell=cell, grasps=replace(heavy, pose_index=k))
+        gm = gr.quality.gravity_margin
+        assert n == int(np.count_nonzero(gm >= 1.0))
+        assert force == pytest.approx(g.grip_force / gm.max(), rel=1e-12)
+
+
+@pytest.mark.paper
+def test_a_pose_that_holds_none_names_the_poses_that_do(tmp_path, own_cache):
+    from conftest import paper_part
+
+    part = paper_part("TLess20.stl")
+    r = CliRunner().invoke(main, ["plan", str(part), "--robot", "ur5", "--top", "2", "-o", str(tmp_path / "t.json")])
+    assert r.exit_code == 0, r.output
+    line = next(ln for ln in r.output.splitlines() if "predicted to hold; poses that have" in ln)
+    assert "--pose-index" in line
+    k = int(line.split("--pose-index ")[1].split(",")[0])
+    r = CliRunner().invoke(main, ["plan", str(part), "--robot", "ur5", "--top", "2", "--pose-index", str(k),
+                                  "-o", str(tmp_path / "k.json")])
+    assert r.exit_code == 0 and "no collision-free grasp is predicted to hold" not in r.output, r.output

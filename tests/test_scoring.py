@@ -16,8 +16,9 @@ from grasplan.errors import ConfigError, InputError
 from grasplan.config.params import DEFAULT_SCORE_WEIGHTS, GraspParams, PlanParams
 from grasplan.grasps.quality import Quality
 from grasplan.results.quality_json import CONTACT_TYPES
+from grasplan.grasps.ranking import distinct_order
 from grasplan.config.scoring import (
-    TERMS, ScoringConfig, distinct_order, load_scoring, score_grasps, with_scoring_file
+    TERMS, ScoringConfig, load_scoring, score_grasps, with_scoring_file
 )
 from grasplan.sim.simulate import SimResult, rank_held_first, with_sim
 
@@ -191,8 +192,8 @@ def test_plan_ranks_by_score_with_the_diversity_rule(plan_doc, grasps_doc):
     # the plan's scores are the grasp stage's (same weights, same quality)
     assert score.tolist() == [grasps_doc["grasps"][i]["score"] for i in ok]
     T = np.array([x["T_part_tcp"] for x in g])
-    expected = distinct_order(T, ok[np.lexsort((ok, -score))], min_distance=doc["plan_params"]["distinct_distance"],
-                              min_angle_deg=doc["plan_params"]["distinct_angle_deg"])
+    expected, _ = distinct_order(T, ok[np.lexsort((ok, -score))], min_distance=doc["plan_params"]["distinct_distance"],
+                                 min_angle_deg=doc["plan_params"]["distinct_angle_deg"])
     # rank before the simulation re-ordered the simulated ones: compare the unsimulated tail
     ranked = sorted((x for x in g if x["rank"] is not None), key=lambda x: x["rank"])
     sim_ids = {x["id"] for x in g if x.get("sim")}

@@ -111,11 +111,11 @@ def test_simulate_cli_writes_sim_per_grasp(tmp_path, example_part):
     assert doc["part"]["mass_kg"] == pytest.approx(json.loads(grasps_json.read_text())["part"]["mass_kg"])
     ok = set(np.flatnonzero(np.asarray(loaded.grasps.status) == "ok").tolist())
     # the best-scored collision-free grasps with the plan's diversity rule
-    from grasplan.config.scoring import distinct_order
+    from grasplan.grasps.ranking import distinct_order
 
     g = loaded.grasps
     okr = np.flatnonzero(np.asarray(g.status) == "ok")
-    expected = distinct_order(g.T_part_tcp, okr[np.lexsort((okr, -g.score[okr]))])[:3]
+    expected = distinct_order(g.T_part_tcp, okr[np.lexsort((okr, -g.score[okr]))])[0][:3]
     assert [gr["id"] for gr in doc["grasps"]] == expected.tolist()
     assert doc["grasps"][0]["score"] == pytest.approx(np.nanmax(g.score))
     for gr in doc["grasps"]:

@@ -74,6 +74,8 @@ def command(part: str, robot: str, output: str, gripper: str, cell: str, part_po
     gr = result.grasp_result
     if gr is not None:
         warn_all(gr.quality_warnings())
+        if T_world_part is None and _holds_none(result):
+            warn_all([_holding_poses_hint(p, g, c, prm, result)])
     result.write(output, keep=keep)
 
     counts = result.counts()
@@ -135,6 +137,38 @@ def _database_lines(ev: PlanProgress) -> None:
 
     if isinstance(ev, GraspDatabaseNote):
         info(ev.message)
+
+
+def _holds_none(result: PlanResult) -> bool:
+    """No collision-free grasp of ``result`` is predicted to hold (and there are some)."""
+    import numpy as np
+
+    gm = result.grasps.gravity_margin
+    free = result.grasps.status.astype(str) != Status.COLLISION_PART.value
+    if gm is None:
+        return False
+    gm = gm[free & np.isfinite(gm)]
+    return bool(len(gm)) and float(gm.max()) < 1.0
+
+
+def _holding_poses_hint(p: Part, g: Gripper, c: Cell, prm: RunParams, result: PlanResult) -> str:
+    """Which other resting poses have grasps predicted to hold (the grasp database placed in each)."""
+    from ..grasps.placed import hold_by_pose
+    from ..motion.planning import stable_pose_indices
+
+    chosen = result.params.grasps.single_pose_index()
+    chosen = c.pose_index if chosen is None else chosen
+    others = [(k, pr) for k, pr in stable_pose_indices(p.mesh) if k != chosen]
+    rows = hold_by_pose(p, g, c, candidates=prm.candidates, grasps=prm.grasps, poses=others)
+    good = [(k, pr, n, f) for k, pr, n, f in rows if n > 0]
+    if not good:
+        return (f"no other resting pose (probability >= 2 %) has a grasp predicted to hold at {g.grip_force:g} N "
+                f"either: the least force any would need is "
+                + (f"{min(f for *_, f in rows if f is not None):.1f} N" if any(f is not None for *_, f in rows)
+                   else "unknown (no collision-free grasp)"))
+    listed = ", ".join(f"{k} ({pr * 100:.1f} %): {n} grasps" for k, pr, n, _ in good)
+    return (f"resting pose {chosen} has no grasp predicted to hold; poses that have: {listed}; plan one with "
+            f"--pose-index {good[0][0]}, or every pose with --pose-index all")
 
 
 def _other_poses_hint(p: Part, g: Gripper, c: Cell, prm: RunParams, result: PlanResult) -> str:

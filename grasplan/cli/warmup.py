@@ -19,6 +19,7 @@ from typing import Any
 
 #: the modules holding ``cache=True`` kernels (the warm-up checks every kernel of every module it loaded)
 KERNEL_MODULES = ("grasplan.robot.ik.ur_batch", "grasplan.grasps.collision_boxes", "grasplan.grasps.quality_kernels",
+                  "grasplan.grasps.ranking",
                   "grasplan.motion.pathboxes", "grasplan.pick.gripboxes")
 #: half extents (m) of the box the warm-up plans and picks
 BOX_HALF = (0.02, 0.015, 0.01)

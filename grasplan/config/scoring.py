@@ -15,7 +15,7 @@ import math
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal, Protocol, TypeVar, overload
+from typing import TYPE_CHECKING, Protocol, TypeVar
 
 import numpy as np
 
@@ -266,48 +266,6 @@ def score_grasps(part_mesh: TriangleMesh, T_world_part: np.ndarray, T_part_tcp: 
         if w:
             out += w * TERMS[name](ctx)
     return out / total if total > 0 else out
-
-
-@overload
-def distinct_order(T_part_tcp: np.ndarray, order: np.ndarray, *, min_distance: float = ...,
-                   min_angle_deg: float = ..., return_count: Literal[False] = ...) -> np.ndarray: ...
-@overload
-def distinct_order(T_part_tcp: np.ndarray, order: np.ndarray, *, min_distance: float = ...,
-                   min_angle_deg: float = ..., return_count: Literal[True]) -> tuple[np.ndarray, int]: ...
-
-def distinct_order(T_part_tcp: np.ndarray, order: np.ndarray, *, min_distance: float = 0.005,
-                   min_angle_deg: float = 15.0, return_count: bool = False) -> np.ndarray | tuple[np.ndarray, int]:
-    """Reorder ``order`` (best first) so that no two of the leading grasps are within
-    ``min_distance`` (TCP origins) **and** ``min_angle_deg`` (relative rotation of the TCP frames)
-    of each other while distinct grasps remain: a near-duplicate of an already chosen grasp moves
-    behind every distinct one (keeping its relative order). ``min_distance = 0`` keeps ``order``.
-    ``return_count``: return ``(order, number of distinct grasps)`` (they lead the order)."""
-    order = np.asarray(order, dtype=np.int64)
-    if min_distance <= 0 or len(order) < 2:
-        return (order, len(order)) if return_count else order
-    from scipy.spatial import cKDTree
-
-    T = np.asarray(T_part_tcp, dtype=np.float64)[order]
-    p = T[:, :3, 3]
-    R = T[:, :3, :3]
-    cos_min = np.cos(np.radians(min_angle_deg))
-    tree = cKDTree(p)
-    chosen = np.zeros(len(order), dtype=bool)
-    dup = np.zeros(len(order), dtype=bool)
-    # greedy in rank order; a grasp is a duplicate if a chosen grasp is close in position and rotation
-    neighbours = tree.query_ball_point(p, r=min_distance)
-    for k in range(len(order)):
-        if dup[k]:
-            continue
-        chosen[k] = True
-        nb = np.asarray([j for j in neighbours[k] if j > k and not dup[j] and not chosen[j]], dtype=np.int64)
-        if len(nb):
-            # angle of R_k^T R_j: trace = 1 + 2 cos(theta)
-            tr = np.einsum("ij,nij->n", R[k], R[nb])
-            close = (tr - 1.0) / 2.0 >= cos_min - 1e-9  # a roll of exactly the angle counts as close
-            dup[nb[close]] = True
-    out = np.concatenate([order[chosen], order[dup]])
-    return (out, int(np.count_nonzero(chosen))) if return_count else out
 
 
 def with_scoring_file(grasp_params: _Params, path: str | Path | None) -> _Params:

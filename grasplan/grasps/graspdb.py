@@ -37,6 +37,7 @@ from ..config.inputs import check_input_file
 from ..io import show_path, write_atomic_bytes
 from ..part.mass import MassProperties
 from ..part.mesh import Part
+from ..part.stability import stable_poses
 from ..geometry.meshdata import TriangleMesh
 from ..config.params import CandidateParams, GraspParams
 from .quality import Quality
@@ -52,7 +53,7 @@ DB_SUFFIX = ".graspdb.npz"
 MAX_DB_BYTES = 1 << 30
 #: bumped when the computation behind a database changes: cached databases of another version are
 #: recomputed, files of another version are refused
-DB_VERSION = 3  # 3: pose ids, rolls and the part's rejected poses per candidate
+DB_VERSION = 3  # 3: pose ids, rolls, the part's rejected poses per candidate and resting poses
 _ARRAYS = ("T_part_tcp", "width", "contacts", "normals", "candidate", "region", "contact_area", "contact_type",
            "contact_width", "epsilon", "score", "pose", "roll")
 _SHAPES: dict[str, tuple[int, ...]] = {"T_part_tcp": (4, 4), "width": (), "contacts": (2, 3), "normals": (2, 3),
@@ -61,6 +62,8 @@ _SHAPES: dict[str, tuple[int, ...]] = {"T_part_tcp": (4, 4), "width": (), "conta
 _DTYPES = {"candidate": np.int64, "region": np.int64, "contact_type": np.int8, "pose": np.int64}
 #: the arrays of the poses that hit the part, one row per candidate (K rows, candidates increasing)
 _REJECTED = ("rejected_candidate", "rejected_part")
+#: the part's resting poses on a plane (grasplan.part.stability.stable_poses): R_world_part, probability
+_RESTING = ("rest_R", "rest_prob")
 
 
 def _sha(doc: Any) -> str:
@@ -108,6 +111,8 @@ class GraspDatabase:
 
     The poses that hit the part are counted, not stored: ``rejected_candidate`` (K,) int64
     (increasing) and ``rejected_part`` (K,) int64, how many poses of that candidate hit the part.
+    The part's resting poses (:func:`grasplan.part.stability.stable_poses`, pose-independent like
+    the rest): ``rest_R`` (P, 3, 3) and ``rest_prob`` (P,) (P = 0: none could be computed).
     """
 
     part_path: str
@@ -135,6 +140,8 @@ class GraspDatabase:
     roll: np.ndarray
     rejected_candidate: np.ndarray
     rejected_part: np.ndarray
+    rest_R: np.ndarray
+    rest_prob: np.ndarray
     counts: dict[str, int] = field(default_factory=dict)
     timing_s: dict[str, float] = field(default_factory=dict)
     #: what the candidate and pose stages did to bound their work (one line each; usually none)
@@ -155,6 +162,12 @@ class GraspDatabase:
             a = np.ascontiguousarray(getattr(self, name), dtype=np.int64)
             if a.shape != (k,):
                 raise InputError(f"grasp database: {name} has shape {a.shape}, expected ({k},)")
+            a.flags.writeable = False
+            object.__setattr__(self, name, a)
+        for name, shape in (("rest_R", (3, 3)), ("rest_prob", ())):
+            a = np.ascontiguousarray(getattr(self, name), dtype=np.float64)
+            if a.shape[1:] != shape or len(a) != len(self.rest_prob):
+                raise InputError(f"grasp database: {name} has shape {a.shape}, expected (P, {shape})")
             a.flags.writeable = False
             object.__setattr__(self, name, a)
         if n > 1 and len(np.unique(self.pose)) != n:
@@ -208,6 +221,14 @@ class GraspDatabase:
                             weights, quality=q, scoring=cfg,
                             com=None if self.mass_props is None else self.mass_props.com)
 
+    def prime_resting_poses(self, part: Part) -> None:
+        """Give ``part``'s mesh the resting poses stored here, so that placing the part in a cell
+        (:func:`grasplan.cell.resting.stable_pose`) computes no convex hull. ``part`` must be this
+        database's (:meth:`check_for`)."""
+        derived = getattr(part.mesh, "derived", None)
+        if derived is not None and len(self.rest_prob):
+            derived("stable_poses", lambda: (np.array(self.rest_R), np.array(self.rest_prob)))
+
     def check_for(self, part: Part | None = None, gripper: Gripper | None = None, *, source: str = "") -> None:
         """InputError (exit 3) naming both when this database belongs to another part (sha256 or
         scale) or gripper."""
@@ -237,7 +258,7 @@ class GraspDatabase:
     def to_bytes(self) -> bytes:
         buf = io.BytesIO()
         meta = np.frombuffer(json.dumps(self.meta(), allow_nan=False).encode(), dtype=np.uint8)
-        np.savez(buf, meta=meta, **{n: getattr(self, n) for n in (*_ARRAYS, *_REJECTED)})
+        np.savez(buf, meta=meta, **{n: getattr(self, n) for n in (*_ARRAYS, *_REJECTED, *_RESTING)})
         return buf.getvalue()
 
 
@@ -267,12 +288,12 @@ def load_database(path: str | Path, *, part: Part | None = None, gripper: Grippe
     try:
         with np.load(Path(path), allow_pickle=False) as z:
             names = set(z.files)
-            missing = sorted({"meta", *_ARRAYS, *_REJECTED} - names)
+            missing = sorted({"meta", *_ARRAYS, *_REJECTED, *_RESTING} - names)
             if missing:
                 raise InputError(f"grasp database {src}: not a grasplan grasp database (missing {', '.join(missing)}); "
                                  f"write one with grasplan database PART -o FILE{DB_SUFFIX}")
             meta = json.loads(bytes(z["meta"]).decode("utf-8"))
-            arrays = {n: z[n] for n in (*_ARRAYS, *_REJECTED)}
+            arrays = {n: z[n] for n in (*_ARRAYS, *_REJECTED, *_RESTING)}
     except InputError:
         raise
     except (OSError, ValueError, KeyError, zipfile.BadZipFile, UnicodeDecodeError, EOFError) as exc:
@@ -325,6 +346,10 @@ def build_database(part: Part, gripper: Gripper | str, *, candidates: CandidateP
     counts = res.counts()
     st = np.asarray(res.status).astype(str)
     rej_cand, rej_n = np.unique(np.asarray(res.frames.candidate)[st == Status.COLLISION_PART.value], return_counts=True)
+    try:
+        rest_R, rest_prob = stable_poses(part.mesh)
+    except InputError:  # a part without a resting pose on a plane: placed with --part-pose only
+        rest_R, rest_prob = np.zeros((0, 3, 3)), np.zeros(0)
     timing = {**res.timing_s, "database": time.perf_counter() - t}
     return GraspDatabase(
         part_path=part.path, part_sha256=part.sha256, scale_to_m=float(part.scale_to_m), triangles=part.triangles,
@@ -334,7 +359,7 @@ def build_database(part: Part, gripper: Gripper | str, *, candidates: CandidateP
         normals=tab.normals[order], candidate=tab.candidate[order], region=tab.region[order],
         contact_area=area, contact_type=kind, contact_width=cw, epsilon=eps,
         score=np.nan_to_num(np.asarray(tab.score)[order], nan=0.0), pose=order, roll=tab.roll[order],
-        rejected_candidate=rej_cand, rejected_part=rej_n,
+        rejected_candidate=rej_cand, rejected_part=rej_n, rest_R=rest_R, rest_prob=rest_prob,
         counts={"candidates": counts["candidates"], "posed_candidates": counts["posed_candidates"],
                 "poses": counts["poses"], "ok": int(len(order)),
                 "collision_part": counts.get(Status.COLLISION_PART.value, 0),

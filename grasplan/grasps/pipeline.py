@@ -8,7 +8,6 @@ the pure function behind ``grasplan grasps``; the plan pipeline starts from its
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -18,20 +17,16 @@ import numpy as np
 from ..candidates.pipeline import CandidateResult, compute_candidates
 from ..cell.model import NO_CELL_NAME, Cell, load_cell
 from .collision import GripperCollider
-from ..errors import InputError
 from ..candidates.antipodal_base import Candidates
 from .frames import GraspFrames, grasp_frames, roll_angles
 from ..results.grasp_table import GraspTable
 from ..gripper.load import load_gripper
 from ..gripper.model import Gripper
-from ..part.mass import MassProperties, mass_properties
+from ..part.mass import MassProperties
 from ..part.mesh import Part
 from ..config.params import DEFAULT_CELL, DEFAULT_GRIPPER, CandidateParams, GraspParams
 from .quality import Quality, holding_warning, quality_and_score, quality_columns
 from ..results.plan_result import Params, PartRecord, PlanResult
-from ..config.scoring import (
-    PHYSICAL_TERMS, ScoringConfig, distinct_order, epsilon_term, gravity_margin_term, score_grasps
-)
 from ..status import GRASP_STATUSES, Status
 from ..candidates.thinning import thin_candidates
 from ..cell.resting import stable_pose

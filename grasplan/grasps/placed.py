@@ -30,7 +30,7 @@ from ..results.compact import REJECTED, RejectedCounts
 from ..results.grasp_table import GraspTable
 from ..status import GRASP_STATUSES, Status
 from .collision import GripperCollider
-from .graspdb import GraspDatabase, database_for, options_key
+from .graspdb import GraspDatabase, cache_path, database_for, load_database, options_key
 from .pipeline import GraspResult, compute_grasps, part_pose
 from .quality import Quality, holding_warning, mass_or_note, quality_columns, stage_score
 
@@ -153,14 +153,15 @@ def place_database(db: GraspDatabase, part: Part, cell: Cell, *, params: GraspPa
 def grasp_stage(part: Part, gripper: Gripper, cell: Cell, *, candidates: CandidateParams, grasps: GraspParams,
                 T_world_part: np.ndarray | None = None, every_pose: bool = False,
                 database: GraspDatabase | None = None, load_s: float = 0.0,
-                notify: Callable[[str], None] | None = None) -> PlacedGrasps:
+                notify: Callable[[str], None] | None = None, database_s: float | None = None) -> PlacedGrasps:
     """The grasp stage of a plan: ``part`` in ``cell`` with ``gripper``.
 
     By default the part's grasp database (``database``, else :func:`grasplan.grasps.graspdb.database_for`:
     read from the cache, or computed and cached; ``notify`` gets its progress lines) placed in the
     pose (:func:`place_database`). ``every_pose``: the whole stage computed in the cell instead
     (:func:`grasplan.grasps.pipeline.compute_grasps`), every pose in the table. ``timing_s``
-    records ``load`` and, from the cache, ``database`` (seconds to read it), else the computation's stages."""
+    records ``load`` and, from the cache, ``database`` (seconds to read it; ``database_s`` when the
+    caller read it with :func:`cached_database`), else the computation's stages."""
     if every_pose:
         return placed_from_result(compute_grasps(part, gripper=gripper, cell=cell, candidates=candidates,
                                                  grasps=grasps, T_world_part=T_world_part, load_s=load_s))
@@ -172,6 +173,9 @@ def grasp_stage(part: Part, gripper: Gripper, cell: Cell, *, candidates: Candida
             timing["database"] = time.perf_counter() - t
         else:
             timing.update({k: v for k, v in database.timing_s.items() if k != "load"})
+    elif database_s is not None:  # read by the caller from the cache
+        timing["database"] = float(database_s)
+        database.check_for(part, gripper, source=database.origin)
     else:
         database.check_for(part, gripper, source=database.origin)
         if database.params_key != options_key(gripper, candidates, grasps):
@@ -179,3 +183,37 @@ def grasp_stage(part: Part, gripper: Gripper, cell: Cell, *, candidates: Candida
                              f"grasp options than this plan's (its own: {database.candidates.options_json()}, "
                              f"{database.grasps.options_json()}); plan with those, or let the plan compute its own")
     return place_database(database, part, cell, params=grasps, T_world_part=T_world_part, timing_s=timing)
+
+
+def cached_database(part: Part, gripper: Gripper, *, candidates: CandidateParams, grasps: GraspParams
+                    ) -> tuple[GraspDatabase | None, float]:
+    """``(database, seconds)``: the part's grasp database read from the cache folder (its resting
+    poses primed on the part's mesh: :meth:`GraspDatabase.prime_resting_poses`), or ``(None, 0)``
+    when the cache holds none (or an unusable one: :func:`grasp_stage` computes it, saying why)."""
+    t = time.perf_counter()
+    path = cache_path(part, gripper, candidates, grasps)
+    if not path.is_file():
+        return None, 0.0
+    try:
+        db = load_database(path, part=part, gripper=gripper)
+    except InputError:
+        return None, 0.0
+    db.prime_resting_poses(part)
+    return db, time.perf_counter() - t
+
+
+def hold_by_pose(part: Part, gripper: Gripper, cell: Cell, *, candidates: CandidateParams, grasps: GraspParams,
+                 poses: list[tuple[int, float]]) -> list[tuple[int, float, int, float | None]]:
+    """``[(pose_index, probability, grasps predicted to hold, least hold force N or None)]`` for
+    ``poses`` (``(index, probability)`` of resting poses): the part's grasp database placed in each
+    (collision-free grasps with ``gravity_margin >= 1`` at the gripper's force; the least
+    ``hold_force`` of any collision-free one). The grasp stage only: no robot."""
+    db = database_for(part, gripper, candidates=candidates, grasps=grasps)
+    db.prime_resting_poses(part)
+    out: list[tuple[int, float, int, float | None]] = []
+    for k, p in poses:
+        pg = place_database(db, part, cell, params=replace(grasps, pose_index=k))
+        gm = pg.quality.gravity_margin if pg.quality is not None else np.zeros(0)
+        force = float(gripper.grip_force) / float(gm.max()) if len(gm) and gm.max() > 0 else None
+        out.append((k, p, int(np.count_nonzero(gm >= 1.0)), force))
+    return out

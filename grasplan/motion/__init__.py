@@ -11,6 +11,7 @@ __getattr__, __dir__ = lazy_exports(globals(), {
     "plan": ".planning", "plan_grasps": ".planning", "PlanOutcome": ".planning",
     "CollisionScene": ".collision_scene",
     "plan_joint_path": ".joint_paths", "approach_path": ".joint_paths",
-    "plan_lift": ".pickplace", "place_candidates": ".pickplace", "transfer_path": ".pickplace",
+    "plan_pick_motion": ".grasp_motion", "MotionContext": ".grasp_motion",
+    "place_candidates": ".pickplace", "transfer_path": ".pickplace",
     "check_start": ".start_checks",
 })

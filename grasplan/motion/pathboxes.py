@@ -1,7 +1,7 @@
 """Oriented boxes in front of coal: which pairs of a collision scene can collide at a
 configuration, decided for many configurations in one compiled pass (:func:`scene_open`, for
 :meth:`grasplan.motion.collision_scene.CollisionScene.configs_free`, and through it ``is_free`` and
-``path_free``; the pick's lift, :func:`grasplan.pick.lift_check.lift_collision`).
+``path_free``; the pick's lift, :func:`grasplan.motion.lift_check.lift_collision`).
 
 coal reports a collision of two geometries only where they overlap or come within the security
 margin, and every geometry lies inside its local bounding box (coal's ``aabb_local``: a mesh's

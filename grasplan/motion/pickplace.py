@@ -1,32 +1,28 @@
 """Pick-and-place after the grasp: close, lift, transfer, descend, release, retreat.
 
-Pure functions of a robot, collision scenes and poses; :func:`grasplan.motion.planning.plan_grasps` calls
-them for every grasp whose approach is planned: :func:`plan_lift`, :func:`place_candidates`,
-:func:`transfer_path`, and :func:`assemble_motion`, whose docstring gives the sequence. Every
-straight move uses the one straight-line tracker (:func:`grasplan.motion.joint_paths.approach_path_reason`,
-CLIK seeded by the previous waypoint, ``max_dev`` from the line) and every path is checked at
-``interpolation.STEP`` rad.
+Pure functions of a robot, collision scenes and poses; the per-grasp pipeline
+(:func:`grasplan.motion.grasp_motion.plan_pick_motion`) calls them for every grasp whose approach
+and lift are planned: :func:`place_candidates`, :func:`transfer_path`, and :func:`assemble_motion`,
+whose docstring gives the sequence. Every straight move uses the one straight-line tracker
+(:func:`grasplan.motion.joint_paths.approach_path_reason`, CLIK seeded by the previous waypoint,
+``max_dev`` from the line) and every path is checked at ``interpolation.STEP`` rad.
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from ..robot.ik.solve import solve_ik
-from ..geometry.interpolation import STEP, interpolate_path
+from ..geometry.interpolation import STEP
 from .joint_paths import approach_path_reason, plan_joint_path
 from ..results.joint_motion import GripperEvent, Motion
 from ..robot.model import Robot
-from .collision_scene import CollisionScene
+from .collision_scene import CollisionScene, describe_pairs
+from .lift_check import lift_collision, sample_ok, touch_waypoints
 from ..status import Status
 
-#: within this TCP travel (m) from the grasp (lift) / to the place (descent) the attached part may
-#: touch the table or an obstacle it rests on (its support: table, bin floor, where it lies when it is
-#: grasped and when it is placed); every other pair still counts (:func:`path_free_near_support`)
-SUPPORT_CLEARANCE = 0.002
 #: jaw openings checked between the contact width and the pre-grasp opening when releasing
 RELEASE_STEPS = 4
 #: TCP spacing (m) of the waypoints of the lift, descent and retreat. Tracking (CLIK per waypoint)
@@ -39,20 +35,6 @@ LINE_SAMPLE = 0.004
 _KINEMATIC = {"start": "the start pose does not match", "ik": "IK lost on the line",
               "limits": "a joint limit on the line", "jump": "a joint jump (branch switch) on the line",
               "deviation": "the joint motion leaves the line by more than max_dev"}
-
-
-@dataclass(frozen=True)
-class Stage:
-    """Outcome of one stage: ``path`` (k, n) or None, ``status`` (``ok`` or the grasp status) and a
-    human-readable ``reason``."""
-
-    path: np.ndarray | None
-    status: Status
-    reason: str
-
-    @property
-    def ok(self) -> bool:
-        return self.path is not None
 
 
 @dataclass(frozen=True)
@@ -123,76 +105,6 @@ def T_tcp_part_of(T_part_tcp: np.ndarray) -> np.ndarray:
     return out
 
 
-# ------------------------------------------------------------------------------------------------
-# collision helpers
-# ------------------------------------------------------------------------------------------------
-def _support_contact_only(pairs: Sequence[tuple[str, str, str]]) -> bool:
-    """True when every colliding pair is the (attached) part touching the table or an obstacle."""
-    for p in pairs:
-        a, b = str(p[0]), str(p[1])
-        other = b if a == "part" else a if b == "part" else None
-        if other is None or not (other == "table" or other.startswith("obstacle")):
-            return False
-    return True
-
-
-def first_collision_on(scene: CollisionScene, path: np.ndarray, opening: float, *, step: float = STEP,
-                       tolerate_until: int = 0) -> tuple[int, str] | None:
-    """The first colliding configuration of ``path`` densified at ``step``: (dense index, "a vs b"),
-    or None. Configurations before dense row ``tolerate_until`` may have the part touching its
-    support."""
-    dense = interpolate_path(path, step=step)
-    for k, q in enumerate(dense):
-        if scene.is_free(q, opening):
-            continue
-        if k < tolerate_until and _support_contact_only(scene.colliding_pairs(q, opening)):
-            continue
-        return k, (scene.first_collision(q, opening) or "unknown")
-    return None
-
-
-def path_free_near_support(scene: CollisionScene, path: np.ndarray, opening: float, *, n_touch: int,
-                           at_end: bool = False, step: float = STEP) -> tuple[bool, str]:
-    """(free, what collided) for ``path`` where the first (or, ``at_end``, the last) ``n_touch``
-    waypoints may have the part touching the table or an obstacle; everything else must be free."""
-    path = np.asarray(path, dtype=np.float64)
-    if at_end:
-        free, what = path_free_near_support(scene, path[::-1], opening, n_touch=n_touch, step=step)
-        return free, what
-    n_touch = int(min(max(n_touch, 0), len(path) - 1))
-    head, tail = path[: n_touch + 1], path[n_touch:]
-    if not scene.path_free(tail, opening, step=step):
-        hit = first_collision_on(scene, tail, opening, step=step)
-        return False, (hit[1] if hit else "unknown")
-    if n_touch == 0 or scene.path_free(head, opening, step=step):
-        return True, ""
-    hit = first_collision_on(scene, head, opening, step=step, tolerate_until=len(head) * 10**6)
-    return (True, "") if hit is None else (False, hit[1])
-
-
-# ------------------------------------------------------------------------------------------------
-# lift
-# ------------------------------------------------------------------------------------------------
-def plan_lift(robot: Robot, scene_attached: CollisionScene, q_grasp: np.ndarray, T_world_tcp: np.ndarray, *,
-              direction: ArrayLike, distance: float, width: float, max_dev: float, T_flange_tcp: np.ndarray,
-              sample: float = LINE_SAMPLE) -> Stage:
-    """The straight lift grasp -> ``distance`` along ``direction`` with the part attached and the jaws
-    at ``width``, checked against table, obstacles and the robot. Stage status: ``ok``, ``no_path``
-    (kinematic: the line leaves the workspace, a joint limit, a branch jump) or ``ik_collision``
-    (collision), reason ``"lift: ..."``."""
-    T_lift = lift_pose(T_world_tcp, direction, distance)
-    path, why = approach_path_reason(robot, None, T_world_tcp, T_lift, q_grasp, opening=width, max_dev=max_dev,
-                                     T_flange_tcp=T_flange_tcp, sample=sample)
-    if path is None:
-        return Stage(None, Status.NO_PATH, f"lift: the straight lift of {distance * 1e3:g} mm along "
-                                           f"{_vec(direction)} fails: {_KINEMATIC.get(why, why)}")
-    n_touch = int(np.ceil(SUPPORT_CLEARANCE / sample))
-    free, what = path_free_near_support(scene_attached, path, width, n_touch=n_touch)
-    if not free:
-        return Stage(None, Status.IK_COLLISION, f"lift: with the part in the jaws {what}")
-    return Stage(path, Status.OK, "ok")
-
-
 def _vec(v: ArrayLike) -> str:
     return "(" + ", ".join(f"{float(x):.3g}" for x in np.asarray(v).reshape(-1)) + ")"
 
@@ -203,8 +115,8 @@ def _vec(v: ArrayLike) -> str:
 def place_candidates(robot: Robot, scene_attached: CollisionScene, scene_released: CollisionScene,
                      poses: PlacePoses, *, width: float, opening: float,
                      max_dev: float, T_flange_tcp: np.ndarray, q_ref: np.ndarray, seed: int = 0,
-                     max_solutions: int = 8, limit: int | None = None, sample: float = LINE_SAMPLE
-                     ) -> tuple[list[PlaceCandidate], Status, str]:
+                     max_solutions: int = 8, limit: int | None = None, sample: float = LINE_SAMPLE,
+                     contact: float = 0.002) -> tuple[list[PlaceCandidate], Status, str]:
     """Every IK solution of the place TCP (closest to ``q_ref`` first) whose descent (traced back
     from the place to above it, attached, jaws at ``width``), release (jaws opening to
     ``opening`` with the part static at the place) and retreat (released) are free.
@@ -213,7 +125,9 @@ def place_candidates(robot: Robot, scene_attached: CollisionScene, scene_release
     else ``place_unreachable`` (no IK at the place or above it, the descent or retreat cannot follow
     the line) or ``place_no_path`` (the place pose, the descent, the release or the retreat collides)
     and why, ``"place: ..."``. ``limit``: stop after this many candidates (the caller tries at most
-    that many transfer paths)."""
+    that many transfer paths). ``contact``: within this TCP travel of the place the part in the
+    jaws may touch what it is placed on (the descent is checked as a lift traced back from the
+    place, :func:`~grasplan.motion.lift_check.lift_collision`)."""
     T_tcp_flange = np.linalg.inv(np.asarray(T_flange_tcp, dtype=np.float64))
     ik = solve_ik(robot, poses.place @ T_tcp_flange, seed=seed, q_ref=q_ref)
     sols = np.asarray(ik.q, dtype=np.float64).reshape(-1, robot.nq)[:max_solutions]
@@ -222,7 +136,7 @@ def place_candidates(robot: Robot, scene_attached: CollisionScene, scene_release
         tail = "" if len(above.q) else f"; nor above it ({above.reason})"
         return [], Status.PLACE_UNREACHABLE, (f"place: no IK solution for the place TCP at {_vec(poses.place[:3, 3])} m "
                                          f"within the joint limits ({ik.reason}){tail}")
-    n_touch = int(np.ceil(SUPPORT_CLEARANCE / sample))
+    travel = float(np.linalg.norm(poses.above[:3, 3] - poses.place[:3, 3]))
     counts = {"place_coll": 0, "desc_kin": 0, "desc_coll": 0, "release_coll": 0, "ret_kin": 0, "ret_coll": 0}
     first_what: dict[str, str] = {}
     kin_why: dict[str, str] = {}
@@ -236,11 +150,12 @@ def place_candidates(robot: Robot, scene_attached: CollisionScene, scene_release
             counts["desc_kin"] += 1
             kin_why.setdefault("desc", _KINEMATIC.get(why, why))
             continue
-        free, what = path_free_near_support(scene_attached, back, width, n_touch=n_touch)
-        if not free:
-            key = "place_coll" if not _free_or_support(scene_attached, q_place, width) else "desc_coll"
+        pairs = lift_collision(scene_attached, back, width,
+                               touch_waypoints(contact, np.linspace(0.0, travel, len(back))))
+        if pairs is not None:
+            key = "place_coll" if not sample_ok(scene_attached, q_place, width, True, None) else "desc_coll"
             counts[key] += 1
-            first_what.setdefault(key, what)
+            first_what.setdefault(key, describe_pairs(pairs, 2))
             continue
         hit = _release_collision(scene_released, q_place, width, opening)
         if hit is not None:
@@ -255,8 +170,8 @@ def place_candidates(robot: Robot, scene_attached: CollisionScene, scene_release
             continue
         if not scene_released.path_free(ret, opening, step=STEP):
             counts["ret_coll"] += 1
-            ret_hit = first_collision_on(scene_released, ret, opening)
-            first_what.setdefault("ret_coll", ret_hit[1] if ret_hit else "unknown")
+            ret_hit = scene_released.path_collisions(ret, opening)
+            first_what.setdefault("ret_coll", describe_pairs(ret_hit[1], 2) if ret_hit else "unknown")
             continue
         out.append(PlaceCandidate(descend=back[::-1].copy(), retreat=ret))
     if out:
@@ -275,10 +190,6 @@ def place_candidates(robot: Robot, scene_attached: CollisionScene, scene_release
     collided = counts["place_coll"] + counts["desc_coll"] + counts["release_coll"] + counts["ret_coll"]
     status = Status.PLACE_NO_PATH if collided else Status.PLACE_UNREACHABLE
     return [], status, "place: " + ", ".join(parts)
-
-
-def _free_or_support(scene: CollisionScene, q: np.ndarray, opening: float) -> bool:
-    return scene.is_free(q, opening) or _support_contact_only(scene.colliding_pairs(q, opening))
 
 
 def _release_collision(scene_released: CollisionScene, q_place: np.ndarray, width: float,
@@ -313,7 +224,7 @@ def assemble_motion(transit: np.ndarray, approach: np.ndarray, lift: np.ndarray,
     1. **close** at the grasp (event, width = the grasp's contact width);
     2. **lift**: the TCP moves straight by ``cell.retreat_distance`` along ``cell.retreat_direction``
        with the part attached (``scene.attached(T_tcp_part)``, ``T_tcp_part = inv(T_part_tcp)``)
-       (:func:`plan_lift`);
+       (:func:`grasplan.motion.grasp_motion.plan_pick_motion`);
     3. with a place ``T_world_part_place``: the place TCP ``T_world_part_place @ T_part_tcp``, the
        above-place TCP = the place TCP moved back up by ``retreat_distance`` along the retreat
        direction (the descent is the reverse of a lift at the place; :func:`place_poses`). IK at the

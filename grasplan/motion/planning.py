@@ -2,21 +2,22 @@
 
 :func:`plan` (behind ``grasplan plan``) runs the grasp stage (:func:`~grasplan.grasps.placed.grasp_stage`:
 the part's grasp database placed in the pose and the cell) and :func:`plan_grasps`: the ``ok`` grasps ranked by score (:mod:`grasplan.config.scoring`, distinct
-ones first), planned in rank order (:func:`grasplan.motion.grasp_plan.plan_grasp`: IK, approach,
-lift, place, paths) until ``top`` are planned or ``budget_s`` is spent; ``ok`` grasps never tried
-are ``not_tried``, grasps the grasp stage rejected keep its status (docs/plan.md).
+ones first), planned in rank order (the per-grasp pipeline ``pick`` shares,
+:func:`grasplan.motion.grasp_motion.plan_pick_motion`: IK, approach, lift, place, paths) until
+``top`` are planned or ``budget_s`` is spent; ``ok`` grasps never tried are ``not_tried``, grasps
+the grasp stage rejected keep its status (docs/plan.md).
 ``simulate > 0`` lifts and shakes the top planned grasps in MuJoCo (:mod:`grasplan.sim.simulate`).
 
 :func:`plan_poses` plans every stable pose (``--pose-index all``), one
 :class:`~grasplan.results.pose_plans.PosePlan` each. Typed hand-offs: :class:`PlanOutcome` for the
-stage (:class:`~grasplan.motion.grasp_plan.GraspOutcome` per grasp), :data:`PlanProgress` events
+stage (:class:`~grasplan.motion.grasp_motion.Outcome` per grasp), :data:`PlanProgress` events
 for a ``progress`` callback; the result types and their JSON: :mod:`grasplan.results.plan_result`.
 """
 from __future__ import annotations
 
 import os
 import time
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Union
@@ -26,7 +27,7 @@ import numpy as np
 from ..cell.model import NO_CELL_NAME, Cell, load_cell
 from ..errors import ConfigError, InputError
 from ..grasps.graspdb import GraspDatabase, database_for
-from ..grasps.placed import PlacedGrasps, grasp_stage
+from ..grasps.placed import PlacedGrasps, cached_database, grasp_stage
 from ..gripper.load import load_gripper
 from ..gripper.model import Gripper
 from ..part.mass import MassProperties
@@ -35,7 +36,8 @@ from ..part.mesh import Part, load_part
 from ..config.params import (
     DEFAULT_CELL, DEFAULT_GRIPPER, DEFAULT_ROBOT, GRASP_DB_OFF, CandidateParams, GraspParams, PlanParams
 )
-from .grasp_plan import PlanSetting, plan_grasp
+from .codes import Reason
+from .grasp_motion import PLAN_TIMING, MotionContext, Outcome, plan_pick_motion
 from ..results.compact import KEEP_ALL
 from ..results.joint_motion import Motion
 from ..results.plan_result import Params, PartRecord, PlanResult
@@ -43,7 +45,8 @@ from ..results.pose_plans import PosePlan
 from ..robot.description import load_robot
 from ..robot.model import Robot
 from .collision_scene import CollisionScene
-from ..config.scoring import ScoringConfig, distinct_order, score_grasps
+from ..config.scoring import ScoringConfig, score_grasps
+from ..grasps.ranking import distinct_order
 from ..cell.resting import stable_pose
 from ..part.stability import stable_poses
 from .start_checks import check_part_placement, check_start
@@ -133,7 +136,9 @@ def plan_grasps(grasps: PlacedGrasps, robot: Robot, scene: CollisionScene, *, pa
     rank[order] = np.arange(len(order))
     status, reason = _stage_statuses(grasps, status_in)
     motions: dict[int, Motion] = {}
-    setting = _setting(grasps, robot, scene, params, timing)
+    ctx = _setting(grasps, robot, scene, params, timing)
+    gripper = grasps.gripper
+    T_world_part = np.asarray(grasps.T_world_part, dtype=np.float64)
     planned = tried = 0
     n_candidates = len(order)
     for i in order:
@@ -143,14 +148,18 @@ def plan_grasps(grasps: PlacedGrasps, robot: Robot, scene: CollisionScene, *, pa
             break
         tried += 1
         gid = int(ids[i])
-        out = plan_grasp(setting, gid, T_part_tcp[i], float(width[i]))
+        T_g, w = T_part_tcp[i], float(width[i])
+        if gripper.moving_tcp:  # plan in the frame the gripper's shapes and T_flange_tcp are given in
+            T_g = T_g @ gripper.T_tcp_gripper(w)
+        out = plan_pick_motion(ctx, T_world_part @ T_g, T_g, w, seed=params.seed * 1_000_003 + gid)
         if out.motion is not None:
             motions[gid] = out.motion
             planned += 1
-        status[i], reason[i] = out.status.value, out.reason
+        st = plan_status(out)
+        status[i], reason[i] = st.value, out.reason
         if progress is not None:
             progress(GraspTried(tried=tried, planned=planned, top=params.top, candidates=n_candidates,
-                                grasp_id=gid, status=out.status))
+                                grasp_id=gid, status=st))
     timing["plan"] = time.perf_counter() - t_all
     return PlanOutcome(status=status, score=scores, rank=rank, reason=reason, motions=motions, timing_s=timing)
 
@@ -173,8 +182,8 @@ def _ranking(grasps: PlacedGrasps, status_in: np.ndarray, T_part_tcp: np.ndarray
                                   float(grasps.gripper.max_opening), weights=cfg.weights, quality=grasps.quality,
                                   scoring=cfg, com=mp.com if isinstance(mp, MassProperties) else None)
     order = ok[np.lexsort((ok, -scores[ok]))] if len(ok) else ok
-    order = distinct_order(T_part_tcp, order, min_distance=params.distinct_distance,
-                           min_angle_deg=params.distinct_angle_deg)
+    order, _ = distinct_order(T_part_tcp, order, min_distance=params.distinct_distance,
+                              min_angle_deg=params.distinct_angle_deg)
     return scores, order
 
 
@@ -193,20 +202,38 @@ def _stage_statuses(grasps: PlacedGrasps, status_in: np.ndarray) -> tuple[np.nda
     return status, reason
 
 
+#: the part alone may rest on the table or an obstacle within this TCP travel (m) of the grasp on the
+#: lift and of the place on the descent (``MotionContext.lift_contact``; ``pick``: ``--lift-contact``)
+PLAN_LIFT_CONTACT = 0.002
+
+#: the plan status of each reason code of the per-grasp pipeline (``place``: its ``place_status``)
+PLAN_STATUS: dict[Reason, Status] = {
+    Reason.PLANNED: Status.PLANNED, Reason.NO_IK: Status.UNREACHABLE,
+    Reason.LINE_NOT_FOLLOWED: Status.UNREACHABLE, Reason.IK_COLLISION: Status.IK_COLLISION,
+    Reason.LIFT_COLLISION: Status.IK_COLLISION, Reason.LIFT_GRIPPER: Status.IK_COLLISION,
+    Reason.NO_TRANSIT: Status.NO_PATH, Reason.PLACE: Status.PLACE_NO_PATH}
+
+
+def plan_status(out: Outcome) -> Status:
+    """The plan status of one grasp's outcome (:data:`PLAN_STATUS`; a failed place keeps
+    ``place_unreachable`` or ``place_no_path``)."""
+    if out.code == Reason.PLACE and out.place_status is not None:
+        return out.place_status
+    return PLAN_STATUS[out.code]
+
+
 def _setting(grasps: PlacedGrasps, robot: Robot, scene: CollisionScene, params: PlanParams,
-             timing: dict[str, float]) -> PlanSetting:
-    """What every grasp of the plan shares; pick-and-place (:mod:`grasplan.motion.pickplace`): the
-    lift always, the place when the cell has one."""
-    cell, gripper = grasps.cell, grasps.gripper
+             timing: dict[str, float]) -> MotionContext:
+    """What every grasp of the plan shares (the per-grasp pipeline's context): ``scene`` and one
+    attached variant whose part is moved per grasp; the lift always, the place when the cell has
+    one (:mod:`grasplan.motion.pickplace`); the lift's support allowance
+    :data:`PLAN_LIFT_CONTACT`, no depth rule, no checks before IK, no budget (``budget_s`` is
+    checked between grasps), the plan's timing keys."""
+    cell = grasps.cell
     T_place = None if cell.place is None else np.asarray(cell.place, dtype=np.float64)
-    T_flange_tcp = np.asarray(gripper.T_flange_tcp, dtype=np.float64)
-    return PlanSetting(robot=robot, scene=scene, gripper=gripper, params=params,
-                       T_world_part=np.asarray(grasps.T_world_part, dtype=np.float64),
-                       T_flange_tcp=T_flange_tcp, T_tcp_flange=np.linalg.inv(T_flange_tcp),
-                       q_home=np.asarray(robot.q_home, dtype=np.float64),
-                       retreat_dir=np.asarray(cell.retreat_direction, dtype=np.float64),
-                       retreat_dist=float(cell.retreat_distance), T_place=T_place,
-                       scene_released=scene.with_part_at(T_place) if T_place is not None else None, timing=timing)
+    return MotionContext(robot, grasps.gripper, params, scene, scene.attached(np.eye(4)),
+                         np.asarray(cell.retreat_direction, dtype=np.float64), float(cell.retreat_distance), timing,
+                         lift_contact=PLAN_LIFT_CONTACT, depth_limit=0.0, keys=PLAN_TIMING, T_place=T_place)
 
 
 def plan(
@@ -274,10 +301,15 @@ def plan(
         t = time.perf_counter()
         part = load_part(part, units=units)
         load_s = time.perf_counter() - t
+    database_s = None
+    if database is None and planning.grasp_db != GRASP_DB_OFF:  # read first: it holds the resting poses
+        database, read_s = cached_database(part, g, candidates=candidates, grasps=grasps)
+        database_s = read_s if database is not None else None
     _check_before_planning(part, rob, g, c, grasps, T_world_part)
     notify = (lambda text: progress(GraspDatabaseNote(text))) if progress is not None else None
     gr = grasp_stage(part, g, c, candidates=candidates, grasps=grasps, T_world_part=T_world_part,
-                     every_pose=planning.grasp_db == GRASP_DB_OFF, database=database, load_s=load_s, notify=notify)
+                     every_pose=planning.grasp_db == GRASP_DB_OFF, database=database, load_s=load_s, notify=notify,
+                     database_s=database_s)
     if progress is not None:
         progress(GraspStageDone(gr.counts()))
     t = time.perf_counter()
@@ -363,6 +395,7 @@ def plan_poses(part: Part | str | os.PathLike, robot: Robot | str | Path = DEFAU
     if planning.grasp_db != GRASP_DB_OFF:  # one database serves every pose
         notify = (lambda text: progress(GraspDatabaseNote(text))) if progress is not None else None
         db = database_for(part, g, candidates=candidates, grasps=grasps, progress=notify)
+        db.prime_resting_poses(part)
     out: list[PosePlan] = []
     for k, p in stable_pose_indices(part.mesh, min_probability):
         try:

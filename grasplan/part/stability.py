@@ -151,8 +151,18 @@ def stable_poses(mesh: TriangleMesh) -> tuple[np.ndarray, np.ndarray]:
 
     Returns ``(R (k, 3, 3), prob (k,))``, most probable first (ties: by the resting normal in the
     part frame, so the order is deterministic). ``R`` is ``R_world_part``: it turns the part so
-    that it rests on its face; the translation is left to :func:`stable_pose`.
+    that it rests on its face; the translation is left to :func:`stable_pose`. Computed once per
+    mesh when the mesh caches derived data (a part's grasp database stores them too:
+    :func:`grasplan.grasps.graspdb.GraspDatabase.prime_resting_poses`).
     """
+    derived = getattr(mesh, "derived", None)
+    if derived is not None:
+        R, prob = derived("stable_poses", lambda: _stable_poses(mesh))
+        return R.copy(), prob.copy()
+    return _stable_poses(mesh)
+
+
+def _stable_poses(mesh: TriangleMesh) -> tuple[np.ndarray, np.ndarray]:
     with np.errstate(all="ignore"):
         normal, diag = _flatness(mesh)
         if normal is not None:

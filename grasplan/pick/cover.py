@@ -6,7 +6,7 @@ sweeps each of the gripper's shapes (jaws at the pre-grasp opening) along the st
 an oriented box grown by :data:`APPROACH_PAD` and checks those boxes against every body of the
 pile (the grasped part included). When all are apart, the gripper touches nothing at any TCP pose
 whose shapes lie inside them, whatever the arm does: at such a configuration the robot scene skips
-the gripper's pairs with the world (:func:`gripper_world_pairs`) and checks the arm's alone
+the gripper's pairs with the world (:func:`grasplan.motion.lift_check.gripper_world_pairs`) and checks the arm's alone
 (:func:`covered_check`). That covers the grasp configuration and every configuration of the
 approach's path, the ones between waypoints included.
 """
@@ -20,19 +20,13 @@ import numpy as np
 
 from ..robot.model import Robot
 from ..motion.collision_scene import CollisionScene
+from ..motion.lift_check import gripper_world_pairs
 from .gripboxes import SweptGripper
 from ..robot.ik.lines import world_fk
 
 #: the approach's swept boxes are this much (m) larger than the shapes' boxes along the line, so
 #: that the configurations between waypoints (micrometres off the line) lie inside them too
 APPROACH_PAD = 2e-4
-
-
-def gripper_world_pairs(scene: CollisionScene) -> np.ndarray:
-    """Per pair of ``scene`` (:meth:`~grasplan.motion.collision_scene.CollisionScene.pair_rows`): a gripper shape
-    (body or jaw) against anything but the robot itself."""
-    return np.array([(a.startswith("gripper:") or b.startswith("gripper:")) and kind != "self"
-                     for a, b, kind, _, _ in scene.pair_rows()], dtype=bool)
 
 
 _PAIRS: "weakref.WeakKeyDictionary[Any, np.ndarray]" = weakref.WeakKeyDictionary()
@@ -53,3 +47,16 @@ def covered_check(robot: Robot, T_flange_tcp: np.ndarray, scene: CollisionScene,
     drop = np.flatnonzero(scene._active & mask)
     T_ft = np.asarray(T_flange_tcp, dtype=np.float64)
     return (lambda qs: swept.holds(world_fk(robot, np.asarray(qs, dtype=np.float64).reshape(-1, robot.nq)) @ T_ft)), drop
+
+
+def approach_cover(world: Any, robot: Robot, T_flange_tcp: np.ndarray, scene: CollisionScene
+                   ) -> Callable[[np.ndarray, np.ndarray, float], Any]:
+    """``MotionContext.approach_sweep`` of a pick: ``(T_pre, T_grasp, opening) -> (covered, drop)``
+    (:func:`covered_check`) when the open gripper swept along the approach by
+    :meth:`grasplan.pick.world.PickWorld.gripper_swept_free` (``world``, pad :data:`APPROACH_PAD`)
+    touches nothing, else None."""
+
+    def cover(T_pre: np.ndarray, T_grasp: np.ndarray, opening: float) -> Any:
+        swept = world.gripper_swept_free(T_pre, T_grasp, opening, APPROACH_PAD)
+        return None if swept is None else covered_check(robot, T_flange_tcp, scene, swept)
+    return cover

@@ -16,7 +16,7 @@ from ..piles.scene_file import Instance
 from .budget import Budget
 from .depth import PartDepth
 from .lift import Carry, RestDepth, free_to_rise, inside_walls, lift_directions, wall_away
-from .lift_check import lift_travel
+from ..motion.lift_check import lift_travel
 from .params import PickParams
 from .reasons import lift_blocked_report
 from .result import InstanceReport
@@ -27,7 +27,7 @@ from .world import CLOUD, INSTANCE_PREFIX
 @dataclass(frozen=True, eq=False)
 class LiftLine:
     """A cell's straight lift: ``retreat`` (unit) and ``dist`` (m); TCP travel (m) along it at the
-    waypoints of :func:`grasplan.pick.lift_check.lift_travel` beyond ``lift_contact`` and at
+    waypoints of :func:`grasplan.motion.lift_check.lift_travel` beyond ``lift_contact`` and at
     ``lift_contact`` itself (where resting contact stops being allowed: between it and the next
     waypoint a part may be deep already): every second one and the far end (``steps``) decide
     whether a direction is free for the part alone; the others (``between``) are checked when a

@@ -4,7 +4,7 @@ kept warm between calls (:mod:`grasplan.pick.warm`). Per :meth:`Picker.plan` cal
 parts, grasp databases, cloud and cell are made ready and the scene checked; then the instances
 are tried in the accessibility order (:mod:`grasplan.pick.rank`), in passes: per instance its
 lifts (:mod:`grasplan.pick.lift_search`), its grasps posed in the world, ranked and
-gripper-checked, the collision-free ones motion-planned (:mod:`grasplan.pick.motion`).
+gripper-checked, the collision-free ones motion-planned (:mod:`grasplan.motion.grasp_motion`).
 """
 from __future__ import annotations
 
@@ -32,10 +32,12 @@ from ..piles.scene_file import Instance, Scene, ScenePart, load_scene
 from ..robot.description import load_robot
 from ..robot.model import Robot
 from .budget import Budget, BudgetSpent
+from .codes import LIFT_MAY_HELP
+from .cover import approach_cover
 from .depth import PartDepth
 from .lift import LIFTS_PER_GRASP
 from .lift_search import LiftLine, LiftSearch
-from .motion import MotionContext, Outcome, plan_pick_motion
+from ..motion.grasp_motion import MotionContext, Outcome, plan_pick_motion
 from .params import PickParams
 from .rank import check_chunks, instance_order, rank_grasps
 from .reasons import collides_report, no_grasp_report, not_tried_report, picked_report, unplanned_report
@@ -478,7 +480,7 @@ class Picker:
         j_out = 0
         n_dirs = [0, 0]
         for j in lifts.free_directions():
-            if (out is not None and not out.lift_may_help) or n_dirs[1] >= LIFTS_PER_GRASP:
+            if (out is not None and out.code not in LIFT_MAY_HELP) or n_dirs[1] >= LIFTS_PER_GRASP:
                 break
             c = int(lifts.carrying[j])
             if n_dirs[c] >= LIFTS_PER_GRASP:
@@ -504,9 +506,11 @@ class Picker:
         checked, clear = lifts.part_checked(j)
         u = lifts.dirs[j][1]
         return MotionContext(
-            self.robot, self.gripper, p, static, att, u, run.line.dist, run.timing, T_place=run.T_place,
+            self.robot, self.gripper, p, static, att, u, run.line.dist, run.timing, lift_contact=p.lift_contact,
+            depth_limit=p.lift_depth, T_place=run.T_place,
             lift_gripper_check=lambda T, w: st.world.gripper_at_hits(T, w, bodies),
-            approach_sweep=st.world.gripper_swept_free,  # against every body, the grasped part's too
+            # against every body, the grasped part's too
+            approach_sweep=approach_cover(st.world, self.robot, self.gripper.T_flange_tcp, static),
             body_names=tuple(b.name for b in bodies), lift_depth=None if p.lift_depth <= 0 else
             lambda T, names, c=lifts.carrying[j]: lifts.depth(T, names, c),
             lift_part_checked=(inst.T_world_part, checked[:, None] * u, clear), budget=run.budget)

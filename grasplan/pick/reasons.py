@@ -4,9 +4,10 @@ lifts were tried, and each report an instance can end with (:class:`grasplan.pic
 from __future__ import annotations
 
 from ..piles.scene_file import Instance
-from .codes import PickStatus, Reason
+from .codes import GRASP_STATUS, PickStatus
+from ..motion.codes import Reason
 from .lift import LIFT_TILTS_DEG
-from .motion import Outcome
+from ..motion.grasp_motion import Outcome
 from .result import InstanceReport
 from .world import CLOUD, INSTANCE_PREFIX
 
@@ -83,7 +84,7 @@ def picked_report(inst: Instance, rank: int, n_ranked: int, out: Outcome, raised
 def unplanned_report(inst: Instance, tried: int, best: Outcome, hits: dict[str, int]) -> InstanceReport:
     """``tried`` collision-free grasps, none planned: the best one's outcome ``best`` (``blocked``
     when the robot or the carried part hit a neighbour)."""
-    return InstanceReport(inst.id, inst.part, PickStatus.BLOCKED if best.blockers else best.status,
+    return InstanceReport(inst.id, inst.part, PickStatus.BLOCKED if best.blockers else GRASP_STATUS[best.code],
                           f"{tried} collision-free grasps tried, none planned; the best: {best.reason}"
                           + hits_text(hits, " grasps"), blockers_of(hits), code=best.code)
 

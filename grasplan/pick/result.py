@@ -26,7 +26,8 @@ from ..io import to_json_text, write_json
 from ..results.joint_motion import Motion
 from ..robot.model import Robot
 from ..piles.scene_file import Scene
-from .codes import INSTANCE_STATUSES, PickStatus, Reason
+from .codes import INSTANCE_STATUSES, PickStatus
+from ..motion.codes import Reason
 from .params import PickParams
 
 PICKS_SCHEMA = "grasplan.picks/1"

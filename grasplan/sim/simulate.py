@@ -25,7 +25,7 @@ from ..config.materials import DEFAULT_DENSITY
 from ..part.mass import MassProperties, mass_properties
 from ..geometry.meshdata import TriangleMesh
 from ..grasps.patches import contact_patches
-from ..config.scoring import distinct_order
+from ..grasps.ranking import distinct_order
 from ..status import Status
 from ..geometry.transforms import check_transform, quaternions
 from ..grasps.wrench import CONTACTS_PER_GRIP, LOAD, torsion_length
@@ -525,11 +525,11 @@ def simulate_result(result: PlanResult, top: int, *, mass_props: MassProperties 
     g = result.grasps
     if result.robot is not None:
         rows = select_grasps(g.status, np.asarray(g.score, dtype=np.float64), top, rank=g.rank)
-    else:  # a grasps result: by score with the plan's diversity rule (grasplan.config.scoring.distinct_order)
+    else:  # a grasps result: by score with the plan's diversity rule (grasplan.grasps.ranking.distinct_order)
         pp = result.params.planning
         rows = select_grasps(g.status, np.asarray(g.score, dtype=np.float64), len(g))
         rows = distinct_order(g.T_part_tcp, rows, min_distance=pp.distinct_distance,
-                              min_angle_deg=pp.distinct_angle_deg)[:top]
+                              min_angle_deg=pp.distinct_angle_deg)[0][:top]
     if len(rows) == 0:
         st = sorted(set(np.asarray(g.status).astype(str)))
         raise InputError("simulate: no collision-free or planned grasp to simulate ("

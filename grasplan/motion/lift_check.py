@@ -1,5 +1,6 @@
-"""The lift's collision check with the part in the jaws (:func:`lift_collision`): which contacts a
-lift may make (resting on a support within ``lift_contact`` of travel, a neighbour within the depth
+"""The lift's collision check with the part in the jaws (:func:`lift_collision`), the one of
+``plan`` and ``pick`` (and of the descent at the place, a lift traced back): which contacts a lift
+may make (resting on a support within ``lift_contact`` of travel, a neighbour within the depth
 rule all along) and which pairs the checks before IK already decided (:func:`lift_precheck_drop`);
 the lift's waypoints (:func:`lift_travel`, :data:`LIFT_SAMPLE`)."""
 from __future__ import annotations
@@ -11,10 +12,8 @@ from typing import Any
 import numpy as np
 
 from ..geometry.interpolation import interpolate_path
-from ..motion.collision_scene import PART, CollisionScene
-from ..motion.pathboxes import scene_open
-from ..motion.pickplace import LINE_SAMPLE
-from .cover import gripper_world_pairs
+from .collision_scene import PART, CollisionScene
+from .pathboxes import scene_open
 
 #: what the part in the jaws may rest on at the start of the lift (body name or prefix)
 SUPPORT_BODIES = ("table", "obstacle:", "instance:")
@@ -22,7 +21,14 @@ SUPPORT_BODIES = ("table", "obstacle:", "instance:")
 #: (:data:`~grasplan.motion.pickplace.LINE_SAMPLE`): fine enough that the UR5's joints move less than
 #: ``interpolation.STEP`` between two of them, so the lift's checked configurations are its
 #: waypoints, which the checks before IK cover (:func:`lift_collision`)
-LIFT_SAMPLE = 0.5 * LINE_SAMPLE
+LIFT_SAMPLE = 0.002
+
+
+def gripper_world_pairs(scene: CollisionScene) -> np.ndarray:
+    """Per pair of ``scene`` (:meth:`~grasplan.motion.collision_scene.CollisionScene.pair_rows`): a gripper shape
+    (body or jaw) against anything but the robot itself."""
+    return np.array([(a.startswith("gripper:") or b.startswith("gripper:")) and kind != "self"
+                     for a, b, kind, _, _ in scene.pair_rows()], dtype=bool)
 
 
 def _support_only(pairs: list[tuple[str, str, str]]) -> bool:
@@ -60,7 +66,7 @@ def _support_pairs(scene: CollisionScene) -> np.ndarray:
     return idx
 
 
-def _sample_ok(scene: CollisionScene, q: np.ndarray, width: float, support: bool,
+def sample_ok(scene: CollisionScene, q: np.ndarray, width: float, support: bool,
                shallow: Callable[[np.ndarray, list[str]], bool] | None) -> bool:
     """Configuration ``q`` of the lift is free, or its contacts are allowed (module docstring):
     with ``support`` (it may rest) every pair the carried part against what it may rest on
@@ -126,7 +132,7 @@ def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touc
         if covered is not None and drops:
             level[rows] = np.minimum(np.asarray(covered[k0:k1], dtype=np.int64), len(drops))
         # a configuration that may rest (within lift_contact of travel) is free exactly when it is
-        # with the part's support pairs off (:func:`_sample_ok`): those are switched off for it too
+        # with the part's support pairs off (:func:`sample_ok`): those are switched off for it too
         may_rest = np.array([support and (resting is None or resting(q)) for q in dense], dtype=bool)
         support_ids = _support_pairs(scene) if isinstance(scene, CollisionScene) else None
         if support_ids is not None:
@@ -159,7 +165,7 @@ def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touc
                     if rest:  # with its support pairs off: colliding is a hit (no boxes: coal decides)
                         if found is None and scene.is_free(dense[i], width):
                             continue
-                    elif _sample_ok(scene, dense[i], width, bool(may_rest[i]), shallow):
+                    elif sample_ok(scene, dense[i], width, bool(may_rest[i]), shallow):
                         continue
                     bad = i
                     break
