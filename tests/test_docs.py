@@ -18,7 +18,7 @@ ROOT = Path(__file__).resolve().parent.parent
 README_MAX_LINES = 200
 
 #: commands whose reference is a section of another command's page (the CLI's help points there)
-NAMED_PAGES = {"scene": "clutter.md", "simulate": "quality.md"}
+NAMED_PAGES = {"scene": "clutter.md", "simulate": "quality.md", "fingers": "grippers.md"}
 
 #: phrases of a lab log: issue numbers, dates and clock times, before/after figures, history
 LAB_LOG = {

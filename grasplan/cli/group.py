@@ -19,6 +19,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "candidates": ("candidates", "Convex antipodal contact pairs for a part (BLM, convexity, antipodal)."),
     "grasps": ("grasps", "Gripper poses from candidates, filtered by full-jaw collision checks."),
     "database": ("database", "A part's grasp database: its grasps in the part frame, computed once for picking."),
+    "fingers": ("fingers", "The finger window of a short-stroke gripper for a part: most holdable grasps over its poses."),
     "plan": ("plan", "Grasps a robot can reach: IK and collision-free approach paths."),
     "export": ("export", "Write a planned grasp as a robot program or data file."),
     "view": ("view", "Write a self-contained HTML viewer for a grasps or plan file."),
