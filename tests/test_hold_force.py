@@ -105,7 +105,21 @@ def test_pose_plans_give_the_least_hold_force_per_pose(tmp_path):
         holds = [g["quality"]["hold_force_N"] for g in kept_grasps(doc) if g.get("quality")
                  and g["quality"]["hold_force_N"] is not None]
         assert p["hold_force_N"] == min(holds)  # the pose file's own grasps, read independently
-    assert all(len(r) == 6 for r in done.table_rows())
+        planned = [g for g in kept_grasps(doc) if g["status"] == "planned"]
+        assert p["planned_holding"] == sum(g["quality"]["gravity_margin"] >= 1.0 for g in planned)
+    assert all(len(r) == 7 for r in done.table_rows())
+    # OUT.json is the pose with the most planned grasps that hold, then the most planned, the first of ties
+    best = max(done.poses, key=lambda p: (p["planned_holding"], p["planned"], p["probability"]))
+    assert done.chosen == best["pose_index"]
+
+
+def test_the_chosen_pose_prefers_planned_grasps_that_hold():
+    from grasplan.results.pose_plans import choice_key
+
+    many_slipping = {"planned": 20, "planned_holding": 0}
+    fewer_holding = {"planned": 5, "planned_holding": 3}
+    assert choice_key(fewer_holding) > choice_key(many_slipping)
+    assert choice_key({"planned": 6, "planned_holding": 3}) > choice_key(fewer_holding)
 
 
 def test_hold_note_names_the_poses_that_hold():

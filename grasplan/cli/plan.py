@@ -189,7 +189,8 @@ def _other_poses_hint(p: Part, g: Gripper, c: Cell, prm: RunParams, result: Plan
 def _plan_all_poses(p: Part, part: str, rob: Robot, g: Gripper, c: Cell, T_world_part: np.ndarray | None,
                     output: str, prm: RunParams, t0: float, keep: str) -> None:
     """``--pose-index all``: one standalone plan file per pose (OUT.pose<k>.json), OUT.json = the
-    pose with the most planned grasps (ties: the more probable) plus a ``poses`` block."""
+    pose with the most planned grasps predicted to hold (then the most planned; ties: the more
+    probable) plus a ``poses`` block."""
     from ..motion.planning import MIN_POSE_PROBABILITY, plan_poses
     from ..results.pose_plans import write_pose_plans
 
@@ -197,7 +198,7 @@ def _plan_all_poses(p: Part, part: str, rob: Robot, g: Gripper, c: Cell, T_world
     runs = plan_poses(p, rob, gripper=g, cell=c, candidates=prm.candidates, grasps=prm.grasps,
                       planning=prm.planning, T_world_part=T_world_part, progress=_database_lines)
     done = write_pose_plans(runs, output, min_probability=MIN_POSE_PROBABILITY, keep=keep)
-    click.echo(table(done.table_rows(), header=("pose", "probability", "planned", "collision-free", "holds from N",
+    click.echo(table(done.table_rows(), header=("pose", "probability", "planned", "planned holding", "collision-free", "holds from N",
                                                 "file")), err=True)
     if done.result is None:
         raise done.error(str(part))

@@ -176,7 +176,8 @@ class GraspParams(MaterialOptions, OptionSet):
     pose_index: int | str | None = spec(None, "int", "Rest the part in this stable pose (0 = most probable) "
                                         "instead of the cell's pose_index; 'all' (plan, batch): plan every stable "
                                         "pose of probability >= 2 %, write OUT.pose<k>.json "
-                                        "per pose and OUT.json = the pose with the most planned grasps plus a "
+                                        "per pose and OUT.json = the pose with the most planned grasps predicted to "
+                                        "hold (then the most planned) plus a "
                                         "'poses' block with the counts per pose.", lo=0, hi=10000, optional=True,
                                         words=(ALL_POSES,), metavar="INDEX|all")
     # grasp quality (grasplan.grasps.quality): mass properties and the score

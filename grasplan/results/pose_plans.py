@@ -1,6 +1,7 @@
 """Plans of every resting pose (``pose_index="all"``): one standalone plan file per stable pose
-(``OUT.pose<k>.json``) and ``OUT.json`` = the pose with the most planned grasps (ties: the more
-probable) plus a ``poses`` block with the counts per pose. ``grasplan plan --pose-index all`` and
+(``OUT.pose<k>.json``) and ``OUT.json`` = the pose with the most planned grasps predicted to hold
+(then the most planned; ties: the more probable, :func:`choice_key`) plus a ``poses`` block with the
+counts per pose. ``grasplan plan --pose-index all`` and
 ``grasplan batch --pose-index all`` both write them with :func:`write_pose_plans`, from one
 :class:`PosePlan` (a result or an error) per pose.
 """
@@ -57,11 +58,12 @@ class PosePlans:
                              + "; ".join(f"pose {b['pose_index']}: {b.get('error', '')}" for b in self.poses))
 
     def table_rows(self) -> list[tuple[Any, ...]]:
-        """``(pose, probability, planned, collision-free, holds from N, file or error)`` per pose, for
-        a table."""
-        return [(p["pose_index"], f"{p['probability'] * 100:.1f} %", "-", "-", "-", p["error"][:60]) if p["file"] is None
-                else (p["pose_index"], f"{p['probability'] * 100:.1f} %", p["planned"], p["collision_free"],
-                      "-" if p["hold_force_N"] is None else f"{p['hold_force_N']:.1f}", p["file"])
+        """``(pose, probability, planned, planned holding, collision-free, holds from N, file or
+        error)`` per pose, for a table."""
+        return [(p["pose_index"], f"{p['probability'] * 100:.1f} %", "-", "-", "-", "-", p["error"][:60])
+                if p["file"] is None
+                else (p["pose_index"], f"{p['probability'] * 100:.1f} %", p["planned"], p["planned_holding"],
+                      p["collision_free"], "-" if p["hold_force_N"] is None else f"{p['hold_force_N']:.1f}", p["file"])
                 for p in self.poses]
 
     def hold_note(self, grip_force: float) -> str:
@@ -77,6 +79,21 @@ class PosePlans:
                 f"{chosen['hold_force_N']:.1f} N); " + ", ".join(
                     f"pose {p['pose_index']} ({p['probability'] * 100:.1f} %) holds from {p['hold_force_N']:.1f} N "
                     f"({p['file']})" for p in better))
+
+
+def choice_key(row: dict[str, Any]) -> tuple[int, int]:
+    """What ``OUT.json`` maximises over the poses (the first, most probable, wins ties): the planned
+    grasps predicted to hold at the gripper's force, then the planned grasps."""
+    return int(row["planned_holding"]), int(row["planned"])
+
+
+def _planned_holding(res: PlanResult) -> int:
+    """Planned grasps of ``res`` predicted to hold (``gravity_margin >= 1``)."""
+    gm = res.grasps.gravity_margin
+    if gm is None:
+        return 0
+    planned = res.grasps.status.astype(str) == Status.PLANNED.value
+    return int(np.count_nonzero(planned & (np.nan_to_num(gm, nan=0.0) >= 1.0)))
 
 
 def _min_hold_force(res: PlanResult) -> float | None:
@@ -103,6 +120,7 @@ def write_pose_plans(runs: Sequence[PosePlan], output: str | os.PathLike, *, min
     output = Path(output)
     block: list[dict[str, Any]] = []
     best: tuple[int, int, PlanResult] | None = None
+    best_key: tuple[int, int] = (-1, -1)
     for run in runs:
         k, pr, res = run.index, run.probability, run.result
         if res is None:
@@ -113,11 +131,12 @@ def write_pose_plans(runs: Sequence[PosePlan], output: str | os.PathLike, *, min
         res.write(f, keep=keep)
         n = res.counts()
         cf = int(np.count_nonzero(~np.isin(res.grasps.status.astype(str), REJECTED)))
-        block.append({"pose_index": k, "probability": pr, "planned": int(n[Status.PLANNED.value]),
-                      "collision_free": cf, "hold_force_N": _min_hold_force(res), "file": f.name,
-                      "T_world_part": np.asarray(res.T_world_part).tolist()})
-        if best is None or n[Status.PLANNED.value] > best[1]:
-            best = (k, n[Status.PLANNED.value], res)
+        row = {"pose_index": k, "probability": pr, "planned": int(n[Status.PLANNED.value]),
+               "planned_holding": _planned_holding(res), "collision_free": cf, "hold_force_N": _min_hold_force(res),
+               "file": f.name, "T_world_part": np.asarray(res.T_world_part).tolist()}
+        block.append(row)
+        if best is None or choice_key(row) > best_key:
+            best, best_key = (k, n[Status.PLANNED.value], res), choice_key(row)
     if best is None:
         return PosePlans(chosen=None, result=None, planned=0, poses=tuple(block))
     best[2].write(output, keep=keep,
