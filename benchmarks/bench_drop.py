@@ -25,7 +25,8 @@ sys.path.insert(0, str(ROOT))
 
 from grasplan.cell.model import load_cell  # noqa: E402
 from grasplan.cli.common import table  # noqa: E402
-from grasplan.sim.drop import DropParams, PileItem, drop_pile, part_name  # noqa: E402
+from grasplan.piles.scene_file import part_name  # noqa: E402
+from grasplan.sim.drop import DropParams, PileItem, drop_pile  # noqa: E402
 from grasplan.part.mesh import load_part  # noqa: E402
 from grasplan.sim.simulate import convex_pieces  # noqa: E402
 

@@ -57,7 +57,8 @@ def _drop(folder: Path, name: str, cell_ref: str, items: list[tuple[str, int]], 
     """The cached scene ``name``, dropped now when missing (None: that seed's pile fails)."""
     from dataclasses import replace
 
-    from grasplan.sim.drop import DropParams, PileItem, drop_pile, part_name
+    from grasplan.piles.scene_file import part_name
+    from grasplan.sim.drop import DropParams, PileItem, drop_pile
     from grasplan.piles.scene_write import write_scene
 
     path, fail = folder / f"{name}.yaml", folder / f"{name}.failed"
