@@ -18,26 +18,23 @@ announce_compiling()
 
 
 @numba.njit(cache=True)
-def _clip(ys: np.ndarray, zs: np.ndarray, m: int, axis: int, bound: float, sgn: float,
-          oy: np.ndarray, oz: np.ndarray) -> int:
-    """Clip polygon ``ys, zs`` (first ``m`` vertices) to ``sgn * (coord - bound) <= 0`` of ``axis``
-    (0: y, 1: z) into ``oy, oz``; returns the new vertex count."""
+def _clip(P: np.ndarray, m: int, col: int, bound: float, sgn: float, out: np.ndarray) -> int:
+    """Clip the polygon of the first ``m`` rows of ``P`` (rows: vertices, in order) to
+    ``sgn * (P[:, col] - bound) <= 0`` into ``out`` (every column interpolated, Sutherland-Hodgman);
+    returns the new vertex count."""
     k = 0
     for i in range(m):
         j = i + 1 if i + 1 < m else 0
-        p = ys[i] if axis == 0 else zs[i]
-        q = ys[j] if axis == 0 else zs[j]
-        dp = sgn * (p - bound)
-        dq = sgn * (q - bound)
+        dp = sgn * (P[i, col] - bound)
+        dq = sgn * (P[j, col] - bound)
         in_p = dp <= 0.0
         if in_p:
-            oy[k] = ys[i]
-            oz[k] = zs[i]
+            out[k] = P[i]
             k += 1
         if in_p != (dq <= 0.0):
             t = dp / (dp - dq)
-            oy[k] = ys[i] + t * (ys[j] - ys[i])
-            oz[k] = zs[i] + t * (zs[j] - zs[i])
+            for c in range(P.shape[1]):
+                out[k, c] = P[i, c] + t * (P[j, c] - P[i, c])
             k += 1
     return k
 
@@ -55,10 +52,8 @@ def accumulate_pairs(poly: np.ndarray, n: np.ndarray, w: np.ndarray, flat: np.nd
     int y^2, int z^2, int yz]`` to ``mom[g, jaw, 0]`` and, when ``flat``, to ``mom[g, jaw, 1]``."""
     K, V = len(src), poly.shape[1]
     cap = 16 * V + 16  # each clip at most doubles a polygon's vertices
-    ay = np.empty(cap)
-    az = np.empty(cap)
-    by = np.empty(cap)
-    bz = np.empty(cap)
+    A = np.empty((cap, 2))  # (y, z) per vertex, TCP frame
+    B = np.empty((cap, 2))
     y_lo, y_hi, z_lo, z_hi = rect[0], rect[1], rect[2], rect[3]
     for k in range(K):
         gi = g[k]
@@ -74,24 +69,24 @@ def accumulate_pairs(poly: np.ndarray, n: np.ndarray, w: np.ndarray, flat: np.nd
             d2 = poly[pk, v, 2] - o[gi, 2]
             y = d0 * R[gi, 0, 1] + d1 * R[gi, 1, 1] + d2 * R[gi, 2, 1]
             z = d0 * R[gi, 0, 2] + d1 * R[gi, 1, 2] + d2 * R[gi, 2, 2]
-            ay[v] = y
-            az[v] = z
+            A[v, 0] = y
+            A[v, 1] = z
             ymin = min(ymin, y)
             ymax = max(ymax, y)
             zmin = min(zmin, z)
             zmax = max(zmax, z)
         if not (ymin <= y_hi and ymax >= y_lo and zmin <= z_hi and zmax >= z_lo):
             continue  # outside the pad: culled before clipping
-        m = _clip(ay, az, m, 0, y_lo, -1.0, by, bz)
-        m = _clip(by, bz, m, 0, y_hi, 1.0, ay, az)
-        m = _clip(ay, az, m, 1, z_lo, -1.0, by, bz)
-        m = _clip(by, bz, m, 1, z_hi, 1.0, ay, az)
+        m = _clip(A, m, 0, y_lo, -1.0, B)
+        m = _clip(B, m, 0, y_hi, 1.0, A)
+        m = _clip(A, m, 1, z_lo, -1.0, B)
+        m = _clip(B, m, 1, z_hi, 1.0, A)
         if m == 0:
             continue
         a = sy = sz = syy = szz = syz = 0.0
         for i in range(m):
             j = i + 1 if i + 1 < m else 0
-            Y, Z, Y1, Z1 = ay[i], az[i], ay[j], az[j]
+            Y, Z, Y1, Z1 = A[i, 0], A[i, 1], A[j, 0], A[j, 1]
             c = Y * Z1 - Y1 * Z
             a += c
             sy += (Y + Y1) * c
@@ -99,9 +94,9 @@ def accumulate_pairs(poly: np.ndarray, n: np.ndarray, w: np.ndarray, flat: np.nd
             syy += (Y * Y + Y * Y1 + Y1 * Y1) * c
             szz += (Z * Z + Z * Z1 + Z1 * Z1) * c
             syz += (Y * Z1 + 2 * Y * Z + 2 * Y1 * Z1 + Y1 * Z) * c
-        A = 0.5 * a
-        s = (1.0 if A > 0 else -1.0 if A < 0 else 0.0) * w[pk]
-        vals = (A * s, sy / 6.0 * s, sz / 6.0 * s, syy / 12.0 * s, szz / 12.0 * s, syz / 24.0 * s)
+        area = 0.5 * a
+        s = (1.0 if area > 0 else -1.0 if area < 0 else 0.0) * w[pk]
+        vals = (area * s, sy / 6.0 * s, sz / 6.0 * s, syy / 12.0 * s, szz / 12.0 * s, syz / 24.0 * s)
         for c6 in range(6):
             mom[gi, jaw, 0, c6] += vals[c6]
             if flat[pk]:
@@ -122,10 +117,8 @@ def slab_polygons(pts: np.ndarray, first: np.ndarray, count: np.ndarray, f: np.n
         vmax = max(vmax, count[f[k]])
     cap = 4 * vmax + 4
     keep = np.zeros(K, dtype=np.bool_)
-    xs = np.empty(cap)
-    xa = np.empty((cap, 3))
-    ys = np.empty(cap)
-    ya = np.empty((cap, 3))
+    A = np.empty((cap, 4))  # (x - x_contact along the axis, part-frame point) per vertex
+    B = np.empty((cap, 4))
     out = np.zeros((K, cap, 3))
     nout = np.zeros(K, dtype=np.int64)
     kept = 0
@@ -136,38 +129,16 @@ def slab_polygons(pts: np.ndarray, first: np.ndarray, count: np.ndarray, f: np.n
         for v in range(m):
             p = pts[first[e] + v]
             x = (p[0] - cu[u, 0]) * axu[u, 0] + (p[1] - cu[u, 1]) * axu[u, 1] + (p[2] - cu[u, 2]) * axu[u, 2]
-            xs[v] = x
-            xa[v, 0], xa[v, 1], xa[v, 2] = p[0], p[1], p[2]
+            A[v, 0], A[v, 1], A[v, 2], A[v, 3] = x, p[0], p[1], p[2]
             lo = min(lo, x)
             hi = max(hi, x)
         if not (lo <= depth and hi >= -depth):
             continue
         keep[k] = True
-        for side in range(2):  # x >= -depth, then x <= depth
-            sgn = -1.0 if side == 0 else 1.0
-            bound = -depth if side == 0 else depth
-            c = 0
-            for i in range(m):
-                j = i + 1 if i + 1 < m else 0
-                dp = sgn * (xs[i] - bound)
-                dq = sgn * (xs[j] - bound)
-                in_p = dp <= 0.0
-                if in_p:
-                    ys[c] = xs[i]
-                    ya[c] = xa[i]
-                    c += 1
-                if in_p != (dq <= 0.0):
-                    t = dp / (dp - dq)
-                    ys[c] = xs[i] + t * (xs[j] - xs[i])
-                    for d in range(3):
-                        ya[c, d] = xa[i, d] + t * (xa[j, d] - xa[i, d])
-                    c += 1
-            m = c
-            for i in range(m):
-                xs[i] = ys[i]
-                xa[i] = ya[i]
+        m = _clip(A, m, 0, -depth, -1.0, B)  # x >= -depth
+        m = _clip(B, m, 0, depth, 1.0, A)  # x <= depth
         for i in range(m):
-            out[kept, i] = xa[i]
+            out[kept, i] = A[i, 1:]
         nout[kept] = m
         kept += 1
     return keep, out[:kept], nout[:kept]
