@@ -100,7 +100,8 @@ def placed_from_result(gr: GraspResult) -> PlacedGrasps:
 
 
 def place_database(db: GraspDatabase, part: Part, cell: Cell, *, params: GraspParams,
-                   T_world_part: np.ndarray | None = None, timing_s: dict[str, float] | None = None) -> PlacedGrasps:
+                   T_world_part: np.ndarray | None = None, timing_s: dict[str, float] | None = None,
+                   gripper: Gripper | None = None) -> PlacedGrasps:
     """``db``'s grasps with ``part`` resting in ``cell`` (at ``T_world_part``, else the cell's stable
     pose, ``params.pose_index`` when given): the database's collision-free poses checked against
     the table and the obstacles (:meth:`~grasplan.grasps.collision.GripperCollider.check_detail` with
@@ -108,11 +109,12 @@ def place_database(db: GraspDatabase, part: Part, cell: Cell, *, params: GraspPa
     stored patches and epsilon, the gravity margin for gravity's direction here) and score
     (:func:`grasplan.grasps.quality.stage_score`); the poses that hit the part counted per candidate.
     ``params``: the grasp options the database was computed with (and the pose index);
+    ``gripper``: the caller's model of the database's gripper (default the database's own copy);
     ``timing_s``: seconds already spent (the database's load or computation), added to:
     ``stable_pose``, ``place_collision`` (of it ``collision_table``, ``_obstacle``, ``_shapes``)
     and ``place_quality`` (gravity margin and score)."""
     timing = dict(timing_s or {})
-    db.check_for(part, None)
+    db.check_for(part, gripper)
     k = params.single_pose_index()
     c = replace(cell, pose_index=k) if k is not None else cell
     t = time.perf_counter()
@@ -121,7 +123,8 @@ def place_database(db: GraspDatabase, part: Part, cell: Cell, *, params: GraspPa
     t = time.perf_counter()
     order = np.argsort(db.pose, kind="stable")
     T_part_tcp, width = db.T_part_tcp[order], db.width[order]
-    collider = GripperCollider(part.mesh, db.gripper, c, T)
+    g = db.gripper if gripper is None else gripper
+    collider = GripperCollider(part.mesh, g, c, T)
     status, elem, body = collider.check_detail(T_part_tcp, width, part_free=True)
     reasons = collider.reasons(status, elem, body)
     timing["place_collision"] = time.perf_counter() - t
@@ -133,7 +136,7 @@ def place_database(db: GraspDatabase, part: Part, cell: Cell, *, params: GraspPa
     q = db.quality_at(T, order[ok]) if mp is not None else None
     M = len(order)
     score = np.full(M, np.nan)
-    score[ok] = stage_score(part.mesh, db.gripper, T, T_part_tcp[ok], width[ok], params, q, mp)
+    score[ok] = stage_score(part.mesh, g, T, T_part_tcp[ok], width[ok], params, q, mp)
     quality = quality_columns(q, ok, M) if q is not None else {}
     timing["place_quality"] = time.perf_counter() - t
     table = GraspTable(candidate=db.candidate[order], region=db.region[order], contacts=db.contacts[order],
@@ -144,7 +147,7 @@ def place_database(db: GraspDatabase, part: Part, cell: Cell, *, params: GraspPa
     counts[:, REJECTED.index(Status.COLLISION_PART.value)] = db.rejected_part
     stage: dict[str, int] = {key: int(db.counts[key]) for key in ("candidates", "posed_candidates", "poses", "regions")
              if key in db.counts}
-    return PlacedGrasps(part=part, gripper=db.gripper, cell=c, T_world_part=T, part_pose_source=source,
+    return PlacedGrasps(part=part, gripper=g, cell=c, T_world_part=T, part_pose_source=source,
                         candidate_params=db.candidates, params=params, table=table, quality=q, mass_props=mp,
                         rejected=RejectedCounts(db.rejected_candidate, counts), counts_stage=stage,
                         timing_s=timing, notes=tuple(db.notes), quality_note=note)
@@ -182,7 +185,8 @@ def grasp_stage(part: Part, gripper: Gripper, cell: Cell, *, candidates: Candida
             raise InputError(f"grasp database {database.origin or '(in memory)'}: computed with other candidate or "
                              f"grasp options than this plan's (its own: {database.candidates.options_json()}, "
                              f"{database.grasps.options_json()}); plan with those, or let the plan compute its own")
-    return place_database(database, part, cell, params=grasps, T_world_part=T_world_part, timing_s=timing)
+    return place_database(database, part, cell, params=grasps, T_world_part=T_world_part, timing_s=timing,
+                          gripper=gripper)
 
 
 def cached_database(part: Part, gripper: Gripper, *, candidates: CandidateParams, grasps: GraspParams

@@ -305,7 +305,7 @@ def plan(
     if database is None and planning.grasp_db != GRASP_DB_OFF:  # read first: it holds the resting poses
         database, read_s = cached_database(part, g, candidates=candidates, grasps=grasps)
         database_s = read_s if database is not None else None
-    _check_before_planning(part, rob, g, c, grasps, T_world_part)
+    start_scene = _check_before_planning(part, rob, g, c, grasps, T_world_part)
     notify = (lambda text: progress(GraspDatabaseNote(text))) if progress is not None else None
     gr = grasp_stage(part, g, c, candidates=candidates, grasps=grasps, T_world_part=T_world_part,
                      every_pose=planning.grasp_db == GRASP_DB_OFF, database=database, load_s=load_s, notify=notify,
@@ -313,7 +313,10 @@ def plan(
     if progress is not None:
         progress(GraspStageDone(gr.counts()))
     t = time.perf_counter()
-    scene = CollisionScene(rob, gr.gripper, part.mesh, gr.T_world_part, gr.cell)
+    # the checks' scene is the plan's: the same robot, gripper, part, pose and cell (the pose index aside)
+    same = start_scene.T_world_part is not None and np.array_equal(start_scene.T_world_part, gr.T_world_part) \
+        and gr.gripper is g
+    scene = start_scene if same else CollisionScene(rob, gr.gripper, part.mesh, gr.T_world_part, gr.cell)
     t_robot += time.perf_counter() - t
     out = plan_grasps(gr, rob, scene, params=planning, progress=progress)
     return _plan_result(part, rob, gr, out, planning, t_robot)
@@ -327,17 +330,19 @@ def planning_for_keep(planning: PlanParams, keep: str) -> PlanParams:
 
 
 def _check_before_planning(part: Part, robot: Robot, gripper: Gripper, cell: Cell, grasps: GraspParams,
-                           T_world_part: np.ndarray | None) -> None:
+                           T_world_part: np.ndarray | None) -> CollisionScene:
     """The checks before planning (:mod:`grasplan.motion.start_checks`; InputError, exit 3, with what
     to change): the place and the part inside the table or an obstacle, the robot's base inside an
-    obstacle, q_home in collision."""
+    obstacle, q_home in collision. Returns the scene it checked (the part at its start pose)."""
     if cell.place is not None:
         check_part_placement(part.mesh, cell.place, cell, what="the part at the place (--place or the cell's place)",
                              pose_option="--place or the cell's place.T")
     k = grasps.single_pose_index()
     T_start = T_world_part if T_world_part is not None else stable_pose(
         part.mesh, cell if k is None else replace(cell, pose_index=k))
-    check_start(CollisionScene(robot, gripper, part.mesh, T_start, cell), part_mesh=part.mesh)
+    scene = CollisionScene(robot, gripper, part.mesh, T_start, cell)
+    check_start(scene, part_mesh=part.mesh)
+    return scene
 
 
 def _plan_result(part: Part, robot: Robot, gr: PlacedGrasps, out: PlanOutcome, planning: PlanParams,
