@@ -61,7 +61,7 @@ def _args(command: str, tmp_path, opt: click.Option, value: str) -> list[str]:
     args = [command, *base, opt.opts[0], value]
     if command == "export" and opt.opts[0] != "--format":
         args += ["--format", "csv"]
-    out = {"blm": "out.stl", "batch": "out_dir"}.get(command, "out.json")
+    out = {"blm": "out.stl", "batch": "out_dir", "fingers": "out.yaml"}.get(command, "out.json")
     return [*args, "-o", str(tmp_path / out)]
 
 

@@ -65,6 +65,11 @@ def test_cli_ranks_windows_and_writes_a_gripper_whose_count_the_cell_computation
     assert total == pytest.approx(weighted[0], abs=0.01)
 
 
+def test_the_output_must_be_a_yaml_file(tmp_path, own_cache):
+    r = CliRunner().invoke(main, ["fingers", str(BRACKET), "--units", "mm", "-o", str(tmp_path / "g.json")])
+    assert r.exit_code == 2 and ".yaml" in r.output and not (tmp_path / "g.json").exists(), r.output
+
+
 def test_a_long_stroke_gripper_is_refused_naming_short_ones(tmp_path, own_cache):
     r = CliRunner().invoke(main, ["fingers", str(BRACKET), "--units", "mm", "--gripper", "schunk_egp_c_40"])
     assert r.exit_code == 3 and "no stroke" in r.output and "schunk_egp_25" in r.output, r.output

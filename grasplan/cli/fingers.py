@@ -49,6 +49,9 @@ def command(part: str, gripper: str, cell: str, windows: int, new_name: str | No
     t0 = time.perf_counter()
     apply_config_dirs(kwargs)
     if output is not None:
+        if Path(output).suffix.lower() not in (".yaml", ".yml"):
+            raise click.BadParameter(f"{output}: a gripper YAML; give a name ending in .yaml or .yml",
+                                     param_hint="'-o' / '--output'")
         check_output(output, part)
     prm = RunParams.from_options(kwargs, (CandidateParams, GraspParams))
     setup = build_setup(gripper=gripper, cell=cell)
