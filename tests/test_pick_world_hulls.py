@@ -90,3 +90,29 @@ def test_box_bodies_decided_without_coal_agree_with_coal():
     names = {bodies[i].name for i in fast[fast >= 0]}
     assert {"instance:i0", "obstacle:bin_floor", "table"} <= names, names
     assert (c2 - c1) - (c1 - c0) > 500  # most box hits were decided without coal
+
+
+def test_instance_pairs_decided_on_boxes_agree_with_coal():
+    """The compiled box pre-pass decides most (gripper shape, neighbour) pairs before coal
+    (grasplan/pick/world.py, ``Body.part_boxes``): the first body hit per pose is the one coal names
+    when every instance pair goes through coal, on random poses among five instances."""
+    part = load_part(BRACKET)
+    world = PickWorld(load_gripper("schunk_egp_c_40"), load_cell("bin"))
+    world.add_part("bracket", part)
+    rng = np.random.default_rng(5)
+    world.set_instances([Instance(f"i{j}", "bracket", _pose(rng, 0.05)) for j in range(5)])
+    bodies = world.bodies(None)
+    assert sum(b.part_boxes is not None for b in bodies) == 5
+    plain = [dataclasses.replace(b, part_boxes=None) for b in bodies]
+    M = 3000
+    T = np.stack([_pose(rng, 0.12) for _ in range(M)])
+    width = rng.uniform(0.0, 0.05, M)
+    c0 = world.coal_calls
+    fast, _ = world.gripper_hits("bracket", None, T, width, bodies)
+    c1 = world.coal_calls
+    slow, _ = world.gripper_hits("bracket", None, T, width, plain)
+    c2 = world.coal_calls
+    assert np.array_equal(fast, slow)
+    names = {bodies[i].name for i in fast[fast >= 0]}
+    assert sum(n.startswith("instance:") for n in names) >= 3, names
+    assert (c2 - c1) > 3 * max(1, c1 - c0)  # most instance pairs were decided without coal

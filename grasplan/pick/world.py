@@ -8,8 +8,10 @@ jaw swept from the pre-grasp opening to the contacts, as in ``grasplan plan``:
 :meth:`grasplan.grasps.collision.GripperCollider.shape_sets`) against every body but the instance being
 grasped (the part-alone grasp set already checked that one): first an exact NumPy
 separating-axis test of each shape's oriented box against each body's world box, then coal for
-the overlapping pairs, the bodies in the order neighbours, cloud, obstacles, table, so that the
-first body a pose hits names what blocks it.
+the overlapping pairs (a neighbour's pairs first through the compiled box pre-pass of its
+triangles, :meth:`grasplan.grasps.collision_boxes.PartBoxes.classify`: only the pairs it cannot
+decide reach coal), the bodies in the order neighbours, cloud, obstacles, table, so that the first
+body a pose hits names what blocks it.
 """
 from __future__ import annotations
 
@@ -20,7 +22,9 @@ import coal
 import numpy as np
 
 from ..cell.model import Cell
-from ..grasps.collision import GripperCollider
+from ..grasps.collision import SAMPLE_DEPTH, GripperCollider
+from ..grasps.collision_boxes import APART, HIT, PartBoxes
+from ..grasps.collision_shapes import ShapeSet
 from ..geometry.containment import obb_aabb_separated
 from ..cell.shapes import TABLE_SIZE, bvh, convex_geometry, local_box, obstacle_geometry, shape_geometry, table_pose
 from ..gripper.model import Box, Gripper
@@ -48,6 +52,10 @@ class Body:
     half: np.ndarray
     convex: coal.CollisionGeometry | None = None  #: a convex shape holding the body (an instance's hull), or None
     box: bool = False  #: the geometry is a coal Box that is exactly the world box (axis-aligned)
+    #: an instance's triangles in the compiled box hierarchy (:class:`grasplan.grasps.collision_boxes.PartBoxes`,
+    #: part frame) and ``T_part_world``: the gripper's pairs are decided on boxes before coal; None: coal only
+    part_boxes: PartBoxes | None = None
+    T_body_world: np.ndarray | None = None
 
 
 def _tf(T: np.ndarray) -> coal.Transform3s:
@@ -137,7 +145,9 @@ class PickWorld:
         for inst in instances:
             g = self.parts[inst.part]
             c, h = world_box(g.hull, inst.T_world_part)
-            out[inst.id] = Body(INSTANCE_PREFIX + inst.id, g.bvh, _tf(inst.T_world_part), c, h, g.convex)
+            out[inst.id] = Body(INSTANCE_PREFIX + inst.id, g.bvh, _tf(inst.T_world_part), c, h, g.convex,
+                                part_boxes=g.collider.part_boxes,
+                                T_body_world=np.linalg.inv(np.asarray(inst.T_world_part, dtype=np.float64)))
         self.instances = out
 
     def bodies(self, target: str | None) -> list[Body]:
@@ -186,6 +196,7 @@ class PickWorld:
                                                           np.maximum(h[mk] - CERTAIN_OVERLAP, 0.0), centres[bk],
                                                           np.maximum(halves[bk] - CERTAIN_OVERLAP, 0.0))
             Tgs.append(T_world_tcp @ s.T_tcp_geom[s.index] if s.is_box else T_world_tcp)
+            self._prepass(bodies, s, si, Tgs[-1] if s.is_box else Tbb, h, need, hit)
         collide, req, res = coal.collide, self.request, self.result
         tf = coal.Transform3s()
         calls = 0
@@ -212,6 +223,25 @@ class PickWorld:
                 done = m
         self.coal_calls += calls
         return first, bodies
+
+    def _prepass(self, bodies: list[Body], s: ShapeSet, si: int, T_world_box: np.ndarray, half: np.ndarray,
+                 need: np.ndarray, hit: np.ndarray) -> None:
+        """Decide shape set ``s``'s pairs with the instance bodies on boxes before coal
+        (:meth:`grasplan.grasps.collision_boxes.PartBoxes.classify`, as the grasp stage does):
+        ``need`` cleared where the shape (a box at ``T_world_box`` (M, 4, 4) with ``half`` (M, 3); a
+        mesh shape's bounding box) is apart from the instance's triangles by more than
+        :data:`grasplan.grasps.collision.SAMPLE_DEPTH`, ``hit`` set where a point of a triangle lies
+        that deep inside a box shape; coal decides the rest."""
+        for bi, b in enumerate(bodies):
+            if b.part_boxes is None or b.T_body_world is None:
+                continue
+            m = np.flatnonzero(need[bi, si] & ~hit[bi, si])
+            if not len(m):
+                continue
+            code = b.part_boxes.classify(b.T_body_world @ T_world_box[m], half[m], prove_hit=s.is_box,
+                                         tol=SAMPLE_DEPTH)
+            need[bi, si, m[code == APART]] = False
+            hit[bi, si, m[code == HIT]] = True
 
     def part_hits(self, part: str, T_world_part: np.ndarray, shifts: np.ndarray, bodies: list[Body],
                   allowed: Callable[[np.ndarray, Body], bool] | None = None, *, first_only: bool = False,
