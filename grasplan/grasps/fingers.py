@@ -84,7 +84,6 @@ def finger_windows(part: Part, gripper: Gripper, cell: Cell, *, poses: list[tupl
         if progress is not None:
             progress(f"fingers: window {o * 1e3:.1f}-{(o + stroke) * 1e3:.1f} mm ...")
         db = database_for(part, g, candidates=replace(candidates, max_opening=None), grasps=grasps)
-        db.prime_resting_poses(part)
         per = []
         for k, p in poses:
             pg = place_database(db, part, cell, params=replace(grasps, pose_index=k))

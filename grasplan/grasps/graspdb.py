@@ -388,21 +388,38 @@ def cache_path(part: Part, gripper: Gripper, candidates: CandidateParams, grasps
     return cache_dir() / "graspdb" / f"{key}{DB_SUFFIX}"
 
 
+def read_cached(part: Part, gripper: Gripper, *, candidates: CandidateParams, grasps: GraspParams
+                ) -> tuple[GraspDatabase | None, str]:
+    """``(database, "")`` read from the cache folder for exactly this part, gripper and options, its
+    resting poses given to the part's mesh (:meth:`GraspDatabase.prime_resting_poses`); ``(None,
+    "")`` when the cache holds none; ``(None, why)`` when its entry is unusable."""
+    path = cache_path(part, gripper, candidates, grasps)
+    if not path.is_file():
+        return None, ""
+    try:
+        db = load_database(path, part=part, gripper=gripper)
+    except InputError as exc:
+        return None, str(exc)
+    db.prime_resting_poses(part)
+    return db, ""
+
+
 def database_for(part: Part, gripper: Gripper | str, *, candidates: CandidateParams = CandidateParams(),
                  grasps: GraspParams = GraspParams(), cache: bool = True,
                  progress: Callable[[str], None] | None = None) -> GraspDatabase:
     """The database of ``part`` with ``gripper``: from the cache folder when it holds one for
-    exactly this part, gripper and options, else computed (and, with ``cache``, stored there).
+    exactly this part, gripper and options (:func:`read_cached`), else computed (and, with
+    ``cache``, stored there; the computation leaves the part's resting poses on its mesh).
     ``progress`` gets a line before and after a computation."""
     g = load_gripper(gripper)
     path = cache_path(part, g, candidates, grasps)
     name = Path(part.path).name
-    if cache and path.is_file():
-        try:
-            return load_database(path, part=part, gripper=g)
-        except InputError as exc:  # a damaged or foreign cache entry: say so, then recompute it
-            if progress is not None:
-                progress(f"grasp database for {name}: cached copy unusable ({exc}); recomputing")
+    if cache:
+        db, why = read_cached(part, g, candidates=candidates, grasps=grasps)
+        if db is not None:
+            return db
+        if why and progress is not None:  # a damaged or foreign cache entry: say so, then recompute it
+            progress(f"grasp database for {name}: cached copy unusable ({why}); recomputing")
     if progress is not None:
         progress(f"grasp database for {name} with {g.name}: computing (candidates, poses, collisions, quality) ...")
     db = build_database(part, g, candidates=candidates, grasps=grasps)

@@ -25,7 +25,7 @@ from ..gripper.model import Gripper
 from ..part.mass import MassProperties
 from ..part.mesh import Part
 from ..config.params import DEFAULT_CELL, DEFAULT_GRIPPER, CandidateParams, GraspParams
-from .quality import Quality, holding_warning, quality_and_score, quality_columns
+from .quality import Quality, quality_and_score, quality_columns, stage_warnings
 from ..results.plan_result import Params, PartRecord, PlanResult
 from ..status import GRASP_STATUSES, Status
 from ..candidates.thinning import thin_candidates
@@ -64,11 +64,8 @@ class GraspResult:
         """What to tell the user: the work bounds the candidate and pose stages applied
         (``cand.notes``), the mass properties' warnings (or why there is no quality) and
         :func:`grasplan.grasps.quality.holding_warning`."""
-        out = list(self.cand.notes)   # work bounds applied (grasplan.candidates.regions, MAX_POSES)
-        out += list(self.mass_props.warnings) if self.mass_props is not None else \
-            [self.quality_note] if self.quality_note else []
-        w = holding_warning(self.quality, self.mass_props, part=Path(self.cand.part.path).name)
-        return out + [w] if w else out
+        return stage_warnings(self.cand.notes, self.quality, self.mass_props, self.quality_note,
+                              part=Path(self.cand.part.path).name)
 
     @property
     def width(self) -> np.ndarray:

@@ -30,9 +30,9 @@ from ..results.compact import REJECTED, RejectedCounts
 from ..results.grasp_table import GraspTable
 from ..status import GRASP_STATUSES, Status
 from .collision import GripperCollider
-from .graspdb import GraspDatabase, cache_path, database_for, load_database, options_key
+from .graspdb import GraspDatabase, database_for, options_key, read_cached
 from .pipeline import GraspResult, compute_grasps, part_pose
-from .quality import Quality, holding_warning, mass_or_note, quality_columns, stage_score
+from .quality import Quality, mass_or_note, quality_columns, stage_score, stage_warnings
 
 
 @dataclass(frozen=True, eq=False)
@@ -82,11 +82,8 @@ class PlacedGrasps:
     def quality_warnings(self) -> list[str]:
         """What to tell the user: the work bounds applied, the mass properties' warnings (or why
         there is no quality) and :func:`grasplan.grasps.quality.holding_warning`."""
-        out = list(self.notes)
-        out += list(self.mass_props.warnings) if self.mass_props is not None else \
-            [self.quality_note] if self.quality_note else []
-        w = holding_warning(self.quality, self.mass_props, part=Path(self.part.path).name)
-        return out + [w] if w else out
+        return stage_warnings(self.notes, self.quality, self.mass_props, self.quality_note,
+                              part=Path(self.part.path).name)
 
 
 def placed_from_result(gr: GraspResult) -> PlacedGrasps:
@@ -191,19 +188,11 @@ def grasp_stage(part: Part, gripper: Gripper, cell: Cell, *, candidates: Candida
 
 def cached_database(part: Part, gripper: Gripper, *, candidates: CandidateParams, grasps: GraspParams
                     ) -> tuple[GraspDatabase | None, float]:
-    """``(database, seconds)``: the part's grasp database read from the cache folder (its resting
-    poses primed on the part's mesh: :meth:`GraspDatabase.prime_resting_poses`), or ``(None, 0)``
-    when the cache holds none (or an unusable one: :func:`grasp_stage` computes it, saying why)."""
+    """``(database, seconds)``: :func:`grasplan.grasps.graspdb.read_cached` timed, ``(None, 0)`` when
+    the cache holds no usable one (:func:`grasp_stage` then computes it, saying why)."""
     t = time.perf_counter()
-    path = cache_path(part, gripper, candidates, grasps)
-    if not path.is_file():
-        return None, 0.0
-    try:
-        db = load_database(path, part=part, gripper=gripper)
-    except InputError:
-        return None, 0.0
-    db.prime_resting_poses(part)
-    return db, time.perf_counter() - t
+    db, _ = read_cached(part, gripper, candidates=candidates, grasps=grasps)
+    return (db, time.perf_counter() - t) if db is not None else (None, 0.0)
 
 
 def hold_by_pose(part: Part, gripper: Gripper, cell: Cell, *, candidates: CandidateParams, grasps: GraspParams,
@@ -213,7 +202,6 @@ def hold_by_pose(part: Part, gripper: Gripper, cell: Cell, *, candidates: Candid
     (collision-free grasps with ``gravity_margin >= 1`` at the gripper's force; the least
     ``hold_force`` of any collision-free one). The grasp stage only: no robot."""
     db = database_for(part, gripper, candidates=candidates, grasps=grasps)
-    db.prime_resting_poses(part)
     out: list[tuple[int, float, int, float | None]] = []
     for k, p in poses:
         pg = place_database(db, part, cell, params=replace(grasps, pose_index=k))

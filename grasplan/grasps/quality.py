@@ -155,6 +155,17 @@ def grasp_quality(part_mesh: TriangleMesh, mass_props: MassProperties, gripper: 
                    epsilon=eps, grip_force=F, mu=float(mu))
 
 
+def stage_warnings(notes: tuple[str, ...] | list[str], quality: Quality | None, mass_props: MassProperties | None,
+                   quality_note: str, *, part: str) -> list[str]:
+    """What a grasp stage tells the user: ``notes`` (the work bounds the candidate and pose stages
+    applied), the mass properties' warnings (or ``quality_note``, why there is no quality) and
+    :func:`holding_warning`."""
+    out = list(notes)
+    out += list(mass_props.warnings) if mass_props is not None else [quality_note] if quality_note else []
+    w = holding_warning(quality, mass_props, part=part)
+    return out + [w] if w else out
+
+
 def holding_warning(quality: Quality | None, mass_props: MassProperties | None, *, part: str = "the part") -> str:
     """A warning when no grasp of ``quality`` reaches ``gravity_margin >= 1`` ("" otherwise): the
     best margin, what would have held: the largest density (or mass) the best grasp holds (the

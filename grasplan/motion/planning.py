@@ -400,7 +400,6 @@ def plan_poses(part: Part | str | os.PathLike, robot: Robot | str | Path = DEFAU
     if planning.grasp_db != GRASP_DB_OFF:  # one database serves every pose
         notify = (lambda text: progress(GraspDatabaseNote(text))) if progress is not None else None
         db = database_for(part, g, candidates=candidates, grasps=grasps, progress=notify)
-        db.prime_resting_poses(part)
     out: list[PosePlan] = []
     for k, p in stable_pose_indices(part.mesh, min_probability):
         try:
