@@ -13,8 +13,12 @@ import numpy as np
 import pytest
 
 from grasplan.cell.model import load_cell
-from grasplan.clutter.execute import COLLIDED, LIFT_MIN, MISSED, SUCCESS, execute_pick
-from grasplan.clutter.rounds import parse_pose_noise, perturb, run_round
+from grasplan.clutter.execute import (
+    CLEAR_MARGIN, COLLIDED, DROPPED, LIFT_MIN, MISSED, OUTCOMES, PROTOCOL, PUSHED, SLIPPED, SUCCESS, TURN_MAX_DEG,
+    TURNED, execute_pick, judge
+)
+from grasplan.clutter.perception import parse_pose_noise, perturb
+from grasplan.clutter.rounds import run_round
 from grasplan.clutter.world import ClutterWorld, pad_arc
 from grasplan.sim.drop import DropParams, PileItem, drop_pile
 from grasplan.errors import InputError
@@ -358,3 +362,236 @@ def test_twist_slips_at_the_pad_patch_torsion(cell, tmp_path, gripper_name):
         R0, R1 = out.track[k][3][0][:3, :3], out.track[-1][3][0][:3, :3]
         turned[factor] = math.degrees(math.acos(np.clip((np.trace(R0.T @ R1) - 1.0) / 2.0, -1.0, 1.0)))
     assert turned[1.2] < 2.0 < 10.0 < turned[0.8], turned
+
+
+# ------------------------------------------------------------------------------------------------
+# the stricter success rule: clearance height, turn in the jaws, the pads' patch from the contact
+# ------------------------------------------------------------------------------------------------
+def _hand_top(out) -> float:
+    """The hand's height at the end of the hold (the last replay sample)."""
+    return float(out.track[-1][1][2, 3])
+
+
+def test_a_short_lift_is_extracted_to_the_clearance_height(lone_box, gripper, cell):
+    """A pick whose planned lift (20 mm) leaves the box deep in the bin, with the bin's rim as the
+    clearance height: after the lift the hand goes straight up by the height still missing to
+    rim + CLEAR_MARGIN, the box held rigidly between the jaws comes up with it, its lowest point ends
+    at rim + CLEAR_MARGIN (the hand's rise above the grasp is that height less where the box's lowest
+    point started). Without a clearance height the same 20 mm lift is under LIFT_MIN: slipped."""
+    part, cw, T_part = lone_box
+    snap = cw.world.snapshot()
+    (T, w), = _top_down(part, gripper, cell, T_part)
+    pick = _pick(T, w, gripper)
+    pick.T_world_lifted = T.copy()
+    pick.T_world_lifted[2, 3] += 0.02
+    rim = float(np.asarray(cell.bin.T_world_bin)[2, 3] + cell.bin.height)
+    low0 = float(cw.world.hull_world(0)[:, 2].min())
+    assert low0 + 0.02 < rim  # the planned lift alone does not clear the rim
+    out = execute_pick(cw, 0, pick, settle=False, record=True, clear_z=rim)
+    assert out.outcome == SUCCESS and "extracted" in out.reason, out.reason
+    assert out.low_z is not None
+    assert out.low_z >= rim and out.low_z == pytest.approx(rim + CLEAR_MARGIN, abs=1e-3)
+    assert _hand_top(out) - T[2, 3] == pytest.approx(rim + CLEAR_MARGIN - low0, abs=1e-3)
+    assert out.to_json()["low_z_m"] == out.low_z and out.patch == "planned"
+    cw.world.restore(snap)
+    cw.park_hand()
+    out = execute_pick(cw, 0, pick, settle=False, record=True)
+    assert out.outcome == SLIPPED and "rose only" in out.reason, out.reason
+    assert _hand_top(out) == pytest.approx(T[2, 3] + 0.02, abs=1e-6)  # no extraction without clear_z
+    cw.world.restore(snap)
+    cw.park_hand()
+
+
+def test_a_part_not_held_is_not_extracted(lone_box, gripper, cell):
+    """The jaws close beside the box (40 mm aside): nothing between them, so no extraction (the hand
+    stops at the planned lift) and the box stays below the clearance height: missed, not success."""
+    part, cw, T_part = lone_box
+    snap = cw.world.snapshot()
+    (T, w), = _top_down(part, gripper, cell, T_part)
+    aside = T.copy()
+    aside[:3, 3] += 0.04 * T[:3, 1]
+    pick = _pick(aside, w, gripper)
+    rim = float(np.asarray(cell.bin.T_world_bin)[2, 3] + cell.bin.height)
+    out = execute_pick(cw, 0, pick, settle=False, record=True, clear_z=rim)
+    assert out.outcome == MISSED and out.low_z is not None and out.low_z < rim, out.reason
+    assert _hand_top(out) == pytest.approx(pick.T_world_lifted[2, 3], abs=1e-6)
+    cw.world.restore(snap)
+    cw.park_hand()
+
+
+def _bar(cell, tmp_path, gripper, mu=0.3):
+    """A 120 x 30 x 30 mm aluminium bar lying flat in the middle of the bin floor, alone in its world."""
+    import trimesh
+
+    from grasplan.sim.pileworld import part_body
+
+    path = tmp_path / "bar.stl"
+    trimesh.creation.box((0.12, 0.03, 0.03)).export(path)
+    part = load_part(path, units="m")
+    body = part_body("bar", part.mesh, density=2700.0, decomposition="hull")
+    cw = ClutterWorld(cell, [body], gripper, mu=mu)
+    T_wp = np.array(cell.bin.T_world_bin, dtype=np.float64)
+    T_wp[:3, 3] += T_wp[:3, 2] * (0.015 + 1e-4)
+    cw.world.place(0, T_wp)
+    return part, body, cw, T_wp
+
+
+def _bar_grasp(d: float, h: float = 0.008) -> np.ndarray:
+    """T_part_tcp from above, closing across the bar (part y), ``d`` along it and ``h`` above its middle."""
+    T = np.eye(4)
+    T[:3, :3] = [[0.0, -1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]]  # x = -y_part, y = -x_part, z down
+    T[:3, 3] = [d, 0.0, h]
+    return T
+
+
+def test_a_bar_swinging_in_the_jaws_is_turned(cell, tmp_path):
+    """A bar picked 40 mm off its centre of mass (8 mm above its middle) with pads whose twist
+    capacity is half the gravity moment m g d: the bar turns about the closing axis until the moment,
+    m g (d cos a - h sin a), is at most the capacity, i.e. at least to the angle a_min where
+    cos a - (h / d) sin a = 1/2 (about 50 deg); from rest it overshoots, never stops short. It is
+    still held (the grip's friction carries its weight) and its centre of mass rose far more than
+    LIFT_MIN: turned, not success. The same pads from ``patch_torsion`` over a planned torsion that
+    would hold it: turned too. Four times the moment as the capacity, or the grasp over the centre
+    of mass (no moment): success, turned about 0 deg."""
+    g = load_gripper("schunk_egp_c_40")
+    d, h, lift = 0.04, 0.008, 0.15
+    part, body, cw, T_wp = _bar(cell, tmp_path, g)
+    snap = cw.world.snapshot()
+    mg = body.mass.mass * 9.81
+    N = 0.5 * cw.grip_force  # each pad's normal force; each carries half the weight in friction
+    per_pad = math.sqrt(N ** 2 - (mg / (2.0 * cw.mu)) ** 2)
+
+    def torsion(capacity: float) -> np.ndarray:  # both pads' torsion lengths giving this total capacity
+        return np.full(2, capacity / (2.0 * per_pad))
+
+    a = np.radians(np.linspace(0.0, 90.0, 9001))
+    a_min = math.degrees(a[np.argmax(np.cos(a) - (h / d) * np.sin(a) <= 0.5)])
+    assert 40.0 < a_min < 60.0
+
+    def run(grasp_d, **kw):
+        pick = _pick(T_wp @ _bar_grasp(grasp_d, h), 0.03, g)
+        pick.T_world_lifted[2, 3] += lift - LIFT  # the bar (100 mm from the axis at most) hangs clear
+        out = execute_pick(cw, 0, pick, settle=False, **kw)
+        cw.world.restore(snap)
+        cw.park_hand()
+        return out
+
+    low, high = torsion(0.5 * mg * d), torsion(4.0 * mg * d)
+    out = run(d, jaw_torsion=low)
+    assert out.outcome == TURNED and out.held_at_close, out.reason
+    assert out.turned_in_jaws_deg >= a_min - 2.0 and out.lift > LIFT_MIN
+    assert out.to_json()["turned_in_jaws_deg"] == out.turned_in_jaws_deg
+    out = run(d, jaw_torsion=high, patch_torsion=lambda T, C: low)
+    assert out.outcome == TURNED and out.patch == "contact" and out.turned_in_jaws_deg >= a_min - 2.0, out.reason
+    out = run(d, jaw_torsion=high)
+    assert out.outcome == SUCCESS and out.turned_in_jaws_deg < 2.0, out.reason
+    out = run(0.0, jaw_torsion=low)
+    assert out.outcome == SUCCESS and out.turned_in_jaws_deg < 2.0, out.reason
+
+
+def _pad_centroid(gripper, T_part_hand: np.ndarray, opening: float, jaw: int) -> np.ndarray:
+    """Where a flat pad pressing evenly on the bar's side face pushes (part frame): the centre of
+    the overlap of the finger's inner face (the finger box at ``opening``) with the face."""
+    finger = gripper.fingers(opening)[jaw]
+    Tb, e = np.asarray(finger.T_tcp_box), 0.5 * np.asarray(finger.extents)
+    # the inner face is the box's -x side for both jaws (the -x jaw's box is the +x jaw's turned about z)
+    corners = np.array([[-e[0], sy * e[1], sz * e[2], 1.0] for sy in (-1, 1) for sz in (-1, 1)])
+    P = (T_part_hand @ Tb @ corners.T).T[:, :3]
+    lo = np.maximum(P.min(axis=0), [-0.06, -0.015, -0.015])
+    hi = np.minimum(P.max(axis=0), [0.06, 0.015, 0.015])
+    assert np.all(hi[[0, 2]] > lo[[0, 2]])  # the pad overlaps the face
+    return 0.5 * (lo + hi)
+
+
+@pytest.mark.parametrize("gripper_name", ["schunk_egp_c_40", "robotiq_2f_85"])
+def test_patch_torsion_sees_the_grasp_actually_made(cell, tmp_path, gripper_name):
+    """patch_torsion is called once, after the close, with the grasp the jaws made in the bar's
+    frame: T_part_tcp (the hand frame moved back by inv(T_tcp_gripper(width)): a linkage's TCP
+    12.9 mm off the hand at 30 mm) within 1 mm / 1 deg of the planned one, and each jaw's contact
+    point on its side of the bar (jaw0 at -x of the TCP, jaw1 at +x: part y = +-15 mm) at the centre
+    of its pad's overlap with the face. Its lengths then rule the pads' hinges (after the pick, at
+    rest: the nominal capacity, lengths x half the grip force)."""
+    g = load_gripper(gripper_name)
+    part, body, cw, T_wp = _bar(cell, tmp_path, g)
+    T_pt = _bar_grasp(0.0, 0.008)
+    seen = []
+    values = np.array([1.1e-3, 0.9e-3])
+
+    def patch(T, C):
+        seen.append((np.array(T), np.array(C)))
+        return values
+
+    out = execute_pick(cw, 0, _pick(T_wp @ T_pt, 0.03, g), jaw_torsion=np.full(2, 2e-3), patch_torsion=patch,
+                       settle=False)
+    assert out.outcome == SUCCESS and out.patch == "contact" and out.to_json()["patch"] == "contact", out.reason
+    assert len(seen) == 1
+    T, C = seen[0]
+    pos_err, ang_err = pose_error(T_pt, T)
+    assert pos_err < 1e-3 and math.degrees(ang_err) < 1.0, (pos_err, math.degrees(ang_err))
+    assert C.shape == (2, 3)
+    np.testing.assert_allclose(C[:, 1], [0.015, -0.015], atol=5e-4)  # jaw0 at TCP -x = part +y
+    T_part_hand = T_pt @ np.asarray(g.T_tcp_gripper(0.03))
+    for jaw in (0, 1):
+        np.testing.assert_allclose(C[jaw], _pad_centroid(g, T_part_hand, 0.03, jaw), atol=2e-3)
+    np.testing.assert_allclose(cw.pad_twist(), values * 0.5 * cw.grip_force, rtol=1e-12)
+
+
+def test_patch_torsion_refused_keeps_the_planned_torsion(lone_box, gripper, cell):
+    """patch_torsion raising ValueError, or giving a non-finite length: the torsion given stays (the
+    pads' capacity after the pick: jaw_torsion x half the grip force), Outcome.patch "planned"; a
+    pick whose jaws close beside the part never calls it."""
+    part, cw, T_part = lone_box
+    snap = cw.world.snapshot()
+    (T, w), = _top_down(part, gripper, cell, T_part)
+    planned = np.array([1.5e-3, 1.2e-3])
+
+    def refuse(T, C):
+        raise ValueError("no patch here")
+
+    for patch in (refuse, lambda T, C: np.array([np.nan, 1e-3])):
+        out = execute_pick(cw, 0, _pick(T, w, gripper), jaw_torsion=planned, patch_torsion=patch, settle=False)
+        assert out.outcome == SUCCESS and out.patch == "planned", out.reason
+        np.testing.assert_allclose(cw.pad_twist(), planned * 0.5 * cw.grip_force, rtol=1e-12)
+        cw.world.restore(snap)
+        cw.park_hand()
+    calls = []
+
+    def record(T, C):
+        calls.append(1)
+        return planned
+
+    aside = T.copy()
+    aside[:3, 3] += 0.04 * T[:3, 1]
+    out = execute_pick(cw, 0, _pick(aside, w, gripper), patch_torsion=record, settle=False)
+    assert out.outcome == MISSED and calls == [] and out.patch == "planned"
+    cw.world.restore(snap)
+    cw.park_hand()
+
+
+@pytest.mark.parametrize("measured, expected", [
+    # held at the end and high: success unless turned more than TURN_MAX_DEG in the jaws
+    (dict(held_at_close=True, held_after_lift=True, held_at_end=True, high=True, turned_in_jaws_deg=3.0), SUCCESS),
+    (dict(held_at_close=True, held_after_lift=True, held_at_end=True, high=True, turned_in_jaws_deg=15.0), SUCCESS),
+    (dict(held_at_close=True, held_after_lift=True, held_at_end=True, high=True, turned_in_jaws_deg=15.5), TURNED),
+    # held at the top, lost in the hold
+    (dict(held_at_close=True, held_after_lift=True, held_at_end=False, high=False, turned_in_jaws_deg=0.0), DROPPED),
+    (dict(held_at_close=True, held_after_lift=True, held_at_end=False, high=True, turned_in_jaws_deg=40.0), DROPPED),
+    # held when closed: lost in the lift, or held but never high enough
+    (dict(held_at_close=True, held_after_lift=False, held_at_end=False, high=False, turned_in_jaws_deg=0.0), SLIPPED),
+    (dict(held_at_close=True, held_after_lift=True, held_at_end=True, high=False, turned_in_jaws_deg=0.0), SLIPPED),
+    # never held: pushed (moved or turned before the close) or missed
+    (dict(held_at_close=False, held_after_lift=False, held_at_end=False, high=False, turned_in_jaws_deg=0.0,
+          pushed=0.006), PUSHED),
+    (dict(held_at_close=False, held_after_lift=False, held_at_end=False, high=False, turned_in_jaws_deg=0.0,
+          turned_deg=11.0), PUSHED),
+    (dict(held_at_close=False, held_after_lift=False, held_at_end=False, high=False, turned_in_jaws_deg=0.0), MISSED),
+])
+def test_judge_decides_in_order(measured, expected):
+    kw = dict(pushed=0.0, turned_deg=0.0) | measured
+    assert judge(**kw) == expected
+    assert expected in OUTCOMES
+
+
+def test_protocol_records_the_new_limits():
+    assert PROTOCOL["turn_max_deg"] == TURN_MAX_DEG == 15.0 and PROTOCOL["clear_margin"] == CLEAR_MARGIN == 0.01
+    assert OUTCOMES.index(TURNED) < OUTCOMES.index(DROPPED) < OUTCOMES.index(SLIPPED)

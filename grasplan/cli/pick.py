@@ -29,17 +29,22 @@ if TYPE_CHECKING:
               help="Plan a pick, remove that instance, plan the next, until none is left or none is feasible.")
 @click.option("--max-picks", type=click.IntRange(1, 100000), default=None,
               help="Stop after this many picks (the other instances are not_tried).")
+@click.option("--push", is_flag=True, default=False,
+              help="When no instance can be picked, plan a push that moves a part a wall or a neighbour boxes in "
+                   "into the open (the file's 'push' entry, with its joint path; docs/pick.md); re-plan after it.")
 @param_options(PickParams)
 @param_options(GraspParams, only=("material", "density"))
 @config_dir_option
 @output_option("Output JSON (grasplan.picks/1): the scene, robot, gripper and cell, every pick in pick order and "
                "every instance's status and reason.")
 def command(scene: str, robot: str, gripper: str, cell: str | None, sequence: bool, max_picks: int | None,
-            output: str, **kwargs: Any) -> None:
+            push: bool, output: str, **kwargs: Any) -> None:
     """Plan picks from the pile in SCENE (grasplan.scene/1): per instance its grasps posed in the
     world, checked against the bin, the table, the other instances and the cloud, ranked by score
     and accessibility (parts on top first), then IK, the straight approach, the transit and the lift
-    checked against the neighbours. Exit 4 (the file still written) when nothing can be picked.
+    checked against the neighbours. With --push, when nothing can be picked: a planned push of a
+    part boxed in by a wall or a neighbour. Exit 4 (the file still written) when nothing can be
+    picked (and, with --push, nothing pushed).
     """
     from ..config.lookup import document_ref
     from ..pick.picker import Picker
@@ -62,7 +67,7 @@ def command(scene: str, robot: str, gripper: str, cell: str | None, sequence: bo
     picker = Picker(setup.robot, gripper=setup.gripper, cell=setup.cell, params=params, database=database,
                     progress=info)
     info(f"scene {scene}: {len(sc.instances)} instances of {len(sc.part_names())} parts")
-    result = picker.plan(sc, sequence=sequence, max_picks=max_picks)
+    result = picker.plan(sc, sequence=sequence, max_picks=max_picks, push=push)
     warn_all(result.warnings)
     result.write(output)
     click.echo(instance_table(result.instances))
@@ -70,7 +75,14 @@ def command(scene: str, robot: str, gripper: str, cell: str | None, sequence: bo
     click.echo(f"{len(result.picks)} of {len(result.instances)} instances picked ({order}); wrote {output}")
     click.echo(table([(k, float(v)) for k, v in result.timing_s.items()] + [("wall", time.perf_counter() - t0)],
                      header=("stage", "seconds")))
-    if not result.picks:
+    if result.push is not None:
+        pu = result.push
+        click.echo(f"push {pu.instance} {pu.distance * 1e3:.0f} mm away from {pu.against} (it kept {pu.gap * 1e3:.1f} mm "
+                   f"from it); re-plan after the push")
+    elif push and not result.picks:
+        click.echo("no push either: " + ("; ".join(result.push_tried) or "no part is within reach of a wall or a "
+                                        "neighbour"))
+    if not result.picks and result.push is None:
         raise PlanningError(f"no instance of {scene} can be picked; {output} lists every instance's status and reason")
 
 

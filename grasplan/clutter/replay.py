@@ -36,8 +36,9 @@ from .rounds import NO_PLAN, Attempt, RoundResult
 MAX_PART_TRIANGLES = 20_000
 #: outcome colours (the viewer's palette: green held, orange/red failures)
 OUTCOME_COLORS = {SUCCESS: "#00c853", "slipped": "#fb8c00", "pushed_away": "#ab47bc", "collided": "#e53935",
-                  "missed": "#1e88e5", NO_PLAN: "#9e9e9e"}
-assert set(OUTCOME_COLORS) == {*OUTCOMES, NO_PLAN}
+                  "missed": "#1e88e5", "turned": "#fdd835", "dropped": "#8d6e63", NO_PLAN: "#9e9e9e",
+                  "moved": "#26a69a", "no_effect": "#bdbdbd"}
+assert set(OUTCOME_COLORS) >= {*OUTCOMES, NO_PLAN}
 _HERE = Path(__file__).resolve().parent
 
 
@@ -52,16 +53,21 @@ def _p7s(Ts: np.ndarray) -> np.ndarray:
 
 
 def _attempt_data(a: Attempt, replay: Mapping[str, Any] | None, names: list[str]) -> dict[str, Any]:
-    d: dict[str, Any] = {"instance": a.instance, "part": a.part, "outcome": a.outcome, "reason": a.reason,
-                         "plan_ms": round(a.plan_ms, 2)}
-    if a.execution is None or replay is None:
+    d: dict[str, Any] = {"kind": a.kind, "instance": a.instance, "part": a.part, "outcome": a.outcome,
+                         "reason": a.reason, "plan_ms": round(a.plan_ms, 2)}
+    ex = a.execution if a.execution is not None else a.push_execution
+    if ex is None or replay is None:
         return d
     track = replay["track"]
-    ids = [names.index(n) for n in a.execution.track_parts]
+    ids = [names.index(n) for n in ex.track_parts]
     before = replay["before"]
-    d.update(pick={"pre": _p7(a.pick["T_world_pregrasp"]), "tcp": _p7(a.pick["T_world_tcp"]),
-                   "lifted": _p7(a.pick["T_world_lifted"]), "opening": a.pick["opening"],
-                   "raises": list(a.pick.get("lift_carries", ()))},
+    # a push is shown as a pick's frames: above the start, the start, the end
+    frames = a.pick if a.execution is not None else {
+        "T_world_pregrasp": a.push["T_world_above"], "T_world_tcp": a.push["T_world_start"],
+        "T_world_lifted": a.push["T_world_end"], "opening": a.push["opening"]}
+    d.update(pick={"pre": _p7(frames["T_world_pregrasp"]), "tcp": _p7(frames["T_world_tcp"]),
+                   "lifted": _p7(frames["T_world_lifted"]), "opening": frames["opening"],
+                   "raises": list(frames.get("lift_carries", ()))},
              seen=_p7(replay["seen"]), ids=ids, before=_p7s(np.stack([before[names[i]] for i in ids])).reshape(-1).tolist(),
              samples=len(track), pose_error_mm=round(a.pose_error_mm, 3), pose_error_deg=round(a.pose_error_deg, 3))
     if track:
@@ -92,8 +98,8 @@ def build_data(rounds: Sequence[RoundResult], parts: Mapping[str, Part], gripper
     for rr in rounds:
         names = [i.id for i in rr.scene.instances]
         executed = iter(rr.replay)
-        attempts = [_attempt_data(a, next(executed, None) if a.execution is not None else None, names)
-                    for a in rr.attempts]
+        attempts = [_attempt_data(a, next(executed, None) if a.execution is not None or a.push_execution is not None
+                                  else None, names) for a in rr.attempts]
         ex = rr.executed
         out_rounds.append({"r": rr.r, "seed": rr.seed, "ended": rr.ended, "parts": rr.parts, "attempts": attempts,
                            "successes": rr.successes, "tried": len(ex), "ids": names,

@@ -8,7 +8,7 @@ pad's twist) into the pile world's MJCF, :class:`PadArc` a linkage gripper's pad
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -198,13 +198,15 @@ def gripper_mjcf(gripper: Gripper, *, mu: float, grip_force: float, arc: PadArc 
 class Contact:
     """One contact of the gripper: which of its bodies (``hand``, ``jaw0``, ``jaw1``), what it
     touches (a part body index, or -1 for the cell: table, bin, obstacles; ``other`` its name),
-    the penetration ``depth`` (m, > 0 inside) and the normal ``force`` (N)."""
+    the penetration ``depth`` (m, > 0 inside), the normal ``force`` (N) and where it is, ``pos``
+    (3,) (m, world: MuJoCo's contact point, midway between the two surfaces)."""
 
     gripper: str
     part: int
     other: str
     depth: float
     force: float
+    pos: np.ndarray = field(default_factory=lambda: np.zeros(3), compare=False, repr=False)
 
 
 class ClutterWorld:
@@ -387,5 +389,6 @@ class ClutterWorld:
             part = int(self._geom_part[other])
             out.append(Contact(gripper=str(self._geom_gripper[mine]), part=part,
                                other=self.world.bodies[part].name if part >= 0 else name.split("#")[0] or name,
-                               depth=float(-d.contact.dist[k]), force=float(f6[0])))
+                               depth=float(-d.contact.dist[k]), force=float(f6[0]),
+                               pos=np.array(d.contact.pos[k], dtype=np.float64)))
         return out

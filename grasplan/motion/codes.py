@@ -48,6 +48,8 @@ class Reason(_Word):
     LIFT_BLOCKED = "lift_blocked"
     #: every one of the best-ranked grasps collides (gripper check)
     GRASPS_COLLIDE = "grasps_collide"
+    #: every collision-free grasp is predicted to slip (gravity margin below ``min_gravity_margin``)
+    GRASPS_WEAK = "grasps_weak"
     #: not tried: the planning budget was spent
     BUDGET_SPENT = "budget_spent"
     #: not tried: ``max_picks`` was reached

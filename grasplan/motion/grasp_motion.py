@@ -5,7 +5,7 @@ pre-grasp opening; the straight approach (``backoff`` along the TCP's -z) follow
 straight lift (the cell's retreat, jaws at the contact width, the part attached) followed and free
 but for the contacts :func:`lift_collision` allows; with a place, the place side
 (:func:`~grasplan.motion.pickplace.place_candidates`, once per grasp; none: the grasp fails at
-once); the transit ``q_home -> q_pregrasp`` (:func:`_transit`); with a place, the transfer. Every
+once); the transit ``q_home -> q_pregrasp`` (:func:`transit_path`); with a place, the transfer. Every
 path is checked at ``interpolation.STEP`` rad against one
 :class:`~grasplan.motion.collision_scene.CollisionScene` and its attached variant (a pile's other
 instances and cloud are extra bodies); straight TCP lines: :func:`line_path`. What the two roads
@@ -254,7 +254,7 @@ def _transfer(ctx: MotionContext, q_lifted: np.ndarray, cands: list[PlaceCandida
 VIA_HEIGHT = 0.25
 
 
-def _transit(ctx: MotionContext, q_pre: np.ndarray, T_pre: np.ndarray, opening: float, seed: int
+def transit_path(ctx: MotionContext, q_pre: np.ndarray, T_pre: np.ndarray, opening: float, seed: int
              ) -> np.ndarray | None:
     """``q_home -> q_pre``: the straight joint segment when free; else home -> a via point above
     the pre-grasp (:data:`VIA_HEIGHT`, reached from ``q_pre`` by a straight TCP line on its IK branch)
@@ -467,7 +467,7 @@ def _motion_through(ctx: MotionContext, g: GraspPoses, chk: SolutionChecks, q_gr
             tally.place_status, tally.stop = tally.place[1], True
             return None
     approach = back[::-1]
-    transit = _timed(ctx, ctx.keys.transit, _transit, ctx, approach[0], g.T_pre, g.opening, seed)
+    transit = _timed(ctx, ctx.keys.transit, transit_path, ctx, approach[0], g.T_pre, g.opening, seed)
     if transit is None:
         tally.fail("path")
         tally.stop = tally.count["path"] >= ctx.params.max_path_queries

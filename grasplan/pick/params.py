@@ -61,6 +61,10 @@ class PickParams(OptionSet):
         None, "pose", "Pick-and-place: every picked part's pose after release, 'x,y,z,roll,pitch,yaw' (lengths m or "
         "with units, angles deg, R = Rz(yaw) Ry(pitch) Rx(roll)); the lifted part is carried there (OMPL, part in "
         "the jaws), lowered, released and the gripper retreats. Default: the cell's place, if any.", optional=True)
+    min_gravity_margin: float = spec(0.0, "float", "Grasps whose gravity margin at the instance's pose is below "
+                                     "this are not planned (1: only grasps predicted to hold the part's weight and "
+                                     "the shared load at the gripper's force; 0: off). docs/quality.md.",
+                                     lo=0.0, hi=100.0)
     budget_s: float | None = spec(None, "seconds", "Wall-clock budget of one plan() call, seconds, counted from the "
                                   "loaded parts and cell: a hard limit, checked inside every long stage; the instance "
                                   "being planned and those not reached are 'not_tried'.", cli="--budget", hi=86400.0,

@@ -39,10 +39,12 @@ from .lift import LIFTS_PER_GRASP
 from .lift_search import LiftLine, LiftSearch
 from ..motion.grasp_motion import MotionContext, Outcome, plan_pick_motion
 from .params import PickParams
+from .push import Push, plan_push
 from .rank import check_chunks, instance_order, rank_grasps
-from .reasons import collides_report, no_grasp_report, not_tried_report, picked_report, unplanned_report
+from .reasons import (collides_report, no_grasp_report, not_tried_report, picked_report, unplanned_report,
+                      weak_report)
 from .result import InstanceReport, Pick, PickResult
-from .warm import (MAX_CELLS, MAX_CLOUDS, MAX_SCENE_PARTS, MAX_SCENE_VARIANTS, LRU, CellState, arranged,
+from .warm import (MAX_CELLS, MAX_CLOUDS, MAX_SCENE_PARTS, MAX_SCENE_VARIANTS, LRU, CellState, arranged, extras_of,
                    build_scenes, scene_cloud)
 from .world import Body, PickWorld
 
@@ -264,7 +266,7 @@ class Picker:
 
     # -- planning -----------------------------------------------------------------------------------
     def plan(self, scene: Scene | str | os.PathLike | Mapping, *, max_picks: int | None = None,
-             sequence: bool = False, seed: int | None = None) -> PickResult:
+             sequence: bool = False, seed: int | None = None, push: bool = False) -> PickResult:
         """Plan picks for ``scene`` (a loaded Scene, a scene file or a parsed document).
 
         1. The scene's parts (added on first use) and grasp databases (:func:`grasplan.grasps.graspdb.database_for`:
@@ -281,7 +283,9 @@ class Picker:
         ``timing_s["first_pick"]``: seconds from the ready scene to the first feasible pick.
         ``budget_s`` counts from the loaded parts and cell (:mod:`grasplan.pick.budget`) and is
         checked inside every long stage; the instance being planned and those not reached when it is
-        spent are ``not_tried``. ``seed``: this call's instead of ``params.seed``."""
+        spent are ``not_tried``. ``seed``: this call's instead of ``params.seed``. ``push``: when
+        no pick is planned, plan a push of a part a wall or a neighbour boxes in
+        (:mod:`grasplan.pick.push`; ``PickResult.push``)."""
         from ..piles.checks import check_instances
 
         t0 = time.perf_counter()
@@ -295,6 +299,8 @@ class Picker:
         reports: dict[str, InstanceReport] = {}
         picks: list[Pick] = []
         warnings: list[str] = []
+        push_tried: list[str] = []
+        planned_push = None
         t_ready = time.perf_counter()
         try:
             cloud = self._cloud(sc)
@@ -310,6 +316,8 @@ class Picker:
             t_ready = time.perf_counter()
             run = PlanRun(st, p, budget, timing, stats, cloud is not None, LiftLine.of(st.cell, p), _place_of(p, st.cell))
             self._plan_pile(run, sc, max_picks, sequence, reports, picks, t_ready)
+            if push and not picks:
+                planned_push = self._push(run, list(sc.instances), push_tried)
         except BudgetSpent:
             pass  # the instance being planned and those not reached: not_tried (below)
         finally:
@@ -325,8 +333,8 @@ class Picker:
         return PickResult(picks=tuple(picks), instances=tuple(reports[i.id] for i in sc.instances), timing_s=timing_out,
                           scene=sc, robot=self.robot, gripper=self.gripper, cell=st.cell, params=p,
                           parts={n: {**self._parts[n].to_json(), **self.material_of(n)} for n in sc.part_names()},
-                          warnings=tuple(warnings),
-                          sequence=sequence, stats=stats)
+                          warnings=tuple(warnings), sequence=sequence, stats=stats, push=planned_push,
+                          push_asked=push, push_tried=tuple(push_tried))
 
     def _plan_pile(self, run: PlanRun, sc: Scene, max_picks: int | None, sequence: bool,
                    reports: dict[str, InstanceReport], picks: list[Pick], t_ready: float) -> None:
@@ -428,7 +436,7 @@ class Picker:
         bodies = st.world.bodies(inst.id)
         hit_counts: dict[str, int] = {}
         first_fail: Outcome | None = None
-        tried = 0
+        tried = weak = 0
         ctxs: dict[int, MotionContext] = {}
         paused = False
         for c0, c1 in check_chunks(len(rows)):
@@ -448,6 +456,9 @@ class Picker:
                     continue
                 k = c0 + k_local
                 r = int(rows[k])
+                if p.min_gravity_margin > 0 and not self._holds(db, inst, r, p.min_gravity_margin):
+                    weak += 1
+                    continue
                 tried += 1
                 run.stats["grasps_tried"] += 1
                 out, j = self._grasp_motion(run, inst, present, lifts, bodies, ctxs, ranked.T_plan[k],
@@ -467,8 +478,17 @@ class Picker:
                 break
         if first_fail is not None:
             yield None, unplanned_report(inst, tried, first_fail, hit_counts)
+        elif weak:
+            yield None, weak_report(inst, weak, p.min_gravity_margin, hit_counts)
         else:
             yield None, collides_report(inst, len(rows), hit_counts)
+
+    @staticmethod
+    def _holds(db: GraspDatabase, inst: Instance, r: int, min_margin: float) -> bool:
+        """Whether database grasp ``r`` reaches ``min_margin`` of gravity margin at the instance's
+        pose (a part without mass properties: not known, planned)."""
+        q = db.quality_at(inst.T_world_part, np.array([r]))
+        return q is None or bool(q.gravity_margin[0] >= min_margin)
 
     def _grasp_motion(self, run: PlanRun, inst: Instance, present: list[Instance], lifts: LiftSearch,
                       bodies: list[Body], ctxs: dict[int, MotionContext], T_world_tcp: np.ndarray,
@@ -514,6 +534,22 @@ class Picker:
             body_names=tuple(b.name for b in bodies), lift_depth=None if p.lift_depth <= 0 else
             lambda T, names, c=lifts.carrying[j]: lifts.depth(T, names, c),
             lift_part_checked=(inst.T_world_part, checked[:, None] * u, clear), budget=run.budget)
+
+    def _push(self, run: PlanRun, present: list[Instance], tried: list[str]) -> Push | None:
+        """The first push planned among ``present`` (:func:`grasplan.pick.push.plan_push`), with
+        this plan's robot scenes: the part present on the descent, away on the push."""
+        st, p = run.st, run.params
+        st.world.set_instances(present)
+
+        def ctx_of(inst: Instance) -> tuple[CollisionScene, CollisionScene, MotionContext]:
+            static, att = self._variants(st, inst, present, run.with_cloud)
+            away = st.scenes[inst.part].arranged(None, extras_of(inst, present, run.with_cloud))
+            ctx = MotionContext(self.robot, self.gripper, p, static, att, np.array([0.0, 0.0, 1.0]), 0.0,
+                                run.timing, budget=run.budget)
+            return static, away, ctx
+
+        return plan_push(self.robot, self.gripper, st, present, ctx_of, seed=p.seed,
+                         max_ik_solutions=p.max_ik_solutions, max_dev=p.max_dev, timing=run.timing, log=tried)
 
     def _depth_of(self, st: CellState, part: str) -> PartDepth:
         d = self._depth.get(part)

@@ -97,6 +97,14 @@ def collides_report(inst: Instance, n_ranked: int, hits: dict[str, int]) -> Inst
                           "collides" + hits_text(hits, " grasps"), blockers, code=Reason.GRASPS_COLLIDE)
 
 
+def weak_report(inst: Instance, n_weak: int, min_margin: float, hits: dict[str, int]) -> InstanceReport:
+    """Every collision-free grasp checked (``n_weak``) is predicted to slip at the instance's pose."""
+    return InstanceReport(inst.id, inst.part, PickStatus.NO_GRASP, f"its {n_weak} collision-free grasps are all "
+                          f"predicted to slip at this pose (gravity margin < {min_margin:g}; more grip force or "
+                          f"another resting pose would hold)" + hits_text(hits, " other grasps"),
+                          code=Reason.GRASPS_WEAK)
+
+
 def not_tried_report(inst: Instance, budget_spent: bool) -> InstanceReport:
     """Not reached: the planning budget spent, else ``max_picks`` reached."""
     return InstanceReport(inst.id, inst.part, PickStatus.NOT_TRIED, "not tried: " + (

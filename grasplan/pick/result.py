@@ -16,7 +16,7 @@ import os
 import weakref
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
@@ -29,6 +29,9 @@ from ..piles.scene_file import Scene
 from .codes import INSTANCE_STATUSES, PickStatus
 from ..motion.codes import Reason
 from .params import PickParams
+
+if TYPE_CHECKING:
+    from .push import Push
 
 PICKS_SCHEMA = "grasplan.picks/1"
 __all__ = ["INSTANCE_STATUSES", "PICKS_SCHEMA", "InstanceReport", "Pick", "PickResult"]
@@ -140,6 +143,10 @@ class PickResult:
     warnings: tuple[str, ...] = ()
     sequence: bool = False
     stats: dict[str, int] = field(default_factory=dict)  #: grasps_checked, grasps_tried
+    #: with ``push=True`` and no pick: the planned push (None: none could be planned; docs/pick.md)
+    push: Push | None = None
+    push_asked: bool = False
+    push_tried: tuple[str, ...] = ()  #: why each push candidate tried failed
 
     def pick(self, instance: str | None = None) -> Pick:
         """The pick of ``instance`` (default: the first pick); InputError listing the picked ids."""
@@ -179,6 +186,9 @@ class PickResult:
                   ("timing_s", {k: float(v) for k, v in self.timing_s.items()}),
                   ("warnings", list(self.warnings)), ("instances", [r.to_json() for r in self.instances]),
                   ("picks", [p.to_json() for p in self.picks])]
+        if self.push_asked:
+            items += [("push", None if self.push is None else self.push.to_json()),
+                      ("push_tried", list(self.push_tried))]
         return items
 
     def to_json(self) -> dict[str, Any]:

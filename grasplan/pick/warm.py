@@ -160,6 +160,15 @@ def build_scenes(st: CellState, robot: Robot, gripper: Gripper, meshes: Mapping[
     st.variants.clear()
 
 
+def extras_of(inst: Instance, present: list[Instance], with_cloud: bool) -> dict[str, np.ndarray]:
+    """The extra bodies of ``inst``'s robot scene: every other instance of ``present`` at its pose
+    (and the cloud when ``with_cloud``)."""
+    extras: dict[str, np.ndarray] = {INSTANCE_PREFIX + i.id: i.T_world_part for i in present if i.id != inst.id}
+    if with_cloud:
+        extras[CLOUD] = np.eye(4)
+    return extras
+
+
 def arranged(st: CellState, inst: Instance, present: list[Instance], with_cloud: bool
              ) -> tuple[CollisionScene, CollisionScene]:
     """The static and attached variants of the robot scene of ``inst``'s part with the part at its
@@ -172,11 +181,8 @@ def arranged(st: CellState, inst: Instance, present: list[Instance], with_cloud:
            tuple((i.id, i.T_world_part.tobytes()) for i in present if i.id != inst.id), with_cloud)
     v = st.variants.get(key)
     if v is None:
-        extras: dict[str, np.ndarray] = {INSTANCE_PREFIX + i.id: i.T_world_part for i in present if i.id != inst.id}
-        if with_cloud:
-            extras[CLOUD] = np.eye(4)
         base = st.scenes[inst.part]
-        static = base.arranged(inst.T_world_part, extras)
+        static = base.arranged(inst.T_world_part, extras_of(inst, present, with_cloud))
         v = (static, static.attached(np.eye(4)))
         st.variants.put(key, v, variant_bytes(base))
     return v

@@ -52,6 +52,8 @@ MAX_FILL = 0.6
 FOOTPRINT_MARGIN = 0.005
 #: largest count of one part in a pile
 MAX_COUNT = MAX_INSTANCES
+#: where :func:`drop_pile` lets parts go: anywhere over the floor, or over its central third
+RELEASES = ("spread", "central")
 
 
 class PileError(InputError):
@@ -330,14 +332,18 @@ def outside_bin(cell: Cell, hull_world: np.ndarray) -> tuple[float, str]:
 # ------------------------------------------------------------------------------------------------
 # the drop
 # ------------------------------------------------------------------------------------------------
-def _release_pose(world: PileWorld, i: int, rng: np.random.Generator, gap: float) -> np.ndarray:
+def _release_pose(world: PileWorld, i: int, rng: np.random.Generator, gap: float,
+                  release: str = "spread") -> np.ndarray:
     """A random ``T_world_part`` above the bin for body ``i``. The instances (ids ``<part>_<k>``, k
     counting from 0 per part in the order given) are dropped in a seeded random order, each in a
     uniformly random orientation whose footprint fits the bin's inner area (:data:`WALL_CLEARANCE`
     from each wall; after :data:`ORIENT_TRIES` misses, lying flat), at a uniformly random xy where
-    it does. Release height: the part's lowest point starts ``gap`` (``drop_gap``, default
-    :data:`DROP_GAP`) above the highest point of the parts already in the bin whose footprint
-    overlaps its own (the floor's top when none does), at rest."""
+    it does (``release="spread"``) or, ``release="central"`` (VGN's pile), with its footprint's
+    centre uniformly random over the central third of the inner floor (each side's middle third),
+    moved inwards where the footprint would cross the wall clearance. Release height: the part's
+    lowest point starts ``gap`` (``drop_gap``, default :data:`DROP_GAP`) above the highest point of
+    the parts already in the bin whose footprint overlaps its own (the floor's top when none
+    does), at rest."""
     b = _bin(world.cell)
     T_bin = np.asarray(b.T_world_bin)  # z up, a yaw only: bin-frame z is height above the floor's top
     inner = np.asarray(b.inner, dtype=np.float64)
@@ -351,7 +357,12 @@ def _release_pose(world: PileWorld, i: int, rng: np.random.Generator, gap: float
     p = hull @ R.T
     lo, hi = p.min(axis=0), p.max(axis=0)
     room = np.maximum(inner - 2 * WALL_CLEARANCE - (hi - lo)[:2], 0.0)
-    xy = -0.5 * inner + WALL_CLEARANCE + room * rng.random(2) - lo[:2]  # the part origin, bin frame
+    if release == "central":
+        centre = inner * (rng.random(2) - 0.5) / 3.0  # the footprint's centre, bin frame
+        free = 0.5 * room  # how far the footprint's centre may go from the floor's centre
+        xy = np.clip(centre, -free, free) - 0.5 * (lo[:2] + hi[:2])
+    else:
+        xy = -0.5 * inner + WALL_CLEARANCE + room * rng.random(2) - lo[:2]  # the part origin, bin frame
     foot_lo, foot_hi = lo[:2] + xy - FOOTPRINT_MARGIN, hi[:2] + xy + FOOTPRINT_MARGIN
     top = 0.0  # the floor's top
     for j in np.flatnonzero(world.present):
@@ -391,10 +402,38 @@ def _give_up(problem: PileError | SettleError, name: str, i: int, n: int) -> Pil
     return PileError(f"the pile does not fit the bin: {where}; drop fewer parts or use a larger bin")
 
 
+def pile_bodies(items: Sequence[PileItem], params: DropParams, *, cache: bool = True,
+                log: Callable[[str], None] | None = None) -> dict[str, PartBody]:
+    """Each part's :class:`PartBody` (its convex pieces, mass at its density), by part name; ``log``
+    is called with a line per part once its collision shape is ready."""
+    shared: dict[str, PartBody] = {}
+    for it in items:
+        t = time.perf_counter()
+        material, density = it.physics(params)
+        shared[it.name] = body = part_body(it.name, it.part.mesh, density=density,
+                                           decomposition=params.decomposition, cache=cache)
+        if log is not None:
+            log(f"{it.name}: {len(body.pieces)} convex pieces ({params.decomposition}, "
+                f"{time.perf_counter() - t:.1f} s), {body.mass.mass * 1e3:.0f} g ({material}, {density:g} kg/m^3)")
+    return shared
+
+
+def instance_bodies(items: Sequence[PileItem], shared: dict[str, PartBody],
+                    rng: np.random.Generator) -> tuple[list[PartBody], list[str]]:
+    """One body per instance (ids ``<part>_<k>``) in a random order drawn from ``rng`` (one
+    permutation), and each body's part name."""
+    ids = [(f"{it.name}_{k}", it.name) for it in items for k in range(it.count)]
+    order = rng.permutation(len(ids))
+    bodies = [PartBody(name=ids[k][0], pieces=shared[ids[k][1]].pieces, mass=shared[ids[k][1]].mass,
+                       hull=shared[ids[k][1]].hull) for k in order]
+    return bodies, [ids[k][1] for k in order]
+
+
 def drop_pile(cell: Cell, items: Sequence[PileItem | tuple], *, params: DropParams | None = None,
               cell_ref: str | None = None, progress: Callable[[PartDrop], None] | None = None,
               log: Callable[[str], None] | None = None, cache: bool = True,
-              make_world: Callable[[list[PartBody]], PileWorld] | None = None) -> DropResult:
+              make_world: Callable[[list[PartBody]], PileWorld] | None = None,
+              release: str = "spread") -> DropResult:
     """Drop the parts into the cell's bin and return the settled pile (module docstring).
 
     Parameters
@@ -417,6 +456,9 @@ def drop_pile(cell: Cell, items: Sequence[PileItem | tuple], *, params: DropPara
         Builds the world from the part bodies (in drop order), e.g. with a gripper added
         (:class:`grasplan.clutter.world.ClutterWorld`); default ``PileWorld(cell, bodies, mu=params.mu)``.
         The drop runs at the world's timestep as built; the result's ``world`` is it, settled.
+    release : str
+        Where parts are let go (:data:`RELEASES`): ``"spread"`` anywhere over the bin's floor,
+        ``"central"`` over its central third (VGN's pile; :func:`_release_pose`).
 
     Raises
     ------
@@ -429,23 +471,14 @@ def drop_pile(cell: Cell, items: Sequence[PileItem | tuple], *, params: DropPara
 
     t0 = time.perf_counter()
     p = params if params is not None else DropParams()
+    if release not in RELEASES:
+        raise ValueError(f"drop_pile: release {release!r}; valid: {', '.join(RELEASES)}")
     its = _items(items)
     _bin(cell)
-    shared: dict[str, PartBody] = {}
-    for it in its:
-        t = time.perf_counter()
-        material, density = it.physics(p)
-        shared[it.name] = body = part_body(it.name, it.part.mesh, density=density, decomposition=p.decomposition,
-                                           cache=cache)
-        if log is not None:
-            log(f"{it.name}: {len(body.pieces)} convex pieces ({p.decomposition}, {time.perf_counter() - t:.1f} s), "
-                f"{body.mass.mass * 1e3:.0f} g ({material}, {density:g} kg/m^3)")
+    shared = pile_bodies(its, p, cache=cache, log=log)
     check_fit(cell, its, shared, seed=p.seed)
     rng = np.random.default_rng(p.seed)
-    ids = [(f"{it.name}_{k}", it.name) for it in its for k in range(it.count)]
-    order = rng.permutation(len(ids))
-    bodies = [PartBody(name=ids[k][0], pieces=shared[ids[k][1]].pieces, mass=shared[ids[k][1]].mass,
-                       hull=shared[ids[k][1]].hull) for k in order]
+    bodies, part_names = instance_bodies(its, shared, rng)
     world = PileWorld(cell, bodies, mu=p.mu) if make_world is None else make_world(bodies)
     drops = []
     sim_s = 0.0
@@ -454,7 +487,7 @@ def drop_pile(cell: Cell, items: Sequence[PileItem | tuple], *, params: DropPara
         snap = world.snapshot()
         steps, attempt = 0, 0
         while True:
-            T = _release_pose(world, i, rng, p.drop_gap)
+            T = _release_pose(world, i, rng, p.drop_gap, release)
             world.place(i, T)
             s = world.settle(lin=REST_LIN, ang=REST_ANG, hold=REST_HOLD_S, max_s=MAX_SETTLE_S)
             sim_s += s.sim_s
@@ -467,12 +500,12 @@ def drop_pile(cell: Cell, items: Sequence[PileItem | tuple], *, params: DropPara
                 raise _give_up(problem, b.name, i, len(bodies))
             world.restore(snap)
         top = max(float(world.hull_world(int(j))[:, 2].max()) for j in np.flatnonzero(world.present))
-        d = PartDrop(index=i, total=len(bodies), id=b.name, part=ids[order[i]][1], T_release=T, settle_s=s.sim_s,
+        d = PartDrop(index=i, total=len(bodies), id=b.name, part=part_names[i], T_release=T, settle_s=s.sim_s,
                      steps=steps, seconds=time.perf_counter() - t_part, top=top, attempts=attempt)
         drops.append(d)
         if progress is not None:
             progress(d)
-    instances = tuple(Instance(b.name, ids[order[i]][1], world.pose(i)) for i, b in enumerate(bodies))
+    instances = tuple(Instance(b.name, part_names[i], world.pose(i)) for i, b in enumerate(bodies))
     scene = Scene(instances=instances, cell=cell_ref if cell_ref is not None else cell.name,
                   parts=tuple(it.scene_part(p) for it in its))
     parts = {name: {**rec, "pieces": len(shared[name].pieces), "mass_kg": float(shared[name].mass.mass),

@@ -317,6 +317,31 @@ class PileWorld:
         self.present[i] = False
         mujoco.mj_forward(self.model, self.data)
 
+    def remove_statics(self, names: Sequence[str]) -> list[str]:
+        """Take the fixed obstacles ``names`` (e.g. the bin's walls) out of the world: their geoms
+        collide with nothing from now on and draw nothing (nothing is recompiled). Returns the geom
+        names removed; ValueError naming the obstacles that exist when a name matches none."""
+        import mujoco
+
+        m = self.model
+        wanted = set(names)
+        removed = []
+        for g in range(m.ngeom):
+            if m.geom_bodyid[g] != 0:
+                continue
+            name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g) or ""
+            if name in wanted or name.split("#")[0] in wanted:
+                m.geom_contype[g] = m.geom_conaffinity[g] = 0
+                m.geom_rgba[g, 3] = 0.0
+                removed.append(name)
+        missing = wanted - {n.split("#")[0] for n in removed} - set(removed)
+        if missing:
+            have = sorted({(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g) or "").split("#")[0]
+                           for g in range(m.ngeom) if m.geom_bodyid[g] == 0} - {""})
+            raise ValueError(f"remove_statics: no fixed obstacle {sorted(missing)}; the world has {have}")
+        mujoco.mj_forward(m, self.data)
+        return removed
+
     # -- state -------------------------------------------------------------------------------------
     def snapshot(self) -> tuple[np.ndarray, np.ndarray]:
         """The whole simulation state (MuJoCo's integration state and which bodies are present),

@@ -1,0 +1,177 @@
+"""``grasplan pick --push`` (grasplan/pick/push.py): when nothing can be picked, a push of a part
+boxed in by a bin wall, away from it; checked against the picks schema, against Pinocchio's
+forward kinematics along its joint path (the path comes from the closed-form IK and line
+tracker), and against the geometry of the part and the wall. ``--min-gravity-margin 100`` makes
+every grasp too weak to plan (code ``grasps_weak``), so the push is what is left."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from click.testing import CliRunner
+
+from grasplan.cell.model import load_cell
+from grasplan.cell.resting import stable_pose
+from grasplan.cli import main
+from grasplan.part.mesh import load_part
+from grasplan.pick import Picker
+from grasplan.pick.push import CLEAR, MAX_PUSH, MIN_PUSH, TIP_GAP
+from grasplan.piles.scene_file import Instance, Scene, ScenePart
+from grasplan.robot.description import load_robot
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "parts"
+BOX = EXAMPLES / "box.stl"
+SCHEMA = Path(__file__).resolve().parents[1] / "grasplan" / "schemas" / "picks.schema.json"
+
+
+def _near_wall(gap: float) -> np.ndarray:
+    """The box resting in the bin, its hull ``gap`` from the +x wall's inner face."""
+    cell = load_cell("bin")
+    part = load_part(BOX)
+    T = stable_pose(part.mesh, cell).copy()
+    hull = np.asarray(part.mesh.vertices) @ T[:3, :3].T + T[:3, 3]
+    wall_x = float(cell.bin.T_world_bin[0, 3]) + 0.5 * cell.bin.inner[0]
+    T[0, 3] += wall_x - gap - hull[:, 0].max()
+    return T
+
+
+def _scene_file(tmp_path: Path, T: np.ndarray) -> Path:
+    doc = {"schema": "grasplan.scene/1", "cell": "bin", "parts": {"box": {"mesh": str(BOX), "units": "auto"}},
+           "instances": [{"id": "box_0", "part": "box", "T": T.tolist()}]}
+    path = tmp_path / "s.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    return path
+
+
+@pytest.fixture(scope="module")
+def pushed(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("push")
+    T = _near_wall(0.025)
+    out = tmp / "p.json"
+    r = CliRunner().invoke(main, ["pick", str(_scene_file(tmp, T)), "--push", "--min-gravity-margin", "100",
+                                  "-o", str(out)])
+    return r, out, T
+
+
+def test_a_boxed_in_part_gets_a_push_away_from_the_wall(pushed):
+    r, out, T = pushed
+    assert r.exit_code == 0, r.output
+    assert "push box_0" in r.output
+    doc = json.loads(out.read_text())
+    import jsonschema
+
+    jsonschema.validate(doc, json.loads(SCHEMA.read_text()))
+    assert doc["picks"] == [] and doc["instances"][0]["status"] == "no_grasp"
+    assert "predicted to slip" in doc["instances"][0]["reason"]
+    p = doc["push"]
+    cell = load_cell("bin")
+    assert p["instance"] == "box_0" and p["against"] == "bin_wall_+x"
+    assert p["gap_m"] == pytest.approx(0.025, abs=1e-6)
+    np.testing.assert_allclose(p["direction"], -np.asarray(cell.bin.T_world_bin)[:3, 0], atol=1e-12)
+    assert p["distance_m"] == pytest.approx(np.clip(CLEAR - 0.025 + TIP_GAP, MIN_PUSH, MAX_PUSH))
+    start, end = np.array(p["T_world_start"]), np.array(p["T_world_end"])
+    np.testing.assert_allclose(end[:3, 3] - start[:3, 3], p["distance_m"] * np.array(p["direction"]), atol=1e-12)
+    # the fingers start behind the part: the start TCP is between the wall and the part's hull
+    part = load_part(BOX)
+    hull = np.asarray(part.mesh.vertices) @ T[:3, :3].T + T[:3, 3]
+    wall_x = float(cell.bin.T_world_bin[0, 3]) + 0.5 * cell.bin.inner[0]
+    assert hull[:, 0].max() < start[0, 3] < wall_x
+
+
+def test_the_push_path_follows_its_poses_by_pinocchios_fk(pushed):
+    _, out, _ = pushed
+    p = json.loads(out.read_text())["push"]
+    robot = load_robot("ur5")
+    doc = json.loads(out.read_text())
+    T_flange_tcp = np.array(doc["gripper"]["T_flange_tcp"])
+    path = np.array(p["path"])
+    labels = [s[0] for s in p["segments"]]
+    assert labels == ["transit", "approach", "push", "retreat"]
+    assert p["segments"][0][1] == 0 and p["segments"][-1][2] == len(path) - 1
+    assert all(a[2] == b[1] for a, b in zip(p["segments"], p["segments"][1:]))
+    tcp = np.array([robot.fk(q) @ T_flange_tcp for q in path])
+    np.testing.assert_allclose(tcp[0], robot.fk(robot.q_home) @ T_flange_tcp, atol=1e-9)
+    seg = {s[0]: (s[1], s[2]) for s in p["segments"]}
+    for label, a, b in (("approach", "T_world_above", "T_world_start"), ("push", "T_world_start", "T_world_end"),
+                        ("retreat", "T_world_end", "T_world_retreat")):
+        i, j = seg[label]
+        Ta, Tb = np.array(p[a]), np.array(p[b])
+        np.testing.assert_allclose(tcp[i][:3, 3], Ta[:3, 3], atol=1e-4)
+        np.testing.assert_allclose(tcp[j][:3, 3], Tb[:3, 3], atol=1e-4)
+        d = (Tb[:3, 3] - Ta[:3, 3]) / np.linalg.norm(Tb[:3, 3] - Ta[:3, 3])
+        off = tcp[i:j + 1, :3, 3] - Ta[:3, 3]
+        dev = np.linalg.norm(off - (off @ d)[:, None] * d, axis=1)
+        assert dev.max() <= 0.002 + 1e-9, label  # the straight-line tolerance (max_dev)
+        np.testing.assert_allclose(tcp[i:j + 1, :3, :3], np.broadcast_to(Ta[:3, :3], (j - i + 1, 3, 3)), atol=2e-3)
+
+
+def test_without_push_or_without_room_nothing_is_written_as_a_push(tmp_path):
+    scene = _scene_file(tmp_path, _near_wall(0.025))
+    out = tmp_path / "no.json"
+    r = CliRunner().invoke(main, ["pick", str(scene), "--min-gravity-margin", "100", "-o", str(out)])
+    assert r.exit_code == 4
+    assert "push" not in json.loads(out.read_text())
+    flush = _scene_file(tmp_path, _near_wall(0.0005))
+    out2 = tmp_path / "flush.json"
+    r2 = CliRunner().invoke(main, ["pick", str(flush), "--push", "--min-gravity-margin", "100", "-o", str(out2)])
+    assert r2.exit_code == 4 and "no push either" in r2.output
+    d = json.loads(out2.read_text())
+    assert d["push"] is None and d["push_tried"] and "bin_wall_+x" in d["push_tried"][0]
+
+
+def test_a_weak_grasp_filter_names_its_code_and_planning_without_it_picks():
+    cell = load_cell("bin")
+    picker = Picker("ur5", gripper="schunk_egp_c_40", cell=cell)
+    picker.add_part("box", load_part(BOX))
+    sc = Scene(instances=(Instance("box_0", "box", _near_wall(0.04)),), cell="bin",
+               parts=(ScenePart("box", mesh=str(BOX)),))
+    assert len(picker.plan(sc).picks) == 1
+    from grasplan.pick.params import PickParams
+
+    strict = Picker("ur5", gripper="schunk_egp_c_40", cell=cell, params=PickParams(min_gravity_margin=100.0))
+    strict.add_part("box", load_part(BOX))
+    rep = strict.plan(sc).instances[0]
+    assert rep.status == "no_grasp" and str(rep.code) == "grasps_weak", rep
+
+
+def test_a_clutter_round_executes_the_planned_push_and_plans_again():
+    """A box 25 mm from the bin's +x wall that no grasp may take (``min_gravity_margin`` 100):
+    the round pushes it (executed in MuJoCo: it ends farther from the wall by about the push's
+    travel less the start gap), plans again, finds neither pick nor push and ends; the push is
+    no grasp attempt."""
+    from grasplan.clutter.report import round_json
+    from grasplan.clutter.rounds import clear_pile
+    from grasplan.clutter.protocols import wall_distance
+    from grasplan.clutter.world import ClutterWorld
+    from grasplan.gripper.load import load_gripper
+    from grasplan.pick.params import PickParams
+    from grasplan.sim.pileworld import part_body
+
+    cell = load_cell("bin")
+    gripper = load_gripper("schunk_egp_c_40")
+    part = load_part(BOX)
+    body = part_body("box_0", part.mesh, density=1200.0, decomposition="hull")
+    cw = ClutterWorld(cell, [body], gripper, mu=0.3)
+    cw.world.place(0, _near_wall(0.025))
+    cw.world.settle(lin=0.005, ang=0.05, hold=0.2, max_s=2.0)
+    gap0 = wall_distance(cell.bin, cw.world.hull_world(0))
+    scene = Scene(instances=(Instance("box_0", "box", cw.world.pose(0)),), cell="bin",
+                  parts=(ScenePart("box", mesh=str(BOX)),))
+    picker = Picker("ur5", gripper=gripper, cell=cell, params=PickParams(min_gravity_margin=100.0))
+    picker.add_part("box", part)
+    rr = clear_pile(cw, scene, {"box": part}, lambda s: picker.plan(s, max_picks=1, push=True),
+                    clear_z=float(cell.bin.T_world_bin[2, 3]) + cell.bin.height)
+    assert [(a.kind, a.outcome) for a in rr.attempts] == [("push", "moved"), ("pick", "no_plan")], \
+        [a.reason for a in rr.attempts]
+    assert rr.executed == [] and rr.ended == "nothing_feasible"
+    push = rr.attempts[0]
+    gap1 = wall_distance(cell.bin, cw.world.hull_world(0))
+    travel = push.push["distance_m"]
+    assert gap1 - gap0 == pytest.approx(push.push_execution.along_m, abs=0.003)
+    assert travel - 0.01 < gap1 - gap0 < travel + 0.002  # the fingers start a few mm behind the part
+    rj = round_json(rr)
+    assert rj["pushes"] == 1 and rj["attempts"] == 0 and rj["picks"][0]["kind"] == "push"
+    assert rj["left"][0]["wall_m"] == pytest.approx(gap1)
