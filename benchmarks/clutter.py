@@ -39,13 +39,13 @@ short by a kill is dropped (the file rewritten without it) and its round run aga
 every finished round (exit 130).
 
 Output: one row per setting (the log's rounds 0..--rounds-1): rounds, parts, attempts, GSR and DR
-with their 95 % intervals (:func:`grasplan.clutter.report.interval`: percentile bootstrap over whole
-rounds, the rounds being the independent units), how rounds ended, the parts left by the planner's
+with their 95 % intervals (:func:`grasplan.clutter.report.interval`: Wilson's interval with the
+trials divided by the design effect of whole rounds, the rounds being the independent units), how rounds ended, the parts left by the planner's
 status and by distance to the nearest wall, parts outside the workspace at the start, picks turned
 in / dropped from the jaws, planning ms p50/p95, a round's CPU s (median), the workers' peak RSS,
 and the target. Targets (checked and printed met/missed, not asserted; only settings without an
 extra): pile ground truth GSR >= 95 % and DR >= 95 %; pile 2mm,2deg GSR >= 90 %, DR >= 90 %; bin
-DR >= 90 % (meant for a future push action). Then GIGA's published simulated figures beside our
+DR >= 90 % (with ``--push``). Then GIGA's published simulated figures beside our
 ground-truth pile and packed rows. The same tables go to ``DIR/summary.md`` (written atomically,
 after each setting, with the settings done so far; nothing in it depends on the time of the run).
 """

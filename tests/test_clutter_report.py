@@ -32,12 +32,17 @@ def test_the_interval_covers_a_known_rate_about_95_times_in_100():
     assert 180 <= hits <= 198, hits
 
 
-def test_the_interval_is_the_rate_when_every_round_agrees_and_none_below_two_rounds():
-    assert interval(np.array([4, 4, 4]), np.array([5, 5, 5])) == pytest.approx([0.8, 0.8])
+def test_the_interval_is_wilsons_when_rounds_agree_and_wider_when_they_cluster():
+    # 15 of 15: Wilson's 95 % interval for 15 trials, [0.796, 1] (not a point at 100 %)
+    lo, hi = interval(np.array([5, 5, 5]), np.array([5, 5, 5]))
+    assert hi == 1.0 and lo == pytest.approx(0.7961, abs=1e-3)
     assert interval(np.array([4]), np.array([5])) is None
     assert interval(np.array([0, 0]), np.array([0, 0])) is None
-    lo, hi = interval(np.array([5, 0, 5, 5]), np.array([5, 5, 5, 5]))
-    assert 0.0 <= lo < 0.75 < hi <= 1.0
+    # all-or-nothing rounds: the same pooled 0.75 as 15 of 20 spread evenly, but a wider interval
+    spread = interval(np.array([4, 4, 4, 3]), np.array([5, 5, 5, 5]))
+    lumped = interval(np.array([5, 0, 5, 5]), np.array([5, 5, 5, 5]))
+    assert spread[0] < 0.75 < spread[1] and lumped[0] < 0.75 < lumped[1]
+    assert lumped[1] - lumped[0] > spread[1] - spread[0] + 0.1
 
 
 def test_totals_keep_pushes_out_of_gsr_and_count_the_parts_left():

@@ -3,6 +3,7 @@ DR, planning milliseconds per pick and failures by reason (:func:`report_json`, 
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -33,8 +34,10 @@ def plan_stats(ms: Sequence[float]) -> dict[str, Any]:
 #: the parts left at a round's end, counted by how far they keep from the nearest wall (m): below
 #: each bound, then the rest
 WALL_BINS = (0.005, 0.02)
-#: resamples of the rounds for the 95 % intervals (seeded: the same report, the same intervals)
+#: resamples of the rounds for the 95 % intervals' design effect (seeded: the same report, the same
+#: intervals) and the normal quantile of a two-sided 95 % interval
 BOOTSTRAP, BOOTSTRAP_SEED = 2000, 0
+Z95 = 1.959963984540054
 
 
 def _failures(rounds: Sequence[dict[str, Any]]) -> dict[str, int]:
@@ -51,7 +54,7 @@ def round_json(rr: RoundResult) -> dict[str, Any]:
     rj: dict[str, Any] = {"round": rr.r, "seed": rr.seed, "protocol": rr.protocol, "parts": rr.parts,
                           "attempts": len(ex), "successes": rr.successes, "removed": rr.removed,
                           "gsr": _rate(rr.successes, len(ex)), "dr": _rate(rr.removed, rr.parts), "ended": rr.ended,
-                          "plan_ms": plan_stats([a.plan_ms for a in rr.attempts if not a.cold]),
+                          "plan_ms": plan_stats([a.plan_ms for a in rr.attempts if not a.cold and a.plan_ms > 0]),
                           "fell_out": list(rr.fell_out), "outside": list(rr.outside),
                           "left": [p.to_json() for p in rr.left], "pushes": len(rr.pushes), "freed": rr.freed,
                           "seconds": rr.seconds, "drop_s": rr.drop_s,
@@ -63,17 +66,27 @@ def round_json(rr: RoundResult) -> dict[str, Any]:
 
 def interval(num: np.ndarray, den: np.ndarray) -> list[float] | None:
     """95 % interval of ``sum(num) / sum(den)`` over rounds (per-round counts, (n,) each): the
-    2.5th and 97.5th percentiles of the pooled rate over :data:`BOOTSTRAP` resamples of whole rounds
-    (the rounds are the independent units: a round's attempts are not). None for fewer than two
-    rounds or nothing counted."""
+    Wilson score interval of the pooled rate with the trials divided by the design effect, the
+    variance of the pooled rate over :data:`BOOTSTRAP` resamples of whole rounds over the
+    binomial variance (at least 1): the rounds are the independent units, a round's attempts are
+    not. Unlike a percentile bootstrap it does not shrink to a point at 0 or 100 %. None for fewer
+    than two rounds or nothing counted."""
     num, den = np.asarray(num, dtype=np.float64), np.asarray(den, dtype=np.float64)
-    if len(num) < 2 or den.sum() <= 0:
+    n = float(den.sum())
+    if len(num) < 2 or n <= 0:
         return None
+    p = float(num.sum()) / n
     rng = np.random.default_rng(BOOTSTRAP_SEED)
     idx = rng.integers(0, len(num), size=(BOOTSTRAP, len(num)))
-    n, d = num[idx].sum(axis=1), den[idx].sum(axis=1)
-    rates = n[d > 0] / d[d > 0]
-    return [float(np.percentile(rates, 2.5)), float(np.percentile(rates, 97.5))]
+    k, d = num[idx].sum(axis=1), den[idx].sum(axis=1)
+    var_boot = float(np.var(k[d > 0] / d[d > 0]))
+    var_bin = p * (1.0 - p) / n
+    n_eff = n / (max(1.0, var_boot / var_bin) if var_bin > 0 else 1.0)
+    z = Z95
+    scale = 1.0 + z * z / n_eff
+    centre = (p + z * z / (2.0 * n_eff)) / scale
+    half = z * math.sqrt(p * (1.0 - p) / n_eff + z * z / (4.0 * n_eff * n_eff)) / scale
+    return [max(0.0, centre - half), min(1.0, centre + half)]
 
 
 def _wall_bin(wall_m: float) -> str:

@@ -173,7 +173,9 @@ class RoundResult:
 # ------------------------------------------------------------------------------------------------
 # the round
 # ------------------------------------------------------------------------------------------------
-PlanFn = Callable[[Scene], Any]
+#: ``plan_fn(scene) -> PickResult``; after pushes, ``plan_fn(scene, ids)`` with the ids pushed
+#: :data:`MAX_PUSHES_PER_PART` times, not to be pushed again (``Picker.plan``'s ``push_skip``)
+PlanFn = Callable[..., Any]
 
 
 def _planned_torsion(part: Part, gripper: Gripper, pick: Pick, mu: float) -> np.ndarray | None:
@@ -386,7 +388,8 @@ def clear_pile(cw: ClutterWorld, scene: Scene, parts: Mapping[str, Part], plan_f
         now = Scene(instances=tuple(Instance(k, part_of[k], T) for k, T in seen.items()), cell=scene.cell,
                     parts=scene.parts, base=scene.base)
         t = time.perf_counter()
-        result = plan_fn(now)
+        exhausted = tuple(k for k, n in pushed.items() if n >= MAX_PUSHES_PER_PART)
+        result = plan_fn(now, exhausted) if exhausted else plan_fn(now)
         plan_ms = 1e3 * (time.perf_counter() - t)
         first_cold, cold = cold, False
         last = {rep.id: (str(rep.status), str(rep.reason)) for rep in (getattr(result, "instances", ()) or ())}

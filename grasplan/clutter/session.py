@@ -104,19 +104,21 @@ class ClutterRun:
         """Round ``r`` (pile seed ``drop.seed + r``; :func:`grasplan.clutter.rounds.run_round`)."""
         o = self.options
         return run_round(self.cell, self.items, self.gripper,
-                         lambda s: self.picker.plan(s, max_picks=1, push=o.push), r=r,
+                         lambda s, skip=(): self.picker.plan(s, max_picks=1, push=o.push, push_skip=skip), r=r,
                          drop=o.drop, noise=o.pose_noise, cell_ref=o.cell, record=record, cold=cold,
                          protocol=self.protocol, max_occlusion=o.max_occlusion, progress=progress)
 
     def params_json(self, rounds: int) -> dict[str, Any]:
         """The report's ``params`` block."""
         from .execute import PROTOCOL
+        from .pushing import PUSH_PROTOCOL
 
         o = self.options
         return {**o.drop.to_json(), "rounds": rounds, "protocol": self.protocol.name,
                 "pose_noise_m": o.pose_noise[0], "pose_noise_deg": o.pose_noise[1],
                 "pose_noise_model": "one error per part and round", "max_occlusion": o.max_occlusion, "push": o.push,
-                "pick": self.picker.params.to_json(), "execution": PROTOCOL}
+                "pick": self.picker.params.to_json(), "execution": PROTOCOL, "push_execution": PUSH_PROTOCOL,
+                "pushes_in_gsr": False}
 
     def report(self, results: Sequence[RoundResult]) -> dict[str, Any]:
         """The ``grasplan.clutter/1`` document of these rounds."""

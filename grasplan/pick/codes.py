@@ -41,3 +41,7 @@ GRASP_STATUS: dict[Reason, PickStatus] = {
 #: grasp outcomes another lift direction may plan: its lift collided or could not be followed
 #: (not: no IK solution, a collision at the grasp or on the approach, no transit, the place)
 LIFT_MAY_HELP: frozenset[Reason] = frozenset({Reason.LIFT_GRIPPER, Reason.LIFT_COLLISION, Reason.LINE_NOT_FOLLOWED})
+
+
+#: the statuses of an instance a push may help: its grasps or its motion hit a neighbour or the cell
+PUSHABLE = frozenset({PickStatus.BLOCKED, PickStatus.BIN, PickStatus.IK_COLLISION, PickStatus.LIFT_COLLISION})

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Collection, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -32,7 +32,7 @@ from ..piles.scene_file import Instance, Scene, ScenePart, load_scene
 from ..robot.description import load_robot
 from ..robot.model import Robot
 from .budget import Budget, BudgetSpent
-from .codes import LIFT_MAY_HELP
+from .codes import LIFT_MAY_HELP, PUSHABLE
 from .cover import approach_cover
 from .depth import PartDepth
 from .lift import LIFTS_PER_GRASP
@@ -266,7 +266,8 @@ class Picker:
 
     # -- planning -----------------------------------------------------------------------------------
     def plan(self, scene: Scene | str | os.PathLike | Mapping, *, max_picks: int | None = None,
-             sequence: bool = False, seed: int | None = None, push: bool = False) -> PickResult:
+             sequence: bool = False, seed: int | None = None, push: bool = False,
+             push_skip: Collection[str] = ()) -> PickResult:
         """Plan picks for ``scene`` (a loaded Scene, a scene file or a parsed document).
 
         1. The scene's parts (added on first use) and grasp databases (:func:`grasplan.grasps.graspdb.database_for`:
@@ -284,8 +285,9 @@ class Picker:
         ``budget_s`` counts from the loaded parts and cell (:mod:`grasplan.pick.budget`) and is
         checked inside every long stage; the instance being planned and those not reached when it is
         spent are ``not_tried``. ``seed``: this call's instead of ``params.seed``. ``push``: when
-        no pick is planned, plan a push of a part a wall or a neighbour boxes in
-        (:mod:`grasplan.pick.push`; ``PickResult.push``)."""
+        no pick is planned, plan a push of a part whose grasps a wall or a neighbour blocks
+        (status in :data:`PUSHABLE`; not those in ``push_skip``; :mod:`grasplan.pick.push`,
+        ``PickResult.push``)."""
         from ..piles.checks import check_instances
 
         t0 = time.perf_counter()
@@ -317,7 +319,8 @@ class Picker:
             run = PlanRun(st, p, budget, timing, stats, cloud is not None, LiftLine.of(st.cell, p), _place_of(p, st.cell))
             self._plan_pile(run, sc, max_picks, sequence, reports, picks, t_ready)
             if push and not picks:
-                planned_push = self._push(run, list(sc.instances), push_tried)
+                targets = {i for i, rep in reports.items() if rep.status in PUSHABLE and i not in push_skip}
+                planned_push = self._push(run, list(sc.instances), push_tried, targets)
         except BudgetSpent:
             pass  # the instance being planned and those not reached: not_tried (below)
         finally:
@@ -535,7 +538,7 @@ class Picker:
             lambda T, names, c=lifts.carrying[j]: lifts.depth(T, names, c),
             lift_part_checked=(inst.T_world_part, checked[:, None] * u, clear), budget=run.budget)
 
-    def _push(self, run: PlanRun, present: list[Instance], tried: list[str]) -> Push | None:
+    def _push(self, run: PlanRun, present: list[Instance], tried: list[str], targets: set[str]) -> Push | None:
         """The first push planned among ``present`` (:func:`grasplan.pick.push.plan_push`), with
         this plan's robot scenes: the part present on the descent, away on the push."""
         st, p = run.st, run.params
@@ -549,7 +552,8 @@ class Picker:
             return static, away, ctx
 
         return plan_push(self.robot, self.gripper, st, present, ctx_of, seed=p.seed,
-                         max_ik_solutions=p.max_ik_solutions, max_dev=p.max_dev, timing=run.timing, log=tried)
+                         max_ik_solutions=p.max_ik_solutions, max_dev=p.max_dev, timing=run.timing, log=tried,
+                         targets=targets)
 
     def _depth_of(self, st: CellState, part: str) -> PartDepth:
         d = self._depth.get(part)

@@ -165,9 +165,11 @@ def push_poses(c: Candidate, hull: np.ndarray, com: np.ndarray, gripper: Gripper
     ``com`` (3,), part frame) for ``gripper`` with its jaws at ``opening``: the TCP's x (the
     closing axis) across the push, its y along it, its z down, tilted ``tilt_deg`` about x so that
     the fingertips lead towards what boxed the part in and the gripper's body leans over the part
-    (away from a wall). The fingers' leading lower corner (their +y face at their tips) starts
-    :data:`TIP_GAP` behind the part, ``depth`` below its top (at most half its height, at least
-    :data:`FLOOR_GAP` above its lowest point); the descent and the retreat run along the TCP's z."""
+    (away from a wall). The fingertips reach ``depth`` below the part's top (at most half its
+    height, at least :data:`FLOOR_GAP` above its lowest point), in line with its centre of mass;
+    the fingers' leading face (their +y face), up to the part's top, keeps :data:`TIP_GAP` behind
+    the part's back (tilted, its upper points lean forward); the descent and the retreat run along
+    the TCP's z."""
     T_wp = np.asarray(c.inst.T_world_part, dtype=np.float64)
     hull_w = hull @ T_wp[:3, :3].T + T_wp[:3, 3]
     com_w = T_wp[:3, :3] @ com + T_wp[:3, 3]
@@ -180,13 +182,19 @@ def push_poses(c: Candidate, hull: np.ndarray, com: np.ndarray, gripper: Gripper
     z_tool = -np.cos(a) * up - np.sin(a) * d
     R = np.column_stack([e, np.cross(z_tool, e), z_tool])  # untilted: y = d
     finger = np.vstack([f.corners() for f in gripper.fingers(opening)])
-    corner = np.array([0.0, float(finger[:, 1].max()), float(finger[:, 2].max())])  # leading face, at the tips
+    y_face, z_tips, z_base = float(finger[:, 1].max()), float(finger[:, 2].max()), float(finger[:, 2].min())
+    corner = np.array([0.0, y_face, z_tips])  # the leading face at the tips
     above = hull_w[hull_w[:, 2] >= z_tip - 1e-9]
     s_min = float(((above if len(above) else hull_w) @ d).min())  # the part's back, at and above the tips
-    target = d * (s_min - TIP_GAP) + e * float(com_w @ e) + up * z_tip  # where the leading corner starts
     T_start = np.eye(4)
     T_start[:3, :3] = R
-    T_start[:3, 3] = target - R @ corner
+    T_start[:3, 3] = e * float(com_w @ e) + up * z_tip - R @ corner  # the tips at z_tip, in line with the centre
+    # the leading face's points (tips up to the fingers' base) below the part's top: the one furthest
+    # forward (a tilted face leans over the part) keeps TIP_GAP behind the part's back
+    face = (T_start[:3, :3] @ np.column_stack([np.zeros(64), np.full(64, y_face), np.linspace(z_tips, z_base, 64)]).T
+            ).T + T_start[:3, 3]
+    face = face[face[:, 2] <= top + 1e-9]
+    T_start[:3, 3] += d * (s_min - TIP_GAP - float((face @ d).max()))
     distance = float(np.clip(CLEAR - c.gap + TIP_GAP, MIN_PUSH, MAX_PUSH))
     T_end = T_start.copy()
     T_end[:3, 3] += d * distance
@@ -220,12 +228,30 @@ def _gripper_free(st: CellState, poses: PushPoses, inst: Instance, opening: floa
     return ""
 
 
+def free_travel(st: CellState, inst: Instance, poses: PushPoses) -> float:
+    """How far (m) the TCP may push before the part, moved along with it, would touch another
+    instance (:meth:`grasplan.pick.world.PickWorld.part_hits` every :data:`SAMPLE`): the push's
+    own ``distance`` when nothing is in the way."""
+    w = st.world
+    others = [b for i, b in w.instances.items() if i != inst.id]
+    if not others:
+        return poses.distance
+    d = (poses.T_end[:3, 3] - poses.T_start[:3, 3]) / max(poses.distance, 1e-12)
+    travel = np.linspace(0.0, max(poses.distance - TIP_GAP, 0.0), 1 + int(np.ceil(poses.distance / SAMPLE)))
+    hit = w.part_hits(inst.part, inst.T_world_part, travel[:, None] * d, others)
+    if not np.any(hit >= 0):
+        return poses.distance
+    first = int(np.flatnonzero(hit >= 0)[0])
+    return float(travel[first - 1] + TIP_GAP) if first > 0 else 0.0
+
+
 def plan_push(robot: Robot, gripper: Gripper, st: CellState, instances: list[Instance], ctx_of: Any,
               *, seed: int, max_ik_solutions: int, max_dev: float, timing: dict[str, float] | None = None,
-              log: list[str] | None = None) -> Push | None:
+              log: list[str] | None = None, targets: set[str] | None = None) -> Push | None:
     """The first push planned among ``instances``; ``ctx_of(inst) -> (static scene with the part,
     scene without it, MotionContext for the transit)`` gives the robot scenes; ``log`` collects
-    why each candidate failed.
+    why each candidate failed; ``targets``: the ids that may be pushed (None: any; every instance
+    is still an obstacle and a neighbour to push away from).
 
     1. **Which part, which way** (:func:`candidates`): every instance whose convex hull keeps less
        than :data:`NEAR` from a bin wall or from another instance's hull (coal's distance),
@@ -234,7 +260,8 @@ def plan_push(robot: Robot, gripper: Gripper, st: CellState, instances: list[Ins
        top, their leading face :data:`TIP_GAP` behind the part, in line with its centre of mass;
        the descent along the TCP's z from :data:`ABOVE` over the part's top.
     3. **How far**: until the part would keep :data:`CLEAR` from what boxed it in
-       (:data:`MIN_PUSH` .. :data:`MAX_PUSH` of TCP travel); then back along the TCP's z.
+       (:data:`MIN_PUSH` .. :data:`MAX_PUSH` of TCP travel), shortened to where the part, moved
+       along, would touch another instance (:func:`free_travel`); then back along the TCP's z.
     4. **Checked like a grasp**: the closed gripper every :data:`SAMPLE` along the descent
        against every body (the part too), along the push and the retreat against every body but
        the part; the part moved along the push clear of the cell's table and obstacles; IK at the
@@ -247,6 +274,8 @@ def plan_push(robot: Robot, gripper: Gripper, st: CellState, instances: list[Ins
     T_tcp_flange = np.linalg.inv(np.asarray(gripper.T_flange_tcp, dtype=np.float64))
     out: Push | None = None
     for c in candidates(st, instances):
+        if targets is not None and c.inst.id not in targets:
+            continue
         why = _plan_one(robot, gripper, st, c, ctx_of, opening, T_tcp_flange, seed, max_ik_solutions, max_dev)
         if isinstance(why, Push):
             out = why
@@ -268,6 +297,15 @@ def _plan_one(robot: Robot, gripper: Gripper, st: CellState, c: Candidate, ctx_o
     for tilt in TILTS_DEG:
         for depth in DEPTHS:
             poses = push_poses(c, g.hull, com, gripper, opening, tilt_deg=tilt, depth=depth)
+            room = free_travel(st, c.inst, poses)
+            if room < MIN_PUSH:
+                why = f"another part is within {MIN_PUSH * 1e3:g} mm along the push"
+                continue
+            if room < poses.distance:  # pushed only as far as the part has room
+                T_end, T_ret = poses.T_end.copy(), poses.T_retreat.copy()
+                T_end[:3, 3] -= c.direction * (poses.distance - room)
+                T_ret[:3, 3] -= c.direction * (poses.distance - room)
+                poses = PushPoses(poses.T_above, poses.T_start, T_end, T_ret, room)
             why = _gripper_free(st, poses, c.inst, opening, bodies_all, bodies_others)
             if not why:
                 break
