@@ -161,15 +161,22 @@ def make_pile(proto: Protocol, cell: Cell, items: Sequence[PileItem], *, params:
     return _in_round(world, res.scene, sim_s, proto.floor_z(cell))
 
 
-def _in_round(world: PileWorld, scene: Scene, sim_s: float, floor_z: float) -> MadePile:
-    """Park the parts outside the workspace; the scene of the others at their poses now."""
+def park_outside(world: PileWorld, floor_z: float | None = None) -> list[str]:
+    """Park the present parts whose centre of mass is outside the workspace (:func:`in_workspace`
+    of the world's bin, above ``floor_z``); their names."""
     b = _bin(world.cell)
-    outside = []
+    out = []
     for j in np.flatnonzero(world.present):
         T = world.pose(int(j))
         if not in_workspace(b, T[:3, :3] @ world.bodies[j].mass.com + T[:3, 3], floor_z):
             world.park(int(j))
-            outside.append(world.bodies[j].name)
+            out.append(world.bodies[j].name)
+    return out
+
+
+def _in_round(world: PileWorld, scene: Scene, sim_s: float, floor_z: float) -> MadePile:
+    """Park the parts outside the workspace; the scene of the others at their poses now."""
+    outside = park_outside(world, floor_z)
     part_of = {inst.id: inst.part for inst in scene.instances}
     inside = tuple(Instance(world.bodies[j].name, part_of[world.bodies[j].name], world.pose(int(j)))
                    for j in np.flatnonzero(world.present))

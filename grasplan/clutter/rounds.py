@@ -24,7 +24,7 @@ from ..piles.scene_file import Instance, Scene
 from ..geometry.transforms import pose_error
 from .execute import SUCCESS, Outcome, execute_pick
 from .perception import apply_error, draw_errors
-from .protocols import PROTOCOLS, Protocol, in_workspace, make_pile, wall_distance
+from .protocols import PROTOCOLS, Protocol, make_pile, park_outside, wall_distance
 from .world import ClutterWorld
 
 if TYPE_CHECKING:
@@ -225,17 +225,6 @@ def _no_pick_reason(result: PickResult) -> str:
     return "planning found no pick (" + ", ".join(f"{n} {s}" for s, n in sorted(counts.items())) + ")"
 
 
-def _park_outside(world: PileWorld, b: Any, floor_z: float | None) -> list[str]:
-    """Park the present parts whose centre of mass has left the workspace; their names."""
-    fell = []
-    for j in np.flatnonzero(world.present):
-        T = world.pose(int(j))
-        if not in_workspace(b, T[:3, :3] @ world.bodies[j].mass.com + T[:3, 3], floor_z):
-            world.park(int(j))
-            fell.append(world.bodies[j].name)
-    return fell
-
-
 def _perceive(world: PileWorld, truth: Mapping[str, np.ndarray], errors: Mapping[str, tuple[np.ndarray, np.ndarray]],
               camera: np.ndarray | None, max_occlusion: float, seed: int, occ: np.ndarray | None
               ) -> tuple[dict[str, np.ndarray], tuple[str, ...], np.ndarray | None]:
@@ -253,7 +242,7 @@ def _perceive(world: PileWorld, truth: Mapping[str, np.ndarray], errors: Mapping
     return seen, hidden, occ
 
 
-def _execute(cw: ClutterWorld, pick: Pick, part: Part, part_of: Mapping[str, str], b: Any, floor_z: float | None,
+def _execute(cw: ClutterWorld, pick: Pick, part: Part, part_of: Mapping[str, str], floor_z: float | None,
              clear_z: float | None, truth: Mapping[str, np.ndarray], seen: Mapping[str, np.ndarray], plan_ms: float,
              cold: bool, hidden: tuple[str, ...], record: bool, replay: list[dict]) -> Attempt:
     """Execute a planned pick (:func:`grasplan.clutter.execute.execute_pick`, the pads' torsion
@@ -263,7 +252,7 @@ def _execute(cw: ClutterWorld, pick: Pick, part: Part, part_of: Mapping[str, str
     out = execute_pick(cw, world.index(pick.instance), pick,
                        jaw_torsion=_planned_torsion(part, cw.gripper, pick, cw.mu),
                        patch_torsion=_patch_torsion(part, cw.gripper, cw.mu), clear_z=clear_z, record=record)
-    fell = _park_outside(world, b, floor_z)
+    fell = park_outside(world, floor_z)
     err = pose_error(truth[pick.instance], seen[pick.instance])
     if record:
         replay.append({"before": dict(truth), "seen": seen[pick.instance], "track": out.track})
@@ -272,7 +261,7 @@ def _execute(cw: ClutterWorld, pick: Pick, part: Part, part_of: Mapping[str, str
                    execution=out, fell_out=tuple(fell), seconds=time.perf_counter() - t, hidden=hidden)
 
 
-def _push(cw: ClutterWorld, push: Any, part_of: Mapping[str, str], b: Any, floor_z: float | None, plan_ms: float,
+def _push(cw: ClutterWorld, push: Any, part_of: Mapping[str, str], floor_z: float | None, plan_ms: float,
           cold: bool, hidden: tuple[str, ...], record: bool, replay: list[dict],
           truth: Mapping[str, np.ndarray]) -> Attempt:
     """Execute a planned push (:func:`grasplan.clutter.pushing.execute_push`) and park the parts it
@@ -282,7 +271,7 @@ def _push(cw: ClutterWorld, push: Any, part_of: Mapping[str, str], b: Any, floor
     world = cw.world
     t = time.perf_counter()
     out = execute_push(cw, world.index(push.instance), push, record=record)
-    fell = _park_outside(world, b, floor_z)
+    fell = park_outside(world, floor_z)
     if record:
         replay.append({"before": dict(truth), "seen": truth[push.instance], "track": out.track})
     summary = {"against": push.against, "gap_m": float(push.gap), "direction": [float(x) for x in push.direction],
@@ -399,7 +388,7 @@ def clear_pile(cw: ClutterWorld, scene: Scene, parts: Mapping[str, Part], plan_f
         planned_push = getattr(result, "push", None)
         if not picks and planned_push is not None and pushed.get(planned_push.instance, 0) < MAX_PUSHES_PER_PART:
             pushed[planned_push.instance] = pushed.get(planned_push.instance, 0) + 1
-            attempts.append(_push(cw, planned_push, part_of, b, floor_z, plan_ms, first_cold, hidden, record,
+            attempts.append(_push(cw, planned_push, part_of, floor_z, plan_ms, first_cold, hidden, record,
                                   replay, truth))
             sim_s += attempts[-1].push_execution.sim_s
             fell_all += attempts[-1].fell_out
@@ -416,7 +405,7 @@ def clear_pile(cw: ClutterWorld, scene: Scene, parts: Mapping[str, Part], plan_f
             ended = "nothing_feasible"
             break
         t = time.perf_counter()
-        a = _execute(cw, picks[0], parts[part_of[picks[0].instance]], part_of, b, floor_z, clear_z, truth, seen,
+        a = _execute(cw, picks[0], parts[part_of[picks[0].instance]], part_of, floor_z, clear_z, truth, seen,
                      plan_ms, first_cold, hidden, record, replay)
         attempts.append(a)
         assert a.execution is not None  # an executed pick
