@@ -33,9 +33,14 @@ def polygon_moments(Y: np.ndarray, Z: np.ndarray, n: np.ndarray) -> np.ndarray:
     return out * np.sign(A)[:, None]
 
 
+#: a patch of at most this area (m^2) is empty: its widths are 0
+MIN_AREA = 1e-24
+
+
 def equivalent_widths(mom: np.ndarray) -> np.ndarray:
     """(..., 2) sorted widths of the uniform rectangle with the moments ``mom`` (..., 6)."""
-    A = np.maximum(mom[..., 0], 1e-300)
+    has = mom[..., 0] > MIN_AREA
+    A = np.where(has, mom[..., 0], 1.0)  # an empty patch: any finite divisor (its widths are 0)
     my, mz = mom[..., 1] / A, mom[..., 2] / A
     cyy = mom[..., 3] / A - my * my
     czz = mom[..., 4] / A - mz * mz
@@ -43,5 +48,5 @@ def equivalent_widths(mom: np.ndarray) -> np.ndarray:
     C = np.stack([np.stack([cyy, cyz], -1), np.stack([cyz, czz], -1)], -2)
     lam = np.linalg.eigvalsh(C)
     w = np.sqrt(12.0 * np.maximum(lam, 0.0))
-    return np.where(mom[..., :1] > 0, w, 0.0)
+    return np.where(has[..., None], w, 0.0)
 
