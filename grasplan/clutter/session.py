@@ -10,14 +10,16 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..config.params import DEFAULT_GRIPPER, DEFAULT_ROBOT, GraspParams
 from ..errors import InputError
 from ..pick.params import PickParams
 from ..sim.drop import DropParams
 from .protocols import PROTOCOLS, protocol as protocol_named
-from .rounds import RoundResult, run_round
+
+if TYPE_CHECKING:
+    from .rounds import RoundResult
 
 #: the planner's options a clutter run passes on (the others are grasplan pick's defaults)
 PICK_OPTIONS = ("lift_depth", "lift_contact", "lift_carry", "max_lift_tilt_deg", "min_gravity_margin")
@@ -102,6 +104,8 @@ class ClutterRun:
     def round(self, r: int, *, record: bool = False, cold: bool = False,
               progress: Callable[[str], None] | None = None) -> RoundResult:
         """Round ``r`` (pile seed ``drop.seed + r``; :func:`grasplan.clutter.rounds.run_round`)."""
+        from .rounds import run_round
+
         o = self.options
         return run_round(self.cell, self.items, self.gripper,
                          lambda s, skip=(): self.picker.plan(s, max_picks=1, push=o.push, push_skip=skip), r=r,
