@@ -140,3 +140,16 @@ def test_remove_statics_names_what_exists(cell):
     assert sorted(w.remove_statics(BIN_BOXES)) == sorted(BIN_BOXES)
     with pytest.raises(ValueError, match="bin_floor"):
         w.remove_statics(["bin_lid"])
+
+
+@pytest.mark.parametrize("name", ["pile", "packed"])
+def test_a_protocols_pile_is_the_same_for_the_same_seed_and_differs_for_another(cell, items, name):
+    def poses(seed: int) -> dict:
+        made = make_pile(PROTOCOLS[name], cell, items, params=DropParams(seed=seed, decomposition="hull",
+                                                                         material="plastic"),
+                         make_world=_world(cell))
+        return {i.id: np.asarray(i.T_world_part) for i in made.scene.instances}
+
+    a, b, c = poses(5), poses(5), poses(6)
+    assert a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
+    assert a.keys() != c.keys() or any(not np.allclose(a[k], c[k]) for k in a)
