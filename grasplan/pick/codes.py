@@ -45,3 +45,10 @@ LIFT_MAY_HELP: frozenset[Reason] = frozenset({Reason.LIFT_GRIPPER, Reason.LIFT_C
 
 #: the statuses of an instance a push may help: its grasps or its motion hit a neighbour or the cell
 PUSHABLE = frozenset({PickStatus.BLOCKED, PickStatus.BIN, PickStatus.IK_COLLISION, PickStatus.LIFT_COLLISION})
+
+
+def pushable(status: PickStatus, code: object) -> bool:
+    """Whether a push may help an instance reported with ``status`` and reason ``code``: one of
+    :data:`PUSHABLE`, or every collision-free grasp predicted to slip (``grasps_weak``: the better
+    ones collided; in the open they may not)."""
+    return status in PUSHABLE or str(code) == "grasps_weak"

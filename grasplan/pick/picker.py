@@ -32,7 +32,7 @@ from ..piles.scene_file import Instance, Scene, ScenePart, load_scene
 from ..robot.description import load_robot
 from ..robot.model import Robot
 from .budget import Budget, BudgetSpent
-from .codes import LIFT_MAY_HELP, PUSHABLE
+from .codes import LIFT_MAY_HELP, pushable
 from .cover import approach_cover
 from .depth import PartDepth
 from .lift import LIFTS_PER_GRASP
@@ -286,7 +286,7 @@ class Picker:
         checked inside every long stage; the instance being planned and those not reached when it is
         spent are ``not_tried``. ``seed``: this call's instead of ``params.seed``. ``push``: when
         no pick is planned, plan a push of a part whose grasps a wall or a neighbour blocks
-        (status in :data:`PUSHABLE`; not those in ``push_skip``; :mod:`grasplan.pick.push`,
+        (:func:`grasplan.pick.codes.pushable`; not those in ``push_skip``; :mod:`grasplan.pick.push`,
         ``PickResult.push``)."""
         from ..piles.checks import check_instances
 
@@ -319,7 +319,7 @@ class Picker:
             run = PlanRun(st, p, budget, timing, stats, cloud is not None, LiftLine.of(st.cell, p), _place_of(p, st.cell))
             self._plan_pile(run, sc, max_picks, sequence, reports, picks, t_ready)
             if push and not picks:
-                targets = {i for i, rep in reports.items() if rep.status in PUSHABLE and i not in push_skip}
+                targets = {i for i, rep in reports.items() if pushable(rep.status, rep.code) and i not in push_skip}
                 planned_push = self._push(run, list(sc.instances), push_tried, targets)
         except BudgetSpent:
             pass  # the instance being planned and those not reached: not_tried (below)
