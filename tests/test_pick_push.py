@@ -6,6 +6,7 @@ every grasp too weak to plan (code ``grasps_weak``), so the push is what is left
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +23,8 @@ from grasplan.pick.codes import PUSHABLE, PickStatus, pushable
 from grasplan.pick.push import CLEAR, MAX_PUSH, MIN_PUSH, TIP_GAP
 from grasplan.piles.scene_file import Instance, Scene, ScenePart
 from grasplan.robot.description import load_robot
+
+from test_viewer import needs_chromium, run_chromium
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "parts"
 BOX = EXAMPLES / "box.stl"
@@ -146,14 +149,12 @@ def test_a_weak_grasp_filter_names_its_code_and_planning_without_it_picks():
     assert rep.status == "no_grasp" and str(rep.code) == "grasps_weak", rep
 
 
-def test_a_clutter_round_executes_the_planned_push_and_plans_again():
-    """A box 25 mm from the bin's +x wall that no grasp may take (``min_gravity_margin`` 100):
-    the round pushes it (executed in MuJoCo: it ends farther from the wall by about the push's
-    travel less the start gap), plans again, finds neither pick nor push and ends; the push is
-    no grasp attempt."""
-    from grasplan.clutter.report import round_json
-    from grasplan.clutter.rounds import clear_pile
+@pytest.fixture(scope="module")
+def push_round():
+    """A box 25 mm from the bin's +x wall that no grasp may take (``min_gravity_margin`` 100),
+    cleared by ``clear_pile`` with pushes: ``(round, part, gripper, cell, gap before)``."""
     from grasplan.clutter.protocols import wall_distance
+    from grasplan.clutter.rounds import clear_pile
     from grasplan.clutter.world import ClutterWorld
     from grasplan.gripper.load import load_gripper
     from grasplan.pick.params import PickParams
@@ -172,15 +173,43 @@ def test_a_clutter_round_executes_the_planned_push_and_plans_again():
     picker = Picker("ur5", gripper=gripper, cell=cell, params=PickParams(min_gravity_margin=100.0))
     picker.add_part("box", part)
     rr = clear_pile(cw, scene, {"box": part}, lambda s: picker.plan(s, max_picks=1, push=True),
-                    clear_z=float(cell.bin.T_world_bin[2, 3]) + cell.bin.height)
+                    clear_z=float(cell.bin.T_world_bin[2, 3]) + cell.bin.height, record=True)
+    return rr, part, gripper, cell, gap0, wall_distance(cell.bin, cw.world.hull_world(0))
+
+
+def test_a_clutter_round_executes_the_planned_push_and_plans_again(push_round):
+    """The round pushes the box (executed in MuJoCo: it ends farther from the wall by about the
+    push's travel less the start gap), plans again, finds neither pick nor push and ends; the
+    push is no grasp attempt."""
+    from grasplan.clutter.report import round_json
+
+    rr, _, _, _, gap0, gap1 = push_round
     assert [(a.kind, a.outcome) for a in rr.attempts] == [("push", "moved"), ("pick", "no_plan")], \
         [a.reason for a in rr.attempts]
     assert rr.executed == [] and rr.ended == "nothing_feasible"
     push = rr.attempts[0]
-    gap1 = wall_distance(cell.bin, cw.world.hull_world(0))
     travel = push.push["distance_m"]
     assert gap1 - gap0 == pytest.approx(push.push_execution.along_m, abs=0.003)
     assert travel - 0.01 < gap1 - gap0 < travel + 0.002  # the fingers start a few mm behind the part
     rj = round_json(rr)
     assert rj["pushes"] == 1 and rj["attempts"] == 0 and rj["picks"][0]["kind"] == "push"
     assert rj["left"][0]["wall_m"] == pytest.approx(gap1)
+
+
+@needs_chromium
+def test_the_replay_page_plays_a_push(tmp_path, push_round):
+    """The push of the round above in ``grasplan clutter --view``'s page, in headless Chromium:
+    named a push, with its samples (the part seen moving along with the gripper)."""
+    from grasplan.clutter.replay import write_replay
+    from grasplan.clutter.report import round_json, total_json
+
+    rr, part, gripper, cell, _, _ = push_round
+    page = tmp_path / "push.html"
+    write_replay(page, [rr], {"box": part}, gripper, cell, total=total_json([round_json(rr)]), title="push")
+    text = page.read_text()
+    data = json.loads(re.search(r'<script id="grasplan-data" type="application/json">(.*?)</script>', text, re.S)
+                      .group(1))
+    a = data["rounds"][0]["attempts"][0]
+    assert a["kind"] == "push" and a["outcome"] == "moved" and a["samples"] > 10
+    dom = run_chromium(page, tmp_path, "--dump-dom", fragment="#pick=0:0").stdout
+    assert "round 1, push 1: box_0 (box)" in dom

@@ -250,7 +250,7 @@
       gripper.visible = true;
       rowsInOrder.forEach(([, , row]) => row.classList.toggle('sel', row.dataset.round === String(R.r) && row.dataset.attempt === String(k)));
       document.getElementById('selected').textContent =
-        `round ${R.r + 1}, pick ${k + 1}: ${A.instance} (${A.part})\n${A.outcome}: ${A.reason}\n` +
+        `round ${R.r + 1}, ${A.kind === 'push' ? 'push' : 'pick'} ${k + 1}: ${A.instance} (${A.part})\n${A.outcome}: ${A.reason}\n` +
         `planned in ${A.plan_ms.toFixed(1)} ms; pose error ${A.pose_error_mm.toFixed(1)} mm, ${A.pose_error_deg.toFixed(1)} deg` +
         ((A.pick.raises || []).length ? `\nthe lift raises ${A.pick.raises.join(', ')} lying on it (violet)` : '');
       scrub.max = String(Math.max(0, A.samples - 1));
