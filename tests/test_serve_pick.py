@@ -136,12 +136,22 @@ def test_export_a_pick(client, scenes, service):
     assert status == 422 and "sha256" in bad["detail"]
 
 
+def test_pick_with_push_carries_the_push_entry(client, scenes):
+    """``options.push``: the document carries ``push`` (null: something was picked, no push needed)
+    and ``push_tried``; without it, neither key."""
+    status, doc = client.json("POST", "/pick", {**scenes.scene(seed=3), "options": {"max_picks": 1, "push": True}})
+    assert status == 200 and doc["picks"] and doc["push"] is None and doc["push_tried"] == []
+    status, plain = client.json("POST", "/pick", {**scenes.scene(seed=3), "options": {"max_picks": 1}})
+    assert status == 200 and "push" not in plain and "push_tried" not in plain
+
+
 @pytest.mark.parametrize("change, field", [
     ({"parts": {"box": {"mesh": "/etc/passwd"}}}, "parts.box.mesh"),
     ({"parts": {"box": {"grasps": "x.graspdb.npz"}}}, "parts.box.grasps"),
     ({"cloud": {"path": "scan.ply"}}, "cloud"), ({"cell": "table"}, "cell"),
     ({"options": {"max_picks": 0}}, "options.max_picks"), ({"options": {"seed": "x"}}, "options.seed"),
     ({"options": {"sequence": 1}}, "options.sequence"), ({"options": {"top": 1}}, "options: unknown keys"),
+    ({"options": {"push": "yes"}}, "options.push"),
     ({"instances": [{"id": "a", "part": "nosuch", "T": np.eye(4).tolist()}]}, "unknown part 'nosuch'"),
     ({"instances": [{"id": "a", "part": "box", "T": [[2, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]}]},
      "instances[0].T"),

@@ -36,7 +36,7 @@ MAX_INT_DIGITS = 20
 #: JSON nesting deeper than this is refused (a grasplan document is at most ~8 deep)
 MAX_DEPTH = 64
 PLAN_KEYS = ("part", "options", "part_pose", "keep")
-PICK_OPTION_KEYS = ("max_picks", "seed", "sequence")
+PICK_OPTION_KEYS = ("max_picks", "seed", "sequence", "push")
 EXPORT_KEYS = ("document", "format", "grasp", "instance", "max_accel", "velocity_scale", "program_name")
 _PARAM_ATTRS = dict(zip(PARAM_CLASSES, ("candidates", "grasps", "planning")))
 _SEED = OptionSpec("int", "seed", lo=0, hi=2**31 - 1)
@@ -220,12 +220,13 @@ class PickRequest:
     seed: int | None
     sequence: bool
     notes: tuple[str, ...] = ()  #: warnings the picks document carries (a lighter material ranked as the service's)
+    push: bool = False  #: when nothing can be picked, plan a push (grasplan pick --push)
 
 
 def pick_request(doc: Any, service: Service) -> PickRequest:
     """A ``POST /pick`` body: a ``grasplan.scene/1`` document whose parts are the service's (by
     name, or a ``mesh`` field's file name: :func:`_service_parts`; no ``grasps`` or ``cloud``
-    file is read), plus an optional ``options`` object ``{max_picks, seed, sequence}``."""
+    file is read), plus an optional ``options`` object ``{max_picks, seed, sequence, push}``."""
     if not isinstance(doc, dict):
         raise InputError(f"scene: expected a {SCENE_SCHEMA} document (a JSON object), got {_type(doc)}")
     doc = dict(doc)
@@ -234,6 +235,7 @@ def pick_request(doc: Any, service: Service) -> PickRequest:
     max_picks = None if opts.get("max_picks") is None else _checked(_MAX_PICKS, opts["max_picks"], "options.max_picks")
     seed = None if opts.get("seed") is None else _checked(_SEED, opts["seed"], "options.seed")
     sequence = _bool(opts.get("sequence", False), "options.sequence")
+    push = _bool(opts.get("push", False), "options.push")
     notes: list[str] = []
     if isinstance(doc.get("parts"), dict):
         doc = _service_parts(doc, service, notes)
@@ -248,7 +250,7 @@ def pick_request(doc: Any, service: Service) -> PickRequest:
     scene = scene_from_dict(doc, source="scene")
     for k, inst in enumerate(scene.instances):
         service.part(inst.part, f"scene: instances[{k}].part")
-    return PickRequest(scene, max_picks, seed, sequence, tuple(notes))
+    return PickRequest(scene, max_picks, seed, sequence, tuple(notes), push)
 
 
 def _by_sha256(name: Any, sha: Any, service: Service, where: str) -> str:

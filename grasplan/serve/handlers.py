@@ -44,7 +44,8 @@ def pick(service: Service, doc: Any) -> bytes:
     req = pick_request(doc, service)
     if service.picker is None:
         raise RuntimeError("pick requested from a service without a picker")  # the app answers 503 before
-    result = service.picker.plan(req.scene, max_picks=req.max_picks, sequence=req.sequence, seed=req.seed)
+    result = service.picker.plan(req.scene, max_picks=req.max_picks, sequence=req.sequence, seed=req.seed,
+                                 push=req.push)
     if req.notes:
         result = replace(result, warnings=(*req.notes, *result.warnings))
     return result.to_json_text(parts=public_parts(result.parts, service)).encode("utf-8")

@@ -63,7 +63,9 @@ def pick_body() -> dict[str, Any]:
             "max_picks": {"type": "integer", "minimum": 1, "description": "Stop after this many picks (default: "
                                                                           "every instance that has one)."},
             "seed": {"type": "integer", "minimum": 0, "description": "Seed of IK and OMPL."},
-            "sequence": {"type": "boolean", "description": "Pick, remove the instance, plan the next."}}}}}
+            "sequence": {"type": "boolean", "description": "Pick, remove the instance, plan the next."},
+            "push": {"type": "boolean", "description": "When nothing can be picked, plan a push of a part a wall "
+                                                       "or a neighbour boxes in (the document's push entry)."}}}}}
     example = {"schema": "grasplan.scene/1", "instances": [
         {"id": "a", "part": "bracket", "T": {"xyz": [0.45, 0.0, 0.02], "rpy_deg": [0, 0, 30]}}],
         "options": {"max_picks": 1, "seed": 0}}
