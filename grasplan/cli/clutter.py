@@ -38,7 +38,8 @@ def _pct(x) -> str:
               help="Piles to drop and clear; round r drops with seed --seed + r.")
 @click.option("--pose-noise", "pose_noise", default="0,0", show_default=True, metavar="LENGTH,ANGLE",
               help="Pose estimate error: every part the planner sees is moved LENGTH in a random direction and "
-                   "turned ANGLE about a random axis through its centre of mass (e.g. 2mm,2deg); 0,0: ground truth.")
+                   "turned ANGLE about a random axis through its centre of mass, one error per part and round "
+                   "(e.g. 2mm,2deg); 0,0: ground truth.")
 @click.option("--max-occlusion", "max_occlusion", type=click.FloatRange(0.0, 1.0, min_open=True), default=1.0,
               show_default=True, help="Parts an overhead camera sees at least this share of hidden (e.g. 0.8) are "
                                       "left out of the planner's scene; 1 plans every part.")
@@ -63,13 +64,13 @@ def command(cell: str, protocol: str, parts: tuple[str, ...], units: str, rounds
     """Clear piles in physics, as VGN measures clutter removal: GSR and DR.
 
     Each round makes a pile by --protocol (bin: dropped into the bin as `grasplan scene drop`;
-    pile: dropped over the bin's central third, then the walls are taken away; packed: placed
-    upright at free spots, no walls), then repeats: read the parts' poses (exact, or off by
-    --pose-noise, one error per part and round; with --max-occlusion, parts the overhead camera
-    barely sees are left out), plan with grasplan.Picker, execute the first pick in MuJoCo with
+    pile: dropped over the bin's central third, then the bin is taken away; packed: placed
+    upright on the table at free spots, no bin), then repeats: read the parts' poses (exact, or
+    off by --pose-noise, one error per part and round; with --max-occlusion, parts the overhead
+    camera barely sees are left out), plan with grasplan.Picker, execute the first pick in MuJoCo with
     every part present (the gripper's own shapes, jaws at the datasheet force, the TCP driven
     along the planned approach and lift, then straight up until the part clears the bin's rim, or
-    10 cm above the floor without walls; the arm is not simulated). Success: after a 1 s hold the
+    10 cm above the table without the bin; the arm is not simulated). Success: after a 1 s hold the
     part is still between the jaws, clear, and turned at most 15 deg in them (else turned or
     dropped, counted apart); it is then removed. A round ends when the workspace is empty, after
     two failed attempts in a row, or when nothing is feasible. Writes per round and in total
