@@ -210,6 +210,21 @@ class BinSpec:
                                 size=(float(size[0]), float(size[1]), float(size[2]))))
         return tuple(out)
 
+    def to_bin(self, points_world: np.ndarray) -> np.ndarray:
+        """Points (..., 3) from the world into the bin frame (origin the floor's top centre, z up)."""
+        T = np.asarray(self.T_world_bin, dtype=np.float64)
+        return (np.asarray(points_world, dtype=np.float64) - T[:3, 3]) @ T[:3, :3]
+
+    def wall_gaps(self, points_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """How far (m) the points (k, 3, world) keep from each inner wall, in the order of
+        ``BIN_NAMES[1:]`` (+x, -x, +y, -y; negative beyond it), and each wall's inward normal
+        (4, 3, world)."""
+        p = self.to_bin(points_world)
+        hx, hy = 0.5 * self.inner[0], 0.5 * self.inner[1]
+        gaps = np.array([hx - p[:, 0].max(), hx + p[:, 0].min(), hy - p[:, 1].max(), hy + p[:, 1].min()])
+        R = np.asarray(self.T_world_bin, dtype=np.float64)[:3, :3]
+        return gaps, np.stack([-R[:, 0], R[:, 0], -R[:, 1], R[:, 1]])
+
     def to_json(self) -> dict:
         return {"inner": [float(x) for x in self.inner], "wall": float(self.wall), "height": float(self.height),
                 "T_world_bin": np.asarray(self.T_world_bin).tolist()}

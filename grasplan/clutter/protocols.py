@@ -99,15 +99,10 @@ def _bin(cell: Cell) -> BinSpec:
     return cell.bin
 
 
-def _in_bin_frame(b: BinSpec, p_world: np.ndarray) -> np.ndarray:
-    T = np.asarray(b.T_world_bin)
-    return (np.asarray(p_world, dtype=np.float64) - T[:3, 3]) @ T[:3, :3]
-
-
 def in_workspace(b: BinSpec, com_world: np.ndarray, floor_z: float | None = None) -> bool:
     """Whether a part's centre of mass (3,) is over the bin's inner floor area and above
     ``floor_z`` (world, m; default the bin floor's top)."""
-    p = _in_bin_frame(b, com_world)
+    p = b.to_bin(com_world)
     z = float(b.T_world_bin[2, 3]) if floor_z is None else float(floor_z)
     return bool(abs(p[0]) <= 0.5 * b.inner[0] and abs(p[1]) <= 0.5 * b.inner[1] and com_world[2] >= z)
 
@@ -115,8 +110,7 @@ def in_workspace(b: BinSpec, com_world: np.ndarray, floor_z: float | None = None
 def wall_distance(b: BinSpec, hull_world: np.ndarray) -> float:
     """How far (m) a part's convex-hull vertices (h, 3) keep from the bin's nearest inner wall (or
     where it stood); negative when they reach beyond it."""
-    p = _in_bin_frame(b, hull_world)
-    return float(min(0.5 * b.inner[0] - np.abs(p[:, 0]).max(), 0.5 * b.inner[1] - np.abs(p[:, 1]).max()))
+    return float(b.wall_gaps(hull_world)[0].min())
 
 
 @dataclass(frozen=True)

@@ -74,18 +74,12 @@ def lift_directions(retreat: np.ndarray, away: np.ndarray | None = None, max_til
     return out
 
 
-def _in_bin(points: np.ndarray, b: BinSpec) -> np.ndarray:
-    """Points (..., 3) world -> bin frame."""
-    T = np.asarray(b.T_world_bin, dtype=np.float64)
-    return (points - T[:3, 3]) @ T[:3, :3]
-
-
 def wall_away(hull_world: np.ndarray, b: BinSpec | None) -> np.ndarray:
     """Sum of the inward normals (world) of the bin walls within :data:`WALL_NEAR` of the part's
     hull vertices ``hull_world`` (k, 3); zero without a bin."""
     if b is None:
         return np.zeros(3)
-    p = _in_bin(hull_world, b)
+    p = b.to_bin(hull_world)
     ix, iy = 0.5 * b.inner[0], 0.5 * b.inner[1]
     out = np.zeros(3)
     for axis, half in ((0, ix), (1, iy)):
@@ -102,7 +96,7 @@ def inside_walls(hull_world: np.ndarray, shifts: np.ndarray, b: BinSpec | None) 
     :data:`WALL_SLACK` beyond where it already was outside them)."""
     if b is None or not len(shifts):
         return True
-    p0 = _in_bin(hull_world, b)
+    p0 = b.to_bin(hull_world)
     T = np.asarray(b.T_world_bin, dtype=np.float64)
     s = np.asarray(shifts, dtype=np.float64).reshape(-1, 3) @ T[:3, :3]  # bin-frame shifts
     half = 0.5 * np.asarray(b.inner, dtype=np.float64)

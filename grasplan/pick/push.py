@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..cell.model import BIN_NAMES
 from ..motion.grasp_motion import line_path, transit_path
 from ..part.stability import part_centre_of_mass
 from ..piles.scene_file import Instance
@@ -111,15 +112,11 @@ def candidates(st: CellState, instances: list[Instance]) -> list[Candidate]:
         g = world.parts[inst.part]
         hull_w = g.hull @ inst.T_world_part[:3, :3].T + inst.T_world_part[:3, 3]
         if cell.bin is not None:
-            T = np.asarray(cell.bin.T_world_bin)
-            p = (hull_w - T[:3, 3]) @ T[:3, :3]
-            hx, hy = 0.5 * cell.bin.inner[0], 0.5 * cell.bin.inner[1]
-            walls = (("bin_wall_+x", hx - p[:, 0].max(), -T[:3, 0]), ("bin_wall_-x", hx + p[:, 0].min(), T[:3, 0]),
-                     ("bin_wall_+y", hy - p[:, 1].max(), -T[:3, 1]), ("bin_wall_-y", hy + p[:, 1].min(), T[:3, 1]))
-            name, gap, inward = min(walls, key=lambda w: float(w[1]))
-            away = _horizontal(np.asarray(inward, dtype=np.float64))
-            if gap < NEAR and away is not None:
-                out.append(Candidate(inst, name, float(gap), away))
+            gaps, inward = cell.bin.wall_gaps(hull_w)
+            k = int(np.argmin(gaps))
+            away = _horizontal(inward[k])
+            if gaps[k] < NEAR and away is not None:
+                out.append(Candidate(inst, BIN_NAMES[1 + k], float(gaps[k]), away))
         body = world.instances.get(inst.id)
         best: tuple[float, str, np.ndarray] | None = None
         for other in instances:

@@ -318,8 +318,7 @@ def outside_bin(cell: Cell, hull_world: np.ndarray) -> tuple[float, str]:
     below its floor's top or above its rim, and which of these it is (the worst); (<= 0, '')
     when inside."""
     b = _bin(cell)
-    T = np.asarray(b.T_world_bin)
-    p = (hull_world - T[:3, 3]) @ T[:3, :3]  # bin frame: floor top at z = 0
+    p = b.to_bin(hull_world)  # bin frame: floor top at z = 0
     hx, hy = 0.5 * b.inner[0], 0.5 * b.inner[1]
     over = {"beyond the walls (x)": float(np.abs(p[:, 0]).max() - hx),
             "beyond the walls (y)": float(np.abs(p[:, 1]).max() - hy),
@@ -366,7 +365,7 @@ def _release_pose(world: PileWorld, i: int, rng: np.random.Generator, gap: float
     foot_lo, foot_hi = lo[:2] + xy - FOOTPRINT_MARGIN, hi[:2] + xy + FOOTPRINT_MARGIN
     top = 0.0  # the floor's top
     for j in np.flatnonzero(world.present):
-        q = (world.hull_world(int(j)) - T_bin[:3, 3]) @ T_bin[:3, :3]
+        q = b.to_bin(world.hull_world(int(j)))
         if np.all(q[:, :2].min(axis=0) <= foot_hi) and np.all(q[:, :2].max(axis=0) >= foot_lo):
             top = max(top, float(q[:, 2].max()))
     T_bin_part = np.eye(4)
