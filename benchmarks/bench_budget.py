@@ -37,6 +37,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from grasplan.cli.common import table  # noqa: E402
+from grasplan.config.params import PAPER_GRIPPER  # noqa: E402
 
 PAPER_DIR = Path(os.environ.get("GRASPLAN_PAPER_PARTS", ROOT.parent / "shared" / "parts" / "paper"))
 TARGET_OVERSHOOT = 0.10
@@ -103,7 +104,7 @@ def main() -> int:
             if name not in a.scenes.split(","):
                 continue
             sc = load_scene(path)
-            picker = Picker("ur5", params=PickParams(budget_s=a.budget))
+            picker = Picker("ur5", gripper=PAPER_GRIPPER, params=PickParams(budget_s=a.budget))
             try:
                 t = time.perf_counter()
                 picker.plan(sc)  # loads the parts, builds the probes
@@ -129,7 +130,7 @@ def main() -> int:
                 out = Path(d) / f"{name}.picks.json"
                 t = time.perf_counter()
                 r = subprocess.run([sys.executable, "-c", "from grasplan.cli import main; main()", "pick", str(path),
-                                    "-o", str(out), "--budget", str(a.budget)], capture_output=True, text=True,
+                                    "--gripper", PAPER_GRIPPER, "-o", str(out), "--budget", str(a.budget)], capture_output=True, text=True,
                                    env={**os.environ, "PYTHONPATH": str(ROOT)})
                 wall = time.perf_counter() - t
                 total = json.loads(out.read_text())["timing_s"]["total"] if out.exists() else float("nan")

@@ -28,7 +28,7 @@ from grasplan.grasps.collision import GripperCollider
 from grasplan.grasps.frames import grasp_frames
 from grasplan.gripper.load import load_gripper
 from grasplan.part.mesh import load_part
-from grasplan.config.params import CandidateParams, GraspParams
+from grasplan.config.params import PAPER_GRIPPER, CandidateParams, GraspParams
 from grasplan.cell.resting import stable_pose
 from grasplan.candidates.thinning import thin_candidates
 from grasplan.geometry.units import parse_length
@@ -46,7 +46,7 @@ def main() -> None:
                     help="thinning spacing (length; 0 = pose every candidate)")
     args = ap.parse_args()
     gp = GraspParams(thin_spacing=parse_length(args.thin, name="--thin", allow_zero=True))
-    g = load_gripper()
+    g = load_gripper(PAPER_GRIPPER)
     cell = load_cell()
     rows = []
     for path in args.parts:

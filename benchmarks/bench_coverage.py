@@ -218,14 +218,14 @@ def run_one(name, path, units, method, n_points, n_check, seed):
 
     from grasplan.grasps.pipeline import compute_grasps
     from grasplan.part.mesh import load_part, part_from_trimesh
-    from grasplan.config.params import CandidateParams, GraspParams
+    from grasplan.config.params import PAPER_GRIPPER, CandidateParams, GraspParams
 
     t0 = time.perf_counter()
     part = load_part(path, units=units) if path else part_from_trimesh(box_mesh(name), units="mm", path=name)
     gp = GraspParams(thin_spacing=0)
     if name in POSE_INDEX:
         gp = replace(gp, pose_index=POSE_INDEX[name])
-    res = compute_grasps(part, candidates=CandidateParams(method=method), grasps=gp)
+    res = compute_grasps(part, candidates=CandidateParams(method=method), gripper=PAPER_GRIPPER, grasps=gp)
     seconds = time.perf_counter() - t0
     rss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     t_cand = res.timing_s.get("candidates", float("nan"))

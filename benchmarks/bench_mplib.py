@@ -97,10 +97,11 @@ def mplib_status() -> str | None:
 def run_grasplan(path: Path, units: str) -> tuple[Any, list[int], float]:
     """The plan, its planned ids and the median over REPEATS plans of the robot stages per planned grasp, ms."""
     from grasplan import load_part, plan
+    from grasplan.config.params import PAPER_GRIPPER
 
     part = load_part(path, units=units)
-    plan(part, "ur5")  # the first plan in a process loads kernels and reads (or computes) the database
-    runs = [plan(part, "ur5") for _ in range(REPEATS)]
+    plan(part, "ur5", gripper=PAPER_GRIPPER)  # the first plan in a process loads kernels and reads (or computes) the database
+    runs = [plan(part, "ur5", gripper=PAPER_GRIPPER) for _ in range(REPEATS)]
     ids = runs[-1].planned_ids()
     robot_s = statistics.median(sum(float(r.timing_s.get(k, 0.0)) for k in ROBOT_STAGES) for r in runs)
     return runs[-1], ids, 1e3 * robot_s / max(1, len(ids))

@@ -37,6 +37,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from grasplan.cache import cache_dir  # noqa: E402
+from grasplan.config.params import PAPER_GRIPPER  # noqa: E402
 from grasplan.cell.model import load_cell  # noqa: E402
 from grasplan.cli.common import table  # noqa: E402
 from grasplan.errors import GrasplanError  # noqa: E402
@@ -110,7 +111,8 @@ def _cli(scene: Path) -> tuple[float, float, int, str]:
     with tempfile.TemporaryDirectory() as d:
         t = time.perf_counter()
         r = subprocess.run([sys.executable, "-c", _WRAP, sys.executable, "-c", "from grasplan.cli import main; main()",
-                            "pick", str(scene), "-o", str(Path(d) / "picks.json")], capture_output=True, text=True,
+                            "pick", str(scene), "--gripper", PAPER_GRIPPER, "-o", str(Path(d) / "picks.json")],
+                           capture_output=True, text=True,
                            env={**os.environ, "PYTHONPATH": str(ROOT)})
         wall = time.perf_counter() - t
     rss = next((int(ln.split()[1]) for ln in r.stdout.splitlines() if ln.startswith("PEAK_RSS_KB")), 0)
@@ -145,7 +147,7 @@ def main() -> int:
 
     params = PickParams(**({} if args.lift_depth is None else {"lift_depth": args.lift_depth}),
                         lift_carry=not args.no_lift_carry)
-    picker = Picker("ur5", params=params, progress=lambda s: print(" ", s, flush=True))
+    picker = Picker("ur5", gripper=PAPER_GRIPPER, params=params, progress=lambda s: print(" ", s, flush=True))
     loaded = {Path(p).stem.lower(): load_part(PAPER_DIR / p) for p in PARTS}
     for name, part in loaded.items():
         picker.add_part(name, part)

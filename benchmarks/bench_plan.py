@@ -4,7 +4,10 @@
     .venv/bin/python benchmarks/bench_plan.py [--parts TLess20.stl,SileanePepper.stl,IPAGearShaft.stl]
                                               [--runs 3] [--queries 30]
 
-1. ``plan(part, "ur5")`` with the defaults, each run in a fresh process with an empty cache
+The gripper is ``long_stroke_50`` (``PAPER_GRIPPER``: the paper's model, whose 0-50 mm jaws take
+every paper part; the default EGP-C 40's 30-42 mm fingers are the demo bracket's), else the defaults.
+
+1. ``plan(part, "ur5")``, each run in a fresh process with an empty cache
    folder (so the first-use costs a process pays - imports, the robot model - are in it and RSS
    is per run): medians over ``--runs`` of the seconds per stage (``PlanResult.timing_s``) and of
    ``plan()`` as a whole, the first time (database miss: it computes the part's grasp database)
@@ -42,6 +45,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from fresh import bytecode_env, run_cli  # noqa: E402
+from grasplan.config.params import PAPER_GRIPPER  # noqa: E402
 
 PAPER = Path(os.environ.get("GRASPLAN_PAPER_PARTS", ROOT.parent / "shared" / "parts" / "paper"))
 TARGET_CLI_S = 1.0  #: whole ``grasplan plan --robot ur5`` median with the part's grasp database cached
@@ -65,6 +69,7 @@ def _table(rows, header):
 _WORKER = r"""
 import json, sys, time
 t0 = time.perf_counter()
+from grasplan.config.params import PAPER_GRIPPER
 from grasplan.motion.planning import plan
 from grasplan.part.mesh import load_part
 t_import = time.perf_counter() - t0
@@ -73,10 +78,10 @@ t = time.perf_counter()
 part = load_part(path)
 t_load = time.perf_counter() - t
 t = time.perf_counter()
-res = plan(part, "ur5")  # a fresh cache folder: computes the grasp database
+res = plan(part, "ur5", gripper=PAPER_GRIPPER)  # a fresh cache folder: computes the grasp database
 t_plan = time.perf_counter() - t
 t = time.perf_counter()
-res2 = plan(part, "ur5")  # reads it
+res2 = plan(part, "ur5", gripper=PAPER_GRIPPER)  # reads it
 t_plan2 = time.perf_counter() - t
 st = res2.grasps.status.astype(str)
 timing, timing2 = dict(res.timing_s), dict(res2.timing_s)
@@ -133,7 +138,8 @@ def bench_cli(parts: list[Path], runs: int) -> tuple[list[tuple], bool]:
     rows, ok = [], True
     with tempfile.TemporaryDirectory() as tmp:
         env0 = bytecode_env(os.path.join(tmp, "pycache"))
-        run_cli(["plan", str(parts[0]), "--robot", "ur5", "-o", os.path.join(tmp, "warmup.json")],
+        run_cli(["plan", str(parts[0]), "--robot", "ur5", "--gripper", PAPER_GRIPPER,
+                 "-o", os.path.join(tmp, "warmup.json")],
                 env={**env0, "GRASPLAN_CACHE_DIR": os.path.join(tmp, "warmup")})  # fills the bytecode cache
         for path in parts:
             out = Path(tmp) / f"{path.stem}.json"
@@ -141,7 +147,8 @@ def bench_cli(parts: list[Path], runs: int) -> tuple[list[tuple], bool]:
             for k in range(runs):
                 env = {**env0, "GRASPLAN_CACHE_DIR": os.path.join(tmp, f"cache-{path.stem}-{k}")}
                 for walls in (miss, hit):
-                    dt, rc, r = run_cli(["plan", str(path), "--robot", "ur5", "-o", str(out)], env=env)
+                    dt, rc, r = run_cli(["plan", str(path), "--robot", "ur5", "--gripper", PAPER_GRIPPER, "-o", str(out)],
+                                        env=env)
                     walls.append(dt)
                     rss.append(r)
             planned = 0
@@ -180,7 +187,7 @@ def bench_rrt(n_queries: int, seed: int = 0):
     if not part_path.exists():
         part_path = ROOT / "examples" / "parts" / "bracket.stl"
     part = load_part(part_path)
-    robot, gripper, cell = load_robot("ur5"), load_gripper(), load_cell()
+    robot, gripper, cell = load_robot("ur5"), load_gripper(PAPER_GRIPPER), load_cell()
     T_world_part = stable_pose(part.mesh, cell)
     scene = CollisionScene(robot, gripper, part.mesh, T_world_part, cell)
     rng = np.random.default_rng(seed)

@@ -69,7 +69,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from grasplan.cli.common import table  # noqa: E402
-from grasplan.config.params import DEFAULT_GRIPPER, DEFAULT_ROBOT  # noqa: E402
+from grasplan.config.params import DEFAULT_ROBOT, PAPER_GRIPPER  # noqa: E402
 
 PAPER_DIR = Path(os.environ.get("GRASPLAN_PAPER_PARTS", ROOT.parent / "shared" / "parts" / "paper"))
 PAPER_PARTS = ("TLess20.stl", "TLess22.stl", "SileanePepper.stl", "IPARingScrew.stl", "SileaneGear.stl")
@@ -450,7 +450,7 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
                     "and noise 2mm,2deg with --max-occlusion 0.8")
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="worker processes (default: the CPUs)")
     ap.add_argument("--out", type=Path, default=ROOT / "out" / "clutter", help="folder of the logs and summary.md")
-    ap.add_argument("--gripper", default=DEFAULT_GRIPPER, help=f"gripper name or YAML (default {DEFAULT_GRIPPER})")
+    ap.add_argument("--gripper", default=PAPER_GRIPPER, help=f"gripper name or YAML (default {PAPER_GRIPPER})")
     ap.add_argument("--part", action="append", metavar="PATH:COUNT[:MATERIAL]",
                     help="repeatable (default: the five paper parts, one each, from $GRASPLAN_PAPER_PARTS)")
     ap.add_argument("--material", default=None, help="part material (default plastic)")

@@ -31,7 +31,7 @@ sys.path.insert(0, str(ROOT))
 
 from grasplan.grasps.pipeline import compute_grasps
 from grasplan.part.mesh import load_part
-from grasplan.config.params import CandidateParams, GraspParams
+from grasplan.config.params import PAPER_GRIPPER, CandidateParams, GraspParams
 from grasplan.grasps.ranking import distinct_order
 from grasplan.sim.simulate import convex_pieces, simulate_grasps
 
@@ -193,7 +193,7 @@ def main() -> None:
         # SileaneGear's most probable pose has no grasp for a 50 mm gripper (hub 53 mm, rim on the
         # table): it is evaluated on its other face, as in benchmarks/bench_coverage.py
         pose = GraspParams(pose_index=1) if p.name == "SileaneGear.stl" else GraspParams()
-        gr = compute_grasps(part, gripper="schunk_egp_c_40", cell="table", grasps=pose)
+        gr = compute_grasps(part, gripper=PAPER_GRIPPER, cell="table", grasps=pose)
         print(f"{p.name}: compute_grasps {time.perf_counter() - t:.1f} s, quality step "
               f"{gr.timing_s.get('quality', float('nan')):.2f} s", flush=True)
         for d in args.density:

@@ -396,7 +396,7 @@ def test_kept_grasps_keep_beta_on_a_fine_cylinder():
     from grasplan.config.params import GraspParams
     from grasplan.status import Status
     mesh = _curved("cylinder", 0.01, 1000, 0.0)
-    g = compute_grasps(part_from_trimesh(mesh), grasps=GraspParams(roll_step_deg=60.0, density=1200.0))
+    g = compute_grasps(part_from_trimesh(mesh), gripper="long_stroke_50", grasps=GraspParams(roll_step_deg=60.0, density=1200.0))
     t = g.table()
     ok = np.asarray(t.status).astype(str) == Status.OK.value
     assert ok.sum() > 10

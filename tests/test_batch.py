@@ -270,14 +270,15 @@ def test_place_scoring_file_and_every_pose_give_the_files_plan_gives(tmp_path):
     (tmp_path / "m.yaml").write_text(f"- {{path: plate.stl, units: m, pose_index: all, scoring: s.yaml}}\n"
                                      f"- {{path: {EXAMPLES / 'box.stl'}, place: '{place}'}}\n")
     out = tmp_path / "out"
-    r = _cli(["batch", str(tmp_path / "m.yaml"), "-o", str(out), "--top", "1", "--workers", "2", "--no-view"])
+    r = _cli(["batch", str(tmp_path / "m.yaml"), "-o", str(out), "--top", "1", "--workers", "2", "--no-view", "--gripper", "long_stroke_50"])
     assert r.exit_code == 0, r.output
     rows = json.loads((out / "summary.json").read_text())["parts"]
     assert [row["status"] for row in rows] == ["planned", "planned"]
-    r = _cli(["plan", str(plate), "--units", "m", "--top", "1", "--pose-index", "all", "--scoring",
+    r = _cli(["plan", str(plate), "--units", "m", "--gripper", "long_stroke_50", "--top", "1", "--pose-index", "all", "--scoring",
               str(tmp_path / "s.yaml"), "-o", str(tmp_path / "plate.json")])
     assert r.exit_code == 0, r.output
-    r = _cli(["plan", str(EXAMPLES / "box.stl"), "--top", "1", "--place", place, "-o", str(tmp_path / "box.json")])
+    r = _cli(["plan", str(EXAMPLES / "box.stl"), "--gripper", "long_stroke_50", "--top", "1", "--place", place,
+              "-o", str(tmp_path / "box.json")])
     assert r.exit_code == 0, r.output
 
     folder = out / rows[0]["dir"]

@@ -39,7 +39,7 @@ def cell():
 
 @pytest.fixture(scope="module")
 def gripper():
-    return load_gripper("schunk_egp_c_40")
+    return load_gripper("long_stroke_50")
 
 
 def _pick(T_world_tcp: np.ndarray, width: float, gripper, instance: str = "box_0", part: str = "box"):
@@ -290,7 +290,7 @@ def test_a_pad_path_no_quartic_fits_is_refused_naming_the_gripper():
                              tcp_offset=lambda o: np.where(np.asarray(o) > 0.05, 0.02, 0.0) + 0.1 * np.asarray(o))
     with pytest.raises(InputError, match=r"gripper kinked: .*neither a quartic.*onrobot_rg2"):
         pad_arc(kinked)
-    assert pad_arc(load_gripper("schunk_egp_c_40")) is None
+    assert pad_arc(load_gripper("long_stroke_50")) is None
 
 
 def test_a_lift_into_a_wall_is_a_collision(lone_box, gripper, cell):
@@ -317,7 +317,7 @@ def test_a_lift_into_a_wall_is_a_collision(lone_box, gripper, cell):
     cw.park_hand()
 
 
-@pytest.mark.parametrize("gripper_name", ["schunk_egp_c_40", "robotiq_2f_85"])
+@pytest.mark.parametrize("gripper_name", ["long_stroke_50", "robotiq_2f_85"])
 def test_twist_slips_at_the_pad_patch_torsion(cell, tmp_path, gripper_name):
     """Issue 22 in the clutter world: a 120 x 30 x 30 mm block in the middle of the bin picked from
     above 40 mm off its centre of mass, so its weight twists it about the closing axis. Analytic
@@ -453,7 +453,7 @@ def test_a_bar_swinging_in_the_jaws_is_turned(cell, tmp_path):
     LIFT_MIN: turned, not success. The same pads from ``patch_torsion`` over a planned torsion that
     would hold it: turned too. Four times the moment as the capacity, or the grasp over the centre
     of mass (no moment): success, turned about 0 deg."""
-    g = load_gripper("schunk_egp_c_40")
+    g = load_gripper("long_stroke_50")
     d, h, lift = 0.04, 0.008, 0.15
     part, body, cw, T_wp = _bar(cell, tmp_path, g)
     snap = cw.world.snapshot()
@@ -503,7 +503,7 @@ def _pad_centroid(gripper, T_part_hand: np.ndarray, opening: float, jaw: int) ->
     return 0.5 * (lo + hi)
 
 
-@pytest.mark.parametrize("gripper_name", ["schunk_egp_c_40", "robotiq_2f_85"])
+@pytest.mark.parametrize("gripper_name", ["long_stroke_50", "robotiq_2f_85"])
 def test_patch_torsion_sees_the_grasp_actually_made(cell, tmp_path, gripper_name):
     """patch_torsion is called once, after the close, with the grasp the jaws made in the bar's
     frame: T_part_tcp (the hand frame moved back by inv(T_tcp_gripper(width)): a linkage's TCP

@@ -60,8 +60,8 @@ def _world(cell, box, gripper):
 
 
 @pytest.fixture(scope="module")
-def schunk_world(cell, box):
-    gripper = load_gripper("schunk_egp_c_40")
+def jaw_world(cell, box):
+    gripper = load_gripper("long_stroke_50")
     cw, snap = _world(cell, box, gripper)
     return gripper, cw, snap
 
@@ -126,13 +126,13 @@ def _restart(cw, snap) -> None:
     cw.park_hand()
 
 
-def test_a_box_by_the_wall_is_pushed_away_from_it(schunk_world, box, cell):
+def test_a_box_by_the_wall_is_pushed_away_from_it(jaw_world, box, cell):
     """box_a, GAP from the +x wall, pushed DISTANCE along -x with the jaws closed: the planner's
     poses need a tilt (upright, the gripper's body overlaps the wall), and the box moves along -x by
     the TCP's travel less the start gap to the finger's leading face (geometry: TIP_GAP less the
     face's lean over the box's top edge), within 1 mm (contact compliance), sideways and turned
     hardly at all; box_b, 100 mm away, does not move. The jaws stay shut the whole push."""
-    gripper, cw, snap = schunk_world
+    gripper, cw, snap = jaw_world
     _restart(cw, snap)
     gap = _wall_gap(cw, cell, 0)
     assert gap == pytest.approx(GAP, abs=2e-4)
@@ -156,8 +156,8 @@ def test_a_box_by_the_wall_is_pushed_away_from_it(schunk_world, box, cell):
     assert doc["others_moved"] == []
 
 
-def test_a_push_is_deterministic(schunk_world, box, cell):
-    gripper, cw, snap = schunk_world
+def test_a_push_is_deterministic(jaw_world, box, cell):
+    gripper, cw, snap = jaw_world
     opening = float(gripper.min_opening)
     outs = []
     for _ in range(2):
@@ -169,11 +169,11 @@ def test_a_push_is_deterministic(schunk_world, box, cell):
     assert outs[0].to_json() == outs[1].to_json()
 
 
-def test_a_push_into_the_wall_collides(schunk_world, box, cell):
+def test_a_push_into_the_wall_collides(jaw_world, box, cell):
     """From the same start between box_a and the wall, DISTANCE towards the wall (+x): the gripper
     at the push's end would overlap the wall (the gap behind the finger is far shorter), so the run
     stops in the push phase: collided, box_a untouched."""
-    gripper, cw, snap = schunk_world
+    gripper, cw, snap = jaw_world
     _restart(cw, snap)
     opening = float(gripper.min_opening)
     pp, _ = _poses(cw, box, gripper, 0, "bin_wall_+x", _wall_gap(cw, cell, 0), MINUS_X, opening)
@@ -187,8 +187,8 @@ def test_a_push_into_the_wall_collides(schunk_world, box, cell):
     assert t_descent < out.sim_s < t_descent + math.pi * DISTANCE / (2.0 * PUSH_SPEED)
 
 
-def test_a_gripper_starting_inside_the_wall_collides(schunk_world, box, cell):
-    gripper, cw, snap = schunk_world
+def test_a_gripper_starting_inside_the_wall_collides(jaw_world, box, cell):
+    gripper, cw, snap = jaw_world
     _restart(cw, snap)
     opening = float(gripper.min_opening)
     pp, _ = _poses(cw, box, gripper, 0, "bin_wall_+x", _wall_gap(cw, cell, 0), MINUS_X, opening)
@@ -201,11 +201,11 @@ def test_a_gripper_starting_inside_the_wall_collides(schunk_world, box, cell):
     assert out.sim_s == 0.0 and out.moved_m < 1e-3
 
 
-def test_a_push_away_from_the_part_has_no_effect(schunk_world, box, cell):
+def test_a_push_away_from_the_part_has_no_effect(jaw_world, box, cell):
     """box_b in the open: the planner's upright push from its +x side towards -x, flipped: the
     fingers start TIP_GAP beside it and move DISTANCE away (+x), touching nothing at its start, end
     and retreat: no effect, box_b (and box_a) where they were, no force on anything fixed."""
-    gripper, cw, snap = schunk_world
+    gripper, cw, snap = jaw_world
     _restart(cw, snap)
     opening = float(gripper.min_opening)
     pp, tilt = _poses(cw, box, gripper, 1, "instance:box_a", 0.1, MINUS_X, opening, tilt_deg=0.0)
@@ -219,11 +219,11 @@ def test_a_push_away_from_the_part_has_no_effect(schunk_world, box, cell):
     assert out.moved_m < PUSH_MIN_MOVE and out.outcome in PUSH_OUTCOMES
 
 
-def test_a_pushed_box_pushes_its_neighbour(schunk_world, box, cell):
+def test_a_pushed_box_pushes_its_neighbour(jaw_world, box, cell):
     """box_b placed 10 mm ahead of box_a along the push, with the jaws held 10 mm apart (both
     fingers on box_a's 20 mm face): box_a moves as alone, box_b is shoved along about the rest of
     the travel (others_moved), and the jaws keep their opening under the load."""
-    gripper, cw, snap = schunk_world
+    gripper, cw, snap = jaw_world
     _restart(cw, snap)
     T_b = cw.world.pose(0)
     T_b[0, 3] -= float(box[0].mesh.extents[0]) + 0.01
@@ -252,8 +252,8 @@ def test_a_linkage_grippers_push_poses_are_its_hand_poses(cell, box):
     assert out.outcome == MOVED and out.along_m == pytest.approx(expected, abs=1e-3), out.reason
 
 
-def test_bad_input_is_refused(schunk_world, box, cell):
-    gripper, cw, snap = schunk_world
+def test_bad_input_is_refused(jaw_world, box, cell):
+    gripper, cw, snap = jaw_world
     _restart(cw, snap)
     pp, _ = _poses(cw, box, gripper, 0, "bin_wall_+x", _wall_gap(cw, cell, 0), MINUS_X, 0.0)
     with pytest.raises(ValueError, match="horizontal"):
@@ -271,7 +271,7 @@ def test_the_jaws_hold_their_opening_against_the_load(cell, box):
     (mu m g) presses that jaw towards closing, enough to close them by more than 2 mm in the push
     if only their damping held them (speed load / damping); held, they keep 10 mm within 0.5 mm
     (the drive's saturation: the grip force), and the box moves the travel less the 3 mm start gap."""
-    gripper = load_gripper("schunk_egp_c_40")
+    gripper = load_gripper("long_stroke_50")
     part = box[0]
     body = part_body("heavy", part.mesh, density=4.0e5, decomposition="hull")
     cw = ClutterWorld(cell, [body], gripper, mu=0.3)

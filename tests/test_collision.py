@@ -78,7 +78,7 @@ def tless(request):
 
 
 def _coal_vs_fcl(part, n, seed):
-    g = load_gripper()
+    g = load_gripper("long_stroke_50")
     col = GripperCollider(part.mesh, g, Cell("table"), np.eye(4))
     T, w = random_poses(part.mesh, n, seed)
     ours = col.part_collision(T, w)
@@ -127,7 +127,7 @@ def test_table_half_space_and_status_priority():
                    np.array([[[-1, 0, 0], [1, 0, 0]]] * 2, dtype=float), np.array([0.03, 0.03]),
                    np.array([[0, 1], [2, 3]]))
     fr = grasp_frames(c, roll_step_deg=90, reference=np.array([0, 0, -1.0]))
-    st = check_grasps(part.mesh, load_gripper(), Cell("table"), T_world_part, fr.T_part_tcp, c.width[fr.candidate])
+    st = check_grasps(part.mesh, load_gripper("long_stroke_50"), Cell("table"), T_world_part, fr.T_part_tcp, c.width[fr.candidate])
     roll_deg = np.degrees(fr.roll).round().astype(int)
     # candidate 0 (mid-height), approach from above (roll 0): the fingertips reach 8 mm below the TCP at z=0.01
     assert st[(fr.candidate == 0) & (roll_deg == 0)][0] == "ok"
@@ -146,7 +146,7 @@ def test_part_status_wins_over_table():
     part = part_from_trimesh(box)
     T = np.eye(4)
     T[:3, 3] = [0.0, 0.0, -0.005]  # the TCP's fingertips go under the table AND the body sits in the part
-    st = check_grasps(part.mesh, load_gripper(), Cell("table"), np.eye(4), T[None], np.array([0.02]))
+    st = check_grasps(part.mesh, load_gripper("long_stroke_50"), Cell("table"), np.eye(4), T[None], np.array([0.02]))
     assert st.tolist() == ["collision_part"]
 
 
@@ -154,7 +154,7 @@ def test_box_inside_part_is_a_collision():
     big = trimesh.creation.box([0.4, 0.4, 0.4])  # the gripper fits wholly inside: no triangle is crossed
     part = part_from_trimesh(big)
     T = np.eye(4)[None]
-    col = GripperCollider(part.mesh, load_gripper(), Cell("table"), np.eye(4))
+    col = GripperCollider(part.mesh, load_gripper("long_stroke_50"), Cell("table"), np.eye(4))
     assert col.part_collision(T, np.array([0.02])).tolist() == [True]
     assert points_inside(part.mesh, [[0, 0, 0], [0.3, 0, 0]]).tolist() == [True, False]
 
@@ -180,7 +180,7 @@ def test_paper_part_ok_and_rejected_independently_checked(paper, name, pose_inde
     fr = grasp_frames(cands, roll_step_deg=30, max_width=0.05, merge_distance=2e-3,
                       reference=T_world_part[:3, :3].T @ [0, 0, -1.0])
     w = cands.width[fr.candidate]
-    st = check_grasps(part.mesh, load_gripper(), cell, T_world_part, fr.T_part_tcp, w)
+    st = check_grasps(part.mesh, load_gripper("long_stroke_50"), cell, T_world_part, fr.T_part_tcp, w)
     ok = np.flatnonzero(st == "ok")
     assert len(ok) >= 20, f"only {len(ok)} ok grasps"
     ref = FclPart(part.mesh)
@@ -244,7 +244,7 @@ def test_part_status_invariant_under_rigid_motion(seed):
     M[:3, 3] = np.random.default_rng(seed).uniform(-1, 1, 3)
     moved = box.copy()
     moved.apply_transform(M)
-    g = load_gripper()
+    g = load_gripper("long_stroke_50")
     a = GripperCollider(box, g, Cell("table"), np.eye(4)).part_collision(T, w)
     b = GripperCollider(moved, g, Cell("table"), np.eye(4)).part_collision(M @ T, w)
     # a pose may only differ where it touches the part to within float noise: there an independent

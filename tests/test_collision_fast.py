@@ -104,7 +104,7 @@ def test_grasp_pose_part_hits_agree_with_python_fcl(paper, name):
     from grasplan.config.params import CandidateParams
 
     part = load_part(paper(name))
-    g, cell = load_gripper(), load_cell("table")
+    g, cell = load_gripper("long_stroke_50"), load_cell("table")
     T_world_part = stable_pose(part.mesh, cell)
     cands = compute_candidates(part, CandidateParams(max_opening=g.max_opening)).candidates
     fr = grasp_frames(cands, roll_step_deg=15, max_width=g.max_opening, reference=T_world_part[:3, :3].T @ [0, 0, -1.0])
@@ -121,7 +121,7 @@ def test_grasp_pose_part_hits_agree_with_python_fcl(paper, name):
 def test_box_wholly_inside_a_closed_part_found_by_the_centre_test(example_part):
     """A jaw box wholly inside a closed part crosses no triangle; the ray-crossing test finds it."""
     big = part_from_trimesh(trimesh.creation.box(extents=(0.3, 0.3, 0.3)))
-    col = GripperCollider(big.mesh, load_gripper(), load_cell("table"), np.eye(4))
+    col = GripperCollider(big.mesh, load_gripper("long_stroke_50"), load_cell("table"), np.eye(4))
     T = np.tile(np.eye(4), (3, 1, 1))
     T[:, :3, 3] = [[0.0, 0.0, 0.05], [0.001, -0.002, 0.04], [0.0, 0.0, 0.4]]
     hit = col.part_collision(T, np.full(3, 0.02))

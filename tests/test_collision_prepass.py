@@ -24,7 +24,7 @@ from grasplan.part.mesh import load_part
 @pytest.fixture(scope="module")
 def bracket_poses(example_part):
     part = load_part(example_part("bracket.stl"))
-    gr = compute_grasps(part)  # the poses, the cell and the resting pose
+    gr = compute_grasps(part, gripper="long_stroke_50")  # the poses, the cell and the resting pose
     ev = SimpleNamespace(gripper=gr.gripper, cell=gr.cell, T=gr.T_world_part, T_part_tcp=gr.frames.T_part_tcp,
                          width=gr.width)
     return part, ev

@@ -71,9 +71,24 @@ def test_the_output_must_be_a_yaml_file(tmp_path, own_cache):
 
 
 def test_a_long_stroke_gripper_is_refused_naming_short_ones(tmp_path, own_cache):
-    r = CliRunner().invoke(main, ["fingers", str(BRACKET), "--units", "mm", "--gripper", "schunk_egp_c_40"])
-    assert r.exit_code == 3 and "no stroke" in r.output and "schunk_egp_25" in r.output, r.output
+    r = CliRunner().invoke(main, ["fingers", str(BRACKET), "--units", "mm", "--gripper", "long_stroke_50"])
+    assert r.exit_code == 3 and "no stroke" in r.output and "schunk_egp_c_40" in r.output, r.output
     assert "Traceback" not in r.output
+
+
+def test_the_default_grippers_fingers_are_the_best_window_for_the_demo_bracket(tmp_path, own_cache):
+    """The shipped schunk_egp_c_40's 30-42 mm jaws are the window ``grasplan fingers`` ranks first
+    for examples/parts/bracket.stl (the YAML's claim), and its -o file keeps stroke and shapes."""
+    from grasplan.gripper.load import load_gripper
+
+    out = tmp_path / "egp.yaml"
+    r = CliRunner().invoke(main, ["fingers", str(BRACKET), "--units", "mm", "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    shipped, best = load_gripper(), load_gripper(str(out))
+    assert shipped.name == "schunk_egp_c_40" and best.name == "schunk_egp_c_40_bracket"
+    assert best.max_opening == pytest.approx(shipped.max_opening, abs=1e-9)
+    assert best.stroke == shipped.stroke and best.grip_force == shipped.grip_force
+    np.testing.assert_allclose(best.T_flange_tcp, shipped.T_flange_tcp)
 
 
 def test_gripper_yaml_without_max_opening_is_refused(tmp_path):
@@ -81,3 +96,21 @@ def test_gripper_yaml_without_max_opening_is_refused(tmp_path):
     src.write_text("name: g\nstroke: 0.006\n")
     with pytest.raises(InputError, match="max_opening"):
         gripper_yaml(src, FingerWindow(0.01, 0.016, (), 1.0, 3), name="h", note="n")
+
+
+def test_a_part_narrower_than_the_jaws_close_is_told_to_choose_fingers(tmp_path):
+    """A 20 x 25 x 60 mm block: the default EGP-C 40's jaws close to 30 mm, so nothing is posed;
+    `grasps` and `plan` exit 4 naming the window and `grasplan fingers`; long_stroke_50 grasps it."""
+    import trimesh
+
+    pin = tmp_path / "block.stl"
+    trimesh.creation.box(extents=(0.020, 0.025, 0.060)).export(pin)
+    for cmd in (["grasps", str(pin), "--units", "m"], ["plan", str(pin), "--units", "m", "--robot", "ur5"]):
+        out = tmp_path / f"{cmd[0]}.json"
+        r = CliRunner().invoke(main, [*cmd, "-o", str(out)])
+        assert r.exit_code == 4, r.output
+        assert "narrower than schunk_egp_c_40's jaws close (30.0 mm" in r.output and "grasplan fingers" in r.output
+        assert "Traceback" not in r.output
+    r = CliRunner().invoke(main, ["grasps", str(pin), "--units", "m", "--gripper", "long_stroke_50",
+                                  "-o", str(tmp_path / "long.json")])
+    assert r.exit_code == 0, r.output

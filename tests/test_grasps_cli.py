@@ -36,7 +36,9 @@ def test_cli_writes_issue_schema(box_json):
     assert doc["gripper"]["definition"]["body"] and "finger" in doc["gripper"]["definition"]
     assert doc["cell"]["part_pose"] == "stable_pose"
     assert doc["cell"]["name"] == "table"
-    assert doc["params"]["roll_step_deg"] == 30 and doc["params"]["max_opening"] == pytest.approx(0.05)
+    assert doc["params"]["roll_step_deg"] == 30 and doc["params"]["max_opening"] == pytest.approx(0.042)
+    assert doc["gripper"]["stroke"] == pytest.approx(0.012)  # jaws at 30-42 mm
+    assert all(0.030 - 1e-9 <= g["width"] <= 0.042 + 1e-9 for g in doc["grasps"])
     n = doc["counts"]
     assert n["poses"] == len(doc["grasps"]) == n["ok"] + n["collision_part"] + n["collision_table"]
     assert n["ok"] > 0
@@ -103,8 +105,9 @@ def test_part_pose_parsing(tmp_path):
 @pytest.mark.parametrize(
     "args, needle",
     [
-        (["--gripper", "nope"], "available: onrobot_rg2, onrobot_rg6, robotiq_2f_140, robotiq_2f_85, "
-                                "round_mesh_jaws, schunk_egp_25, schunk_egp_64, schunk_egp_c_40"),
+        (["--gripper", "nope"], "available: long_stroke_50, long_stroke_50_shallow, onrobot_rg2, onrobot_rg6, "
+                                "robotiq_2f_140, robotiq_2f_85, round_mesh_jaws, schunk_egp_25, schunk_egp_64, "
+                                "schunk_egp_c_40"),
         (["--cell", "nope"], "available: bin, table, wall"),
         (["--part-pose", "1,2"], "--part-pose"),
     ],
@@ -146,7 +149,7 @@ def test_candidate_search_follows_the_gripper_opening(tmp_path):
     from grasplan.part.mesh import part_from_trimesh
     from grasplan.config.params import DEFAULT_MAX_OPENING, CandidateParams
 
-    text = (GRIPPER_DIR / "schunk_egp_c_40.yaml").read_text()
+    text = (GRIPPER_DIR / "long_stroke_50.yaml").read_text()
     assert "max_opening: 0.05" in text
     wide = tmp_path / "wide.yaml"
     wide.write_text(text.replace("max_opening: 0.05", "max_opening: 0.08"))
@@ -177,7 +180,7 @@ def test_nothing_collision_free_is_exit_4_and_file_still_written(tmp_path, examp
     from grasplan.gripper.load import GRIPPER_DIR
 
     small = tmp_path / "small.yaml"
-    small.write_text((GRIPPER_DIR / "schunk_egp_c_40.yaml").read_text().replace("max_opening: 0.05",
+    small.write_text((GRIPPER_DIR / "long_stroke_50.yaml").read_text().replace("max_opening: 0.05",
                                                                                  "max_opening: 0.005"))
     out = tmp_path / "o.json"
     r = CliRunner().invoke(main, ["grasps", str(example_part("box.stl")), "--gripper", str(small), "-o", str(out)])

@@ -18,10 +18,9 @@ def _span(shape):
     return c.min(axis=0), c.max(axis=0)
 
 
-def test_default_gripper_matches_issue_geometry():
-    g = load_gripper()
-    assert g.name == "schunk_egp_c_40"
-    assert g.max_opening == pytest.approx(0.050)
+def _egp_c_40_shapes(g, openings):
+    """The EGP-C 40's boxes (60 x 40 x 95 mm housing, 8 x 16 x 40 mm jaws, TCP 127 mm from the
+    flange, fingertips 8 mm past the TCP) at each of ``openings``."""
     T = np.eye(4)
     T[2, 3] = 0.127
     np.testing.assert_allclose(g.T_flange_tcp, T, atol=1e-12)
@@ -29,7 +28,7 @@ def test_default_gripper_matches_issue_geometry():
     lo, hi = _span(g.body[0])
     np.testing.assert_allclose(lo, [-0.030, -0.020, -0.127], atol=1e-12)
     np.testing.assert_allclose(hi, [0.030, 0.020, -0.032], atol=1e-12)
-    for opening in (0.0, 0.013, 0.05):
+    for opening in openings:
         left, right = g.fingers(opening)
         llo, lhi = _span(left)
         rlo, rhi = _span(right)
@@ -42,10 +41,29 @@ def test_default_gripper_matches_issue_geometry():
     assert g.symmetric
 
 
+def test_default_gripper_is_the_egp_c_40_with_its_stroke():
+    """The default: the EGP-C 40 moving each jaw 6 mm, fingers for the demo bracket's 30-42 mm."""
+    g = load_gripper()
+    assert g.name == "schunk_egp_c_40"
+    assert (g.max_opening, g.stroke, g.min_opening) == pytest.approx((0.042, 0.012, 0.030))
+    assert g.grip_force == 140 and g.mass == pytest.approx(0.34)
+    _egp_c_40_shapes(g, (0.030, 0.036, 0.042))
+
+
+def test_long_stroke_50_is_the_papers_model_with_the_same_boxes():
+    """long_stroke_50: the EGP-C 40's boxes with jaws that close fully from 50 mm (Vogt et al.)."""
+    g = load_gripper("long_stroke_50")
+    assert g.max_opening == pytest.approx(0.050) and g.stroke is None and g.min_opening == 0.0
+    _egp_c_40_shapes(g, (0.0, 0.013, 0.05))
+    d = load_gripper()
+    for f in ("grip_force", "mass", "symmetric"):
+        assert getattr(g, f) == getattr(d, f), f
+
+
 def test_shallow_variant_is_the_same_hardware_grasping_nearer_the_fingertips():
-    """schunk_egp_c_40_shallow: every shape of schunk_egp_c_40 in the flange frame, the TCP (the
+    """long_stroke_50_shallow: every shape of long_stroke_50 in the flange frame, the TCP (the
     contacts) 4 mm further out, so the fingertips reach 4 mm past the contacts instead of 8 mm."""
-    deep, shallow = load_gripper("schunk_egp_c_40"), load_gripper("schunk_egp_c_40_shallow")
+    deep, shallow = load_gripper("long_stroke_50"), load_gripper("long_stroke_50_shallow")
     np.testing.assert_allclose(shallow.T_flange_tcp[2, 3] - deep.T_flange_tcp[2, 3], 0.004, atol=1e-12)
 
     def in_flange(g, shape):
@@ -77,7 +95,7 @@ def test_swept_jaws_are_union_of_end_placements():
 
 
 def test_pregrasp_and_close_openings():
-    g = load_gripper()
+    g = load_gripper("long_stroke_50")
     np.testing.assert_allclose(g.pregrasp_opening([0.01, 0.045, 0.05]), [0.02, 0.05, 0.05])
     np.testing.assert_allclose(g.close_to_opening([0.01, 0.0485, 0.05]), [0.012, 0.05, 0.05])
 
@@ -233,3 +251,24 @@ def test_a_new_kind_is_one_registration(tmp_path):
         assert back.to_json(definition=True) == replace(g, source="embedded").to_json(definition=True)
     finally:
         KINDS.pop("padded_jaw", None)
+
+
+def test_every_shipped_gripper_travels_within_its_datasheet_stroke():
+    """docs/grippers.md's table of shipped grippers lists each one; its opening column is the
+    loaded gripper's, and no jaws travel further (max_opening - min_opening) than the maker's
+    catalogued stroke in that table."""
+    from pathlib import Path
+
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "grippers.md").read_text()
+    rows = {}
+    for line in doc.split("## The shipped grippers", 1)[1].split("\n\n", 2)[1].splitlines()[2:]:
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        rows[cells[0].split()[0].strip("`")] = cells
+    assert set(rows) == set(available_grippers())
+    for name, cells in rows.items():
+        g = load_gripper(name)
+        lo, hi = (float(x) for x in cells[2].split(" - "))
+        assert (g.min_opening, g.max_opening) == pytest.approx((lo, hi), abs=1e-9), name
+        if cells[4].startswith("none"):
+            continue
+        assert g.max_opening - g.min_opening <= float(cells[4]) * 1e-3 + 1e-9, name

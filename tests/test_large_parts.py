@@ -184,7 +184,7 @@ def test_pose_count_capped_with_thinning(monkeypatch):
     v, f = soup(2000)
     part = part_from_arrays(v, f, units="m")
     monkeypatch.setattr(gg, "MAX_POSES", 4000)
-    res = compute_grasps(part, grasps=GraspParams(roll_step_deg=90))
+    res = compute_grasps(part, gripper="long_stroke_50", grasps=GraspParams(roll_step_deg=90))
     n = res.counts()
     assert n["candidates"] * 4 > 4000
     assert 0 < n["poses"] <= 4000

@@ -384,11 +384,11 @@ def test_pose_index_all_and_the_exit_4_hint(tmp_path):
     stl = tmp_path / "plate.stl"
     trimesh.creation.box(extents=[0.1, 0.06, 0.012]).export(stl)
     runner = CliRunner()
-    r = runner.invoke(main, ["plan", str(stl), "--units", "m", "--robot", "ur5", "--top", "2",
+    r = runner.invoke(main, ["plan", str(stl), "--units", "m", "--robot", "ur5", "--gripper", "long_stroke_50", "--top", "2",
                              "-o", str(tmp_path / "one.json")])
     assert r.exit_code == 4, r.output
     assert "other resting poses with collision-free grasps: 2 (5 %)" in r.output and "--pose-index all" in r.output
-    r = runner.invoke(main, ["plan", str(stl), "--units", "m", "--robot", "ur5", "--top", "2", "--pose-index", "all",
+    r = runner.invoke(main, ["plan", str(stl), "--units", "m", "--robot", "ur5", "--gripper", "long_stroke_50", "--top", "2", "--pose-index", "all",
                              "-o", str(tmp_path / "all.json")])
     assert r.exit_code == 0, r.output
     doc = json.loads((tmp_path / "all.json").read_text())

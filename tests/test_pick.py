@@ -32,7 +32,7 @@ BOX = ROOT / "examples" / "parts" / "box.stl"
 
 @pytest.fixture(scope="module")
 def picker():
-    pk = Picker("ur5", params=PickParams(grasps_per_instance=8))
+    pk = Picker("ur5", gripper="long_stroke_50", params=PickParams(grasps_per_instance=8))
     pk.add_part("bracket", load_part(BRACKET))
     pk.add_part("box", load_part(BOX))
     return pk
@@ -277,7 +277,7 @@ def test_broad_phase_agrees_with_every_pair(picker, rest):
 def test_pick_and_place_rechecked(rest):
     """--place: the lifted part is carried to the place on the table beside the bin, lowered,
     released; the whole motion re-checked (the neighbour still in the bin)."""
-    pk = Picker("ur5", params=PickParams(grasps_per_instance=8, place=tuple(map(tuple, at(rest, 0.0, 0.32, -0.01)))))
+    pk = Picker("ur5", gripper="long_stroke_50", params=PickParams(grasps_per_instance=8, place=tuple(map(tuple, at(rest, 0.0, 0.32, -0.01)))))
     pk.add_part("bracket", load_part(BRACKET))
     sc = scene(("a", "bracket", at(rest, -0.06)), ("b", "bracket", at(rest, 0.06)))
     res = pk.plan(sc, max_picks=1)
@@ -425,7 +425,7 @@ def test_warm_builds_what_the_first_plan_needs(rest, monkeypatch):
     import grasplan.piles.checks as pc
     from grasplan.cell.model import load_cell as _load_cell
 
-    pk = Picker("ur5", cell=_load_cell("bin"), params=PickParams(grasps_per_instance=8))
+    pk = Picker("ur5", gripper="long_stroke_50", cell=_load_cell("bin"), params=PickParams(grasps_per_instance=8))
     pk.add_part("bracket", load_part(BRACKET))
     pk.warm()
 
@@ -440,7 +440,7 @@ def test_warm_builds_what_the_first_plan_needs(rest, monkeypatch):
     res = pk.plan(scene(("a", "bracket", rest), ("b", "bracket", at(rest, dx))))
     assert res.picks
     # without a fixed cell (the scene names it) warm() still builds every part's voxel grid
-    free = Picker("ur5", params=PickParams(grasps_per_instance=8))
+    free = Picker("ur5", gripper="long_stroke_50", params=PickParams(grasps_per_instance=8))
     free.add_part("box", load_part(BOX))
     monkeypatch.undo()
     free.warm()

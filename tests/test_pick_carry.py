@@ -61,7 +61,7 @@ def pile():
 
 
 def _picker(box, **kw):
-    pk = Picker("ur5", params=PickParams(grasps_per_instance=8, **kw))
+    pk = Picker("ur5", gripper="long_stroke_50", params=PickParams(grasps_per_instance=8, **kw))
     pk.add_part("box", box)
     return pk
 

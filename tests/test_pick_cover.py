@@ -27,7 +27,7 @@ BRACKET = Path(__file__).resolve().parents[1] / "examples" / "parts" / "bracket.
 
 def test_covered_configurations_skip_only_free_pairs():
     rng = np.random.default_rng(31)
-    robot, gripper, cell = load_robot("ur5"), load_gripper("schunk_egp_c_40"), load_cell("bin")
+    robot, gripper, cell = load_robot("ur5"), load_gripper("long_stroke_50"), load_cell("bin")
     part = load_part(BRACKET)
     world = PickWorld(gripper, cell)
     g = world.add_part("bracket", part)

@@ -83,12 +83,12 @@ def _scene(rest, gap_axis: int, dz_b: float, overlap: float, mesh):
 @pytest.mark.parametrize("gap_axis", [0, 1])
 def test_sliding_up_beside_a_touching_neighbour_is_picked_and_rechecked(bracket, rest, gap_axis):
     # straight lifts only (a lift tilted away from b would leave it without touching)
-    strict = Picker("ur5", params=PickParams(grasps_per_instance=8, lift_depth=0.0, max_lift_tilt_deg=0.0))
+    strict = Picker("ur5", gripper="long_stroke_50", params=PickParams(grasps_per_instance=8, lift_depth=0.0, max_lift_tilt_deg=0.0))
     strict.add_part("bracket", bracket)
     sc = _scene(rest, gap_axis, 0.0, 0.0005, bracket.mesh)  # side by side, 0.5 mm of pose noise
     a = strict.plan(sc).report("a")
     assert a.status == "blocked" and a.blocked_by == ("b",), a      # the strict rule: dragged through b
-    tol = Picker("ur5", params=PickParams(grasps_per_instance=8, lift_depth=0.001, max_lift_tilt_deg=0.0))
+    tol = Picker("ur5", gripper="long_stroke_50", params=PickParams(grasps_per_instance=8, lift_depth=0.001, max_lift_tilt_deg=0.0))
     tol.add_part("bracket", bracket)
     res = tol.plan(sc)
     assert res.report("a").status == "picked", res.report("a")
@@ -105,7 +105,7 @@ def test_sliding_up_beside_a_touching_neighbour_is_picked_and_rechecked(bracket,
 
 def test_dragged_through_a_neighbour_deeper_than_the_tolerance_is_refused(bracket, rest):
     # lift_carry off: b lying on a would be raised (tests/test_pick_carry.py)
-    pk = Picker("ur5", params=PickParams(grasps_per_instance=8, lift_depth=0.001, lift_carry=False))
+    pk = Picker("ur5", gripper="long_stroke_50", params=PickParams(grasps_per_instance=8, lift_depth=0.001, lift_carry=False))
     pk.add_part("bracket", bracket)
     lo, hi = _world_extent(bracket.mesh, rest)
     # b lies across a's far half, resting on it (0.2 mm of pose noise): lifting a pushes into b
@@ -135,11 +135,11 @@ def leaning():
 def test_straight_lift_through_a_leaning_neighbour_is_replaced_by_a_tilted_one(leaning, tmp_path):
     box, sc = leaning
     # straight lifts only, none raising b (lift_carry: tests/test_pick_carry.py)
-    straight = Picker("ur5", params=PickParams(grasps_per_instance=8, max_lift_tilt_deg=0.0, lift_carry=False))
+    straight = Picker("ur5", gripper="long_stroke_50", params=PickParams(grasps_per_instance=8, max_lift_tilt_deg=0.0, lift_carry=False))
     straight.add_part("box", box)
     a = straight.plan(sc).report("a")
     assert a.status == "blocked" and a.blocked_by == ("b",) and "tilted" not in a.reason, a
-    pk = Picker("ur5", params=PickParams(grasps_per_instance=8))
+    pk = Picker("ur5", gripper="long_stroke_50", params=PickParams(grasps_per_instance=8))
     pk.add_part("box", box)
     res = pk.plan(sc)
     rep = res.report("a")
@@ -185,7 +185,7 @@ def test_a_neighbour_overlapping_at_rest_blocks_only_when_the_lift_goes_deeper(c
     rest = stable_pose(box.mesh, load_cell("bin"))
     lo, hi = _world_extent(box.mesh, rest)
     sc = Scene(instances=(Instance("a", "box", rest), Instance("b", "box", at(rest, (hi - lo)[0] - 0.0025))), cell="bin")
-    pk = Picker("ur5", params=PickParams(grasps_per_instance=8, max_lift_tilt_deg=0.0, overlap_tol=cap))
+    pk = Picker("ur5", gripper="long_stroke_50", params=PickParams(grasps_per_instance=8, max_lift_tilt_deg=0.0, overlap_tol=cap))
     pk.add_part("box", box)
     res = pk.plan(sc)
     a = res.report("a")

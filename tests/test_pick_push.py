@@ -136,14 +136,14 @@ def test_without_push_or_without_room_nothing_is_written_as_a_push(tmp_path):
 
 def test_a_weak_grasp_filter_names_its_code_and_planning_without_it_picks():
     cell = load_cell("bin")
-    picker = Picker("ur5", gripper="schunk_egp_c_40", cell=cell)
+    picker = Picker("ur5", gripper="long_stroke_50", cell=cell)
     picker.add_part("box", load_part(BOX))
     sc = Scene(instances=(Instance("box_0", "box", _near_wall(0.04)),), cell="bin",
                parts=(ScenePart("box", mesh=str(BOX)),))
     assert len(picker.plan(sc).picks) == 1
     from grasplan.pick.params import PickParams
 
-    strict = Picker("ur5", gripper="schunk_egp_c_40", cell=cell, params=PickParams(min_gravity_margin=100.0))
+    strict = Picker("ur5", gripper="long_stroke_50", cell=cell, params=PickParams(min_gravity_margin=100.0))
     strict.add_part("box", load_part(BOX))
     rep = strict.plan(sc).instances[0]
     assert rep.status == "no_grasp" and str(rep.code) == "grasps_weak", rep
@@ -161,7 +161,7 @@ def push_round():
     from grasplan.sim.pileworld import part_body
 
     cell = load_cell("bin")
-    gripper = load_gripper("schunk_egp_c_40")
+    gripper = load_gripper("long_stroke_50")
     part = load_part(BOX)
     body = part_body("box_0", part.mesh, density=1200.0, decomposition="hull")
     cw = ClutterWorld(cell, [body], gripper, mu=0.3)
@@ -172,7 +172,7 @@ def push_round():
                   parts=(ScenePart("box", mesh=str(BOX)),))
     picker = Picker("ur5", gripper=gripper, cell=cell, params=PickParams(min_gravity_margin=100.0))
     picker.add_part("box", part)
-    rr = clear_pile(cw, scene, {"box": part}, lambda s: picker.plan(s, max_picks=1, push=True),
+    rr = clear_pile(cw, scene, {"box": part}, lambda s, skip=(): picker.plan(s, max_picks=1, push=True, push_skip=skip),
                     clear_z=float(cell.bin.T_world_bin[2, 3]) + cell.bin.height, record=True)
     return rr, part, gripper, cell, gap0, wall_distance(cell.bin, cw.world.hull_world(0))
 

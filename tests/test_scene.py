@@ -27,7 +27,7 @@ def cellparts(example_part):
 
 @pytest.fixture(scope="module")
 def gripper():
-    return load_gripper()
+    return load_gripper("long_stroke_50")
 
 
 @pytest.fixture(scope="module", params=["ur5", "panda"])
@@ -113,7 +113,7 @@ def test_opening_moves_the_fingers(gripper):
 
 def test_self_collision_detected():
     r = load_robot("ur5")
-    scene = CollisionScene(r, load_gripper(), None, None, None)
+    scene = CollisionScene(r, load_gripper("long_stroke_50"), None, None, None)
     q = np.array([0.0, -1.0, 3.1, 0.0, 0.0, 0.0])  # forearm folded back onto the upper arm region
     kinds = {k for *_, k in scene.colliding_pairs(q, 0.05)}
     assert kinds == {"self"}

@@ -335,7 +335,7 @@ def test_page_data_matches_the_result(bracket_plan):
     ref = np.array([g["contacts"] for g in doc["grasps"]]) @ T[:3, :3].T + T[:3, 3]
     assert np.allclose(pairs[pair].reshape(n, 2, 3), ref, atol=1e-6)
     assert np.allclose(_dec(G["width"], "<f4")[pair], [g["width"] for g in doc["grasps"]], atol=1e-6)
-    assert np.allclose(_dec(G["opening"], "<f4")[pair], np.minimum(0.05, np.array([g["width"] for g in doc["grasps"]]) + 0.01), atol=1e-6)
+    assert np.allclose(_dec(G["opening"], "<f4")[pair], np.minimum(doc["gripper"]["max_opening"], np.array([g["width"] for g in doc["grasps"]]) + 0.01), atol=1e-6)
     # every (pair, status) has one marker
     ms, mp = _dec(G["marker_status"], "u1"), _dec(G["marker_pair"], "<u4")
     assert set(zip(ms.tolist(), mp.tolist())) == set(zip(_dec(G["status"], "u1").tolist(), pair.tolist()))

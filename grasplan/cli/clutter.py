@@ -12,7 +12,7 @@ from ..clutter.protocols import PROTOCOLS
 from ..clutter.session import MIN_GRAVITY_MARGIN, PICK_OPTIONS
 from ..sim.drop import DropParams
 from ..errors import InputError
-from ..config.params import DEFAULT_GRIPPER, DEFAULT_ROBOT
+from ..config.params import DEFAULT_ROBOT, PAPER_GRIPPER
 from ..pick.params import PickParams
 from .common import check_output, info, table, units_option, warn_all
 from .options import apply_config_dirs, config_dir_option, output_option, param_options
@@ -47,7 +47,7 @@ def _pct(x) -> str:
               help="When no pick is planned, plan a push of a part a wall or a neighbour boxes in, execute it and "
                    "plan again (grasplan pick --push; pushes are not grasp attempts: the report lists them apart).")
 @click.option("--robot", default=DEFAULT_ROBOT, show_default=True, help="Robot name or YAML path (the planner's).")
-@click.option("--gripper", default=DEFAULT_GRIPPER, show_default=True, help="Gripper name or YAML path.")
+@click.option("--gripper", default=PAPER_GRIPPER, show_default=True, help="Gripper name or YAML path.")
 @click.option("--view", "view", type=click.Path(dir_okay=False), default=None,
               help="Also write one HTML page replaying every round (the viewer's look; offline).")
 @param_options(DropParams)

@@ -7,18 +7,14 @@ from typing import Any
 
 import click
 
-from ..config.params import CandidateParams, GraspParams, PlanParams, RunParams
+from ..config.params import DEFAULT_GRIPPER, CandidateParams, GraspParams, PlanParams, RunParams
 from ..errors import PlanningError
 from .common import check_output, info, table, units_option, warn_all
 from .options import apply_config_dirs, config_dir_option, param_options
 
-#: the shipped short-stroke gripper ``fingers`` designs for unless told
-DEFAULT_FINGERS_GRIPPER = "schunk_egp_25"
-
-
 @click.command(name="fingers")
 @click.argument("part", type=click.Path(dir_okay=True))
-@click.option("--gripper", default=DEFAULT_FINGERS_GRIPPER, show_default=True,
+@click.option("--gripper", default=DEFAULT_GRIPPER, show_default=True,
               help="A short-stroke gripper (a 'stroke:' in its YAML): a name (see --config-dir) or a YAML path.")
 @click.option("--cell", default="table", show_default=True, help="Cell the part rests in (name or YAML path).")
 @click.option("--windows", type=click.IntRange(1, 50), default=6, show_default=True,

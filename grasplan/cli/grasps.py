@@ -81,5 +81,8 @@ def command(part: str, output: str, gripper: str, cell: str, part_pose: str | No
     click.echo(table(rows))
     click.echo(f"wrote {output}")
     if n[Status.OK.value] == 0:
+        from ..grasps.fingers import window_hint
+
         raise PlanningError(f"no collision-free grasp for {part} with gripper {g.name} in cell {c.name} "
-                            f"({n['candidates']} candidates, {n['poses']} poses); {output} lists every pose's status")
+                            f"({n['candidates']} candidates, {n['poses']} poses); {output} lists every pose's status"
+                            + window_hint(g, n["candidates"], n.get("posed_candidates", 0)))

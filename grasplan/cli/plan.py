@@ -95,7 +95,12 @@ def command(part: str, robot: str, output: str, gripper: str, cell: str, part_po
                             f"{no_transfer} place_no_path; e.g. {first}); move the place "
                             f"(--place or the cell's place) within reach; {output} lists every grasp's status and reason")
     if counts[Status.PLANNED.value] == 0:
-        hint = "" if T_world_part is not None else _other_poses_hint(p, g, c, prm, result)
+        from ..grasps.fingers import window_hint
+
+        stage = result.counts_stage
+        hint = window_hint(g, stage.get("candidates", 0), stage.get("posed_candidates", 0))
+        if not hint and T_world_part is None:
+            hint = _other_poses_hint(p, g, c, prm, result)
         raise PlanningError(f"no grasp could be planned for {part} with {robot_name}; "
                             f"{output} lists every grasp's status and reason{hint}")
 

@@ -12,7 +12,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from ..config.params import DEFAULT_GRIPPER, DEFAULT_ROBOT, GraspParams
+from ..config.params import DEFAULT_ROBOT, PAPER_GRIPPER, GraspParams
 from ..errors import InputError
 from ..pick.params import PickParams
 from ..sim.drop import DropParams
@@ -44,7 +44,7 @@ class ClutterOptions:
     pose_noise: tuple[float, float] = (0.0, 0.0)
     max_occlusion: float = 1.0
     robot: str = DEFAULT_ROBOT
-    gripper: str = DEFAULT_GRIPPER
+    gripper: str = PAPER_GRIPPER
     drop: DropParams = field(default_factory=DropParams)
     pick: dict[str, Any] = field(default_factory=dict)
     push: bool = False

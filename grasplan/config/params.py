@@ -24,12 +24,15 @@ import numpy as np
 from ..errors import InputError
 from .option_kinds import check_fields, is_option, option_name, option_spec, spec
 
-#: the default gripper, cell and robot (names looked up by grasplan.config.lookup)
+#: the default gripper, cell and robot (names looked up by grasplan.config.lookup): the SCHUNK
+#: Co-act EGP-C 40 with its 2 x 6 mm stroke and fingers for the demo bracket (30-42 mm)
 DEFAULT_GRIPPER = "schunk_egp_c_40"
 DEFAULT_CELL = "table"
 DEFAULT_ROBOT = "ur5"
-#: contact distance searched when no gripper says otherwise: the paper's Schunk Co-act EGP-C 40
-#: with fingers for a 50 mm opening
+#: the gripper as Vogt et al. 2021 modelled it (the EGP-C 40's boxes, jaws closing fully from 50 mm):
+#: the paper's figures, and mixed piles (grasplan clutter), whose parts no single short stroke holds
+PAPER_GRIPPER = "long_stroke_50"
+#: contact distance searched when no gripper says otherwise: PAPER_GRIPPER's 50 mm opening
 DEFAULT_MAX_OPENING = 0.05
 #: candidate methods: regions (sampled contact regions, the default) or the paper's face pairs
 METHODS = ("regions", "paper")
@@ -217,6 +220,9 @@ class GraspParams(MaterialOptions, OptionSet):
             object.__setattr__(self, "score_weights", cfg.weights)
             object.__setattr__(self, "score_refs", cfg.refs)
         check_weights(self.score_weights)
+        if not all(isinstance(p, (tuple, list)) and len(p) == 2 and isinstance(p[0], str) for p in self.score_refs):
+            raise InputError(f"score_refs: expected (name, value) pairs of {', '.join(REF_KEYS)}, "
+                             f"got {self.score_refs!r}")
         refs = dict(self.score_refs)
         if set(refs) - set(REF_KEYS) or not all(isinstance(v, (int, float)) and math.isfinite(v) and v > 0
                                                  for v in refs.values()) or refs.get("gravity_margin_ref", 2) <= 1:

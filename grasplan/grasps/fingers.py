@@ -73,7 +73,7 @@ def finger_windows(part: Part, gripper: Gripper, cell: Cell, *, poses: list[tupl
     if gripper.stroke is None:
         raise InputError(f"gripper {gripper.name!r} has no stroke (its jaws close fully from "
                          f"{gripper.max_opening * 1e3:g} mm): fingers are designed for a short-stroke gripper; "
-                         f"give one with a 'stroke:' in its YAML, e.g. --gripper schunk_egp_25 or schunk_egp_64")
+                         f"give one with a 'stroke:' in its YAML, e.g. --gripper schunk_egp_c_40, schunk_egp_25 or schunk_egp_64")
     stroke = float(gripper.stroke)
     step = float(step) if step else 0.5 * stroke
     reach = min(MAX_WIDTH, float(np.ptp(np.asarray(part.mesh.vertices), axis=0).max()) + 1e-3)
@@ -114,3 +114,15 @@ def gripper_yaml(source: Path, window: FingerWindow, *, name: str, note: str) ->
     desc = f"fingers for {window.min_opening * 1e3:.1f}-{window.max_opening * 1e3:.1f} mm widths"
     text = re.sub(r"^description:.*$", lambda m: f"description: {desc}", text, count=1, flags=re.MULTILINE)
     return f"# {note}\n" + text
+
+
+def window_hint(gripper: Gripper, candidates: int, posed: int) -> str:
+    """``"; ..."``: why a short-stroke gripper posed none of a part's ``candidates`` (each narrower
+    than its jaws close) and what would fit; "" when that is not the reason."""
+    if candidates <= 0 or posed > 0 or gripper.min_opening <= 0.0:
+        return ""
+    return (f"; all {candidates} contact pairs are narrower than {gripper.name}'s jaws close "
+            f"({gripper.min_opening * 1e3:.1f} mm; its fingers hold {gripper.min_opening * 1e3:.1f}-"
+            f"{gripper.max_opening * 1e3:.1f} mm): choose fingers for this part with `grasplan fingers PART "
+            f"--gripper {gripper.name} -o GRIPPER.yaml`, or a gripper whose jaws close further "
+            f"(e.g. --gripper long_stroke_50)")
