@@ -135,3 +135,38 @@ def test_hold_note_names_the_poses_that_hold():
     assert "pose 2" not in note
     assert done.hold_note(150.0) == ""  # the chosen pose holds
     assert done.hold_note(80.0) == ""  # no pose holds: nothing better to name
+
+
+def test_plan_min_gravity_margin_plans_the_unfiltered_order_of_the_holding_grasps(tmp_path):
+    """``min_gravity_margin``: the grasps tried are, in order, those of the plan without it whose
+    margin reaches the bar; every grasp left out is below it and says so; at a bar no grasp reaches
+    the command exits 4 saying how many were left out."""
+    from click.testing import CliRunner
+
+    from grasplan.cli import main
+    from grasplan.motion.planning import WEAK_REASON, plan
+    from grasplan.part.mesh import load_part
+
+    part = load_part(BRACKET, units="mm")
+    full = plan(part, "ur5", planning=PlanParams(top=100000, budget_s=None))
+    bar = 15.0
+    cut = plan(part, "ur5", planning=PlanParams(top=100000, budget_s=None, min_gravity_margin=bar))
+    gm, rank_full = full.grasps.gravity_margin, np.asarray(full.grasps.rank, dtype=float)
+    assert np.array_equal(cut.grasps.gravity_margin, gm, equal_nan=True)
+    ranked = np.flatnonzero(np.isfinite(rank_full) & (rank_full >= 0))
+    keep = ranked[gm[ranked] >= bar]
+    expect = keep[np.argsort(rank_full[keep])]
+    rank_cut = np.asarray(cut.grasps.rank, dtype=float)
+    got = np.flatnonzero(np.isfinite(rank_cut) & (rank_cut >= 0))
+    assert 0 < len(expect) < len(ranked)
+    assert np.array_equal(got[np.argsort(rank_cut[got])], expect)
+    reasons = np.asarray(cut.grasps.reason).astype(str)
+    left = np.setdiff1d(ranked, keep)
+    assert all(r.startswith(WEAK_REASON) for r in reasons[left])
+    assert (gm[left] < bar).all() and (gm[got] >= bar).all()
+    assert not np.char.startswith(reasons[got], WEAK_REASON).any()
+
+    r = CliRunner().invoke(main, ["plan", str(BRACKET), "--units", "mm", "--robot", "ur5", "--min-gravity-margin",
+                                  "100", "-o", str(tmp_path / "p.json")])
+    assert r.exit_code == 4, r.output
+    assert f"{len(ranked)} collision-free grasps predicted to slip were not tried (--min-gravity-margin 100" in r.output

@@ -98,7 +98,7 @@ def command(part: str, robot: str, output: str, gripper: str, cell: str, part_po
         from ..grasps.fingers import window_hint
 
         stage = result.counts_stage
-        hint = window_hint(g, stage.get("candidates", 0), stage.get("posed_candidates", 0))
+        hint = window_hint(g, stage.get("candidates", 0), stage.get("posed_candidates", 0)) + _weak_hint(result)
         if not hint and T_world_part is None:
             hint = _other_poses_hint(p, g, c, prm, result)
         raise PlanningError(f"no grasp could be planned for {part} with {robot_name}; "
@@ -154,6 +154,18 @@ def _holds_none(result: PlanResult) -> bool:
         return False
     gm = gm[free & np.isfinite(gm)]
     return bool(len(gm)) and float(gm.max()) < 1.0
+
+
+def _weak_hint(result: PlanResult) -> str:
+    """``"; N grasps ... left out"`` when ``--min-gravity-margin`` left collision-free grasps out."""
+    import numpy as np
+
+    from ..motion.planning import WEAK_REASON
+
+    n = int(np.char.startswith(np.asarray(result.grasps.reason).astype(str), WEAK_REASON).sum())
+    m = result.params.planning.min_gravity_margin
+    return (f"; {n} collision-free grasps predicted to slip were not tried (--min-gravity-margin {m:g}; "
+            f"lower it, or see their hold_force_N)" if n else "")
 
 
 def _holding_poses_hint(p: Part, g: Gripper, c: Cell, prm: RunParams, result: PlanResult) -> str:

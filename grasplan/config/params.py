@@ -255,6 +255,10 @@ class PlanParams(OptionSet):
                                                                 "Re-score the grasps with these weights before "
                                                                 "ranking; None: the grasp stage's score "
                                                                 "(GraspParams.score_weights, the scoring YAML).")
+    min_gravity_margin: float = spec(0.0, "float", "Plan only grasps whose gravity margin is at least this (1: those "
+                                     "predicted to hold the part's weight and the shared load at the gripper's "
+                                     "force and the part's density; 0: off); the others stay not_tried, the reason "
+                                     "saying so. docs/quality.md.", lo=0.0, hi=100.0)
     simulate: int = spec(0, "int", "After planning, simulate the top N planned grasps (MuJoCo lift and shake, "
                          "grasplan simulate) and rank those that held first; 0 = off.", lo=0, hi=1000)
     grasp_db: str = spec(GRASP_DB_CACHE, "choice", "Where the grasp stage comes from: 'cache' places the part's "

@@ -57,6 +57,8 @@ SCHEMA = "grasplan.plan/1"
 
 #: the reason of an ``ok`` grasp the planner did not try
 NOT_TRIED_REASON = "not tried: beyond the top K or the planning budget"
+#: the reason of the ``ok`` grasps ``min_gravity_margin`` leaves out (the value follows, then ")")
+WEAK_REASON = "not tried: predicted to slip (gravity margin below --min-gravity-margin"
 #: the reason of each grasp-stage rejection (when the grasp stage recorded none of its own)
 STAGE_REJECTION_REASONS = {
     Status.COLLISION_PART: "grasp stage: the gripper hits the part at the grasp or while closing",
@@ -132,9 +134,10 @@ def plan_grasps(grasps: PlacedGrasps, robot: Robot, scene: CollisionScene, *, pa
     width = np.asarray(tab.width, dtype=np.float64)
     ids = tab.ids
     scores, order = _ranking(grasps, status_in, T_part_tcp, width, params)
+    status, reason = _stage_statuses(grasps, status_in)
+    order = _margin_filter(tab.gravity_margin, order, params.min_gravity_margin, reason)
     rank = np.full(len(status_in), -1, dtype=np.int64)
     rank[order] = np.arange(len(order))
-    status, reason = _stage_statuses(grasps, status_in)
     motions: dict[int, Motion] = {}
     ctx = _setting(grasps, robot, scene, params, timing)
     gripper = grasps.gripper
@@ -185,6 +188,17 @@ def _ranking(grasps: PlacedGrasps, status_in: np.ndarray, T_part_tcp: np.ndarray
     order, _ = distinct_order(T_part_tcp, order, min_distance=params.distinct_distance,
                               min_angle_deg=params.distinct_angle_deg)
     return scores, order
+
+
+def _margin_filter(margin: np.ndarray | None, order: np.ndarray, min_margin: float, reason: np.ndarray) -> np.ndarray:
+    """``order`` without the grasps whose gravity margin is below ``min_margin`` (0: off; no
+    quality: none left out), their ``reason`` saying why they stay ``not_tried``."""
+    if min_margin <= 0.0 or margin is None or not len(order):
+        return order
+    gm = np.asarray(margin, dtype=np.float64)[order]
+    weak = ~(gm >= min_margin)  # NaN (no quality) counts as weak
+    reason[order[weak]] = f"{WEAK_REASON} {min_margin:g})"
+    return order[~weak]
 
 
 def _stage_statuses(grasps: PlacedGrasps, status_in: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
