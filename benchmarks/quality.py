@@ -54,13 +54,11 @@ PAPER_PARTS = ["IPAGearShaft.stl", "IPARingScrew.stl", "SileaneBunny.obj", "Sile
 
 def run_part(path: Path, args, gr, density: float) -> dict:
     """Quality, score, ranking and the two simulated batches of one part at ``density``."""
-    from dataclasses import replace
-
     from grasplan.grasps.quality import quality_and_score
 
     part = gr.cand.part
     mu = float(CandidateParams.default("mu"))
-    gp = replace(gr.params, density=density)
+    gp = gr.params.with_material(density=density)
     t = time.perf_counter()
     q, mp, score_all, _ = quality_and_score(part.mesh, gr.gripper, gr.T_world_part, gr.frames.T_part_tcp,
                                          gr.frames.candidate, gr.cand.candidates, gr.status, mu, gp)
@@ -179,8 +177,6 @@ def args_top(rows) -> int:
 
 def calibrate_part(path: Path, args, density: float) -> dict:
     """``--calibrate`` for one part at ``density``: the spread grasps' predictions and simulations."""
-    from dataclasses import replace
-
     from grasplan.grasps.quality import quality_and_score
 
     part = load_part(path)
@@ -189,7 +185,7 @@ def calibrate_part(path: Path, args, density: float) -> dict:
     mu = float(CandidateParams.default("mu"))
     q, mp, score_all, _ = quality_and_score(part.mesh, gr.gripper, gr.T_world_part, gr.frames.T_part_tcp,
                                             gr.frames.candidate, gr.cand.candidates, gr.status, mu,
-                                            replace(gr.params, density=density))
+                                            gr.params.with_material(density=density))
     ok = np.flatnonzero(np.asarray(gr.status) == "ok")
     row: dict = {"part": path.name, "density": density, "ok": len(ok), "kg": mp.mass if mp is not None else np.nan}
     if len(ok) == 0:
