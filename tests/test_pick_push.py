@@ -56,8 +56,31 @@ def pushed(tmp_path_factory):
     T = _near_wall(0.025)
     out = tmp / "p.json"
     r = CliRunner().invoke(main, ["pick", str(_scene_file(tmp, T)), "--push", "--min-gravity-margin", "100",
-                                  "-o", str(out)])
+                                  "--gripper", "long_stroke_50", "-o", str(out)])
     return r, out, T
+
+
+def test_a_part_that_would_pass_between_the_closed_jaws_is_not_pushed(tmp_path):
+    """The default EGP-C 40's jaws close to 30 mm: the box (at most 30 mm across the push, centred
+    between the fingers) would pass between them, so no push is planned and push_tried says why;
+    the same check passes for jaws that close fully."""
+    from grasplan.pick.push import Candidate, passes_between_jaws
+
+    T = _near_wall(0.025)
+    out = tmp_path / "p.json"
+    r = CliRunner().invoke(main, ["pick", str(_scene_file(tmp_path, T)), "--push", "--min-gravity-margin", "100",
+                                  "-o", str(out)])
+    assert r.exit_code == 4, r.output
+    doc = json.loads(out.read_text())
+    assert "push" not in doc or doc["push"] is None
+    assert any("would pass between the closed jaws (30.0 mm apart)" in t for t in doc["push_tried"]), doc["push_tried"]
+    hull = np.asarray(load_part(BOX).mesh.vertices)
+    c = Candidate(Instance("b", "box", T), "bin_wall_+x", 0.025, np.array([-1.0, 0.0, 0.0]))
+    com = hull.mean(axis=0)
+    across = hull @ T[:3, :3].T @ np.array([0.0, 1.0, 0.0])  # the box's extent across the push (world y)
+    half = 0.5 * float(np.ptp(across))
+    assert passes_between_jaws(c, hull, com, 0.030) and not passes_between_jaws(c, hull, com, 0.0)
+    assert passes_between_jaws(c, hull, com, 2 * half - 0.003) != passes_between_jaws(c, hull, com, 2 * half - 0.005)
 
 
 def test_which_reports_a_push_may_help():

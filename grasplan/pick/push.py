@@ -284,10 +284,30 @@ def plan_push(robot: Robot, gripper: Gripper, st: CellState, instances: list[Ins
     return out
 
 
+#: a push needs the part to reach this far (m) past a closed finger's inner face, across the push
+MIN_BITE = 0.002
+
+
+def passes_between_jaws(c: Candidate, hull: np.ndarray, com: np.ndarray, opening: float) -> bool:
+    """Whether the part of candidate ``c`` (convex hull ``hull`` (h, 3) and centre of mass ``com``,
+    part frame) would pass between jaws closed to ``opening`` (a short-stroke gripper's fingers
+    stay ``min_opening`` apart): :func:`push_poses` centres the fingers on the centre of mass across
+    the push, so the part's upper half (where the fingertips reach) must extend :data:`MIN_BITE`
+    past a finger's inner face on at least one side."""
+    T_wp = np.asarray(c.inst.T_world_part, dtype=np.float64)
+    hull_w = hull @ T_wp[:3, :3].T + T_wp[:3, 3]
+    e = np.cross([0.0, 0.0, 1.0], c.direction)
+    mid = 0.5 * (float(hull_w[:, 2].max()) + float(hull_w[:, 2].min()))
+    s = (hull_w[hull_w[:, 2] >= mid - 1e-9] - (T_wp[:3, :3] @ com + T_wp[:3, 3])) @ e
+    return bool(s.max() < 0.5 * opening + MIN_BITE and -s.min() < 0.5 * opening + MIN_BITE)
+
+
 def _plan_one(robot: Robot, gripper: Gripper, st: CellState, c: Candidate, ctx_of: Any, opening: float,
               T_tcp_flange: np.ndarray, seed: int, max_ik_solutions: int, max_dev: float) -> Push | str:
     g = st.world.parts[c.inst.part]
     com = np.asarray(part_centre_of_mass(g.part.mesh), dtype=np.float64)
+    if passes_between_jaws(c, g.hull, com, opening):
+        return f"it would pass between the closed jaws ({opening * 1e3:.1f} mm apart)"
     bodies_others = st.world.bodies(c.inst.id)
     bodies_all = [st.world.instances[c.inst.id], *bodies_others]
     why, poses = "", None
