@@ -237,7 +237,7 @@ def calibrate(paths: list[Path], args) -> None:
             rows.append(row)
             print(f"  {row['part']} {row['density']:g}: {row}", flush=True)
     hdr = ("| part | kg/m^3 | kg | ok | spread | predicted hold | simulated hold | agreement | Spearman(hold_force, "
-           "simulated) | censored | top-20 predicted to hold: held | gm / simulated limit, median | s |")
+           "simulated) | censored | top-20 predicted to hold: held | simulated / predicted force, median | s |")
     print("\n" + hdr + "\n" + "|---" * 13 + "|")
     for r in rows:
         if not r["ok"]:
