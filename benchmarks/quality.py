@@ -14,6 +14,7 @@ the quality step's cost, and per part whether any grasp can hold it at all (grav
     .venv/bin/python benchmarks/quality.py [--parts DIR] [--top 20] [--density 7850 1200]
                                            [--decomposition coacd|hull] [--only NAME ...] [--threshold] [--dump DIR]
     .venv/bin/python benchmarks/quality.py --calibrate [--spread 50] [--jobs 2] [--only NAME ...]
+    .venv/bin/python benchmarks/quality.py --over-poses --only TLess20.stl --density 7850
 
 ``--calibrate``: the prediction against the simulation, per part and density. The ``--spread``
 grasps are spread evenly over the score order of the collision-free grasps; each is simulated at
@@ -252,6 +253,40 @@ def calibrate(paths: list[Path], args) -> None:
           f"{sum(r['top_pred_held'] >= min(r['top_pred'], 19) for r in done)}/{len(done)}")
 
 
+def top_over_poses(path: Path, args, density: float) -> None:
+    """``--over-poses``: the top ``--top`` grasps predicted to hold over every resting pose of
+    probability >= 2 % (each pose's holdable grasps in plan order, merged by score), each simulated
+    in its pose; prints how many held."""
+    from grasplan.motion.planning import stable_pose_indices
+
+    part = load_part(path)
+    mu = float(CandidateParams.default("mu"))
+    pool = []  # (score, pose, T_world_part, T_part_tcp, width, area, mass props, gripper, table z, margin)
+    for k, prob in stable_pose_indices(part.mesh):
+        gr = compute_grasps(part, gripper=PAPER_GRIPPER, cell="table", grasps=GraspParams(pose_index=k, density=density))
+        ok = np.flatnonzero(np.asarray(gr.status).astype(str) == "ok")
+        if not len(ok) or gr.quality is None:
+            continue
+        hold = np.flatnonzero(gr.quality.gravity_margin >= 1.0)
+        score = np.asarray(gr.score, dtype=np.float64)[ok]
+        order, _ = distinct_order(gr.frames.T_part_tcp[ok], hold[np.lexsort((hold, -score[hold]))])
+        print(f"  pose {k} ({100 * prob:.1f} %): {len(ok)} ok, {len(hold)} predicted to hold", flush=True)
+        for i in order[:args.top]:
+            r = ok[i]
+            pool.append((float(score[i]), k, gr.T_world_part, gr.frames.T_part_tcp[r],
+                         float(gr.cand.candidates.width[gr.frames.candidate[r]]), gr.quality.contact_area[i],
+                         gr.mass_props, gr.gripper, gr.cell.table_z, float(gr.quality.gravity_margin[i])))
+    pool.sort(key=lambda t: (-t[0], t[1]))
+    top = pool[:args.top]
+    held = [bool(simulate_grasps(part.mesh, g, Twp, T[None], np.array([w]), table_z=tz, mass_props=mp, mu=mu,
+                                 decomposition=args.decomposition, contact_area=a[None]).success[0])
+            for _, _, Twp, T, w, a, mp, g, tz, _ in top]
+    poses = sorted({t[1] for t in top})
+    print(f"{path.name} at {density:g} kg/m^3: {sum(held)} of the top {len(top)} grasps predicted to hold (over "
+          f"poses {poses}; margins {min(t[9] for t in top):.2f}-{max(t[9] for t in top):.2f}) held in the simulation"
+          if top else f"{path.name} at {density:g} kg/m^3: no grasp predicted to hold in any pose")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--parts", type=Path, default=PAPER)
@@ -270,6 +305,8 @@ def main() -> None:
                     help="the prediction against the simulation on --spread grasps per part (see above)")
     ap.add_argument("--spread", type=int, default=50, help="--calibrate: grasps spread over the score order")
     ap.add_argument("--jobs", type=int, default=2, help="--calibrate: parts simulated in this many processes")
+    ap.add_argument("--over-poses", action="store_true",
+                    help="the top --top grasps predicted to hold over every resting pose, simulated: how many held")
     args = ap.parse_args()
     paths = [args.parts / p for p in PAPER_PARTS if (args.parts / p).exists()]
     paths += sorted((ROOT / "examples" / "parts").glob("*.stl"))
@@ -279,6 +316,11 @@ def main() -> None:
         print(f"(paper parts not found in {args.parts}; examples only)")
     if args.calibrate:
         calibrate(paths, args)
+        return
+    if args.over_poses:
+        for p in paths:
+            for d in args.density:
+                top_over_poses(p, args, d)
         return
     rows: dict[float, list] = {d: [] for d in args.density}
     for p in paths:
