@@ -3,6 +3,10 @@ gripper shape and of a cell obstacle. The gripper filter (:mod:`grasplan.grasps.
 (:mod:`grasplan.motion.collision_scene`) both build theirs here."""
 from __future__ import annotations
 
+import hashlib
+import threading
+from collections import OrderedDict
+
 import coal
 import numpy as np
 
@@ -36,6 +40,36 @@ def bvh(vertices: np.ndarray, faces: np.ndarray) -> coal.BVHModelOBBRSS:
     m.addTriangles(f)
     m.endModel()
     return m
+
+
+#: triangles of the part BVHs :func:`shared_bvh` keeps for reuse (least recently used dropped first)
+SHARED_BVH_TRIANGLES = 400_000
+_SHARED: OrderedDict[bytes, tuple[coal.BVHModelOBBRSS, int]] = OrderedDict()
+_SHARED_LOCK = threading.Lock()
+
+
+def shared_bvh(vertices: np.ndarray, faces: np.ndarray) -> coal.BVHModelOBBRSS:
+    """:func:`bvh` of a part mesh, built once per content and shared (read-only: coal's queries do
+    not change it) by every scene and filter of the process; a warm plan or pick builds none. The
+    kept BVHs hold at most :data:`SHARED_BVH_TRIANGLES` triangles in all (a larger mesh is built
+    and not kept)."""
+    v = np.ascontiguousarray(vertices, dtype=np.float64)
+    f = np.ascontiguousarray(faces, dtype=np.int64)
+    h = hashlib.blake2b(v.tobytes(), digest_size=20)
+    h.update(f.tobytes())
+    key = h.digest() + np.asarray(v.shape + f.shape, dtype=np.int64).tobytes()
+    with _SHARED_LOCK:
+        hit = _SHARED.get(key)
+        if hit is not None:
+            _SHARED.move_to_end(key)
+            return hit[0]
+    model = bvh(v, f)
+    if len(f) <= SHARED_BVH_TRIANGLES:
+        with _SHARED_LOCK:
+            _SHARED[key] = (model, len(f))
+            while sum(n for _, n in _SHARED.values()) > SHARED_BVH_TRIANGLES:
+                _SHARED.popitem(last=False)
+    return model
 
 
 def convex_geometry(points: np.ndarray) -> coal.ConvexBase:

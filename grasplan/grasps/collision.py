@@ -18,7 +18,7 @@ import numpy as np
 
 from ..cell.model import Cell
 from ..geometry.containment import RayGrid, inside_box, obb_aabb_separated, points_inside_tree, surface_samples
-from ..cell.shapes import bvh, obstacle_geometry
+from ..cell.shapes import obstacle_geometry, shared_bvh
 from ..gripper.model import Gripper
 from ..geometry.meshdata import TriangleMesh, convex_hull
 from ..status import Status
@@ -112,9 +112,9 @@ class GripperCollider:
 
     @property
     def part_bvh(self) -> coal.BVHModelOBBRSS:
-        """coal OBBRSS hierarchy of the part's triangles (built on first use)."""
+        """coal OBBRSS hierarchy of the part's triangles (:func:`~grasplan.cell.shapes.shared_bvh`, on first use)."""
         if self._bvh is None:
-            self._bvh = bvh(self.part_mesh.vertices, self.part_mesh.faces)
+            self._bvh = shared_bvh(self.part_mesh.vertices, self.part_mesh.faces)
         return self._bvh
 
     @property

@@ -22,7 +22,7 @@ import pinocchio as pin
 
 from ..cell.model import Cell
 from ..errors import InputError
-from ..cell.shapes import TABLE_SIZE, bvh, obstacle_geometry, shape_geometry, table_pose
+from ..cell.shapes import TABLE_SIZE, obstacle_geometry, shape_geometry, shared_bvh, table_pose
 from ..gripper.model import Gripper
 from ..geometry.interpolation import STEP, check_order, interpolate_path
 from ..geometry.meshdata import TriangleMesh
@@ -123,7 +123,7 @@ class _SceneModel:
                 self.body[gid] = f"obstacle:{o.name}"
         self.has_part = part_mesh is not None
         if part_mesh is not None:
-            part_bvh = bvh(np.asarray(part_mesh.vertices), np.asarray(part_mesh.faces))
+            part_bvh = shared_bvh(np.asarray(part_mesh.vertices), np.asarray(part_mesh.faces))
             gid = gm.addGeometryObject(pin.GeometryObject(PART, 0, 0, pin.SE3.Identity(), part_bvh))
             self.env_ids[PART] = gid
             self.body[gid] = PART
