@@ -236,3 +236,48 @@ def test_the_replay_page_plays_a_push(tmp_path, push_round):
     assert a["kind"] == "push" and a["outcome"] == "moved" and a["samples"] > 10
     dom = run_chromium(page, tmp_path, "--dump-dom", fragment="#pick=0:0").stdout
     assert "round 1, push 1: box_0 (box)" in dom
+
+
+def test_a_push_keeps_the_part_in_the_cells_workspace(tmp_path):
+    """The box by the +x wall, pushed along -x: with a workspace whose -x edge lies 25 mm beyond
+    the box's centre of mass the push is shortened so that the centre of mass ends on the edge;
+    with the edge 5 mm beyond it no push is planned and push_tried names the workspace."""
+    from dataclasses import replace
+
+    from grasplan.cell.regions import Workspace
+    from grasplan.pick.params import PickParams
+
+    T = _near_wall(0.025)
+    part = load_part(BOX)
+    com = T[:3, :3] @ np.asarray(part.mesh.vertices).mean(axis=0) + T[:3, 3]
+    scene = Scene(instances=(Instance("box_0", "box", T),), cell="bin", parts=(ScenePart("box", mesh=str(BOX)),))
+    for edge, pushed in ((0.025, True), (0.005, False)):
+        cell = replace(load_cell("bin"), workspace=Workspace((com[0] - edge, -1.0), (1.0, 1.0)))
+        picker = Picker("ur5", gripper="long_stroke_50", cell=cell, params=PickParams(min_gravity_margin=100.0))
+        picker.add_part("box", part)
+        res = picker.plan(scene, max_picks=1, push=True)
+        doc = json.loads(res.to_json_text())
+        if pushed:
+            push = doc["push"]
+            assert push is not None, doc.get("push_tried")
+            travel = push["distance_m"] - TIP_GAP  # the fingers start TIP_GAP behind the part
+            assert travel == pytest.approx(edge, abs=1e-6)
+            assert cell.workspace.contains(com + travel * np.array([-1.0, 0.0, 0.0]))
+        else:
+            assert doc.get("push") is None
+            assert any("the workspace's edge is within" in t for t in doc["push_tried"]), doc["push_tried"]
+
+
+def test_the_clutter_workspace_is_the_bins_inner_floor():
+    """``pile``'s planner cell: no bin, and a workspace that holds a point exactly when the
+    clutter rule (``in_workspace``, in the bin frame) counts it in."""
+    from grasplan.clutter.protocols import PROTOCOLS, in_workspace
+
+    cell = load_cell("bin")
+    pc = PROTOCOLS["pile"].planner_cell(cell)
+    assert pc.bin is None and pc.workspace is not None and PROTOCOLS["bin"].planner_cell(cell).workspace is None
+    b = cell.bin
+    pts = np.random.default_rng(0).uniform([0.2, -0.2, 0.05], [0.7, 0.2, 0.06], (2000, 3))
+    assert [pc.workspace.contains(p) for p in pts] == [in_workspace(b, p) for p in pts]
+    again = type(pc).from_json(json.loads(json.dumps(pc.to_json())))
+    assert again.workspace == pc.workspace and again == pc

@@ -34,6 +34,7 @@ from ..config.poses import parse_pose
 from ..errors import ConfigError
 from ..geometry.transforms import MAX_CELL_COORD_M, check_transform
 from ..part.config_mesh import read_config_mesh
+from .regions import DEFAULT_RETREAT_DIRECTION, DEFAULT_RETREAT_DISTANCE, Workspace, retreat_from
 
 CELL_DIR = packaged_file("configs", "cells")  # the packaged cells
 #: longest cell name (characters)
@@ -52,8 +53,6 @@ MAX_OBSTACLE_SIZE_M = 10.0
 BIN_NAMES = ("bin_floor", "bin_wall_+x", "bin_wall_-x", "bin_wall_+y", "bin_wall_-y")
 OBSTACLE_KINDS = ("box", "cylinder", "sphere", "mesh")
 _NAME_RE = re.compile(r"^[A-Za-z0-9_+\-.]{1,64}$")
-DEFAULT_RETREAT_DIRECTION = (0.0, 0.0, 1.0)
-DEFAULT_RETREAT_DISTANCE = 0.10
 
 
 def _readonly(a: Any) -> np.ndarray:
@@ -249,11 +248,12 @@ class Cell:
     retreat_direction: tuple[float, float, float] = DEFAULT_RETREAT_DIRECTION
     retreat_distance: float = DEFAULT_RETREAT_DISTANCE
     place: np.ndarray | None = field(default=None)
+    workspace: Workspace | None = None
 
     def _key(self) -> tuple:
         return (self.name, self.table_z, self.part_xy, self.pose_index, self.obstacles, self.bin,
                 self.retreat_direction, self.retreat_distance,
-                None if self.place is None else np.asarray(self.place).tobytes())
+                None if self.place is None else np.asarray(self.place).tobytes(), self.workspace)
 
     def __eq__(self, other: object) -> bool:
         return isinstance(other, Cell) and self._key() == other._key()
@@ -287,7 +287,7 @@ class Cell:
             "retreat": {"direction": [float(x) for x in self.retreat_direction],
                         "distance": float(self.retreat_distance)},
             "place": None if self.place is None else {"T_world_part": np.asarray(self.place).tolist()},
-        }
+        } | ({} if self.workspace is None else {"workspace": self.workspace.to_json()})
 
     @classmethod
     def from_json(cls, d: dict) -> Cell:
@@ -305,7 +305,8 @@ class Cell:
             raise ConfigError(f"{where}.table: expected a mapping with 'z', got {str(table)[:60]}")
         if table.get("type", "half_space") != "half_space" or not _is_up(table.get("normal", [0.0, 0.0, 1.0])):
             raise ConfigError(f"{where}.table: only a half-space table with normal [0, 0, 1] is supported")
-        allowed = {"name", "up", "table", "part_xy", "pose_index", "source", "obstacles", "bin", "retreat", "place"}
+        allowed = {"name", "up", "table", "part_xy", "pose_index", "source", "obstacles", "bin", "retreat", "place",
+                   "workspace"}
         unknown = set(d) - allowed
         if unknown:
             raise ConfigError(f"{where}: unknown fields {sorted(unknown)[:5]}; the file was not written by grasplan "
@@ -324,15 +325,16 @@ class Cell:
         _check_unique([o.name for o in obstacles], f"{where}.obstacles", reserved=())
         b = d.get("bin")
         bin_ = None if b is None else _bin_from_json(b, f"{where}.bin")
-        direction, distance = _retreat(d.get("retreat", {}), f"{where}.retreat")
+        direction, distance = retreat_from(d.get("retreat", {}), f"{where}.retreat")
         place = d.get("place")
         if place is not None:
             if not isinstance(place, dict) or set(place) != {"T_world_part"}:
                 raise ConfigError(f"{where}.place: expected {{T_world_part: 4x4}} or null")
             place = _readonly(check_transform(place["T_world_part"], f"{where}.place.T_world_part", error=ConfigError))
+        ws = None if d.get("workspace") is None else Workspace.from_config(d["workspace"], f"{where}.workspace")
         return Cell(name=c.name, table_z=c.table_z, part_xy=c.part_xy, pose_index=c.pose_index, source=c.source,
                     obstacles=obstacles, bin=bin_, retreat_direction=direction, retreat_distance=distance,
-                    place=place)
+                    place=place, workspace=ws)
 
 
 def _is_up(v: Any) -> bool:
@@ -496,23 +498,6 @@ def _bin_from_json(b: Any, where: str) -> BinSpec:
     return _bin_fields(b["inner"], b["wall"], b["height"], T, where)
 
 
-def _retreat(r: Any, where: str) -> tuple[tuple[float, float, float], float]:
-    if not isinstance(r, dict):
-        raise ConfigError(f"{where}: expected {{direction: [x, y, z], distance: m}}, got {str(r)[:60]!r}")
-    unknown = set(r) - {"direction", "distance"}
-    if unknown:
-        raise ConfigError(f"{where}: unknown keys {sorted(map(str, unknown))}; valid: ['direction', 'distance']")
-    d = config_vector(r.get("direction", list(DEFAULT_RETREAT_DIRECTION)), f"{where}.direction")
-    n = float(np.linalg.norm(d))
-    if not n > 1e-9:
-        raise ConfigError(f"{where}.direction: must not be zero (a world direction, e.g. [0, 0, 1] = straight up)")
-    dist = config_number(r.get("distance", DEFAULT_RETREAT_DISTANCE), f"{where}.distance", nonneg=True, max_abs=2.0)
-    if not 0.0 <= dist <= 2.0:
-        raise ConfigError(f"{where}.distance: expected 0..2 m, got {dist}")
-    u = d / n
-    return (float(u[0]), float(u[1]), float(u[2])), float(dist)
-
-
 def _place_yaml(p: Any, where: str) -> np.ndarray:
     if not isinstance(p, dict) or set(p) != {"T"}:
         raise ConfigError(f"{where}: expected {{T: {{xyz: [x, y, z], rpy_deg: [r, p, y]}}}} (the part's pose "
@@ -524,7 +509,8 @@ def cell_from_dict(data: Any, *, name: str, source: str = "", base: Path | None 
     """Validate a parsed cell YAML (``base``: the folder mesh paths are relative to)."""
     if not isinstance(data, dict):
         raise ConfigError(f"{source}: a cell file must be a YAML mapping")
-    allowed = {"name", "table_z", "part_xy", "pose_index", "description", "obstacles", "bin", "retreat", "place"}
+    allowed = {"name", "table_z", "part_xy", "pose_index", "description", "obstacles", "bin", "retreat", "place",
+               "workspace"}
     unknown = set(data) - allowed
     if unknown:
         raise ConfigError(f"{source}: unknown cell fields {sorted(map(str, unknown))}; allowed: {sorted(allowed)}")
@@ -562,11 +548,12 @@ def cell_from_dict(data: Any, *, name: str, source: str = "", base: Path | None 
     _check_unique([o.name for o in obstacles], "obstacles", reserved=BIN_NAMES if bin_ is not None else ())
     if bin_ is not None:
         obstacles = list(bin_.obstacles()) + obstacles
-    direction, distance = _retreat(data.get("retreat", {}) or {}, "retreat")
+    direction, distance = retreat_from(data.get("retreat", {}) or {}, "retreat")
     place = _place_yaml(data["place"], "place") if data.get("place") is not None else None
+    ws = Workspace.from_config(data["workspace"], "workspace") if data.get("workspace") is not None else None
     return Cell(name=cname, table_z=table_z, part_xy=part_xy, pose_index=pi, source=source,
                 obstacles=tuple(obstacles), bin=bin_, retreat_direction=direction, retreat_distance=distance,
-                place=place)
+                place=place, workspace=ws)
 
 
 #: the name of the cell that is nothing but the part: ``--cell none``

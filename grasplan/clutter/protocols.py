@@ -20,6 +20,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..cell.model import BIN_NAMES, BinSpec, Cell
+from ..cell.regions import Workspace
 from ..errors import InputError
 from ..piles.scene_file import Instance, Scene
 from ..sim.drop import (REST_ANG, REST_HOLD_S, REST_LIN, WALL_CLEARANCE, DropParams, PileItem, check_fit,
@@ -54,11 +55,13 @@ class Protocol:
 
     def planner_cell(self, cell: Cell) -> Cell:
         """The cell the planner sees: ``cell`` itself with the bin; otherwise without the bin's
-        five boxes (the parts lie on the table)."""
-        _bin(cell)
+        five boxes (the parts lie on the table) and with the workspace (:func:`workspace_of`) as
+        its ``workspace``, which pushes keep the parts in."""
+        b = _bin(cell)
         if self.walls:
             return cell
-        return replace(cell, bin=None, obstacles=tuple(o for o in cell.obstacles if o.name not in BIN_NAMES))
+        return replace(cell, bin=None, obstacles=tuple(o for o in cell.obstacles if o.name not in BIN_NAMES),
+                       workspace=workspace_of(b))
 
     def floor_z(self, cell: Cell) -> float:
         """World height (m) of what the parts lie on while picking: the bin floor's top, else the table."""
@@ -97,6 +100,16 @@ def _bin(cell: Cell) -> BinSpec:
     if cell.bin is None:
         raise InputError(f"cell {cell.name!r} has no bin; clutter rounds need one (e.g. --cell bin; docs/cells.md)")
     return cell.bin
+
+
+def workspace_of(b: BinSpec) -> Workspace:
+    """The workspace as a cell's :class:`~grasplan.cell.regions.Workspace`: the world x, y box
+    around the bin's inner floor (exact for a bin not turned about z, as the shipped one)."""
+    hx, hy = 0.5 * b.inner[0], 0.5 * b.inner[1]
+    corners = np.array([[sx * hx, sy * hy, 0.0] for sx in (-1, 1) for sy in (-1, 1)])
+    w = corners @ np.asarray(b.T_world_bin, dtype=np.float64)[:3, :3].T + np.asarray(b.T_world_bin)[:3, 3]
+    lo, hi = w[:, :2].min(axis=0), w[:, :2].max(axis=0)
+    return Workspace((float(lo[0]), float(lo[1])), (float(hi[0]), float(hi[1])))
 
 
 def in_workspace(b: BinSpec, com_world: np.ndarray, floor_z: float | None = None) -> bool:

@@ -9,6 +9,7 @@ first push planned wins (a :class:`Push`); none: None. Deterministic for the pla
 """
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -16,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..cell.model import BIN_NAMES
+from ..cell.regions import Workspace
 from ..motion.grasp_motion import line_path, transit_path
 from ..part.stability import part_centre_of_mass
 from ..piles.scene_file import Instance
@@ -302,6 +304,19 @@ def passes_between_jaws(c: Candidate, hull: np.ndarray, com: np.ndarray, opening
     return bool(s.max() < 0.5 * opening + MIN_BITE and -s.min() < 0.5 * opening + MIN_BITE)
 
 
+def workspace_travel(ws: Workspace | None, c: Candidate, com: np.ndarray) -> float:
+    """The TCP travel (m) of a push of candidate ``c`` that keeps its part's centre of mass (``com``,
+    part frame) in the cell's workspace (the part moves :data:`TIP_GAP` less than the TCP);
+    ``inf`` without a workspace."""
+    if ws is None:
+        return math.inf
+    T_wp = np.asarray(c.inst.T_world_part, dtype=np.float64)
+    com_w = T_wp[:3, :3] @ com + T_wp[:3, 3]
+    if not ws.contains(com_w):
+        return 0.0
+    return ws.travel_inside(com_w, c.direction) + TIP_GAP
+
+
 def _plan_one(robot: Robot, gripper: Gripper, st: CellState, c: Candidate, ctx_of: Any, opening: float,
               T_tcp_flange: np.ndarray, seed: int, max_ik_solutions: int, max_dev: float) -> Push | str:
     g = st.world.parts[c.inst.part]
@@ -310,6 +325,7 @@ def _plan_one(robot: Robot, gripper: Gripper, st: CellState, c: Candidate, ctx_o
         return f"it would pass between the closed jaws ({opening * 1e3:.1f} mm apart)"
     bodies_others = st.world.bodies(c.inst.id)
     bodies_all = [st.world.instances[c.inst.id], *bodies_others]
+    inside = workspace_travel(st.cell.workspace, c, com)
     why, poses = "", None
     for tilt in TILTS_DEG:
         for depth in DEPTHS:
@@ -318,6 +334,11 @@ def _plan_one(robot: Robot, gripper: Gripper, st: CellState, c: Candidate, ctx_o
             if room < MIN_PUSH:
                 why = f"another part is within {MIN_PUSH * 1e3:g} mm along the push"
                 continue
+            if inside < room:  # the part's centre of mass stays in the cell's workspace
+                room = inside
+                if room < MIN_PUSH:
+                    why = f"the workspace's edge is within {MIN_PUSH * 1e3:g} mm along the push"
+                    continue
             if room < poses.distance:  # pushed only as far as the part has room
                 T_end, T_ret = poses.T_end.copy(), poses.T_retreat.copy()
                 T_end[:3, 3] -= c.direction * (poses.distance - room)
