@@ -19,9 +19,10 @@ the quality step's cost, and per part whether any grasp can hold it at all (grav
 ``--calibrate``: the prediction against the simulation, per part and density. The ``--spread``
 grasps are spread evenly over the score order of the collision-free grasps; each is simulated at
 the gripper's force (held or not) and its simulated holding force is bisected around the
-predicted one (``grasplan.sim.hold_force``: 7 steps, 4.4 %, within 16x either way). Printed: agreement (``gravity_margin >= 1`` == held at the nominal force),
-Spearman between the predicted ``hold_force_N`` (grip_force / gravity_margin) and the simulated
-holding force, how many of the spread grasps are censored (outside 32x), and of the top 20 in plan
+predicted one (``grasplan.sim.hold_force``: 7 steps, 4.4 %, within 16x either way). Printed:
+agreement (``gravity_margin >= 1`` == held at the nominal force), Spearman between the predicted
+``hold_force_N`` (grip_force / gravity_margin) and the simulated holding force, how many of the
+spread grasps are censored (beyond 16x), and of the top 20 in plan
 order those predicted to hold and how many of them held. Targets: agreement >= 95 %,
 Spearman >= 0.9 per part, >= 19 of 20 predicted holds held. The example parts are held out (the
 pad model was fitted on the paper parts).
