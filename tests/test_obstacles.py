@@ -45,6 +45,11 @@ def test_issue_example_parses_and_round_trips(tmp_path):
     assert names == list(BIN_NAMES) + ["wall", "post", "ball", "fixture"]
     assert c.retreat_direction == (0.0, 0.0, 1.0) and c.retreat_distance == 0.08
     assert np.allclose(c.place[:3, 3], [0.45, 0.3, 0.0])
+    assert c.workspace is None and "workspace" not in c.to_json()  # written only when set
+    ws = cell_from_dict({**data, "workspace": {"min": [0.3, -0.1], "max": [0.6, 0.1]}}, name="demo",
+                        source=str(tmp_path / "demo.yaml"), base=tmp_path)
+    assert ws.workspace.to_json() == {"min": [0.3, -0.1], "max": [0.6, 0.1]} and ws != c
+    assert Cell.from_json(json.loads(json.dumps(ws.to_json()))) == ws
     # the bin: the part rests on the floor's top at its centre; walls from the floor up
     assert c.rest_z == 0.0 and c.part_xy == (0.45, 0.0)
     lo, hi = c.obstacle("bin_wall_+x").aabb()
@@ -103,6 +108,10 @@ BAD = [
     ({"retreat": {"distance": -0.1}}, "retreat.distance"),
     ({"retreat": {"speed": 1}}, "retreat: unknown keys ['speed']"),
     ({"place": {"xyz": [0, 0, 0]}}, "place: expected {T: {xyz"),
+    ({"workspace": {"min": [0.3, -0.1]}}, "workspace: expected {min: [x, y], max: [x, y]}"),
+    ({"workspace": {"min": [0.3], "max": [0.6, 0.1]}}, "workspace.min: expected [x, y] in metres"),
+    ({"workspace": {"min": [0.6, -0.1], "max": [0.3, 0.1]}}, "must be below max"),
+    ({"workspace": {"min": [0.3, "a"], "max": [0.6, 0.1]}}, "workspace.min[1]"),
     ({"shelves": []}, "unknown cell fields ['shelves']; allowed:"),
 ]
 
