@@ -281,3 +281,33 @@ def test_the_clutter_workspace_is_the_bins_inner_floor():
     assert [pc.workspace.contains(p) for p in pts] == [in_workspace(b, p) for p in pts]
     again = type(pc).from_json(json.loads(json.dumps(pc.to_json())))
     assert again.workspace == pc.workspace and again == pc
+    # a bin turned 30 deg about z: the workspace turns with it
+    from dataclasses import replace
+
+    from grasplan.cell.model import cell_from_dict
+
+    yawed = cell_from_dict({"bin": {"inner": [0.30, 0.20], "wall": 0.01, "height": 0.15,
+                                    "T": {"xyz": [0.45, 0.0, 0.01], "rpy_deg": [0, 0, 30]}}}, name="yawed")
+    ws = PROTOCOLS["packed"].planner_cell(yawed).workspace
+    assert ws.yaw_deg == pytest.approx(30.0)
+    assert [ws.contains(p) for p in pts] == [in_workspace(yawed.bin, p) for p in pts]
+    assert type(pc).from_json(json.loads(json.dumps(replace(pc, workspace=ws).to_json()))).workspace == ws
+
+
+def test_a_workspace_travel_ends_on_its_edge():
+    """``Workspace.travel_inside``: from points inside, along random horizontal directions, the
+    point moved by the travel is inside and 0.1 mm further it is not (``contains``, the other
+    method, as the judge); a turned rectangle too."""
+    from grasplan.cell.regions import Workspace
+
+    rng = np.random.default_rng(1)
+    for ws in (Workspace((0.3, -0.1), (0.6, 0.1)), Workspace((0.3, -0.1), (0.6, 0.1), 25.0)):
+        c = 0.5 * (np.array(ws.lo) + np.array(ws.hi))
+        for _ in range(200):
+            p = c + rng.uniform(-0.08, 0.08, 2)
+            if not ws.contains(p):
+                continue
+            a = rng.uniform(0, 2 * np.pi)
+            d = np.array([np.cos(a), np.sin(a)])
+            t = ws.travel_inside(p, d)
+            assert ws.contains(p + t * d) and not ws.contains(p + (t + 1e-4) * d)

@@ -103,13 +103,12 @@ def _bin(cell: Cell) -> BinSpec:
 
 
 def workspace_of(b: BinSpec) -> Workspace:
-    """The workspace as a cell's :class:`~grasplan.cell.regions.Workspace`: the world x, y box
-    around the bin's inner floor (exact for a bin not turned about z, as the shipped one)."""
+    """The workspace as a cell's :class:`~grasplan.cell.regions.Workspace`: the bin's inner floor
+    (its centre, size and yaw)."""
+    T = np.asarray(b.T_world_bin, dtype=np.float64)
     hx, hy = 0.5 * b.inner[0], 0.5 * b.inner[1]
-    corners = np.array([[sx * hx, sy * hy, 0.0] for sx in (-1, 1) for sy in (-1, 1)])
-    w = corners @ np.asarray(b.T_world_bin, dtype=np.float64)[:3, :3].T + np.asarray(b.T_world_bin)[:3, 3]
-    lo, hi = w[:, :2].min(axis=0), w[:, :2].max(axis=0)
-    return Workspace((float(lo[0]), float(lo[1])), (float(hi[0]), float(hi[1])))
+    cx, cy = float(T[0, 3]), float(T[1, 3])
+    return Workspace((cx - hx, cy - hy), (cx + hx, cy + hy), math.degrees(math.atan2(T[1, 0], T[0, 0])))
 
 
 def in_workspace(b: BinSpec, com_world: np.ndarray, floor_z: float | None = None) -> bool:
