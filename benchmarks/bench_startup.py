@@ -10,13 +10,15 @@ load hits all alike), medians over ``--runs`` whole processes (wall and CPU seco
 - ``grasplan --help``, ``grasplan plan --help``, ``grasplan pick --help``: wall seconds, and the
   heavy libraries imported;
 - ``grasplan plan examples/parts/bracket.stl -o OUT``: wall seconds, and its imports: the sum of
-  the self times ``python -X importtime`` reports (slightly inflated by the tracing itself);
+  the self times ``python -X importtime`` reports (slightly inflated by the tracing itself); the
+  same plan again with ``GRASPLAN_AOT=0`` (numba's JIT loading its cache instead of the install's
+  ahead-of-time kernels, :mod:`grasplan.compiled.aot`);
 - ``grasplan export OUT --format csv``: wall seconds of a command that only reads a plan.
 
 The processes run with bytecode caching on (``PYTHONPYCACHEPREFIX``: a temporary folder, when
 ``PYTHONDONTWRITEBYTECODE`` is set here), as an installed package runs; one unmeasured run of each
 command first fills it. The numba kernels must be in numba's cache already (``make install``
-compiles them; otherwise the first plan run compiles them, unmeasured).
+compiles them and the ahead-of-time module; otherwise the first plan run compiles them, unmeasured).
 """
 from __future__ import annotations
 
@@ -78,17 +80,23 @@ def bench_startup(runs: int = 5, trees: tuple[Path, ...] = (ROOT,)) -> list[tupl
     plan_file = os.path.join(out_dir, "bracket.json")
     cases = {"--help": ["--help"], "plan --help": ["plan", "--help"], "pick --help": ["pick", "--help"],
              "plan bracket": ["plan", str(BRACKET), "-o", plan_file],
+             "plan bracket, numba JIT": ["plan", str(BRACKET), "-o", plan_file],
              "export bracket csv": ["export", plan_file, "--format", "csv", "-o", os.path.join(out_dir, "b.csv")]}
     samples: dict[tuple[str, str], list[tuple[float, float, float, str]]] = {}
+    jit_env = {**env, "GRASPLAN_AOT": "0"}
+
+    def env_of(what: str) -> dict[str, str]:
+        return jit_env if "numba JIT" in what else env
+
     for tree in trees:  # unmeasured: fills the bytecode cache (and numba's, if it was cold)
-        for argv in cases.values():
-            _run(tree, argv, env)
+        for what, argv in cases.items():
+            _run(tree, argv, env_of(what))
     floor = []
     for _ in range(runs):
         floor.append(_pass(env))
         for tree in trees:
             for what, argv in cases.items():
-                samples.setdefault((str(tree), what), []).append(_run(tree, argv, env))
+                samples.setdefault((str(tree), what), []).append(_run(tree, argv, env_of(what)))
                 if what == "plan bracket":
                     samples.setdefault((str(tree), "plan bracket imports"), []).append(
                         _run(tree, argv, env, importtime=True))
@@ -104,7 +112,11 @@ def bench_startup(runs: int = 5, trees: tuple[Path, ...] = (ROOT,)) -> list[tupl
     sys.path.insert(0, str(ROOT))
     from grasplan.cli.common import table
 
-    print(f"\nstart-up: medians of {runs} whole processes (bracket: examples/parts/bracket.stl, UR5, table)")
+    from grasplan.compiled import aot
+
+    aot.load()
+    print(f"\nstart-up: medians of {runs} whole processes (bracket: examples/parts/bracket.stl, UR5, table); "
+          f"kernels: {aot.status()}")
     def f(x: float) -> str:
         return f"{x:.3f}" if x == x else ""
 

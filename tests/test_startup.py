@@ -118,25 +118,39 @@ def test_warm_up_lists_the_cached_kernels():
 
 @pytest.mark.slow
 def test_after_the_warm_up_plan_and_pick_compile_nothing(tmp_path):
-    """A cold numba cache: the warm-up compiles (saying so once), then ``grasplan plan`` and
-    ``grasplan pick`` of the examples load every kernel from the cache and print no compile line."""
-    from grasplan.robot.ik.ur_batch import COMPILE_MESSAGE
+    """A cold numba cache: the warm-up compiles (saying so once) and builds the ahead-of-time
+    module; then ``grasplan plan`` of an example imports no numba at all and writes the same
+    document as numba's JIT (``GRASPLAN_AOT=0``), and ``grasplan pick`` compiles nothing."""
+    from grasplan.compiled.jit import COMPILE_MESSAGE
 
-    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba"), "GRASPLAN_CACHE_DIR": str(tmp_path / "cache")}
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba"), "GRASPLAN_CACHE_DIR": str(tmp_path / "cache"),
+           "GRASPLAN_KERNELS_DIR": str(tmp_path / "kernels")}
     warm = subprocess.run([sys.executable, "-m", "grasplan.cli.warmup"], cwd=tmp_path, env=env, capture_output=True,
                           text=True, timeout=1200)
     assert warm.returncode == 0, warm.stderr
     assert warm.stderr.count(COMPILE_MESSAGE) == 1, warm.stderr
     assert "kernels cached" in warm.stderr and " 0 compiled" not in warm.stderr, warm.stderr
+    assert "compiled ahead of time" in warm.stderr and (tmp_path / "kernels" / "manifest.json").is_file(), warm.stderr
     assert any((tmp_path / "numba").rglob("*.nbi"))
     assert not (tmp_path / "cache").exists()  # the box's grasp database is not kept
-    for args in (["plan", str(ROOT / "examples" / "parts" / "bracket.stl"), "-o", str(tmp_path / "p.json")],
-                 ["pick", str(ROOT / "examples" / "scenes" / "pile.json"), "-o", str(tmp_path / "k.json")]):
-        r = subprocess.run([sys.executable, "-c", "import sys\nfrom grasplan.cli import main\n"
-                            "main(sys.argv[1:], prog_name='grasplan')", *args],
-                           cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
+    child = ("import sys\nfrom grasplan.cli import main\ntry:\n    main(sys.argv[1:], prog_name='grasplan')\n"
+             "finally:\n    print('NUMBA', 'numba' in sys.modules, file=sys.stderr)")
+    bracket = str(ROOT / "examples" / "parts" / "bracket.stl")
+    docs = {}
+    for name, extra, args in (("aot", {}, ["plan", bracket, "-o", str(tmp_path / "aot.json")]),
+                              ("jit", {"GRASPLAN_AOT": "0"}, ["plan", bracket, "-o", str(tmp_path / "jit.json")]),
+                              ("pick", {}, ["pick", str(ROOT / "examples" / "scenes" / "pile.json"),
+                                            "-o", str(tmp_path / "k.json")])):
+        r = subprocess.run([sys.executable, "-c", child, *args], cwd=tmp_path, env={**env, **extra},
+                           capture_output=True, text=True, timeout=600)
         assert r.returncode == 0, r.stderr
-        assert COMPILE_MESSAGE not in r.stderr, (args[0], r.stderr)
+        assert COMPILE_MESSAGE not in r.stderr, (name, r.stderr)
+        if name != "pick":
+            assert ("NUMBA False" in r.stderr) == (name == "aot"), (name, r.stderr)
+            doc = json.loads((tmp_path / f"{name}.json").read_text())
+            doc.pop("timing_s")
+            docs[name] = doc
+    assert docs["aot"] == docs["jit"] and docs["aot"]["grasps"]
 
 
 def test_numba_gets_a_cache_folder_when_its_own_places_are_read_only(tmp_path, monkeypatch):
@@ -147,15 +161,15 @@ def test_numba_gets_a_cache_folder_when_its_own_places_are_read_only(tmp_path, m
 
     import numba
 
-    from grasplan.robot.ik import ur_batch
+    from grasplan.compiled import jit
 
     monkeypatch.setattr(numba.config, "CACHE_DIR", "")
     monkeypatch.setattr(tempfile, "gettempdir", lambda: str(tmp_path))
-    assert ur_batch.ensure_cache_dir(writable=lambda folder: True) is None  # numba's own places do
-    folder = ur_batch.ensure_cache_dir(writable=lambda folder: False)
+    assert jit.ensure_cache_dir(writable=lambda folder: True) is None  # numba's own places do
+    folder = jit.ensure_cache_dir(writable=lambda folder: False)
     assert folder is not None and folder.parent == tmp_path and folder.name.startswith("grasplan-numba-")
     assert numba.config.CACHE_DIR == str(folder)
-    assert ur_batch.ensure_cache_dir(writable=lambda folder: False) is None  # set once: numba uses it
+    assert jit.ensure_cache_dir(writable=lambda folder: False) is None  # set once: numba uses it
 
     @numba.njit(cache=True)
     def twice(x):

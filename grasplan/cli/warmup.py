@@ -1,12 +1,14 @@
-"""``python -m grasplan.cli.warmup``: compile grasplan's numba kernels into numba's on-disk cache
-once (``make install`` runs it), so the first ``grasplan plan`` or ``pick`` loads them instead.
+"""``python -m grasplan.cli.warmup``: compile grasplan's kernels once (``make install`` runs it), so
+the first ``grasplan plan`` or ``pick`` loads machine code instead of compiling.
 
-The kernels (``cache=True``: :mod:`grasplan.robot.ik.ur_batch`, :mod:`grasplan.motion.pathboxes`,
-:mod:`grasplan.pick.gripboxes`) are compiled for the argument types real runs pass by running
-real work on a small box: a plan with the UR5 on the table and a pick from two boxes in the bin.
-numba keeps the cache in ``__pycache__`` next to each module, or in ``$NUMBA_CACHE_DIR``, or
-under the user's cache folder when the package folder is read-only. Always exits 0: when the
-cache cannot be built it prints one line and the first run compiles instead."""
+The kernels (:mod:`grasplan.compiled`: :mod:`grasplan.robot.ik.ur_batch`, :mod:`grasplan.motion.pathboxes`,
+:mod:`grasplan.pick.gripboxes` and others) are compiled by numba for the argument types real runs
+pass, by running real work on a small box: a plan with the UR5 on the table and a pick from two
+boxes in the bin. numba keeps them in its cache (``__pycache__`` next to each module, or
+``$NUMBA_CACHE_DIR``, or under the user's cache folder when the package folder is read-only). Then
+the same signatures are compiled ahead of time into one extension module
+(:mod:`grasplan.compiled.aot`, in ``<cache>/kernels``), which a run loads without importing numba.
+Always exits 0: when a step fails it prints one line and the first run compiles instead."""
 from __future__ import annotations
 
 import os
@@ -17,7 +19,7 @@ from collections.abc import Iterator
 from types import ModuleType
 from typing import Any
 
-#: the modules holding ``cache=True`` kernels (the warm-up checks every kernel of every module it loaded)
+#: the modules holding kernels (the warm-up checks every kernel of every module it loaded)
 KERNEL_MODULES = ("grasplan.robot.ik.ur_batch", "grasplan.grasps.collision_boxes", "grasplan.grasps.quality_kernels",
                   "grasplan.grasps.ranking",
                   "grasplan.motion.pathboxes", "grasplan.pick.gripboxes")
@@ -26,19 +28,17 @@ BOX_HALF = (0.02, 0.015, 0.01)
 
 
 def kernels(modules: tuple[str, ...] | None = None) -> Iterator[tuple[str, Any]]:
-    """``(module.name, dispatcher)`` of every numba kernel with ``cache=True`` defined in ``modules``
-    (imported here; None: every grasplan module imported so far)."""
+    """``(module.name, kernel)`` of every :class:`~grasplan.compiled.jit.Kernel` defined in
+    ``modules`` (imported here; None: every grasplan module imported so far)."""
     import importlib
 
-    from numba.core.dispatcher import Dispatcher
+    from ..compiled.jit import Kernel
 
     names = modules if modules is not None else sorted(m for m in sys.modules if m.split(".")[0] == "grasplan")
     for name in names:
         mod: ModuleType = importlib.import_module(name)
         for attr, value in sorted(vars(mod).items()):
-            cache = getattr(value, "_cache", None)  # numba's NullCache unless cache=True
-            if isinstance(value, Dispatcher) and cache is not None and type(cache).__name__ != "NullCache" \
-                    and value.py_func.__module__ == name:  # defined here, not imported from another module
+            if isinstance(value, Kernel) and value.py_func.__module__ == name:  # defined here, not imported
                 yield f"{name}.{attr}", value
 
 
@@ -74,10 +74,13 @@ def run_kernels() -> None:
 
 
 def warm_up() -> str:
-    """Compile (or load) every kernel through :func:`run_kernels` with grasplan's own cache moved to
-    a temporary folder (the box's grasp database is not kept); the one line to print."""
+    """Compile (or load) every kernel through :func:`run_kernels` with numba (grasplan's own cache
+    moved to a temporary folder: the box's grasp database is not kept), then build the
+    ahead-of-time module from the signatures numba compiled; the lines to print."""
     from ..cache import CACHE_ENV
+    from ..compiled.jit import prefer_jit
 
+    prefer_jit()  # every kernel through numba: its signatures are what the ahead-of-time build compiles
     t0 = time.perf_counter()
     old = os.environ.get(CACHE_ENV)
     with tempfile.TemporaryDirectory(prefix="grasplan-warmup-") as tmp:
@@ -89,7 +92,25 @@ def warm_up() -> str:
                 os.environ.pop(CACHE_ENV, None)
             else:
                 os.environ[CACHE_ENV] = old
-    return _summary(list(kernels()), time.perf_counter() - t0)
+    found = list(kernels(KERNEL_MODULES))
+    line = _summary([(name, k.jit()) for name, k in found if k._jit is not None], time.perf_counter() - t0)
+    return line + "\n" + build_ahead_of_time(found)
+
+
+def build_ahead_of_time(found: list[tuple[str, Any]]) -> str:
+    """Build :mod:`grasplan.compiled.aot`'s module from the signatures numba compiled for ``found``
+    (``(name, kernel)``); the line to print (a failure too: numba then serves every run)."""
+    from ..compiled import aot
+
+    t0 = time.perf_counter()
+    try:
+        n, variants, path = aot.build((k.name, k.py_func, k._jit.nopython_signatures)
+                                      for _, k in found if k._jit is not None)
+    except Exception as exc:  # a missing C compiler or linker: runs use numba's cache instead
+        return (f"grasplan: kernels not compiled ahead of time ({type(exc).__name__}: "
+                f"{' '.join(str(exc).split())[:200]}); runs load them through numba")
+    return (f"grasplan: {n} kernels ({variants} signatures) compiled ahead of time in "
+            f"{time.perf_counter() - t0:.1f} s: {path}")
 
 
 def _summary(found: list[tuple[str, Any]], seconds: float) -> str:

@@ -11,16 +11,14 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-import numba
 import numpy as np
 
+from ..compiled.jit import kernel
 from ..geometry.containment import RayGrid, points_inside
-from ..robot.ik.ur_batch import announce_compiling
 
 if TYPE_CHECKING:
     from ..geometry.meshdata import TriangleMesh
 
-announce_compiling()  # one line on stderr when these kernels compile (a cold cache)
 
 #: the gap (m) a box and the part must have along an axis to be apart, and the depth (m) a
 #: triangle point must have inside a box to prove a hit, without coal
@@ -74,7 +72,7 @@ class PartBoxes:
                          self.count)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(cache=True, nogil=True)
 def _build(tri: np.ndarray, leaf: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
                                                 np.ndarray]:  # pragma: no cover
     """Median split along the longest axis of the triangles' centroids: ``(triangle order, node lo,
@@ -136,7 +134,7 @@ def _build(tri: np.ndarray, leaf: int) -> tuple[np.ndarray, np.ndarray, np.ndarr
     return order, lo[:n].copy(), hi[:n].copy(), child[:n].copy(), start[:n].copy(), count[:n].copy()
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@kernel(cache=True, nogil=True, inline="always")
 def _sep_axis(p: np.ndarray, a0: float, a1: float, a2: float, h: np.ndarray, tol: float) -> bool:  # pragma: no cover
     """The triangle ``p`` (3, 3) (box frame) and the box of half extents ``h`` at the origin are
     more than ``tol`` apart along the axis ``a`` (not normalised; a zero-ish axis never separates)."""
@@ -152,7 +150,7 @@ def _sep_axis(p: np.ndarray, a0: float, a1: float, a2: float, h: np.ndarray, tol
     return mn > r or mx < -r
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(cache=True, nogil=True)
 def _tri_apart(p: np.ndarray, h: np.ndarray, tol: float) -> bool:  # pragma: no cover
     """Separating-axis test of the triangle ``p`` (3, 3) in the box's frame and the box (13 axes)."""
     for i in range(3):  # the box's faces
@@ -181,7 +179,7 @@ def _tri_apart(p: np.ndarray, h: np.ndarray, tol: float) -> bool:  # pragma: no 
     return False
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(cache=True, nogil=True)
 def _tri_deep(p: np.ndarray, h: np.ndarray, tol: float, poly: np.ndarray, tmp: np.ndarray,
               s: np.ndarray) -> bool:  # pragma: no cover
     """A point of the triangle ``p`` (3, 3) (box frame) inside the box shrunk by ``tol``: a corner,
@@ -230,7 +228,7 @@ def _tri_deep(p: np.ndarray, h: np.ndarray, tol: float, poly: np.ndarray, tmp: n
     return True
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(cache=True, nogil=True)
 def _classify(R: np.ndarray, c: np.ndarray, h: np.ndarray, prove_hit: bool, tol: float, tri: np.ndarray,
               tc: np.ndarray, th: np.ndarray, nc: np.ndarray, nh: np.ndarray, child: np.ndarray, start: np.ndarray,
               count: np.ndarray) -> np.ndarray:  # pragma: no cover
@@ -312,7 +310,7 @@ def prefilter(T_part_box: np.ndarray, half: np.ndarray, center: np.ndarray, exte
                       np.ascontiguousarray(center, dtype=np.float64), np.ascontiguousarray(extent, dtype=np.float64))
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(cache=True, nogil=True)
 def _prefilter(T: np.ndarray, h: np.ndarray, a: np.ndarray, e: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover
     K = T.shape[0]
@@ -369,7 +367,7 @@ def points_inside_compiled(grid: RayGrid, mesh: TriangleMesh, points: np.ndarray
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(cache=True, nogil=True)
 def _crossings(pts: np.ndarray, tri: np.ndarray, xmax: np.ndarray, lo: np.ndarray, cell: np.ndarray, G: int,
                tris: np.ndarray, start: np.ndarray, scale: float) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover
     """``(wind, tie)`` per point (rotated by the grid's ``Q``), as

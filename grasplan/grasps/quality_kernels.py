@@ -9,15 +9,12 @@ install by :mod:`grasplan.cli.warmup`).
 """
 from __future__ import annotations
 
-import numba
 import numpy as np
 
-from ..robot.ik.ur_batch import announce_compiling
-
-announce_compiling()
+from ..compiled.jit import kernel
 
 
-@numba.njit(cache=True)
+@kernel(cache=True)
 def _clip(P: np.ndarray, m: int, col: int, bound: float, sgn: float, out: np.ndarray) -> int:
     """Clip the polygon of the first ``m`` rows of ``P`` (rows: vertices, in order) to
     ``sgn * (P[:, col] - bound) <= 0`` into ``out`` (every column interpolated, Sutherland-Hodgman);
@@ -39,7 +36,7 @@ def _clip(P: np.ndarray, m: int, col: int, bound: float, sgn: float, out: np.nda
     return k
 
 
-@numba.njit(cache=True)
+@kernel(cache=True)
 def accumulate_pairs(poly: np.ndarray, n: np.ndarray, w: np.ndarray, flat: np.ndarray, src: np.ndarray,
                      g: np.ndarray, o: np.ndarray, R: np.ndarray, rect: np.ndarray, mom: np.ndarray, jaw: int) -> None:
     """Add the pad moments of ``K`` (polygon, grasp) pairs to ``mom`` (M, 2, 2, 6) in place.
@@ -103,7 +100,7 @@ def accumulate_pairs(poly: np.ndarray, n: np.ndarray, w: np.ndarray, flat: np.nd
                 mom[gi, jaw, 1, c6] += vals[c6]
 
 
-@numba.njit(cache=True)
+@kernel(cache=True)
 def slab_polygons(pts: np.ndarray, first: np.ndarray, count: np.ndarray, f: np.ndarray, gu: np.ndarray,
                   cu: np.ndarray, axu: np.ndarray, depth: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The elements ``f`` (K,) clipped to the slabs of their contacts ``gu`` (K,): ``|(v - cu) . axu|
@@ -144,7 +141,7 @@ def slab_polygons(pts: np.ndarray, first: np.ndarray, count: np.ndarray, f: np.n
     return keep, out[:kept], nout[:kept]
 
 
-@numba.njit(cache=True)
+@kernel(cache=True)
 def _holds(s: float, m: int, fx: np.ndarray, fy: np.ndarray, fz: np.ndarray, tau_x: np.ndarray, tp: np.ndarray,
            uy: np.ndarray, uz: np.ndarray, arm0: np.ndarray, arm1: np.ndarray, inv_w: np.ndarray, L0: np.ndarray,
            L1: np.ndarray, F: float, mu: float, lmin: float) -> bool:
@@ -175,7 +172,7 @@ def _holds(s: float, m: int, fx: np.ndarray, fy: np.ndarray, fz: np.ndarray, tau
     return True
 
 
-@numba.njit(cache=True)
+@kernel(cache=True)
 def margin_bisection(fx: np.ndarray, fy: np.ndarray, fz: np.ndarray, tau_x: np.ndarray, tp: np.ndarray,
                      uy: np.ndarray, uz: np.ndarray, arm0: np.ndarray, arm1: np.ndarray, inv_w: np.ndarray,
                      L0: np.ndarray, L1: np.ndarray, F: float, mu: float, lmin: float, log_lo: float,

@@ -3,15 +3,12 @@ position and rotation) moved behind every distinct grasp (:func:`distinct_order`
 compiled, :func:`greedy_distinct`, ``cache=True``: built at install by :mod:`grasplan.cli.warmup`)."""
 from __future__ import annotations
 
-import numba
 import numpy as np
 
-from ..robot.ik.ur_batch import announce_compiling
-
-announce_compiling()
+from ..compiled.jit import kernel
 
 
-@numba.njit(cache=True)
+@kernel(cache=True)
 def greedy_distinct(p: np.ndarray, R: np.ndarray, min_distance: float, cos_min: float, cell_size: float) -> np.ndarray:
     """(n,) bool, chosen: grasps ``p`` (n, 3) TCP origins, ``R`` (n, 3, 3) rotations, in rank order;
     grasp ``k`` is chosen unless an earlier chosen grasp lies within ``min_distance`` of it (``<=``)

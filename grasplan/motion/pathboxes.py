@@ -14,14 +14,12 @@ import functools
 import weakref
 from typing import Any
 
-import numba
 import numpy as np
 import pinocchio as pin
 
 from ..cell.shapes import local_box
-from ..robot.ik.ur_batch import announce_compiling
+from ..compiled.jit import kernel
 
-announce_compiling()  # one line on stderr when these kernels compile (a cold cache)
 
 #: the boxes must lie this much (m) beyond the security margin apart: float rounding of the box
 #: arithmetic (~1e-15 m) and coal's own tolerances are far below it
@@ -108,7 +106,7 @@ class PathBoxes:
 CHUNK = 16
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(cache=True, nogil=True)
 def _chain(q: np.ndarray, parent: np.ndarray, R0: np.ndarray, t0: np.ndarray, kind: np.ndarray, axis: np.ndarray,
            iq: np.ndarray, oR: np.ndarray, ot: np.ndarray, RM: np.ndarray, rot: np.ndarray) -> None:  # pragma: no cover
     """Forward kinematics of the chain at ``q``: each joint's world rotation ``oR`` and origin ``ot``."""
@@ -152,7 +150,7 @@ def _chain(q: np.ndarray, parent: np.ndarray, R0: np.ndarray, t0: np.ndarray, ki
                     ot[jj, i] += x * (RM[i, 0] * axis[jj, 0] + RM[i, 1] * axis[jj, 1] + RM[i, 2] * axis[jj, 2])
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(cache=True, nogil=True)
 def _place(g: int, jg: int, oR: np.ndarray, ot: np.ndarray, R_loc: np.ndarray, c_loc: np.ndarray, half: np.ndarray,
            R: np.ndarray, c: np.ndarray, hw: np.ndarray) -> None:  # pragma: no cover
     """Box ``g`` on joint ``jg`` in the world: its axes ``R[g]``, centre ``c[g]`` and the
@@ -170,7 +168,7 @@ def _place(g: int, jg: int, oR: np.ndarray, ot: np.ndarray, R_loc: np.ndarray, c
         hw[g, i] = abs(R[g, i, 0]) * half[g, 0] + abs(R[g, i, 1]) * half[g, 1] + abs(R[g, i, 2]) * half[g, 2]
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(cache=True, nogil=True)
 def _open_pairs(qs: np.ndarray, parent: np.ndarray, R0: np.ndarray, t0: np.ndarray, kind: np.ndarray, axis: np.ndarray,
                 iq: np.ndarray, gjoint: np.ndarray, R_loc: np.ndarray, c_loc: np.ndarray, half: np.ndarray,
                 pairs: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover
@@ -264,7 +262,7 @@ def _open_pairs(qs: np.ndarray, parent: np.ndarray, R0: np.ndarray, t0: np.ndarr
     return starts, flat[:nf]
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(cache=True, nogil=True)
 def obb_apart(Ra: np.ndarray, ca: np.ndarray, ha: np.ndarray, Rb: np.ndarray, cb: np.ndarray, hb: np.ndarray,
               tol: float) -> bool:  # pragma: no cover
     """Separating-axis test of two oriented boxes in box A's frame (Gottschalk et al.'s OBBTree):

@@ -14,13 +14,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
+from ..compiled.jit import kernel
 from ..motion.pathboxes import obb_apart
-from ..robot.ik.ur_batch import announce_compiling
 
-announce_compiling()  # one line on stderr when these kernels compile (a cold cache)
 
 #: the swept box is this much (m) larger than the boxes it holds along each of its axes
 SWEPT_PAD = 1e-9
@@ -68,7 +66,7 @@ class SweptGripper:
                        self.c_loc, self.h_loc, self.R, self.centre, self.half, INSIDE_SLACK)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(cache=True, nogil=True)
 def _inside(T: np.ndarray, T_tcp_geom: np.ndarray, c_loc: np.ndarray, h_loc: np.ndarray, Rs: np.ndarray,
             cs: np.ndarray, hs: np.ndarray, slack: float) -> np.ndarray:  # pragma: no cover
     K, S = T.shape[0], T_tcp_geom.shape[0]
@@ -98,7 +96,7 @@ def _inside(T: np.ndarray, T_tcp_geom: np.ndarray, c_loc: np.ndarray, h_loc: np.
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(cache=True, nogil=True)
 def _sweep(T: np.ndarray, T_tcp_geom: np.ndarray, c_loc: np.ndarray, h_loc: np.ndarray, bc: np.ndarray,
            bh: np.ndarray, box: np.ndarray, pad: float
            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover

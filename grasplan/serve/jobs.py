@@ -18,6 +18,8 @@ from collections.abc import Callable
 from concurrent.futures import CancelledError, Future, ThreadPoolExecutor
 from typing import Any, TypeVar
 
+from ..compiled.jit import prefer_jit
+
 T = TypeVar("T")
 
 
@@ -38,6 +40,7 @@ class JobQueue:
     """A single planning thread with a bounded queue and per-request time limits."""
 
     def __init__(self, *, time_limit_s: float, max_queue: int):
+        prefer_jit()  # kernels through numba, which releases the GIL: the event loop serves while one runs
         self.time_limit_s = float(time_limit_s)
         self.max_queue = int(max_queue)
         self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="grasplan-plan")

@@ -1,4 +1,4 @@
-"""The UR closed form and its forward kinematics, compiled (numba): one pose or a stack of them.
+"""The UR closed form and its forward kinematics, compiled (:mod:`grasplan.compiled`): one pose or a stack of them.
 
 :class:`grasplan.robot.ik.ur.URAnalytic` builds a :data:`Chain` (DH parameters and the constant frames
 around them) and calls these kernels: :func:`solve_one` (all eight branches at one pose, what IK
@@ -16,86 +16,11 @@ IK pose (its per-call overhead on small matrices); here a few microseconds.
 from __future__ import annotations
 
 import math
-import os
-import sys
-import tempfile
-from collections.abc import Callable
-from pathlib import Path
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
-import numba
 import numpy as np
-from numba.core import event as numba_event
 
-#: printed on stderr, once per process, when a grasplan kernel is compiled rather than loaded from
-#: numba's on-disk cache (``__pycache__`` next to the module, or ``$NUMBA_CACHE_DIR``)
-COMPILE_MESSAGE = ("grasplan: compiling its numba kernels once (10-40 s; later runs load them from "
-                   "the cache) ...")
-
-
-class _CompileNotice(numba_event.Listener):
-    """Writes :data:`COMPILE_MESSAGE` at the first compile of a grasplan kernel (numba signals a
-    compile only on a cache miss: a warm cache says nothing)."""
-
-    def __init__(self) -> None:
-        self.told = False
-
-    def on_start(self, event: Any) -> None:
-        if self.told:
-            return
-        dispatcher = (event.data or {}).get("dispatcher")
-        module = getattr(getattr(dispatcher, "py_func", None), "__module__", "") or ""
-        if module.split(".")[0] == "grasplan":
-            self.told = True
-            print(COMPILE_MESSAGE, file=sys.stderr, flush=True)
-
-    def on_end(self, event: Any) -> None:
-        pass
-
-
-_NOTICE = _CompileNotice()
-
-
-def _writable(folder: Path) -> bool:
-    """Whether a file can be created in ``folder`` (made if missing), as numba's locators test it."""
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryFile(dir=folder):
-            return True
-    except OSError:
-        return False
-
-
-def ensure_cache_dir(writable: Callable[[Path], bool] = _writable) -> Path | None:
-    """The folder numba's cache is sent to when neither of its own places is ``writable`` (the
-    kernels' ``__pycache__`` of a read-only install, ``~/.cache/numba`` of an account without a
-    writable home): ``$TMPDIR/grasplan-numba-<uid>`` (set as ``numba.config.CACHE_DIR``); None when
-    numba has a place (or ``$NUMBA_CACHE_DIR`` is set). Without it numba refuses to define a cached
-    kernel at all ("no locator available")."""
-    from numba.core import config  # the module numba reads CACHE_DIR from when a cached kernel is defined
-    from numba.misc.appdirs import AppDirs
-
-    if getattr(config, "CACHE_DIR", ""):  # set at run time from $NUMBA_CACHE_DIR (no static attribute)
-        return None
-    if writable(Path(__file__).resolve().parent / "__pycache__"):
-        return None
-    if writable(Path(AppDirs(appname="numba", appauthor=False).user_cache_dir)):
-        return None
-    folder = Path(tempfile.gettempdir()) / f"grasplan-numba-{os.getuid() if hasattr(os, 'getuid') else 0}"
-    setattr(config, "CACHE_DIR", str(folder))
-    return folder
-
-
-def announce_compiling() -> None:
-    """Have :data:`COMPILE_MESSAGE` printed at the first cold compile of a grasplan kernel (every
-    module holding kernels calls this at import, before its kernels; registering twice is a no-op),
-    and give numba a cache folder when it has none (:func:`ensure_cache_dir`)."""
-    if _NOTICE not in numba_event._registered["numba:compile"]:
-        numba_event.register("numba:compile", _NOTICE)
-        ensure_cache_dir()
-
-
-announce_compiling()
+from ...compiled.jit import kernel
 
 TWO_PI = 2.0 * math.pi
 #: DH twist angles of the UR chain (rad)
@@ -185,7 +110,7 @@ def solve_one(chain: Chain, T_base_tool: np.ndarray) -> tuple[np.ndarray, bool, 
     return q[:, 0], bool(ok_r[0]), ok3[:, 0]
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(cache=True, nogil=True)
 def _dh_into(out: np.ndarray, theta: float, d: float, a: float, alpha: float) -> None:  # pragma: no cover
     ct, st, ca, sa = math.cos(theta), math.sin(theta), math.cos(alpha), math.sin(alpha)
     out[0, 0], out[0, 1], out[0, 2], out[0, 3] = ct, -st * ca, st * sa, a * ct
@@ -194,14 +119,14 @@ def _dh_into(out: np.ndarray, theta: float, d: float, a: float, alpha: float) ->
     out[3, 0], out[3, 1], out[3, 2], out[3, 3] = 0.0, 0.0, 0.0, 1.0
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(cache=True, nogil=True)
 def _mul(A: np.ndarray, B: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover
     for i in range(4):
         for j in range(4):
             out[i, j] = A[i, 0] * B[0, j] + A[i, 1] * B[1, j] + A[i, 2] * B[2, j] + A[i, 3] * B[3, j]
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(cache=True, nogil=True)
 def _inv_rigid_into(T: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover
     for i in range(3):
         for j in range(3):
@@ -211,7 +136,7 @@ def _inv_rigid_into(T: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover
     out[3, 3] = 1.0
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(cache=True, nogil=True)
 def _fk(q: np.ndarray, dh: np.ndarray, T_pre: np.ndarray, T_post: np.ndarray) -> np.ndarray:  # pragma: no cover
     m = q.shape[0]
     out = np.empty((m, 4, 4))
@@ -229,7 +154,7 @@ def _fk(q: np.ndarray, dh: np.ndarray, T_pre: np.ndarray, T_post: np.ndarray) ->
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(cache=True, nogil=True)
 def _branch(T_base_tool: np.ndarray, dh: np.ndarray, T_pre: np.ndarray, T_post: np.ndarray, i1s: np.ndarray,
             sign5s: np.ndarray, sign3s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover
     """The branches ``(i1s, sign5s, sign3s)`` (each (b,)) at every pose of ``T_pre @ T_base_tool @
@@ -289,7 +214,7 @@ def _branch(T_base_tool: np.ndarray, dh: np.ndarray, T_pre: np.ndarray, T_post: 
     return q, ok_r, ok3
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(cache=True, nogil=True)
 def _follow(T: np.ndarray, q0: np.ndarray, dh: np.ndarray, pre: np.ndarray, post: np.ndarray, i1: int, s5: float,
             s3: float, lower: np.ndarray, upper: np.ndarray, max_step: float) -> tuple[np.ndarray, int]:  # pragma: no cover
     m = T.shape[0]
@@ -312,7 +237,7 @@ def _follow(T: np.ndarray, q0: np.ndarray, dh: np.ndarray, pre: np.ndarray, post
     return q, 0
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(cache=True, nogil=True)
 def _line_deviation(path: np.ndarray, dh: np.ndarray, pre: np.ndarray, post: np.ndarray, a: np.ndarray,
                     b: np.ndarray) -> float:  # pragma: no cover
     k = path.shape[0] - 1
@@ -334,7 +259,7 @@ def _line_deviation(path: np.ndarray, dh: np.ndarray, pre: np.ndarray, post: np.
     return worst
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(cache=True, nogil=True)
 def unwrap_rows(q: np.ndarray) -> np.ndarray:  # pragma: no cover
     """In place: each row's joints shifted by multiples of 2 pi to the previous row's values."""
     for i in range(1, q.shape[0]):
