@@ -191,6 +191,31 @@ def test_hold_by_pose_counts_what_the_cell_computation_predicts(bracket, own_cac
         assert force == pytest.approx(g.grip_force / gm.max(), rel=1e-12)
 
 
+def test_hold_by_pose_rows_are_kept_beside_the_database_and_read_back(bracket, own_cache, monkeypatch):
+    """The second call reads the rows the first kept (no database is opened), a damaged file or
+    another cell is computed again, and the kept rows equal the computed ones."""
+    from grasplan.cell.model import load_cell
+    from grasplan.grasps import placed
+    from grasplan.motion.planning import stable_pose_indices
+
+    heavy = GraspParams(roll_step_deg=30.0, density=60000.0)
+    g, cell = load_gripper("schunk_egp_c_40"), load_cell("table")
+    poses = stable_pose_indices(bracket.mesh)[:3]
+    kw = dict(candidates=CandidateParams(), grasps=heavy, poses=poses)
+    first = placed.hold_by_pose(bracket, g, cell, **kw)
+    path = placed.hold_cache_path(bracket, g, cell, **kw)
+    assert path.is_file() and path.parent.name == "graspdb"
+    computed = placed.hold_by_pose(bracket, g, cell, cache=False, **kw)
+    opened = []
+    real = placed.database_for
+    monkeypatch.setattr(placed, "database_for", lambda *a, **k: opened.append(1) or real(*a, **k))
+    assert placed.hold_by_pose(bracket, g, cell, **kw) == first == computed and opened == []
+    path.write_text('[[0, 0.5, "many", null]]')
+    assert placed.hold_by_pose(bracket, g, cell, **kw) == first and opened == [1]
+    other = replace(cell, table_z=cell.table_z + 0.01)
+    assert placed.hold_cache_path(bracket, g, other, **kw) != path
+
+
 @pytest.mark.paper
 def test_a_pose_that_holds_none_names_the_poses_that_do(tmp_path, own_cache):
     from conftest import paper_part

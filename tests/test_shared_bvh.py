@@ -45,3 +45,40 @@ def test_the_kept_bvhs_stay_within_their_triangle_bound(monkeypatch):
     assert shapes.shared_bvh(v, f) is first
     big_v, big_f = trimesh.creation.icosphere(subdivisions=3).vertices, trimesh.creation.icosphere(subdivisions=3).faces
     assert shapes.shared_bvh(big_v, big_f) is not shapes.shared_bvh(big_v, big_f)  # over the bound: never kept
+
+
+def test_a_grippers_jaw_sweeps_are_shared_by_its_colliders_and_bounded(example_part, monkeypatch):
+    """Colliders of one gripper object in different poses share one sweeps table (each sweep built
+    once) and give the statuses a collider with a table of its own gives; the table starts again
+    once it holds ``MAX_SHARED_SWEEPS``."""
+    from grasplan.cell.model import load_cell
+    from grasplan.cell.resting import stable_pose
+    from grasplan.grasps import collision_shapes
+    from grasplan.grasps.collision import GripperCollider
+    from grasplan.grasps.frames import grasp_frames
+    from grasplan.gripper.load import load_gripper
+    from grasplan.part.mesh import load_part
+    from grasplan.candidates.pipeline import compute_candidates
+
+    monkeypatch.setattr(collision_shapes, "_SHARED", type(collision_shapes._SHARED)())
+    part = load_part(example_part("bracket.stl"), units="mm")
+    g, cell = load_gripper("long_stroke_50"), load_cell()
+    cand = compute_candidates(part).candidates
+    fr = grasp_frames(cand, roll_step_deg=30.0)
+    width = cand.width[fr.candidate]
+    T = stable_pose(part.mesh, cell)
+    a = GripperCollider(part.mesh, g, cell, T)
+    status_a = a.check(fr.T_part_tcp, width)
+    n = len(collision_shapes.shared_sweeps(g))
+    assert n >= 3  # the bracket has a few distinct widths
+    T2 = T.copy()
+    T2[2, 3] -= 0.004  # the part 4 mm lower: more table hits
+    b = GripperCollider(part.mesh, g, cell, T2)
+    assert b._sweeps is a._sweeps and len(b._sweeps) == n  # nothing rebuilt for the same widths
+    own = GripperCollider(part.mesh, g, cell, T2)
+    own._sweeps = collision_shapes.Sweeps(g)
+    assert np.array_equal(b.check(fr.T_part_tcp, width), own.check(fr.T_part_tcp, width))
+    assert not np.array_equal(b.check(fr.T_part_tcp, width), status_a)  # the check saw the pose
+    monkeypatch.setattr(collision_shapes, "MAX_SHARED_SWEEPS", n)
+    assert collision_shapes.shared_sweeps(g) is not a._sweeps  # full: a new table
+    assert collision_shapes.shared_sweeps(load_gripper("schunk_egp_c_40")) is not collision_shapes.shared_sweeps(g)

@@ -24,7 +24,7 @@ from ..geometry.meshdata import TriangleMesh, convex_hull
 from ..status import Status
 from ..geometry.transforms import check_transform
 from .collision_boxes import HIT, UNSURE, PartBoxes, points_inside_compiled, prefilter
-from .collision_shapes import ShapeSet, Sweeps, unique_rows
+from .collision_shapes import ShapeSet, shared_sweeps, unique_rows
 
 #: a shape reaching below the table top by less than this (m) only touches it
 TABLE_CONTACT_TOL = 1e-6
@@ -95,7 +95,7 @@ class GripperCollider:
         self._tf = coal.Transform3s()
         self._identity = coal.Transform3s()
         self._body = [ShapeSet([b], np.zeros(0, dtype=np.int64)) for b in gripper.body]  # index set per batch
-        self._sweeps = Sweeps(gripper)
+        self._sweeps = shared_sweeps(gripper)
         self.coal_calls = 0
         #: poses decided as hits without coal: "centre" (box centre inside the closed part),
         #: "sample" (a point of the part's surface deeper than SAMPLE_DEPTH inside the box: a stored

@@ -1,10 +1,12 @@
 """The gripper's shapes per pose for the collision filter (:class:`grasplan.grasps.collision.GripperCollider`):
 one :class:`ShapeSet` per gripper element (each body shape, each swept jaw), its variants' coal
-geometry built on first use (:class:`Geoms`), and the jaws' sweeps met so far kept per collider
-(:class:`Sweeps`).
+geometry built on first use (:class:`Geoms`), and the jaws' sweeps met so far (:class:`Sweeps`),
+one table per gripper shared by its colliders (:func:`shared_sweeps`).
 """
 from __future__ import annotations
 
+import threading
+import weakref
 from typing import Any
 
 import coal
@@ -61,9 +63,17 @@ class Sweeps:
         self.shapes: tuple[list, list] = ([], [])
         self.geoms = (Geoms(self.shapes[0]), Geoms(self.shapes[1]))
         self.frames = [(np.zeros((0, 4, 4)), np.zeros((0, 4, 4)), np.zeros((0, 3))) for _ in range(2)]
+        self._lock = threading.Lock()
+
+    def __len__(self) -> int:
+        return len(self.ids)
 
     def rows(self, pairs: np.ndarray) -> np.ndarray:
         """The row of each ``(o_pre, o_close)`` pair of ``pairs`` (n, 2), new pairs added."""
+        with self._lock:
+            return self._rows(pairs)
+
+    def _rows(self, pairs: np.ndarray) -> np.ndarray:
         out = np.empty(len(pairs), dtype=np.int64)
         new: tuple[list, list] = ([], [])
         for i, (a, b) in enumerate(pairs.tolist()):
@@ -88,6 +98,25 @@ class Sweeps:
         s.is_box = isinstance(self.shapes[side][0], Box) if self.shapes[side] else isinstance(self.gripper.finger, Box)
         s.T_tcp_geom, s.T_tcp_bb, s.half_bb = self.frames[side]
         return s
+
+
+#: sweeps a gripper's shared table holds before it starts again (bounds a long-lived process;
+#: about 1-2 kB each); colliders already holding the full table keep it
+MAX_SHARED_SWEEPS = 50_000
+_SHARED: weakref.WeakKeyDictionary[Gripper, Sweeps] = weakref.WeakKeyDictionary()
+_SHARED_LOCK = threading.Lock()
+
+
+def shared_sweeps(gripper: Gripper) -> Sweeps:
+    """The sweeps table of ``gripper`` (this object) shared by every collider of it: the colliders
+    of one database placed in many poses (``--pose-index all``, the other poses' hints) build each
+    jaw sweep once. Kept while the gripper lives, and replaced by an empty table once it holds
+    :data:`MAX_SHARED_SWEEPS`."""
+    with _SHARED_LOCK:
+        table = _SHARED.get(gripper)
+        if table is None or len(table) >= MAX_SHARED_SWEEPS:
+            table = _SHARED[gripper] = Sweeps(gripper)
+        return table
 
 
 def shape_frames(v: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -66,18 +66,19 @@ _REJECTED = ("rejected_candidate", "rejected_part")
 _RESTING = ("rest_R", "rest_prob")
 
 
-def _sha(doc: Any) -> str:
+def sha256_doc(doc: Any) -> str:
+    """sha256 of ``doc``'s canonical JSON (keys sorted, no spaces): the cache's keys."""
     return hashlib.sha256(json.dumps(doc, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
 
 
 def gripper_key(gripper: Gripper) -> str:
     """sha256 of the gripper's full definition (shapes, opening, force, TCP): what its grasps depend on."""
-    return _sha(gripper.to_json(definition=True))
+    return sha256_doc(gripper.to_json(definition=True))
 
 
 def params_key(candidates: CandidateParams, grasps: GraspParams) -> str:
     """sha256 of the options a database is computed with (and the database version)."""
-    return _sha({"candidates": candidates.options_json(), "grasps": grasps.options_json(), "version": DB_VERSION})
+    return sha256_doc({"candidates": candidates.options_json(), "grasps": grasps.options_json(), "version": DB_VERSION})
 
 
 @dataclass(frozen=True, eq=False)
@@ -383,7 +384,7 @@ def options_key(gripper: Gripper, candidates: CandidateParams, grasps: GraspPara
 
 def cache_path(part: Part, gripper: Gripper, candidates: CandidateParams, grasps: GraspParams) -> Path:
     """Where :func:`database_for` keeps the database of ``part`` with ``gripper`` and these options."""
-    key = _sha({"part": part.sha256, "scale": repr(float(part.scale_to_m)), "gripper": gripper_key(gripper),
+    key = sha256_doc({"part": part.sha256, "scale": repr(float(part.scale_to_m)), "gripper": gripper_key(gripper),
                 "params": options_key(gripper, candidates, grasps)})
     return cache_dir() / "graspdb" / f"{key}{DB_SUFFIX}"
 

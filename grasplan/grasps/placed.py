@@ -24,13 +24,14 @@ from ..cell.model import Cell
 from ..config.params import CandidateParams, GraspParams
 from ..errors import InputError
 from ..gripper.model import Gripper
+from ..io import read_json, write_json
 from ..part.mass import MassProperties
 from ..part.mesh import Part
 from ..results.compact import REJECTED, RejectedCounts
 from ..results.grasp_table import GraspTable
 from ..status import GRASP_STATUSES, Status
 from .collision import GripperCollider
-from .graspdb import GraspDatabase, database_for, options_key, read_cached
+from .graspdb import GraspDatabase, cache_path, database_for, options_key, read_cached, sha256_doc
 from .pipeline import GraspResult, compute_grasps, part_pose
 from .quality import Quality, mass_or_note, quality_columns, stage_score, stage_warnings
 
@@ -196,16 +197,58 @@ def cached_database(part: Part, gripper: Gripper, *, candidates: CandidateParams
 
 
 def hold_by_pose(part: Part, gripper: Gripper, cell: Cell, *, candidates: CandidateParams, grasps: GraspParams,
-                 poses: list[tuple[int, float]]) -> list[tuple[int, float, int, float | None]]:
+                 poses: list[tuple[int, float]], cache: bool = True) -> list[tuple[int, float, int, float | None]]:
     """``[(pose_index, probability, grasps predicted to hold, least hold force N or None)]`` for
     ``poses`` (``(index, probability)`` of resting poses): the part's grasp database placed in each
     (collision-free grasps with ``gravity_margin >= 1`` at the gripper's force; the least
-    ``hold_force`` of any collision-free one). The grasp stage only: no robot."""
-    db = database_for(part, gripper, candidates=candidates, grasps=grasps)
+    ``hold_force`` of any collision-free one). The grasp stage only: no robot. With ``cache``, the
+    rows are kept beside the database (:func:`hold_cache_path`: one small file per database, cell,
+    options and poses) and read from there the next time."""
+    path = hold_cache_path(part, gripper, cell, candidates=candidates, grasps=grasps, poses=poses)
+    if cache:
+        rows = _read_hold_rows(path, poses)
+        if rows is not None:
+            return rows
+    db = database_for(part, gripper, candidates=candidates, grasps=grasps, cache=cache)
     out: list[tuple[int, float, int, float | None]] = []
     for k, p in poses:
         pg = place_database(db, part, cell, params=replace(grasps, pose_index=k))
         gm = pg.quality.gravity_margin if pg.quality is not None else np.zeros(0)
         force = float(gripper.grip_force) / float(gm.max()) if len(gm) and gm.max() > 0 else None
         out.append((k, p, int(np.count_nonzero(gm >= 1.0)), force))
+    if cache:
+        try:
+            write_json(path, [list(r) for r in out])
+        except OSError:  # a read-only cache folder: the next run computes the rows again
+            return out
     return out
+
+
+def hold_cache_path(part: Part, gripper: Gripper, cell: Cell, *, candidates: CandidateParams, grasps: GraspParams,
+                    poses: list[tuple[int, float]]) -> Path:
+    """Where :func:`hold_by_pose` keeps its rows: beside the database (:func:`~grasplan.grasps.graspdb.cache_path`),
+    named by a sha256 of the database's name, the cell (:meth:`~grasplan.cell.model.Cell.to_json`),
+    the grasp options and the poses."""
+    db_path = cache_path(part, gripper, candidates, grasps)
+    key = sha256_doc({"database": db_path.name, "cell": cell.to_json(), "grasps": grasps.options_json(),
+                      "poses": [[int(k), float(p)] for k, p in poses]})
+    return db_path.with_name(f"{db_path.name.split('.')[0]}.holds-{key[:16]}.json")
+
+
+def _read_hold_rows(path: Path, poses: list[tuple[int, float]]) -> list[tuple[int, float, int, float | None]] | None:
+    """The rows kept at ``path`` when they are a well-formed answer for ``poses``, else None."""
+    if not path.is_file():
+        return None
+    try:
+        doc = read_json(path)
+    except (OSError, ValueError, InputError):
+        return None
+    if not isinstance(doc, list) or len(doc) != len(poses):
+        return None
+    rows: list[tuple[int, float, int, float | None]] = []
+    for row, (k, p) in zip(doc, poses):
+        if not (isinstance(row, list) and len(row) == 4 and row[0] == k and isinstance(row[2], int)
+                and (row[3] is None or isinstance(row[3], (int, float)))):
+            return None
+        rows.append((int(k), float(p), int(row[2]), None if row[3] is None else float(row[3])))
+    return rows
