@@ -72,7 +72,7 @@ def test_a_kernel_runs_the_ahead_of_time_variant_only_on_its_own_types(built, mo
         return variant.function(*args)
 
     k = ranking.greedy_distinct
-    monkeypatch.setattr(k, "_aot", (aot.Variant(counting, variant.specs),))
+    monkeypatch.setattr(k, "_aot", ((variant.accepts, counting),))
     p, R, d, c, cell = _distinct_args(np.random.default_rng(2))
     want = k.jit()(p, R, d, c, cell)
     assert np.array_equal(k(p, R, d, c, cell), want) and len(calls) == 1

@@ -24,7 +24,7 @@ import tempfile
 import time
 import warnings
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -55,26 +55,46 @@ class Variant:
 
     function: Callable[..., Any]
     specs: tuple[Spec, ...]
+    _check: Callable[[Sequence[Any]], bool] = field(init=False, repr=False, compare=False)
 
-    def accepts(self, args: Sequence[Any]) -> bool:
-        """Whether ``args`` have exactly the types this variant was compiled for: arrays of its
-        dtype and dimensions, aligned, C- or F-contiguous where its layout says so, and writeable
-        unless it only reads them; scalars of its kind (``int`` is not a ``bool`` here)."""
-        if len(args) != len(self.specs):
-            return False
-        for a, (kind, dtype, ndim, layout, readonly) in zip(args, self.specs):
-            if kind is ARRAY:
-                # builtin dtypes are singletons: ``is`` answers most calls before ``==``
-                if a.__class__ is not np.ndarray or a.ndim != ndim or (a.dtype is not dtype and a.dtype != dtype):
-                    return False
-                flags = a.flags
-                if not flags.aligned or not (readonly or flags.writeable):
-                    return False
-                if (layout == "C" and not flags.c_contiguous) or (layout == "F" and not flags.f_contiguous):
-                    return False
-            elif a.__class__ not in _SCALAR_TYPES[kind]:
-                return False
-        return True
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "_check", _checker(self.specs))
+
+    @property
+    def accepts(self) -> Callable[[Sequence[Any]], bool]:
+        """``accepts(args)``: whether ``args`` have exactly the types this variant was compiled for:
+        arrays of its dtype and dimensions, aligned, C- or F-contiguous where its layout says so,
+        and writeable unless it only reads them; scalars of its kind (``int`` is not a ``bool``
+        here)."""
+        return self._check
+
+
+def _checker(specs: tuple[Spec, ...]) -> Callable[[Sequence[Any]], bool]:
+    """:meth:`Variant.accepts` for ``specs`` as straight-line code (one test per argument, no loop:
+    it runs before every call of a compiled kernel)."""
+    n = len(specs)
+    names = [f"a{i}" for i in range(n)]
+    lines = ["def check(args):", f"    if len(args) != {n}:", "        return False"]
+    if n:
+        lines.append(f"    {', '.join(names)}, = args")
+    env: dict[str, Any] = {"ndarray": np.ndarray}
+    for i, (kind, dtype, ndim, layout, readonly) in enumerate(specs):
+        a = names[i]
+        if kind == ARRAY:
+            env[f"D{i}"] = dtype
+            need = ["f.aligned"] + ([] if readonly else ["f.writeable"]) + \
+                {"C": ["f.c_contiguous"], "F": ["f.f_contiguous"]}.get(layout, [])
+            lines += [f"    if {a}.__class__ is not ndarray or {a}.ndim != {int(ndim)}:", "        return False",
+                      # builtin dtypes are singletons: ``is`` answers most calls before ``==``
+                      f"    if {a}.dtype is not D{i} and {a}.dtype != D{i}:", "        return False",
+                      f"    f = {a}.flags", f"    if not ({' and '.join(need)}):", "        return False"]
+        else:
+            env[f"S{i}"] = _SCALAR_TYPES[kind]
+            lines += [f"    if {a}.__class__ not in S{i}:", "        return False"]
+    lines.append("    return True")
+    exec("\n".join(lines), env)
+    check: Callable[[Sequence[Any]], bool] = env["check"]
+    return check
 
 
 _LOADED: dict[str, tuple[Variant, ...]] | None = None

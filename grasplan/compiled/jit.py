@@ -42,17 +42,19 @@ class Kernel:
         self.options = dict(options)
         self.name = f"{py_func.__module__}.{py_func.__qualname__}"
         self._jit: Any = None
-        self._aot: tuple[aot.Variant, ...] | None = None
+        #: ``(argument check, compiled function)`` per ahead-of-time variant; None until first used
+        self._aot: tuple[tuple[Callable[[Any], bool], Callable[..., Any]], ...] | None = None
         functools.update_wrapper(self, py_func)
+        _KERNELS.append(self)
 
     def __call__(self, *args: Any) -> Any:
-        if not _STATE["prefer_jit"]:
-            variants = self._aot
-            if variants is None:
-                variants = self._aot = aot.variants(self.name)
-            for variant in variants:
-                if variant.accepts(args):
-                    return variant.function(*args)
+        variants = self._aot
+        if variants is None:
+            variants = self._aot = () if _STATE["prefer_jit"] else tuple(
+                (v.accepts, v.function) for v in aot.variants(self.name))
+        for accepts, function in variants:
+            if accepts(args):
+                return function(*args)
         return self.jit()(*args)
 
     def jit(self) -> Any:
@@ -68,6 +70,10 @@ class Kernel:
         return f"<grasplan kernel {self.name}>"
 
 
+#: every kernel defined (module-level functions: a fixed, small set)
+_KERNELS: list[Kernel] = []
+
+
 def kernel(**options: Any) -> Callable[[Callable[..., Any]], Kernel]:
     """Decorator: the function as a :class:`Kernel` with numba ``njit`` ``options``."""
     def wrap(py_func: Callable[..., Any]) -> Kernel:
@@ -78,6 +84,8 @@ def kernel(**options: Any) -> Callable[[Callable[..., Any]], Kernel]:
 def prefer_jit() -> None:
     """Every later kernel call goes to numba's dispatcher (which releases the GIL with ``nogil``)."""
     _STATE["prefer_jit"] = True
+    for k in _KERNELS:
+        k._aot = ()
 
 
 def _setup_numba() -> None:
