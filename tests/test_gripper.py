@@ -272,3 +272,22 @@ def test_every_shipped_gripper_travels_within_its_datasheet_stroke():
         if cells[4].startswith("none"):
             continue
         assert g.max_opening - g.min_opening <= float(cells[4]) * 1e-3 + 1e-9, name
+
+
+def test_box_sweeps_at_once_are_the_per_pair_sweeps():
+    """``swept_boxes`` over many pairs gives, row by row, exactly the boxes ``swept_fingers`` gives
+    one pair at a time (either order of the pair); a linkage's jaws have none (their arc)."""
+    from grasplan.gripper.model import rz180
+
+    g = load_gripper("long_stroke_50")
+    rng = np.random.default_rng(3)
+    a, b = rng.uniform(0.0, 0.05, 40), rng.uniform(0.0, 0.05, 40)
+    ext, T = g.swept_boxes(a, b)
+    for k in range(40):
+        left, right = g.swept_fingers(a[k], b[k])
+        assert np.array_equal(right.extents, ext[k]) and np.array_equal(right.T_tcp_box, T[k])
+        assert np.array_equal(left.T_tcp_box, rz180() @ T[k]) and np.array_equal(left.extents, ext[k])
+    lo = g.fingers(min(a[0], b[0]))[1].corners()[:, 0].min()
+    hi = g.fingers(max(a[0], b[0]))[1].corners()[:, 0].max()
+    assert np.isclose(ext[0, 0], hi - lo)  # the sweep spans both end placements of the jaw
+    assert load_gripper("robotiq_2f_85").swept_boxes(a, b) is None

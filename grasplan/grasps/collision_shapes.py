@@ -13,7 +13,7 @@ import coal
 import numpy as np
 
 from ..cell.shapes import bvh
-from ..gripper.model import Box, Gripper
+from ..gripper.model import Box, Gripper, rz180
 
 
 class Geoms:
@@ -75,21 +75,40 @@ class Sweeps:
 
     def _rows(self, pairs: np.ndarray) -> np.ndarray:
         out = np.empty(len(pairs), dtype=np.int64)
-        new: tuple[list, list] = ([], [])
-        for i, (a, b) in enumerate(pairs.tolist()):
-            r = self.ids.get((a, b))
+        fresh: list[int] = []
+        for i, key in enumerate(map(tuple, pairs.tolist())):
+            r = self.ids.get(key)
             if r is None:
-                r = self.ids[(a, b)] = len(self.shapes[0])
-                for side, shape in enumerate(self.gripper.swept_fingers(a, b)):
-                    self.shapes[side].append(shape)
-                    new[side].append(shape_frames(shape))
+                r = self.ids[key] = len(self.shapes[0]) + len(fresh)
+                fresh.append(i)
             out[i] = r
-        if new[0]:
-            for side in range(2):
-                old = self.frames[side]
-                self.frames[side] = tuple(np.concatenate([old[j], np.array([f[j] for f in new[side]])])
-                                          for j in range(3))  # type: ignore[assignment]
+        if fresh:
+            self._add(pairs[fresh, 0], pairs[fresh, 1])
         return out
+
+    def _add(self, o_pre: np.ndarray, o_close: np.ndarray) -> None:
+        """Append the sweeps of these pairs (in order) to both jaws' shapes and frames: a box
+        finger's all at once (:meth:`Gripper.swept_boxes`), others one :meth:`Gripper.swept_fingers`
+        each (a mesh finger's hull, a linkage's arc)."""
+        g = self.gripper
+        new: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        boxes = g.swept_boxes(o_pre, o_close)
+        if boxes is not None:
+            ext, T = boxes
+            for side, Ts in enumerate((rz180() @ T, T)):
+                self.shapes[side].extend(Box(ext[k], Ts[k]) for k in range(len(ext)))
+                new.append((Ts, Ts, 0.5 * ext))  # shape_frames of a box, all rows at once
+        else:
+            got: tuple[list, list] = ([], [])
+            for a, b in zip(o_pre.tolist(), o_close.tolist()):
+                for side, shape in enumerate(g.swept_fingers(a, b)):
+                    self.shapes[side].append(shape)
+                    got[side].append(shape_frames(shape))
+            new = [tuple(np.array([f[j] for f in got[side]]) for j in range(3))  # type: ignore[misc]
+                   for side in range(2)]
+        for side in range(2):
+            old = self.frames[side]
+            self.frames[side] = tuple(np.concatenate([old[j], new[side][j]]) for j in range(3))  # type: ignore[assignment]
 
     def shape_set(self, side: int, index: np.ndarray) -> ShapeSet:
         """The ``side`` (0: -x, 1: +x) jaw's sweeps for poses of rows ``index`` (M,)."""

@@ -80,6 +80,10 @@ class LinkageGripper(Gripper):
         z = self.tcp_offset(np.array(cands))
         return float(z.min()), float(z.max())
 
+    def swept_boxes(self, open_from: np.ndarray, close_to: np.ndarray) -> None:
+        """None: a sweep along the arc is not :class:`Gripper`'s box (:meth:`swept_fingers`, per pair)."""
+        return None
+
     def swept_fingers(self, open_from: float, close_to: float) -> tuple[Shape, Shape]:
         """The volume each jaw sweeps between two openings. A box finger: one axis-aligned box
         spanning its x travel and its z travel along the arc (a superset of the arc sweep, as tight

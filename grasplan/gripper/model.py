@@ -151,19 +151,31 @@ class Gripper:
         the sweep of a mesh finger is the convex hull of its two end placements (exact for a convex
         finger, a superset otherwise)."""
         lo, hi = sorted((float(open_from), float(close_to)))
-        if isinstance(self.finger, Box):
-            f = self.finger  # axis-aligned (enforced by the loader): the sweep is one box
-            ext = np.array(f.extents, dtype=np.float64)
-            cx = f.T_tcp_box[0, 3]
-            T = f.T_tcp_box.copy()
-            # at opening o the jaw spans x in [cx - ex/2 + o/2, cx + ex/2 + o/2]; union over o in [lo, hi]
-            x0 = cx - ext[0] / 2 + lo / 2
-            x1 = cx + ext[0] / 2 + hi / 2
-            ext[0] = x1 - x0
-            T[0, 3] = 0.5 * (x0 + x1)
-            right = Box(ext, T)
+        boxes = self.swept_boxes(np.array([lo]), np.array([hi]))
+        if boxes is not None:
+            right = Box(boxes[0][0], boxes[1][0])
             return right.moved(rz180()), right
         return self._hull_sweep(lo, hi)
+
+    def swept_boxes(self, open_from: np.ndarray, close_to: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """A box finger's sweeps for many ``(open_from, close_to)`` pairs (n,) at once: ``(extents
+        (n, 3), T_tcp_box (n, 4, 4))`` of the +x jaw's box (the -x jaw's is ``rz180() @ T_tcp_box``);
+        None when a sweep is not one box (a mesh finger: :meth:`swept_fingers` per pair). At
+        opening ``o`` the jaw spans x in ``[cx - ex/2 + o/2, cx + ex/2 + o/2]``; the sweep is that
+        union over ``o`` between the pair (the finger is axis-aligned: the loader enforces it)."""
+        f = self.finger
+        if not isinstance(f, Box):
+            return None
+        a, b = np.asarray(open_from, dtype=np.float64), np.asarray(close_to, dtype=np.float64)
+        lo, hi = np.minimum(a, b), np.maximum(a, b)
+        ext = np.tile(np.asarray(f.extents, dtype=np.float64), (len(lo), 1))
+        cx = f.T_tcp_box[0, 3]
+        x0 = cx - ext[:, 0] / 2 + lo / 2
+        x1 = cx + ext[:, 0] / 2 + hi / 2
+        ext[:, 0] = x1 - x0
+        T = np.tile(np.asarray(f.T_tcp_box, dtype=np.float64), (len(lo), 1, 1))
+        T[:, 0, 3] = 0.5 * (x0 + x1)
+        return ext, T
 
     def _hull_sweep(self, lo: float, hi: float) -> tuple[Shape, Shape]:
         a = self.fingers(lo)[1].corners()
