@@ -75,3 +75,31 @@ def test_check_transform_accepts_rigid_and_names_what_is_wrong():
         check_transform(batch, "T_part_tcp", batch=True, error=ValueError)
     with pytest.raises(InputError, match=r"expected shape \(N, 4, 4\)"):
         check_transform(T, "T_part_tcp", batch=True)
+
+
+def test_pose_errors_of_many_poses_are_the_offsets_and_angles_made():
+    """Poses made by a known offset and a known rotation (angle from 0 to pi) from a random base:
+    ``pose_errors`` gives them back for all at once (SciPy's rotation magnitude checks the angle),
+    and ``pose_error`` of each one the same numbers."""
+    from scipy.spatial.transform import Rotation
+
+    from grasplan.geometry.transforms import pose_error, pose_errors
+
+    rng = np.random.default_rng(5)
+    B = np.eye(4)
+    B[:3, :3] = Rotation.random(random_state=1).as_matrix()
+    B[:3, 3] = rng.normal(size=3)
+    angles = np.concatenate([[0.0, 1e-9, np.pi - 1e-9, np.pi], rng.uniform(0, np.pi, 20)])
+    axes = rng.normal(size=(len(angles), 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    offsets = rng.normal(size=(len(angles), 3)) * rng.uniform(0, 0.1, (len(angles), 1))
+    A = np.tile(B, (len(angles), 1, 1))
+    A[:, :3, :3] = B[:3, :3] @ Rotation.from_rotvec(axes * angles[:, None]).as_matrix()
+    A[:, :3, 3] += offsets
+    dp, dr = pose_errors(A, B)
+    np.testing.assert_allclose(dp, np.linalg.norm(offsets, axis=1), atol=1e-15)
+    np.testing.assert_allclose(dr, angles, atol=1e-9)
+    ref = Rotation.from_matrix(np.swapaxes(A[:, :3, :3], 1, 2) @ B[:3, :3]).magnitude()
+    np.testing.assert_allclose(dr, ref, atol=1e-9)
+    for k in range(len(A)):
+        assert pose_error(A[k], B) == (dp[k], dr[k])

@@ -122,15 +122,26 @@ def inv_rigid(T: np.ndarray) -> np.ndarray:
 
 
 def pose_error(T_a: np.ndarray, T_b: np.ndarray) -> tuple[float, float]:
-    """(position error m, rotation angle rad) between two (4, 4) poses.
+    """(position error m, rotation angle rad) between two (4, 4) poses (:func:`pose_errors`)."""
+    dp, dr = pose_errors(np.asarray(T_a, dtype=np.float64)[None], T_b)
+    return float(dp[0]), float(dr[0])
+
+
+def pose_errors(T_a: np.ndarray, T_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(position errors (k,) m, rotation angles (k,) rad)`` of each of the poses ``T_a`` (k, 4, 4)
+    against ``T_b`` (4, 4).
 
     The angle is ``atan2(|skew part|, (trace - 1) / 2)`` of ``R_a^T R_b``: accurate near 0 and pi,
     where ``arccos`` of the trace alone loses half the digits."""
-    dp = float(np.linalg.norm(T_a[:3, 3] - T_b[:3, 3]))
-    Rr = T_a[:3, :3].T @ T_b[:3, :3]
-    c = (np.trace(Rr) - 1.0) / 2.0
-    s = 0.5 * np.linalg.norm([Rr[2, 1] - Rr[1, 2], Rr[0, 2] - Rr[2, 0], Rr[1, 0] - Rr[0, 1]])
-    return dp, float(math.atan2(s, min(1.0, max(-1.0, c))))
+    A = np.asarray(T_a, dtype=np.float64).reshape(-1, 4, 4)
+    B = np.asarray(T_b, dtype=np.float64)
+    d = A[:, :3, 3] - B[:3, 3]
+    dp = np.sqrt(np.sum(d * d, axis=1))
+    Rr = np.swapaxes(A[:, :3, :3], 1, 2) @ B[:3, :3]
+    c = (Rr[:, 0, 0] + Rr[:, 1, 1] + Rr[:, 2, 2] - 1.0) / 2.0
+    v = np.stack([Rr[:, 2, 1] - Rr[:, 1, 2], Rr[:, 0, 2] - Rr[:, 2, 0], Rr[:, 1, 0] - Rr[:, 0, 1]], axis=1)
+    s = 0.5 * np.sqrt(np.sum(v * v, axis=1))
+    return dp, np.arctan2(s, np.clip(c, -1.0, 1.0))
 
 
 def to_se3(T: np.ndarray) -> pin.SE3:

@@ -21,7 +21,7 @@ import pinocchio as pin
 
 from ...errors import InputError
 from ..model import Robot
-from ...geometry.transforms import check_transform, inv_rigid, pose_error
+from ...geometry.transforms import check_transform, inv_rigid, pose_errors
 from . import clik, ur
 from .clik import CLIK
 from .registry import FAMILIES, ClosedFormIK, IKFamily, get_family
@@ -134,12 +134,16 @@ class IKSolver:
             self.no_closed_form = self.analytic.why
         self.clik = CLIK(robot)
 
-    def _verify(self, q: np.ndarray, T_base_tool: np.ndarray, pos_tol: float, rot_tol: float) -> bool:
-        m, d = self.robot.model, self.data
-        pin.forwardKinematics(m, d, q)
-        T = pin.updateFramePlacement(m, d, self.robot.tool_frame_id).homogeneous
-        dp, dr = pose_error(T, T_base_tool)
-        return dp <= pos_tol and dr <= rot_tol
+    def _verify(self, qs: np.ndarray, T_base_tool: np.ndarray, pos_tol: float, rot_tol: float) -> np.ndarray:
+        """(k,) bool: Pinocchio's FK of each of ``qs`` (k, nq) reaches ``T_base_tool`` within the
+        tolerances (the check every returned solution passes)."""
+        m, d, fid = self.robot.model, self.data, self.robot.tool_frame_id
+        T = np.empty((len(qs), 4, 4))
+        for k, q in enumerate(qs):
+            pin.forwardKinematics(m, d, q)
+            T[k] = pin.updateFramePlacement(m, d, fid).homogeneous
+        dp, dr = pose_errors(T, T_base_tool)
+        return (dp <= pos_tol) & (dr <= rot_tol)
 
     def seeds(self, q_ref: np.ndarray, n_random: int, seed: int) -> np.ndarray:
         r = self.robot
@@ -169,15 +173,19 @@ class IKSolver:
             if raw:
                 W, in_limits = wrap_many(np.array(raw), r.lower, r.upper, q_ref)
                 W = W[in_limits]
-                # nearest q_ref first; a solution within the dedup tolerance of one kept is not
-                # verified (it would be dropped); stop once max_solutions are verified
-                for i in np.argsort(np.linalg.norm(W - q_ref, axis=1), kind="stable"):
-                    if sols and np.any(np.max(np.abs(np.array(sols) - W[i]), axis=1) <= DEDUP_TOL):
+                verified = self._verify(W, T_base_tool, pos_tol, rot_tol)  # at most 8: all at once
+                # nearest q_ref first; a solution within the dedup tolerance of one kept is dropped;
+                # stop once max_solutions are kept
+                close = np.max(np.abs(W[:, None, :] - W[None, :, :]), axis=2) <= DEDUP_TOL
+                kept: list[int] = []
+                for i in np.argsort(np.linalg.norm(W - q_ref, axis=1), kind="stable").tolist():
+                    if kept and close[i, kept].any():
                         continue
-                    if self._verify(W[i], T_base_tool, pos_tol, rot_tol):
-                        sols.append(W[i])
-                        if max_solutions is not None and len(sols) >= max_solutions:
+                    if verified[i]:
+                        kept.append(i)
+                        if max_solutions is not None and len(kept) >= max_solutions:
                             break
+                sols = [W[i] for i in kept]
                 if not sols:
                     reason = (f"joint_limits: all {len(raw)} closed-form solutions are outside the limits"
                               if not in_limits.any() else "no_convergence: closed-form solutions failed the FK check")
