@@ -116,6 +116,14 @@ def test_a_stale_or_foreign_build_is_not_used(built, monkeypatch, tmp_path):
         assert aot.load(folder) == {}
         assert why in aot.status() and "warmup" in aot.status()
     assert aot.load(tmp_path / "nowhere") == {} and "no ahead-of-time kernels" in aot.status()
+    for n, damaged in enumerate(([1, 2], {**manifest, "kernels": {"x": [["k999", []]]}},
+                                 {**manifest, "kernels": {"x": [["k0", [["tensor", None, 0, "", False]]]]}},
+                                 {**manifest, "file": "missing.so"}, {k: v for k, v in manifest.items() if k != "module"})):
+        folder = tmp_path / f"damaged{n}"
+        folder.mkdir()
+        (folder / manifest["file"]).symlink_to(built / manifest["file"])
+        (folder / aot.MANIFEST).write_text(json.dumps(damaged))
+        assert aot.load(folder) == {} and "could not be loaded" in aot.status(), damaged
     assert manifest["cpu"] in (aot.GENERIC, aot.cpu_id())
     (tmp_path / "generic").mkdir()
     (tmp_path / "generic" / manifest["file"]).symlink_to(built / manifest["file"])

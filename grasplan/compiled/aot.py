@@ -178,8 +178,8 @@ def cpu_id() -> str:
 
 def load(where: Path | None = None) -> dict[str, tuple[Variant, ...]]:
     """``{kernel name: variants}`` from the build in ``where`` (default: the first of
-    :func:`folders` holding a manifest); empty when there is none, when it is turned off, or built
-    for other sources, another Python or another NumPy (:func:`status` says which)."""
+    :func:`folders` holding a manifest); empty when there is none, when it is turned off, built
+    for other sources, another Python, NumPy or CPU, or damaged (:func:`status` says which)."""
     if os.environ.get(AOT_ENV, "1") == "0":
         _WHY["text"] = f"ahead-of-time kernels turned off ({AOT_ENV}=0)"
         return {}
@@ -190,21 +190,27 @@ def load(where: Path | None = None) -> dict[str, tuple[Variant, ...]]:
     except (OSError, ValueError) as exc:
         _WHY["text"] = f"no ahead-of-time kernels in {where} ({type(exc).__name__}); numba compiles or loads them"
         return {}
+    try:
+        return _load(where, manifest)
+    except (ImportError, OSError, KeyError, TypeError, ValueError, AttributeError) as exc:
+        _WHY["text"] = (f"ahead-of-time kernels in {where} could not be loaded ({type(exc).__name__}: {exc}); "
+                        "`python -m grasplan.cli.warmup` rebuilds them")
+        return {}
+
+
+def _load(where: Path, manifest: Any) -> dict[str, tuple[Variant, ...]]:
+    """:func:`load` of a parsed ``manifest``; raises on a damaged one."""
     stale = _stale(manifest)
     if stale:
         _WHY["text"] = f"ahead-of-time kernels in {where} not used: {stale}; `python -m grasplan.cli.warmup` rebuilds them"
         return {}
-    try:
-        spec = importlib.util.spec_from_file_location(manifest["module"], where / manifest["file"])
-        if spec is None or spec.loader is None:
-            raise ImportError(f"no loader for {manifest['file']}")
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-    except (ImportError, OSError) as exc:
-        _WHY["text"] = f"ahead-of-time kernels in {where} could not be loaded ({exc})"
-        return {}
-    out = {name: tuple(Variant(getattr(module, export), tuple(_spec_from_json(s) for s in specs))
-                       for export, specs in entries)
+    spec = importlib.util.spec_from_file_location(str(manifest["module"]), where / str(manifest["file"]))
+    if spec is None or spec.loader is None:
+        raise ImportError(f"no loader for {manifest['file']}")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    out = {str(name): tuple(Variant(getattr(module, export), tuple(_spec_from_json(s) for s in specs))
+                            for export, specs in entries)
            for name, entries in manifest["kernels"].items()}
     _WHY["text"] = f"ahead-of-time kernels from {where / manifest['file']} ({len(out)} kernels)"
     return out
