@@ -143,4 +143,5 @@ def test_a_kernel_inside_a_kernel_types_as_numbas_dispatcher():
     exec("def outer(a):\n    s = 0.0\n    for v in a:\n        s += inner(v)\n    return s\n", glob)
     outer = Kernel(glob["outer"], {})
     assert outer(np.arange(4.0)) == 18.0 and outer.name.endswith("outer")
+    assert outer(a=np.arange(3.0)) == 9.0  # keywords: numba's dispatcher
     assert "grasplan kernel" in repr(outer)

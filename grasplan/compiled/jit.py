@@ -47,7 +47,9 @@ class Kernel:
         functools.update_wrapper(self, py_func)
         _KERNELS.append(self)
 
-    def __call__(self, *args: Any) -> Any:
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        if kwargs:  # the compiled variants take positional arguments only
+            return self.jit()(*args, **kwargs)
         variants = self._aot
         if variants is None:
             variants = self._aot = () if _STATE["prefer_jit"] else tuple(
