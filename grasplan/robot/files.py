@@ -6,7 +6,6 @@ robot YAML names.
 """
 from __future__ import annotations
 
-import importlib.metadata
 import os
 import sys
 import xml.etree.ElementTree as ET
@@ -26,26 +25,30 @@ _PKG_SHARE = "cmeel.prefix/share"
 def package_share_dir(package: str = "example-robot-data") -> Path:
     """The ``share`` directory holding ``<package>/robots/...`` (the ``package://`` root).
 
-    Looks the package up in its installed-files record (cmeel wheels install under
-    ``site-packages/cmeel.prefix/share``), then in every ``sys.path`` entry.
+    Looks in every ``sys.path`` entry's ``cmeel.prefix/share`` (where cmeel wheels install it),
+    then in the package's installed-files record (``importlib.metadata``, loaded only then: it
+    costs a cold process about 0.05 s).
     """
-    try:
-        for f in importlib.metadata.files(package) or []:
-            parts = Path(str(f)).parts
-            if package in parts and "robots" in parts:
-                full = Path(f.locate()).resolve()
-                idx = len(full.parts) - len(parts) + parts.index(package)
-                share = Path(*full.parts[:idx])
-                if (share / package / "robots").is_dir():
-                    return share
-    except importlib.metadata.PackageNotFoundError:
-        pass
     for entry in sys.path:
         cand = Path(entry) / _PKG_SHARE
         if (cand / package / "robots").is_dir():
             return cand
+    import importlib.metadata
+
+    try:
+        files = importlib.metadata.files(package) or []
+    except importlib.metadata.PackageNotFoundError:
+        files = []
+    for f in files:
+        parts = Path(str(f)).parts
+        if package in parts and "robots" in parts:
+            full = Path(f.locate()).resolve()
+            idx = len(full.parts) - len(parts) + parts.index(package)
+            share = Path(*full.parts[:idx])
+            if (share / package / "robots").is_dir():
+                return share
     raise ConfigError(f"package {package!r} with robot descriptions is not installed "
-                      f"(pip install {package}); looked in its installed files and in sys.path")
+                      f"(pip install {package}); looked in sys.path's {_PKG_SHARE} and in its installed files")
 
 
 # --------------------------------------------------------------------------------------------
