@@ -255,6 +255,11 @@ def _restore(sigs: list[int]) -> None:
             _signal.signal(sig, _signal.SIG_DFL)
 
 
+def sha256_doc(doc: Any) -> str:
+    """sha256 of ``doc``'s canonical JSON (keys sorted, no spaces): the caches' keys."""
+    return hashlib.sha256(json.dumps(doc, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+
+
 def sha256_file(path: str | os.PathLike) -> str:
     h = hashlib.sha256()
     with open(path, "rb") as f:

@@ -93,7 +93,7 @@ def warm_up() -> str:
             else:
                 os.environ[CACHE_ENV] = old
     found = list(kernels(KERNEL_MODULES))
-    line = _summary([(name, k.jit()) for name, k in found if k._jit is not None], time.perf_counter() - t0)
+    line = _summary([(name, k.dispatcher) for name, k in found if k.dispatcher is not None], time.perf_counter() - t0)
     return line + "\n" + build_ahead_of_time(found)
 
 
@@ -104,8 +104,8 @@ def build_ahead_of_time(found: list[tuple[str, Any]]) -> str:
 
     t0 = time.perf_counter()
     try:
-        n, variants, path = aot.build((k.name, k.py_func, k._jit.nopython_signatures)
-                                      for _, k in found if k._jit is not None)
+        n, variants, path = aot.build((k.name, k.py_func, k.dispatcher.nopython_signatures)
+                                      for _, k in found if k.dispatcher is not None)
     except Exception as exc:  # a missing C compiler or linker: runs use numba's cache instead
         return (f"grasplan: kernels not compiled ahead of time ({type(exc).__name__}: "
                 f"{' '.join(str(exc).split())[:200]}); runs load them through numba")

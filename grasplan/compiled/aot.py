@@ -14,7 +14,6 @@ because a compiled module does not check them. ``GRASPLAN_AOT=0`` turns the buil
 """
 from __future__ import annotations
 
-import hashlib
 import importlib.util
 import json
 import os
@@ -29,6 +28,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from ..io import sha256_doc, sha256_file
 
 #: the manifest's format; another value is not read
 FORMAT = 1
@@ -145,10 +146,6 @@ def _source_file(module: str) -> Path:
     return root.joinpath(*module.split(".")[1:]).with_suffix(".py")
 
 
-def _sha256(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
-
-
 def _platform() -> dict[str, str]:
     """What a build is only valid for: the interpreter's extension suffix and NumPy's version."""
     return {"ext_suffix": str(sysconfig.get_config_var("EXT_SUFFIX")), "numpy": np.__version__}
@@ -173,7 +170,7 @@ def cpu_id() -> str:
             keep[key] = " ".join(value.split())
     if not keep:
         return GENERIC
-    return hashlib.sha256(json.dumps(keep, sort_keys=True).encode()).hexdigest()[:16]
+    return sha256_doc(keep)[:16]
 
 
 def load(where: Path | None = None) -> dict[str, tuple[Variant, ...]]:
@@ -227,7 +224,7 @@ def _stale(manifest: dict[str, Any]) -> str:
         return "built for another CPU"
     for module, digest in manifest.get("sources", {}).items():
         path = _source_file(module)
-        if not path.is_file() or _sha256(path) != digest:
+        if not path.is_file() or sha256_file(path) != digest:
             return f"{module} changed since the build"
     return ""
 
@@ -277,9 +274,9 @@ def build(kernels: Iterable[tuple[str, Callable[..., Any], Sequence[Any]]], wher
             exports.append((export, sig, py_func))
             entries.setdefault(name, []).append([export, specs])
             modules.add(py_func.__module__)
-    sources = {m: _sha256(_source_file(m)) for m in sorted(modules)}
+    sources = {m: sha256_file(_source_file(m)) for m in sorted(modules)}
     cpu = cpu_id()
-    digest = hashlib.sha256(json.dumps([sources, _platform(), cpu, entries], sort_keys=True).encode()).hexdigest()
+    digest = sha256_doc([sources, _platform(), cpu, entries])
     name = f"grasplan_kernels_{digest[:16]}"
     with tempfile.TemporaryDirectory(prefix="build-", dir=where) as tmp:
         cc = CC(name, source_module="grasplan.compiled.aot")

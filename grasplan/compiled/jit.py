@@ -59,6 +59,11 @@ class Kernel:
                 return function(*args)
         return self.jit()(*args)
 
+    @property
+    def dispatcher(self) -> Any:
+        """numba's dispatcher if this process made it (:meth:`jit`), else None."""
+        return self._jit
+
     def jit(self) -> Any:
         """numba's dispatcher of this kernel (made on first use; numba imported then)."""
         if self._jit is None:

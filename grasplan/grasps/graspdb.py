@@ -15,7 +15,6 @@ scale) or gripper. :func:`database_for` keeps databases in the cache folder
 """
 from __future__ import annotations
 
-import hashlib
 import io
 import json
 import time
@@ -34,7 +33,7 @@ from .pipeline import compute_grasps
 from ..gripper.load import gripper_from_json, load_gripper
 from ..gripper.model import Gripper
 from ..config.inputs import check_input_file
-from ..io import show_path, write_atomic_bytes
+from ..io import sha256_doc, show_path, write_atomic_bytes
 from ..part.mass import MassProperties
 from ..part.mesh import Part
 from ..part.stability import stable_poses
@@ -64,11 +63,6 @@ _DTYPES = {"candidate": np.int64, "region": np.int64, "contact_type": np.int8, "
 _REJECTED = ("rejected_candidate", "rejected_part")
 #: the part's resting poses on a plane (grasplan.part.stability.stable_poses): R_world_part, probability
 _RESTING = ("rest_R", "rest_prob")
-
-
-def sha256_doc(doc: Any) -> str:
-    """sha256 of ``doc``'s canonical JSON (keys sorted, no spaces): the cache's keys."""
-    return hashlib.sha256(json.dumps(doc, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
 
 
 def gripper_key(gripper: Gripper) -> str:

@@ -24,14 +24,14 @@ from ..cell.model import Cell
 from ..config.params import CandidateParams, GraspParams
 from ..errors import InputError
 from ..gripper.model import Gripper
-from ..io import read_json, write_json
+from ..io import read_json, sha256_doc, write_json
 from ..part.mass import MassProperties
 from ..part.mesh import Part
 from ..results.compact import REJECTED, RejectedCounts
 from ..results.grasp_table import GraspTable
 from ..status import GRASP_STATUSES, Status
 from .collision import GripperCollider
-from .graspdb import GraspDatabase, cache_path, database_for, options_key, read_cached, sha256_doc
+from .graspdb import GraspDatabase, cache_path, database_for, options_key, read_cached
 from .pipeline import GraspResult, compute_grasps, part_pose
 from .quality import Quality, mass_or_note, quality_columns, stage_score, stage_warnings
 
@@ -204,8 +204,8 @@ def hold_by_pose(part: Part, gripper: Gripper, cell: Cell, *, candidates: Candid
     ``hold_force`` of any collision-free one). The grasp stage only: no robot. With ``cache``, the
     rows are kept beside the database (:func:`hold_cache_path`: one small file per database, cell,
     options and poses) and read from there the next time."""
-    path = hold_cache_path(part, gripper, cell, candidates=candidates, grasps=grasps, poses=poses)
-    if cache:
+    path = hold_cache_path(part, gripper, cell, candidates=candidates, grasps=grasps, poses=poses) if cache else None
+    if path is not None:
         rows = _read_hold_rows(path, poses)
         if rows is not None:
             return rows
@@ -216,7 +216,7 @@ def hold_by_pose(part: Part, gripper: Gripper, cell: Cell, *, candidates: Candid
         gm = pg.quality.gravity_margin if pg.quality is not None else np.zeros(0)
         force = float(gripper.grip_force) / float(gm.max()) if len(gm) and gm.max() > 0 else None
         out.append((k, p, int(np.count_nonzero(gm >= 1.0)), force))
-    if cache:
+    if path is not None:
         try:
             write_json(path, [list(r) for r in out])
         except OSError:  # a read-only cache folder: the next run computes the rows again
