@@ -191,3 +191,49 @@ def test_check_order_visits_the_interpolated_configurations():
     a, b = np.zeros(6), np.full(6, 0.08)  # 8 parts: 4/8 first, then 2/8 and 6/8
     got = check_order(np.stack([a, b]))
     np.testing.assert_allclose(got[2:5, 0], [0.04, 0.02, 0.06])
+
+
+def test_part_triangles_clear_jaws_beside_the_part():
+    """Near the part (the example gear's planned grasps and their approaches, each configuration jittered
+    by up to a few millimetres at the jaws), the pairs with the part whose boxes overlap are tested
+    against the part's triangles (``PartBoxes``): every pair coal finds colliding is still listed,
+    the listing is a subset of the boxes-alone listing, and the triangles clear a share of the
+    jaw-part pairs the boxes alone leave to coal."""
+    from grasplan.geometry.interpolation import interpolate_path
+    from grasplan.motion import pathboxes
+    from grasplan.motion.planning import plan
+
+    part = load_part(BRACKET.with_name("gear.stl"))  # the jaws reach between its teeth: inside its box
+    res = plan(part, "ur5", gripper="long_stroke_50")
+    assert res.robot is not None
+    scene = CollisionScene(res.robot, res.gripper, part.mesh, res.T_world_part, res.cell)
+    rng = np.random.default_rng(3)
+    runs = []
+    for gid, m in res.motions.items():
+        a, b = m.segment("approach") or (0, 0)
+        app = interpolate_path(np.asarray(m.path[a:b + 1], dtype=np.float64))
+        width = float(res.grasps.width[np.flatnonzero(res.grasps.ids == gid)[0]])
+        runs.append((app + rng.normal(0.0, 0.004, app.shape), float(res.gripper.pregrasp_opening(width))))
+    assert runs
+    part_pairs = {k for k, (a, b, kind, _, _) in enumerate(scene.pair_rows()) if "part" in (a, b)}
+    n_hit = n_cleared = 0
+    for qs, opening in runs:
+        scene.set_opening(opening)
+        starts, ids = scene_open(scene, qs)
+        saved = pathboxes._BOXES.pop(scene._shared)
+        try:  # the same scene with the boxes alone
+            pathboxes._BOXES[scene._shared] = pathboxes.PathBoxes(scene._shared.model, scene._shared.gm,
+                                                                  scene._shared.pairs)
+            scene.__dict__.pop("_boxes_sel", None)
+            starts0, ids0 = scene_open(scene, qs)
+        finally:
+            pathboxes._BOXES[scene._shared] = saved
+            scene.__dict__.pop("_boxes_sel", None)
+        for k, q in enumerate(qs):
+            listed = set(ids[starts[k]:starts[k + 1]].tolist())
+            alone = set(ids0[starts0[k]:starts0[k + 1]].tolist())
+            hit = set(scene._hits(q, opening, False))
+            assert hit <= listed <= alone, (k, hit - listed, listed - alone)
+            n_hit += bool(hit & part_pairs)
+            n_cleared += len((alone - listed) & part_pairs)
+    assert n_hit > 0 and n_cleared > 20, (n_hit, n_cleared)  # near contact both ways; the triangles clear some

@@ -6,6 +6,8 @@ from __future__ import annotations
 import hashlib
 import threading
 from collections import OrderedDict
+from collections.abc import Callable
+from typing import Any
 
 import coal
 import numpy as np
@@ -42,34 +44,44 @@ def bvh(vertices: np.ndarray, faces: np.ndarray) -> coal.BVHModelOBBRSS:
     return m
 
 
-#: triangles of the part BVHs :func:`shared_bvh` keeps for reuse (least recently used dropped first)
+#: triangles of the part structures :func:`shared_bvh` and :func:`shared_mesh_structure` keep for
+#: reuse, per kind (least recently used dropped first)
 SHARED_BVH_TRIANGLES = 400_000
-_SHARED: OrderedDict[bytes, tuple[coal.BVHModelOBBRSS, int]] = OrderedDict()
+_SHARED: OrderedDict[bytes, tuple[Any, int]] = OrderedDict()
 _SHARED_LOCK = threading.Lock()
 
 
-def shared_bvh(vertices: np.ndarray, faces: np.ndarray) -> coal.BVHModelOBBRSS:
-    """:func:`bvh` of a part mesh, built once per content and shared (read-only: coal's queries do
-    not change it) by every scene and filter of the process; a warm plan or pick builds none. The
-    kept BVHs hold at most :data:`SHARED_BVH_TRIANGLES` triangles in all (a larger mesh is built
-    and not kept)."""
+def shared_mesh_structure(kind: str, vertices: np.ndarray, faces: np.ndarray,
+                          build: Callable[[np.ndarray, np.ndarray], Any]) -> Any:
+    """``build(vertices, faces)`` (a read-only structure over a part mesh: a coal BVH, the compiled
+    box hierarchy of :class:`grasplan.grasps.collision_boxes.PartBoxes`) built once per ``kind`` and
+    content and shared by every scene and filter of the process; a warm plan or pick builds none.
+    The kept structures of a kind hold at most :data:`SHARED_BVH_TRIANGLES` triangles in all (a
+    larger mesh is built and not kept)."""
     v = np.ascontiguousarray(vertices, dtype=np.float64)
     f = np.ascontiguousarray(faces, dtype=np.int64)
     h = hashlib.blake2b(v.tobytes(), digest_size=20)
     h.update(f.tobytes())
-    key = h.digest() + np.asarray(v.shape + f.shape, dtype=np.int64).tobytes()
+    key = kind.encode() + b"\0" + h.digest() + np.asarray(v.shape + f.shape, dtype=np.int64).tobytes()
     with _SHARED_LOCK:
         hit = _SHARED.get(key)
         if hit is not None:
             _SHARED.move_to_end(key)
             return hit[0]
-    model = bvh(v, f)
+    made = build(v, f)
     if len(f) <= SHARED_BVH_TRIANGLES:
+        prefix = kind.encode() + b"\0"
         with _SHARED_LOCK:
-            _SHARED[key] = (model, len(f))
-            while sum(n for _, n in _SHARED.values()) > SHARED_BVH_TRIANGLES:
-                _SHARED.popitem(last=False)
-    return model
+            _SHARED[key] = (made, len(f))
+            while sum(n for k, (_, n) in _SHARED.items() if k.startswith(prefix)) > SHARED_BVH_TRIANGLES:
+                del _SHARED[next(k for k in _SHARED if k.startswith(prefix))]
+    return made
+
+
+def shared_bvh(vertices: np.ndarray, faces: np.ndarray) -> coal.BVHModelOBBRSS:
+    """:func:`bvh` of a part mesh, built once per content and shared (read-only: coal's queries do
+    not change it; :func:`shared_mesh_structure`)."""
+    return shared_mesh_structure("bvh", vertices, faces, bvh)
 
 
 def convex_geometry(points: np.ndarray) -> coal.ConvexBase:

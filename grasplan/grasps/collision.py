@@ -18,7 +18,7 @@ import numpy as np
 
 from ..cell.model import Cell
 from ..geometry.containment import RayGrid, inside_box, obb_aabb_separated, points_inside_tree, surface_samples
-from ..cell.shapes import obstacle_geometry, shared_bvh
+from ..cell.shapes import obstacle_geometry, shared_bvh, shared_mesh_structure
 from ..gripper.model import Gripper
 from ..geometry.meshdata import TriangleMesh, convex_hull
 from ..status import Status
@@ -119,9 +119,10 @@ class GripperCollider:
 
     @property
     def part_boxes(self) -> PartBoxes:
-        """The part's triangles in the compiled box hierarchy of the pre-pass (built on first use)."""
+        """The part's triangles in the compiled box hierarchy of the pre-pass (built on first use,
+        shared per mesh content: :func:`~grasplan.cell.shapes.shared_mesh_structure`)."""
         if self._boxes is None:
-            self._boxes = PartBoxes(self.part_mesh.vertices, self.part_mesh.faces)
+            self._boxes = shared_mesh_structure("part_boxes", self.part_mesh.vertices, self.part_mesh.faces, PartBoxes)
         return self._boxes
 
     @property

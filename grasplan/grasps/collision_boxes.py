@@ -42,6 +42,8 @@ class PartBoxes:
         self.center = np.ascontiguousarray(0.5 * (lo + hi))
         self.half = np.ascontiguousarray(0.5 * (hi - lo))
         self.child, self.start, self.count = child, start, count
+        #: the traversal stack :func:`box_vs_tree` needs on this hierarchy
+        self.stack_size = int(tree_stack(child))
 
     def classify(self, T_part_box: np.ndarray, half: np.ndarray, *, prove_hit: bool,
                  tol: float = PREPASS_TOL) -> np.ndarray:
@@ -69,7 +71,7 @@ class PartBoxes:
         return _classify(np.ascontiguousarray(T[:, :3, :3]), np.ascontiguousarray(T[:, :3, 3]),
                          np.ascontiguousarray(half, dtype=np.float64).reshape(-1, 3), bool(prove_hit), float(tol),
                          self.tri, self.tri_center, self.tri_half, self.center, self.half, self.child, self.start,
-                         self.count)
+                         self.count, self.stack_size)
 
 
 @kernel(cache=True, nogil=True)
@@ -229,73 +231,96 @@ def _tri_deep(p: np.ndarray, h: np.ndarray, tol: float, poly: np.ndarray, tmp: n
 
 
 @kernel(cache=True, nogil=True)
+def box_vs_tree(Rq: np.ndarray, cq: np.ndarray, hq: np.ndarray, prove_hit: bool, tol: float, tri: np.ndarray,
+                tc: np.ndarray, th: np.ndarray, nc: np.ndarray, nh: np.ndarray, child: np.ndarray, start: np.ndarray,
+                count: np.ndarray, stack: np.ndarray, p: np.ndarray, poly: np.ndarray, tmp: np.ndarray, w: np.ndarray,
+                scratch: np.ndarray) -> int:  # pragma: no cover
+    """:data:`APART`, :data:`HIT` or :data:`UNSURE` (:meth:`PartBoxes.classify`) of the box with axes
+    ``Rq`` (3, 3), centre ``cq`` and half extents ``hq`` (part frame) against the part's hierarchy;
+    ``stack`` (at least 2 x the tree's depth + 1), ``p``, ``poly``, ``tmp``, ``w``, ``scratch``: scratch."""
+    for i in range(3):  # half widths of the part-axis box around the query box
+        w[i] = abs(Rq[i, 0]) * hq[0] + abs(Rq[i, 1]) * hq[1] + abs(Rq[i, 2]) * hq[2]
+    unsure = False
+    top = 1
+    stack[0] = 0
+    while top > 0:
+        top -= 1
+        node = stack[top]
+        apart = False
+        for i in range(3):  # the node's (part) axes
+            if abs(cq[i] - nc[node, i]) > w[i] + nh[node, i] + tol:
+                apart = True
+                break
+        if not apart:
+            for j in range(3):  # the query box's axes
+                d = 0.0
+                r = 0.0
+                for i in range(3):
+                    d += Rq[i, j] * (nc[node, i] - cq[i])
+                    r += abs(Rq[i, j]) * nh[node, i]
+                if abs(d) > hq[j] + r + tol:
+                    apart = True
+                    break
+        if apart:
+            continue
+        if child[node] >= 0:
+            stack[top] = child[node]
+            stack[top + 1] = child[node] + 1
+            top += 2
+            continue
+        for f in range(start[node], start[node] + count[node]):
+            far = False
+            for i in range(3):  # the triangle's axis-aligned box against the query box's
+                if abs(cq[i] - tc[f, i]) > w[i] + th[f, i] + tol:
+                    far = True
+                    break
+            if far:
+                continue
+            for k in range(3):  # the triangle in the box's frame
+                for j in range(3):
+                    p[k, j] = (Rq[0, j] * (tri[f, k, 0] - cq[0]) + Rq[1, j] * (tri[f, k, 1] - cq[1])
+                               + Rq[2, j] * (tri[f, k, 2] - cq[2]))
+            if _tri_apart(p, hq, tol):
+                continue
+            if prove_hit and _tri_deep(p, hq, tol, poly, tmp, scratch):
+                return HIT
+            unsure = True
+    return UNSURE if unsure else APART
+
+
+@kernel(cache=True, nogil=True)
 def _classify(R: np.ndarray, c: np.ndarray, h: np.ndarray, prove_hit: bool, tol: float, tri: np.ndarray,
               tc: np.ndarray, th: np.ndarray, nc: np.ndarray, nh: np.ndarray, child: np.ndarray, start: np.ndarray,
-              count: np.ndarray) -> np.ndarray:  # pragma: no cover
+              count: np.ndarray, stack_size: int) -> np.ndarray:  # pragma: no cover
     K = R.shape[0]
     out = np.zeros(K, dtype=np.int8)
-    stack = np.empty(256, dtype=np.int64)
+    stack = np.empty(stack_size, dtype=np.int64)
     p = np.empty((3, 3))
     poly = np.empty((12, 3))
     tmp = np.empty((12, 3))
     w = np.empty(3)
     scratch = np.empty(3)
     for q in range(K):
-        for i in range(3):  # half widths of the world-axis box around the query box
-            w[i] = abs(R[q, i, 0]) * h[q, 0] + abs(R[q, i, 1]) * h[q, 1] + abs(R[q, i, 2]) * h[q, 2]
-        unsure = False
-        hit = False
-        top = 1
-        stack[0] = 0
-        while top > 0 and not hit:
-            top -= 1
-            node = stack[top]
-            apart = False
-            for i in range(3):  # the node's (world) axes
-                if abs(c[q, i] - nc[node, i]) > w[i] + nh[node, i] + tol:
-                    apart = True
-                    break
-            if not apart:
-                for j in range(3):  # the query box's axes
-                    d = 0.0
-                    r = 0.0
-                    for i in range(3):
-                        d += R[q, i, j] * (nc[node, i] - c[q, i])
-                        r += abs(R[q, i, j]) * nh[node, i]
-                    if abs(d) > h[q, j] + r + tol:
-                        apart = True
-                        break
-            if apart:
-                continue
-            if child[node] >= 0:
-                if top + 2 > stack.shape[0]:
-                    grown = np.empty(2 * stack.shape[0], dtype=np.int64)
-                    grown[:top] = stack[:top]
-                    stack = grown
-                stack[top] = child[node]
-                stack[top + 1] = child[node] + 1
-                top += 2
-                continue
-            for f in range(start[node], start[node] + count[node]):
-                far = False
-                for i in range(3):  # the triangle's axis-aligned box against the query box's
-                    if abs(c[q, i] - tc[f, i]) > w[i] + th[f, i] + tol:
-                        far = True
-                        break
-                if far:
-                    continue
-                for k in range(3):  # the triangle in the box's frame
-                    for j in range(3):
-                        p[k, j] = (R[q, 0, j] * (tri[f, k, 0] - c[q, 0]) + R[q, 1, j] * (tri[f, k, 1] - c[q, 1])
-                                   + R[q, 2, j] * (tri[f, k, 2] - c[q, 2]))
-                if _tri_apart(p, h[q], tol):
-                    continue
-                if prove_hit and _tri_deep(p, h[q], tol, poly, tmp, scratch):
-                    hit = True
-                    break
-                unsure = True
-        out[q] = HIT if hit else (UNSURE if unsure else APART)
+        out[q] = box_vs_tree(R[q], c[q], h[q], prove_hit, tol, tri, tc, th, nc, nh, child, start, count, stack, p,
+                             poly, tmp, w, scratch)
     return out
+
+
+@kernel(cache=True, nogil=True)
+def tree_stack(child: np.ndarray) -> int:  # pragma: no cover
+    """A stack size enough for :func:`box_vs_tree` on the hierarchy ``child``: 2 x its depth + 2
+    (node 0 is the root; a node's children are ``child[node]`` and ``child[node] + 1``)."""
+    n = child.shape[0]
+    if n == 0:
+        return 2
+    depth = np.zeros(n, dtype=np.int64)
+    deepest = 0
+    for node in range(n):  # children come after their parent
+        if child[node] >= 0:
+            depth[child[node]] = depth[node] + 1
+            depth[child[node] + 1] = depth[node] + 1
+            deepest = max(deepest, depth[node] + 1)
+    return 2 * deepest + 2
 
 
 def prefilter(T_part_box: np.ndarray, half: np.ndarray, center: np.ndarray, extent: np.ndarray

@@ -22,10 +22,11 @@ import pinocchio as pin
 
 from ..cell.model import Cell
 from ..errors import InputError
-from ..cell.shapes import TABLE_SIZE, obstacle_geometry, shape_geometry, shared_bvh, table_pose
+from ..cell.shapes import TABLE_SIZE, obstacle_geometry, shape_geometry, shared_bvh, shared_mesh_structure, table_pose
 from ..gripper.model import Gripper
 from ..geometry.interpolation import STEP, check_order, interpolate_path
 from ..geometry.meshdata import TriangleMesh
+from ..grasps.collision_boxes import PartBoxes
 from .pathboxes import scene_open
 from ..robot.model import Robot
 from ..geometry.transforms import check_transform, to_se3, translation
@@ -50,6 +51,10 @@ class ExtraBody:
     name: str
     geometry: coal.CollisionGeometry
     kind: str = "obstacle"
+
+
+#: jaw openings whose finger placements a scene model keeps (a grasp's pre-grasp opening and width)
+FINGER_PLACEMENTS = 8
 
 
 class _SceneModel:
@@ -123,7 +128,8 @@ class _SceneModel:
                 self.body[gid] = f"obstacle:{o.name}"
         self.has_part = part_mesh is not None
         if part_mesh is not None:
-            part_bvh = shared_bvh(np.asarray(part_mesh.vertices), np.asarray(part_mesh.faces))
+            self.part_vf = (np.asarray(part_mesh.vertices), np.asarray(part_mesh.faces))
+            part_bvh = shared_bvh(*self.part_vf)
             gid = gm.addGeometryObject(pin.GeometryObject(PART, 0, 0, pin.SE3.Identity(), part_bvh))
             self.env_ids[PART] = gid
             self.body[gid] = PART
@@ -162,6 +168,7 @@ class _SceneModel:
             self.body[r] = self.link(r)
         self._build_pairs()
         self.opening: float | None = None
+        self._finger_placements: dict[float, tuple[pin.SE3, ...]] = {}
         self.owner: weakref.ref[CollisionScene] | None = None  # the variant placed (weak: no reference cycle)
 
     def link(self, gid: int) -> str:
@@ -257,12 +264,25 @@ class _SceneModel:
         #: geometries whose placement changes within a variant: the jaws, the carried part
         self.moving_ids = {*self.finger_ids, *(self.env_ids[k] for k in (PART_ATTACHED,) if k in self.env_ids)}
 
+    def part_trees(self) -> dict[int, PartBoxes]:
+        """The part's geometries (static, attached) and its triangles' box hierarchy, shared per mesh."""
+        if not self.has_part:
+            return {}
+        tree = shared_mesh_structure("part_boxes", *self.part_vf, PartBoxes)
+        return {self.env_ids[PART]: tree, self.env_ids[PART_ATTACHED]: tree}
+
     def set_opening(self, o: float) -> None:
         if o == self.opening:
             return
-        for sign, gid, T0 in zip((-1.0, 1.0), self.finger_ids, self.finger_T0):
-            self.gm.geometryObjects[gid].placement = to_se3(
-                self.T_joint_tcp @ translation(sign * o / 2, z=self.finger_dz(o)) @ T0)
+        placed = self._finger_placements.get(o)
+        if placed is None:
+            placed = tuple(to_se3(self.T_joint_tcp @ translation(sign * o / 2, z=self.finger_dz(o)) @ T0)
+                           for sign, T0 in zip((-1.0, 1.0), self.finger_T0))
+            if len(self._finger_placements) >= FINGER_PLACEMENTS:
+                del self._finger_placements[next(iter(self._finger_placements))]
+            self._finger_placements[o] = placed
+        for gid, M in zip(self.finger_ids, placed):
+            self.gm.geometryObjects[gid].placement = M
         self.opening = o
 
 
@@ -578,15 +598,3 @@ def describe_pairs(pairs: list[tuple[str, str, str]], limit: int = 3) -> str:
     more = f" (+{len(pairs) - limit} more)" if len(pairs) > limit else ""
     return "; ".join(rows) + more
 
-
-def no_path_reason(scene: CollisionScene, q_start: ArrayLike, q_goal: ArrayLike, opening: float, time_limit: float,
-                   attempts: int,
-                   *, start: str = "start (q_home)", goal: str = "goal (pre-grasp)") -> str:
-    """Why a joint-path query failed: the start or the goal in collision (naming the bodies), or
-    RRTConnect's time ran out with both valid."""
-    for what, q in ((start, q_start), (goal, q_goal)):
-        pairs = scene.colliding_pairs(np.asarray(q, dtype=float), opening)
-        if pairs:
-            return f"{what} invalid: {describe_pairs(pairs, 2)}"
-    return (f"start and goal valid; RRTConnect ran out of time ({time_limit:g} s x {attempts} attempts per query) "
-            f"or its path failed the 0.01 rad re-check")

@@ -123,23 +123,32 @@ def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touc
     either. None: every configuration up to waypoint ``n_touch`` may rest."""
     n_touch = int(min(max(n_touch, 0), len(path) - 1))
     drops: list[np.ndarray] = [] if drop is None else [drop] if isinstance(drop, np.ndarray) else list(drop)
+    # the whole lift densified once; each part's configurations are its rows (a segment is split
+    # on its own: the same as densifying the part alone)
+    dense_all, rows_all = interpolate_path(np.asarray(path, dtype=np.float64), return_index=True)
+    support_ids = _support_pairs(scene) if isinstance(scene, CollisionScene) else None
+    if support_ids is not None:
+        support_ids = support_ids[scene._active[support_ids]]
     for k0, k1, support in ((n_touch, len(path), False), (0, n_touch + 1, True)):
-        part = path[k0:k1]
         if support and n_touch == 0:
             continue
-        dense, rows = interpolate_path(part, return_index=True)
+        dense = dense_all[rows_all[k0]:rows_all[k1 - 1] + 1]
+        rows = rows_all[k0:k1] - rows_all[k0]
         level = np.zeros(len(dense), dtype=np.int64)
         if covered is not None and drops:
             level[rows] = np.minimum(np.asarray(covered[k0:k1], dtype=np.int64), len(drops))
         # a configuration that may rest (within lift_contact of travel) is free exactly when it is
         # with the part's support pairs off (:func:`sample_ok`): those are switched off for it too
-        may_rest = np.array([support and (resting is None or resting(q)) for q in dense], dtype=bool)
-        support_ids = _support_pairs(scene) if isinstance(scene, CollisionScene) else None
-        if support_ids is not None:
-            support_ids = support_ids[scene._active[support_ids]]
+        if not support:
+            may_rest = np.zeros(len(dense), dtype=bool)
+        elif resting is None:
+            may_rest = np.ones(len(dense), dtype=bool)
+        else:
+            may_rest = np.array([resting(q) for q in dense], dtype=bool)
         rests = may_rest & (support_ids is not None)
         bad: int | None = None
-        for lv, rest in sorted({(int(a), bool(b)) for a, b in zip(level, rests)}, reverse=True):
+        groups = np.unique(2 * level + rests)[::-1]  # (level, rest), the highest level first
+        for lv, rest in zip((groups // 2).tolist(), (groups % 2 == 1).tolist()):
             idx = np.flatnonzero((level == lv) & (rests == rest))
             offs = ([drops[lv - 1]] if lv else []) + ([support_ids] if rest and support_ids is not None else [])
             off = np.union1d(*offs) if len(offs) == 2 else offs[0] if offs else None

@@ -6,7 +6,12 @@ configuration, decided for many configurations in one compiled pass (:func:`scen
 coal reports a collision of two geometries only where they overlap or come within the security
 margin, and every geometry lies inside its local bounding box (coal's ``aabb_local``: a mesh's
 vertices' box, a primitive's exact extent) placed by its joint. So a pair whose two oriented boxes
-lie more than the margin apart cannot collide.
+lie more than the margin apart cannot collide. The part's mesh has a finer test: when the other
+geometry's box overlaps the part's box, that box is tested against the part's triangles (their
+box hierarchy, :class:`grasplan.grasps.collision_boxes.PartBoxes`, the grasp stage's pre-pass);
+apart from every triangle by more than the margin and
+:data:`~grasplan.grasps.collision_boxes.PREPASS_TOL`, it cannot touch the mesh (coal tests a
+mesh's surface: a box wholly inside the part is apart for both).
 """
 from __future__ import annotations
 
@@ -19,6 +24,7 @@ import pinocchio as pin
 
 from ..cell.shapes import local_box
 from ..compiled.jit import kernel
+from ..grasps.collision_boxes import APART, PREPASS_TOL, PartBoxes, box_vs_tree
 
 
 #: the boxes must lie this much (m) beyond the security margin apart: float rounding of the box
@@ -34,7 +40,7 @@ class PathBoxes:
     geometry its joint and local box. ``ok`` is False for a model with a joint other than
     revolute or prismatic (then nothing is ever cleared)."""
 
-    def __init__(self, model: pin.Model, gm: pin.GeometryModel, pairs: Any = ()):
+    def __init__(self, model: pin.Model, gm: pin.GeometryModel, pairs: Any = (), trees: dict[int, PartBoxes] | None = None):
         J = int(model.njoints)
         self.parent = np.array([max(int(p), 0) for p in model.parents], dtype=np.int64)
         self.R0 = np.zeros((J, 3, 3))
@@ -77,6 +83,18 @@ class PathBoxes:
             self.finite[k] = fin
             if fin:
                 self.center[k], self.half[k] = c, h
+        #: per geometry: 0 when it is a part mesh whose triangles' box hierarchy ``tree`` (one
+        #: :class:`~grasplan.grasps.collision_boxes.PartBoxes`, the same mesh for every such geometry) tests
+        #: the other box of a pair its own box leaves open, else -1
+        self.tree_of = np.full(n, -1, dtype=np.int64)
+        trees = trees or {}
+        self.tree = next(iter(trees.values())) if trees else None
+        for k, t in trees.items():
+            if not len(t.tri):
+                continue
+            if t is not self.tree:
+                raise ValueError("PathBoxes: the part geometries must share one box hierarchy")
+            self.tree_of[k] = 0
 
     @functools.cached_property
     def selected(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
@@ -91,14 +109,25 @@ class PathBoxes:
         slot = np.cumsum(mask) - 1  # each used geometry's index among the used ones
         return np.flatnonzero(mask), np.ascontiguousarray(np.where(fin[:, None], slot[self.pairs], -1)), fin
 
-    def prepare(self, used: np.ndarray, placements: np.ndarray, margin: float) -> tuple:
-        """The kernel's arguments but the pairs and the tolerance, the used geometries (:attr:`selected`)
-        at ``placements`` ((len(used), 4, 4), each in its joint's frame)."""
+    def prepare(self, used: np.ndarray, placements: np.ndarray, margin: float) -> tuple[tuple, float, tuple]:
+        """The kernel's arguments, the used geometries (:attr:`selected`) at ``placements``
+        ((len(used), 4, 4), each in its joint's frame): ``(those before the pairs, the tolerance,
+        those after it)``."""
         P = np.asarray(placements, dtype=np.float64).reshape(-1, 4, 4)
         R_loc = np.array(P[:, :3, :3], order="C")  # a copy: the caller reuses its placements array
-        c_loc = np.ascontiguousarray(P[:, :3, 3] + (R_loc @ self.center[used][:, :, None])[:, :, 0])
-        return (self.parent, self.R0, self.t0, self.kind, self.axis, self.iq, np.ascontiguousarray(self.joint[used]),
-                R_loc, c_loc, np.ascontiguousarray(self.half[used]), float(margin) + SLACK)
+        centre = np.ascontiguousarray(self.center[used])
+        c_loc = np.ascontiguousarray(P[:, :3, 3] + (R_loc @ centre[:, :, None])[:, :, 0])
+        t = self.tree
+        tree = _NO_TREE if t is None else (t.tri, t.tri_center, t.tri_half, t.center, t.half, t.child, t.start,
+                                           t.count, t.stack_size)
+        return ((self.parent, self.R0, self.t0, self.kind, self.axis, self.iq, np.ascontiguousarray(self.joint[used]),
+                 R_loc, c_loc, np.ascontiguousarray(self.half[used])), float(margin) + SLACK,
+                (np.ascontiguousarray(self.tree_of[used]), centre, *tree))
+
+
+#: the kernel's tree arguments of a model without a part mesh
+_NO_TREE = (np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)),
+            np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), 2)
 
 
 #: configurations per chunk of :func:`_open_pairs`: the pairs whose boxes lie apart over a whole
@@ -107,9 +136,9 @@ CHUNK = 16
 
 
 @kernel(cache=True, nogil=True)
-def _chain(q: np.ndarray, parent: np.ndarray, R0: np.ndarray, t0: np.ndarray, kind: np.ndarray, axis: np.ndarray,
-           iq: np.ndarray, oR: np.ndarray, ot: np.ndarray, RM: np.ndarray, rot: np.ndarray) -> None:  # pragma: no cover
-    """Forward kinematics of the chain at ``q``: each joint's world rotation ``oR`` and origin ``ot``."""
+def _chain(qs: np.ndarray, k: int, parent: np.ndarray, R0: np.ndarray, t0: np.ndarray, kind: np.ndarray,
+           axis: np.ndarray, iq: np.ndarray, oR: np.ndarray, ot: np.ndarray) -> None:  # pragma: no cover
+    """Forward kinematics of the chain at ``qs[k]``: each joint's world rotation ``oR`` and origin ``ot``."""
     J = parent.shape[0]
     for i in range(3):
         for j in range(3):
@@ -117,63 +146,63 @@ def _chain(q: np.ndarray, parent: np.ndarray, R0: np.ndarray, t0: np.ndarray, ki
         ot[0, i] = 0.0
     for jj in range(1, J):
         p = parent[jj]
+        x = qs[k, iq[jj]]
         for i in range(3):  # parent pose times the joint placement
-            ot[jj, i] = ot[p, i]
+            o = ot[p, i]
             for j in range(3):
-                ot[jj, i] += oR[p, i, j] * t0[jj, j]
-                s = 0.0
-                for m in range(3):
-                    s += oR[p, i, m] * R0[jj, m, j]
-                RM[i, j] = s
-        x = q[iq[jj]]
+                o += oR[p, i, j] * t0[jj, j]
+            ot[jj, i] = o
         if kind[jj] == 1:  # Rodrigues: rot = I + sin K + (1 - cos) K^2
             a0, a1, a2 = axis[jj, 0], axis[jj, 1], axis[jj, 2]
             sn, cs = np.sin(x), 1.0 - np.cos(x)
-            rot[0, 0] = 1.0 - cs * (a1 * a1 + a2 * a2)
-            rot[1, 1] = 1.0 - cs * (a0 * a0 + a2 * a2)
-            rot[2, 2] = 1.0 - cs * (a0 * a0 + a1 * a1)
-            rot[0, 1] = -sn * a2 + cs * a0 * a1
-            rot[1, 0] = sn * a2 + cs * a0 * a1
-            rot[0, 2] = sn * a1 + cs * a0 * a2
-            rot[2, 0] = -sn * a1 + cs * a0 * a2
-            rot[1, 2] = -sn * a0 + cs * a1 * a2
-            rot[2, 1] = sn * a0 + cs * a1 * a2
-            for i in range(3):
-                for j in range(3):
-                    oR[jj, i, j] = RM[i, 0] * rot[0, j] + RM[i, 1] * rot[1, j] + RM[i, 2] * rot[2, j]
+            r00 = 1.0 - cs * (a1 * a1 + a2 * a2)
+            r11 = 1.0 - cs * (a0 * a0 + a2 * a2)
+            r22 = 1.0 - cs * (a0 * a0 + a1 * a1)
+            r01 = -sn * a2 + cs * a0 * a1
+            r10 = sn * a2 + cs * a0 * a1
+            r02 = sn * a1 + cs * a0 * a2
+            r20 = -sn * a1 + cs * a0 * a2
+            r12 = -sn * a0 + cs * a1 * a2
+            r21 = sn * a0 + cs * a1 * a2
         else:
-            for i in range(3):
-                for j in range(3):
-                    oR[jj, i, j] = RM[i, j]
+            r00, r01, r02, r10, r11, r12, r20, r21, r22 = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
+        for i in range(3):
+            m0 = oR[p, i, 0] * R0[jj, 0, 0] + oR[p, i, 1] * R0[jj, 1, 0] + oR[p, i, 2] * R0[jj, 2, 0]
+            m1 = oR[p, i, 0] * R0[jj, 0, 1] + oR[p, i, 1] * R0[jj, 1, 1] + oR[p, i, 2] * R0[jj, 2, 1]
+            m2 = oR[p, i, 0] * R0[jj, 0, 2] + oR[p, i, 1] * R0[jj, 1, 2] + oR[p, i, 2] * R0[jj, 2, 2]
+            oR[jj, i, 0] = m0 * r00 + m1 * r10 + m2 * r20
+            oR[jj, i, 1] = m0 * r01 + m1 * r11 + m2 * r21
+            oR[jj, i, 2] = m0 * r02 + m1 * r12 + m2 * r22
             if kind[jj] == 2:
-                for i in range(3):
-                    ot[jj, i] += x * (RM[i, 0] * axis[jj, 0] + RM[i, 1] * axis[jj, 1] + RM[i, 2] * axis[jj, 2])
+                ot[jj, i] += x * (m0 * axis[jj, 0] + m1 * axis[jj, 1] + m2 * axis[jj, 2])
 
 
 @kernel(cache=True, nogil=True)
-def _place(g: int, jg: int, oR: np.ndarray, ot: np.ndarray, R_loc: np.ndarray, c_loc: np.ndarray, half: np.ndarray,
-           R: np.ndarray, c: np.ndarray, hw: np.ndarray) -> None:  # pragma: no cover
-    """Box ``g`` on joint ``jg`` in the world: its axes ``R[g]``, centre ``c[g]`` and the
-    half-widths ``hw[g]`` of the world-axis box around it."""
+def _place(g: int, jg: int, s: int, oR: np.ndarray, ot: np.ndarray, R_loc: np.ndarray, c_loc: np.ndarray,
+           half: np.ndarray, R: np.ndarray, c: np.ndarray, hw: np.ndarray) -> None:  # pragma: no cover
+    """Box ``g`` on joint ``jg`` in the world, in slot ``s``: its axes ``R[s, g]``, centre
+    ``c[s, g]`` and the half-widths ``hw[s, g]`` of the world-axis box around it."""
     for i in range(3):
         cc = ot[jg, i]
         for j in range(3):
             cc += oR[jg, i, j] * c_loc[g, j]
-            s = 0.0
-            for m in range(3):
-                s += oR[jg, i, m] * R_loc[g, m, j]
-            R[g, i, j] = s
-        c[g, i] = cc
-    for i in range(3):
-        hw[g, i] = abs(R[g, i, 0]) * half[g, 0] + abs(R[g, i, 1]) * half[g, 1] + abs(R[g, i, 2]) * half[g, 2]
+            R[s, g, i, j] = oR[jg, i, 0] * R_loc[g, 0, j] + oR[jg, i, 1] * R_loc[g, 1, j] + oR[jg, i, 2] * R_loc[g, 2, j]
+        c[s, g, i] = cc
+        hw[s, g, i] = abs(R[s, g, i, 0]) * half[g, 0] + abs(R[s, g, i, 1]) * half[g, 1] + abs(R[s, g, i, 2]) * half[g, 2]
 
 
 @kernel(cache=True, nogil=True)
 def _open_pairs(qs: np.ndarray, parent: np.ndarray, R0: np.ndarray, t0: np.ndarray, kind: np.ndarray, axis: np.ndarray,
                 iq: np.ndarray, gjoint: np.ndarray, R_loc: np.ndarray, c_loc: np.ndarray, half: np.ndarray,
-                pairs: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover
+                pairs: np.ndarray, tol: float, gtree: np.ndarray, centre: np.ndarray, tri: np.ndarray, tc: np.ndarray,
+                th: np.ndarray, nc: np.ndarray, nh: np.ndarray, child: np.ndarray, start: np.ndarray,
+                count: np.ndarray, stack_size: int) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover
     """Per configuration, the pairs (indices into ``pairs``) whose boxes the tests cannot put
     apart: ``(starts (n + 1,), flat)``, configuration k's in ``flat[starts[k]:starts[k + 1]]``.
+    A pair of a part mesh (``gtree`` 0; ``centre``: each geometry's local box centre) and another
+    geometry whose two boxes overlap is apart when the other's box is apart from every triangle
+    of the part (its box hierarchy ``tri`` ... ``count``, :func:`grasplan.grasps.collision_boxes.box_vs_tree`)
+    by more than ``tol`` + :data:`~grasplan.grasps.collision_boxes.PREPASS_TOL`.
 
     The configurations go in chunks of :data:`CHUNK`: per chunk, each geometry's world-axis box
     around its boxes at all of the chunk's configurations; a pair whose two such boxes lie more
@@ -193,8 +222,6 @@ def _open_pairs(qs: np.ndarray, parent: np.ndarray, R0: np.ndarray, t0: np.ndarr
     hw = np.empty((C, G, 3))
     lo = np.empty((G, 3))
     hi = np.empty((G, 3))
-    rot = np.empty((3, 3))
-    RM = np.empty((3, 3))
     live = np.empty(P, dtype=np.int64)
     for i in range(3):  # the universe joint: the world frame
         for j in range(3):
@@ -203,17 +230,17 @@ def _open_pairs(qs: np.ndarray, parent: np.ndarray, R0: np.ndarray, t0: np.ndarr
     slot = np.zeros((C, G), dtype=np.int64)  # where geometry g's box at the chunk's kk-th configuration is
     for g in range(G):  # fixed in the world: placed once, in slot 0
         if gjoint[g] == 0:
-            _place(g, 0, oR, ot, R_loc, c_loc, half, R[0], c[0], hw[0])
+            _place(g, 0, 0, oR, ot, R_loc, c_loc, half, R, c, hw)
         else:
             for kk in range(C):
                 slot[kk, g] = kk
     for k0 in range(0, n, C):
         m = min(C, n - k0)
         for kk in range(m):
-            _chain(qs[k0 + kk], parent, R0, t0, kind, axis, iq, oR, ot, RM, rot)
+            _chain(qs, k0 + kk, parent, R0, t0, kind, axis, iq, oR, ot)
             for g in range(G):
                 if gjoint[g] != 0:
-                    _place(g, gjoint[g], oR, ot, R_loc, c_loc, half, R[kk], c[kk], hw[kk])
+                    _place(g, gjoint[g], kk, oR, ot, R_loc, c_loc, half, R, c, hw)
         nl = 0
         if m == 1:
             for pp in range(P):
@@ -251,6 +278,11 @@ def _open_pairs(qs: np.ndarray, parent: np.ndarray, R0: np.ndarray, t0: np.ndarr
                         break
                 if not apart:
                     apart = obb_apart(R[sa, a], c[sa, a], half[a], R[sb, b], c[sb, b], half[b], tol)
+                if not apart and (gtree[a] >= 0) != (gtree[b] >= 0):  # the other box against the part's triangles
+                    t, o = (a, b) if gtree[a] >= 0 else (b, a)
+                    st, so = slot[kk, t], slot[kk, o]
+                    apart = _apart_from_part(R[st, t], c[st, t], centre[t], R[so, o], c[so, o], half[o], tol, tri, tc,
+                                             th, nc, nh, child, start, count, stack_size)
                 if not apart:
                     if nf == flat.shape[0]:
                         grown = np.empty(2 * nf, dtype=np.int64)
@@ -260,6 +292,28 @@ def _open_pairs(qs: np.ndarray, parent: np.ndarray, R0: np.ndarray, t0: np.ndarr
                     nf += 1
             starts[k0 + kk + 1] = nf
     return starts, flat[:nf]
+
+
+@kernel(cache=True, nogil=True)
+def _apart_from_part(Rt: np.ndarray, ct: np.ndarray, centre_t: np.ndarray, Ro: np.ndarray, co: np.ndarray,
+                     ho: np.ndarray, tol: float, tri: np.ndarray, tc: np.ndarray, th: np.ndarray, nc: np.ndarray,
+                     nh: np.ndarray, child: np.ndarray, start: np.ndarray, count: np.ndarray,
+                     stack_size: int) -> bool:  # pragma: no cover
+    """The box (axes ``Ro``, centre ``co``, half extents ``ho``, world) lies more than ``tol`` +
+    :data:`~grasplan.grasps.collision_boxes.PREPASS_TOL` from every triangle of the part whose
+    local box has axes ``Rt``, centre ``ct`` (world) and centre ``centre_t`` in the part's frame."""
+    op = np.empty(3)
+    Rq = np.empty((3, 3))
+    cq = np.empty(3)
+    for i in range(3):  # the part's origin in the world, the other box's axes in the part's frame
+        op[i] = ct[i] - (Rt[i, 0] * centre_t[0] + Rt[i, 1] * centre_t[1] + Rt[i, 2] * centre_t[2])
+        for j in range(3):
+            Rq[i, j] = Rt[0, i] * Ro[0, j] + Rt[1, i] * Ro[1, j] + Rt[2, i] * Ro[2, j]
+    for i in range(3):
+        cq[i] = Rt[0, i] * (co[0] - op[0]) + Rt[1, i] * (co[1] - op[1]) + Rt[2, i] * (co[2] - op[2])
+    return box_vs_tree(Rq, cq, ho, False, tol + PREPASS_TOL, tri, tc, th, nc, nh, child, start, count,
+                       np.empty(stack_size, dtype=np.int64), np.empty((3, 3)), np.empty((12, 3)), np.empty((12, 3)),
+                       np.empty(3), np.empty(3)) == APART
 
 
 @kernel(cache=True, nogil=True)
@@ -305,7 +359,7 @@ _BOXES: "weakref.WeakKeyDictionary[Any, PathBoxes]" = weakref.WeakKeyDictionary(
 MAX_PREPARED = 8
 
 
-def _prepared(scene: Any) -> tuple[tuple, np.ndarray, np.ndarray] | None:
+def _prepared(scene: Any) -> tuple[tuple[tuple, float, tuple], np.ndarray, np.ndarray] | None:
     """``(the kernel's arguments but the pairs and the tolerance, every pair's rows into the used
     geometries, per pair: the kernel can take it)`` for ``scene`` with its jaws and carried part as
     they are; cached per variant, jaw opening and attached part's pose (the last :data:`MAX_PREPARED`
@@ -315,7 +369,7 @@ def _prepared(scene: Any) -> tuple[tuple, np.ndarray, np.ndarray] | None:
     sh = scene._shared
     boxes = _BOXES.get(sh)
     if boxes is None:
-        boxes = _BOXES[sh] = PathBoxes(sh.model, sh.gm, sh.pairs)
+        boxes = _BOXES[sh] = PathBoxes(sh.model, sh.gm, sh.pairs, sh.part_trees())
     sel = boxes.selected
     if sel is None:
         return None
@@ -371,6 +425,7 @@ def scene_open(scene: Any, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray] | No
     active = np.flatnonzero(scene._active)
     if not finite[active].all():
         return None
-    args = (*prep[:-1], rows[active], prep[-1])
-    starts, flat = _open_pairs(np.ascontiguousarray(qs, dtype=np.float64).reshape(-1, scene.model.nq), *args)
+    head, tol, tail = prep
+    starts, flat = _open_pairs(np.ascontiguousarray(qs, dtype=np.float64).reshape(-1, scene.model.nq), *head,
+                               rows[active], tol, *tail)
     return starts, active[flat]
