@@ -237,7 +237,8 @@ def box_vs_tree(Rq: np.ndarray, cq: np.ndarray, hq: np.ndarray, prove_hit: bool,
                 scratch: np.ndarray) -> int:  # pragma: no cover
     """:data:`APART`, :data:`HIT` or :data:`UNSURE` (:meth:`PartBoxes.classify`) of the box with axes
     ``Rq`` (3, 3), centre ``cq`` and half extents ``hq`` (part frame) against the part's hierarchy;
-    ``stack`` (at least 2 x the tree's depth + 1), ``p``, ``poly``, ``tmp``, ``w``, ``scratch``: scratch."""
+    ``stack`` (:attr:`PartBoxes.stack_size` long, :func:`tree_stack`), ``p``, ``poly``, ``tmp``, ``w``,
+    ``scratch``: scratch."""
     for i in range(3):  # half widths of the part-axis box around the query box
         w[i] = abs(Rq[i, 0]) * hq[0] + abs(Rq[i, 1]) * hq[1] + abs(Rq[i, 2]) * hq[2]
     unsure = False

@@ -264,12 +264,12 @@ class _SceneModel:
         #: geometries whose placement changes within a variant: the jaws, the carried part
         self.moving_ids = {*self.finger_ids, *(self.env_ids[k] for k in (PART_ATTACHED,) if k in self.env_ids)}
 
-    def part_trees(self) -> dict[int, PartBoxes]:
+    def part_tree(self) -> tuple[tuple[int, int], PartBoxes] | None:
         """The part's geometries (static, attached) and its triangles' box hierarchy, shared per mesh."""
         if not self.has_part:
-            return {}
-        tree = shared_mesh_structure("part_boxes", *self.part_vf, PartBoxes)
-        return {self.env_ids[PART]: tree, self.env_ids[PART_ATTACHED]: tree}
+            return None
+        return (self.env_ids[PART], self.env_ids[PART_ATTACHED]), shared_mesh_structure("part_boxes", *self.part_vf,
+                                                                                         PartBoxes)
 
     def set_opening(self, o: float) -> None:
         if o == self.opening:

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import functools
 import weakref
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -40,7 +41,8 @@ class PathBoxes:
     geometry its joint and local box. ``ok`` is False for a model with a joint other than
     revolute or prismatic (then nothing is ever cleared)."""
 
-    def __init__(self, model: pin.Model, gm: pin.GeometryModel, pairs: Any = (), trees: dict[int, PartBoxes] | None = None):
+    def __init__(self, model: pin.Model, gm: pin.GeometryModel, pairs: Any = (),
+                 part: tuple[Sequence[int], PartBoxes] | None = None):
         J = int(model.njoints)
         self.parent = np.array([max(int(p), 0) for p in model.parents], dtype=np.int64)
         self.R0 = np.zeros((J, 3, 3))
@@ -83,18 +85,14 @@ class PathBoxes:
             self.finite[k] = fin
             if fin:
                 self.center[k], self.half[k] = c, h
-        #: per geometry: 0 when it is a part mesh whose triangles' box hierarchy ``tree`` (one
-        #: :class:`~grasplan.grasps.collision_boxes.PartBoxes`, the same mesh for every such geometry) tests
-        #: the other box of a pair its own box leaves open, else -1
+        #: ``part = (geometry ids, tree)``: the geometries of the part's mesh (static, attached) and
+        #: its triangles' box hierarchy (:class:`~grasplan.grasps.collision_boxes.PartBoxes`), which
+        #: tests the other box of a pair their own boxes leave open; per geometry 0 when it is one of
+        #: them, else -1
+        self.tree = part[1] if part is not None and len(part[1].tri) else None
         self.tree_of = np.full(n, -1, dtype=np.int64)
-        trees = trees or {}
-        self.tree = next(iter(trees.values())) if trees else None
-        for k, t in trees.items():
-            if not len(t.tri):
-                continue
-            if t is not self.tree:
-                raise ValueError("PathBoxes: the part geometries must share one box hierarchy")
-            self.tree_of[k] = 0
+        if part is not None and self.tree is not None:
+            self.tree_of[list(part[0])] = 0
 
     @functools.cached_property
     def selected(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
@@ -369,7 +367,7 @@ def _prepared(scene: Any) -> tuple[tuple[tuple, float, tuple], np.ndarray, np.nd
     sh = scene._shared
     boxes = _BOXES.get(sh)
     if boxes is None:
-        boxes = _BOXES[sh] = PathBoxes(sh.model, sh.gm, sh.pairs, sh.part_trees())
+        boxes = _BOXES[sh] = PathBoxes(sh.model, sh.gm, sh.pairs, sh.part_tree())
     sel = boxes.selected
     if sel is None:
         return None
