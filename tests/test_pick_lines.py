@@ -93,22 +93,25 @@ def test_scene_checks_depths():
 
 
 def test_ur_line_branch_named_by_the_start_signs_is_the_best_match(ur5):
-    """ur_line solves only the branch the start's signs name (start_branch); the paths are those of
-    comparing all eight branches, on random lines from random starts."""
-    import grasplan.robot.ik.lines as lines
-    from grasplan.robot.ik.ur_batch import branch_many, solve_one
+    """The line solves only the branch the start's signs name (start_branch) when it matches the
+    start; the paths are those of comparing all eight branches, on random lines from random starts."""
+    from grasplan.robot.ik.ur_batch import branch_many, fk_many, line, solve_one, start_branch
 
     robot, _ = ur5
     ur = get_solver(robot).analytic
     rng = np.random.default_rng(7)
-    named = 0
+    named = followed = 0
     for _ in range(60):
         q0 = rng.uniform(-3.0, 3.0, 6)
-        T0 = lines.fk_base_tool(ur, q0[None])[0]
+        T0 = fk_many(ur.chain, q0[None])[0]
         d = rng.normal(0.0, 1.0, 3)
+        T1 = T0.copy()
+        T1[:3, 3] += 0.1 * d / np.linalg.norm(d)
         T = np.broadcast_to(T0, (20, 4, 4)).copy()
         T[:, :3, 3] = T0[:3, 3] + 0.1 * d / np.linalg.norm(d) * (np.arange(1, 21) / 20)[:, None]
-        got = lines.ur_line(ur, T, q0, robot.lower, robot.upper, 0.1)
+        # base = world, flange = TCP; the deviation bound off: the branch alone decides
+        got = line(ur.chain, np.eye(4), np.eye(4), T0, T1, q0, robot.lower, robot.upper, sample=0.005,
+                   max_dev=1.0, max_step=0.1)
         b_all = [branch_many(ur.chain, np.concatenate([T0[None], T]), b) for b in range(8)]  # every branch
         Q, valid = np.array([q for q, _ in b_all]), np.array([v for _, v in b_all])
         Q0, ok_r, ok3 = solve_one(ur.chain, T0)  # at the start, as IK solves it
@@ -117,11 +120,13 @@ def test_ur_line_branch_named_by_the_start_signs_is_the_best_match(ur5):
         gap = Q[:, 0, :] - q0
         b = int(np.argmin(np.where(valid[:, 0], np.abs(gap - 2 * np.pi * np.round(gap / (2 * np.pi))).max(axis=1),
                                    np.inf)))
-        named += lines.start_branch(ur, q0, T0) == b
+        named += start_branch(ur.chain, q0, T0) == b
         if got[0] is not None:  # the path runs on the best-matching branch, unwrapped from q0
+            followed += 1
+            assert len(got[0]) == 21
             np.testing.assert_allclose(np.cos(got[0][1:]), np.cos(Q[b, 1:]), atol=1e-12)
             np.testing.assert_allclose(np.sin(got[0][1:]), np.sin(Q[b, 1:]), atol=1e-12)
-    assert named >= 55
+    assert named >= 55 and followed >= 10
 
 
 def test_closed_form_fk_batch_matches_pinocchio(ur5):

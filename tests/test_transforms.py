@@ -77,6 +77,30 @@ def test_check_transform_accepts_rigid_and_names_what_is_wrong():
         check_transform(T, "T_part_tcp", batch=True)
 
 
+@settings(max_examples=200, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), where=st.integers(0, 15),
+       bad=st.sampled_from([0.0, 3e-7, 3e-6, -3e-6, 1e-3, np.nan, np.inf, -np.inf]), mirror=st.booleans())
+def test_one_matrix_is_judged_as_a_batch_of_one(seed, where, bad, mirror):
+    """The single-matrix path (plain floats) accepts exactly what the array path accepts, for one
+    entry disturbed by a small, large, NaN or infinite amount, with or without a mirror."""
+    rng = np.random.default_rng(seed)
+    T = np.eye(4)
+    T[:3, :3] = _rotation(rng.normal(size=3), rng.uniform(-np.pi, np.pi)) @ np.diag([1.0, 1.0, -1.0 if mirror else 1.0])
+    T[:3, 3] = rng.uniform(-2.0, 2.0, 3)
+    T.flat[where] += bad
+    try:
+        check_transform(T[None], "T", batch=True)
+        batch_ok = True
+    except InputError:
+        batch_ok = False
+    try:
+        assert check_transform(T, "T") is T
+        one_ok = True
+    except InputError:
+        one_ok = False
+    assert one_ok == batch_ok
+
+
 def test_pose_errors_of_many_poses_are_the_offsets_and_angles_made():
     """Poses made by a known offset and a known rotation (angle from 0 to pi) from a random base:
     ``pose_errors`` gives them back for all at once (SciPy's rotation magnitude checks the angle),

@@ -41,12 +41,13 @@ def check_transform(T: object, name: str = "T", *, batch: bool = False, error: t
     ``error`` with a message naming ``name`` and what is wrong.
     """
     if not batch and type(T) is np.ndarray and T.shape == (4, 4) and T.dtype == np.float64:
-        (r0, r1, r2, x), (r3, r4, r5, y), (r6, r7, r8, z), last = T.tolist()  # one matrix: in floats
-        rows = ((r0, r1, r2), (r3, r4, r5), (r6, r7, r8))
-        if (all(map(math.isfinite, (r0, r1, r2, r3, r4, r5, r6, r7, r8, x, y, z, *last)))
-                and max(abs(last[0]), abs(last[1]), abs(last[2]), abs(last[3] - 1.0)) <= tol
-                and all(abs(sum(a * b for a, b in zip(rows[i], rows[j])) - (i == j)) <= tol
-                        for i in range(3) for j in range(i, 3))
+        # one matrix, in floats (a NaN fails every comparison; x + y + z is finite only if each is)
+        (r0, r1, r2, x), (r3, r4, r5, y), (r6, r7, r8, z), (l0, l1, l2, l3) = T.tolist()
+        if (abs(r0 * r0 + r1 * r1 + r2 * r2 - 1.0) <= tol and abs(r3 * r3 + r4 * r4 + r5 * r5 - 1.0) <= tol
+                and abs(r6 * r6 + r7 * r7 + r8 * r8 - 1.0) <= tol and abs(r0 * r3 + r1 * r4 + r2 * r5) <= tol
+                and abs(r0 * r6 + r1 * r7 + r2 * r8) <= tol and abs(r3 * r6 + r4 * r7 + r5 * r8) <= tol
+                and abs(l0) <= tol and abs(l1) <= tol and abs(l2) <= tol and abs(l3 - 1.0) <= tol
+                and math.isfinite(x + y + z)
                 and r0 * (r4 * r8 - r5 * r7) - r1 * (r3 * r8 - r5 * r6) + r2 * (r3 * r7 - r4 * r6) >= 0.0):
             return T
     try:

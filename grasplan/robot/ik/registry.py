@@ -32,9 +32,10 @@ class ClosedFormIK(Protocol):
     ok: bool
     why: str
 
-    def solve(self, T_base_tool: np.ndarray) -> tuple[list[np.ndarray], str]:
-        """Raw solutions (n,) for ``T_base_tool`` (4, 4) in the model's root frame, unchecked
-        against the joint limits, and a reason ("ok", "out_of_reach: ...") when there are none."""
+    def solve(self, T_base_tool: np.ndarray) -> tuple[np.ndarray, str]:
+        """Raw solutions (k, n) for ``T_base_tool`` (4, 4) in the model's root frame, unchecked
+        against the joint limits, and a reason ("ok", "out_of_reach: ...") when there are none
+        (k = 0)."""
         ...
 
 

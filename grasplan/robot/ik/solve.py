@@ -21,10 +21,11 @@ import pinocchio as pin
 
 from ...errors import InputError
 from ..model import Robot
-from ...geometry.transforms import check_transform, inv_rigid, pose_errors
+from ...geometry.transforms import check_transform, inv_rigid
 from . import clik, ur
 from .clik import CLIK
 from .registry import FAMILIES, ClosedFormIK, IKFamily, get_family
+from .solution_kernels import select_solutions, wrap_rows
 
 #: the shipped IK families (importing their modules registered them)
 BUILTIN_FAMILIES: tuple[IKFamily, ...] = (clik.FAMILY, ur.FAMILY)
@@ -72,24 +73,12 @@ def wrap_to_limits(q: np.ndarray, lower: np.ndarray, upper: np.ndarray, q_ref: n
     return out[0] if ok[0] else None
 
 
-#: the 2 pi shifts tried for a joint whose nearest equivalent lies outside its limits
-_SHIFTS = TWO_PI * np.array([-2.0, -1.0, 1.0, 2.0])
-
-
 def wrap_many(Q: np.ndarray, lower: np.ndarray, upper: np.ndarray, q_ref: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`wrap_to_limits` of every row of ``Q`` (k, n): ``(wrapped (k, n), ok (k,))``; a row
-    is not ok when some joint has no 2 pi-equivalent within its limits."""
-    out = Q + np.round((q_ref - Q) / TWO_PI) * TWO_PI
-    ok = np.ones(len(Q), dtype=bool)
-    bad = (out < lower - 1e-12) | (out > upper + 1e-12)
-    if bad.any():  # the closest may be outside the limits: try the neighbours
-        cands = out[:, :, None] + _SHIFTS
-        inside = (cands >= (lower - 1e-12)[:, None]) & (cands <= (upper + 1e-12)[:, None])
-        pick = np.argmin(np.where(inside, np.abs(cands - q_ref[:, None]), np.inf), axis=2)
-        out = np.where(bad, np.take_along_axis(cands, pick[:, :, None], axis=2)[:, :, 0], out)
-        ok = ~np.any(bad & ~inside.any(axis=2), axis=1)
-    return np.clip(out, lower, upper), ok
+    is not ok when some joint has no 2 pi-equivalent within its limits
+    (:func:`grasplan.robot.ik.solution_kernels.wrap_rows`)."""
+    return wrap_rows(Q, lower, upper, q_ref)
 
 
 #: two solutions closer than this in every joint (rad) are one
@@ -122,6 +111,7 @@ class IKSolver:
     def __init__(self, robot: Robot):
         self.robot = robot
         self.data = robot.model.createData()
+        self.T_base_world = inv_rigid(robot.T_world_base)
         family = get_family(robot.kind, where=f"robot {robot.name!r}")
         if family.closed_form is None:
             with_one = ", ".join(sorted(n for n, f in FAMILIES.items() if f.closed_form is not None))
@@ -134,16 +124,14 @@ class IKSolver:
             self.no_closed_form = self.analytic.why
         self.clik = CLIK(robot)
 
-    def _verify(self, qs: np.ndarray, T_base_tool: np.ndarray, pos_tol: float, rot_tol: float) -> np.ndarray:
-        """(k,) bool: Pinocchio's FK of each of ``qs`` (k, nq) reaches ``T_base_tool`` within the
-        tolerances (the check every returned solution passes)."""
+    def _reached(self, qs: np.ndarray) -> np.ndarray:
+        """Pinocchio's tool poses (k, 4, 4) in the base frame at each of ``qs`` (k, nq)."""
         m, d, fid = self.robot.model, self.data, self.robot.tool_frame_id
         T = np.empty((len(qs), 4, 4))
         for k, q in enumerate(qs):
             pin.forwardKinematics(m, d, q)
             T[k] = pin.updateFramePlacement(m, d, fid).homogeneous
-        dp, dr = pose_errors(T, T_base_tool)
-        return (dp <= pos_tol) & (dr <= rot_tol)
+        return T
 
     def seeds(self, q_ref: np.ndarray, n_random: int, seed: int) -> np.ndarray:
         r = self.robot
@@ -160,7 +148,7 @@ class IKSolver:
         q_ref = r.q_home.copy() if q_ref is None else r.check_q(q_ref, where="q_ref")
         if method not in ("auto", "analytic", "clik"):
             raise InputError(f"method: expected 'auto', 'analytic' or 'clik', got {method!r}")
-        T_base_tool = inv_rigid(r.T_world_base) @ T_world_tool
+        T_base_tool = self.T_base_world @ T_world_tool
         sols: list[np.ndarray] = []
         reason = ""
         used: list[str] = []
@@ -170,27 +158,19 @@ class IKSolver:
         if closed is not None and method in ("auto", "analytic"):
             used.append("analytic")
             raw, reason = closed.solve(T_base_tool)
-            if raw:
-                W, in_limits = wrap_many(np.array(raw), r.lower, r.upper, q_ref)
+            if len(raw):
+                W, in_limits = wrap_many(raw, r.lower, r.upper, q_ref)
                 W = W[in_limits]
-                verified = self._verify(W, T_base_tool, pos_tol, rot_tol)  # at most 8: all at once
-                # nearest q_ref first; a solution within the dedup tolerance of one kept is dropped;
-                # stop once max_solutions are kept
-                close = np.max(np.abs(W[:, None, :] - W[None, :, :]), axis=2) <= DEDUP_TOL
-                kept: list[int] = []
-                for i in np.argsort(np.linalg.norm(W - q_ref, axis=1), kind="stable").tolist():
-                    if kept and close[i, kept].any():
-                        continue
-                    if verified[i]:
-                        kept.append(i)
-                        if max_solutions is not None and len(kept) >= max_solutions:
-                            break
+                # every one checked by Pinocchio's FK; nearest q_ref first, one within the dedup
+                # tolerance of one kept dropped, at most max_solutions
+                kept = select_solutions(W, self._reached(W), T_base_tool, q_ref, pos_tol, rot_tol, DEDUP_TOL,
+                                        len(W) if max_solutions is None else max_solutions).tolist()
                 sols = [W[i] for i in kept]
                 if not sols:
                     reason = (f"joint_limits: all {len(raw)} closed-form solutions are outside the limits"
                               if not in_limits.any() else "no_convergence: closed-form solutions failed the FK check")
             # CLIK only when the closed form found a candidate that failed (numerical edge cases)
-            if sols or not raw or method == "analytic":
+            if sols or not len(raw) or method == "analytic":
                 out = np.array(sols).reshape(-1, r.nq)
                 return IKResult(out, "ok" if len(out) else reason, "analytic")
         used.append("clik")

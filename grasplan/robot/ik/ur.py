@@ -97,15 +97,16 @@ class URAnalytic:
         """DH frame 0 -> DH frame 6 (4, 4) at ``q`` (6,)."""
         return self._kernels.fk_dh(self.chain, q)
 
-    def solve(self, T_base_tool: np.ndarray) -> tuple[list[np.ndarray], str]:
-        """Up to eight raw solutions (angles in [-pi, pi), in :data:`~grasplan.robot.ik.ur_batch.BRANCHES`
-        order) for T_base_tool (the robot's model frame, i.e. base_link) and a reason when there
-        are none (:func:`grasplan.robot.ik.ur_batch.solve_one`)."""
+    def solve(self, T_base_tool: np.ndarray) -> tuple[np.ndarray, str]:
+        """Up to eight raw solutions (k, 6) (angles in [-pi, pi), in
+        :data:`~grasplan.robot.ik.ur_batch.BRANCHES` order) for T_base_tool (the robot's model
+        frame, i.e. base_link) and a reason when there are none
+        (:func:`grasplan.robot.ik.ur_batch.solve_one`)."""
         q, ok_r, ok3 = self._kernels.solve_one(self.chain, T_base_tool)
         if not ok_r:
-            return [], "out_of_reach: wrist centre inside the shoulder cylinder (|p05_xy| < d4)"
-        sols = [q[b] for b in np.flatnonzero(ok3)]
-        return sols, ("ok" if sols else "out_of_reach: target beyond the arm's reach")
+            return q[:0], "out_of_reach: wrist centre inside the shoulder cylinder (|p05_xy| < d4)"
+        sols = q[ok3]
+        return sols, ("ok" if len(sols) else "out_of_reach: target beyond the arm's reach")
 
 
 FAMILY = register(IKFamily(

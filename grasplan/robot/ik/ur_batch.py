@@ -3,7 +3,8 @@
 :class:`grasplan.robot.ik.ur.URAnalytic` builds a :data:`Chain` (DH parameters and the constant frames
 around them) and calls these kernels: :func:`solve_one` (all eight branches at one pose, what IK
 needs), :func:`branch_many` (one branch, shoulder choice, wrist sign and elbow sign, at every
-pose of a stack, what a straight TCP line needs: :mod:`grasplan.robot.ik.lines`) and :func:`fk_many`.
+pose of a stack), :func:`line` (a whole straight TCP line on the start's branch, with its start
+and deviation checks: :mod:`grasplan.robot.ik.lines`) and :func:`fk_many`.
 The arithmetic is the classic UR closed form (Hawkins, "Analytic inverse kinematics for the
 Universal Robots UR-5/UR-10 arms", 2013) on the chain ``T_urdf_dh0 @ A1 ... A6 @ T_dh6_tool``;
 the chain is proven against Pinocchio when the closed form is built, and every IK solution is
@@ -11,7 +12,8 @@ checked by Pinocchio FK before it is returned (:mod:`grasplan.robot.ik`). tests/
 the kernels against Pinocchio and against each other.
 
 Compiled because the same arithmetic in NumPy cost ~0.3 ms per 50-waypoint line and ~0.15 ms per
-IK pose (its per-call overhead on small matrices); here a few microseconds.
+IK pose (its per-call overhead on small matrices); here a few microseconds, and a line is one call
+(the five kernel calls and NumPy glue it took before cost ~0.25 ms).
 """
 from __future__ import annotations
 
@@ -266,3 +268,120 @@ def unwrap_rows(q: np.ndarray) -> np.ndarray:  # pragma: no cover
         for j in range(q.shape[1]):
             q[i, j] += TWO_PI * np.rint((q[i - 1, j] - q[i, j]) / TWO_PI)
     return q
+
+
+#: :func:`line`'s outcome codes, by index
+LINE_CODES = ("ok", "start", "ik", "jump", "limits", "deviation")
+#: the start configuration must match its branch's solution within this (rad)
+BRANCH_TOL = 1e-6
+#: a start configuration this close (sine of the wrist or elbow angle, shoulder distance in m) to a
+#: singularity gets every branch compared (:func:`line`), not the one its signs name
+SINGULAR = 1e-3
+
+
+def start_branch(chain: Chain, q0: np.ndarray, T0_base_tool: np.ndarray) -> int | None:
+    """The branch (index into :data:`BRANCHES`) configuration ``q0`` (6,) lies on, named by its
+    signs (the shoulder solution nearer ``q0[0]``, the signs of ``sin q5`` and ``sin q3``), or None
+    within :data:`SINGULAR` of a singularity (where two branches meet). ``T0_base_tool``: the tool
+    pose ``q0`` reaches."""
+    b = _start_branch(np.ascontiguousarray(q0, dtype=np.float64), np.ascontiguousarray(T0_base_tool, dtype=np.float64),
+                      chain.dh, chain.T_dh0_urdf, chain.T_tool_dh6)
+    return None if b < 0 else int(b)
+
+
+def line(chain: Chain, T_world_base: np.ndarray, T_flange_tcp: np.ndarray, T_from: np.ndarray, T_to: np.ndarray,
+         q_from: np.ndarray, lower: np.ndarray, upper: np.ndarray, *, sample: float, max_dev: float,
+         max_step: float) -> tuple[np.ndarray | None, str]:
+    """Joint waypoints (k, 6) moving the TCP straight ``T_from -> T_to`` (world, same orientation)
+    from ``q_from``, in one compiled pass: ``(path, "ok")`` or ``(None, why)`` with why in
+    :data:`LINE_CODES`.
+
+    TCP waypoints every ``sample`` m are solved exactly on the branch ``q_from`` lies on (the one
+    its signs name, :func:`start_branch`, when it matches ``q_from`` within :data:`BRANCH_TOL`;
+    else the best match of all eight): ``start`` when ``q_from`` does not reach ``T_from``
+    (0.5 ``max_dev``, 1e-4 in the rotation) or lies on no branch; ``ik``, ``jump``, ``limits`` as
+    :func:`follow`; ``deviation`` when the joint-linear motion between waypoints strays more than
+    ``max_dev`` from the line (:func:`line_deviation`)."""
+    c = np.ascontiguousarray
+    q, code = _line(c(T_from, dtype=np.float64), c(T_to, dtype=np.float64), c(q_from, dtype=np.float64),
+                    c(T_world_base, dtype=np.float64), c(T_flange_tcp, dtype=np.float64), chain.dh, chain.T_urdf_dh0,
+                    chain.T_dh0_urdf, chain.T_dh6_tool, chain.T_tool_dh6, c(lower, dtype=np.float64),
+                    c(upper, dtype=np.float64), float(sample), float(max_dev), float(max_step))
+    return (q, "ok") if code == 0 else (None, LINE_CODES[code])
+
+
+@kernel(cache=True, nogil=True)
+def _start_branch(q0: np.ndarray, T0: np.ndarray, dh: np.ndarray, T_dh0_urdf: np.ndarray,
+                  T_tool_dh6: np.ndarray) -> int:  # pragma: no cover
+    s5, s3 = math.sin(q0[4]), math.sin(q0[2])
+    W = np.empty((4, 4))
+    T = np.empty((4, 4))
+    _mul(T_dh0_urdf, T0, W)
+    _mul(W, T_tool_dh6, T)
+    d4, d6 = dh[3, 0], dh[5, 0]
+    px, py = T[0, 3] - d6 * T[0, 2], T[1, 3] - d6 * T[1, 2]
+    r = math.hypot(px, py)
+    if abs(s5) < SINGULAR or abs(s3) < SINGULAR or r < abs(d4) + SINGULAR:
+        return -1
+    phi, s = math.atan2(py, px), math.asin(max(-1.0, min(1.0, d4 / r)))
+    g0 = abs((phi + s - q0[0] + math.pi) % TWO_PI - math.pi)
+    g1 = abs((phi + math.pi - s - q0[0] + math.pi) % TWO_PI - math.pi)
+    return (0 if g0 <= g1 else 4) + (0 if s5 > 0 else 2) + (0 if s3 > 0 else 1)
+
+
+@kernel(cache=True, nogil=True)
+def _line(T_from: np.ndarray, T_to: np.ndarray, q0: np.ndarray, T_world_base: np.ndarray, T_flange_tcp: np.ndarray,
+          dh: np.ndarray, T_urdf_dh0: np.ndarray, T_dh0_urdf: np.ndarray, T_dh6_tool: np.ndarray,
+          T_tool_dh6: np.ndarray, lower: np.ndarray, upper: np.ndarray, sample: float, max_dev: float,
+          max_step: float) -> tuple[np.ndarray, int]:  # pragma: no cover
+    empty = np.zeros((0, 6))
+    T_base, T_tcp_flange = np.empty((4, 4)), np.empty((4, 4))
+    _inv_rigid_into(T_world_base, T_base)
+    _inv_rigid_into(T_flange_tcp, T_tcp_flange)
+    d0, d1, d2 = T_to[0, 3] - T_from[0, 3], T_to[1, 3] - T_from[1, 3], T_to[2, 3] - T_from[2, 3]
+    m = max(1, int(math.ceil(math.sqrt(d0 * d0 + d1 * d1 + d2 * d2) / sample - 1e-12)))
+    # the start: q0 must reach T_from
+    T0 = _fk(q0.reshape(1, 6), dh, T_urdf_dh0, T_dh6_tool)[0]
+    W, want = np.empty((4, 4)), np.empty((4, 4))
+    _mul(T_base, T_from, W)
+    _mul(W, T_tcp_flange, want)
+    e0, e1, e2 = T0[0, 3] - want[0, 3], T0[1, 3] - want[1, 3], T0[2, 3] - want[2, 3]
+    rot = 0.0
+    for i in range(3):
+        for j in range(3):
+            rot = max(rot, abs(T0[i, j] - want[i, j]))
+    if math.sqrt(e0 * e0 + e1 * e1 + e2 * e2) > 0.5 * max_dev or rot > 1e-4:
+        return empty, 1
+    # the waypoints' tool poses in the base frame
+    T = np.empty((m, 4, 4))
+    Tk = T_from.copy()
+    for k in range(m):
+        f = (k + 1) / m
+        Tk[0, 3], Tk[1, 3], Tk[2, 3] = T_from[0, 3] + d0 * f, T_from[1, 3] + d1 * f, T_from[2, 3] + d2 * f
+        _mul(T_base, Tk, W)
+        _mul(W, T_tcp_flange, T[k])
+    # the branch q0 lies on
+    guess = _start_branch(q0, T0, dh, T_dh0_urdf, T_tool_dh6)
+    Q0, ok_r, ok3 = _branch(T0.reshape(1, 4, 4), dh, T_dh0_urdf, T_tool_dh6, _I1, _S5, _S3)
+    gap = np.full(8, np.inf)
+    for b in range(8):
+        if ok_r[0] and ok3[b, 0]:
+            g = 0.0
+            for j in range(6):
+                d = Q0[b, 0, j] - q0[j]
+                g = max(g, abs(d - TWO_PI * np.rint(d / TWO_PI)))
+            gap[b] = g
+    b = guess if guess >= 0 and gap[guess] <= BRANCH_TOL else int(np.argmin(gap))
+    if not gap[b] <= BRANCH_TOL:
+        return empty, 1
+    q, code = _follow(T, q0, dh, T_dh0_urdf, T_tool_dh6, _I1[b], _S5[b], _S3[b], lower, upper, max_step)
+    if code:
+        return empty, code + 1
+    pre, post = np.empty((4, 4)), np.empty((4, 4))
+    _mul(T_world_base, T_urdf_dh0, pre)
+    _mul(T_dh6_tool, T_flange_tcp, post)
+    a = np.array([T_from[0, 3], T_from[1, 3], T_from[2, 3]])
+    e = np.array([T_to[0, 3], T_to[1, 3], T_to[2, 3]])
+    if _line_deviation(q, dh, pre, post, a, e) > max_dev:
+        return empty, 5
+    return q, 0
