@@ -12,7 +12,7 @@ import pinocchio as pin
 from grasplan.cell.model import load_cell
 from grasplan.gripper.load import load_gripper
 from grasplan.robot.ik.solve import solve_ik
-from grasplan.geometry.interpolation import check_order
+from grasplan.geometry.interpolation import interpolate_path
 from grasplan.part.mesh import load_part
 from grasplan.pick.cover import APPROACH_PAD, covered_check
 from grasplan.motion.grasp_motion import line_path
@@ -60,7 +60,7 @@ def test_covered_configurations_skip_only_free_pairs():
             back, _ = line_path(robot, T, T_pre, q, max_dev=0.002, T_flange_tcp=T_ft)
             if back is None:
                 continue
-            qs = check_order(back)
+            qs = interpolate_path(back)
             cov = covered(qs)
             assert cov.all()  # the approach's own configurations lie inside the sweep
             far = qs + rng.normal(0.0, 0.05, qs.shape)  # and others mostly not

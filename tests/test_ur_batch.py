@@ -144,3 +144,49 @@ def test_max_solutions_is_a_prefix(ur5):
         full = solve_ik(robot, T).q
         for k in (1, 2, 4):
             np.testing.assert_array_equal(solve_ik(robot, T, max_solutions=k).q, full[:k])
+
+
+def test_select_solutions_is_the_sorted_verified_deduplicated_list():
+    """The compiled selection against its definition written out in NumPy: poses within the
+    tolerances (some rows disturbed beyond them), nearest q_ref first, a row within the dedup
+    tolerance of one kept before it dropped, at most max_keep."""
+    from scipy.spatial.transform import Rotation
+
+    from grasplan.geometry.transforms import pose_errors
+    from grasplan.robot.ik.solution_kernels import select_solutions
+
+    rng = np.random.default_rng(11)
+    n_dup = n_bad = 0
+    for _ in range(300):
+        k = int(rng.integers(1, 9))
+        W = rng.uniform(-3.0, 3.0, (k, 6))
+        for i in range(1, k):  # near-copies of an earlier row
+            if rng.random() < 0.3:
+                W[i] = W[int(rng.integers(0, i))] + rng.uniform(-1, 1, 6) * (8e-6 if rng.random() < 0.5 else 3e-5)
+        T_want = np.eye(4)
+        T_want[:3, :3] = Rotation.random(random_state=int(rng.integers(1 << 30))).as_matrix()
+        T_want[:3, 3] = rng.uniform(-1, 1, 3)
+        T = np.repeat(T_want[None], k, axis=0)
+        for i in range(k):  # some miss the pose by a position or an angle
+            u = rng.random()
+            if u < 0.15:
+                T[i, :3, 3] += rng.normal(size=3) * 1e-5
+            elif u < 0.3:
+                T[i, :3, :3] = Rotation.from_rotvec(rng.normal(size=3) * 1e-5).as_matrix() @ T[i, :3, :3]
+        q_ref = rng.uniform(-1, 1, 6)
+        max_keep = int(rng.integers(1, 9))
+        dp, dr = pose_errors(T, T_want)
+        ok = (dp <= 1e-6) & (dr <= 1e-6)
+        want: list[int] = []
+        for i in np.argsort(np.linalg.norm(W - q_ref, axis=1), kind="stable"):
+            if not ok[i]:
+                continue
+            if any(np.max(np.abs(W[i] - W[j])) <= 1e-5 for j in want):
+                n_dup += 1
+                continue
+            want.append(int(i))
+            if len(want) >= max_keep:
+                break
+        n_bad += int((~ok).sum())
+        assert select_solutions(W, T, T_want, q_ref, 1e-6, 1e-6, 1e-5, max_keep).tolist() == want
+    assert n_dup > 20 and n_bad > 50

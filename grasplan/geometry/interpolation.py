@@ -6,7 +6,6 @@ Joint vectors are ``(n,)`` float64 radians; paths are ``(k, n)`` arrays, first r
 """
 from __future__ import annotations
 
-import functools
 from typing import Literal, overload
 
 import numpy as np
@@ -51,26 +50,3 @@ def interpolate_path(path: np.ndarray, *, step: float = STEP, return_index: bool
         return out
     row_of_kept = np.concatenate([[0], np.cumsum(pieces)])
     return out, row_of_kept[np.cumsum(keep) - 1]
-
-
-def check_order(qs: np.ndarray, step: float = STEP) -> np.ndarray:
-    """The configurations a path check visits, in the order it visits them: the waypoints of
-    ``qs`` (k, n) first (cheap rejection), then each segment's inner configurations (segment i
-    split into ceil(max|dq| / step) equal parts, as :func:`interpolate_path` splits it)
-    coarse-to-fine (:func:`_fractions`), so that a collision midway is met early."""
-    if len(qs) < 2:
-        return qs
-    d = qs[1:] - qs[:-1]
-    n = np.ceil(np.max(np.abs(d), axis=1, initial=0.0) / step - 1e-12).astype(np.int64)
-    inner = [qs[i] + d[i] * _fractions(int(n[i])) for i in np.flatnonzero(n > 1).tolist()]
-    return np.concatenate([qs, *inner])
-
-
-@functools.lru_cache(maxsize=1024)
-def _fractions(n: int) -> np.ndarray:
-    """``(n - 1, 1)``: the inner fractions ``i / n`` of a segment split into ``n`` parts,
-    coarse-to-fine: ordered by the largest power of two dividing ``i`` (n = 8: 4, 2, 6, 1, 3, 5, 7)."""
-    i = np.arange(1, n, dtype=np.int64)
-    f = (i[np.argsort(-(i & -i), kind="stable")] / n)[:, None]
-    f.flags.writeable = False
-    return f

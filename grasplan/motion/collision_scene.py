@@ -24,7 +24,7 @@ from ..cell.model import Cell
 from ..errors import InputError
 from ..cell.shapes import TABLE_SIZE, obstacle_geometry, shape_geometry, shared_bvh, shared_mesh_structure, table_pose
 from ..gripper.model import Gripper
-from ..geometry.interpolation import STEP, check_order, interpolate_path
+from ..geometry.interpolation import STEP, interpolate_path
 from ..geometry.meshdata import TriangleMesh
 from ..grasps.collision_boxes import PartBoxes
 from .pathboxes import scene_open
@@ -539,8 +539,8 @@ class CollisionScene:
                   reduced: tuple[Callable[[np.ndarray], np.ndarray], np.ndarray] | None = None) -> bool:
         """True when the piecewise-linear joint path qs (k, n) is collision-free, checked at every
         waypoint and at interpolated configurations so that no joint moves more than ``step`` rad
-        between two checks (:func:`grasplan.geometry.interpolation.check_order`); coal checks the
-        configurations :func:`grasplan.motion.pathboxes.scene_open` cannot call free. ``reduced =
+        between two (:func:`~grasplan.geometry.interpolation.interpolate_path`, in path order:
+        the boxes bound whole stretches); coal checks those :func:`grasplan.motion.pathboxes.scene_open` cannot clear. ``reduced =
         (covered, drop)``: at the configurations where ``covered(qs)`` (bool per row) holds, the
         pairs ``drop`` (indices into :meth:`pair_rows`) were decided free before and are skipped."""
         qs = np.asarray(qs, dtype=float)
@@ -550,7 +550,7 @@ class CollisionScene:
             raise InputError(f"step: expected > 0 rad, got {step}")
         self.set_opening(self.gripper.max_opening if opening is None else opening)
         self._apply()
-        every = check_order(qs, step)
+        every = interpolate_path(qs, step=step)
         if reduced is not None:  # the covered configurations with the pairs ``drop`` off
             covered, drop = reduced
             cov = np.asarray(covered(every), dtype=bool)

@@ -8,12 +8,10 @@ and deviation checks: :mod:`grasplan.robot.ik.lines`) and :func:`fk_many`.
 The arithmetic is the classic UR closed form (Hawkins, "Analytic inverse kinematics for the
 Universal Robots UR-5/UR-10 arms", 2013) on the chain ``T_urdf_dh0 @ A1 ... A6 @ T_dh6_tool``;
 the chain is proven against Pinocchio when the closed form is built, and every IK solution is
-checked by Pinocchio FK before it is returned (:mod:`grasplan.robot.ik`). tests/test_ur_batch.py checks
-the kernels against Pinocchio and against each other.
+checked by Pinocchio FK before it is returned (:mod:`grasplan.robot.ik`).
 
-Compiled because the same arithmetic in NumPy cost ~0.3 ms per 50-waypoint line and ~0.15 ms per
-IK pose (its per-call overhead on small matrices); here a few microseconds, and a line is one call
-(the five kernel calls and NumPy glue it took before cost ~0.25 ms).
+Compiled because NumPy's per-call overhead on small matrices cost ~0.3 ms per line and ~0.15 ms
+per IK pose; here a few microseconds, and a whole line is one call.
 """
 from __future__ import annotations
 
