@@ -260,3 +260,61 @@ def test_part_triangles_clear_jaws_beside_the_part(gear_plan):
             n_hit += bool(hit & part_pairs)
             n_cleared += len((alone - listed) & part_pairs)
     assert n_hit > 0 and n_cleared > 20, (n_hit, n_cleared)  # near contact both ways; the triangles clear some
+
+
+@pytest.mark.parametrize("robot_name", ["ur5", "panda"])
+def test_growth_bounds_how_far_every_box_corner_moves(robot_name):
+    """The range bound (``_growth``) against Pinocchio: for random middle configurations and joint
+    ranges, every corner of every box moves at most its bound in the world, and relative to each
+    of its chain's joints at most the bound of the joints below that joint."""
+    import pinocchio as pin
+
+    from grasplan.motion import pathboxes
+
+    scene = _pile_scene(robot_name)
+    att = scene.attached(np.eye(4))
+    rng = np.random.default_rng(17)
+    n_checked = 0
+    for sc in (scene, att):
+        sc.set_opening(0.03)
+        (head, _, _), _, _ = pathboxes._prepared(sc)
+        parent, R0, t0, kind, axis, iq, gjoint, R_loc, c_loc, half, reach = head
+        boxes = pathboxes._BOXES[sc._shared]
+        used = boxes.selected[0].tolist()
+        m, gm = sc.model, sc.geom_model
+        d, gd = m.createData(), pin.GeometryData(gm)
+        signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+        J, G = len(parent), len(gjoint)
+        for _ in range(60):
+            q_mid = rng.uniform(np.maximum(sc.robot.lower, -3), np.minimum(sc.robot.upper, 3))
+            delta = rng.uniform(0.0, 0.4, m.nq) * (rng.random(m.nq) < 0.8)
+            q = q_mid + rng.choice([-1.0, 1.0], m.nq) * delta  # a corner of the range: the farthest
+            oR, ot = np.zeros((J, 3, 3)), np.zeros((J, 3))
+            R, c, hw = np.zeros((1, G, 3, 3)), np.zeros((1, G, 3)), np.zeros((1, G, 3))
+            pathboxes._chain(q_mid[None], 0, parent, R0, t0, kind, axis, iq, oR, ot)
+            cum, loose = np.zeros((G, J)), np.zeros(J)
+            for g in range(G):
+                if gjoint[g]:
+                    pathboxes._place(g, gjoint[g], 0, oR, ot, R_loc, c_loc, half, R, c, hw)
+                    pathboxes._growth(g, gjoint[g], parent, axis, iq, reach, delta, oR, ot, c[0, g], half[g], loose,
+                                      cum)
+            corners = []
+            for qq in (q_mid, q):
+                pin.forwardKinematics(m, d, qq)
+                pin.updateGeometryPlacements(m, d, gm, gd, qq)
+                corners.append(([[gd.oMg[k].act(boxes.center[k] + s * boxes.half[k]) for s in signs] for k in used],
+                                [d.oMi[j].copy() for j in range(J)]))
+            (mid_pts, mid_oMi), (q_pts, q_oMi) = corners
+            for g, (pa, pb) in enumerate(zip(mid_pts, q_pts)):
+                if not gjoint[g]:
+                    continue
+                j = int(gjoint[g])
+                while True:  # j = the joint's frame the motion is measured in (0: the world)
+                    bound = cum[g, gjoint[g]] - cum[g, j]
+                    moved = max(np.linalg.norm(q_oMi[j].actInv(b) - mid_oMi[j].actInv(a)) for a, b in zip(pa, pb))
+                    assert moved <= bound + 1e-9, (g, j, moved, bound)
+                    n_checked += 1
+                    if j == 0:
+                        break
+                    j = int(parent[j])
+    assert n_checked > 1000

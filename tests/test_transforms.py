@@ -81,8 +81,9 @@ def test_check_transform_accepts_rigid_and_names_what_is_wrong():
 @given(seed=st.integers(0, 2**32 - 1), where=st.integers(0, 15),
        bad=st.sampled_from([0.0, 3e-7, 3e-6, -3e-6, 1e-3, np.nan, np.inf, -np.inf]), mirror=st.booleans())
 def test_one_matrix_is_judged_as_a_batch_of_one(seed, where, bad, mirror):
-    """The single-matrix path (plain floats) accepts exactly what the array path accepts, for one
-    entry disturbed by a small, large, NaN or infinite amount, with or without a mirror."""
+    """The single-matrix path (plain floats) accepts exactly what the array path accepts, and both
+    what the definition (NumPy's matrix product and determinant) accepts, for one entry disturbed
+    by a small, large, NaN or infinite amount, with or without a mirror."""
     rng = np.random.default_rng(seed)
     T = np.eye(4)
     T[:3, :3] = _rotation(rng.normal(size=3), rng.uniform(-np.pi, np.pi)) @ np.diag([1.0, 1.0, -1.0 if mirror else 1.0])
@@ -99,6 +100,12 @@ def test_one_matrix_is_judged_as_a_batch_of_one(seed, where, bad, mirror):
     except InputError:
         one_ok = False
     assert one_ok == batch_ok
+    # both against the definition, with NumPy's own matrix product and determinant
+    R = T[:3, :3]
+    with np.errstate(invalid="ignore"):
+        ref_ok = bool(np.all(np.isfinite(T)) and np.abs(R @ R.T - np.eye(3)).max() <= 1e-6
+                      and np.abs(T[3] - [0, 0, 0, 1]).max() <= 1e-6 and np.linalg.det(R) >= 0)
+    assert batch_ok == ref_ok
 
 
 def test_pose_errors_of_many_poses_are_the_offsets_and_angles_made():

@@ -60,11 +60,13 @@ def check_transform(T: object, name: str = "T", *, batch: bool = False, error: t
     if not np.all(np.isfinite(A)):
         raise error(f"{name}: has NaN or infinite entries")
     B = A.reshape(-1, 4, 4)
-    R = B[:, :3, :3]
-    bad_row = np.abs(B[:, 3] - [0.0, 0.0, 0.0, 1.0]).max(axis=1) > tol
-    bad_rot = np.abs(R @ R.transpose(0, 2, 1) - np.eye(3)).max(axis=(1, 2)) > tol
-    bad_det = np.linalg.det(R) < 0 if len(B) else np.zeros(0, dtype=bool)
-    bad = bad_row | bad_rot | bad_det
+    r0, r1, r2 = B[:, 0, :3], B[:, 1, :3], B[:, 2, :3]
+    bad = np.abs(B[:, 3] - [0.0, 0.0, 0.0, 1.0]).max(axis=1) > tol
+    # the rows orthonormal (the six entries of R R^T) and det R = r0 . (r1 x r2) >= 0, entry by entry
+    for a, b, dot in ((r0, r0, 1.0), (r1, r1, 1.0), (r2, r2, 1.0), (r0, r1, 0.0), (r0, r2, 0.0), (r1, r2, 0.0)):
+        bad |= np.abs(a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2] - dot) > tol
+    bad |= (r0[:, 0] * (r1[:, 1] * r2[:, 2] - r1[:, 2] * r2[:, 1]) - r0[:, 1] * (r1[:, 0] * r2[:, 2] - r1[:, 2] * r2[:, 0])
+            + r0[:, 2] * (r1[:, 0] * r2[:, 1] - r1[:, 1] * r2[:, 0])) < 0.0
     if bad.any():
         where = f"{name}[{int(np.flatnonzero(bad)[0])}]" if batch else name
         raise error(f"{where}: not a rigid transform (rotation must be orthonormal with det +1, "

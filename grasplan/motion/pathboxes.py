@@ -52,8 +52,6 @@ class PathBoxes:
         self.axis = np.zeros((J, 3))
         self.iq = np.zeros(J, dtype=np.int64)
         self.ok = True
-        #: per joint, whether a prismatic joint lies on its chain (itself or an ancestor)
-        self.slides = np.zeros(J, dtype=bool)
         for j in range(J):
             M = model.jointPlacements[j]
             self.R0[j], self.t0[j] = M.rotation, M.translation
@@ -71,7 +69,6 @@ class PathBoxes:
                 self.kind[j], self.axis[j] = (1 if "Revolute" in name else 2), a / np.linalg.norm(a)
             else:
                 self.ok = False
-            self.slides[j] = self.kind[j] == 2 or self.slides[self.parent[j]]
         n = len(gm.geometryObjects)
         #: the collision pairs ``pairs`` ((P, 2) geometry ids) of the scene it serves, in its order
         self.pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
@@ -132,19 +129,31 @@ class PathBoxes:
         """``(G, J)``: per box (on joint ``gjoint[g]``, centre ``c_loc[g]`` in its joint's frame,
         half extents ``half[g]``) and joint, a bound on the distance of any point of the box from
         the joint's axis in every configuration (m; 0 for a joint not on the box's chain, infinite
-        when a prismatic joint is on it): the box's radius about its joint's origin plus the
-        lengths of the joint placements up to that joint. A point moves at most ``reach * |dq|``
-        when that joint turns by ``dq``."""
-        out = np.zeros((len(gjoint), len(self.parent)))
+        when a prismatic joint lies between the two, both included): the box's radius about its
+        joint's origin plus the lengths of the joint placements up to that joint
+        (:attr:`chain`). A point moves at most ``reach * |dq|`` when that joint turns by ``dq``."""
         radius = np.linalg.norm(c_loc, axis=1) + np.linalg.norm(half, axis=1)
+        length, slides = self.chain
+        L, S = length[gjoint], slides[gjoint]
+        return np.where(S, np.inf, np.where(L >= 0.0, radius[:, None] + L, 0.0))
+
+    @functools.cached_property
+    def chain(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(length, slides)``, each ``(J, J)``: for joint i = j or an ancestor of j (i >= 1),
+        ``length[j, i]`` the summed lengths of the joint placements from i (not counted) down to j
+        (counted) and ``slides[j, i]`` whether a prismatic joint lies from i down to j (both
+        counted); else -1 and False."""
+        J = len(self.parent)
         step = np.linalg.norm(self.t0, axis=1)
-        for g, j in enumerate(gjoint.tolist()):
-            acc = float(radius[g])
-            while j > 0:
-                out[g, j] = np.inf if self.slides[j] else acc
-                acc += float(step[j])
-                j = int(self.parent[j])
-        return out
+        length, slides = np.full((J, J), -1.0), np.zeros((J, J), dtype=bool)
+        for j in range(1, J):
+            i, acc, prismatic = j, 0.0, False
+            while i > 0:
+                prismatic = prismatic or self.kind[i] == 2
+                length[j, i], slides[j, i] = acc, prismatic
+                acc += float(step[i])
+                i = int(self.parent[i])
+        return length, slides
 
 
 #: the kernel's tree arguments of a model without a part mesh
@@ -323,7 +332,8 @@ def _growth(g: int, jg: int, parent: np.ndarray, axis: np.ndarray, iq: np.ndarra
     J = parent.shape[0]
     for jj in range(1, J):
         d = delta[iq[jj]]
-        loose[jj] = loose[parent[jj]] + (reach[g, jj] * d if reach[g, jj] > 0.0 and d > 0.0 else 0.0)
+        finite = 0.0 < reach[g, jj] < np.inf and d > 0.0  # (a prismatic joint's own term: grow below)
+        loose[jj] = loose[parent[jj]] + (reach[g, jj] * d if finite else 0.0)
     radius = math.sqrt(half[0] * half[0] + half[1] * half[1] + half[2] * half[2])
     for jj in range(1, J):
         d, grow = delta[iq[jj]], 0.0
