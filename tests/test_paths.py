@@ -106,6 +106,8 @@ def test_interpolate_path_properties(k, n, step, seed):
     np.testing.assert_array_equal(d[-1], path[-1])
     for w in path:  # every waypoint is in the densified path
         assert np.min(np.max(np.abs(d - w), axis=1)) < 1e-12
+    np.testing.assert_allclose(d, dense(path, step), rtol=0, atol=1e-12)  # the independent densification
+    np.testing.assert_allclose(interpolate_path(path[:2], step=step), dense(path[:2], step), rtol=0, atol=1e-12)
 
 
 @settings(max_examples=50, deadline=None)

@@ -34,19 +34,30 @@ def interpolate_path(path: np.ndarray, *, step: float = STEP, return_index: bool
         raise ValueError(f"path must have shape (k, n) with k >= 1, got {path.shape}")
     if not step > 0:
         raise ValueError(f"step must be > 0 rad, got {step!r}")
-    keep = np.concatenate([[True], np.max(np.abs(np.diff(path, axis=0)), axis=1) > 1e-12]) if len(path) > 1 \
-        else np.ones(1, dtype=bool)
-    kept = path[keep]
-    if len(kept) < 2:
-        out = kept.copy()
-        return (out, np.zeros(len(path), dtype=np.int64)) if return_index else out
-    d = np.diff(kept, axis=0)
-    pieces = np.maximum(1, np.ceil(np.max(np.abs(d), axis=1) / step - 1e-12).astype(np.int64))
-    seg = np.repeat(np.arange(len(d)), pieces)
-    start = np.repeat(np.cumsum(pieces) - pieces, pieces)
-    frac = (np.arange(len(seg)) - start) / pieces[seg]
-    out = np.vstack([kept[:1], (kept[seg] + ((frac + 1.0 / pieces[seg])[:, None]) * d[seg])])
+    d = path[1:] - path[:-1]
+    jump = np.abs(d).max(axis=1) if len(d) else np.zeros(0)
+    moved = jump > 1e-12
+    kept, keep = path, None
+    if not moved.all():  # repeated waypoints dropped
+        keep = np.concatenate([[True], moved])
+        kept = path[keep]
+        if len(kept) < 2:
+            out = kept.copy()
+            return (out, np.zeros(len(path), dtype=np.int64)) if return_index else out
+        d = kept[1:] - kept[:-1]
+        jump = np.abs(d).max(axis=1)
+    pieces = np.maximum(1, np.ceil(jump / step - 1e-12).astype(np.int64))
+    out = np.empty((int(pieces.sum()) + 1, path.shape[1]))
+    out[0] = kept[0]
+    if len(d) == 1:  # one segment (a transit): row i is kept[0] + (i / p + 1 / p) d
+        p = int(pieces[0])
+        out[1:] = kept[0] + ((np.arange(p) / p + 1.0 / p)[:, None]) * d[0]
+    else:
+        seg = np.repeat(np.arange(len(d)), pieces)
+        start = np.repeat(np.cumsum(pieces) - pieces, pieces)
+        frac = (np.arange(len(seg)) - start) / pieces[seg]
+        out[1:] = kept[seg] + ((frac + 1.0 / pieces[seg])[:, None]) * d[seg]
     if not return_index:
         return out
     row_of_kept = np.concatenate([[0], np.cumsum(pieces)])
-    return out, row_of_kept[np.cumsum(keep) - 1]
+    return out, (row_of_kept if keep is None else row_of_kept[np.cumsum(keep) - 1])

@@ -351,10 +351,11 @@ class SolutionChecks:
         return cls(ctx, cover, T_line, drop, ctx.T_flange_tcp @ T_tcp_part_of(g.T_part_tcp),
                    touch_waypoints(ctx.lift_contact, g.travel), (g.T_grasp @ ctx.T_tcp_flange)[:3, 3])
 
-    def resting(self, q: np.ndarray) -> bool:
-        """Whether configuration ``q`` is within ``lift_contact`` of TCP travel from the grasp (FK)."""
-        return bool(np.linalg.norm(world_fk(self.ctx.robot, q[None])[0, :3, 3] - self.flange_at_grasp)
-                    <= self.ctx.lift_contact + 1e-9)
+    def resting(self, qs: np.ndarray) -> np.ndarray:
+        """(k,) bool: whether each configuration of ``qs`` (k, n) is within ``lift_contact`` of TCP
+        travel from the grasp (FK, all at once)."""
+        d = world_fk(self.ctx.robot, np.asarray(qs, dtype=np.float64).reshape(-1, self.ctx.robot.nq))[:, :3, 3]
+        return np.linalg.norm(d - self.flange_at_grasp, axis=1) <= self.ctx.lift_contact + 1e-9
 
     def shallow(self) -> Callable[[np.ndarray, list[str]], bool] | None:
         """The depth rule of the lift's contacts with neighbours (None: any contact is a collision)."""

@@ -101,7 +101,7 @@ def touch_waypoints(lift_contact: float, travel: np.ndarray) -> int:
 def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touch: int,
                    shallow: Callable[[np.ndarray, list[str]], bool] | None = None,
                    covered: np.ndarray | None = None, drop: np.ndarray | Sequence[np.ndarray] | None = None,
-                   resting: Callable[[np.ndarray], bool] | None = None
+                   resting: Callable[[np.ndarray], np.ndarray] | None = None
                    ) -> list[tuple[str, str, str]] | None:
     """The colliding pairs where the lift ``path`` (k, n) first hits something with the part
     attached (None: free), checked at ``interpolation.STEP``. Within the first ``n_touch``
@@ -117,10 +117,10 @@ def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touc
     level first, then the configurations between waypoints with every pair, up to the first
     waypoint that failed (the first failing configuration in path order is the one reported).
 
-    ``resting(q)``: whether configuration ``q`` of the first ``n_touch`` waypoints is still within
-    ``lift_contact`` of TCP travel (the waypoints are :data:`LIFT_SAMPLE` apart,
-    so the last of them may lie beyond it); where it is not, resting contact is not allowed
-    either. None: every configuration up to waypoint ``n_touch`` may rest."""
+    ``resting(qs)``: (k,) bool, whether each configuration of ``qs`` (k, n) of the first
+    ``n_touch`` waypoints is still within ``lift_contact`` of TCP travel (the waypoints are
+    :data:`LIFT_SAMPLE` apart, so the last of them may lie beyond it); where it is not, resting
+    contact is not allowed either. None: every configuration up to waypoint ``n_touch`` may rest."""
     n_touch = int(min(max(n_touch, 0), len(path) - 1))
     drops: list[np.ndarray] = [] if drop is None else [drop] if isinstance(drop, np.ndarray) else list(drop)
     # the whole lift densified once; each part's configurations are its rows (a segment is split
@@ -144,7 +144,7 @@ def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touc
         elif resting is None:
             may_rest = np.ones(len(dense), dtype=bool)
         else:
-            may_rest = np.array([resting(q) for q in dense], dtype=bool)
+            may_rest = np.asarray(resting(dense), dtype=bool).reshape(len(dense))
         rests = may_rest & (support_ids is not None)
         bad: int | None = None
         groups = np.unique(2 * level + rests)[::-1]  # (level, rest), the highest level first
