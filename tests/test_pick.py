@@ -368,7 +368,7 @@ def test_resting_shortcut_matches_every_pair(picker, rest, monkeypatch):
                 continue
             for q in interpolate_path(path[k0:k1]):
                 pairs = sc.colliding_pairs(q, width)
-                rests = support and (resting is None or resting(q))
+                rests = support and (resting is None or bool(resting(q[None])[0]))
                 if rests and record:
                     seen.append(bool(pairs))
                     scenes.append((sc, np.array(q), width))
@@ -382,7 +382,7 @@ def test_resting_shortcut_matches_every_pair(picker, rest, monkeypatch):
         assert got == reference(sc, path, width, n_touch, shallow, resting, True)
         # no configuration may rest and no depth rule: a contact with a support is a hit (the pairs
         # the checks before IK decided stay off: they decided with the depth rule, so not here)
-        never = lambda q: False  # noqa: E731
+        never = lambda qs: np.zeros(len(qs), dtype=bool)  # noqa: E731
         for n in (n_touch, len(path) - 1):  # the lift's own split, and every waypoint a support one
             assert orig(sc, path, width, n, None, None, None, never) == reference(sc, path, width, n, None, never, False)
         # a model the boxes cannot serve (scene_open None): coal alone, the same answer

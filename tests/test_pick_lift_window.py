@@ -19,6 +19,10 @@ class _TableScene:
     def _travel(self, q: np.ndarray) -> float:
         return float(q[0]) / 10.0
 
+    def resting(self, qs: np.ndarray, window: float = 0.002) -> np.ndarray:
+        """Per configuration: within ``window`` of travel (``lift_collision``'s ``resting``)."""
+        return np.asarray(qs)[:, 0] / 10.0 <= window + 1e-9
+
     def is_free(self, q: np.ndarray, width: float) -> bool:
         self.checked.append(self._travel(q))
         return not (self.touch[0] <= self._travel(q) <= self.touch[1])
@@ -35,7 +39,7 @@ def _lift(n: int = 6) -> np.ndarray:
 
 def test_contact_beyond_lift_contact_before_the_first_waypoint_is_a_collision():
     sc = _TableScene((0.0025, 0.0035))  # touches the table 2.5-3.5 mm up
-    pairs = lift_collision(sc, _lift(), 0.02, 1, None, None, None, lambda q: sc._travel(q) <= 0.002 + 1e-9)
+    pairs = lift_collision(sc, _lift(), 0.02, 1, None, None, None, sc.resting)
     assert pairs == [("part", "table", "attached")]
     # without the window, the whole first waypoint interval (4 mm) could rest: the old behaviour
     assert lift_collision(_TableScene((0.0025, 0.0035)), _lift(), 0.02, 1) is None
@@ -43,7 +47,7 @@ def test_contact_beyond_lift_contact_before_the_first_waypoint_is_a_collision():
 
 def test_resting_within_lift_contact_is_allowed():
     sc = _TableScene((0.0, 0.0015))  # leaves the table 1.5 mm up
-    assert lift_collision(sc, _lift(), 0.02, 1, None, None, None, lambda q: sc._travel(q) <= 0.002 + 1e-9) is None
+    assert lift_collision(sc, _lift(), 0.02, 1, None, None, None, sc.resting) is None
     assert any(0.0015 < t < 0.004 for t in sc.checked)  # configurations between grasp and waypoint 1 were checked
 
 
@@ -62,9 +66,7 @@ def test_a_waypoint_at_lift_contact_itself_may_rest():
     path[:, 0] = 10 * travel[:6]  # the stand-in's joint 0 is travel x 10
     window = touch_waypoints(0.002, travel)
 
-    def resting(q: np.ndarray) -> bool:
-        return float(q[0]) / 10.0 <= 0.002 + 1e-9
-
+    resting = _TableScene((0.0, 0.0)).resting
     assert lift_collision(_TableScene((0.0, 0.002)), path, 0.02, window, None, None, None, resting) is None
     assert lift_collision(_TableScene((0.0, 0.0031)), path, 0.02, window, None, None, None, resting) == [
         ("part", "table", "attached")]
