@@ -412,3 +412,33 @@ def test_distinct_ranking_at_the_roll_step(example_part):
     order, n = distinct_order(T, np.array([a, b, far]), min_distance=PlanParams().distinct_distance,
                               min_angle_deg=PlanParams().distinct_angle_deg)
     assert order.tolist() == [a, far, b] and n == 2
+
+
+def test_a_grasp_colliding_where_the_tcp_pose_alone_decides_fails_every_solution(example_part, monkeypatch):
+    """A grasp whose first IK solution collides at the grasp on a pair the TCP pose alone places
+    (the flange's link or the gripper against the table) is not tried with its other solutions:
+    the plan is the one trying every solution (statuses, reasons naming all of them, motions), and
+    the shortcut was taken."""
+    import grasplan.motion.grasp_motion as gm
+    from grasplan.motion.planning import plan
+    from grasplan.part.mesh import load_part
+
+    taken = []
+    orig = gm._placed_by_tcp
+
+    def record(*args):
+        taken.append(orig(*args))
+        return taken[-1]
+
+    part = load_part(example_part("bracket.stl"), units="mm")
+    monkeypatch.setattr(gm, "_placed_by_tcp", record)
+    fast = plan(part, "ur5")
+    monkeypatch.setattr(gm, "_placed_by_tcp", lambda *args: False)
+    slow = plan(part, "ur5")
+    assert sum(taken) >= 2
+    np.testing.assert_array_equal(fast.grasps.status.astype(str), slow.grasps.status.astype(str))
+    np.testing.assert_array_equal(fast.grasps.reason.astype(str), slow.grasps.reason.astype(str))
+    assert fast.planned_ids() == slow.planned_ids()
+    for gid, m in fast.motions.items():
+        np.testing.assert_array_equal(m.path, slow.motions[gid].path)
+    assert any("8 collide at the grasp" in r for r in fast.grasps.reason.astype(str))

@@ -374,7 +374,8 @@ class _Tally:
     ``approach_kin``, ``lift``, ``lift_kin``, ``path``, ``place``): how many, the first one's
     reason, the neighbours hit; ``stop``: ``max_path_queries`` transits failed or the place side
     has no candidate; ``place``: the place side once computed (candidates, status, reason) and
-    ``place_status``: the plan status of a place failure."""
+    ``place_status``: the plan status of a place failure; ``every_grasp``: the grasp collides on a
+    pair the TCP pose alone places (:func:`_placed_by_tcp`), so every IK solution does."""
 
     count: dict[str, int] = field(default_factory=lambda: dict.fromkeys(
         ("grasp", "approach", "approach_kin", "lift", "lift_kin", "path", "place"), 0))
@@ -383,6 +384,7 @@ class _Tally:
     stop: bool = False
     place: tuple[list[PlaceCandidate], Status, str] | None = None
     place_status: Status | None = None
+    every_grasp: bool = False
 
     def fail(self, kind: str, why: str | None = None, pairs: list[tuple[str, str, str]] | None = None) -> None:
         self.count[kind] += 1
@@ -413,6 +415,7 @@ def _approach(ctx: MotionContext, g: GraspPoses, chk: SolutionChecks, q_grasp: n
         else:
             pairs_g = static.colliding_pairs(q_grasp, g.opening)
             tally.fail("grasp", describe_pairs(pairs_g, 2), pairs_g)
+            tally.every_grasp = chk.cover is None and _placed_by_tcp(ctx, q_grasp, g.opening)
         return None
     back, reason = _timed(ctx, ctx.keys.approach, line_path, ctx.robot, g.T_grasp, g.T_pre, q_grasp,
                           max_dev=ctx.params.max_dev, T_flange_tcp=ctx.T_flange_tcp)
@@ -428,6 +431,15 @@ def _approach(ctx: MotionContext, g: GraspPoses, chk: SolutionChecks, q_grasp: n
             tally.fail("approach", describe_pairs(pairs_a, 2), pairs_a)
         return None
     return back
+
+
+def _placed_by_tcp(ctx: MotionContext, q_grasp: np.ndarray, opening: float) -> bool:
+    """Some pair colliding at ``q_grasp`` has both geometries fixed in the world or on the joint that
+    carries the tool (the flange's link, the gripper): the TCP pose places them, so they collide at
+    every IK solution of that pose."""
+    gm, fixed = ctx.static.geom_model, (0, ctx.robot.tool_joint_id)
+    return any(all(gm.geometryObjects[gm.getGeometryId(name)].parentJoint in fixed for name in (a, b))
+               for a, b, _ in ctx.static.colliding_geometries(q_grasp, opening))
 
 
 def _lift(ctx: MotionContext, g: GraspPoses, chk: SolutionChecks, q_grasp: np.ndarray, tally: _Tally
@@ -534,5 +546,8 @@ def plan_pick_motion(ctx: MotionContext, T_world_tcp: np.ndarray, T_part_tcp: np
             return Outcome(Reason.PLANNED, f"planned with IK solution {j} of {len(sols)} (closest to q_home first)",
                            motion, g.opening)
         if tally.stop:
+            break
+        if tally.every_grasp:  # the others collide at the grasp as this one did
+            tally.count["grasp"] += len(sols) - j - 1
             break
     return _failed(tally, len(sols), g.opening)
