@@ -142,55 +142,78 @@ def slab_polygons(pts: np.ndarray, first: np.ndarray, count: np.ndarray, f: np.n
 
 
 @kernel(cache=True)
-def _holds(s: float, m: int, fx: np.ndarray, fy: np.ndarray, fz: np.ndarray, tau_x: np.ndarray, tp: np.ndarray,
-           uy: np.ndarray, uz: np.ndarray, arm0: np.ndarray, arm1: np.ndarray, inv_w: np.ndarray, L0: np.ndarray,
-           L1: np.ndarray, F: float, mu: float, lmin: float) -> bool:
-    """Every load ``d`` of grasp ``m`` held at scale ``s`` (the arithmetic of
+def _load_holds(s: float, d: int, fx: np.ndarray, fy: np.ndarray, fz: np.ndarray, tau_x: np.ndarray, tp: np.ndarray,
+                uy: np.ndarray, uz: np.ndarray, arm0: float, arm1: float, inv_w: float, L0: float, L1: float, F: float,
+                mu: float, lmin: float) -> bool:
+    """Load ``d`` of a grasp held at scale ``s`` (the arithmetic of
     :func:`grasplan.grasps.wrench.gravity_margin`)."""
-    for d in range(fx.shape[1]):
-        n0 = F - 0.5 * s * fx[m, d]
-        n1 = F + 0.5 * s * fx[m, d]
-        cap = arm0[m] * n0 + arm1[m] * n1
-        if cap > 0:
-            used = min(max(s * tp[m, d] / max(cap, 1e-300), 0.0), 1.0)
-        else:
-            used = 0.0
-        rest = max(s * tp[m, d] - cap, 0.0) * inv_w[m]
-        hy = rest * uz[m, d]
-        hz = -rest * uy[m, d]
-        t0 = (0.5 * s * fy[m, d] - hy) ** 2 + (0.5 * s * fz[m, d] - hz) ** 2
-        t1 = (0.5 * s * fy[m, d] + hy) ** 2 + (0.5 * s * fz[m, d] + hz) ** 2
-        c0 = (mu * n0) ** 2
-        c1 = (mu * n1) ** 2
-        if not (n0 > 0 and n1 > 0 and t0 <= c0 and t1 <= c1):
-            return False
-        shrink = np.sqrt(1.0 - used)
-        twist = (max(L0[m] * shrink, lmin) * np.sqrt(max(c0 - t0, 0.0))
-                 + max(L1[m] * shrink, lmin) * np.sqrt(max(c1 - t1, 0.0)))
-        if not (s * tau_x[m, d] <= twist):
-            return False
-    return True
+    n0 = F - 0.5 * s * fx[d]
+    n1 = F + 0.5 * s * fx[d]
+    cap = arm0 * n0 + arm1 * n1
+    if cap > 0:
+        used = min(max(s * tp[d] / max(cap, 1e-300), 0.0), 1.0)
+    else:
+        used = 0.0
+    rest = max(s * tp[d] - cap, 0.0) * inv_w
+    hy = rest * uz[d]
+    hz = -rest * uy[d]
+    t0 = (0.5 * s * fy[d] - hy) ** 2 + (0.5 * s * fz[d] - hz) ** 2
+    t1 = (0.5 * s * fy[d] + hy) ** 2 + (0.5 * s * fz[d] + hz) ** 2
+    c0 = (mu * n0) ** 2
+    c1 = (mu * n1) ** 2
+    if not (n0 > 0 and n1 > 0 and t0 <= c0 and t1 <= c1):
+        return False
+    shrink = np.sqrt(1.0 - used)
+    twist = (max(L0 * shrink, lmin) * np.sqrt(max(c0 - t0, 0.0))
+             + max(L1 * shrink, lmin) * np.sqrt(max(c1 - t1, 0.0)))
+    return s * tau_x[d] <= twist
 
 
 @kernel(cache=True)
-def margin_bisection(fx: np.ndarray, fy: np.ndarray, fz: np.ndarray, tau_x: np.ndarray, tp: np.ndarray,
-                     uy: np.ndarray, uz: np.ndarray, arm0: np.ndarray, arm1: np.ndarray, inv_w: np.ndarray,
-                     L0: np.ndarray, L1: np.ndarray, F: float, mu: float, lmin: float, log_lo: float,
-                     log_hi: float, iterations: int) -> np.ndarray:
-    """(M,) the largest load scale each grasp holds: bisection on ``log s`` over ``[log_lo, log_hi]``
-    (``iterations`` steps), 0 when even the lower end slips. Loads (M, D) in each TCP frame as
-    :func:`grasplan.grasps.wrench.gravity_margin` prepares them."""
-    M = fx.shape[0]
+def margin_of_loads(R: np.ndarray, p: np.ndarray, com: np.ndarray, f_part: np.ndarray, arm0: np.ndarray,
+                    arm1: np.ndarray, inv_w: np.ndarray, L0: np.ndarray, L1: np.ndarray, F: float, mu: float,
+                    lmin: float, log_lo: float, log_hi: float, iterations: int) -> np.ndarray:
+    """(M,) the largest load scale each grasp holds (:func:`grasplan.grasps.wrench.gravity_margin`):
+    per grasp (TCP axes ``R`` (M, 3, 3) and origin ``p`` (M, 3) in the part frame), the loads
+    ``f_part`` (D, 3, part frame) and the centre of mass ``com`` in its TCP frame, then bisection on
+    ``log s`` over ``[log_lo, log_hi]`` (``iterations`` steps), 0 when even the lower end slips."""
+    M, D = R.shape[0], f_part.shape[0]
     out = np.zeros(M)
+    fx, fy, fz, tau_x, tp, uy, uz = (np.empty(D), np.empty(D), np.empty(D), np.empty(D), np.empty(D), np.empty(D),
+                                     np.empty(D))
     for m in range(M):
-        lo, hi = log_lo, log_hi
-        for _ in range(iterations):
-            mid = 0.5 * (lo + hi)
-            if _holds(np.exp(mid), m, fx, fy, fz, tau_x, tp, uy, uz, arm0, arm1, inv_w, L0, L1, F, mu, lmin):
-                lo = mid
+        e0, e1, e2 = com[0] - p[m, 0], com[1] - p[m, 1], com[2] - p[m, 2]
+        cx = R[m, 0, 0] * e0 + R[m, 1, 0] * e1 + R[m, 2, 0] * e2  # R^T (com - p): the TCP frame
+        cy = R[m, 0, 1] * e0 + R[m, 1, 1] * e1 + R[m, 2, 1] * e2
+        cz = R[m, 0, 2] * e0 + R[m, 1, 2] * e1 + R[m, 2, 2] * e2
+        for d in range(D):
+            x = R[m, 0, 0] * f_part[d, 0] + R[m, 1, 0] * f_part[d, 1] + R[m, 2, 0] * f_part[d, 2]
+            y = R[m, 0, 1] * f_part[d, 0] + R[m, 1, 1] * f_part[d, 1] + R[m, 2, 1] * f_part[d, 2]
+            z = R[m, 0, 2] * f_part[d, 0] + R[m, 1, 2] * f_part[d, 1] + R[m, 2, 2] * f_part[d, 2]
+            fx[d], fy[d], fz[d] = x, y, z
+            tau_x[d] = abs(cy * z - cz * y)  # com x f
+            ty, tz = cz * x - cx * z, cx * y - cy * x
+            tp[d] = np.hypot(ty, tz)
+            uy[d] = ty / max(tp[d], 1e-300) if tp[d] > 0 else 0.0
+            uz[d] = tz / max(tp[d], 1e-300) if tp[d] > 0 else 0.0
+        # bisection; every load must hold, the one that failed last is tried first (the same answer)
+        lo, hi, last = log_lo, log_hi, 0
+        for it in range(iterations + 1):
+            s = np.exp(0.5 * (lo + hi)) if it < iterations else np.exp(lo)
+            ok = _load_holds(s, last, fx, fy, fz, tau_x, tp, uy, uz, arm0[m], arm1[m], inv_w[m], L0[m], L1[m], F,
+                             mu, lmin)
+            d = 0
+            while ok and d < D:
+                if d != last:
+                    ok = _load_holds(s, d, fx, fy, fz, tau_x, tp, uy, uz, arm0[m], arm1[m], inv_w[m], L0[m], L1[m],
+                                     F, mu, lmin)
+                    if not ok:
+                        last = d
+                d += 1
+            if it == iterations:
+                out[m] = s if ok else 0.0
+            elif ok:
+                lo = 0.5 * (lo + hi)
             else:
-                hi = mid
-        s = np.exp(lo)
-        if _holds(s, m, fx, fy, fz, tau_x, tp, uy, uz, arm0, arm1, inv_w, L0, L1, F, mu, lmin):
-            out[m] = s
+                hi = 0.5 * (lo + hi)
     return out

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..part.mass import MassProperties
-from .quality_kernels import margin_bisection
+from .quality_kernels import margin_of_loads
 
 #: torsional friction radius of a point or line contact on a compliant pad, m
 MIN_PATCH_RADIUS = 5e-4
@@ -137,7 +137,7 @@ def gravity_margin(mass_props: MassProperties, T_world_part: np.ndarray, T_part_
     sqrt(1 - u_j^2)`` (``L_j``: :func:`torsion_length`, times ``sqrt(1 - p)`` when the pressure
     moment is a share ``p`` of its capacity (effective patch), at least the point contact's), the
     pad model of the MuJoCo check. Homogeneous: the margin grows in proportion to ``normal_force``.
-    The bisection on the scale is compiled (:func:`grasplan.grasps.quality_kernels.margin_bisection`).
+    The bisection on the scale is compiled (:func:`grasplan.grasps.quality_kernels.margin_of_loads`).
 
     The loads are those of the lift and shake the MuJoCo check applies (:class:`LoadModel`,
     :data:`LOAD`): ``f = m (g - a)`` for the gripper accelerations ``a`` of
@@ -147,35 +147,20 @@ def gravity_margin(mass_props: MassProperties, T_world_part: np.ndarray, T_part_
     pad)."""
     T = np.asarray(T_part_tcp, dtype=np.float64).reshape(-1, 4, 4)
     M = len(T)
-    R = T[:, :3, :3]
-    acc = load.accelerations()
     if not (mu * normal_force > 0) or M == 0:  # no friction: nothing holds the part against a tangential load
         return np.zeros(M)
-    # load on the part that the jaws must hold, world: m (g - a); in each TCP frame
-    f_world = mass_props.mass * (np.array([0.0, 0.0, -G])[None] - acc)              # (D, 3)
-    f_part = f_world @ np.asarray(T_world_part, dtype=np.float64)[:3, :3]         # rows: R_wp^T f
-    f = np.einsum("mji,dj->mdi", R, f_part)                                       # (M, D, 3) TCP frame
-    com = np.einsum("mji,mj->mi", R, mass_props.com - T[:, :3, 3])  # centre of mass in TCP
-    fx, fy, fz = f[..., 0], f[..., 1], f[..., 2]
-    cx, cy, cz = (com[:, k, None] for k in range(3))
-    tau_x = np.abs(cy * fz - cz * fy)  # tau = com x f, component by component (no (M, D, 3) temporaries)
-    tau_y = cz * fx - cx * fz
-    tau_z = cx * fy - cy * fx
-    tp = np.hypot(tau_y, tau_z)
-    uy = np.where(tp > 0, tau_y / np.maximum(tp, 1e-300), 0.0)
-    uz = np.where(tp > 0, tau_z / np.maximum(tp, 1e-300), 0.0)
+    # load on the part that the jaws must hold, world: m (g - a); in the part frame (the kernel turns
+    # it and the centre of mass into each TCP frame)
+    f_world = mass_props.mass * (np.array([0.0, 0.0, -G])[None] - load.accelerations())  # (D, 3)
+    f_part = f_world @ np.asarray(T_world_part, dtype=np.float64)[:3, :3]               # rows: R_wp^T f
     pw = np.zeros((M, 2)) if patch_width is None else np.maximum(np.asarray(patch_width, dtype=np.float64), 0.0)
-    arm0, arm1 = (PRESSURE_ARM * pw[:, k, None] for k in range(2))
-    inv_w = 1.0 / np.maximum(np.asarray(width, dtype=np.float64), 1e-9)[:, None]
     L = torsion_length(np.asarray(area, dtype=np.float64))
-    L0, L1 = L[:, 0, None], L[:, 1, None]
-    F = float(normal_force)
-    LMIN = SOFT_FINGER * MIN_PATCH_RADIUS
-
     c = np.ascontiguousarray
-    return margin_bisection(c(fx), c(fy), c(fz), c(tau_x), c(tp), c(uy), c(uz), c(arm0[:, 0]), c(arm1[:, 0]),
-                            c(inv_w[:, 0]), c(L0[:, 0]), c(L1[:, 0]), F, float(mu), LMIN,
-                            math.log(MARGIN_BRACKET[0]), math.log(MARGIN_BRACKET[1]), MARGIN_ITERATIONS)
+    return margin_of_loads(c(T[:, :3, :3]), c(T[:, :3, 3]), c(mass_props.com, dtype=np.float64), c(f_part),
+                           c(PRESSURE_ARM * pw[:, 0]), c(PRESSURE_ARM * pw[:, 1]),
+                           c(1.0 / np.maximum(np.asarray(width, dtype=np.float64), 1e-9)), c(L[:, 0]), c(L[:, 1]),
+                           float(normal_force), float(mu), SOFT_FINGER * MIN_PATCH_RADIUS,
+                           math.log(MARGIN_BRACKET[0]), math.log(MARGIN_BRACKET[1]), MARGIN_ITERATIONS)
 
 
 def _tangent_basis(nu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
