@@ -16,9 +16,17 @@ from grasplan.grasps import quality_kernels, ranking
 
 
 def _margin_args(rng: np.random.Generator, M: int = 40, D: int = 6) -> tuple:
-    two = [rng.normal(size=(M, D)) for _ in range(7)]
-    one = [np.abs(rng.normal(size=M)) + 0.1 for _ in range(5)]
-    return (*two, *one, 70.0, 0.3, 1e-3, -4.0, 3.0, 20)
+    """Arguments of ``margin_of_loads``: M grasps' TCP axes and origins, a centre of mass, D loads
+    (N), per-grasp pad arms, widths and torsion lengths, then the scalars."""
+    q = rng.normal(size=(M, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    w, x, y, z = q.T
+    R = np.stack([np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
+                  np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
+                  np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1)], 1)
+    one = [np.abs(rng.normal(size=M)) * 0.01 + 0.001 for _ in range(5)]
+    return (np.ascontiguousarray(R), rng.normal(size=(M, 3)) * 0.01, rng.normal(size=3) * 0.01,
+            rng.normal(size=(D, 3)) * 10.0, *one, 70.0, 0.3, 1e-3, -4.0, 3.0, 20)
 
 
 def _distinct_args(rng: np.random.Generator, n: int = 300) -> tuple:
@@ -38,7 +46,7 @@ def built(tmp_path_factory):
     for the signatures numba compiles on these arguments."""
     rng = np.random.default_rng(0)
     found = []
-    for k, args in ((quality_kernels.margin_bisection, _margin_args(rng)), (ranking.greedy_distinct, _distinct_args(rng))):
+    for k, args in ((quality_kernels.margin_of_loads, _margin_args(rng)), (ranking.greedy_distinct, _distinct_args(rng))):
         k.jit()(*args)
         found.append((k.name, k.py_func, k.jit().nopython_signatures))
     where = tmp_path_factory.mktemp("kernels")
@@ -49,9 +57,9 @@ def built(tmp_path_factory):
 
 def test_ahead_of_time_gives_numbas_numbers(built):
     loaded = aot.load(built)
-    assert set(loaded) == {quality_kernels.margin_bisection.name, ranking.greedy_distinct.name}
+    assert set(loaded) == {quality_kernels.margin_of_loads.name, ranking.greedy_distinct.name}
     rng = np.random.default_rng(1)
-    for k, make in ((quality_kernels.margin_bisection, _margin_args), (ranking.greedy_distinct, _distinct_args)):
+    for k, make in ((quality_kernels.margin_of_loads, _margin_args), (ranking.greedy_distinct, _distinct_args)):
         for _ in range(3):
             args = make(rng)
             (variant,) = loaded[k.name]
