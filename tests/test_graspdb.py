@@ -181,3 +181,17 @@ def test_plan_in_cell_none_is_refused(tmp_path):
                                   str(tmp_path / "p.json")])
     assert r.exit_code == 3 and "cell 'none'" in r.output and not (tmp_path / "p.json").exists()
     assert load_cell("none") is NO_CELL
+
+
+@pytest.mark.parametrize("spread", [1, 10**12])
+def test_a_repeated_pose_id_is_refused(db, spread):
+    """Two rows with one pose id (ids close together, counted in a table, or far apart, sorted):
+    InputError; the ids as they are, spread as far, pass."""
+    import dataclasses
+
+    ids = np.asarray(db.pose, dtype=np.int64) * spread
+    assert len(dataclasses.replace(db, pose=ids)) == len(db)
+    twice = ids.copy()
+    twice[-1] = twice[0]
+    with pytest.raises(InputError, match="a pose id appears twice"):
+        dataclasses.replace(db, pose=twice)

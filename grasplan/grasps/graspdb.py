@@ -165,7 +165,7 @@ class GraspDatabase:
                 raise InputError(f"grasp database: {name} has shape {a.shape}, expected (P, {shape})")
             a.flags.writeable = False
             object.__setattr__(self, name, a)
-        if n > 1 and len(np.unique(self.pose)) != n:
+        if n > 1 and _repeats(self.pose):
             raise InputError("grasp database: a pose id appears twice")
         if k and (np.any(np.diff(self.rejected_candidate) <= 0) or np.any(self.rejected_part < 0)):
             raise InputError("grasp database: rejected_candidate must increase and rejected_part be >= 0")
@@ -272,6 +272,15 @@ def _mass_from_json(d: Any, src: str) -> MassProperties | None:
                               watertight_used=bool(d["watertight_used"]), material=str(d.get("material", "")))
     except (KeyError, TypeError, ValueError) as exc:
         raise InputError(f"{src}: meta.mass is malformed ({exc}); recompute the database") from None
+
+
+def _repeats(ids: np.ndarray) -> bool:
+    """Whether an id of ``ids`` (int64) appears twice: counted in a table when their range is
+    small (the database's pose ids are), else by sorting."""
+    lo, hi = int(ids.min()), int(ids.max())
+    if hi - lo < 8 * len(ids):
+        return bool(np.bincount(ids - lo).max() > 1)
+    return len(np.unique(ids)) != len(ids)
 
 
 def load_database(path: str | Path, *, part: Part | None = None, gripper: Gripper | None = None) -> GraspDatabase:
