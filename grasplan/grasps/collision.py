@@ -197,7 +197,11 @@ class GripperCollider:
         limit = self.cell.table_z - TABLE_CONTACT_TOL
         for si, s in enumerate(sets):
             h_s = np.zeros(M, dtype=bool)
-            if s.is_box:
+            if s.is_box and len(s.T_tcp_geom) == 1:  # one variant (a body shape): no per-pose copies
+                zr = np.einsum("mj,jk->mk", zr_tcp, s.T_tcp_geom[0])  # world-z row of T_world_box
+                zmin = zr[:, 3] - np.sum(np.abs(zr[:, :3]) * s.half_bb[0], axis=1)
+                h_s |= zmin < limit
+            elif s.is_box:
                 Tg = s.T_tcp_geom[s.index]  # (M,4,4)
                 zr = np.einsum("mj,mjk->mk", zr_tcp, Tg)  # world-z row of T_world_box
                 h = s.half_bb[s.index]  # a box's half extents
