@@ -15,29 +15,28 @@ from grasplan.compiled.jit import Kernel, kernel
 from grasplan.grasps import quality_kernels, ranking
 
 
-def _margin_args(rng: np.random.Generator, M: int = 40, D: int = 6) -> tuple:
-    """Arguments of ``margin_of_loads``: M grasps' TCP axes and origins, a centre of mass, D loads
-    (N), per-grasp pad arms, widths and torsion lengths, then the scalars."""
-    q = rng.normal(size=(M, 4))
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    w, x, y, z = q.T
-    R = np.stack([np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-                  np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-                  np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1)], 1)
-    one = [np.abs(rng.normal(size=M)) * 0.01 + 0.001 for _ in range(5)]
-    return (np.ascontiguousarray(R), rng.normal(size=(M, 3)) * 0.01, rng.normal(size=3) * 0.01,
-            rng.normal(size=(D, 3)) * 10.0, *one, 70.0, 0.3, 1e-3, -4.0, 3.0, 20)
-
-
-def _distinct_args(rng: np.random.Generator, n: int = 300) -> tuple:
-    p = rng.uniform(-0.05, 0.05, size=(n, 3))
+def _rotations(rng: np.random.Generator, n: int) -> np.ndarray:
+    """(n, 3, 3) rotations of random unit quaternions, C-contiguous."""
     q = rng.normal(size=(n, 4))
     q /= np.linalg.norm(q, axis=1, keepdims=True)
     w, x, y, z = q.T
     R = np.stack([np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
                   np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
                   np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1)], 1)
-    return (p, np.ascontiguousarray(R), 0.01, float(np.cos(np.radians(20))), 0.01)
+    return np.ascontiguousarray(R)
+
+
+def _margin_args(rng: np.random.Generator, M: int = 40, D: int = 6) -> tuple:
+    """Arguments of ``margin_of_loads``: M grasps' TCP axes and origins, a centre of mass, D loads
+    (N), per-grasp pad arms, widths and torsion lengths, then the scalars."""
+    one = [np.abs(rng.normal(size=M)) * 0.01 + 0.001 for _ in range(5)]
+    return (_rotations(rng, M), rng.normal(size=(M, 3)) * 0.01, rng.normal(size=3) * 0.01,
+            rng.normal(size=(D, 3)) * 10.0, *one, 70.0, 0.3, 1e-3, -4.0, 3.0, 20)
+
+
+def _distinct_args(rng: np.random.Generator, n: int = 300) -> tuple:
+    p = rng.uniform(-0.05, 0.05, size=(n, 3))
+    return (p, _rotations(rng, n), 0.01, float(np.cos(np.radians(20))), 0.01)
 
 
 @pytest.fixture(scope="module")
