@@ -161,7 +161,7 @@ _NO_TREE = (np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0
             np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), 2)
 
 
-#: a range of at most this many configurations whose joint-space bound put no pair apart is
+#: a range of at most this many configurations whose grown boxes put no further pair apart is
 #: tested configuration by configuration (not split further)
 LEAF = 8
 #: the deepest range split of :func:`_open_pairs` (2 ** 62 configurations)
@@ -236,9 +236,10 @@ def _open_pairs(qs: np.ndarray, parent: np.ndarray, R0: np.ndarray, t0: np.ndarr
     1]]``; ``placed``: how many times the chain's boxes were placed (a configuration or a range).
 
     Ranges of consecutive configurations first: about the range's middle configuration, each box
-    grown by ``sum_j reach[g, j] * max |q_j - q_j(middle)|`` over the range holds the box at every
-    configuration of the range (:meth:`PathBoxes.reach`); a pair whose grown boxes lie apart is
-    apart at all of them. The others go to the range's halves, down to single configurations
+    grown by how far its points can move while every joint j stays within ``max |q_j -
+    q_j(middle)|`` over the range (:func:`_growth`, bounded by :meth:`PathBoxes.reach`) holds the
+    box at every configuration of the range; a pair whose grown boxes lie apart (each grown only
+    by the joints below the pair's common joint, :func:`_filter_pairs`) is apart at all of them. The others go to the range's halves, down to single configurations
     (a range of at most :data:`LEAF` that put no pair apart: each of its configurations at once),
     tested with the boxes as they are (:func:`_filter_pairs`)."""
     n, J, G, P, nq = qs.shape[0], parent.shape[0], gjoint.shape[0], pairs.shape[0], qs.shape[1]
