@@ -318,3 +318,19 @@ def test_growth_bounds_how_far_every_box_corner_moves(robot_name):
                         break
                     j = int(parent[j])
     assert n_checked > 1000
+
+
+def test_a_nan_configuration_is_never_cleared_by_a_range(gear_plan):
+    """A configuration with a NaN joint inside a path the ranges would clear: it is listed as it is
+    alone (every pair its NaN boxes cannot put apart goes to coal), not cleared with its range."""
+    res, scene = gear_plan
+    m = next(iter(res.motions.values()))
+    a, b = m.segment("transit")
+    qs = interpolate_path(np.asarray(m.path[a:b + 1], dtype=np.float64))
+    scene.set_opening(0.03)
+    k = len(qs) // 3
+    qs[k, 2] = np.nan
+    starts, ids = scene_open(scene, qs)
+    s1, i1 = scene_open(scene, qs[k:k + 1])
+    assert len(i1) > 0
+    assert sorted(ids[starts[k]:starts[k + 1]].tolist()) == sorted(i1.tolist())

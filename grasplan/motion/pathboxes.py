@@ -239,9 +239,10 @@ def _open_pairs(qs: np.ndarray, parent: np.ndarray, R0: np.ndarray, t0: np.ndarr
     grown by how far its points can move while every joint j stays within ``max |q_j -
     q_j(middle)|`` over the range (:func:`_growth`, bounded by :meth:`PathBoxes.reach`) holds the
     box at every configuration of the range; a pair whose grown boxes lie apart (each grown only
-    by the joints below the pair's common joint, :func:`_filter_pairs`) is apart at all of them. The others go to the range's halves, down to single configurations
-    (a range of at most :data:`LEAF` that put no pair apart: each of its configurations at once),
-    tested with the boxes as they are (:func:`_filter_pairs`)."""
+    by the joints below the pair's common joint, :func:`_filter_pairs`) is apart at all of them.
+    The others go to the range's halves, down to single configurations (a range of at most
+    :data:`LEAF` that put no further pair apart: each of its configurations at once), tested with
+    the boxes as they are. A configuration with a NaN joint is never cleared with its range."""
     n, J, G, P, nq = qs.shape[0], parent.shape[0], gjoint.shape[0], pairs.shape[0], qs.shape[1]
     starts = np.zeros(n + 1, dtype=np.int64)
     flat = np.empty(max(16, 2 * n), dtype=np.int64)
@@ -280,7 +281,9 @@ def _open_pairs(qs: np.ndarray, parent: np.ndarray, R0: np.ndarray, t0: np.ndarr
         for j in range(nq):
             delta[j] = 0.0
             for k in range(i0, i1):
-                delta[j] = max(delta[j], abs(qs[k, j] - qs[mid, j]))
+                d = abs(qs[k, j] - qs[mid, j])
+                if d != d or d > delta[j]:  # a NaN stays: no range holds it, its configuration goes to coal
+                    delta[j] = d
         _chain(qs, mid, parent, R0, t0, kind, axis, iq, oR, ot)
         placed += 1
         for g in range(G):
@@ -340,7 +343,7 @@ def _growth(g: int, jg: int, parent: np.ndarray, axis: np.ndarray, iq: np.ndarra
         d, grow = delta[iq[jj]], 0.0
         if reach[g, jj] == np.inf:
             grow = np.inf
-        elif reach[g, jj] > 0.0 and d > 0.0:
+        elif reach[g, jj] > 0.0 and not d <= 0.0:  # (a NaN motion grows it to NaN: never apart)
             a0 = oR[jj, 0, 0] * axis[jj, 0] + oR[jj, 0, 1] * axis[jj, 1] + oR[jj, 0, 2] * axis[jj, 2]
             a1 = oR[jj, 1, 0] * axis[jj, 0] + oR[jj, 1, 1] * axis[jj, 1] + oR[jj, 1, 2] * axis[jj, 2]
             a2 = oR[jj, 2, 0] * axis[jj, 0] + oR[jj, 2, 1] * axis[jj, 1] + oR[jj, 2, 2] * axis[jj, 2]

@@ -31,8 +31,8 @@ def wrap_rows(Q: np.ndarray, lower: np.ndarray, upper: np.ndarray, q_ref: np.nda
     ``(wrapped (k, n), ok (k,))``: a row is not ok when some joint has no equivalent within its
     limits."""
     c = np.ascontiguousarray
-    return _wrap(c(Q, dtype=np.float64).reshape(len(Q), -1), c(lower, dtype=np.float64), c(upper, dtype=np.float64),
-                 c(q_ref, dtype=np.float64))
+    lo = c(lower, dtype=np.float64)
+    return _wrap(c(Q, dtype=np.float64).reshape(-1, len(lo)), lo, c(upper, dtype=np.float64), c(q_ref, dtype=np.float64))
 
 
 def select_solutions(W: np.ndarray, T_reached: np.ndarray, T_target: np.ndarray, q_ref: np.ndarray, pos_tol: float,
