@@ -25,7 +25,8 @@ from ...geometry.transforms import check_transform, inv_rigid
 from . import clik, ur
 from .clik import CLIK
 from .registry import FAMILIES, ClosedFormIK, IKFamily, get_family
-from .solution_kernels import select_solutions, wrap_rows
+from .solution_kernels import select_solutions
+from .solution_kernels import wrap_rows as wrap_many  # :func:`wrap_to_limits` of every row
 
 #: the shipped IK families (importing their modules registered them)
 BUILTIN_FAMILIES: tuple[IKFamily, ...] = (clik.FAMILY, ur.FAMILY)
@@ -71,14 +72,6 @@ def wrap_to_limits(q: np.ndarray, lower: np.ndarray, upper: np.ndarray, q_ref: n
     """
     out, ok = wrap_many(np.asarray(q, dtype=np.float64)[None], lower, upper, q_ref)
     return out[0] if ok[0] else None
-
-
-def wrap_many(Q: np.ndarray, lower: np.ndarray, upper: np.ndarray, q_ref: np.ndarray
-              ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`wrap_to_limits` of every row of ``Q`` (k, n): ``(wrapped (k, n), ok (k,))``; a row
-    is not ok when some joint has no 2 pi-equivalent within its limits
-    (:func:`grasplan.robot.ik.solution_kernels.wrap_rows`)."""
-    return wrap_rows(Q, lower, upper, q_ref)
 
 
 #: two solutions closer than this in every joint (rad) are one
