@@ -56,15 +56,22 @@ def run_kernels() -> None:
     """A plan and a pick of a small box: every kernel is called with the argument types of real runs."""
     from ..cell.model import load_cell
     from ..cell.resting import stable_pose
+    from ..config.params import DEFAULT_CELL, DEFAULT_GRIPPER, CandidateParams, GraspParams
+    from ..grasps.placed import hold_by_pose
     from ..motion.planning import plan
     from ..part.mesh import part_from_arrays
     from ..pick.params import PickParams
     from ..pick.picker import Picker
     from ..piles.scene_file import Instance, Scene
+    from ..setup.resolved import build_setup
 
     v, f = _box()
     part = part_from_arrays(v, f, path="<warm-up box>", units="m")
     plan(part, "ur5")
+    setup = build_setup(gripper=DEFAULT_GRIPPER, cell=DEFAULT_CELL)  # the holding-poses hint of plan's CLI
+    assert setup.gripper is not None and setup.cell is not None
+    hold_by_pose(part, setup.gripper, setup.cell, candidates=CandidateParams(), grasps=GraspParams(), poses=[(1, 0.5)],
+                 cache=False)
     picker = Picker("ur5", params=PickParams(grasps_per_instance=8))
     picker.add_part("box", part)
     T = stable_pose(part.mesh, load_cell("bin"))

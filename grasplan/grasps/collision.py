@@ -23,7 +23,7 @@ from ..gripper.model import Gripper
 from ..geometry.meshdata import TriangleMesh, convex_hull
 from ..status import Status
 from ..geometry.transforms import check_transform
-from .collision_boxes import HIT, UNSURE, PartBoxes, points_inside_compiled, prefilter
+from .collision_boxes import HIT, UNSURE, PartBoxes, boxes_below, points_inside_compiled, prefilter
 from .collision_shapes import ShapeSet, shared_sweeps, unique_rows
 
 #: a shape reaching below the table top by less than this (m) only touches it
@@ -192,22 +192,20 @@ class GripperCollider:
             return hit, elem
         hit = np.zeros(M, dtype=bool)
         elem = np.full(M, -1, dtype=np.int64)
-        zrow = self.zrow
-        zr_tcp = np.einsum("j,mjk->mk", zrow, T_part_tcp)  # world-z row of T_world_tcp, (M,4)
+        zrow = np.ascontiguousarray(self.zrow, dtype=np.float64)
+        zr_tcp: np.ndarray | None = None
         limit = self.cell.table_z - TABLE_CONTACT_TOL
+        T = np.ascontiguousarray(T_part_tcp, dtype=np.float64)
         for si, s in enumerate(sets):
             h_s = np.zeros(M, dtype=bool)
-            if s.is_box and len(s.T_tcp_geom) == 1:  # one variant (a body shape): no per-pose copies
-                zr = np.einsum("mj,jk->mk", zr_tcp, s.T_tcp_geom[0])  # world-z row of T_world_box
-                zmin = zr[:, 3] - np.sum(np.abs(zr[:, :3]) * s.half_bb[0], axis=1)
-                h_s |= zmin < limit
-            elif s.is_box:
-                Tg = s.T_tcp_geom[s.index]  # (M,4,4)
-                zr = np.einsum("mj,mjk->mk", zr_tcp, Tg)  # world-z row of T_world_box
-                h = s.half_bb[s.index]  # a box's half extents
-                zmin = zr[:, 3] - np.sum(np.abs(zr[:, :3]) * h, axis=1)
-                h_s |= zmin < limit
+            if s.is_box:  # compiled: the world z of the box's lowest corner per pose
+                index = np.zeros(0, dtype=np.int64) if len(s.T_tcp_geom) == 1 else np.ascontiguousarray(s.index,
+                                                                                                         dtype=np.int64)
+                h_s |= boxes_below(zrow, T, np.ascontiguousarray(s.T_tcp_geom, dtype=np.float64),
+                                   np.ascontiguousarray(s.half_bb, dtype=np.float64), index, float(limit))
             else:
+                if zr_tcp is None:
+                    zr_tcp = np.einsum("j,mjk->mk", zrow, T_part_tcp)  # world-z row of T_world_tcp, (M,4)
                 for k in np.unique(s.index).tolist():
                     v = s.variants[k]
                     sel = np.flatnonzero(s.index == k)

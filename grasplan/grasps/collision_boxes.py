@@ -445,3 +445,28 @@ def _crossings(pts: np.ndarray, tri: np.ndarray, xmax: np.ndarray, lo: np.ndarra
             elif ahead > 0:
                 wind[q] += 1 if area > 0 else -1
     return wind, tie
+
+
+@kernel(cache=True)
+def boxes_below(zrow: np.ndarray, T_part_tcp: np.ndarray, T_tcp_box: np.ndarray, half: np.ndarray,
+                index: np.ndarray, limit: float) -> np.ndarray:
+    """(M,) bool: pose ``m``'s box (``T_tcp_box[index[m]]``, half extents ``half[index[m]]``; box 0
+    for every pose when ``index`` is empty) has its lowest corner below ``limit``, the world's z
+    being ``zrow (4,) . T_part_tcp[m] . T_tcp_box`` (``zrow``: the world-z row of ``T_world_part``)."""
+    M = T_part_tcp.shape[0]
+    out = np.zeros(M, dtype=np.bool_)
+    zt = np.empty(4)
+    for m in range(M):
+        for k in range(4):
+            zt[k] = (zrow[0] * T_part_tcp[m, 0, k] + zrow[1] * T_part_tcp[m, 1, k] + zrow[2] * T_part_tcp[m, 2, k]
+                     + zrow[3] * T_part_tcp[m, 3, k])
+        v = index[m] if index.shape[0] else 0
+        reach = 0.0
+        for k in range(3):
+            zk = (zt[0] * T_tcp_box[v, 0, k] + zt[1] * T_tcp_box[v, 1, k] + zt[2] * T_tcp_box[v, 2, k]
+                  + zt[3] * T_tcp_box[v, 3, k])
+            reach += abs(zk) * half[v, k]
+        z = (zt[0] * T_tcp_box[v, 0, 3] + zt[1] * T_tcp_box[v, 1, 3] + zt[2] * T_tcp_box[v, 2, 3]
+             + zt[3] * T_tcp_box[v, 3, 3])
+        out[m] = z - reach < limit
+    return out

@@ -5,6 +5,7 @@ one table per gripper shared by its colliders (:func:`shared_sweeps`).
 """
 from __future__ import annotations
 
+import bisect
 import threading
 import weakref
 from typing import Any
@@ -20,7 +21,7 @@ class Geoms:
     """The coal geometry of each variant of a shape, built when first asked for (most variants never
     reach coal): ``geoms[k]``."""
 
-    def __init__(self, variants: list):
+    def __init__(self, variants: list | ShapeRows):
         self.variants = variants  # may grow (the swept jaws met so far, :class:`Sweeps`)
         self._built: dict[int, Any] = {}
 
@@ -40,7 +41,7 @@ class ShapeSet:
     """One gripper shape per pose: coal geometry per unique variant, ``T_tcp_shape`` per pose."""
 
     def __init__(self, variants: list, index: np.ndarray):
-        self.variants = variants  # list of Box | MeshShape
+        self.variants: list | ShapeRows = variants  # Box | MeshShape per variant
         self.index = index  # (M,) variant per pose
         self.is_box = isinstance(variants[0], Box)
         self.geoms = Geoms(variants)
@@ -52,6 +53,46 @@ class ShapeSet:
         self.half_bb = np.array([f[2] for f in frames])
 
 
+class ShapeRows:
+    """A jaw's sweeps in row order, as :class:`Geoms` and :class:`ShapeSet` index them: box sweeps
+    kept as the arrays they were made from and turned into a :class:`~grasplan.gripper.model.Box`
+    when first asked for (most are only placed, never handed to coal), other shapes as given."""
+
+    def __init__(self) -> None:
+        self._starts: list[int] = []
+        self._chunks: list[Any] = []  # a list of shapes, or the (extents (n, 3), T (n, 4, 4)) of n boxes
+        self._made: dict[int, Box] = {}
+        self._n = 0
+
+    def __len__(self) -> int:
+        return self._n
+
+    def add_boxes(self, extents: np.ndarray, T: np.ndarray) -> None:
+        """Append boxes of ``extents (n, 3)`` at ``T (n, 4, 4)`` (TCP frame)."""
+        if len(extents):
+            self._starts.append(self._n)
+            self._chunks.append((extents, T))
+            self._n += len(extents)
+
+    def append(self, shape: Any) -> None:
+        self._starts.append(self._n)
+        self._chunks.append([shape])
+        self._n += 1
+
+    def __getitem__(self, k: int) -> Any:
+        k = int(k)
+        if not 0 <= k < self._n:
+            raise IndexError(f"shape row {k} of {self._n}")
+        c = bisect.bisect_right(self._starts, k) - 1
+        chunk, i = self._chunks[c], k - self._starts[c]
+        if isinstance(chunk, list):
+            return chunk[i]
+        box = self._made.get(k)
+        if box is None:
+            box = self._made[k] = Box(chunk[0][i], chunk[1][i])
+        return box
+
+
 class Sweeps:
     """The two jaws' sweeps met so far by one collider, one row per distinct (pre-grasp opening,
     closed opening) pair: the shapes (:meth:`Gripper.swept_fingers`), their coal geometry (on first
@@ -60,7 +101,7 @@ class Sweeps:
     def __init__(self, gripper: Gripper):
         self.gripper = gripper
         self.ids: dict[tuple[float, float], int] = {}
-        self.shapes: tuple[list, list] = ([], [])
+        self.shapes = (ShapeRows(), ShapeRows())
         self.geoms = (Geoms(self.shapes[0]), Geoms(self.shapes[1]))
         self.frames = [(np.zeros((0, 4, 4)), np.zeros((0, 4, 4)), np.zeros((0, 3))) for _ in range(2)]
         self._lock = threading.Lock()
@@ -96,7 +137,7 @@ class Sweeps:
         if boxes is not None:
             ext, T = boxes
             for side, Ts in enumerate((rz180() @ T, T)):
-                self.shapes[side].extend(Box(ext[k], Ts[k]) for k in range(len(ext)))
+                self.shapes[side].add_boxes(ext, Ts)
                 new.append((Ts, Ts, 0.5 * ext))  # shape_frames of a box, all rows at once
         else:
             got: tuple[list, list] = ([], [])

@@ -43,7 +43,7 @@ from .quality import Quality
 from ..config.scoring import PHYSICAL_TERMS, ScoringConfig, score_grasps
 from ..status import Status
 from ..geometry.transforms import check_transform
-from .wrench import CONTACTS_PER_GRIP, gravity_margin, pressure_widths
+from .wrench import CONTACTS_PER_GRIP, gravity_margin, margin_summary_of, pressure_widths
 
 DB_SCHEMA = "grasplan.graspdb/1"
 #: the file name ending `grasplan database` and the cache use
@@ -199,6 +199,19 @@ class GraspDatabase:
         return Quality(contact_area=self.contact_area[r], contact_type=self.contact_type[r],
                        contact_width=self.contact_width[r], gravity_margin=gm, epsilon=self.epsilon[r],
                        grip_force=F, mu=self.mu)
+
+    def holding_at(self, T_world_part: np.ndarray, rows: np.ndarray | None = None) -> tuple[int, float]:
+        """``(rows predicted to hold, largest gravity_margin)`` of ``rows`` (default all) with the part
+        at ``T_world_part``: the count of :meth:`quality_at`'s ``gravity_margin >= 1`` and its
+        maximum (0 and 0.0 without mass properties or rows), without computing every margin."""
+        r = self._rows(rows)
+        if self.mass_props is None or not len(r):
+            return 0, 0.0
+        T = check_transform(T_world_part, "T_world_part")
+        F = float(self.gripper.grip_force)
+        return margin_summary_of(self.mass_props, T, self.T_part_tcp[r], self.width[r], self.contact_area[r],
+                                 mu=self.mu, normal_force=F / CONTACTS_PER_GRIP,
+                                 patch_width=pressure_widths(self.contact_type[r], self.contact_width[r]))
 
     def score_at(self, part_mesh: TriangleMesh, T_world_part: np.ndarray, rows: np.ndarray | None = None,
                  quality: Quality | None = None) -> np.ndarray:

@@ -210,12 +210,14 @@ def hold_by_pose(part: Part, gripper: Gripper, cell: Cell, *, candidates: Candid
         if rows is not None:
             return rows
     db = database_for(part, gripper, candidates=candidates, grasps=grasps, cache=cache)
+    db.check_for(part)
     out: list[tuple[int, float, int, float | None]] = []
     for k, p in poses:
-        pg = place_database(db, part, cell, params=replace(grasps, pose_index=k))
-        gm = pg.quality.gravity_margin if pg.quality is not None else np.zeros(0)
-        force = float(gripper.grip_force) / float(gm.max()) if len(gm) and gm.max() > 0 else None
-        out.append((k, p, int(np.count_nonzero(gm >= 1.0)), force))
+        c = replace(cell, pose_index=k)
+        T, _ = part_pose(part, c, None)
+        status = GripperCollider(part.mesh, db.gripper, c, T).check_detail(db.T_part_tcp, db.width, part_free=True)[0]
+        n, best = db.holding_at(T, np.flatnonzero(status == Status.OK.value))
+        out.append((k, p, n, float(gripper.grip_force) / best if best > 0 else None))
     if path is not None:
         try:
             write_json(path, [list(r) for r in out])

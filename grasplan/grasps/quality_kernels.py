@@ -170,50 +170,124 @@ def _load_holds(s: float, d: int, fx: np.ndarray, fy: np.ndarray, fz: np.ndarray
 
 
 @kernel(cache=True)
+def _tcp_loads(m: int, R: np.ndarray, p: np.ndarray, com: np.ndarray, f_part: np.ndarray, fx: np.ndarray,
+               fy: np.ndarray, fz: np.ndarray, tau_x: np.ndarray, tp: np.ndarray, uy: np.ndarray, uz: np.ndarray) -> None:
+    """Grasp ``m``'s loads in its TCP frame into ``fx .. uz`` (D,): the force, the twist about the
+    closing axis and the size and direction of the moment perpendicular to it, about the TCP."""
+    e0, e1, e2 = com[0] - p[m, 0], com[1] - p[m, 1], com[2] - p[m, 2]
+    cx = R[m, 0, 0] * e0 + R[m, 1, 0] * e1 + R[m, 2, 0] * e2  # R^T (com - p): the TCP frame
+    cy = R[m, 0, 1] * e0 + R[m, 1, 1] * e1 + R[m, 2, 1] * e2
+    cz = R[m, 0, 2] * e0 + R[m, 1, 2] * e1 + R[m, 2, 2] * e2
+    for d in range(f_part.shape[0]):
+        x = R[m, 0, 0] * f_part[d, 0] + R[m, 1, 0] * f_part[d, 1] + R[m, 2, 0] * f_part[d, 2]
+        y = R[m, 0, 1] * f_part[d, 0] + R[m, 1, 1] * f_part[d, 1] + R[m, 2, 1] * f_part[d, 2]
+        z = R[m, 0, 2] * f_part[d, 0] + R[m, 1, 2] * f_part[d, 1] + R[m, 2, 2] * f_part[d, 2]
+        fx[d], fy[d], fz[d] = x, y, z
+        tau_x[d] = abs(cy * z - cz * y)  # com x f
+        ty, tz = cz * x - cx * z, cx * y - cy * x
+        tp[d] = np.hypot(ty, tz)
+        uy[d] = ty / max(tp[d], 1e-300) if tp[d] > 0 else 0.0
+        uz[d] = tz / max(tp[d], 1e-300) if tp[d] > 0 else 0.0
+
+
+@kernel(cache=True)
+def _all_hold(s: float, last: int, fx: np.ndarray, fy: np.ndarray, fz: np.ndarray, tau_x: np.ndarray,
+              tp: np.ndarray, uy: np.ndarray, uz: np.ndarray, arm0: float, arm1: float, inv_w: float, L0: float,
+              L1: float, F: float, mu: float, lmin: float) -> int:
+    """-1 when every load holds at scale ``s``, else the first that slips (load ``last`` tried first)."""
+    if not _load_holds(s, last, fx, fy, fz, tau_x, tp, uy, uz, arm0, arm1, inv_w, L0, L1, F, mu, lmin):
+        return last
+    for d in range(fx.shape[0]):
+        if d != last and not _load_holds(s, d, fx, fy, fz, tau_x, tp, uy, uz, arm0, arm1, inv_w, L0, L1, F, mu,
+                                         lmin):
+            return d
+    return -1
+
+
+@kernel(cache=True)
+def _bisect(last: int, fx: np.ndarray, fy: np.ndarray, fz: np.ndarray, tau_x: np.ndarray, tp: np.ndarray,
+            uy: np.ndarray, uz: np.ndarray, arm0: float, arm1: float, inv_w: float, L0: float, L1: float, F: float,
+            mu: float, lmin: float, log_lo: float, log_hi: float, iterations: int) -> tuple[float, int]:
+    """``(margin, load that slipped last)`` of one grasp's loads: bisection on ``log s`` over
+    ``[log_lo, log_hi]`` (``iterations`` steps) with every load tested at each step, the result
+    ``exp(lo)``, 0 when even that slips.
+
+    The same answer with fewer tests: the bisection is run on load ``last`` alone, then every load
+    is tested at its result; when all hold there, every step had the outcome of the full test (a
+    step that held lies below the result, where all hold; a step that failed failed for ``last``),
+    each load's test being monotone in the scale. Else it is run again on the load that slipped
+    (twice at most), then with every load at every step."""
+    for _ in range(3):
+        lo, hi = log_lo, log_hi
+        for _ in range(iterations):
+            mid = 0.5 * (lo + hi)
+            if _load_holds(np.exp(mid), last, fx, fy, fz, tau_x, tp, uy, uz, arm0, arm1, inv_w, L0, L1, F, mu, lmin):
+                lo = mid
+            else:
+                hi = mid
+        s = np.exp(lo)
+        d = _all_hold(s, last, fx, fy, fz, tau_x, tp, uy, uz, arm0, arm1, inv_w, L0, L1, F, mu, lmin)
+        if d < 0:
+            return s, last
+        if lo == log_lo:  # no step held for ``last``, so none held for every load; exp(lo) slips
+            return 0.0, d
+        last = d
+    lo, hi = log_lo, log_hi
+    for _ in range(iterations):
+        mid = 0.5 * (lo + hi)
+        d = _all_hold(np.exp(mid), last, fx, fy, fz, tau_x, tp, uy, uz, arm0, arm1, inv_w, L0, L1, F, mu, lmin)
+        if d < 0:
+            lo = mid
+        else:
+            hi, last = mid, d
+    s = np.exp(lo)
+    d = _all_hold(s, last, fx, fy, fz, tau_x, tp, uy, uz, arm0, arm1, inv_w, L0, L1, F, mu, lmin)
+    return (s, last) if d < 0 else (0.0, d)
+
+
+@kernel(cache=True)
 def margin_of_loads(R: np.ndarray, p: np.ndarray, com: np.ndarray, f_part: np.ndarray, arm0: np.ndarray,
                     arm1: np.ndarray, inv_w: np.ndarray, L0: np.ndarray, L1: np.ndarray, F: float, mu: float,
                     lmin: float, log_lo: float, log_hi: float, iterations: int) -> np.ndarray:
     """(M,) the largest load scale each grasp holds (:func:`grasplan.grasps.wrench.gravity_margin`):
     per grasp (TCP axes ``R`` (M, 3, 3) and origin ``p`` (M, 3) in the part frame), the loads
     ``f_part`` (D, 3, part frame) and the centre of mass ``com`` in its TCP frame, then bisection on
-    ``log s`` over ``[log_lo, log_hi]`` (``iterations`` steps), 0 when even the lower end slips."""
+    ``log s`` over ``[log_lo, log_hi]`` (``iterations`` steps), 0 when even the lower end slips. The
+    load that slipped last is tried first (the same answer, fewer tests)."""
     M, D = R.shape[0], f_part.shape[0]
     out = np.zeros(M)
     fx, fy, fz, tau_x, tp, uy, uz = (np.empty(D), np.empty(D), np.empty(D), np.empty(D), np.empty(D), np.empty(D),
                                      np.empty(D))
+    last = 0
     for m in range(M):
-        e0, e1, e2 = com[0] - p[m, 0], com[1] - p[m, 1], com[2] - p[m, 2]
-        cx = R[m, 0, 0] * e0 + R[m, 1, 0] * e1 + R[m, 2, 0] * e2  # R^T (com - p): the TCP frame
-        cy = R[m, 0, 1] * e0 + R[m, 1, 1] * e1 + R[m, 2, 1] * e2
-        cz = R[m, 0, 2] * e0 + R[m, 1, 2] * e1 + R[m, 2, 2] * e2
-        for d in range(D):
-            x = R[m, 0, 0] * f_part[d, 0] + R[m, 1, 0] * f_part[d, 1] + R[m, 2, 0] * f_part[d, 2]
-            y = R[m, 0, 1] * f_part[d, 0] + R[m, 1, 1] * f_part[d, 1] + R[m, 2, 1] * f_part[d, 2]
-            z = R[m, 0, 2] * f_part[d, 0] + R[m, 1, 2] * f_part[d, 1] + R[m, 2, 2] * f_part[d, 2]
-            fx[d], fy[d], fz[d] = x, y, z
-            tau_x[d] = abs(cy * z - cz * y)  # com x f
-            ty, tz = cz * x - cx * z, cx * y - cy * x
-            tp[d] = np.hypot(ty, tz)
-            uy[d] = ty / max(tp[d], 1e-300) if tp[d] > 0 else 0.0
-            uz[d] = tz / max(tp[d], 1e-300) if tp[d] > 0 else 0.0
-        # bisection; every load must hold, the one that failed last is tried first (the same answer)
-        lo, hi, last = log_lo, log_hi, 0
-        for it in range(iterations + 1):
-            s = np.exp(0.5 * (lo + hi)) if it < iterations else np.exp(lo)
-            ok = _load_holds(s, last, fx, fy, fz, tau_x, tp, uy, uz, arm0[m], arm1[m], inv_w[m], L0[m], L1[m], F,
-                             mu, lmin)
-            d = 0
-            while ok and d < D:
-                if d != last:
-                    ok = _load_holds(s, d, fx, fy, fz, tau_x, tp, uy, uz, arm0[m], arm1[m], inv_w[m], L0[m], L1[m],
-                                     F, mu, lmin)
-                    if not ok:
-                        last = d
-                d += 1
-            if it == iterations:
-                out[m] = s if ok else 0.0
-            elif ok:
-                lo = 0.5 * (lo + hi)
-            else:
-                hi = 0.5 * (lo + hi)
+        _tcp_loads(m, R, p, com, f_part, fx, fy, fz, tau_x, tp, uy, uz)
+        out[m], last = _bisect(last, fx, fy, fz, tau_x, tp, uy, uz, arm0[m], arm1[m], inv_w[m], L0[m], L1[m], F, mu,
+                               lmin, log_lo, log_hi, iterations)
     return out
+
+
+@kernel(cache=True)
+def margin_summary(R: np.ndarray, p: np.ndarray, com: np.ndarray, f_part: np.ndarray, arm0: np.ndarray,
+                   arm1: np.ndarray, inv_w: np.ndarray, L0: np.ndarray, L1: np.ndarray, F: float, mu: float,
+                   lmin: float, log_lo: float, log_hi: float, iterations: int) -> tuple[int, float]:
+    """``(grasps whose margin is >= 1, the largest margin)`` of :func:`margin_of_loads`'s margins,
+    the same numbers without bisecting every grasp: a grasp is bisected only when it holds at
+    ``min(1, largest so far)`` (a grasp that slips there has a smaller margin, the test being
+    monotone in the scale)."""
+    M, D = R.shape[0], f_part.shape[0]
+    fx, fy, fz, tau_x, tp, uy, uz = (np.empty(D), np.empty(D), np.empty(D), np.empty(D), np.empty(D), np.empty(D),
+                                     np.empty(D))
+    count, best, last = 0, 0.0, 0
+    for m in range(M):
+        _tcp_loads(m, R, p, com, f_part, fx, fy, fz, tau_x, tp, uy, uz)
+        if best > 0.0:
+            d = _all_hold(min(1.0, best), last, fx, fy, fz, tau_x, tp, uy, uz, arm0[m], arm1[m], inv_w[m], L0[m],
+                          L1[m], F, mu, lmin)
+            if d >= 0:
+                last = d
+                continue
+        s, last = _bisect(last, fx, fy, fz, tau_x, tp, uy, uz, arm0[m], arm1[m], inv_w[m], L0[m], L1[m], F, mu,
+                          lmin, log_lo, log_hi, iterations)
+        count += s >= 1.0
+        best = max(best, s)
+    return count, best

@@ -10,11 +10,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from ..part.mass import MassProperties
-from .quality_kernels import margin_of_loads
+from .quality_kernels import margin_of_loads, margin_summary
 
 #: torsional friction radius of a point or line contact on a compliant pad, m
 MIN_PATCH_RADIUS = 5e-4
@@ -145,10 +146,33 @@ def gravity_margin(mass_props: MassProperties, T_world_part: np.ndarray, T_part_
     directions), applied at the centre of mass, whose offset from the contact axis is the lever arm.
     The simulation's pads are this model (:mod:`grasplan.sim.simulate`: one torsional resistance per
     pad)."""
+    args = _margin_args(mass_props, T_world_part, T_part_tcp, width, area, mu=mu, normal_force=normal_force,
+                        patch_width=patch_width, load=load)
+    return margin_of_loads(*args) if args is not None else np.zeros(len(np.asarray(T_part_tcp).reshape(-1, 16)))
+
+
+def margin_summary_of(mass_props: MassProperties, T_world_part: np.ndarray, T_part_tcp: np.ndarray,
+                      width: np.ndarray, area: np.ndarray, *, mu: float, normal_force: float,
+                      patch_width: np.ndarray | None = None, load: LoadModel = LOAD) -> tuple[int, float]:
+    """``(grasps whose gravity_margin is >= 1, the largest gravity_margin)`` (0 and 0.0 for no grasp):
+    the two numbers of :func:`gravity_margin`'s margins (same arguments), bisecting only the grasps
+    that could change them (:func:`grasplan.grasps.quality_kernels.margin_summary`)."""
+    args = _margin_args(mass_props, T_world_part, T_part_tcp, width, area, mu=mu, normal_force=normal_force,
+                        patch_width=patch_width, load=load)
+    if args is None:
+        return 0, 0.0
+    n, best = margin_summary(*args)
+    return int(n), float(best)
+
+
+def _margin_args(mass_props: MassProperties, T_world_part: np.ndarray, T_part_tcp: np.ndarray, width: np.ndarray,
+                 area: np.ndarray, *, mu: float, normal_force: float, patch_width: np.ndarray | None,
+                 load: LoadModel) -> tuple[Any, ...] | None:
+    """The arguments of the margin kernels, or None when nothing can hold (no grasp, no friction)."""
     T = np.asarray(T_part_tcp, dtype=np.float64).reshape(-1, 4, 4)
     M = len(T)
     if not (mu * normal_force > 0) or M == 0:  # no friction: nothing holds the part against a tangential load
-        return np.zeros(M)
+        return None
     # load on the part that the jaws must hold, world: m (g - a); in the part frame (the kernel turns
     # it and the centre of mass into each TCP frame)
     f_world = mass_props.mass * (np.array([0.0, 0.0, -G])[None] - load.accelerations())  # (D, 3)
@@ -156,11 +180,11 @@ def gravity_margin(mass_props: MassProperties, T_world_part: np.ndarray, T_part_
     pw = np.zeros((M, 2)) if patch_width is None else np.maximum(np.asarray(patch_width, dtype=np.float64), 0.0)
     L = torsion_length(np.asarray(area, dtype=np.float64))
     c = np.ascontiguousarray
-    return margin_of_loads(c(T[:, :3, :3]), c(T[:, :3, 3]), c(mass_props.com, dtype=np.float64), c(f_part),
-                           c(PRESSURE_ARM * pw[:, 0]), c(PRESSURE_ARM * pw[:, 1]),
-                           c(1.0 / np.maximum(np.asarray(width, dtype=np.float64), 1e-9)), c(L[:, 0]), c(L[:, 1]),
-                           float(normal_force), float(mu), SOFT_FINGER * MIN_PATCH_RADIUS,
-                           math.log(MARGIN_BRACKET[0]), math.log(MARGIN_BRACKET[1]), MARGIN_ITERATIONS)
+    return (c(T[:, :3, :3]), c(T[:, :3, 3]), c(mass_props.com, dtype=np.float64), c(f_part),
+            c(PRESSURE_ARM * pw[:, 0]), c(PRESSURE_ARM * pw[:, 1]),
+            c(1.0 / np.maximum(np.asarray(width, dtype=np.float64), 1e-9)), c(L[:, 0]), c(L[:, 1]),
+            float(normal_force), float(mu), SOFT_FINGER * MIN_PATCH_RADIUS,
+            math.log(MARGIN_BRACKET[0]), math.log(MARGIN_BRACKET[1]), MARGIN_ITERATIONS)
 
 
 def _tangent_basis(nu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
