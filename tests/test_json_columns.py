@@ -156,3 +156,35 @@ def test_record_needs_a_first_key_on_every_row():
         Record((Field(None, Spread({})),))
     with pytest.raises(ValueError, match="present="):
         Record((Field("a", n), Field(None, Spread({}))))
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_a_block_is_written_as_json_writes_its_values(seed):
+    """A block of listed columns (numbers of any row shape, rounded, null where a test says, names,
+    plain values, nested blocks, zero rows): ``block_text`` is ``json.dumps(block_values(...))``
+    byte for byte, and a column json refuses (NaN where it is written) raises json's error."""
+    from grasplan.results.json_columns import Listed, block_text, block_values
+
+    rng = np.random.default_rng(seed)
+    M = int(rng.integers(0, 40))
+    t = table(max(M, 3), seed)
+    area = t["area"][:M]
+    null = rng.random(M) < 0.3
+    T = np.round(t["T"][:M], 10)
+    block = {
+        "frames": {"T": Listed(Numbers(t["T"][:M], decimals=10), M), "id": Listed(Numbers(t["id"][:M]), M),
+                   "empty": Listed(Numbers(np.zeros((0, 3))), 0)},
+        "names": ["a", 'b "c"'],
+        "area": Listed(Numbers(area, decimals=12, null=lambda rows: null[rows]), M),
+        "score": Listed(Numbers(t["score"][:M], null=lambda rows: np.isnan(t["score"][:M][rows])), M),
+        "rank": Listed(Numbers(t["rank"][:M], null=lambda rows: t["rank"][:M][rows] < 0), M),
+        "count": M, "none": None,
+    }
+    values = block_values(block)
+    assert block_text(block) == json.dumps(values, allow_nan=False)
+    assert values["frames"]["T"] == T.tolist() and values["names"] == ["a", 'b "c"']
+    assert [v is None for v in values["area"]] == null.tolist()
+    if M:
+        bad = {"x": Listed(Numbers(np.where(null | (np.arange(M) == 0), np.nan, t["gm"][:M])), M)}
+        with pytest.raises(ValueError):
+            block_text(bad)

@@ -4,6 +4,7 @@ fast and a heavy dependency (Pinocchio, OMPL) is loaded only by the commands tha
 from __future__ import annotations
 
 import contextvars
+import gc
 import importlib
 import os
 import sys
@@ -43,8 +44,7 @@ class LazyGroup(click.Group):
     def get_command(self, ctx, name):
         if name not in COMMANDS:
             return None
-        module = importlib.import_module(f"grasplan.cli.{COMMANDS[name][0]}")
-        return module.command
+        return _import_command(f"grasplan.cli.{COMMANDS[name][0]}").command
 
     def format_commands(self, ctx, formatter):
         rows = [(name, export_help() if name == "export" else help_) for name, (_, help_) in COMMANDS.items()]
@@ -82,6 +82,20 @@ class LazyGroup(click.Group):
             click.echo(f"grasplan: internal error ({type(exc).__name__}); no output was written. This is a bug: "
                        "please report it with the command line (GRASPLAN_DEBUG=1 shows the traceback)", err=True)
             sys.exit(1)
+
+
+def _import_command(module: str):
+    """``module``, imported; the first time, with the cyclic garbage collector paused, then what the
+    imports made frozen (:func:`gc.freeze`: modules live as long as the process, and later
+    collections need not walk them again)."""
+    if module in sys.modules or not gc.isenabled():
+        return importlib.import_module(module)
+    gc.disable()
+    try:
+        return importlib.import_module(module)
+    finally:
+        gc.freeze()
+        gc.enable()
 
 
 def export_help() -> str:

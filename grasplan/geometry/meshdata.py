@@ -267,7 +267,12 @@ class MeshData:
     def bounds(self) -> np.ndarray:
         """(2, 3) float64: min and max corner of the referenced vertices' box."""
         def f() -> np.ndarray:
-            v = self._vertices[np.unique(self._faces)] if len(self._faces) else self._vertices
+            if not len(self._faces):
+                v = self._vertices
+            else:
+                used = np.zeros(len(self._vertices), dtype=bool)
+                used[self._faces.ravel()] = True
+                v = self._vertices[used]
             return np.array([v.min(axis=0), v.max(axis=0)])
         return self._cached("bounds", f)
 

@@ -23,6 +23,7 @@ import numpy as np
 from ..errors import InputError
 from ..status import Status
 from .grasp_table import GraspTable
+from .json_columns import Listed, Numbers, block_values
 from .quality_json import CONTACT_TYPES, HOLD_FORCE_DECIMALS, hold_force
 
 KEEP_COLLISION_FREE = "collision_free"
@@ -135,21 +136,22 @@ def _rx(roll: np.ndarray) -> np.ndarray:
     return R
 
 
-def _codes(values: np.ndarray) -> tuple[list[str], list[int]]:
+def _codes(values: np.ndarray) -> tuple[list[str], np.ndarray]:
     names, idx = np.unique(values.astype(str), return_inverse=True)
-    return names.tolist(), idx.reshape(-1).tolist()
+    return names.tolist(), idx.reshape(-1)
 
 
-def _nullable(a: np.ndarray, null: np.ndarray, decimals: int | None = None) -> list[Any]:
-    vals = (np.round(a, decimals) if decimals is not None else a).tolist()
-    for i in np.flatnonzero(null).tolist():
-        vals[i] = None
-    return vals
+def _listed(a: np.ndarray, decimals: int | None = None, null: np.ndarray | None = None) -> Listed:
+    """The rows of ``a`` as a list (rounded to ``decimals``; ``null``: the rows written null)."""
+    mask = None if null is None else (lambda rows, m=np.asarray(null, dtype=bool): m[rows])
+    return Listed(Numbers(np.asarray(a), decimals=decimals, null=mask), len(a))
 
 
-def untried_json(table: GraspTable, rows: np.ndarray, grip_force: float) -> dict[str, Any]:
-    """The ``untried`` block: ``rows`` of ``table`` in column form (module docstring);
-    ``grip_force`` (N) gives each grasp's ``hold_force_N``."""
+def untried_block(table: GraspTable, rows: np.ndarray, grip_force: float) -> dict[str, Any]:
+    """The ``untried`` block: ``rows`` of ``table`` in column form (module docstring), its lists
+    as :class:`~grasplan.results.json_columns.Listed` columns (:func:`untried_json`: as lists;
+    :func:`~grasplan.results.json_columns.block_text`: its JSON text); ``grip_force`` (N) gives
+    each grasp's ``hold_force_N``."""
     r = np.asarray(rows, dtype=np.int64)
     T0 = table.T_part_tcp[r] @ _rx(-table.roll[r]) if len(r) else np.zeros((0, 4, 4))
     key = np.concatenate([table.candidate[r, None].astype(np.float64), table.region[r, None].astype(np.float64),
@@ -165,26 +167,30 @@ def untried_json(table: GraspTable, rows: np.ndarray, grip_force: float) -> dict
     status_names, status = _codes(table.status[r])
     reason_names, reason = _codes(table.reason[r])
     out: dict[str, Any] = {
-        "frames": {"candidate": table.candidate[f].tolist(), "region": table.region[f].tolist(),
-                   "contacts": np.round(table.contacts[f], DECIMALS).tolist(),
-                   "normals": np.round(table.normals[f], DECIMALS).tolist(),
-                   "width": np.round(table.width[f], DECIMALS).tolist(), "T_part_tcp_roll0": T0f.tolist()},
-        "id": table.ids[r].tolist(), "frame": frame.reshape(-1).tolist(),
-        "roll": np.round(table.roll[r], DECIMALS).tolist(),
-        "statuses": status_names, "status": status, "reasons": reason_names, "reason": reason,
-        "score": _nullable(table.score[r], np.isnan(table.score[r])),
-        "rank": _nullable(table.rank[r], table.rank[r] < 0),
+        "frames": {"candidate": _listed(table.candidate[f]), "region": _listed(table.region[f]),
+                   "contacts": _listed(table.contacts[f], DECIMALS), "normals": _listed(table.normals[f], DECIMALS),
+                   "width": _listed(table.width[f], DECIMALS), "T_part_tcp_roll0": _listed(T0f)},
+        "id": _listed(table.ids[r]), "frame": _listed(frame.reshape(-1)),
+        "roll": _listed(table.roll[r], DECIMALS),
+        "statuses": status_names, "status": _listed(status), "reasons": reason_names, "reason": _listed(reason),
+        "score": _listed(table.score[r], null=np.isnan(table.score[r])),
+        "rank": _listed(table.rank[r], null=table.rank[r] < 0),
     }
     gm, eps, area, kind = table.gravity_margin, table.epsilon, table.contact_area, table.contact_type
     if gm is not None and eps is not None and area is not None and kind is not None:
         none = ~np.isfinite(gm[r])
         hold = hold_force(gm[r], grip_force)
-        out["quality"] = {"gravity_margin": _nullable(gm[r], none),
-                          "hold_force_N": _nullable(hold, np.isnan(hold), HOLD_FORCE_DECIMALS),
-                          "epsilon": _nullable(eps[r], none),
-                          "area_m2": _nullable(area[r], none, AREA_DECIMALS),
-                          "type": _nullable(kind[r].astype(np.int64), none), "types": list(CONTACT_TYPES)}
+        out["quality"] = {"gravity_margin": _listed(gm[r], null=none),
+                          "hold_force_N": _listed(hold, HOLD_FORCE_DECIMALS, null=np.isnan(hold)),
+                          "epsilon": _listed(eps[r], null=none),
+                          "area_m2": _listed(area[r], AREA_DECIMALS, null=none),
+                          "type": _listed(kind[r].astype(np.int64), null=none), "types": list(CONTACT_TYPES)}
     return out
+
+
+def untried_json(table: GraspTable, rows: np.ndarray, grip_force: float) -> dict[str, Any]:
+    """The ``untried`` block as ``json.dumps`` takes it (:func:`untried_block`'s lists as lists)."""
+    return block_values(untried_block(table, rows, grip_force))
 
 
 def _column(doc: dict[str, Any], key: str, shape: tuple[int, ...], where: str, *, dtype: Any = np.float64,

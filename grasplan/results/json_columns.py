@@ -101,6 +101,14 @@ def _merged(pieces: list[Piece]) -> list[Piece]:
     return out
 
 
+def _row_texts(pieces: list[Piece], n: int) -> list[str]:
+    """Each of the n rows' text: the pieces concatenated per row."""
+    P = np.empty((n, len(pieces)), dtype=object)
+    for j, p in enumerate(pieces):
+        P[:, j] = p
+    return ["".join(r) for r in P.tolist()]
+
+
 def join_rows(pieces: list[Piece], n: int) -> str:
     """The n rows' text: the pieces concatenated per row, rows separated by ", "."""
     merged = _merged([*pieces, ", "])
@@ -135,11 +143,14 @@ class Numbers:
 
     def pieces(self, rows: np.ndarray) -> list[Piece]:
         texts = number_texts(self._select(rows))
-        if self.null is not None:
-            return [np.where(self.null(rows), "null", texts).astype(object)]
         out: list[Piece] = []
-        _nested(out, texts)
-        return out
+        if self.null is None:
+            _nested(out, texts)
+            return out
+        if texts.ndim > 1:  # each row's nested list as one text, then null where the test says
+            _nested(out, texts)
+            texts = np.array(_row_texts(out, len(rows)), dtype=object)
+        return [np.where(self.null(rows), "null", texts).astype(object)]
 
     def encodable(self, rows: np.ndarray) -> bool:
         a = self._select(rows)
@@ -336,3 +347,37 @@ class Record:
     def encodable(self, rows: np.ndarray) -> bool:
         sub = rows[self._live(rows)]
         return all(f.column.encodable(sub if f.present is None else sub[f.present(sub)]) for f in self.fields)
+
+
+# ------------------------------------------------------------------------------------------------
+# blocks: JSON objects whose lists are columns
+# ------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Listed:
+    """The JSON list of a column's rows ``0 .. n-1``: a leaf of a block (a dict whose values are
+    :class:`Listed`, nested blocks or plain JSON values)."""
+
+    column: Column
+    n: int
+
+    def values(self) -> list[Any]:
+        return self.column.values(np.arange(self.n))
+
+    def text(self) -> str:
+        rows = np.arange(self.n)
+        if not self.column.encodable(rows):
+            return to_json_text(self.values())  # json raises what it raises for the values
+        return "[" + join_rows(self.column.pieces(rows), self.n) + "]"
+
+
+def block_values(block: Mapping[str, Any]) -> dict[str, Any]:
+    """``block`` with its :class:`Listed` leaves as Python lists (what ``json.dumps`` takes)."""
+    return {k: v.values() if isinstance(v, Listed) else block_values(v) if isinstance(v, Mapping) else v
+            for k, v in block.items()}
+
+
+def block_text(block: Mapping[str, Any]) -> str:
+    """``json.dumps(block_values(block))``, each column's numbers formatted once per distinct value."""
+    return "{" + ", ".join(f"{to_json_text(str(k))}: " + (v.text() if isinstance(v, Listed) else block_text(v)
+                                                           if isinstance(v, Mapping) else to_json_text(v))
+                           for k, v in block.items()) + "}"

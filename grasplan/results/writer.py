@@ -17,10 +17,10 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from .compact import DEFAULT_KEEP, KEEP_ALL, KEEP_COLLISION_FREE, RejectedCounts, split_rows, untried_json
+from .compact import DEFAULT_KEEP, KEEP_ALL, KEEP_COLLISION_FREE, RejectedCounts, split_rows, untried_block
 from .grasp_table import GraspTable
 from ..io import to_json_text, write_atomic_chunks, write_json
-from .json_columns import Field, Numbers, Record, Spread, Strings, join_rows
+from .json_columns import Field, Numbers, Record, Spread, Strings, block_text, block_values, join_rows
 from .joint_motion import Motion
 from .quality_json import quality_field, sim_field
 
@@ -96,7 +96,8 @@ def document_parts(res: WritableResult, *, only_ok: bool = False,
                    keep: str = DEFAULT_KEEP) -> tuple[dict[str, Any], np.ndarray, dict[str, Any]]:
     """The document's head (``keep`` recorded in a plan's), the rows its ``grasps`` list holds and
     the blocks that follow the list (a plan's ``untried`` and ``rejected``:
-    :mod:`grasplan.results.compact`). A result loaded from a compact file keeps its counts (its
+    :mod:`grasplan.results.compact`; lists as :class:`~grasplan.results.json_columns.Listed`
+    columns, :func:`~grasplan.results.json_columns.block_values` makes them lists). A result loaded from a compact file keeps its counts (its
     rejected poses are not there to write in full)."""
     head, rows = res.document_head(only_ok)
     if res.schema != PLAN_SCHEMA:
@@ -110,7 +111,7 @@ def document_parts(res: WritableResult, *, only_ok: bool = False,
     rejected = RejectedCounts.of_rows(res.grasps, split.rejected)
     if res.rejected is not None:
         rejected = res.rejected.merged(rejected)
-    untried = untried_json(res.grasps, split.untried, float(res.gripper.grip_force))
+    untried = untried_block(res.grasps, split.untried, float(res.gripper.grip_force))
     return head, split.grasps, {"untried": untried, "rejected": rejected.to_json()}
 
 
@@ -119,7 +120,7 @@ def document(res: WritableResult, *, only_ok: bool = False, keep: str = DEFAULT_
     ``rejected`` blocks)."""
     doc, rows, tail = document_parts(res, only_ok=only_ok, keep=keep)
     doc["grasps"] = grasp_entries(res, rows)
-    doc.update(tail)
+    doc.update(block_values(tail))
     return doc
 
 
@@ -147,7 +148,7 @@ def _chunks(head: dict[str, Any], record: Record, rows: np.ndarray, tail: dict[s
         yield ("" if c0 == 0 else ", ") + join_rows(record.pieces(chunk), len(chunk))
     end = "]"
     if tail:
-        end += ", " + to_json_text(tail)[1:-1]
+        end += ", " + block_text(tail)[1:-1]
     yield end + "}"
 
 
