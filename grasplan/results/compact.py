@@ -137,8 +137,12 @@ def _rx(roll: np.ndarray) -> np.ndarray:
 
 
 def _codes(values: np.ndarray) -> tuple[list[str], np.ndarray]:
-    names, idx = np.unique(values.astype(str), return_inverse=True)
-    return names.tolist(), idx.reshape(-1)
+    """``(names, code per value)``: the distinct ``str(value)`` sorted, and each value's index among
+    them (``np.unique(..., return_inverse=True)`` without sorting every string)."""
+    texts = [str(v) for v in values.tolist()]
+    names = sorted(set(texts))
+    index = {n: i for i, n in enumerate(names)}
+    return names, np.fromiter((index[t] for t in texts), dtype=np.int64, count=len(texts))
 
 
 def _listed(a: np.ndarray, decimals: int | None = None, null: np.ndarray | None = None) -> Listed:

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections import Counter
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
@@ -163,8 +164,7 @@ class PlanResult:
     def counts(self) -> dict[str, int]:
         """Grasps per status (every status of this result's stage) and ``grasps`` (the total)."""
         names = PLAN_STATUSES if self.robot is not None else GRASP_STATUSES
-        u, c = np.unique(self.grasps.status.astype(str), return_counts=True)
-        got = dict(zip(u.tolist(), c.tolist()))
+        got = Counter(map(str, self.grasps.status.tolist()))  # a few distinct strings: no sort
         if self.rejected is not None:
             for s, n in self.rejected.totals().items():
                 got[s] = got.get(s, 0) + n
