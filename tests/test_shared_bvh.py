@@ -79,6 +79,14 @@ def test_a_grippers_jaw_sweeps_are_shared_by_its_colliders_and_bounded(example_p
     own._sweeps = collision_shapes.Sweeps(g)
     assert np.array_equal(b.check(fr.T_part_tcp, width), own.check(fr.T_part_tcp, width))
     assert not np.array_equal(b.check(fr.T_part_tcp, width), status_a)  # the check saw the pose
+    # the widths' rows: the last answer again for the same widths (read-only), a new one for others
+    rows = b._sweeps.rows_for(width)
+    assert b._sweeps.rows_for(width.copy()) is rows and not rows.flags.writeable
+    assert np.array_equal(rows, own._sweeps.rows_for(width))
+    other = width.copy()
+    other[0] += 0.001
+    rows2 = b._sweeps.rows_for(other)
+    assert rows2 is not rows and np.array_equal(rows2[1:], rows[1:]) and np.array_equal(rows2, own._sweeps.rows_for(other))
     monkeypatch.setattr(collision_shapes, "MAX_SHARED_SWEEPS", n)
     assert collision_shapes.shared_sweeps(g) is not a._sweeps  # full: a new table
     assert collision_shapes.shared_sweeps(load_gripper("schunk_egp_c_40")) is not collision_shapes.shared_sweeps(g)

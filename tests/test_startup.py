@@ -184,8 +184,7 @@ def test_a_command_runs_openblas_on_one_thread_unless_told(given):
     """A command sets ``OPENBLAS_NUM_THREADS=1`` before NumPy loads (idle BLAS threads spin after
     each call); a value in the environment is kept. The garbage collector, paused while the
     command's modules load, runs again after."""
-    from grasplan.cli.group import BLAS_THREADS_ENV
-
+    BLAS_THREADS_ENV = "OPENBLAS_NUM_THREADS"
     env = {k: v for k, v in os.environ.items() if k != BLAS_THREADS_ENV}
     if given is not None:
         env[BLAS_THREADS_ENV] = given

@@ -11,6 +11,7 @@ import sys
 
 import click
 
+from ..compiled.threads import one_blas_thread_here
 from ..errors import GrasplanError
 
 #: command name -> (module, one-line help shown by ``grasplan --help``; export's line lists the
@@ -32,10 +33,6 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "serve": ("serve", "An HTTP JSON service: picks, plans and robot programs from a warm planner."),
 }
 
-#: OpenBLAS's thread count, 1 for a command unless set: a command's matrices are small, and the idle
-#: threads OpenBLAS keeps spinning after each call take CPU time from the command on a small machine
-BLAS_THREADS_ENV = "OPENBLAS_NUM_THREADS"
-
 
 class LazyGroup(click.Group):
     def list_commands(self, ctx):
@@ -52,8 +49,7 @@ class LazyGroup(click.Group):
             formatter.write_dl(rows)
 
     def invoke(self, ctx):
-        if "numpy" not in sys.modules:  # a command's process: set before NumPy loads, the environment's value wins
-            os.environ.setdefault(BLAS_THREADS_ENV, "1")
+        one_blas_thread_here()  # one BLAS thread unless the environment says otherwise (before NumPy loads)
         try:
             # a copied context: --config-dir (a context variable) ends with the command, so an
             # in-process caller (tests, batch workers) starts the next command with a clean lookup

@@ -24,7 +24,7 @@ from ..geometry.meshdata import TriangleMesh, convex_hull
 from ..status import Status
 from ..geometry.transforms import check_transform
 from .collision_boxes import HIT, UNSURE, PartBoxes, boxes_below, points_inside_compiled, prefilter
-from .collision_shapes import ShapeSet, shared_sweeps, unique_rows
+from .collision_shapes import ShapeSet, shared_sweeps
 
 #: a shape reaching below the table top by less than this (m) only touches it
 TABLE_CONTACT_TOL = 1e-6
@@ -156,12 +156,7 @@ class GripperCollider:
         swept from the pre-grasp opening ``o_pre = min(max_opening, width + 10 mm)`` inwards to
         ``o_close = min(width + 2 mm, o_pre)`` (:meth:`Gripper.swept_fingers`: one exact box for a box
         jaw, the convex hull of the two end placements for a mesh jaw)."""
-        g = self.gripper
-        o_pre = g.pregrasp_opening(width)
-        o_close = g.close_to_opening(width)
-        key = np.round(np.stack([o_pre, o_close], axis=1), 12)
-        uk, inv = unique_rows(key)
-        index = self._sweeps.rows(uk)[inv]
+        index = self._sweeps.rows_for(width)
         M = len(width)
         body = []
         for s in self._body:

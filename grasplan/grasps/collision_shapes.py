@@ -105,9 +105,26 @@ class Sweeps:
         self.geoms = (Geoms(self.shapes[0]), Geoms(self.shapes[1]))
         self.frames = [(np.zeros((0, 4, 4)), np.zeros((0, 4, 4)), np.zeros((0, 3))) for _ in range(2)]
         self._lock = threading.Lock()
+        self._last: tuple[np.ndarray, np.ndarray] | None = None  # the last widths and their rows
 
     def __len__(self) -> int:
         return len(self.ids)
+
+    def rows_for(self, width: np.ndarray) -> np.ndarray:
+        """(M,) read-only: the row of each contact width's sweep, from the pre-grasp opening to the
+        closed one (:meth:`Gripper.pregrasp_opening`, :meth:`Gripper.close_to_opening`); the last
+        call's answer when the widths are the same (a database placed in pose after pose)."""
+        w = np.asarray(width, dtype=np.float64).reshape(-1)
+        last = self._last
+        if last is not None and last[0].shape == w.shape and np.array_equal(last[0], w):
+            return last[1]
+        g = self.gripper
+        key = np.round(np.stack([g.pregrasp_opening(w), g.close_to_opening(w)], axis=1), 12)
+        uk, inv = unique_rows(key)
+        index = self.rows(uk)[inv]
+        index.flags.writeable = False
+        self._last = (w.copy(), index)
+        return index
 
     def rows(self, pairs: np.ndarray) -> np.ndarray:
         """The row of each ``(o_pre, o_close)`` pair of ``pairs`` (n, 2), new pairs added."""

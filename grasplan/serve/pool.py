@@ -32,6 +32,7 @@ from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
 
+from ..compiled.threads import one_thread
 from ..errors import GrasplanError, InputError
 from .config import ServeConfig, config_from_json, config_to_json
 from .jobs import Busy, TimedOut
@@ -117,12 +118,6 @@ def _unpack(reply: tuple[Any, ...]) -> Any:
     raise PlannerError(reply[1], reply[2])
 
 
-#: a planner plans one request at a time and the service runs one planner per core: NumPy's BLAS
-#: and OpenMP threads would only compete with the other planners (each set here unless the caller's
-#: environment sets it)
-PLANNER_THREADS = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
-
-
 class _Planner:
     """One planner process and the parent's end of its socket pair. The process is a fresh
     interpreter (``python -c``; nothing is inherited, the caller's ``__main__`` is not imported)
@@ -132,8 +127,9 @@ class _Planner:
         self.index = index
         ours, theirs = socket.socketpair()
         root = str(Path(__file__).resolve().parents[2])  # the folder holding this grasplan package
-        env = {**PLANNER_THREADS, **os.environ,
-               "PYTHONPATH": os.pathsep.join([root, *filter(None, [os.environ.get("PYTHONPATH")])])}
+        # one planner per core, each planning one request at a time: one BLAS thread each
+        env = dict(one_thread({**os.environ,
+                               "PYTHONPATH": os.pathsep.join([root, *filter(None, [os.environ.get("PYTHONPATH")])])}))
         try:
             self.proc = subprocess.Popen(
                 [sys.executable, "-c", f"from grasplan.serve.pool import planner_entry; planner_entry({theirs.fileno()})"],
