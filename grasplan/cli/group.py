@@ -8,6 +8,7 @@ import gc
 import importlib
 import os
 import sys
+from types import ModuleType
 
 import click
 
@@ -80,7 +81,7 @@ class LazyGroup(click.Group):
             sys.exit(1)
 
 
-def _import_command(module: str):
+def _import_command(module: str) -> ModuleType:
     """``module``, imported; the first time, with the cyclic garbage collector paused, then what the
     imports made frozen (:func:`gc.freeze`: modules live as long as the process, and later
     collections need not walk them again)."""
