@@ -200,7 +200,7 @@ class GripperCollider:
                                    np.ascontiguousarray(s.half_bb, dtype=np.float64), index, float(limit))
             else:
                 if zr_tcp is None:
-                    zr_tcp = np.einsum("j,mjk->mk", zrow, T_part_tcp)  # world-z row of T_world_tcp, (M,4)
+                    zr_tcp = np.einsum("j,mjk->mk", zrow, T)  # world-z row of T_world_tcp, (M,4)
                 for k in np.unique(s.index).tolist():
                     v = s.variants[k]
                     sel = np.flatnonzero(s.index == k)

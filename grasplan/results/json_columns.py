@@ -101,21 +101,22 @@ def _merged(pieces: list[Piece]) -> list[Piece]:
     return out
 
 
-def _row_texts(pieces: list[Piece], n: int) -> list[str]:
-    """Each of the n rows' text: the pieces concatenated per row."""
+def _piece_matrix(pieces: list[Piece], n: int) -> np.ndarray:
+    """(n, len(pieces)) object array: row i holds row i's piece of each piece in order."""
     P = np.empty((n, len(pieces)), dtype=object)
     for j, p in enumerate(pieces):
         P[:, j] = p
-    return ["".join(r) for r in P.tolist()]
+    return P
+
+
+def _row_texts(pieces: list[Piece], n: int) -> list[str]:
+    """Each of the n rows' text: the pieces concatenated per row."""
+    return ["".join(r) for r in _piece_matrix(pieces, n).tolist()]
 
 
 def join_rows(pieces: list[Piece], n: int) -> str:
     """The n rows' text: the pieces concatenated per row, rows separated by ", "."""
-    merged = _merged([*pieces, ", "])
-    P = np.empty((n, len(merged)), dtype=object)
-    for j, p in enumerate(merged):
-        P[:, j] = p
-    return "".join(P.ravel().tolist())[:-2]
+    return "".join(_piece_matrix(_merged([*pieces, ", "]), n).ravel().tolist())[:-2]
 
 
 # ------------------------------------------------------------------------------------------------

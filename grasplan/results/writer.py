@@ -97,8 +97,9 @@ def document_parts(res: WritableResult, *, only_ok: bool = False,
     """The document's head (``keep`` recorded in a plan's), the rows its ``grasps`` list holds and
     the blocks that follow the list (a plan's ``untried`` and ``rejected``:
     :mod:`grasplan.results.compact`; lists as :class:`~grasplan.results.json_columns.Listed`
-    columns, :func:`~grasplan.results.json_columns.block_values` makes them lists). A result loaded from a compact file keeps its counts (its
-    rejected poses are not there to write in full)."""
+    columns, :func:`~grasplan.results.json_columns.block_values` makes them lists). A result
+    loaded from a compact file keeps its counts (its rejected poses are not there to write in
+    full)."""
     head, rows = res.document_head(only_ok)
     if res.schema != PLAN_SCHEMA:
         return head, rows, {}
