@@ -126,6 +126,61 @@ def test_pair_invariant_under_rigid_motion_of_the_grasp():
     assert np.all(np.abs(e1[both] - e0[both]) <= 0.1 * e0[both])
 
 
+def test_pair_of_a_grasp_does_not_depend_on_the_others_computed_with_it():
+    """Each grasp's epsilon and decision are its own: the same bits alone, in a batch of 1,500 and in
+    a batch whose other grasps' contacts lie a thousand times farther out."""
+    rng = np.random.default_rng(5)
+    C, N, tors = _random_grasps(rng, 1500)
+    com = np.array([0.001, 0.0, -0.001])
+    eps, exact = wrench.ferrari_canny_pair(C, N, com, 0.05, 0.4, tors)
+    for i in (0, 17, 1024, 1499):
+        e1, x1 = wrench.ferrari_canny_pair(C[i:i + 1], N[i:i + 1], com, 0.05, 0.4, tors[i:i + 1])
+        assert e1[0] == eps[i] and x1[0] == exact[i]
+    C2 = C.copy()
+    C2[1:] = com + (C[1:] - com) * 1e3
+    e2, x2 = wrench.ferrari_canny_pair(C2, N, com, 0.05, 0.4, tors)
+    assert e2[0] == eps[0] and x2[0] == exact[0]
+
+
+def test_near_pairs_equal_the_direct_distance_test():
+    """The compiled near test of the dense patch search (:func:`grasplan.grasps.patch_search.near_pairs`)
+    against the test written with the centroid's offset from the contact, on random elements and
+    contacts with tolerances drawn around the distances: the same pairs, in (face, contact) order,
+    with n . axis; the chunked search yields each pair once."""
+    from grasplan.grasps.patch_search import near_faces_dense, near_pairs
+
+    rng = np.random.default_rng(3)
+    F, U = 400, 90
+    cent = rng.normal(size=(F, 3)) * 0.02
+    fn = rng.normal(size=(F, 3))
+    fn /= np.linalg.norm(fn, axis=1, keepdims=True)
+    cu = rng.normal(size=(U, 3)) * 0.02
+    axu = rng.normal(size=(U, 3))
+    axu /= np.linalg.norm(axu, axis=1, keepdims=True)
+    slab = rng.uniform(0.0, 0.01, F)
+    lat = rng.uniform(0.0, 0.03, F) ** 2
+    cent_sq = np.einsum("fi,fi->f", cent, cent)
+    for j in (0, 1):
+        d = cent[:, None] - cu[None]
+        xs = np.einsum("fbi,bi->fb", d, axu)
+        nx = fn @ axu.T
+        ref = (np.abs(xs) <= slab[:, None]) & (np.einsum("fbi,fbi->fb", d, d) - xs * xs <= lat[:, None]) & \
+            ((nx < 0) if j == 0 else (nx > 0))
+        # pairs within 1e-12 of a bound may fall either way in rounding: none are drawn here
+        margin = np.minimum(np.abs(np.abs(xs) - slab[:, None]),
+                            np.abs(np.einsum("fbi,fbi->fb", d, d) - xs * xs - lat[:, None]))
+        assert margin.min() > 1e-12
+        f, b, n = near_pairs(cent, fn, cent_sq, slab, lat, cu, axu, j)
+        rf, rb = np.nonzero(ref)
+        assert 100 < len(rf) < F * U // 2
+        assert np.array_equal(f, rf) and np.array_equal(b, rb)
+        assert np.allclose(n, nx[rf, rb], rtol=0, atol=1e-15)
+        chunks = list(near_faces_dense(cent, fn, cent_sq, slab, lat, cu, axu, j, max_pairs=F * 7))
+        assert len(chunks) > 5
+        got = sorted(zip(np.concatenate([c[0] for c in chunks]).tolist(), np.concatenate([c[1] for c in chunks]).tolist()))
+        assert got == sorted(zip(rf.tolist(), rb.tolist()))
+
+
 # ------------------------------------------------------------------------------------------------
 # contact patches: coplanar areas merged into boundary loops
 # ------------------------------------------------------------------------------------------------

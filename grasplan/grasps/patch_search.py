@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..compiled.jit import kernel
 from ..geometry.grouping import expand
 
 #: contacts per step of :func:`near_faces_slab` (bounds its cell and pair arrays)
@@ -24,22 +25,70 @@ def near_faces_dense(cent: np.ndarray, fn: np.ndarray, cent_sq: np.ndarray, slab
                      ) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Chunks ``(face, contact, n . axis)`` of the elements (centroids ``cent``, normals ``fn``, squared
     centroid norms ``cent_sq``) near each contact ``cu`` (axis ``axu``) facing jaw ``j``: a dense
-    (elements x contacts) test on centroids, chunked so that at most ``max_pairs`` (element, contact)
-    pairs exist at once. Empty chunks are skipped."""
+    (elements x contacts) test on centroids (:func:`near_pairs`, compiled), chunked so that at most
+    ``max_pairs`` (element, contact) pairs are tested at once; within a chunk sorted by (face,
+    contact). Empty chunks are skipped."""
     F, U = len(cent), len(cu)
     step = max(1, max_pairs // max(F, 1))
+    cent = np.ascontiguousarray(cent, dtype=np.float64)
+    fn = np.ascontiguousarray(fn, dtype=np.float64)
+    cent_sq = np.ascontiguousarray(cent_sq, dtype=np.float64)
+    slab_tol = np.ascontiguousarray(slab_tol, dtype=np.float64)
+    lat_tol = np.ascontiguousarray(lat_tol, dtype=np.float64)
     for start in range(0, U if F else 0, step):
         stop = min(U, start + step)
-        ax, c = axu[start:stop], cu[start:stop]
-        xs = cent @ ax.T - np.einsum("bi,bi->b", c, ax)  # (F, b) centroid height over the contact plane
-        nx_all = fn @ ax.T
-        d2 = cent_sq[:, None] - 2.0 * (cent @ c.T) + np.einsum("bi,bi->b", c, c)  # squared distance
-        near = (np.abs(xs) <= slab_tol[:, None]) & (d2 - xs * xs <= lat_tol[:, None]) & \
-            ((nx_all < 0) if j == 0 else (nx_all > 0))
-        f, b = np.nonzero(near)
+        f, b, nx = near_pairs(cent, fn, cent_sq, slab_tol, lat_tol, np.ascontiguousarray(cu[start:stop]),
+                              np.ascontiguousarray(axu[start:stop]), int(j))
         if len(f) == 0:
             continue
-        yield f, start + b, nx_all[f, b]
+        yield f, start + b, nx
+
+
+@kernel(cache=True, nogil=True)
+def near_pairs(cent: np.ndarray, fn: np.ndarray, cent_sq: np.ndarray, slab_tol: np.ndarray, lat_tol: np.ndarray,
+               cu: np.ndarray, axu: np.ndarray, j: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(face (k,), contact (k,), n . axis (k,))`` of the (element, contact) pairs whose element
+    centroid lies within ``slab_tol`` of the plane through the contact normal to its axis, laterally
+    within ``sqrt(lat_tol)``, with the normal facing jaw ``j`` (``n . axis`` < 0 for jaw 0, > 0 for
+    jaw 1); sorted by (face, contact). Two passes (count, fill): nothing grows with faces x contacts."""
+    F = cent.shape[0]
+    B = cu.shape[0]
+    cax = np.empty(B)
+    cc = np.empty(B)
+    for b in range(B):
+        cax[b] = cu[b, 0] * axu[b, 0] + cu[b, 1] * axu[b, 1] + cu[b, 2] * axu[b, 2]
+        cc[b] = cu[b, 0] * cu[b, 0] + cu[b, 1] * cu[b, 1] + cu[b, 2] * cu[b, 2]
+    n = 0
+    fo = np.empty(0, dtype=np.int64)
+    bo = np.empty(0, dtype=np.int64)
+    no = np.empty(0)
+    for stage in range(2):
+        if stage == 1:
+            fo = np.empty(n, dtype=np.int64)
+            bo = np.empty(n, dtype=np.int64)
+            no = np.empty(n)
+            n = 0
+        for f in range(F):
+            x0, x1, x2 = cent[f, 0], cent[f, 1], cent[f, 2]
+            n0, n1, n2 = fn[f, 0], fn[f, 1], fn[f, 2]
+            st, lt, cs = slab_tol[f], lat_tol[f], cent_sq[f]
+            for b in range(B):
+                a0, a1, a2 = axu[b, 0], axu[b, 1], axu[b, 2]
+                nx = n0 * a0 + n1 * a1 + n2 * a2
+                if (j == 0 and not nx < 0.0) or (j != 0 and not nx > 0.0):
+                    continue
+                xs = (x0 * a0 + x1 * a1 + x2 * a2) - cax[b]
+                if not abs(xs) <= st:
+                    continue
+                d2 = cs - 2.0 * (x0 * cu[b, 0] + x1 * cu[b, 1] + x2 * cu[b, 2]) + cc[b]
+                if not d2 - xs * xs <= lt:
+                    continue
+                if stage == 1:
+                    fo[n] = f
+                    bo[n] = b
+                    no[n] = nx
+                n += 1
+    return fo, bo, no
 
 
 @dataclass(frozen=True)

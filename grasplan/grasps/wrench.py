@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from ..part.mass import MassProperties
+from .epsilon_kernels import facet_pairs
 from .quality_kernels import margin_of_loads, margin_summary
 
 #: torsional friction radius of a point or line contact on a compliant pad, m
@@ -241,38 +242,38 @@ FACET_TOL = 1e-10
 EPS_CHUNK = 1024
 
 
-def _bipyramid_dirs(mu: float, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Local facet families of one contact's wrench bipyramid (coordinates (alpha, beta, gamma, s):
-    force ``alpha nu + beta t1 + gamma t2`` and torsion ``s``; every primitive wrench has alpha = 1).
-    Returns the triangle directions (B, 16, 4), the edge direction pairs (B, 24, 2, 4) and the 10
-    local points (B, 10, 4); ``tau`` (B,) torsion radius, m."""
-    B = len(tau)
+def _bipyramid_dirs(mu: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Local facet families of a contact's wrench bipyramid at unit torsion radius (coordinates
+    (alpha, beta, gamma, s): force ``alpha nu + beta t1 + gamma t2`` and torsion ``s``; every
+    primitive wrench has alpha = 1). Returns the triangle directions (16, 4), the edge direction
+    pairs (24, 2, 4) and the 10 local points (10, 4). For torsion radius ``tau`` the triangles'
+    ``s`` column and the edges' first direction's ``s`` column scale by ``1 / tau``, the points'
+    ``s`` column by ``tau`` (:func:`grasplan.grasps.epsilon_kernels.facet_pairs` applies it)."""
     E = CONE_EDGES
     th = 2.0 * math.pi * np.arange(E) / E
     c = np.stack([np.cos(th), np.sin(th)], 1)  # (E, 2) cone directions
     half = math.pi / E
     m = np.stack([np.cos(th + half), np.sin(th + half)], 1) / math.cos(half)  # m . c_e = m . c_{e+1} = 1
-    inv_t = 1.0 / tau
-    tri = np.zeros((B, 2 * E, 4))
-    tri[:, :, 0] = -1.0
-    tri[:, :, 1:3] = np.tile(m / mu, (2, 1))
-    tri[:, :, 3] = np.concatenate([np.ones(E), -np.ones(E)])[None] * inv_t[:, None]
-    edge = np.zeros((B, 3 * E, 2, 4))
-    edge[:, :E, 0, 0] = -1.0  # octagon edges (e, e+1): lambda (-1, m/mu, 0) + sigma e_s
-    edge[:, :E, 0, 1:3] = m / mu
-    edge[:, :E, 1, 3] = 1.0
+    tri = np.zeros((2 * E, 4))
+    tri[:, 0] = -1.0
+    tri[:, 1:3] = np.tile(m / mu, (2, 1))
+    tri[:, 3] = np.concatenate([np.ones(E), -np.ones(E)])
+    edge = np.zeros((3 * E, 2, 4))
+    edge[:E, 0, 0] = -1.0  # octagon edges (e, e+1): lambda (-1, m/mu, 0) + sigma e_s
+    edge[:E, 0, 1:3] = m / mu
+    edge[:E, 1, 3] = 1.0
     for k, sgn in enumerate((1.0, -1.0)):  # apex edges (apex +-, c_e): lambda (-1, c/mu, +-1/tau) + sigma c_perp
         sl = slice(E * (k + 1), E * (k + 2))
-        edge[:, sl, 0, 0] = -1.0
-        edge[:, sl, 0, 1:3] = c / mu
-        edge[:, sl, 0, 3] = sgn * inv_t[:, None]
-        edge[:, sl, 1, 1] = -c[:, 1]
-        edge[:, sl, 1, 2] = c[:, 0]
-    pts = np.zeros((B, E + 2, 4))
-    pts[:, :, 0] = 1.0
-    pts[:, :E, 1:3] = mu * c
-    pts[:, E, 3] = tau
-    pts[:, E + 1, 3] = -tau
+        edge[sl, 0, 0] = -1.0
+        edge[sl, 0, 1:3] = c / mu
+        edge[sl, 0, 3] = sgn
+        edge[sl, 1, 1] = -c[:, 1]
+        edge[sl, 1, 2] = c[:, 0]
+    pts = np.zeros((E + 2, 4))
+    pts[:, 0] = 1.0
+    pts[:E, 1:3] = mu * c
+    pts[E, 3] = 1.0
+    pts[E + 1, 3] = -1.0
     return tri, edge, pts
 
 
@@ -328,64 +329,15 @@ def _fc_pair_chunk(nu: np.ndarray, t1: np.ndarray, t2: np.ndarray, r: np.ndarray
     Ek[:, :, 3, 3] = 1.0
     A = [np.matmul(np.swapaxes(N[:, 4 * k:4 * k + 4], 1, 2), Ek[:, k]) for k in range(2)]  # (B, 2, 4)
     GE = [np.matmul(G[:, :, 4 * k:4 * k + 4], Ek[:, k]) for k in range(2)]  # (B, 6, 4)
-    At = [np.swapaxes(a, 1, 2) for a in A]  # (B, 4, 2)
-    GEt = [np.swapaxes(a, 1, 2) for a in GE]  # (B, 4, 6)
     h = A[0][:, :, 0] + A[1][:, :, 0]
     g0 = GE[0][:, :, 0] + GE[1][:, :, 0]
-    tri, edge, pts = zip(*(_bipyramid_dirs(mu, tors[:, k]) for k in range(2)))
-    best = np.full(B, np.inf)
-    outside = np.zeros(B, dtype=bool)
-    singular = np.zeros(B, dtype=bool)
-    tol = FACET_TOL
-    # (triangle, triangle): phi_k = e_alpha + lambda_k k_k; supporting iff both lambda >= 0 (all <= 1),
-    # separating iff both <= 0
-    a1 = np.matmul(tri[0], At[0])  # (B, 16, 2)
-    a2 = np.matmul(tri[1], At[1])
-    det = a1[:, :, None, 0] * a2[:, None, :, 1] - a1[:, :, None, 1] * a2[:, None, :, 0]
-    scale = np.linalg.norm(a1, axis=2)[:, :, None] * np.linalg.norm(a2, axis=2)[:, None, :]
-    sing = np.abs(det) <= 1e-12 * scale
-    dd = np.where(sing, 1.0, det)
-    l1 = (-h[:, None, None, 0] * a2[:, None, :, 1] + h[:, None, None, 1] * a2[:, None, :, 0]) / dd
-    l2 = (-a1[:, :, None, 0] * h[:, None, None, 1] + a1[:, :, None, 1] * h[:, None, None, 0]) / dd
-    # a singular pair: a1 parallel to a2. Anti-parallel (or a zero column): a supporting hyperplane
-    # through the origin holds both triangles (lambda1, lambda2 >= 0 at level 0), the origin is on the
-    # hull's boundary: epsilon 0. Parallel: no such plane, and a facet through both faces holds more
-    # points, so it is found from another pair; the pair is skipped.
-    n1 = np.linalg.norm(a1, axis=2)[:, :, None]
-    n2 = np.linalg.norm(a2, axis=2)[:, None, :]
-    dot = a1[:, :, None, 0] * a2[:, None, :, 0] + a1[:, :, None, 1] * a2[:, None, :, 1]
-    big = max(float(np.max(n1, initial=0.0)), float(np.max(n2, initial=0.0)), 1e-300)
-    zero_col = (n1 <= 1e-12 * big) | (n2 <= 1e-12 * big)
-    on_plane = sing & ((dot < 0) | zero_col)
-    outside |= on_plane.any(axis=(1, 2))
-    gt1 = np.matmul(tri[0], GEt[0])  # (B, 16, 6)
-    gt2 = np.matmul(tri[1], GEt[1])
-    sup = ~sing & (l1 >= -tol) & (l2 >= -tol)
-    sep = ~sing & (l1 <= tol) & (l2 <= tol)
-    bi, si, ti = np.nonzero(sup)  # |u| only where the plane supports (a few facets per grasp)
-    u = g0[bi] + l1[bi, si, ti, None] * gt1[bi, si] + l2[bi, si, ti, None] * gt2[bi, ti]
-    np.minimum.at(best, bi, 1.0 / np.linalg.norm(u, axis=1))
-    outside |= sep.any(axis=(1, 2))
-    # (edge of contact k, whole of the other): phi_k = e_alpha + lambda k + sigma k', phi_other = e_alpha
-    for k in range(2):
-        ne = edge[k].shape[1]
-        ak = np.matmul(edge[k].reshape(B, 2 * ne, 4), At[k]).reshape(B, ne, 2, 2)
-        det = ak[:, :, 0, 0] * ak[:, :, 1, 1] - ak[:, :, 0, 1] * ak[:, :, 1, 0]
-        scale = np.linalg.norm(ak[:, :, 0], axis=2) * np.linalg.norm(ak[:, :, 1], axis=2)
-        sing = np.abs(det) <= 1e-12 * scale
-        dd = np.where(sing, 1.0, det)
-        lam = (-h[:, None, 0] * ak[:, :, 1, 1] + h[:, None, 1] * ak[:, :, 1, 0]) / dd
-        sig = (-ak[:, :, 0, 0] * h[:, None, 1] + ak[:, :, 0, 1] * h[:, None, 0]) / dd
-        singular |= sing.any(axis=1)
-        psi = lam[..., None] * edge[k][:, :, 0] + sig[..., None] * edge[k][:, :, 1]  # psi - e_alpha
-        val = np.matmul(psi, np.swapaxes(pts[k], 1, 2))  # value - 1 at the 10 points
-        sup = ~sing & (val.max(axis=2) <= tol)
-        sep = ~sing & (val.min(axis=2) >= -tol)
-        ge = np.matmul(edge[k].reshape(B, 2 * ne, 4), GEt[k]).reshape(B, ne, 2, 6)
-        u = g0[:, None] + lam[..., None] * ge[:, :, 0] + sig[..., None] * ge[:, :, 1]
-        un = np.linalg.norm(u, axis=2)
-        best = np.minimum(best, np.where(sup, 1.0 / un, np.inf).min(axis=1))
-        outside |= sep.any(axis=1)
+    tri, edge, pts = _bipyramid_dirs(mu)
+    best = np.empty(B)
+    outside = np.empty(B, dtype=bool)
+    singular = np.empty(B, dtype=bool)
+    facet_pairs(np.ascontiguousarray(np.stack(A, 1)), np.ascontiguousarray(np.stack(GE, 1)),
+                np.ascontiguousarray(h), np.ascontiguousarray(g0), tri, edge, pts,
+                np.ascontiguousarray(tors, dtype=np.float64), FACET_TOL, best, outside, singular)
     eps = np.where(outside | ~np.isfinite(best), 0.0, best)
     eps = np.where(eps > EPSILON_TOL, eps, 0.0)
     exact = ok & ~singular & (np.isfinite(best) | outside)
