@@ -181,6 +181,35 @@ def test_near_pairs_equal_the_direct_distance_test():
         assert got == sorted(zip(rf.tolist(), rb.tolist()))
 
 
+def test_within_disc_equals_the_vertex_distances_to_the_closing_axis():
+    """The compiled disc test of the patches (:func:`grasplan.grasps.quality_kernels.within_disc`)
+    against each valid vertex's distance to the closing axis written with a cross product: padded
+    polygons (the padding lies far out and must not count), polygons with no valid vertex (never
+    within), radii drawn on both sides of the disc."""
+    from grasplan.grasps.quality_kernels import within_disc
+
+    rng = np.random.default_rng(8)
+    K, V, M = 500, 9, 40
+    R = np.stack([np.linalg.qr(rng.normal(size=(3, 3)))[0] for _ in range(M)])
+    o = rng.normal(size=(M, 3)) * 0.01
+    ref = rng.integers(0, M, K)
+    npx = rng.integers(0, V + 1, K)
+    radius = rng.uniform(0.0, 0.02, (K, V))
+    u = rng.normal(size=(K, V, 3))
+    u -= np.einsum("kvi,ki->kv", u, R[ref][:, :, 0])[..., None] * R[ref][:, None, :, 0]
+    u /= np.linalg.norm(u, axis=2, keepdims=True)
+    poly = o[ref][:, None] + rng.normal(size=(K, V, 1)) * R[ref][:, None, :, 0] + radius[..., None] * u
+    poly[np.arange(V)[None, :] >= npx[:, None]] = 1.0  # padding, 1 m out
+    disc = 0.012
+    dist = np.linalg.norm(np.cross(poly - o[ref][:, None], R[ref][:, None, :, 0]), axis=2)
+    valid = np.arange(V)[None, :] < npx[:, None]
+    ref_in = (npx > 0) & np.all(~valid | (dist < disc), axis=1)
+    assert np.all(np.abs(dist[valid] - disc) > 1e-12)  # none drawn on the rim, where rounding decides
+    got = within_disc(poly, npx.astype(np.int64), o, R, ref.astype(np.int64), disc * disc)
+    assert 50 < ref_in.sum() < K - 50
+    assert np.array_equal(got, ref_in)
+
+
 # ------------------------------------------------------------------------------------------------
 # contact patches: coplanar areas merged into boundary loops
 # ------------------------------------------------------------------------------------------------

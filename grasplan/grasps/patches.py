@@ -21,7 +21,7 @@ from ..geometry.grouping import expand
 from ..gripper.model import Gripper
 from ..geometry.meshdata import TriangleMesh, edge_adjacency
 from ..geometry.polygons import equivalent_widths, polygon_moments
-from .quality_kernels import accumulate_pairs, slab_polygons
+from .quality_kernels import accumulate_pairs, slab_polygons, within_disc
 from .patch_search import near_faces_dense, near_faces_slab
 
 #: part surface within this distance of the pad plane touches the pad, m (pad compliance)
@@ -416,12 +416,8 @@ def _patch_pairs(jp: _JawPass, f: np.ndarray, gu: np.ndarray, nx: np.ndarray, el
                                     np.ascontiguousarray(gu, dtype=np.int64), ct.cu, ct.axu, float(depth))
     gu, f, nx = gu[keep], f[keep], nx[keep]
     if disc > 0 and same_origin is not None and len(gu):
-        ref = members[gstart[gu]]
-        d = poly - o[ref][:, None]
-        along = np.einsum("kvi,ki->kv", d, R[ref][:, :, 0])
-        rho2 = np.einsum("kvi,kvi->kv", d, d) - along * along
-        valid = np.arange(poly.shape[1])[None, :] < npx[:, None]
-        fast = (npx > 0) & same_origin[gu] & (np.where(valid, rho2, 0.0).max(axis=1, initial=0.0) < disc * disc)
+        fast = same_origin[gu] & within_disc(np.ascontiguousarray(poly), np.ascontiguousarray(npx, dtype=np.int64), o, R,
+                                             members[gstart[gu]], disc * disc)
         if fast.any():
             _rotated(jp, poly[fast], npx[fast], nx[fast], weight[f[fast]], gu[fast], ct)
             slow = ~fast

@@ -142,6 +142,32 @@ def slab_polygons(pts: np.ndarray, first: np.ndarray, count: np.ndarray, f: np.n
 
 
 @kernel(cache=True)
+def within_disc(poly: np.ndarray, npx: np.ndarray, o: np.ndarray, R: np.ndarray, ref: np.ndarray,
+                disc2: float) -> np.ndarray:
+    """(K,) bool: every valid vertex (the first ``npx[k]``, at least one) of polygon ``poly[k]``
+    (K, V, 3) lies within ``sqrt(disc2)`` of the closing axis of pose ``ref[k]`` (the line through
+    ``o[ref[k]]`` along the first column of ``R[ref[k]]``; squared distance ``|d|^2 - (d . x)^2``):
+    inside the disc the pad covers at every roll about that axis."""
+    K = poly.shape[0]
+    out = np.zeros(K, dtype=np.bool_)
+    for k in range(K):
+        if npx[k] <= 0:
+            continue
+        r = ref[k]
+        ok = True
+        for v in range(npx[k]):
+            d0 = poly[k, v, 0] - o[r, 0]
+            d1 = poly[k, v, 1] - o[r, 1]
+            d2 = poly[k, v, 2] - o[r, 2]
+            along = d0 * R[r, 0, 0] + d1 * R[r, 1, 0] + d2 * R[r, 2, 0]
+            if not (d0 * d0 + d1 * d1 + d2 * d2) - along * along < disc2:
+                ok = False
+                break
+        out[k] = ok
+    return out
+
+
+@kernel(cache=True)
 def _load_holds(s: float, d: int, fx: np.ndarray, fy: np.ndarray, fz: np.ndarray, tau_x: np.ndarray, tp: np.ndarray,
                 uy: np.ndarray, uz: np.ndarray, arm0: float, arm1: float, inv_w: float, L0: float, L1: float, F: float,
                 mu: float, lmin: float) -> bool:
