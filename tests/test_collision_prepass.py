@@ -56,6 +56,8 @@ def test_timing_split_in_the_grasp_result(bracket_poses):
               "collision_obstacle"):
         assert t[k] >= 0.0
     assert t["collision_part_boxes"] + t["collision_part_coal"] <= t["collision_part"] <= t["collision"]
+    parts = [t[k] for k in ("quality_patches", "quality_margin", "quality_epsilon")]
+    assert min(parts) > 0.0 and sum(parts) <= t["quality"]
 
 
 @settings(max_examples=6, deadline=None)

@@ -242,7 +242,8 @@ def compute_grasps(
 
     t = time.perf_counter()
     quality, mass_props, score, note = quality_and_score(part.mesh, g, T, frames.T_part_tcp, frames.candidate,
-                                                         cand.candidates, status, candidates.mu, grasps)
+                                                         cand.candidates, status, candidates.mu, grasps,
+                                                         timing=timing)
     timing["quality"] = time.perf_counter() - t
     return GraspResult(cand=cand, gripper=g, cell=c, T_world_part=T, frames=frames, status=status, params=grasps,
                        timing_s=timing, part_pose_source=source, quality=quality, mass_props=mass_props, score=score,

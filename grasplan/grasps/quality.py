@@ -9,6 +9,7 @@ no grasp holds.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -94,7 +95,8 @@ def part_radius(part_mesh: TriangleMesh, com: np.ndarray) -> float:
 
 def grasp_quality(part_mesh: TriangleMesh, mass_props: MassProperties, gripper: Gripper,
                   T_part_tcp: np.ndarray, contacts: np.ndarray, normals: np.ndarray, width: np.ndarray, *,
-                  T_world_part: np.ndarray, mu: float, grip_force: float | None = None) -> Quality:
+                  T_world_part: np.ndarray, mu: float, grip_force: float | None = None,
+                  timing: dict[str, float] | None = None) -> Quality:
     """Contact patches, gravity margin and epsilon of ``M`` grasps:
 
     - the **contact patch** of each finger pad (area, type point / line / surface, equivalent widths):
@@ -125,6 +127,9 @@ def grasp_quality(part_mesh: TriangleMesh, mass_props: MassProperties, gripper: 
     grip_force : float, optional
         Gripping force, N (sum of both jaws: each contact is pressed with half); default
         ``gripper.grip_force``.
+    timing : dict, optional
+        Seconds of the three steps are added to it: ``quality_patches``, ``quality_margin``,
+        ``quality_epsilon``.
     """
     T = check_transform(T_part_tcp, "T_part_tcp", batch=True) if len(np.shape(T_part_tcp)) == 3 else \
         check_transform(T_part_tcp, "T_part_tcp")[None]
@@ -147,10 +152,17 @@ def grasp_quality(part_mesh: TriangleMesh, mass_props: MassProperties, gripper: 
         z2 = np.zeros((0, 2))
         return Quality(contact_area=z2, contact_type=np.zeros((0, 2), dtype=np.int8), contact_width=np.zeros((0, 2, 2)),
                        gravity_margin=np.zeros(0), epsilon=np.zeros(0), grip_force=F, mu=float(mu))
+    t0 = time.perf_counter()
     area, kind, widths = contact_patches(part_mesh, gripper, T, C)
+    t1 = time.perf_counter()
     margin = gravity_margin(mass_props, Twp, T, w, area, mu=mu, normal_force=F / CONTACTS_PER_GRIP,
                             patch_width=pressure_widths(kind, widths))
+    t2 = time.perf_counter()
     eps = epsilon_dedup(C, N, area, mass_props.com, max(part_radius(part_mesh, mass_props.com), 1e-9), mu)
+    if timing is not None:
+        for key, dt in (("quality_patches", t1 - t0), ("quality_margin", t2 - t1),
+                        ("quality_epsilon", time.perf_counter() - t2)):
+            timing[key] = timing.get(key, 0.0) + dt
     return Quality(contact_area=area, contact_type=kind, contact_width=widths, gravity_margin=margin,
                    epsilon=eps, grip_force=F, mu=float(mu))
 
@@ -218,7 +230,7 @@ def quality_columns(quality: Quality, rows: np.ndarray, M: int) -> dict:
 
 def quality_and_score(part_mesh: TriangleMesh, gripper: Gripper, T_world_part: np.ndarray, T_part_tcp: np.ndarray,
                       candidate: np.ndarray, candidates: Candidates, status: np.ndarray, mu: float, params: GraspParams, *,
-                      mass_props: MassProperties | None = None,
+                      mass_props: MassProperties | None = None, timing: dict[str, float] | None = None,
                       ) -> tuple[Quality | None, MassProperties | None, np.ndarray, str]:
     """The grasp stage's quality step: mass properties at ``params.density`` / ``params.mass``, the
     quality of the ``ok`` poses and the score of every pose (NaN where not ``ok``) with the weights
@@ -227,7 +239,8 @@ def quality_and_score(part_mesh: TriangleMesh, gripper: Gripper, T_world_part: n
     Returns ``(Quality of the ok rows, MassProperties, score (M,), note)``. A part without volume
     (flat, degenerate: no mass properties) has no quality: ``(None, None, score, note)`` with the
     score of the other terms and ``note`` saying why; ``note`` is "" otherwise. ``mass_props``: the
-    part's mass properties at ``params`` when the caller already has them (chunked callers)."""
+    part's mass properties at ``params`` when the caller already has them (chunked callers);
+    ``timing``: the quality's split is added to it (:func:`grasp_quality`)."""
     T = np.asarray(T_part_tcp, dtype=np.float64).reshape(-1, 4, 4)
     M = len(T)
     ok = np.flatnonzero(np.asarray(status).astype(str) == Status.OK.value)
@@ -238,7 +251,8 @@ def quality_and_score(part_mesh: TriangleMesh, gripper: Gripper, T_world_part: n
     if mp is None:
         mp, note = mass_or_note(part_mesh, params)
     q = None if mp is None else grasp_quality(part_mesh, mp, gripper, T[ok], candidates.contacts[ci],
-                                              candidates.normals[ci], width, T_world_part=T_world_part, mu=mu)
+                                              candidates.normals[ci], width, T_world_part=T_world_part, mu=mu,
+                                              timing=timing)
     score = np.full(M, np.nan)
     score[ok] = stage_score(part_mesh, gripper, T_world_part, T[ok], width, params, q, mp)
     return q, mp, score, note
