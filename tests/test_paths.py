@@ -128,6 +128,23 @@ def test_interpolate_path_repeated_waypoints_and_index(k, n, step, seed):
     assert len(d) == 1 + int(pieces.sum())
 
 
+def test_interpolate_path_edges():
+    """One waypoint; a chain of waypoints each within 1e-12 rad of the one before (all repeats, even
+    where the chain drifts further); a transposed float32 path (any layout and dtype)."""
+    q = np.array([[0.3, -1.2, 0.5]])
+    d, idx = interpolate_path(q, return_index=True)
+    np.testing.assert_array_equal(d, q)
+    assert idx.tolist() == [0] and d is not q
+    drift = q + np.array([[0.0], [6e-13], [1.2e-12], [1.8e-12]]) * np.array([[1.0, 0.0, 0.0]])
+    d, idx = interpolate_path(drift, return_index=True)
+    np.testing.assert_array_equal(d, q)
+    assert idx.tolist() == [0, 0, 0, 0]
+    far = np.vstack([q, q + [0.05, 0.0, 0.0], q + [0.05, 0.0, 0.0], q + [0.05, 0.021, 0.0]])
+    d, idx = interpolate_path(np.asfortranarray(far.astype(np.float32).T).T, step=0.01, return_index=True)
+    assert len(d) == 1 + 5 + 3 and idx.tolist() == [0, 5, 5, 8]
+    np.testing.assert_allclose(d[idx], far, atol=1e-7)
+
+
 # --------------------------------------------------------------------------------------------------
 # straight approach on the UR5 (kinematics only: scene=None)
 # --------------------------------------------------------------------------------------------------

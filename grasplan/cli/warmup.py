@@ -20,7 +20,8 @@ from types import ModuleType
 from typing import Any
 
 #: the modules holding kernels (the warm-up checks every kernel of every module it loaded)
-KERNEL_MODULES = ("grasplan.robot.ik.ur_batch", "grasplan.robot.ik.solution_kernels", "grasplan.grasps.collision_boxes",
+KERNEL_MODULES = ("grasplan.geometry.interpolation", "grasplan.robot.ik.ur_batch", "grasplan.robot.ik.solution_kernels",
+                  "grasplan.grasps.collision_boxes",
                   "grasplan.grasps.quality_kernels", "grasplan.grasps.epsilon_kernels", "grasplan.grasps.patch_search",
                   "grasplan.grasps.ranking", "grasplan.motion.pathboxes", "grasplan.pick.gripboxes")
 #: half extents (m) of the box the warm-up plans and picks
