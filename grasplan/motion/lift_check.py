@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from ..geometry.grouping import expand
 from ..geometry.interpolation import interpolate_path
 from .collision_scene import PART, CollisionScene
 from .pathboxes import scene_open
@@ -129,6 +130,13 @@ def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touc
     support_ids = _support_pairs(scene) if isinstance(scene, CollisionScene) else None
     if support_ids is not None:
         support_ids = support_ids[scene._active[support_ids]]
+    # the pairs whose oriented boxes overlap, per configuration, with every pair now active: one
+    # pass for the whole lift (grasplan.motion.pathboxes: coal can find no other pair colliding);
+    # each group below drops the pairs it switches off
+    open_all = None
+    if isinstance(scene, CollisionScene):
+        scene.set_opening(width)
+        open_all = scene_open(scene, dense_all)
     for k0, k1, support in ((n_touch, len(path), False), (0, n_touch + 1, True)):
         if support and n_touch == 0:
             continue
@@ -157,10 +165,7 @@ def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touc
             try:
                 # free where coal finds none of the pairs whose oriented boxes overlap colliding
                 # (grasplan.motion.pathboxes: the others cannot); only the rest needs the allowances
-                found = None
-                if isinstance(scene, CollisionScene):
-                    scene.set_opening(width)
-                    found = scene_open(scene, dense[idx])
+                found = None if open_all is None else _open_rows(open_all, rows_all[k0] + idx, off)
                 if found is not None:  # only the configurations with pairs left to coal
                     starts, pair_ids = found
                     keep = np.flatnonzero(starts[1:] > starts[:-1])
@@ -184,6 +189,20 @@ def lift_collision(scene: CollisionScene, path: np.ndarray, width: float, n_touc
         if bad is not None:
             return scene.colliding_pairs(dense[bad], width)
     return None
+
+
+def _open_rows(open_all: tuple[np.ndarray, np.ndarray], rows: np.ndarray, off: np.ndarray | None
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """``(starts, pair ids)`` of :func:`grasplan.motion.pathboxes.scene_open` for the configurations
+    ``rows`` of the call that gave ``open_all``, without the pairs ``off`` (switched off there)."""
+    starts_all, ids_all = open_all
+    first = starts_all[rows]
+    own, k = expand(starts_all[rows + 1] - first)
+    ids = ids_all[first[own] + k]
+    if off is not None and len(ids):
+        keep = ~np.isin(ids, off)
+        own, ids = own[keep], ids[keep]
+    return np.concatenate([[0], np.cumsum(np.bincount(own, minlength=len(rows)))]), ids
 
 
 def lift_precheck_drop(scene: CollisionScene, cell: bool = True) -> np.ndarray:
