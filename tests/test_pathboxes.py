@@ -185,6 +185,43 @@ def test_ranges_list_what_each_configuration_needs():
     assert n_hit > 0
 
 
+def test_one_pass_for_a_lift_keeps_every_pair_coal_finds_with_some_pairs_off():
+    """The lift check's one box pass (``lift_check._open_rows``): the configurations of one group,
+    the pairs that group switches off dropped, list every pair coal finds colliding with those
+    pairs off, and none of them."""
+    from grasplan.motion.lift_check import _open_rows
+
+    scene = _pile_scene("ur5")
+    robot = scene.robot
+    att = scene.attached(np.eye(4))
+    att.set_opening(0.02)
+    rng = np.random.default_rng(9)
+    home = np.asarray(robot.q_home, dtype=np.float64)
+    n_hit = n_dropped = 0
+    for _ in range(4):
+        qs = interpolate_path(np.clip(home + rng.normal(0.0, 0.6, (3, robot.nq)), robot.lower, robot.upper))
+        open_all = scene_open(att, qs)
+        rows = np.sort(rng.choice(len(qs), size=len(qs) // 3, replace=False))
+        listed_all = np.unique(open_all[1])
+        off = rng.choice(listed_all, size=max(1, len(listed_all) // 2), replace=False) if len(listed_all) else None
+        starts, ids = _open_rows(open_all, rows, off)
+        assert len(starts) == len(rows) + 1 and starts[-1] == len(ids)
+        if off is not None:
+            assert not np.isin(ids, off).any()
+            att.switch_pairs(off, False)
+        try:
+            for j, k in enumerate(rows.tolist()):
+                hit = set(att._hits(qs[k], 0.02, False))
+                listed = set(ids[starts[j]:starts[j + 1]].tolist())
+                assert hit <= listed, (k, hit - listed)
+                n_hit += bool(hit)
+                n_dropped += len(set(open_all[1][open_all[0][k]:open_all[0][k + 1]].tolist()) - listed)
+        finally:
+            if off is not None:
+                att.switch_pairs(off, True)
+    assert n_hit > 0 and n_dropped > 0
+
+
 @pytest.fixture(scope="module")
 def gear_plan():
     """The example gear planned with the UR5 on the table, and its collision scene."""
