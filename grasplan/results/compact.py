@@ -5,7 +5,7 @@
 * ``grasps``: every grasp the robot stage tried (planned, unreachable, ik_collision, no_path,
   place_*) and every simulated grasp, as full objects (unchanged form);
 * ``untried``: the other collision-free grasps (not_tried, not_checked) in column form
-  (:func:`untried_json`): one row per grasp (id, frame, roll, status, reason, score, rank,
+  (:func:`untried_block`): one row per grasp (id, frame, roll, status, reason, score, rank,
   quality) and one ``frames`` row per distinct contact pair (candidate, region, contacts,
   normals, width and the TCP pose at roll 0: ``T_part_tcp = T_part_tcp_roll0 @ Rx(roll)``);
 * ``rejected``: the poses that collide, as counts per candidate and reason (:class:`RejectedCounts`).
@@ -23,7 +23,7 @@ import numpy as np
 from ..errors import InputError
 from ..status import Status
 from .grasp_table import GraspTable
-from .json_columns import Listed, Numbers, block_values
+from .json_columns import Listed, Numbers
 from .quality_json import CONTACT_TYPES, HOLD_FORCE_DECIMALS, hold_force
 
 KEEP_COLLISION_FREE = "collision_free"
@@ -153,7 +153,8 @@ def _listed(a: np.ndarray, decimals: int | None = None, null: np.ndarray | None 
 
 def untried_block(table: GraspTable, rows: np.ndarray, grip_force: float) -> dict[str, Any]:
     """The ``untried`` block: ``rows`` of ``table`` in column form (module docstring), its lists
-    as :class:`~grasplan.results.json_columns.Listed` columns (:func:`untried_json`: as lists;
+    as :class:`~grasplan.results.json_columns.Listed` columns
+    (:func:`~grasplan.results.json_columns.block_values`: as lists;
     :func:`~grasplan.results.json_columns.block_text`: its JSON text); ``grip_force`` (N) gives
     each grasp's ``hold_force_N``."""
     r = np.asarray(rows, dtype=np.int64)
@@ -190,11 +191,6 @@ def untried_block(table: GraspTable, rows: np.ndarray, grip_force: float) -> dic
                           "area_m2": _listed(area[r], AREA_DECIMALS, null=none),
                           "type": _listed(kind[r].astype(np.int64), null=none), "types": list(CONTACT_TYPES)}
     return out
-
-
-def untried_json(table: GraspTable, rows: np.ndarray, grip_force: float) -> dict[str, Any]:
-    """The ``untried`` block as ``json.dumps`` takes it (:func:`untried_block`'s lists as lists)."""
-    return block_values(untried_block(table, rows, grip_force))
 
 
 def _column(doc: dict[str, Any], key: str, shape: tuple[int, ...], where: str, *, dtype: Any = np.float64,
@@ -243,7 +239,7 @@ FRAME_KEYS = {"candidate", "region", "contacts", "normals", "width", "T_part_tcp
 
 
 def untried_from_json(doc: Any, where: str) -> GraspTable:
-    """The grasps of an ``untried`` block (:func:`untried_json`), checked in full: every column of
+    """The grasps of an ``untried`` block (:func:`untried_block`), checked in full: every column of
     the same length, finite numbers, frame / status / reason indices in range, statuses among
     :data:`UNTRIED`, rigid roll-0 poses. InputError naming the column and what would pass."""
     from ..geometry.transforms import check_transform
