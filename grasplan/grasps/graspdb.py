@@ -22,7 +22,7 @@ import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -44,6 +44,9 @@ from ..config.scoring import PHYSICAL_TERMS, ScoringConfig, score_grasps
 from ..status import Status
 from ..geometry.transforms import check_transform
 from .wrench import CONTACTS_PER_GRIP, gravity_margin, margin_summary_of, pressure_widths
+
+#: what a margin function of :meth:`GraspDatabase._margins` returns
+_M = TypeVar("_M")
 
 DB_SCHEMA = "grasplan.graspdb/1"
 #: the file name ending `grasplan database` and the cache use
@@ -191,14 +194,10 @@ class GraspDatabase:
         if self.mass_props is None:
             return None
         r = self._rows(rows)
-        T = check_transform(T_world_part, "T_world_part")
-        F = float(self.gripper.grip_force)
-        gm = gravity_margin(self.mass_props, T, self.T_part_tcp[r], self.width[r], self.contact_area[r],
-                            mu=self.mu, normal_force=F / CONTACTS_PER_GRIP,
-                            patch_width=pressure_widths(self.contact_type[r], self.contact_width[r]))
+        gm = self._margins(gravity_margin, T_world_part, r)
         return Quality(contact_area=self.contact_area[r], contact_type=self.contact_type[r],
                        contact_width=self.contact_width[r], gravity_margin=gm, epsilon=self.epsilon[r],
-                       grip_force=F, mu=self.mu)
+                       grip_force=float(self.gripper.grip_force), mu=self.mu)
 
     def holding_at(self, T_world_part: np.ndarray, rows: np.ndarray | None = None) -> tuple[int, float]:
         """``(rows predicted to hold, largest gravity_margin)`` of ``rows`` (default all) with the part
@@ -207,11 +206,17 @@ class GraspDatabase:
         r = self._rows(rows)
         if self.mass_props is None or not len(r):
             return 0, 0.0
+        return self._margins(margin_summary_of, T_world_part, r)
+
+    def _margins(self, fn: Callable[..., _M], T_world_part: np.ndarray, r: np.ndarray) -> _M:
+        """``fn`` (:func:`~grasplan.grasps.wrench.gravity_margin` or
+        :func:`~grasplan.grasps.wrench.margin_summary_of`) of rows ``r`` with the part at
+        ``T_world_part``: the stored patches, the gripper's force on each contact."""
+        assert self.mass_props is not None
         T = check_transform(T_world_part, "T_world_part")
-        F = float(self.gripper.grip_force)
-        return margin_summary_of(self.mass_props, T, self.T_part_tcp[r], self.width[r], self.contact_area[r],
-                                 mu=self.mu, normal_force=F / CONTACTS_PER_GRIP,
-                                 patch_width=pressure_widths(self.contact_type[r], self.contact_width[r]))
+        return fn(self.mass_props, T, self.T_part_tcp[r], self.width[r], self.contact_area[r], mu=self.mu,
+                  normal_force=float(self.gripper.grip_force) / CONTACTS_PER_GRIP,
+                  patch_width=pressure_widths(self.contact_type[r], self.contact_width[r]))
 
     def score_at(self, part_mesh: TriangleMesh, T_world_part: np.ndarray, rows: np.ndarray | None = None,
                  quality: Quality | None = None) -> np.ndarray:
