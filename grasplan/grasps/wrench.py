@@ -303,14 +303,15 @@ def ferrari_canny_pair(contacts: np.ndarray, normals: np.ndarray, com: np.ndarra
     t1, t2 = _tangent_basis(nu)
     r = C - com
     tors = np.asarray(torsion, dtype=np.float64).reshape(M, 2)
+    bipyramid = _bipyramid_dirs(mu)
     for s0 in range(0, M, EPS_CHUNK):
         sl = slice(s0, min(M, s0 + EPS_CHUNK))
-        out[sl], exact[sl] = _fc_pair_chunk(nu[sl], t1[sl], t2[sl], r[sl], rho, mu, tors[sl])
+        out[sl], exact[sl] = _fc_pair_chunk(nu[sl], t1[sl], t2[sl], r[sl], rho, tors[sl], bipyramid)
     return out, exact
 
 
-def _fc_pair_chunk(nu: np.ndarray, t1: np.ndarray, t2: np.ndarray, r: np.ndarray, rho: float, mu: float,
-                   tors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _fc_pair_chunk(nu: np.ndarray, t1: np.ndarray, t2: np.ndarray, r: np.ndarray, rho: float, tors: np.ndarray,
+                   bipyramid: tuple[np.ndarray, np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     B = len(nu)
     # phi_k = L_k^T u: (a + b x r_k / rho, b . nu_k / rho); Lt (B, 8, 6) stacks both contacts
     Lt = np.zeros((B, 8, 6))
@@ -333,7 +334,7 @@ def _fc_pair_chunk(nu: np.ndarray, t1: np.ndarray, t2: np.ndarray, r: np.ndarray
     GE = [np.matmul(G[:, :, 4 * k:4 * k + 4], Ek[:, k]) for k in range(2)]  # (B, 6, 4)
     h = A[0][:, :, 0] + A[1][:, :, 0]
     g0 = GE[0][:, :, 0] + GE[1][:, :, 0]
-    tri, edge, pts = _bipyramid_dirs(mu)
+    tri, edge, pts = bipyramid
     best = np.empty(B)
     outside = np.empty(B, dtype=bool)
     singular = np.empty(B, dtype=bool)
